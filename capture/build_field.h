@@ -1,0 +1,32 @@
+#pragma once
+// Session -> reflectance field: dark subtraction, HDR merge of each LED's bracket, conversion to
+// radiance (camera.radiometric_scale) and division by each LED's calibrated irradiance per channel.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+#include "capture/hdr_merge.h"
+#include "lightstage/session.h"
+
+namespace ls::capture {
+
+struct BuildOptions {
+  int time_step = 0;
+  MergeOptions merge;
+  std::function<void(int done, int total)> on_progress;
+};
+
+struct BuildSummary {
+  int lights_used = 0;
+  std::vector<int> lights_missing;      // LED indices without complete frames, or flagged dead.
+  double saturated_fraction = 0.0;      // Samples saturated in every exposure (lower bounds).
+  std::string response_used;            // "linear", "gamma 2.2", "table FILE", "recovered".
+  double seconds = 0.0;
+  std::vector<std::string> warnings;   // E.g. an exposure step without dark frames.
+};
+
+ReflectanceField build_field(const Session& session, const BuildOptions& options,
+                             BuildSummary* summary = nullptr);
+
+}  // namespace ls::capture

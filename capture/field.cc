@@ -1,0 +1,266 @@
+#include "capture/field.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <new>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <unordered_map>
+
+#include "lightstage/errors.h"
+
+namespace ls::capture {
+namespace {
+
+constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
+// Share of the available memory one allocation may take: the rest is for frames, the OS and others.
+constexpr double kMemoryShare = 0.8;
+constexpr const char* kLightsAttribute = "lightstage:lights";
+constexpr const char* kSceneTimeAttribute = "lightstage:scene_time_s";
+const char kChannelSuffix[3] = {'R', 'G', 'B'};
+
+std::string gib(double bytes) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "%.1f", bytes / kGiB);
+  return text;
+}
+
+std::string channel_name(int led_id, int c) {
+  char text[32];
+  std::snprintf(text, sizeof(text), "led%03d.%c", led_id, kChannelSuffix[c]);
+  return text;
+}
+
+// A cgroup (v2) memory limit, if we run inside one that is tighter than the machine.
+std::optional<std::size_t> cgroup_available_bytes() {
+  std::ifstream max_file("/sys/fs/cgroup/memory.max");
+  std::ifstream current_file("/sys/fs/cgroup/memory.current");
+  std::string max_text;
+  std::size_t current = 0;
+  if (!(max_file >> max_text) || !(current_file >> current) || max_text == "max") {
+    return std::nullopt;
+  }
+  try {
+    const std::size_t limit = std::stoull(max_text);
+    return limit > current ? limit - current : 0;
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+}  // namespace
+
+ReflectanceField::ReflectanceField(int width, int height, std::vector<FieldLight> lights)
+    : width_(width), height_(height), lights_(std::move(lights)) {
+  if (width <= 0 || height <= 0) {
+    throw InputError("reflectance field: size must be positive, got " + std::to_string(width) +
+                     "x" + std::to_string(height));
+  }
+  const std::size_t bytes = bytes_for(width, height, num_lights());
+  require_memory(bytes, "reflectance field " + std::to_string(width) + "x" +
+                            std::to_string(height) + " with " + std::to_string(num_lights()) +
+                            " LEDs");
+  try {
+    values_.assign(bytes / sizeof(float), 0.0f);
+  } catch (const std::bad_alloc&) {
+    throw InputError("reflectance field " + std::to_string(width) + "x" + std::to_string(height) +
+                     " with " + std::to_string(num_lights()) + " LEDs: allocating " +
+                     gib(double(bytes)) + " GiB failed; use a smaller crop or fewer LEDs");
+  }
+}
+
+std::size_t available_memory_bytes() {
+  std::optional<std::size_t> available;
+  std::ifstream meminfo("/proc/meminfo");
+  std::string key;
+  std::size_t value_kib = 0;
+  std::string unit;
+  while (meminfo >> key >> value_kib) {
+    std::getline(meminfo, unit);
+    if (key == "MemAvailable:") {
+      available = value_kib * std::size_t(1024);
+      break;
+    }
+  }
+  if (!available) {
+    const long pages = sysconf(_SC_AVPHYS_PAGES);
+    const long page_size = sysconf(_SC_PAGESIZE);
+    available = pages > 0 && page_size > 0 ? std::size_t(pages) * std::size_t(page_size) : 0;
+  }
+  if (const auto cgroup = cgroup_available_bytes()) available = std::min(*available, *cgroup);
+  return *available;
+}
+
+void require_memory(std::size_t bytes, const std::string& what) {
+  const std::size_t available = available_memory_bytes();
+  if (double(bytes) > kMemoryShare * double(available)) {
+    throw InputError(what + " needs " + gib(double(bytes)) + " GiB but only " +
+                     gib(double(available)) +
+                     " GiB of memory are available (at most 80% may be used); use a smaller crop "
+                     "or fewer LEDs");
+  }
+}
+
+void write_field(const std::filesystem::path& path, const ReflectanceField& field) {
+  const std::string name = path.string();
+  if (field.width() <= 0 || field.height() <= 0 || field.num_lights() <= 0) {
+    throw InputError(name + ": cannot write an empty reflectance field");
+  }
+  const int num_channels = 3 * field.num_lights();
+  OIIO::ImageSpec spec(field.width(), field.height(), num_channels, OIIO::TypeDesc::FLOAT);
+  spec.channelnames.clear();
+  nlohmann::json lights = nlohmann::json::array();
+  for (const FieldLight& light : field.lights()) {
+    for (int c = 0; c < 3; ++c) spec.channelnames.push_back(channel_name(light.led_id, c));
+    lights.push_back({{"id", light.led_id},
+                      {"dir", {light.dir_in_stage.x(), light.dir_in_stage.y(),
+                               light.dir_in_stage.z()}},
+                      {"valid", light.valid}});
+  }
+  spec.alpha_channel = -1;
+  spec.attribute(kLightsAttribute, lights.dump());
+  spec.attribute(kSceneTimeAttribute, OIIO::TypeDesc::DOUBLE, &field.scene_time_s);
+  // ZIP (16 scanlines a block): lossless and decodes fast; zero-heavy fields (shadows, invalid
+  // LEDs, background) shrink well. Measured against "none" and "piz" in field_test.
+  spec.attribute("compression", "zip");
+
+  // Atomic: write beside the target under a temporary name, then rename over it.
+  std::filesystem::path temp = path;
+  temp += ".tmp-" + std::to_string(::getpid()) + ".exr";
+  auto out = OIIO::ImageOutput::create("openexr");
+  if (!out) throw InputError(name + ": OpenEXR writer unavailable: " + OIIO::geterror());
+  if (!out->open(temp.string(), spec)) {
+    throw InputError(name + ": cannot open for writing: " + out->geterror());
+  }
+  const bool ok = out->write_image(OIIO::TypeDesc::FLOAT, field.values().data());
+  const bool closed = out->close();
+  if (!ok || !closed) {
+    const std::string error = out->geterror();
+    std::error_code ignored;
+    std::filesystem::remove(temp, ignored);
+    throw InputError(name + ": writing the reflectance field failed: " + error);
+  }
+  std::error_code ec;
+  std::filesystem::rename(temp, path, ec);
+  if (ec) {
+    std::filesystem::remove(temp, ec);
+    throw InputError(name + ": cannot rename the temporary file into place: " + ec.message());
+  }
+}
+
+ReflectanceField read_field(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  auto in = OIIO::ImageInput::open(name);
+  if (!in) throw InputError(name + ": cannot read reflectance field: " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  const OIIO::ParamValue* lights_param = spec.find_attribute(kLightsAttribute);
+  if (lights_param == nullptr || lights_param->type() != OIIO::TypeDesc::STRING) {
+    throw InputError(name + ": not a reflectance field: missing string attribute '" +
+                     std::string(kLightsAttribute) + "'");
+  }
+  std::vector<FieldLight> lights;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(lights_param->get_string());
+    if (!j.is_array()) throw InputError("expected an array");
+    for (size_t i = 0; i < j.size(); ++i) {
+      const nlohmann::json& e = j[i];
+      const auto& dir = e.at("dir");
+      if (!dir.is_array() || dir.size() != 3) throw InputError("dir must be [x, y, z]");
+      FieldLight light;
+      light.led_id = e.at("id").get<int>();
+      light.dir_in_stage = {dir[0].get<double>(), dir[1].get<double>(), dir[2].get<double>()};
+      light.valid = e.at("valid").get<bool>();
+      if (!light.dir_in_stage.allFinite()) throw InputError("dir must be finite");
+      lights.push_back(light);
+    }
+  } catch (const std::exception& e) {
+    throw InputError(name + ": attribute '" + std::string(kLightsAttribute) +
+                     "': expected a JSON array of {id, dir: [x, y, z], valid}: " + e.what());
+  }
+  const int num_lights = int(lights.size());
+  const int num_channels = spec.nchannels;
+  if (num_lights == 0 || num_channels != 3 * num_lights) {
+    throw InputError(name + ": expected " + std::to_string(3 * num_lights) + " channels (3 per " +
+                     "LED for " + std::to_string(num_lights) + " LEDs), found " +
+                     std::to_string(num_channels));
+  }
+  // The EXR library may return channels in another order than written (it sorts them by name):
+  // find each by name and permute into the light-major, RGB-innermost layout.
+  std::unordered_map<std::string, int> layout_index;
+  for (int l = 0; l < num_lights; ++l) {
+    for (int c = 0; c < 3; ++c) {
+      if (!layout_index.emplace(channel_name(lights[l].led_id, c), 3 * l + c).second) {
+        throw InputError(name + ": LED id " + std::to_string(lights[l].led_id) +
+                         " appears twice in '" + kLightsAttribute + "'");
+      }
+    }
+  }
+  std::vector<int> file_to_layout(num_channels);
+  std::vector<bool> seen(num_channels, false);
+  for (int i = 0; i < num_channels; ++i) {
+    const std::string& channel = spec.channelnames[i];
+    auto it = layout_index.find(channel);
+    if (it == layout_index.end()) {
+      throw InputError(name + ": unknown channel '" + channel + "' (expected ledNNN.R/G/B for the " +
+                       "LEDs in '" + kLightsAttribute + "')");
+    }
+    if (seen[it->second]) throw InputError(name + ": channel '" + channel + "' appears twice");
+    seen[it->second] = true;
+    file_to_layout[i] = it->second;
+  }
+  bool identity = true;
+  for (int i = 0; i < num_channels; ++i) identity = identity && file_to_layout[i] == i;
+
+  ReflectanceField field(spec.width, spec.height, std::move(lights));
+  field.source = name;
+  double scene_time_s = 0;
+  if (spec.getattribute(kSceneTimeAttribute, OIIO::TypeDesc::DOUBLE, &scene_time_s)) {
+    field.scene_time_s = scene_time_s;
+  } else if (const OIIO::ParamValue* t = spec.find_attribute(kSceneTimeAttribute)) {
+    field.scene_time_s = t->get_float();
+  }
+
+  const int width = spec.width;
+  const int height = spec.height;
+  const size_t row_values = size_t(width) * num_channels;
+  float* dst = field.pixel(0, 0);
+  if (identity) {
+    if (!in->read_image(0, 0, 0, num_channels, OIIO::TypeDesc::FLOAT, dst)) {
+      throw InputError(name + ": reading pixels failed: " + in->geterror());
+    }
+  } else {
+    // Read in bands of rows so the permutation needs only a small buffer, not a second field.
+    const int band_rows = std::max(1, int((32u << 20) / (row_values * sizeof(float))));
+    std::vector<float> band(size_t(std::min(band_rows, height)) * row_values);
+    for (int y0 = 0; y0 < height; y0 += band_rows) {
+      const int y1 = std::min(height, y0 + band_rows);
+      if (!in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, num_channels,
+                              OIIO::TypeDesc::FLOAT, band.data())) {
+        throw InputError(name + ": reading pixels failed: " + in->geterror());
+      }
+      const size_t pixels = size_t(y1 - y0) * width;
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels), [&](const auto& r) {
+        for (size_t p = r.begin(); p < r.end(); ++p) {
+          const float* src = band.data() + p * num_channels;
+          float* out = dst + (size_t(y0) * width + p) * num_channels;
+          for (int i = 0; i < num_channels; ++i) out[file_to_layout[i]] = src[i];
+        }
+      });
+    }
+  }
+  in->close();
+  for (float v : field.values()) {
+    if (!std::isfinite(v)) {
+      throw InputError(name + ": the reflectance field holds non-finite values");
+    }
+  }
+  return field;
+}
+
+}  // namespace ls::capture

@@ -1,0 +1,72 @@
+#pragma once
+// The reflectance field R(x, l): pixel x's linear value under LED l, per unit of that LED's calibrated
+// irradiance at the origin, after dark subtraction and HDR merge (DESIGN.md). It already contains
+// f_r(x, w_l, w_o) * cos(theta_l) and any shadowing; relighting is I(x) = sum_l R(x, l) * E_l.
+//
+// Layout: pixel-major, values[((y * width + x) * num_lights + l) * 3 + c], float32.
+// Why: relighting streams every pixel's 3L values exactly once, contiguously, against a small E
+// vector that stays in L1, and writes each output pixel once; per-pixel fitting reads one pixel's
+// samples contiguously. Rows are independent, so both parallelise over row tiles.
+#include <Eigen/Core>
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace ls::capture {
+
+struct FieldLight {
+  int led_id = 0;
+  Eigen::Vector3d dir_in_stage{0, 1, 0};
+  bool valid = true;  // False for an LED found dead or missing: its samples are zero, not data.
+};
+
+class ReflectanceField {
+ public:
+  ReflectanceField() = default;
+  // Allocates after checking that it fits in available memory (InputError otherwise).
+  ReflectanceField(int width, int height, std::vector<FieldLight> lights);
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int num_lights() const { return int(lights_.size()); }
+  const std::vector<FieldLight>& lights() const { return lights_; }
+  std::vector<FieldLight>& lights() { return lights_; }
+
+  // The 3 * num_lights() values of one pixel: light-major, RGB innermost.
+  const float* pixel(int x, int y) const { return values_.data() + offset(x, y); }
+  float* pixel(int x, int y) { return values_.data() + offset(x, y); }
+  float at(int x, int y, int light, int c) const { return pixel(x, y)[light * 3 + c]; }
+  float& at(int x, int y, int light, int c) { return pixel(x, y)[light * 3 + c]; }
+
+  const std::vector<float>& values() const { return values_; }
+  std::size_t bytes() const { return values_.size() * sizeof(float); }
+  static std::size_t bytes_for(int width, int height, int num_lights) {
+    return std::size_t(width) * height * num_lights * 3 * sizeof(float);
+  }
+
+  // Scene time of this field's capture (time-varying sessions have one field per time step).
+  double scene_time_s = 0.0;
+  std::string source;  // Session or file it came from, for messages.
+
+ private:
+  std::size_t offset(int x, int y) const {
+    return (std::size_t(y) * width_ + x) * lights_.size() * 3;
+  }
+  int width_ = 0;
+  int height_ = 0;
+  std::vector<FieldLight> lights_;
+  std::vector<float> values_;
+};
+
+// Memory the system can give us now (MemAvailable). Used to refuse what would not fit.
+std::size_t available_memory_bytes();
+// Throws InputError "<what> needs N GiB but only M GiB are available" when bytes > 80% available.
+void require_memory(std::size_t bytes, const std::string& what);
+
+// OpenEXR, float, one channel per LED and colour named "led042.R" etc., pixel-interleaved (which
+// is exactly the in-memory layout); LED directions and validity in the "lightstage:lights" attribute.
+void write_field(const std::filesystem::path& path, const ReflectanceField& field);
+ReflectanceField read_field(const std::filesystem::path& path);
+
+}  // namespace ls::capture

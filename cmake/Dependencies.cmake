@@ -1,0 +1,34 @@
+# Every dependency comes from Debian 12's packages (scripts/setup.sh installs them).
+find_package(PkgConfig REQUIRED)
+find_package(Eigen3 3.4 REQUIRED NO_MODULE)
+find_package(OpenImageIO REQUIRED)
+find_package(OpenEXR REQUIRED)
+find_package(Imath REQUIRED)
+find_package(TBB REQUIRED)
+find_package(nlohmann_json 3.10 REQUIRED)
+find_package(CLI11 REQUIRED)
+find_package(Ceres REQUIRED)
+find_package(Threads REQUIRED)
+
+# Debian's split OpenCV module packages ship no OpenCVConfig.cmake: define imported targets.
+find_path(OPENCV_INCLUDE_DIR opencv2/core.hpp PATH_SUFFIXES opencv4 REQUIRED)
+foreach(module core imgproc imgcodecs photo calib3d)
+  find_library(OPENCV_${module}_LIBRARY opencv_${module} REQUIRED)
+  add_library(opencv::${module} UNKNOWN IMPORTED)
+  # SYSTEM include: OpenCV 4.6 headers warn under C++20.
+  set_target_properties(opencv::${module} PROPERTIES
+    IMPORTED_LOCATION "${OPENCV_${module}_LIBRARY}"
+    INTERFACE_SYSTEM_INCLUDE_DIRECTORIES "${OPENCV_INCLUDE_DIR}"
+    INTERFACE_INCLUDE_DIRECTORIES "${OPENCV_INCLUDE_DIR}")
+endforeach()
+set_property(TARGET opencv::imgproc APPEND PROPERTY INTERFACE_LINK_LIBRARIES opencv::core)
+set_property(TARGET opencv::imgcodecs APPEND PROPERTY INTERFACE_LINK_LIBRARIES opencv::imgproc)
+set_property(TARGET opencv::photo APPEND PROPERTY INTERFACE_LINK_LIBRARIES opencv::imgproc)
+set_property(TARGET opencv::calib3d APPEND PROPERTY INTERFACE_LINK_LIBRARIES opencv::imgproc)
+
+if(LIGHTSTAGE_BUILD_TESTS)
+  find_package(GTest REQUIRED)
+endif()
+if(LIGHTSTAGE_BUILD_BENCHMARKS)
+  find_package(benchmark REQUIRED)
+endif()

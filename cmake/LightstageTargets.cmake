@@ -1,0 +1,36 @@
+# One helper per kind of target so every folder builds the same way.
+set(LIGHTSTAGE_WARNINGS -Wall -Wextra -Wpedantic -Wno-missing-field-initializers)
+if(LIGHTSTAGE_WERROR)
+  list(APPEND LIGHTSTAGE_WARNINGS -Werror)
+endif()
+
+# lightstage_library(NAME SOURCES ... PUBLIC_LINKS ... PRIVATE_LINKS ...)
+function(lightstage_library name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;PUBLIC_LINKS;PRIVATE_LINKS" ${ARGN})
+  add_library(${name} STATIC ${ARG_SOURCES})
+  target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR})
+  target_compile_options(${name} PRIVATE ${LIGHTSTAGE_WARNINGS})
+  target_link_libraries(${name} PUBLIC ${ARG_PUBLIC_LINKS} PRIVATE ${ARG_PRIVATE_LINKS})
+endfunction()
+
+# lightstage_test(NAME SOURCES ... LINKS ... [LABELS ...]): one GoogleTest binary, registered with CTest.
+function(lightstage_test name)
+  cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;LINKS;LABELS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_compile_options(${name} PRIVATE ${LIGHTSTAGE_WARNINGS})
+  target_link_libraries(${name} PRIVATE ${ARG_LINKS} lightstage_test_support GTest::gtest_main GTest::gmock)
+  if(NOT ARG_TIMEOUT)
+    set(ARG_TIMEOUT 600)
+  endif()
+  gtest_discover_tests(${name}
+    WORKING_DIRECTORY ${PROJECT_SOURCE_DIR}
+    PROPERTIES TIMEOUT ${ARG_TIMEOUT} LABELS "${ARG_LABELS}"
+    DISCOVERY_TIMEOUT 60)
+endfunction()
+
+function(lightstage_benchmark name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;LINKS" ${ARGN})
+  add_executable(${name} ${ARG_SOURCES})
+  target_compile_options(${name} PRIVATE ${LIGHTSTAGE_WARNINGS})
+  target_link_libraries(${name} PRIVATE ${ARG_LINKS} benchmark::benchmark)
+endfunction()

@@ -1,0 +1,66 @@
+#pragma once
+// The lightstage subcommands. Each adds itself to the CLI11 app; parsing and printing live here,
+// the work in the libraries. Exit codes: 0 done, 1 usage, 2 bad input, 3 hardware fault,
+// 130 interrupted (resumable).
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace CLI {
+class App;
+}
+
+namespace ls::cli {
+
+inline constexpr int kExitInputError = 2;
+inline constexpr int kExitHardwareError = 3;
+inline constexpr int kExitInterrupted = 130;
+
+void add_capture_command(CLI::App& app);
+void add_build_command(CLI::App& app);
+void add_relight_command(CLI::App& app);
+void add_demo_command(CLI::App& app);
+void add_stage_command(CLI::App& app);
+void add_envmaps_command(CLI::App& app);
+void add_bench_command(CLI::App& app);
+
+// Steps shared by the demo and the single-step commands.
+struct CaptureRequest {
+  std::filesystem::path stage_file;  // Empty: the built-in dome.
+  std::filesystem::path scene_file;  // Empty: the built-in demo scene.
+  std::filesystem::path session_dir;
+  bool resume = false;
+  uint64_t seed = 1;
+  bool quiet = false;
+};
+int capture_session(const CaptureRequest& request);
+
+int build_field_file(const std::filesystem::path& session_dir, const std::filesystem::path& out,
+                     int time_step, bool quiet);
+
+struct RelightRequest {
+  std::filesystem::path field_file;
+  std::vector<std::filesystem::path> maps;
+  std::vector<double> rotations_deg{0.0};
+  double exposure_stops = 0.0;
+  bool auto_exposure = true;
+  double coverage_deg = 0.0;
+  std::filesystem::path out_dir;
+  bool quiet = false;
+};
+// Returns the written preview PNGs with their labels, for contact sheets.
+struct RelitOutput {
+  std::filesystem::path png;
+  std::string label;
+};
+std::vector<RelitOutput> relight_field_file(const RelightRequest& request);
+
+// Lays PNG previews out in a labelled grid.
+void write_contact_sheet(const std::filesystem::path& out, const std::vector<RelitOutput>& tiles,
+                         const std::string& title, int tile_size = 256);
+
+// Shipped maps: data/envmaps in the source tree, plus ../shared/data/envmaps when present.
+std::vector<std::filesystem::path> shipped_environment_maps(bool include_shared);
+std::filesystem::path data_dir();
+
+}  // namespace ls::cli

@@ -1,0 +1,35 @@
+// lightstage: dispatch only. Each subcommand lives in its own file (commands.h).
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <exception>
+
+#include "lightstage/cli/commands.h"
+#include "lightstage/errors.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{
+      "lightstage: light-stage capture and relighting.\n"
+      "Typical use: lightstage capture --out S && lightstage build S --out F.exr && "
+      "lightstage relight F.exr --env MAP.exr --out R\n"
+      "or simply: lightstage demo"};
+  app.require_subcommand(1);
+  ls::cli::add_capture_command(app);
+  ls::cli::add_build_command(app);
+  ls::cli::add_relight_command(app);
+  ls::cli::add_demo_command(app);
+  ls::cli::add_stage_command(app);
+  ls::cli::add_envmaps_command(app);
+  ls::cli::add_bench_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const ls::InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return ls::cli::kExitInputError;
+  } catch (const ls::HardwareError& e) {
+    std::fprintf(stderr, "hardware error: %s\n", e.what());
+    return ls::cli::kExitHardwareError;
+  }
+  return 0;
+}

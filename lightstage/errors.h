@@ -1,0 +1,34 @@
+#pragma once
+// Two tiers of errors (STYLE.md):
+//  * InputError / HardwareError: recoverable, caused by the user's files or the devices. The message
+//    names the file (or device), the field and what was expected; the CLI prints it and exits non-zero.
+//  * LS_CHECK: a broken invariant inside the program; it prints the values involved and aborts.
+#include <stdexcept>
+#include <string>
+
+namespace ls {
+
+class InputError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class HardwareError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+// A camera that did not deliver a frame in time; the sequencer retries these.
+class CameraTimeout : public HardwareError {
+ public:
+  using HardwareError::HardwareError;
+};
+
+[[noreturn]] void check_failed(const char* expr, const char* file, int line, const std::string& what);
+
+}  // namespace ls
+
+#define LS_CHECK(cond, what)                                         \
+  do {                                                               \
+    if (!(cond)) ::ls::check_failed(#cond, __FILE__, __LINE__, what); \
+  } while (0)

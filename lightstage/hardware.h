@@ -1,0 +1,53 @@
+#pragma once
+// The hardware seen by the sequencer. Back-ends (simulated stage, libgpiod, Aravis) implement these;
+// the sequencer cannot tell them apart.
+#include <cstdint>
+#include <string>
+
+#include "lightstage/image.h"
+
+namespace ls {
+
+// Switches LEDs. Indices are positions in Stage::leds.
+class LightController {
+ public:
+  virtual ~LightController() = default;
+  virtual int num_lights() const = 0;
+  virtual void set_light(int led_index, bool on) = 0;  // Throws HardwareError.
+  // Must not throw: it runs on every exit path, including signal handling and errors.
+  virtual void all_off() noexcept = 0;
+};
+
+struct CameraInfo {
+  std::string id;
+  std::string model;
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  int bit_depth = 0;
+};
+
+struct FrameRequest {
+  double exposure_s = 0.01;
+  double gain = 1.0;
+  // Stable identity of this frame within the capture plan. Hardware ignores it; the simulator seeds
+  // its noise with it, so a resumed capture reproduces an uninterrupted one bit for bit.
+  uint64_t sequence_key = 0;
+  double scene_time_s = 0.0;  // Plan time of this frame (the simulator renders the scene then).
+};
+
+struct CapturedFrame {
+  RawFrame raw;
+  double exposure_s = 0.0;  // As reported by the camera after the request.
+  double gain = 1.0;
+};
+
+class Camera {
+ public:
+  virtual ~Camera() = default;
+  virtual CameraInfo info() const = 0;
+  // Throws CameraTimeout when no frame arrives in time, HardwareError for other faults.
+  virtual CapturedFrame capture(const FrameRequest& request) = 0;
+};
+
+}  // namespace ls

@@ -1,0 +1,181 @@
+#include "lightstage/image.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <OpenImageIO/imageio.h>
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <random>
+
+#include "lightstage/errors.h"
+
+namespace ls {
+
+namespace fs = std::filesystem;
+
+Image::Image(int w, int h, int c, float fill)
+    : width(w), height(h), channels(c), pixels(size_t(w) * h * c, fill) {}
+
+namespace {
+
+// A temporary sibling of `path` that keeps its extension (OpenImageIO picks the format from it).
+fs::path temp_sibling(const fs::path& path) {
+  static thread_local std::mt19937_64 rng{std::random_device{}()};
+  return path.parent_path() /
+         (path.stem().string() + ".tmp" + std::to_string(getpid()) + "-" +
+          std::to_string(rng() % 1000000) + path.extension().string());
+}
+
+void fsync_path(const fs::path& path, bool directory) {
+  const int fd = ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+// Renames tmp over path after making tmp durable; removes tmp on failure.
+void commit_temp(const fs::path& tmp, const fs::path& path) {
+  fsync_path(tmp, false);
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw InputError(path.string() + ": cannot rename temporary file into place: " + ec.message());
+  }
+  fsync_path(path.parent_path().empty() ? fs::path(".") : path.parent_path(), true);
+}
+
+void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc in_type,
+                     const void* data) {
+  if (!path.parent_path().empty()) {
+    std::error_code ec;
+    fs::create_directories(path.parent_path(), ec);
+  }
+  const fs::path tmp = temp_sibling(path);
+  auto out = OIIO::ImageOutput::create(tmp.string());
+  if (!out) throw InputError(path.string() + ": cannot write this format: " + OIIO::geterror());
+  if (!out->open(tmp.string(), spec) || !out->write_image(in_type, data) || !out->close()) {
+    const std::string err = out->geterror();
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw InputError(path.string() + ": write failed: " + err);
+  }
+  commit_temp(tmp, path);
+}
+
+float srgb_encode(float linear) {
+  linear = std::clamp(linear, 0.0f, 1.0f);
+  return linear <= 0.0031308f ? 12.92f * linear : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
+}
+
+}  // namespace
+
+Image read_image(const fs::path& path) {
+  if (!fs::exists(path)) throw InputError(path.string() + ": file not found");
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) {
+    throw InputError(path.string() + ": cannot read image: " + OIIO::geterror());
+  }
+  const OIIO::ImageSpec& spec = in->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) {
+    throw InputError(path.string() + ": image has no pixels");
+  }
+  Image image(spec.width, spec.height, spec.nchannels);
+  image.channel_names = spec.channelnames;
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
+    throw InputError(path.string() + ": cannot read pixels (truncated or corrupt file?): " +
+                     in->geterror());
+  }
+  in->close();
+  return image;
+}
+
+void write_exr(const fs::path& path, const Image& image, ExrPixelType type) {
+  LS_CHECK(image.pixels.size() == image.num_pixels() * image.channels, "image size mismatch");
+  OIIO::ImageSpec spec(image.width, image.height, image.channels,
+                       type == ExrPixelType::kHalf ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
+  if (!image.channel_names.empty()) {
+    LS_CHECK(int(image.channel_names.size()) == image.channels, "channel names mismatch");
+    spec.channelnames = image.channel_names;
+  }
+  spec.attribute("compression", "zip");
+  write_with_oiio(path, spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
+}
+
+double auto_exposure_stops(const Image& image, double percentile) {
+  std::vector<float> lum;
+  lum.reserve(image.num_pixels());
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    const float* p = &image.pixels[i * image.channels];
+    const float y = image.channels >= 3 ? 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2] : p[0];
+    if (std::isfinite(y) && y > 0) lum.push_back(y);
+  }
+  if (lum.empty()) return 0.0;
+  const size_t k = std::min(lum.size() - 1, size_t(percentile * lum.size()));
+  std::nth_element(lum.begin(), lum.begin() + k, lum.end());
+  return -std::log2(std::max(lum[k], 1e-12f) / 0.9f);
+}
+
+void write_png_preview(const fs::path& path, const Image& image, double exposure_stops) {
+  const int out_channels = image.channels >= 3 ? 3 : 1;
+  const float scale = float(std::exp2(exposure_stops));
+  std::vector<uint8_t> bytes(image.num_pixels() * out_channels);
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    for (int c = 0; c < out_channels; ++c) {
+      const float v = image.pixels[i * image.channels + c] * scale;
+      bytes[i * out_channels + c] = uint8_t(std::lround(255.0f * srgb_encode(std::isfinite(v) ? v : 0)));
+    }
+  }
+  OIIO::ImageSpec spec(image.width, image.height, out_channels, OIIO::TypeDesc::UINT8);
+  write_with_oiio(path, spec, OIIO::TypeDesc::UINT8, bytes.data());
+}
+
+void write_raw_frame(const fs::path& path, const RawFrame& frame) {
+  LS_CHECK(frame.bit_depth >= 1 && frame.bit_depth <= 16, "bit depth out of range");
+  // Stored MSB-aligned (as most cameras do), so the PNG looks right in any viewer.
+  const int shift = 16 - frame.bit_depth;
+  std::vector<uint16_t> aligned(frame.pixels.size());
+  for (size_t i = 0; i < aligned.size(); ++i) aligned[i] = uint16_t(frame.pixels[i] << shift);
+  OIIO::ImageSpec spec(frame.width, frame.height, frame.channels, OIIO::TypeDesc::UINT16);
+  spec.attribute("png:compressionLevel", 1);  // Fast: capture must not wait on the encoder.
+  spec.attribute("lightstage:bit_depth", frame.bit_depth);
+  write_with_oiio(path, spec, OIIO::TypeDesc::UINT16, aligned.data());
+}
+
+RawFrame read_raw_frame(const fs::path& path, int bit_depth) {
+  if (!fs::exists(path)) throw InputError(path.string() + ": frame file not found");
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) throw InputError(path.string() + ": cannot read frame: " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  RawFrame frame;
+  frame.width = spec.width;
+  frame.height = spec.height;
+  frame.channels = spec.nchannels;
+  frame.bit_depth = bit_depth;
+  frame.pixels.resize(size_t(spec.width) * spec.height * spec.nchannels);
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT16, frame.pixels.data())) {
+    throw InputError(path.string() + ": cannot read frame pixels (truncated?): " + in->geterror());
+  }
+  const int shift = 16 - bit_depth;
+  for (auto& v : frame.pixels) v = uint16_t(v >> shift);
+  return frame;
+}
+
+void write_file_atomic(const fs::path& path, const std::string& contents) {
+  const fs::path tmp = temp_sibling(path);
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    out << contents;
+    out.flush();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw InputError(path.string() + ": cannot write (disk full or not writable?)");
+    }
+  }
+  commit_temp(tmp, path);
+}
+
+}  // namespace ls

@@ -1,0 +1,65 @@
+#pragma once
+// Images in memory and on disk. Everything in memory is linear, scene-referred float; 8-bit output
+// exists only for previews. Row 0 is the top row. Image I/O libraries stay in image.cc.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace ls {
+
+// A float image with interleaved channels: pixels[(y * width + x) * channels + c].
+struct Image {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  std::vector<float> pixels;
+  std::vector<std::string> channel_names;  // Optional; written to EXR when present.
+
+  Image() = default;
+  Image(int width, int height, int channels, float fill = 0.0f);
+
+  float& at(int x, int y, int c) { return pixels[(size_t(y) * width + x) * channels + c]; }
+  float at(int x, int y, int c) const { return pixels[(size_t(y) * width + x) * channels + c]; }
+  size_t num_pixels() const { return size_t(width) * height; }
+};
+
+// A camera frame as the sensor delivered it: integer digital numbers (DN), interleaved channels.
+struct RawFrame {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  int bit_depth = 16;  // Valid DN are 0 .. 2^bit_depth - 1.
+  std::vector<uint16_t> pixels;
+
+  uint16_t at(int x, int y, int c) const { return pixels[(size_t(y) * width + x) * channels + c]; }
+  uint16_t max_value() const { return uint16_t((1u << bit_depth) - 1u); }
+};
+
+enum class ExrPixelType { kFloat, kHalf };
+
+// Reads any format OpenImageIO reads (EXR incl. DWAB, Radiance HDR, PNG, JPEG, TIFF) as linear float.
+// 8/16-bit sRGB-encoded files are returned as stored (normalised to [0,1]), not linearised: callers
+// that import photographs undo their transfer curve explicitly. Throws InputError naming the file.
+Image read_image(const std::filesystem::path& path);
+
+// Writes an OpenEXR with the image's channel names (or R,G,B,A / Y). Atomic: temp file + rename.
+void write_exr(const std::filesystem::path& path, const Image& image,
+               ExrPixelType type = ExrPixelType::kFloat);
+
+// Tone-mapped 8-bit sRGB preview: value * 2^exposure_stops, clamped, sRGB-encoded. Atomic.
+void write_png_preview(const std::filesystem::path& path, const Image& image,
+                       double exposure_stops = 0.0);
+
+// Exposure (in stops) that puts the image's 99th-percentile luminance near white.
+double auto_exposure_stops(const Image& image, double percentile = 0.99);
+
+// Raw frames are stored as 16-bit PNG (lossless). Writing is atomic and durable: the data goes to a
+// temporary name, is fsync'ed, then renamed, so a killed process never leaves a half frame.
+void write_raw_frame(const std::filesystem::path& path, const RawFrame& frame);
+RawFrame read_raw_frame(const std::filesystem::path& path, int bit_depth);
+
+// Writes `contents` to `path` atomically (temp + fsync + rename). Throws InputError on failure.
+void write_file_atomic(const std::filesystem::path& path, const std::string& contents);
+
+}  // namespace ls

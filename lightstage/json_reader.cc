@@ -1,0 +1,161 @@
+#include "lightstage/json_reader.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "lightstage/errors.h"
+
+namespace ls {
+
+nlohmann::json JsonReader::parse(std::string_view text, const std::string& source) {
+  try {
+    return nlohmann::json::parse(text.begin(), text.end(), nullptr, /*allow_exceptions=*/true,
+                                 /*ignore_comments=*/true);
+  } catch (const nlohmann::json::parse_error& e) {
+    // Convert the byte offset into line:column for humans.
+    size_t line = 1, col = 1;
+    for (size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
+      if (text[i] == '\n') {
+        ++line;
+        col = 1;
+      } else {
+        ++col;
+      }
+    }
+    std::string what = e.what();
+    const auto pos = what.find("syntax error");
+    throw InputError(source + ":" + std::to_string(line) + ":" + std::to_string(col) +
+                     ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos)));
+  }
+}
+
+std::string JsonReader::describe() const {
+  std::string dumped = value_.dump();
+  if (dumped.size() > 60) dumped = dumped.substr(0, 57) + "...";
+  return std::string(value_.type_name()) + " " + dumped;
+}
+
+void JsonReader::fail(const std::string& expected) const {
+  throw InputError(source_ + ": " + (path_.empty() ? "(top level)" : path_) + ": expected " +
+                   expected + ", got " + describe());
+}
+
+bool JsonReader::has(const std::string& key) const {
+  return value_.is_object() && value_.contains(key);
+}
+
+JsonReader JsonReader::operator[](const std::string& key) const {
+  if (!value_.is_object()) fail("an object");
+  const std::string child = path_.empty() ? key : path_ + "." + key;
+  if (!value_.contains(key)) {
+    throw InputError(source_ + ": " + child + ": missing (required field)");
+  }
+  return JsonReader(value_.at(key), source_, child);
+}
+
+JsonReader JsonReader::operator[](size_t index) const {
+  expect_array();
+  return JsonReader(value_.at(index), source_, path_ + "[" + std::to_string(index) + "]");
+}
+
+size_t JsonReader::size() const {
+  expect_array();
+  return value_.size();
+}
+
+void JsonReader::expect_object(std::initializer_list<std::string_view> allowed) const {
+  if (!value_.is_object()) fail("an object");
+  for (const auto& [key, _] : value_.items()) {
+    bool known = false;
+    for (auto a : allowed) known |= (a == key);
+    if (!known) {
+      std::ostringstream list;
+      bool first = true;
+      for (auto a : allowed) {
+        list << (first ? "" : ", ") << a;
+        first = false;
+      }
+      throw InputError(source_ + ": " + (path_.empty() ? key : path_ + "." + key) +
+                       ": unknown field (expected one of: " + list.str() + ")");
+    }
+  }
+}
+
+void JsonReader::expect_array() const {
+  if (!value_.is_array()) fail("an array");
+}
+
+double JsonReader::number() const {
+  if (!value_.is_number()) fail("a number");
+  const double v = value_.get<double>();
+  if (!std::isfinite(v)) fail("a finite number");
+  return v;
+}
+
+double JsonReader::number_in(double lo, double hi, std::string_view what) const {
+  const double v = number();
+  if (v < lo || v > hi) {
+    std::ostringstream s;
+    s << "a number in [" << lo << ", " << hi << "]" << (what.empty() ? "" : " ") << what;
+    fail(s.str());
+  }
+  return v;
+}
+
+double JsonReader::positive(std::string_view what) const {
+  const double v = number();
+  if (!(v > 0)) fail("a positive number" + (what.empty() ? "" : " " + std::string(what)));
+  return v;
+}
+
+int JsonReader::integer_in(int lo, int hi) const {
+  if (!value_.is_number_integer()) fail("an integer in [" + std::to_string(lo) + ", " +
+                                        std::to_string(hi) + "]");
+  const auto v = value_.get<long long>();
+  if (v < lo || v > hi) {
+    fail("an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  }
+  return int(v);
+}
+
+bool JsonReader::boolean() const {
+  if (!value_.is_boolean()) fail("true or false");
+  return value_.get<bool>();
+}
+
+std::string JsonReader::string() const {
+  if (!value_.is_string()) fail("a string");
+  return value_.get<std::string>();
+}
+
+std::string JsonReader::one_of(std::initializer_list<std::string_view> choices) const {
+  std::ostringstream list;
+  bool first = true;
+  for (auto c : choices) {
+    list << (first ? "" : ", ") << '"' << c << '"';
+    first = false;
+  }
+  if (!value_.is_string()) fail("one of " + list.str());
+  const std::string v = value_.get<std::string>();
+  for (auto c : choices) {
+    if (c == v) return v;
+  }
+  fail("one of " + list.str());
+}
+
+Eigen::Vector3d JsonReader::vec3() const {
+  if (!value_.is_array() || value_.size() != 3) fail("an array of 3 numbers");
+  return {(*this)[0].number(), (*this)[1].number(), (*this)[2].number()};
+}
+
+Eigen::Vector3d JsonReader::unit_vec3() const {
+  const Eigen::Vector3d v = vec3();
+  if (!(v.norm() > 1e-9)) fail("a non-zero direction vector");
+  return v.normalized();
+}
+
+double JsonReader::number_or(const std::string& key, double fallback) const {
+  return has(key) ? (*this)[key].number() : fallback;
+}
+
+}  // namespace ls

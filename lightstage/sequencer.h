@@ -1,0 +1,43 @@
+#pragma once
+// Drives a capture: LED on, bracket, LED off, with dark frames, over time steps. Every frame is
+// durably in the session before the next LED turns on; every exit path switches all LEDs off.
+#include <atomic>
+#include <functional>
+#include <string>
+
+#include "lightstage/hardware.h"
+#include "lightstage/session.h"
+
+namespace ls {
+
+struct CaptureProgress {
+  int done = 0;   // Frames in the session, this run and earlier runs.
+  int total = 0;  // Frames in the plan.
+  std::string current;  // Name of the frame just written.
+};
+
+struct SequencerOptions {
+  // Set asynchronously (e.g. by a SIGINT handler); checked before every frame.
+  const std::atomic<bool>* stop_requested = nullptr;
+  std::function<void(const CaptureProgress&)> on_progress;
+  // An LED whose brightest bracket frame exceeds the dark frame by less than this fraction of full
+  // scale (at the 99.9th percentile) is flagged dead; the capture continues.
+  double dead_led_threshold = 0.002;
+  // Sleeps for plan.settle_s and inter-step waits; tests replace it to run instantly.
+  std::function<void(double seconds)> sleep;
+};
+
+struct CaptureSummary {
+  enum class Status { kComplete, kInterrupted, kCameraFailed };
+  Status status = Status::kComplete;
+  int frames_captured = 0;  // This run.
+  int frames_already_present = 0;
+  int camera_retries = 0;
+  std::string message;  // Why it stopped, for the operator.
+  double seconds = 0.0;
+};
+
+CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,
+                           const SequencerOptions& options);
+
+}  // namespace ls

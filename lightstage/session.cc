@@ -1,0 +1,248 @@
+#include "lightstage/session.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <ctime>
+#include <fstream>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "lightstage/errors.h"
+#include "lightstage/json_reader.h"
+
+namespace ls {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr const char* kManifest = "manifest.json";
+constexpr const char* kJournal = "frames.jsonl";
+constexpr const char* kFormat = "lightstage-session/1";
+
+std::string utc_now_iso8601() {
+  const auto now = std::chrono::system_clock::now();
+  const std::time_t t = std::chrono::system_clock::to_time_t(now);
+  const auto ms =
+      std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
+  std::tm tm{};
+  gmtime_r(&t, &tm);
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900,
+                tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, int(ms));
+  return buf;
+}
+
+// Stable id of a frame in the plan; the simulator seeds its noise with it.
+uint64_t sequence_key(const FrameKey& k) {
+  return ((uint64_t(k.time_step) * 65536u + uint64_t(k.led_index + 1)) * 64u +
+          uint64_t(k.exposure_index)) * 256u + uint64_t(k.repeat);
+}
+
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path.string() + ": cannot open");
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+}  // namespace
+
+std::string FrameKey::name(const Stage& stage) const {
+  char buf[64];
+  if (is_dark()) {
+    std::snprintf(buf, sizeof buf, "t%03d_dark_e%d_r%d", time_step, exposure_index, repeat);
+  } else {
+    std::snprintf(buf, sizeof buf, "t%03d_led%03d_e%d", time_step, stage.leds[led_index].id,
+                  exposure_index);
+  }
+  return buf;
+}
+
+std::vector<PlannedFrame> plan_frames(const Stage& stage, uint64_t /*seed*/) {
+  std::vector<PlannedFrame> plan;
+  const auto order = stage.capture_order();
+  const int steps = int(stage.camera.bracket.size());
+  for (int t = 0; t < stage.plan.time_steps; ++t) {
+    const double scene_time_s = t * stage.plan.interval_s;
+    auto add = [&](int led, int e, int r) {
+      PlannedFrame f;
+      f.key = {t, led, e, r};
+      f.request.exposure_s = stage.camera.bracket[e].exposure_s;
+      f.request.gain = stage.camera.bracket[e].gain;
+      f.request.sequence_key = sequence_key(f.key);
+      f.request.scene_time_s = scene_time_s;
+      plan.push_back(f);
+    };
+    for (int e = 0; e < steps; ++e) {
+      for (int r = 0; r < stage.plan.dark_frames; ++r) add(-1, e, r);
+    }
+    for (int led : order) {
+      for (int e = 0; e < steps; ++e) add(led, e, 0);
+    }
+  }
+  return plan;
+}
+
+Session Session::create(const fs::path& dir, const Stage& stage, const SessionInfo& info) {
+  if (fs::exists(dir / kManifest)) {
+    throw InputError(dir.string() + ": already holds a session; resume it with --resume " +
+                     dir.string() + " or choose another directory");
+  }
+  std::error_code ec;
+  fs::create_directories(dir / "frames", ec);
+  if (ec) throw InputError(dir.string() + ": cannot create session directory: " + ec.message());
+  // Detect an unwritable directory before any LED is switched on.
+  const fs::path probe = dir / ".write-test";
+  {
+    std::ofstream out(probe);
+    out << "ok";
+    if (!out.flush()) throw InputError(dir.string() + ": session directory is not writable");
+  }
+  fs::remove(probe, ec);
+
+  Session s;
+  s.dir_ = dir;
+  s.stage_ = stage;
+  s.info_ = info;
+  s.write_manifest("capturing");
+  // Truncate any stale journal (no manifest means no session).
+  std::ofstream(dir / kJournal, std::ios::trunc);
+  return s;
+}
+
+Session Session::open(const fs::path& dir) {
+  const fs::path manifest_path = dir / kManifest;
+  if (!fs::exists(manifest_path)) {
+    throw InputError(dir.string() + ": not a lightstage session (no " + kManifest + ")");
+  }
+  const std::string source = manifest_path.string();
+  const json doc = JsonReader::parse(read_text(manifest_path), source);
+  const JsonReader r(doc, source);
+  if (!r.has("format") || r["format"].string() != kFormat) {
+    r.fail(std::string("a manifest with \"format\": \"") + kFormat + "\"");
+  }
+  Session s;
+  s.dir_ = dir;
+  s.stage_ = parse_stage(r["stage"].value().dump(), source + " (stage)");
+  s.info_.backend = r["backend"].string();
+  s.info_.scene_file = r.has("scene_file") ? r["scene_file"].string() : "";
+  s.info_.seed = r["seed"].value().get<uint64_t>();
+
+  // Replay the journal. A torn last line (killed mid-append) is ignored; its frame is re-captured.
+  std::ifstream journal(dir / kJournal);
+  std::string line;
+  int line_no = 0;
+  while (std::getline(journal, line)) {
+    ++line_no;
+    if (line.empty()) continue;
+    json j;
+    try {
+      j = json::parse(line);
+    } catch (const json::parse_error&) {
+      std::cerr << "warning: " << (dir / kJournal).string() << ":" << line_no
+                << ": incomplete journal line ignored (interrupted write); that frame will be "
+                   "captured again\n";
+      continue;
+    }
+    if (j.contains("dead_led")) {
+      s.dead_leds_[j["dead_led"].get<int>()] = j.value("reason", "");
+      continue;
+    }
+    FrameRecord rec;
+    rec.key = {j["t"].get<int>(), j["led"].get<int>(), j["e"].get<int>(), j["r"].get<int>()};
+    rec.file = j["file"].get<std::string>();
+    rec.exposure_s = j["exposure_s"].get<double>();
+    rec.gain = j["gain"].get<double>();
+    rec.scene_time_s = j["scene_time_s"].get<double>();
+    rec.captured_at = j["at"].get<std::string>();
+    if (!fs::exists(dir / rec.file)) {
+      std::cerr << "warning: " << (dir / rec.file).string()
+                << ": journaled frame is missing on disk; it will be captured again\n";
+      continue;
+    }
+    s.frames_[rec.key] = rec;
+  }
+  return s;
+}
+
+std::vector<PlannedFrame> Session::missing_frames() const {
+  std::vector<PlannedFrame> missing;
+  for (const auto& f : plan_frames(stage_, info_.seed)) {
+    if (!frames_.count(f.key)) missing.push_back(f);
+  }
+  return missing;
+}
+
+void Session::append_journal(const std::string& line) const {
+  const fs::path path = dir_ / kJournal;
+  const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
+  if (fd < 0) throw InputError(path.string() + ": cannot open journal for appending");
+  const std::string data = line + "\n";
+  const ssize_t n = ::write(fd, data.data(), data.size());
+  const bool ok = n == ssize_t(data.size()) && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!ok) throw InputError(path.string() + ": cannot append to journal (disk full?)");
+}
+
+void Session::record_frame(const PlannedFrame& planned, const CapturedFrame& frame) {
+  FrameRecord rec;
+  rec.key = planned.key;
+  rec.file = "frames/" + planned.key.name(stage_) + ".png";
+  rec.exposure_s = frame.exposure_s;
+  rec.gain = frame.gain;
+  rec.scene_time_s = planned.request.scene_time_s;
+  rec.captured_at = utc_now_iso8601();
+  RawFrame raw = frame.raw;
+  raw.bit_depth = stage_.camera.bit_depth;
+  write_raw_frame(dir_ / rec.file, raw);  // Durable before it is journaled.
+  const json j = {{"t", rec.key.time_step},   {"led", rec.key.led_index},
+                  {"e", rec.key.exposure_index}, {"r", rec.key.repeat},
+                  {"file", rec.file},         {"exposure_s", rec.exposure_s},
+                  {"gain", rec.gain},         {"scene_time_s", rec.scene_time_s},
+                  {"at", rec.captured_at}};
+  append_journal(j.dump());
+  frames_[rec.key] = rec;
+}
+
+RawFrame Session::load_frame(const FrameKey& key) const {
+  const auto it = frames_.find(key);
+  if (it == frames_.end()) {
+    throw InputError(dir_.string() + ": frame " + key.name(stage_) + " was not captured");
+  }
+  return read_raw_frame(dir_ / it->second.file, stage_.camera.bit_depth);
+}
+
+void Session::mark_dead_led(int led_index, const std::string& reason) {
+  if (dead_leds_.count(led_index)) return;
+  append_journal(json{{"dead_led", led_index}, {"reason", reason}}.dump());
+  dead_leds_[led_index] = reason;
+}
+
+void Session::write_manifest(const std::string& status) const {
+  json dead = json::array();
+  for (const auto& [index, reason] : dead_leds_) {
+    dead.push_back({{"led_index", index}, {"led_id", stage_.leds[index].id}, {"reason", reason}});
+  }
+  const size_t planned = plan_frames(stage_, info_.seed).size();
+  const json doc = {{"format", kFormat},
+                    {"status", status},
+                    {"updated_at", utc_now_iso8601()},
+                    {"backend", info_.backend},
+                    {"scene_file", info_.scene_file},
+                    {"seed", info_.seed},
+                    {"frames_planned", planned},
+                    {"frames_captured", frames_.size()},
+                    {"journal", kJournal},
+                    {"dead_leds", dead},
+                    {"stage", json::parse(stage_to_json(stage_))}};
+  write_file_atomic(dir_ / kManifest, doc.dump(2) + "\n");
+}
+
+}  // namespace ls

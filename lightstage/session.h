@@ -1,0 +1,91 @@
+#pragma once
+// A capture session on disk:
+//   SESSION/manifest.json   stage, back-end, seed, plan, status (rewritten atomically)
+//   SESSION/frames.jsonl    journal: one line per frame, appended (and fsync'ed) after the frame's
+//                           image is durably renamed into place; a torn last line is ignored
+//   SESSION/frames/*.png    16-bit frames, each written to a temporary name then renamed
+// What is missing is always "the plan minus the journal", so a killed capture resumes exactly.
+#include <filesystem>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "lightstage/hardware.h"
+#include "lightstage/stage.h"
+
+namespace ls {
+
+// Identity of one frame in the plan. led_index < 0 marks a dark frame (all LEDs off).
+struct FrameKey {
+  int time_step = 0;
+  int led_index = -1;
+  int exposure_index = 0;
+  int repeat = 0;  // Dark frames are repeated; lit frames have repeat 0.
+
+  bool is_dark() const { return led_index < 0; }
+  std::string name(const Stage& stage) const;  // e.g. "t000_led042_e1" or "t000_dark_e1_r0"
+  auto operator<=>(const FrameKey&) const = default;
+};
+
+struct PlannedFrame {
+  FrameKey key;
+  FrameRequest request;
+};
+
+// The whole plan in capture order: per time step, the dark frames, then each LED's bracket.
+std::vector<PlannedFrame> plan_frames(const Stage& stage, uint64_t seed);
+
+struct FrameRecord {
+  FrameKey key;
+  std::string file;         // Relative to the session directory.
+  double exposure_s = 0.0;  // As reported by the camera.
+  double gain = 1.0;
+  double scene_time_s = 0.0;
+  std::string captured_at;  // ISO 8601 UTC.
+};
+
+struct SessionInfo {
+  std::string backend = "sim";
+  std::string scene_file;  // Simulated stage only.
+  uint64_t seed = 1;
+};
+
+class Session {
+ public:
+  // Creates SESSION; refuses a directory that already holds a session (use open + resume).
+  static Session create(const std::filesystem::path& dir, const Stage& stage,
+                        const SessionInfo& info);
+  // Opens an existing session; throws InputError naming the file if it is not one.
+  static Session open(const std::filesystem::path& dir);
+
+  const std::filesystem::path& dir() const { return dir_; }
+  const Stage& stage() const { return stage_; }
+  const SessionInfo& info() const { return info_; }
+  const std::map<FrameKey, FrameRecord>& frames() const { return frames_; }
+  std::vector<PlannedFrame> missing_frames() const;
+  bool complete() const { return missing_frames().empty(); }
+
+  // Writes the frame atomically, then journals it. After this returns the frame survives kill -9.
+  void record_frame(const PlannedFrame& planned, const CapturedFrame& frame);
+  RawFrame load_frame(const FrameKey& key) const;  // Throws InputError if absent or unreadable.
+
+  // LEDs whose frames were no brighter than the dark frames; later stages treat them as missing.
+  const std::map<int, std::string>& dead_leds() const { return dead_leds_; }
+  void mark_dead_led(int led_index, const std::string& reason);
+
+  // Rewrites the manifest with the given status ("capturing", "interrupted", "complete", ...).
+  void write_manifest(const std::string& status) const;
+
+ private:
+  Session() = default;
+  void append_journal(const std::string& line) const;
+
+  std::filesystem::path dir_;
+  Stage stage_;
+  SessionInfo info_;
+  std::map<FrameKey, FrameRecord> frames_;
+  std::map<int, std::string> dead_leds_;
+};
+
+}  // namespace ls

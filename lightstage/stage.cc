@@ -1,0 +1,358 @@
+#include "lightstage/stage.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "lightstage/errors.h"
+#include "lightstage/json_reader.h"
+
+namespace ls {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+
+Led parse_led(const JsonReader& r, size_t index) {
+  r.expect_object({"id", "direction", "position", "color", "intensity", "gpio"});
+  Led led;
+  led.id = r.has("id") ? r["id"].integer_in(0, 1 << 20) : int(index);
+  if (r.has("direction") == r.has("position")) {
+    r.fail("exactly one of \"direction\" (unit vector toward the LED) or \"position\" (metres)");
+  }
+  if (r.has("direction")) {
+    led.dir_in_stage = r["direction"].unit_vec3();
+  } else {
+    const Eigen::Vector3d p = r["position"].vec3();
+    if (!(p.norm() > 1e-6)) r["position"].fail("a position away from the stage centre");
+    led.dir_in_stage = p.normalized();
+    led.distance_m = p.norm();
+  }
+  if (r.has("color")) {
+    const JsonReader c = r["color"];
+    led.color_gain = c.vec3();
+    if ((led.color_gain.array() < 0).any()) c.fail("three non-negative colour gains");
+  }
+  if (r.has("intensity")) led.intensity = r["intensity"].positive("(irradiance at the origin)");
+  if (r.has("gpio")) {
+    const JsonReader g = r["gpio"];
+    g.expect_object({"chip", "line", "active_low"});
+    led.gpio_chip = g["chip"].string();
+    led.gpio_line = g["line"].integer_in(0, 4095);
+    if (g.has("active_low")) led.active_low = g["active_low"].boolean();
+  }
+  return led;
+}
+
+CameraResponse parse_response(const JsonReader& r, const fs::path& base_dir) {
+  r.expect_object({"type", "gamma", "file"});
+  CameraResponse response;
+  const std::string type = r["type"].one_of({"linear", "gamma", "table", "recover"});
+  if (type == "linear") response.kind = CameraResponse::Kind::kLinear;
+  if (type == "gamma") {
+    response.kind = CameraResponse::Kind::kGamma;
+    response.gamma = r["gamma"].number_in(0.2, 5.0);
+  }
+  if (type == "table") {
+    response.kind = CameraResponse::Kind::kTable;
+    const fs::path file = r["file"].string();
+    response.table_file = file.is_absolute() ? file : base_dir / file;
+  }
+  if (type == "recover") response.kind = CameraResponse::Kind::kRecover;
+  return response;
+}
+
+CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
+  r.expect_object({"backend", "device", "width", "height", "channels", "bit_depth", "bracket",
+                   "response", "radiometric_scale", "fov_y_deg", "distance_m", "ortho_height_m",
+                   "timeout_s", "retries", "simulated_sensor"});
+  CameraSpec cam;
+  if (r.has("backend")) cam.backend = r["backend"].one_of({"sim", "aravis", "v4l2"});
+  if (r.has("device")) cam.device_id = r["device"].string();
+  if (r.has("width")) cam.width = r["width"].integer_in(1, 16384);
+  if (r.has("height")) cam.height = r["height"].integer_in(1, 16384);
+  if (r.has("channels")) {
+    cam.channels = r["channels"].integer_in(1, 3);
+    if (cam.channels == 2) r["channels"].fail("1 (mono) or 3 (RGB)");
+  }
+  if (r.has("bit_depth")) cam.bit_depth = r["bit_depth"].integer_in(8, 16);
+  if (r.has("bracket")) {
+    const JsonReader b = r["bracket"];
+    if (b.size() == 0) b.fail("at least one exposure step");
+    cam.bracket.clear();
+    for (size_t i = 0; i < b.size(); ++i) {
+      const JsonReader step = b[i];
+      step.expect_object({"exposure_s", "gain"});
+      ExposureStep s;
+      s.exposure_s = step["exposure_s"].positive("(seconds)");
+      if (step.has("gain")) s.gain = step["gain"].positive("(linear gain)");
+      cam.bracket.push_back(s);
+    }
+  }
+  if (r.has("response")) cam.response = parse_response(r["response"], base_dir);
+  if (r.has("radiometric_scale")) cam.radiometric_scale = r["radiometric_scale"].positive();
+  if (r.has("fov_y_deg")) cam.fov_y_deg = r["fov_y_deg"].number_in(0, 170, "(0 = orthographic)");
+  if (r.has("distance_m")) cam.distance_m = r["distance_m"].positive("(metres)");
+  if (r.has("ortho_height_m")) cam.ortho_height_m = r["ortho_height_m"].positive("(metres)");
+  if (r.has("timeout_s")) cam.timeout_s = r["timeout_s"].positive("(seconds)");
+  if (r.has("retries")) cam.retries = r["retries"].integer_in(0, 100);
+  if (r.has("simulated_sensor")) {
+    const JsonReader s = r["simulated_sensor"];
+    s.expect_object({"full_well_e", "read_noise_e", "dark_current_e_per_s", "black_level"});
+    auto& sim = cam.simulated;
+    if (s.has("full_well_e")) sim.full_well_e = s["full_well_e"].positive("(electrons)");
+    if (s.has("read_noise_e")) sim.read_noise_e = s["read_noise_e"].number_in(0, 1e4);
+    if (s.has("dark_current_e_per_s")) {
+      sim.dark_current_e_per_s = s["dark_current_e_per_s"].number_in(0, 1e9);
+    }
+    if (s.has("black_level")) sim.black_level = s["black_level"].number_in(0, 0.5);
+  }
+  return cam;
+}
+
+CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds) {
+  r.expect_object({"led_order", "dark_frames", "settle_s", "time_steps", "interval_s"});
+  CapturePlan plan;
+  if (r.has("led_order")) {
+    const JsonReader order = r["led_order"];
+    std::set<int> known, seen;
+    for (const auto& led : leds) known.insert(led.id);
+    for (size_t i = 0; i < order.size(); ++i) {
+      const int id = order[i].integer_in(0, 1 << 20);
+      if (!known.count(id)) order[i].fail("the id of an LED in \"leds\"");
+      if (!seen.insert(id).second) order[i].fail("each LED id once (this one repeats)");
+      plan.led_order.push_back(id);
+    }
+  }
+  if (r.has("dark_frames")) plan.dark_frames = r["dark_frames"].integer_in(1, 64);
+  if (r.has("settle_s")) plan.settle_s = r["settle_s"].number_in(0, 60, "(seconds)");
+  if (r.has("time_steps")) plan.time_steps = r["time_steps"].integer_in(1, 100000);
+  if (r.has("interval_s")) plan.interval_s = r["interval_s"].number_in(0, 1e6, "(seconds)");
+  return plan;
+}
+
+std::vector<Eigen::Vector3d> layout_directions(const JsonReader& r) {
+  r.expect_object({"type", "frequency", "count", "min_elevation_deg"});
+  const std::string type = r["type"].one_of({"geodesic", "fibonacci"});
+  const double min_elev = r.has("min_elevation_deg")
+                              ? r["min_elevation_deg"].number_in(-90, 89)
+                              : -11.5;
+  if (type == "geodesic") return geodesic_dome_directions(r["frequency"].integer_in(1, 32), min_elev);
+  return fibonacci_dome_directions(r["count"].integer_in(1, 100000), min_elev);
+}
+
+json vec_json(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+
+}  // namespace
+
+int Stage::led_index(int id) const {
+  for (size_t i = 0; i < leds.size(); ++i) {
+    if (leds[i].id == id) return int(i);
+  }
+  return -1;
+}
+
+std::vector<int> Stage::capture_order() const {
+  std::vector<int> order;
+  if (plan.led_order.empty()) {
+    for (size_t i = 0; i < leds.size(); ++i) order.push_back(int(i));
+  } else {
+    for (int id : plan.led_order) order.push_back(led_index(id));
+  }
+  return order;
+}
+
+std::vector<Eigen::Vector3d> Stage::led_directions() const {
+  std::vector<Eigen::Vector3d> dirs;
+  dirs.reserve(leds.size());
+  for (const auto& led : leds) dirs.push_back(led.dir_in_stage);
+  return dirs;
+}
+
+Stage parse_stage(std::string_view json_text, const std::string& source_name) {
+  const json doc = JsonReader::parse(json_text, source_name);
+  const JsonReader r(doc, source_name);
+  r.expect_object({"name", "leds", "layout", "camera", "plan", "coverage_radius_deg"});
+  const fs::path base_dir = fs::path(source_name).parent_path();
+
+  Stage stage = default_stage();
+  stage.source = source_name;
+  if (r.has("name")) stage.name = r["name"].string();
+  if (r.has("leds") == r.has("layout")) {
+    r.fail("exactly one of \"leds\" (a list of LEDs) or \"layout\" (a generated dome)");
+  }
+  if (r.has("leds")) {
+    const JsonReader leds = r["leds"];
+    if (leds.size() == 0) leds.fail("at least one LED");
+    stage.leds.clear();
+    std::set<int> ids;
+    for (size_t i = 0; i < leds.size(); ++i) {
+      stage.leds.push_back(parse_led(leds[i], i));
+      if (!ids.insert(stage.leds.back().id).second) leds[i]["id"].fail("a unique LED id");
+    }
+  } else {
+    stage.leds = stage_with_directions(layout_directions(r["layout"])).leds;
+  }
+  if (r.has("camera")) stage.camera = parse_camera(r["camera"], base_dir);
+  if (stage.camera.bracket.empty()) stage.camera.bracket = default_stage().camera.bracket;
+  if (r.has("plan")) stage.plan = parse_plan(r["plan"], stage.leds);
+  if (r.has("coverage_radius_deg")) {
+    stage.coverage_radius_deg = r["coverage_radius_deg"].number_in(0, 180, "(0 = automatic)");
+  }
+  return stage;
+}
+
+Stage load_stage(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path.string() + ": cannot open stage file");
+  std::stringstream text;
+  text << in.rdbuf();
+  return parse_stage(text.str(), path.string());
+}
+
+std::string stage_to_json(const Stage& stage) {
+  json leds = json::array();
+  for (const auto& led : stage.leds) {
+    json j = {{"id", led.id},
+              {"color", vec_json(led.color_gain)},
+              {"intensity", led.intensity}};
+    if (led.distance_m) {
+      j["position"] = vec_json(led.dir_in_stage * *led.distance_m);
+    } else {
+      j["direction"] = vec_json(led.dir_in_stage);
+    }
+    if (led.gpio_line >= 0) {
+      j["gpio"] = {{"chip", led.gpio_chip}, {"line", led.gpio_line}, {"active_low", led.active_low}};
+    }
+    leds.push_back(j);
+  }
+  const CameraSpec& c = stage.camera;
+  json bracket = json::array();
+  for (const auto& s : c.bracket) bracket.push_back({{"exposure_s", s.exposure_s}, {"gain", s.gain}});
+  json response;
+  switch (c.response.kind) {
+    case CameraResponse::Kind::kLinear: response = {{"type", "linear"}}; break;
+    case CameraResponse::Kind::kGamma: response = {{"type", "gamma"}, {"gamma", c.response.gamma}}; break;
+    case CameraResponse::Kind::kTable:
+      response = {{"type", "table"}, {"file", c.response.table_file.string()}};
+      break;
+    case CameraResponse::Kind::kRecover: response = {{"type", "recover"}}; break;
+  }
+  json camera = {{"backend", c.backend},
+                 {"device", c.device_id},
+                 {"width", c.width},
+                 {"height", c.height},
+                 {"channels", c.channels},
+                 {"bit_depth", c.bit_depth},
+                 {"bracket", bracket},
+                 {"response", response},
+                 {"radiometric_scale", c.radiometric_scale},
+                 {"fov_y_deg", c.fov_y_deg},
+                 {"distance_m", c.distance_m},
+                 {"ortho_height_m", c.ortho_height_m},
+                 {"timeout_s", c.timeout_s},
+                 {"retries", c.retries},
+                 {"simulated_sensor",
+                  {{"full_well_e", c.simulated.full_well_e},
+                   {"read_noise_e", c.simulated.read_noise_e},
+                   {"dark_current_e_per_s", c.simulated.dark_current_e_per_s},
+                   {"black_level", c.simulated.black_level}}}};
+  json plan = {{"dark_frames", stage.plan.dark_frames},
+               {"settle_s", stage.plan.settle_s},
+               {"time_steps", stage.plan.time_steps},
+               {"interval_s", stage.plan.interval_s}};
+  if (!stage.plan.led_order.empty()) plan["led_order"] = stage.plan.led_order;
+  const json doc = {{"name", stage.name},
+                    {"coverage_radius_deg", stage.coverage_radius_deg},
+                    {"leds", leds},
+                    {"camera", camera},
+                    {"plan", plan}};
+  return doc.dump(2) + "\n";
+}
+
+std::vector<Eigen::Vector3d> geodesic_dome_directions(int frequency, double min_elevation_deg) {
+  LS_CHECK(frequency >= 1, "geodesic frequency must be >= 1");
+  // Icosahedron, rotated so that one vertex is the zenith (+Y).
+  const double phi = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Eigen::Vector3d> v = {{-1, phi, 0}, {1, phi, 0},  {-1, -phi, 0}, {1, -phi, 0},
+                                    {0, -1, phi}, {0, 1, phi},  {0, -1, -phi}, {0, 1, -phi},
+                                    {phi, 0, -1}, {phi, 0, 1},  {-phi, 0, -1}, {-phi, 0, 1}};
+  const int faces[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
+                            {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                            {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},
+                            {4, 9, 5},  {2, 4, 11}, {6, 2, 10},  {8, 6, 7},  {9, 8, 1}};
+  const Eigen::Quaterniond to_zenith =
+      Eigen::Quaterniond::FromTwoVectors(v[0].normalized(), Eigen::Vector3d::UnitY());
+  for (auto& p : v) p = to_zenith * p.normalized();
+
+  const double min_y = std::sin(min_elevation_deg * kDegToRad) - 1e-9;
+  std::vector<Eigen::Vector3d> out;
+  auto add_unique = [&](const Eigen::Vector3d& d) {
+    if (d.y() < min_y) return;
+    for (const auto& q : out) {
+      if ((q - d).squaredNorm() < 1e-16) return;
+    }
+    out.push_back(d);
+  };
+  for (const auto& f : faces) {
+    const Eigen::Vector3d a = v[f[0]], b = v[f[1]], c = v[f[2]];
+    for (int i = 0; i <= frequency; ++i) {
+      for (int j = 0; i + j <= frequency; ++j) {
+        const int k = frequency - i - j;
+        add_unique(((i * a + j * b + k * c) / frequency).normalized());
+      }
+    }
+  }
+  // Deterministic order: from the zenith down, then by azimuth.
+  std::sort(out.begin(), out.end(), [](const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+    if (std::abs(p.y() - q.y()) > 1e-9) return p.y() > q.y();
+    return std::atan2(p.x(), -p.z()) < std::atan2(q.x(), -q.z());
+  });
+  return out;
+}
+
+std::vector<Eigen::Vector3d> fibonacci_dome_directions(int count, double min_elevation_deg) {
+  LS_CHECK(count >= 1, "LED count must be >= 1");
+  const double min_y = std::sin(min_elevation_deg * kDegToRad);
+  const double golden_angle = 3.14159265358979323846 * (3.0 - std::sqrt(5.0));
+  std::vector<Eigen::Vector3d> out;
+  for (int i = 0; i < count; ++i) {
+    // Equal-area rings: y uniform over [min_y, 1].
+    const double y = 1.0 - (i + 0.5) / count * (1.0 - min_y);
+    const double r = std::sqrt(std::max(0.0, 1.0 - y * y));
+    const double a = i * golden_angle;
+    out.emplace_back(r * std::sin(a), y, -r * std::cos(a));
+  }
+  return out;
+}
+
+Stage stage_with_directions(const std::vector<Eigen::Vector3d>& dirs_in_stage) {
+  Stage stage;
+  stage.name = "dome-" + std::to_string(dirs_in_stage.size());
+  for (size_t i = 0; i < dirs_in_stage.size(); ++i) {
+    Led led;
+    led.id = int(i);
+    led.dir_in_stage = dirs_in_stage[i].normalized();
+    stage.leds.push_back(led);
+  }
+  // Full scale at the middle exposure is radiance 1.0 (a white Lambertian patch facing an LED of
+  // irradiance 1 has radiance 1/pi); the bracket spans x16 for highlights and shadows.
+  stage.camera.radiometric_scale = 0.01;
+  stage.camera.bracket = {{0.0025, 1.0}, {0.01, 1.0}, {0.04, 1.0}};
+  return stage;
+}
+
+Stage default_stage() {
+  Stage stage = stage_with_directions(geodesic_dome_directions(5, -11.5));
+  stage.name = "default-geodesic-dome";
+  return stage;
+}
+
+}  // namespace ls

@@ -1,0 +1,109 @@
+#pragma once
+// The stage description: the dome's LEDs, the camera and the capture plan.
+// Frames (DESIGN.md): right-handed stage frame, +Y up, the camera on +Z looking toward -Z, the stage
+// centre at the origin. An LED direction is the unit vector from the origin toward the LED.
+#include <Eigen/Core>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace ls {
+
+struct Led {
+  int id = 0;                      // Stable id used in file names and manifests.
+  Eigen::Vector3d dir_in_stage{0, 1, 0};  // Unit vector from the origin toward the LED.
+  std::optional<double> distance_m;       // Set when the stage file gives a position.
+  Eigen::Vector3d color_gain{1, 1, 1};    // Calibrated RGB balance of this LED (relative).
+  double intensity = 1.0;          // Calibrated irradiance at the origin, facing the LED (E units).
+  std::string gpio_chip;           // For the gpiod back-end, e.g. "gpiochip0".
+  int gpio_line = -1;
+  bool active_low = false;
+
+  // The irradiance at the origin per channel: intensity * color_gain.
+  Eigen::Vector3d irradiance_rgb() const { return intensity * color_gain; }
+};
+
+struct ExposureStep {
+  double exposure_s = 0.01;
+  double gain = 1.0;  // Linear sensor gain (1 = native).
+};
+
+// How the camera maps light to digital numbers; capture/ inverts it.
+struct CameraResponse {
+  enum class Kind { kLinear, kGamma, kTable, kRecover };
+  Kind kind = Kind::kLinear;
+  double gamma = 1.0;                // kGamma: DN/max = x^(1/gamma), x the normalised exposure.
+  std::filesystem::path table_file;  // kTable: text file, one linear value per DN (per channel).
+};
+
+// Parameters of the simulated sensor; real back-ends ignore them.
+struct SimulatedSensor {
+  double full_well_e = 20000.0;       // Electrons at saturation (gain 1).
+  double read_noise_e = 4.0;          // Gaussian read noise, electrons RMS.
+  double dark_current_e_per_s = 5.0;  // Thermal electrons per second of exposure.
+  double black_level = 0.01;          // Offset as a fraction of full scale, before the response.
+};
+
+struct CameraSpec {
+  std::string backend = "sim";  // sim | aravis | v4l2
+  std::string device_id;        // Back-end specific (Aravis id, /dev/videoN).
+  int width = 256;
+  int height = 256;
+  int channels = 3;
+  int bit_depth = 12;
+  std::vector<ExposureStep> bracket;  // Shortest first is customary; any order is accepted.
+  CameraResponse response;
+  // Radiance (stage units) that reads full scale, dark-subtracted, after 1 s at gain 1. Converts
+  // the merged camera signal to radiance; 1.0 means "the field is in relative camera units".
+  double radiometric_scale = 1.0;
+  // Geometry: on +Z looking toward -Z. fov_y_deg == 0 means orthographic.
+  double fov_y_deg = 0.0;
+  double distance_m = 4.0;       // Perspective: camera centre at (0, 0, distance_m).
+  double ortho_height_m = 2.4;   // Orthographic: height of the view at the origin.
+  double timeout_s = 5.0;        // One frame; then CameraTimeout.
+  int retries = 2;               // Retries of a timed-out frame before the session stops.
+  SimulatedSensor simulated;
+};
+
+struct CapturePlan {
+  std::vector<int> led_order;  // LED ids in capture order; empty = file order.
+  int dark_frames = 2;         // Dark frames per exposure step per time step (averaged).
+  double settle_s = 0.0;       // Wait after switching an LED before exposing.
+  int time_steps = 1;          // Captures of a changing scene.
+  double interval_s = 0.0;     // Nominal time between time steps.
+};
+
+struct Stage {
+  std::string name = "stage";
+  std::vector<Led> leds;
+  CameraSpec camera;
+  CapturePlan plan;
+  // Directions further than this from every LED are not covered by the dome (0 = automatic: the
+  // largest nearest-neighbour angle between LEDs).
+  double coverage_radius_deg = 0.0;
+  std::string source = "<built-in>";  // File it came from, for messages.
+
+  int led_index(int id) const;  // Index into leds, or -1.
+  std::vector<int> capture_order() const;  // Indices into leds, in plan order.
+  std::vector<Eigen::Vector3d> led_directions() const;
+};
+
+// Loads and validates a stage file (JSON). Every problem is an InputError of the form
+// "<file>: <field>: <what was expected>, got <what was found>".
+Stage load_stage(const std::filesystem::path& path);
+Stage parse_stage(std::string_view json_text, const std::string& source_name);
+std::string stage_to_json(const Stage& stage);  // Round-trips through parse_stage.
+
+// The built-in dome: a frequency-5 geodesic sphere cut below -11.5 degrees elevation (about 150
+// LEDs: the upper hemisphere and one ring below it), a 12-bit camera and a 3-step bracket.
+Stage default_stage();
+
+// LED layouts. Elevation is measured from the horizontal plane (y = 0) toward +Y.
+std::vector<Eigen::Vector3d> geodesic_dome_directions(int frequency, double min_elevation_deg);
+std::vector<Eigen::Vector3d> fibonacci_dome_directions(int count, double min_elevation_deg);
+// A stage like default_stage() with the given LED directions.
+Stage stage_with_directions(const std::vector<Eigen::Vector3d>& dirs_in_stage);
+
+}  // namespace ls

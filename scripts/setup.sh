@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Installs what lightstage needs from Debian 12's packages (only what is missing), then configures
+# and builds. Idempotent: a second run only rebuilds what changed.
+#   BUILD_DIR  build directory (default: build)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD_DIR=${BUILD_DIR:-build}
+
+PACKAGES=(
+  g++ cmake ninja-build pkg-config ccache
+  libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
+  libopencv-calib3d-dev
+  libopenexr-dev libimath-dev libopenimageio-dev openimageio-tools
+  libgpiod-dev gpiod libaravis-dev libusb-1.0-0-dev aravis-tools-cli
+  libeigen3-dev libglfw3-dev libgl-dev libegl-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  libceres-dev libtbb-dev nlohmann-json3-dev libcli11-dev libimgui-dev
+  xvfb xauth mesa-utils
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "setup: installing ${#missing[@]} Debian packages: ${missing[*]}"
+  SUDO=""
+  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
+  $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+launcher=()
+command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" >/dev/null
+echo "setup: building in $BUILD_DIR"
+cmake --build "$BUILD_DIR" -j "$(nproc)"

@@ -1,0 +1,27 @@
+#pragma once
+// Ground truth for accuracy tests: the scene lit directly by an environment map, integrated with the
+// true BRDFs and visibility by dense quadrature over the map (no LEDs involved):
+//   L_o(x) = sum over map texels (box-filtered to `directions_width` x /2) of L(w) f_r(w, w_o) cos V dw
+#include <Eigen/Core>
+#include <vector>
+
+#include "lightstage/image.h"
+#include "lightstage/stage.h"
+#include "relight/envmap.h"
+#include "sim/scene.h"
+
+namespace ls::sim {
+
+struct GroundTruthOptions {
+  int directions_width = 256;  // Quadrature grid: directions_width x directions_width/2 texels.
+  double rotation_deg = 0.0;
+  // When set, only directions within coverage_radius_rad of one of these LEDs are integrated, so the
+  // truth covers what the dome covers (the uncovered rest is reported by integrate_environment).
+  std::vector<Eigen::Vector3d> covered_by_leds;
+  double coverage_radius_rad = 0.0;
+};
+
+Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
+                          const relight::EnvironmentMap& map, const GroundTruthOptions& options);
+
+}  // namespace ls::sim

@@ -1,0 +1,644 @@
+#include "sim/sim_stage.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <set>
+#include <string>
+
+#include "lightstage/errors.h"
+#include "sim/tracer.h"
+
+namespace ls::sim {
+
+namespace detail {
+
+namespace {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kBlockCells = 8;  // Height-field cells per side of a min/max block.
+}  // namespace
+
+void plane_tangents(const Eigen::Vector3d& normal, Eigen::Vector3d* u, Eigen::Vector3d* v) {
+  const Eigen::Vector3d up(0, 1, 0);
+  Eigen::Vector3d tu = up.cross(normal);
+  if (tu.norm() < 1e-6) tu = Eigen::Vector3d(1, 0, 0);
+  *u = tu.normalized();
+  *v = normal.cross(*u).normalized();
+}
+
+Tracer::Tracer(const Scene& scene) : scene_(scene) {
+  for (const Plane& p : scene.planes) {
+    PlaneFrame f;
+    f.center = p.center;
+    f.normal = p.normal.normalized();
+    plane_tangents(f.normal, &f.u, &f.v);
+    f.half_width = p.half_width;
+    f.half_height = p.half_height;
+    planes_.push_back(f);
+  }
+  for (const HeightField& hf : scene.height_fields) {
+    LS_CHECK(hf.resolution >= 2 && hf.heights.size() == size_t(hf.resolution) * hf.resolution,
+             "height field has " + std::to_string(hf.heights.size()) + " samples for resolution " +
+                 std::to_string(hf.resolution));
+    Field f;
+    f.hf = &hf;
+    f.n = hf.resolution;
+    f.x_left = hf.center.x() - hf.half_width;
+    f.y_top = hf.center.y() + hf.half_height;
+    f.dx = 2.0 * hf.half_width / (f.n - 1);
+    f.dy = 2.0 * hf.half_height / (f.n - 1);
+    f.base_z = hf.center.z();
+    const auto [lo, hi] = std::minmax_element(hf.heights.begin(), hf.heights.end());
+    f.box_lo = {f.x_left, hf.center.y() - hf.half_height, f.base_z + *lo};
+    f.box_hi = {hf.center.x() + hf.half_width, f.y_top, f.base_z + *hi};
+    f.blocks = (f.n - 1 + kBlockCells - 1) / kBlockCells;
+    f.block_min.assign(size_t(f.blocks) * f.blocks, std::numeric_limits<float>::max());
+    f.block_max.assign(size_t(f.blocks) * f.blocks, std::numeric_limits<float>::lowest());
+    for (int bi = 0; bi < f.blocks; ++bi) {
+      for (int bj = 0; bj < f.blocks; ++bj) {
+        float mn = std::numeric_limits<float>::max(), mx = std::numeric_limits<float>::lowest();
+        // Inclusive sample range: the bilinear surface over the block depends on its edges.
+        for (int i = bi * kBlockCells; i <= std::min((bi + 1) * kBlockCells, f.n - 1); ++i) {
+          for (int j = bj * kBlockCells; j <= std::min((bj + 1) * kBlockCells, f.n - 1); ++j) {
+            const float h = hf.heights[size_t(i) * f.n + j];
+            mn = std::min(mn, h);
+            mx = std::max(mx, h);
+          }
+        }
+        f.block_min[size_t(bi) * f.blocks + bj] = mn;
+        f.block_max[size_t(bi) * f.blocks + bj] = mx;
+      }
+    }
+    fields_.push_back(std::move(f));
+  }
+}
+
+int Tracer::material_of(int object) const {
+  const int ns = int(scene_.spheres.size()), np = int(scene_.planes.size());
+  if (object < ns) return scene_.spheres[object].material;
+  if (object < ns + np) return scene_.planes[object - ns].material;
+  return scene_.height_fields[object - ns - np].material;
+}
+
+bool Tracer::hit_sphere(int i, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
+                        double* t) const {
+  const Sphere& s = scene_.spheres[i];
+  const Eigen::Vector3d oc = o - s.center;
+  const double b = oc.dot(d);  // d is unit.
+  const double c = oc.squaredNorm() - s.radius * s.radius;
+  const double disc = b * b - c;
+  if (disc < 0) return false;
+  const double root = std::sqrt(disc);
+  double tt = -b - root;
+  if (tt <= t_min) tt = -b + root;
+  if (tt <= t_min) return false;
+  *t = tt;
+  return true;
+}
+
+bool Tracer::hit_plane(int i, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min,
+                       double* t) const {
+  const PlaneFrame& p = planes_[i];
+  const double denom = d.dot(p.normal);
+  if (std::abs(denom) < 1e-12) return false;
+  const double tt = (p.center - o).dot(p.normal) / denom;
+  if (tt <= t_min) return false;
+  const Eigen::Vector3d local = o + tt * d - p.center;
+  if (std::abs(local.dot(p.u)) > p.half_width || std::abs(local.dot(p.v)) > p.half_height) {
+    return false;
+  }
+  *t = tt;
+  return true;
+}
+
+double Tracer::height_at(const Field& f, double gx, double gy) {
+  const double max_g = f.n - 1;
+  gx = std::clamp(gx, 0.0, max_g);
+  gy = std::clamp(gy, 0.0, max_g);
+  const int j0 = std::min(int(gx), f.n - 2), i0 = std::min(int(gy), f.n - 2);
+  const double tx = gx - j0, ty = gy - i0;
+  const float* row0 = f.hf->heights.data() + size_t(i0) * f.n + j0;
+  const float* row1 = row0 + f.n;
+  return (1 - ty) * ((1 - tx) * row0[0] + tx * row0[1]) + ty * ((1 - tx) * row1[0] + tx * row1[1]);
+}
+
+// Marches the grid in steps of half a cell, skipping whole 8x8-cell blocks whose height range the
+// ray passes entirely above (or below); a crossing of the surface is refined by bisection.
+bool Tracer::hit_field(const Field& f, const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                       double t_min, bool any, double* t_out) const {
+  double t0 = t_min, t1 = kInf;
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(d[k]) < 1e-15) {
+      if (o[k] < f.box_lo[k] || o[k] > f.box_hi[k]) return false;
+      continue;
+    }
+    double ta = (f.box_lo[k] - o[k]) / d[k], tb = (f.box_hi[k] - o[k]) / d[k];
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
+  }
+  if (!(t0 < t1)) return false;
+
+  // Grid coordinates along the ray: g(t) = g(0) + t * g_rate.
+  const double gx_origin = (o.x() - f.x_left) / f.dx, gy_origin = (f.y_top - o.y()) / f.dy;
+  const double gx_rate = d.x() / f.dx, gy_rate = -d.y() / f.dy;
+  const double grid_speed = std::max(std::abs(gx_rate), std::abs(gy_rate));
+  const double dt_step = grid_speed > 1e-12 ? 0.5 / grid_speed : kInf;
+  auto above = [&](double t) {
+    return o.z() + t * d.z() - f.base_z -
+           height_at(f, gx_origin + t * gx_rate, gy_origin + t * gy_rate);
+  };
+  auto block_exit = [&](double g, double rate, int block) {
+    if (rate > 0) return ((block + 1) * kBlockCells - g) / rate;
+    if (rate < 0) return (block * kBlockCells - g) / rate;
+    return kInf;
+  };
+
+  double ta = t0;
+  double fa = above(ta);
+  while (ta < t1) {
+    const double gx = gx_origin + ta * gx_rate, gy = gy_origin + ta * gy_rate;
+    // The block the ray is entering: nudge along the motion so boundaries do not stall it.
+    const int bj = std::clamp(int(std::floor((gx + std::copysign(1e-7, gx_rate)) / kBlockCells)), 0,
+                              f.blocks - 1);
+    const int bi = std::clamp(int(std::floor((gy + std::copysign(1e-7, gy_rate)) / kBlockCells)), 0,
+                              f.blocks - 1);
+    double tb = ta + std::min(block_exit(gx, gx_rate, bj), block_exit(gy, gy_rate, bi));
+    tb = std::min(std::max(tb, ta + 1e-9), t1);
+    const double za = o.z() + ta * d.z() - f.base_z, zb = o.z() + tb * d.z() - f.base_z;
+    const size_t b = size_t(bi) * f.blocks + bj;
+    if (std::min(za, zb) > f.block_max[b] && fa > 0) {
+      ta = tb;
+      fa = std::max(above(tb), 1e-300);  // Still above: the block edge samples are bounded too.
+      continue;
+    }
+    if (std::max(za, zb) < f.block_min[b] && fa < 0) {
+      ta = tb;
+      fa = std::min(above(tb), -1e-300);
+      continue;
+    }
+    while (ta < tb) {
+      const double tn = std::min(ta + dt_step, tb);
+      const double fn = above(tn);
+      if ((fa >= 0) != (fn >= 0)) {
+        if (any) {
+          *t_out = tn;
+          return true;
+        }
+        double lo = ta, hi = tn, flo = fa;
+        for (int it = 0; it < 48 && hi - lo > 1e-9; ++it) {
+          const double mid = 0.5 * (lo + hi);
+          const double fm = above(mid);
+          if ((fm >= 0) == (flo >= 0)) {
+            lo = mid;
+            flo = fm;
+          } else {
+            hi = mid;
+          }
+        }
+        *t_out = 0.5 * (lo + hi);
+        return true;
+      }
+      ta = tn;
+      fa = fn;
+    }
+  }
+  return false;
+}
+
+bool Tracer::intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_min,
+                       RayHit* hit) const {
+  double best = kInf;
+  int best_object = -1;
+  double t = 0;
+  const int ns = int(scene_.spheres.size()), np = int(planes_.size());
+  for (int i = 0; i < ns; ++i) {
+    if (hit_sphere(i, origin, dir, t_min, &t) && t < best) {
+      best = t;
+      best_object = i;
+    }
+  }
+  for (int i = 0; i < np; ++i) {
+    if (hit_plane(i, origin, dir, t_min, &t) && t < best) {
+      best = t;
+      best_object = ns + i;
+    }
+  }
+  for (size_t i = 0; i < fields_.size(); ++i) {
+    if (hit_field(fields_[i], origin, dir, t_min, /*any=*/false, &t) && t < best) {
+      best = t;
+      best_object = ns + np + int(i);
+    }
+  }
+  if (best_object < 0) return false;
+  hit->t = best;
+  hit->object = best_object;
+  return true;
+}
+
+bool Tracer::occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                      double t_min) const {
+  double t = 0;
+  for (int i = 0; i < int(scene_.spheres.size()); ++i) {
+    if (hit_sphere(i, origin, dir, t_min, &t)) return true;
+  }
+  for (int i = 0; i < int(planes_.size()); ++i) {
+    if (hit_plane(i, origin, dir, t_min, &t)) return true;
+  }
+  for (const Field& f : fields_) {
+    if (hit_field(f, origin, dir, t_min, /*any=*/true, &t)) return true;
+  }
+  return false;
+}
+
+void Tracer::surface(const Eigen::Vector3d& position, int object, Eigen::Vector3d* normal,
+                     Eigen::Vector2d* st) const {
+  const int ns = int(scene_.spheres.size()), np = int(planes_.size());
+  if (object < ns) {
+    const Sphere& s = scene_.spheres[object];
+    const Eigen::Vector3d n = (position - s.center).normalized();
+    *normal = n;
+    // Lat-long around +Y: s from the azimuth (0.5 faces the camera), t from the pole.
+    const double theta = std::acos(std::clamp(n.y(), -1.0, 1.0));
+    const double phi = std::atan2(n.x(), n.z());
+    *st = {(phi + brdf::kPi) / (2 * brdf::kPi), theta / brdf::kPi};
+  } else if (object < ns + np) {
+    const PlaneFrame& p = planes_[object - ns];
+    *normal = p.normal;
+    const Eigen::Vector3d local = position - p.center;
+    *st = {0.5 * (local.dot(p.u) / p.half_width + 1.0),
+           0.5 * (1.0 - local.dot(p.v) / p.half_height)};
+  } else {
+    const Field& f = fields_[object - ns - np];
+    const double gx = (position.x() - f.x_left) / f.dx, gy = (f.y_top - position.y()) / f.dy;
+    // Central differences one cell wide; y grows opposite to the grid rows.
+    const double dh_dx = (height_at(f, gx + 1, gy) - height_at(f, gx - 1, gy)) / (2 * f.dx);
+    const double dh_dy = -(height_at(f, gx, gy + 1) - height_at(f, gx, gy - 1)) / (2 * f.dy);
+    *normal = Eigen::Vector3d(-dh_dx, -dh_dy, 1.0).normalized();
+    *st = {gx / (f.n - 1), gy / (f.n - 1)};
+  }
+}
+
+}  // namespace detail
+
+namespace {
+
+using detail::Tracer;
+
+// Applies a material's spatial variation at the object's (s, t).
+brdf::Material shade_material(const SceneMaterial& m, const Image* texture,
+                              const Eigen::Vector2d& st) {
+  brdf::Material out = m.base;
+  const double s = std::clamp(st.x(), 0.0, 1.0), t = std::clamp(st.y(), 0.0, 1.0);
+  if (m.checker_albedo) {
+    const int cs = std::min(int(s * m.checker_cells), m.checker_cells - 1);
+    const int ct = std::min(int(t * m.checker_cells), m.checker_cells - 1);
+    if ((cs + ct) % 2 == 1) out.albedo = *m.checker_albedo;
+  } else if (texture != nullptr && texture->width > 0) {
+    const int x = std::min(int(s * texture->width), texture->width - 1);
+    const int y = std::min(int(t * texture->height), texture->height - 1);
+    for (int c = 0; c < 3; ++c) {
+      const int ch = texture->channels >= 3 ? c : 0;
+      out.albedo[c] = std::clamp(double(texture->at(x, y, ch)), 0.0, 1.0);
+    }
+  }
+  return out;
+}
+
+void camera_ray(const CameraSpec& camera, int x, int y, Eigen::Vector3d* origin,
+                Eigen::Vector3d* dir) {
+  const double aspect = double(camera.width) / camera.height;
+  // Pixel centres; row 0 at the top (+Y).
+  const double ndc_x = 2.0 * (x + 0.5) / camera.width - 1.0;
+  const double ndc_y = 1.0 - 2.0 * (y + 0.5) / camera.height;
+  if (camera.fov_y_deg <= 0.0) {
+    const double half_h = 0.5 * camera.ortho_height_m;
+    // Far enough in front of any stage object; the view plane is parallel to z = 0.
+    *origin = Eigen::Vector3d(ndc_x * half_h * aspect, ndc_y * half_h, 100.0);
+    *dir = Eigen::Vector3d(0, 0, -1);
+  } else {
+    const double tan_half = std::tan(0.5 * camera.fov_y_deg * brdf::kPi / 180.0);
+    *origin = Eigen::Vector3d(0, 0, camera.distance_m);
+    *dir = Eigen::Vector3d(ndc_x * tan_half * aspect, ndc_y * tan_half, -1.0).normalized();
+  }
+}
+
+// Shadow ray from a camera hit, offset along its normal so the surface does not shadow itself.
+bool hit_sees(const Tracer& tracer, const SurfaceHit& hit, const Eigen::Vector3d& dir) {
+  return !tracer.occluded(hit.position + detail::kShadowOffsetM * hit.normal, dir, 0.0);
+}
+
+}  // namespace
+
+std::vector<SurfaceHit> trace_camera(const Scene& scene, const CameraSpec& camera) {
+  if (camera.width < 1 || camera.height < 1) {
+    throw InputError(scene.source + ": camera: expected a positive image size, got " +
+                     std::to_string(camera.width) + "x" + std::to_string(camera.height));
+  }
+  const Tracer tracer(scene);
+  std::vector<Image> textures(scene.materials.size());
+  for (size_t i = 0; i < scene.materials.size(); ++i) {
+    if (!scene.materials[i].albedo_texture.empty()) {
+      textures[i] = read_image(scene.materials[i].albedo_texture);
+    }
+  }
+  std::vector<SurfaceHit> hits(size_t(camera.width) * camera.height);
+  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height), [&](const auto& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < camera.width; ++x) {
+        SurfaceHit& h = hits[size_t(y) * camera.width + x];
+        h.pixel_x = x;
+        h.pixel_y = y;
+        Eigen::Vector3d origin, dir;
+        camera_ray(camera, x, y, &origin, &dir);
+        detail::RayHit rh;
+        if (!tracer.intersect(origin, dir, 0.0, &rh)) continue;
+        h.hit = true;
+        h.object = rh.object;
+        h.position = origin + rh.t * dir;
+        h.wo = -dir;
+        Eigen::Vector2d st;
+        tracer.surface(h.position, rh.object, &h.normal, &st);
+        if (h.normal.dot(h.wo) < 0) h.normal = -h.normal;  // Back sides of planes.
+        const int m = tracer.material_of(rh.object);
+        h.material = shade_material(scene.materials[m], &textures[m], st);
+      }
+    }
+  });
+  return hits;
+}
+
+bool visible(const Scene& scene, const Eigen::Vector3d& position, const Eigen::Vector3d& dir) {
+  // Without a normal, the offset runs along the ray: hits nearer than the offset are the surface
+  // the point lies on.
+  return !Tracer(scene).occluded(position, dir.normalized(), detail::kShadowOffsetM);
+}
+
+namespace detail {
+
+// Shared by render_one_light and the SimStage cache; the tracer is built once by the caller.
+Image render_one_light_with(const Tracer& tracer, const std::vector<SurfaceHit>& hits,
+                            const Eigen::Vector3d& dir_in_stage) {
+  if (hits.empty()) return Image();
+  const int width = hits.back().pixel_x + 1, height = hits.back().pixel_y + 1;
+  LS_CHECK(size_t(width) * height == hits.size(),
+           "hits do not form an image: " + std::to_string(hits.size()) + " hits, last at (" +
+               std::to_string(width - 1) + ", " + std::to_string(height - 1) + ")");
+  const Eigen::Vector3d wi = dir_in_stage.normalized();
+  Image out(width, height, 3);
+  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const auto& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < width; ++x) {
+        const SurfaceHit& h = hits[size_t(y) * width + x];
+        if (!h.hit) continue;
+        const auto g = brdf::Geometry<double>::from_world(h.normal, wi, h.wo);
+        if (!(g.cos_i > 0)) continue;
+        const Eigen::Vector3d f = brdf::eval(h.material, g);
+        if (!(f.maxCoeff() > 0)) continue;
+        if (!hit_sees(tracer, h, wi)) continue;
+        for (int c = 0; c < 3; ++c) out.at(x, y, c) = float(f[c] * g.cos_i);
+      }
+    }
+  });
+  return out;
+}
+
+}  // namespace detail
+
+Image render_one_light(const Scene& scene, const std::vector<SurfaceHit>& hits,
+                       const Eigen::Vector3d& dir_in_stage) {
+  return detail::render_one_light_with(Tracer(scene), hits, dir_in_stage);
+}
+
+// ---------------------------------------------------------------------------------------------
+// SimStage
+
+namespace {
+
+uint64_t mix64(uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+
+// SplitMix64: a tiny generator per pixel, seeded by hashing (seed, sequence key, pixel), so the
+// noise of any pixel of any frame is independent of what was captured before.
+struct PixelRng {
+  uint64_t state;
+  uint64_t next() { return mix64(state += 0x9E3779B97F4A7C15ull); }
+  double uniform_open() { return (double(next() >> 11) + 0.5) * 0x1.0p-53; }  // (0, 1)
+  // Two independent standard normals (Box-Muller).
+  void normals(double* z0, double* z1) {
+    const double r = std::sqrt(-2.0 * std::log(uniform_open()));
+    const double a = 2.0 * brdf::kPi * uniform_open();
+    *z0 = r * std::cos(a);
+    *z1 = r * std::sin(a);
+  }
+  int poisson(double mean) {  // Knuth; only for small means.
+    const double limit = std::exp(-mean);
+    int k = 0;
+    double p = uniform_open();
+    while (p > limit && k < 1000) {
+      ++k;
+      p *= uniform_open();
+    }
+    return k;
+  }
+};
+
+// Below this mean the shot noise is sampled as Poisson; above, as its normal approximation.
+constexpr double kPoissonNormalThresholdE = 50.0;
+
+}  // namespace
+
+struct SimStage::State {
+  Stage stage;
+  Scene scene;
+  uint64_t seed = 0;
+  std::unique_ptr<Tracer> tracer;  // Refers to `scene`, which never moves after construction.
+  std::vector<SurfaceHit> hits;
+  std::vector<std::optional<Image>> one_light;  // Per LED, computed on first use.
+  std::vector<bool> on, dead;
+  std::multiset<uint64_t> timeout_keys;
+  int timeout_after = -1;  // Negative: off.
+  int frames_delivered = 0;
+
+  class Lights final : public LightController {
+   public:
+    explicit Lights(State& s) : s_(s) {}
+    int num_lights() const override { return int(s_.stage.leds.size()); }
+    void set_light(int led_index, bool on) override {
+      if (led_index < 0 || led_index >= num_lights()) {
+        throw HardwareError("sim:" + s_.stage.name + ": set_light: LED index " +
+                            std::to_string(led_index) + " out of range [0, " +
+                            std::to_string(num_lights()) + ")");
+      }
+      s_.on[led_index] = on;
+    }
+    void all_off() noexcept override { std::fill(s_.on.begin(), s_.on.end(), false); }
+
+   private:
+    State& s_;
+  };
+
+  class Cam final : public Camera {
+   public:
+    explicit Cam(State& s) : s_(s) {}
+    CameraInfo info() const override {
+      const CameraSpec& c = s_.stage.camera;
+      return {"sim:" + s_.stage.name, "lightstage simulated camera", c.width, c.height,
+              c.channels, c.bit_depth};
+    }
+    CapturedFrame capture(const FrameRequest& request) override { return s_.capture(request); }
+
+   private:
+    State& s_;
+  };
+
+  Lights lights{*this};
+  Cam cam{*this};
+
+  const Image& one_light_image(int led) {
+    if (!one_light[led]) {
+      one_light[led] = detail::render_one_light_with(*tracer, hits, stage.leds[led].dir_in_stage);
+    }
+    return *one_light[led];
+  }
+
+  CapturedFrame capture(const FrameRequest& request) {
+    const std::string camera_name = "sim:" + stage.name;
+    if (auto it = timeout_keys.find(request.sequence_key); it != timeout_keys.end()) {
+      timeout_keys.erase(it);
+      throw CameraTimeout(camera_name + ": no frame within " + std::to_string(stage.camera.timeout_s) +
+                          " s (injected, sequence key " + std::to_string(request.sequence_key) +
+                          ")");
+    }
+    if (timeout_after >= 0 && frames_delivered >= timeout_after) {
+      throw CameraTimeout(camera_name + ": no frame within " + std::to_string(stage.camera.timeout_s) +
+                          " s (injected after " + std::to_string(timeout_after) + " frames)");
+    }
+    const CameraSpec& cam_spec = stage.camera;
+    if (!(request.exposure_s > 0) || !(request.gain > 0)) {
+      throw HardwareError(camera_name + ": capture: expected a positive exposure and gain, got " +
+                          std::to_string(request.exposure_s) + " s, gain " +
+                          std::to_string(request.gain));
+    }
+    if (cam_spec.channels != 1 && cam_spec.channels != 3) {
+      throw HardwareError(camera_name + ": channels: the simulator delivers 1 or 3, got " +
+                          std::to_string(cam_spec.channels));
+    }
+    if (cam_spec.bit_depth < 1 || cam_spec.bit_depth > 16) {
+      throw HardwareError(camera_name + ": bit_depth: expected 1..16, got " +
+                          std::to_string(cam_spec.bit_depth));
+    }
+    const int w = cam_spec.width, h = cam_spec.height;
+    const size_t n = size_t(w) * h;
+
+    // Radiance: the sum of the lit LEDs' one-light images times their RGB irradiance.
+    std::vector<const float*> sources;
+    std::vector<Eigen::Vector3f> weights;
+    for (size_t l = 0; l < stage.leds.size(); ++l) {
+      if (!on[l] || dead[l]) continue;
+      sources.push_back(one_light_image(int(l)).pixels.data());
+      weights.push_back(stage.leds[l].irradiance_rgb().cast<float>());
+    }
+
+    const SimulatedSensor& sensor = cam_spec.simulated;
+    const double to_x = request.exposure_s / cam_spec.radiometric_scale;  // L -> normalised.
+    const double dark_e = sensor.dark_current_e_per_s * request.exposure_s;
+    const double read2 = sensor.read_noise_e * sensor.read_noise_e;
+    const double gain_over_well = request.gain / sensor.full_well_e;
+    const double max_dn = double((1u << cam_spec.bit_depth) - 1u);
+    double gamma = 1.0;
+    if (cam_spec.response.kind != CameraResponse::Kind::kLinear && cam_spec.response.gamma > 0) {
+      gamma = cam_spec.response.gamma;
+    }
+    const double inv_gamma = 1.0 / gamma;
+    const uint64_t frame_seed = mix64(mix64(seed ^ 0x5DEECE66Dull) ^ request.sequence_key);
+    const int out_channels = cam_spec.channels;
+
+    CapturedFrame frame;
+    frame.exposure_s = request.exposure_s;
+    frame.gain = request.gain;
+    frame.raw.width = w;
+    frame.raw.height = h;
+    frame.raw.channels = out_channels;
+    frame.raw.bit_depth = cam_spec.bit_depth;
+    frame.raw.pixels.resize(n * out_channels);
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, n, 1024), [&](const auto& range) {
+      for (size_t p = range.begin(); p < range.end(); ++p) {
+        double rgb[3] = {0, 0, 0};
+        for (size_t k = 0; k < sources.size(); ++k) {
+          for (int c = 0; c < 3; ++c) rgb[c] += double(sources[k][p * 3 + c]) * weights[k][c];
+        }
+        if (out_channels == 1) rgb[0] = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+        PixelRng rng{mix64(frame_seed ^ (uint64_t(p) * 0xD1B54A32D192ED03ull))};
+        double z[4];
+        rng.normals(&z[0], &z[1]);
+        if (out_channels > 2) rng.normals(&z[2], &z[3]);
+        for (int c = 0; c < out_channels; ++c) {
+          const double mean_e = std::max(0.0, rgb[c] * to_x) * sensor.full_well_e + dark_e;
+          double e;
+          if (mean_e >= kPoissonNormalThresholdE) {
+            e = mean_e + std::sqrt(mean_e + read2) * z[c];  // Shot and read noise together.
+          } else {
+            e = rng.poisson(mean_e) + sensor.read_noise_e * z[c];
+          }
+          e = std::clamp(e, 0.0, sensor.full_well_e);
+          double x = std::clamp(e * gain_over_well + sensor.black_level, 0.0, 1.0);
+          if (gamma != 1.0) x = std::pow(x, inv_gamma);
+          frame.raw.pixels[p * out_channels + c] = uint16_t(std::lround(x * max_dn));
+        }
+      }
+    });
+    ++frames_delivered;
+    return frame;
+  }
+};
+
+SimStage::SimStage(Stage stage, Scene scene, uint64_t seed) : state_(std::make_unique<State>()) {
+  state_->stage = std::move(stage);
+  state_->scene = std::move(scene);
+  state_->seed = seed;
+  state_->tracer = std::make_unique<Tracer>(state_->scene);
+  state_->hits = trace_camera(state_->scene, state_->stage.camera);
+  const size_t leds = state_->stage.leds.size();
+  state_->one_light.resize(leds);
+  state_->on.assign(leds, false);
+  state_->dead.assign(leds, false);
+}
+
+SimStage::~SimStage() = default;
+
+LightController& SimStage::lights() { return state_->lights; }
+Camera& SimStage::camera() { return state_->cam; }
+const Stage& SimStage::stage() const { return state_->stage; }
+const Scene& SimStage::scene() const { return state_->scene; }
+const std::vector<SurfaceHit>& SimStage::hits() const { return state_->hits; }
+
+const Image& SimStage::one_light_image(int led_index) {
+  LS_CHECK(led_index >= 0 && led_index < int(state_->stage.leds.size()),
+           "LED index " + std::to_string(led_index) + " out of range");
+  return state_->one_light_image(led_index);
+}
+
+void SimStage::inject_timeouts(std::vector<uint64_t> sequence_keys) {
+  state_->timeout_keys.insert(sequence_keys.begin(), sequence_keys.end());
+}
+
+void SimStage::inject_timeout_after(int frames) {
+  state_->timeout_after = frames;
+  state_->frames_delivered = 0;
+}
+
+void SimStage::set_dead_led(int led_index, bool dead) {
+  LS_CHECK(led_index >= 0 && led_index < int(state_->stage.leds.size()),
+           "LED index " + std::to_string(led_index) + " out of range");
+  state_->dead[led_index] = dead;
+}
+
+}  // namespace ls::sim

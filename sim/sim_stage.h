@@ -1,0 +1,50 @@
+#pragma once
+// The simulated stage: the scene, the dome's LEDs and a camera with a response curve, shot noise,
+// read noise, dark current, a bit depth and saturation. It implements the same LightController and
+// Camera interfaces as the hardware back-ends, so the sequencer cannot tell it apart.
+#include <memory>
+#include <vector>
+
+#include "lightstage/hardware.h"
+#include "lightstage/stage.h"
+#include "sim/scene.h"
+
+namespace ls::sim {
+
+// Per-pixel surface hits for the stage's camera (computed once per scene and camera).
+std::vector<SurfaceHit> trace_camera(const Scene& scene, const CameraSpec& camera);
+
+// Whether `position` sees a distant light along `dir_in_stage` (shadow ray against all geometry).
+bool visible(const Scene& scene, const Eigen::Vector3d& position, const Eigen::Vector3d& dir);
+
+// Noise-free radiance image of the scene lit by one distant LED of unit irradiance (at normal
+// incidence) along dir_in_stage: L_o = f_r * cos(theta_i) * V. This is exactly the ideal R(x, l).
+Image render_one_light(const Scene& scene, const std::vector<SurfaceHit>& hits,
+                       const Eigen::Vector3d& dir_in_stage);
+
+class SimStage {
+ public:
+  SimStage(Stage stage, Scene scene, uint64_t seed);
+  ~SimStage();
+
+  LightController& lights();
+  Camera& camera();
+  const Stage& stage() const;
+  const Scene& scene() const;
+  const std::vector<SurfaceHit>& hits() const;
+  // The noise-free one-light image of LED `led_index` (the ideal R(x, l), ignoring set_dead_led),
+  // rendered on first use and cached.
+  const Image& one_light_image(int led_index);
+
+  // Failure injection for tests: the camera times out on these sequence keys (once each), or
+  // after `frames` more successful frames (forever, until cleared with a negative count).
+  void inject_timeouts(std::vector<uint64_t> sequence_keys);
+  void inject_timeout_after(int frames);
+  void set_dead_led(int led_index, bool dead);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace ls::sim

@@ -1,0 +1,209 @@
+#include "capture/field.h"
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <OpenImageIO/imageio.h>
+#include <chrono>
+#include <cstring>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <random>
+
+#include "lightstage/errors.h"
+#include "tests/support/test_support.h"
+
+namespace ls::capture {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::vector<FieldLight> make_lights(int n) {
+  std::vector<FieldLight> lights;
+  for (int l = 0; l < n; ++l) {
+    const double a = 0.3 * l;
+    // Ids out of order and with gaps, as a capture order may be.
+    lights.push_back(FieldLight{(l * 37) % 211 + 1, Eigen::Vector3d(std::sin(a), 0.6, std::cos(a)).normalized(),
+                                l % 5 != 3});
+  }
+  return lights;
+}
+
+ReflectanceField random_field(int width, int height, int num_lights, uint64_t seed) {
+  ReflectanceField field(width, height, make_lights(num_lights));
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> value(0.2f, 0.3f);  // Includes negatives (noise below dark).
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      float* p = field.pixel(x, y);
+      for (int i = 0; i < 3 * num_lights; ++i) p[i] = value(rng);
+    }
+  }
+  field.scene_time_s = 12.345678901234;
+  return field;
+}
+
+void expect_same(const ReflectanceField& a, const ReflectanceField& b) {
+  ASSERT_EQ(a.width(), b.width());
+  ASSERT_EQ(a.height(), b.height());
+  ASSERT_EQ(a.num_lights(), b.num_lights());
+  for (int l = 0; l < a.num_lights(); ++l) {
+    EXPECT_EQ(a.lights()[l].led_id, b.lights()[l].led_id);
+    EXPECT_EQ(a.lights()[l].valid, b.lights()[l].valid);
+    EXPECT_EQ(a.lights()[l].dir_in_stage, b.lights()[l].dir_in_stage);  // Exact: JSON round-trips doubles.
+  }
+  EXPECT_EQ(a.scene_time_s, b.scene_time_s);
+  ASSERT_EQ(a.values().size(), b.values().size());
+  EXPECT_EQ(0, std::memcmp(a.values().data(), b.values().data(), a.bytes())) << "not bit-exact";
+}
+
+TEST(Field, LayoutIsPixelMajorLightMajorRgbInnermost) {
+  ReflectanceField field(4, 3, make_lights(5));
+  EXPECT_EQ(field.bytes(), ReflectanceField::bytes_for(4, 3, 5));
+  field.at(2, 1, 3, 1) = 7.0f;
+  EXPECT_EQ(field.values()[((1 * 4 + 2) * 5 + 3) * 3 + 1], 7.0f);
+  EXPECT_EQ(field.at(0, 0, 0, 0), 0.0f);  // Zero-initialised.
+}
+
+TEST(Field, RoundTripIsBitExactWithMetadata) {
+  ls::testing::TempDir dir;
+  const ReflectanceField field = random_field(37, 23, 11, 1);
+  write_field(dir / "field.exr", field);
+  EXPECT_FALSE(std::filesystem::exists(dir / "field.exr.tmp"));
+  const ReflectanceField back = read_field(dir / "field.exr");
+  expect_same(field, back);
+  EXPECT_EQ(back.source, (dir / "field.exr").string());
+  // Rewriting over an existing file replaces it.
+  const ReflectanceField other = random_field(37, 23, 11, 2);
+  write_field(dir / "field.exr", other);
+  expect_same(other, read_field(dir / "field.exr"));
+  // Only the field remains: no temporary files left behind.
+  EXPECT_EQ(std::distance(std::filesystem::directory_iterator(dir.path()), {}), 1);
+}
+
+TEST(Field, ShuffledChannelOrderOnDiskReadsRight) {
+  ls::testing::TempDir dir;
+  const int width = 9, height = 7, num_lights = 6;
+  const ReflectanceField field = random_field(width, height, num_lights, 3);
+  // Write the same field with its channels in a random order, by hand.
+  const int nch = 3 * num_lights;
+  std::vector<int> order(nch);
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), std::mt19937(5));
+  OIIO::ImageSpec spec(width, height, nch, OIIO::TypeDesc::FLOAT);
+  spec.channelnames.clear();
+  const char rgb[] = "RGB";
+  nlohmann::json lights = nlohmann::json::array();
+  for (const FieldLight& l : field.lights()) {
+    lights.push_back({{"id", l.led_id},
+                      {"dir", {l.dir_in_stage.x(), l.dir_in_stage.y(), l.dir_in_stage.z()}},
+                      {"valid", l.valid}});
+  }
+  for (int i : order) {
+    char name[32];
+    std::snprintf(name, sizeof(name), "led%03d.%c", field.lights()[i / 3].led_id, rgb[i % 3]);
+    spec.channelnames.push_back(name);
+  }
+  spec.attribute("lightstage:lights", lights.dump());
+  spec.attribute("lightstage:scene_time_s", OIIO::TypeDesc::DOUBLE, &field.scene_time_s);
+  std::vector<float> shuffled(size_t(width) * height * nch);
+  for (size_t p = 0; p < size_t(width) * height; ++p) {
+    for (int i = 0; i < nch; ++i) shuffled[p * nch + i] = field.values()[p * nch + order[i]];
+  }
+  const std::string path = (dir / "shuffled.exr").string();
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out && out->open(path, spec));
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, shuffled.data()));
+  ASSERT_TRUE(out->close());
+  expect_same(field, read_field(path));
+}
+
+// Writes an EXR with the given channel names and optional lights attribute.
+void write_plain_exr(const std::string& path, const std::vector<std::string>& names,
+                     const std::string& lights_json) {
+  OIIO::ImageSpec spec(2, 2, int(names.size()), OIIO::TypeDesc::FLOAT);
+  spec.channelnames = names;
+  if (!lights_json.empty()) spec.attribute("lightstage:lights", lights_json);
+  std::vector<float> data(4 * names.size(), 1.0f);
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out && out->open(path, spec));
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, data.data()));
+  ASSERT_TRUE(out->close());
+}
+
+std::string read_error(const std::filesystem::path& path) {
+  try {
+    read_field(path);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Field, ReadValidatesAndNamesTheFile) {
+  ls::testing::TempDir dir;
+  const std::string one_light = R"([{"id": 4, "dir": [0, 1, 0], "valid": true}])";
+  const std::string f1 = (dir / "no_attr.exr").string();
+  write_plain_exr(f1, {"R", "G", "B"}, "");
+  EXPECT_THAT(read_error(f1), HasSubstr(f1));
+  EXPECT_THAT(read_error(f1), HasSubstr("lightstage:lights"));
+  const std::string f2 = (dir / "count.exr").string();
+  write_plain_exr(f2, {"led004.R", "led004.G", "led004.B", "led005.R"}, one_light);
+  EXPECT_THAT(read_error(f2), HasSubstr(f2));
+  EXPECT_THAT(read_error(f2), HasSubstr("expected 3 channels"));
+  const std::string f3 = (dir / "unknown.exr").string();
+  write_plain_exr(f3, {"led004.R", "led004.G", "led009.B"}, one_light);
+  EXPECT_THAT(read_error(f3), HasSubstr(f3));
+  EXPECT_THAT(read_error(f3), HasSubstr("unknown channel 'led009.B'"));
+  const std::string f4 = (dir / "badjson.exr").string();
+  write_plain_exr(f4, {"led004.R", "led004.G", "led004.B"}, R"([{"id": 4}])");
+  EXPECT_THAT(read_error(f4), HasSubstr(f4));
+  EXPECT_THAT(read_error(dir / "absent.exr"), HasSubstr("absent.exr"));
+  // A valid minimal file reads.
+  const std::string ok = (dir / "ok.exr").string();
+  write_plain_exr(ok, {"led004.R", "led004.G", "led004.B"}, one_light);
+  EXPECT_EQ(read_field(ok).at(1, 1, 0, 2), 1.0f);
+}
+
+TEST(Field, MemoryRefusal) {
+  EXPECT_GT(available_memory_bytes(), 0u);
+  try {
+    require_memory(std::size_t(1) << 60, "reflectance field 4096x4096 with 150000 LEDs");
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    const std::string m = e.what();
+    EXPECT_THAT(m, HasSubstr("reflectance field 4096x4096 with 150000 LEDs needs 1073741824.0 GiB "
+                             "but only "));
+    EXPECT_THAT(m, HasSubstr("GiB of memory are available"));
+    EXPECT_THAT(m, HasSubstr("smaller crop or fewer LEDs"));
+  }
+  EXPECT_NO_THROW(require_memory(1024, "a small buffer"));
+  // Constructing a field far beyond memory throws before allocating (no crash, no OOM kill).
+  try {
+    ReflectanceField huge(65536, 65536, make_lights(200));
+    FAIL() << "expected InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), HasSubstr("reflectance field 65536x65536 with 200 LEDs needs 9600.0 GiB"));
+  }
+}
+
+TEST(Field, WritesAndReadsHundredsOfChannelsFast) {
+  // The demo field: 256x256 pixels, 150 LEDs = 450 channels. Measures throughput per compression.
+  ls::testing::TempDir dir;
+  const ReflectanceField field = random_field(256, 256, 150, 9);
+  const double mb = field.bytes() / 1e6;
+  const auto t0 = std::chrono::steady_clock::now();
+  write_field(dir / "big.exr", field);
+  const auto t1 = std::chrono::steady_clock::now();
+  const ReflectanceField back = read_field(dir / "big.exr");
+  const auto t2 = std::chrono::steady_clock::now();
+  expect_same(field, back);
+  const double write_s = std::chrono::duration<double>(t1 - t0).count();
+  const double read_s = std::chrono::duration<double>(t2 - t1).count();
+  std::printf("field 256x256x150 LEDs (%.0f MB, random data): write %.0f MB/s, read %.0f MB/s, "
+              "file %.0f MB\n",
+              mb, mb / write_s, mb / read_s, std::filesystem::file_size(dir / "big.exr") / 1e6);
+}
+
+}  // namespace
+}  // namespace ls::capture

@@ -1,0 +1,157 @@
+#include "lightstage/stage.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "lightstage/errors.h"
+#include "tests/support/test_support.h"
+
+namespace ls {
+namespace {
+
+// Expects parse_stage to throw an InputError whose message contains every fragment.
+void ExpectStageError(const std::string& json, std::initializer_list<std::string> fragments) {
+  try {
+    parse_stage(json, "bad_stage.json");
+    ADD_FAILURE() << "no error for: " << json;
+  } catch (const InputError& e) {
+    const std::string msg = e.what();
+    EXPECT_NE(msg.find("bad_stage.json"), std::string::npos) << msg;
+    for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << f << "' not in: " << msg;
+  }
+}
+
+TEST(Stage, DefaultDomeIsAboutOneHundredFiftyUnitLedsOverTheUpperHemisphereAndARing) {
+  const Stage stage = default_stage();
+  EXPECT_GE(stage.leds.size(), 140u);
+  EXPECT_LE(stage.leds.size(), 165u);
+  double lowest = 1;
+  int below = 0;
+  for (const auto& led : stage.leds) {
+    EXPECT_NEAR(led.dir_in_stage.norm(), 1.0, 1e-12);
+    lowest = std::min(lowest, led.dir_in_stage.y());
+    below += led.dir_in_stage.y() < -1e-6;
+  }
+  EXPECT_LT(lowest, -0.1);   // A ring below the horizon...
+  EXPECT_GT(lowest, -0.25);  // ...but only one.
+  EXPECT_GT(below, 5);
+  // The zenith is an LED (the geodesic is rotated to put a vertex there).
+  EXPECT_NEAR(stage.leds.front().dir_in_stage.y(), 1.0, 1e-12);
+  std::cout << "default dome: " << stage.leds.size() << " LEDs, " << below
+            << " below the horizon\n";
+}
+
+TEST(Stage, GeodesicNeighboursAreEvenlySpaced) {
+  const auto dirs = geodesic_dome_directions(5, -11.5);
+  double min_nn = 10, max_nn = 0;
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    double best = 10;
+    for (size_t j = 0; j < dirs.size(); ++j) {
+      if (i != j) best = std::min(best, std::acos(std::clamp(dirs[i].dot(dirs[j]), -1.0, 1.0)));
+    }
+    min_nn = std::min(min_nn, best);
+    max_nn = std::max(max_nn, best);
+  }
+  EXPECT_LT(max_nn / min_nn, 1.35);  // Geodesic spacing varies by ~20% at most.
+}
+
+TEST(Stage, FibonacciDomeHasTheRequestedCountAboveTheCut) {
+  for (int n : {20, 40, 80, 150, 300}) {
+    const auto dirs = fibonacci_dome_directions(n, -11.5);
+    ASSERT_EQ(int(dirs.size()), n);
+    for (const auto& d : dirs) {
+      EXPECT_NEAR(d.norm(), 1.0, 1e-12);
+      EXPECT_GE(d.y(), std::sin(-11.5 * M_PI / 180) - 1e-12);
+    }
+  }
+}
+
+TEST(Stage, JsonRoundTripPreservesEverything) {
+  Stage stage = default_stage();
+  stage.leds[3].color_gain = {0.9, 1.0, 1.1};
+  stage.leds[3].intensity = 1.25;
+  stage.leds[4].distance_m = 1.5;
+  stage.leds[5].gpio_chip = "gpiochip0";
+  stage.leds[5].gpio_line = 17;
+  stage.leds[5].active_low = true;
+  stage.camera.response.kind = CameraResponse::Kind::kGamma;
+  stage.camera.response.gamma = 2.2;
+  stage.plan.time_steps = 3;
+  stage.plan.led_order = {2, 1, 0};
+  const Stage back = parse_stage(stage_to_json(stage), "roundtrip.json");
+  ASSERT_EQ(back.leds.size(), stage.leds.size());
+  for (size_t i = 0; i < stage.leds.size(); ++i) {
+    EXPECT_EQ(back.leds[i].id, stage.leds[i].id);
+    EXPECT_NEAR((back.leds[i].dir_in_stage - stage.leds[i].dir_in_stage).norm(), 0, 1e-12);
+    EXPECT_EQ(back.leds[i].color_gain, stage.leds[i].color_gain);
+    EXPECT_EQ(back.leds[i].intensity, stage.leds[i].intensity);
+    EXPECT_EQ(back.leds[i].gpio_line, stage.leds[i].gpio_line);
+  }
+  EXPECT_NEAR(*back.leds[4].distance_m, 1.5, 1e-12);
+  EXPECT_TRUE(back.leds[5].active_low);
+  EXPECT_EQ(back.camera.response.kind, CameraResponse::Kind::kGamma);
+  EXPECT_EQ(back.camera.bracket.size(), stage.camera.bracket.size());
+  EXPECT_EQ(back.plan.time_steps, 3);
+  EXPECT_EQ(back.plan.led_order, stage.plan.led_order);
+  EXPECT_EQ(back.capture_order(), (std::vector<int>{2, 1, 0}));
+}
+
+TEST(Stage, GeneratedLayoutAndPositions) {
+  const Stage s = parse_stage(R"({"layout": {"type": "fibonacci", "count": 40}})", "s.json");
+  EXPECT_EQ(s.leds.size(), 40u);
+  const Stage p = parse_stage(R"({"leds": [{"position": [0, 2, 0]}, {"direction": [1, 0, 0]}]})",
+                              "p.json");
+  EXPECT_NEAR(*p.leds[0].distance_m, 2.0, 1e-12);
+  EXPECT_NEAR(p.leds[0].dir_in_stage.y(), 1.0, 1e-12);
+  EXPECT_FALSE(p.leds[1].distance_m.has_value());
+}
+
+TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
+  ExpectStageError("{ \"leds\": [ }", {"not valid JSON", ":1:"});
+  ExpectStageError(R"({"leds": []})", {"leds", "at least one LED"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 0]}]})", {"leds[0].direction", "3 numbers"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 0, 0]}]})", {"leds[0].direction", "non-zero"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "position": [0, 1, 0]}]})",
+                   {"leds[0]", "exactly one of"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensty": 2}]})",
+                   {"leds[0].intensty", "unknown field"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensity": -2}]})",
+                   {"leds[0].intensity", "positive"});
+  ExpectStageError(R"({"leds": [{"id": 1, "direction": [0, 1, 0]}, {"id": 1, "direction": [1, 0, 0]}]})",
+                   {"leds[1].id", "unique"});
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
+                       "camera": {"bracket": [{"exposure_s": -0.1}]}})",
+                   {"camera.bracket[0].exposure_s", "positive", "-0.1"});
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10}, "camera": {"bit_depth": 20}})",
+                   {"camera.bit_depth", "[8, 16]", "20"});
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10}, "camera": {"backend": "usb"}})",
+                   {"camera.backend", "\"sim\""});
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10}, "plan": {"led_order": [99]}})",
+                   {"plan.led_order[0]", "id of an LED"});
+  ExpectStageError(R"({"layout": {"type": "geodesic"}})", {"layout.frequency", "missing"});
+}
+
+TEST(Stage, LoadStageNamesAMissingFile) {
+  try {
+    load_stage("/nonexistent/dome.json");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/dome.json"), std::string::npos);
+  }
+}
+
+TEST(Stage, ShippedStageFilesLoad) {
+  const auto dir = testing::source_dir() / "data" / "stages";
+  int n = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    if (e.path().extension() != ".json") continue;
+    EXPECT_NO_THROW(load_stage(e.path())) << e.path();
+    ++n;
+  }
+  EXPECT_GT(n, 0);
+}
+
+}  // namespace
+}  // namespace ls

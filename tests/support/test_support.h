@@ -1,0 +1,49 @@
+#pragma once
+// Shared test helpers: a private temporary directory per test, image comparison that says where
+// and by how much, and paths to the source tree and shared data.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "lightstage/image.h"
+
+namespace ls::testing {
+
+// A fresh directory under the system temp dir, removed when the test ends (kept if
+// LIGHTSTAGE_KEEP_TEST_DIRS is set, for debugging).
+class TempDir {
+ public:
+  TempDir();
+  ~TempDir();
+  const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path operator/(const std::string& name) const { return path_ / name; }
+
+ private:
+  std::filesystem::path path_;
+};
+
+std::filesystem::path source_dir();
+// ../shared/data beside the checkout (LIGHTSTAGE_SHARED_DATA overrides). Tests that need it skip
+// with a message when it is absent.
+std::filesystem::path shared_data_dir();
+std::filesystem::path cli_path();
+
+struct ImageError {
+  double rmse = 0;           // Over all pixels and channels.
+  double relative_rmse = 0;  // rmse / rms(expected).
+  double max_abs = 0;
+  int worst_x = -1, worst_y = -1, worst_c = -1;
+  double psnr_db = 0;        // Peak = max(expected).
+};
+// Compares over pixels where mask (if given, 1 channel) is non-zero.
+ImageError compare_images(const Image& actual, const Image& expected, const Image* mask = nullptr);
+
+// Passes when relative RMSE <= rel_tol; the message prints the error, the worst pixel and values.
+::testing::AssertionResult ImageNear(const Image& actual, const Image& expected, double rel_tol,
+                                     const Image* mask = nullptr);
+
+// Runs a shell command, capturing stdout+stderr; returns the exit status.
+int run_command(const std::string& command, std::string* output);
+
+}  // namespace ls::testing
