@@ -19,11 +19,11 @@ struct BuildOptions {
 
 struct BuildSummary {
   int lights_used = 0;
-  std::vector<int> lights_missing;      // LED indices without complete frames, or flagged dead.
-  double saturated_fraction = 0.0;      // Samples saturated in every exposure (lower bounds).
-  std::string response_used;            // "linear", "gamma 2.2", "table FILE", "recovered".
+  std::vector<int> lights_missing;  // LED indices without complete frames, or flagged dead.
+  double saturated_fraction = 0.0;  // Samples saturated in every exposure (lower bounds).
+  std::string response_used;        // "linear", "gamma 2.2", "table FILE", "recovered".
   double seconds = 0.0;
-  std::vector<std::string> warnings;   // E.g. an exposure step without dark frames.
+  std::vector<std::string> warnings;  // E.g. an exposure step without dark frames.
 };
 
 ReflectanceField build_field(const Session& session, const BuildOptions& options,

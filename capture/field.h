@@ -1,7 +1,8 @@
 #pragma once
-// The reflectance field R(x, l): pixel x's linear value under LED l, per unit of that LED's calibrated
-// irradiance at the origin, after dark subtraction and HDR merge (DESIGN.md). It already contains
-// f_r(x, w_l, w_o) * cos(theta_l) and any shadowing; relighting is I(x) = sum_l R(x, l) * E_l.
+// The reflectance field R(x, l): pixel x's linear value under LED l, per unit of that LED's
+// calibrated irradiance at the origin, after dark subtraction and HDR merge (DESIGN.md). It already
+// contains f_r(x, w_l, w_o) * cos(theta_l) and any shadowing; relighting is I(x) = sum_l R(x, l) *
+// E_l.
 //
 // Layout: pixel-major, values[((y * width + x) * num_lights + l) * 3 + c], float32.
 // Why: relighting streams every pixel's 3L values exactly once, contiguously, against a small E
@@ -65,7 +66,8 @@ std::size_t available_memory_bytes();
 void require_memory(std::size_t bytes, const std::string& what);
 
 // OpenEXR, float, one channel per LED and colour named "led042.R" etc., pixel-interleaved (which
-// is exactly the in-memory layout); LED directions and validity in the "lightstage:lights" attribute.
+// is exactly the in-memory layout); LED directions and validity in the "lightstage:lights"
+// attribute.
 void write_field(const std::filesystem::path& path, const ReflectanceField& field);
 ReflectanceField read_field(const std::filesystem::path& path);
 

@@ -3,8 +3,9 @@
 //   signal_k = (response^-1(DN_k) - response^-1(dark_k)) / (exposure_k * gain_k)
 //   merged   = sum_k w_k * signal_k / sum_k w_k
 // with w_k a hat weight on the normalised linear value that is 0 at saturation and small near the
-// noise floor, times exposure_k * gain_k (longer exposures carry more photons, less relative noise).
-// OpenCV's MergeDebevec handles 8-bit input only and does no dark subtraction, hence this loop.
+// noise floor, times exposure_k * gain_k (longer exposures carry more photons, less relative
+// noise). OpenCV's MergeDebevec handles 8-bit input only and does no dark subtraction, hence this
+// loop.
 #include <vector>
 
 #include "capture/response.h"
@@ -20,8 +21,9 @@ struct BracketFrame {
 };
 
 struct MergeOptions {
-  double saturation_level = 0.98;  // Normalised linear value at and above which a sample is unusable.
-  double floor_level = 0.002;      // Below this, weight ramps down (read noise dominates).
+  double saturation_level =
+      0.98;                    // Normalised linear value at and above which a sample is unusable.
+  double floor_level = 0.002;  // Below this, weight ramps down (read noise dominates).
 };
 
 // Returns the merged signal in "full scale per second at gain 1" per channel, plus a 4th channel

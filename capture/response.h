@@ -1,6 +1,7 @@
 #pragma once
-// The camera response: digital number (DN) -> normalised linear exposure in [0, 1] (1 = the exposure
-// that reads full scale). Stored as a lookup table per channel over all 2^bit_depth DN values.
+// The camera response: digital number (DN) -> normalised linear exposure in [0, 1] (1 = the
+// exposure that reads full scale). Stored as a lookup table per channel over all 2^bit_depth DN
+// values.
 #include <vector>
 
 #include "lightstage/image.h"

@@ -1,7 +1,9 @@
 #pragma once
 // Two tiers of errors (STYLE.md):
-//  * InputError / HardwareError: recoverable, caused by the user's files or the devices. The message
-//    names the file (or device), the field and what was expected; the CLI prints it and exits non-zero.
+//  * InputError / HardwareError: recoverable, caused by the user's files or the devices. The
+//  message
+//    names the file (or device), the field and what was expected; the CLI prints it and exits
+//    non-zero.
 //  * LS_CHECK: a broken invariant inside the program; it prints the values involved and aborts.
 #include <stdexcept>
 #include <string>
@@ -24,11 +26,12 @@ class CameraTimeout : public HardwareError {
   using HardwareError::HardwareError;
 };
 
-[[noreturn]] void check_failed(const char* expr, const char* file, int line, const std::string& what);
+[[noreturn]] void check_failed(const char* expr, const char* file, int line,
+                               const std::string& what);
 
 }  // namespace ls
 
-#define LS_CHECK(cond, what)                                         \
-  do {                                                               \
+#define LS_CHECK(cond, what)                                          \
+  do {                                                                \
     if (!(cond)) ::ls::check_failed(#cond, __FILE__, __LINE__, what); \
   } while (0)

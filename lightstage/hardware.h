@@ -1,6 +1,6 @@
 #pragma once
-// The hardware seen by the sequencer. Back-ends (simulated stage, libgpiod, Aravis) implement these;
-// the sequencer cannot tell them apart.
+// The hardware seen by the sequencer. Back-ends (simulated stage, libgpiod, Aravis) implement
+// these; the sequencer cannot tell them apart.
 #include <cstdint>
 #include <string>
 

@@ -1,9 +1,9 @@
 #include "lightstage/image.h"
 
+#include <OpenImageIO/imageio.h>
 #include <fcntl.h>
 #include <unistd.h>
 
-#include <OpenImageIO/imageio.h>
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -23,9 +23,8 @@ namespace {
 // A temporary sibling of `path` that keeps its extension (OpenImageIO picks the format from it).
 fs::path temp_sibling(const fs::path& path) {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
-  return path.parent_path() /
-         (path.stem().string() + ".tmp" + std::to_string(getpid()) + "-" +
-          std::to_string(rng() % 1000000) + path.extension().string());
+  return path.parent_path() / (path.stem().string() + ".tmp" + std::to_string(getpid()) + "-" +
+                               std::to_string(rng() % 1000000) + path.extension().string());
 }
 
 void fsync_path(const fs::path& path, bool directory) {
@@ -85,8 +84,8 @@ Image read_image(const fs::path& path) {
   Image image(spec.width, spec.height, spec.nchannels);
   image.channel_names = spec.channelnames;
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
-    throw InputError(path.string() + ": cannot read pixels (truncated or corrupt file?): " +
-                     in->geterror());
+    throw InputError(path.string() +
+                     ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
   }
   in->close();
   return image;
@@ -125,7 +124,8 @@ void write_png_preview(const fs::path& path, const Image& image, double exposure
   for (size_t i = 0; i < image.num_pixels(); ++i) {
     for (int c = 0; c < out_channels; ++c) {
       const float v = image.pixels[i * image.channels + c] * scale;
-      bytes[i * out_channels + c] = uint8_t(std::lround(255.0f * srgb_encode(std::isfinite(v) ? v : 0)));
+      bytes[i * out_channels + c] =
+          uint8_t(std::lround(255.0f * srgb_encode(std::isfinite(v) ? v : 0)));
     }
   }
   OIIO::ImageSpec spec(image.width, image.height, out_channels, OIIO::TypeDesc::UINT8);

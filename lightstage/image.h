@@ -38,9 +38,10 @@ struct RawFrame {
 
 enum class ExrPixelType { kFloat, kHalf };
 
-// Reads any format OpenImageIO reads (EXR incl. DWAB, Radiance HDR, PNG, JPEG, TIFF) as linear float.
-// 8/16-bit sRGB-encoded files are returned as stored (normalised to [0,1]), not linearised: callers
-// that import photographs undo their transfer curve explicitly. Throws InputError naming the file.
+// Reads any format OpenImageIO reads (EXR incl. DWAB, Radiance HDR, PNG, JPEG, TIFF) as linear
+// float. 8/16-bit sRGB-encoded files are returned as stored (normalised to [0,1]), not linearised:
+// callers that import photographs undo their transfer curve explicitly. Throws InputError naming
+// the file.
 Image read_image(const std::filesystem::path& path);
 
 // Writes an OpenEXR with the image's channel names (or R,G,B,A / Y). Atomic: temp file + rename.

@@ -109,8 +109,8 @@ double JsonReader::positive(std::string_view what) const {
 }
 
 int JsonReader::integer_in(int lo, int hi) const {
-  if (!value_.is_number_integer()) fail("an integer in [" + std::to_string(lo) + ", " +
-                                        std::to_string(hi) + "]");
+  if (!value_.is_number_integer())
+    fail("an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
   const auto v = value_.get<long long>();
   if (v < lo || v > hi) {
     fail("an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");

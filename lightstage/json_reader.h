@@ -24,7 +24,7 @@ class JsonReader {
   bool has(const std::string& key) const;
   JsonReader operator[](const std::string& key) const;  // Object member (must exist).
   JsonReader operator[](size_t index) const;            // Array element.
-  size_t size() const;                                   // Array length (must be an array).
+  size_t size() const;                                  // Array length (must be an array).
 
   // Requires an object whose keys are all in `allowed`.
   void expect_object(std::initializer_list<std::string_view> allowed) const;

@@ -57,9 +57,9 @@ void ProgressReporter::print(long done, const std::string& detail, bool final) {
   const int filled = int(fraction * kWidth + 0.5);
   std::string bar(filled, '#');
   bar.resize(kWidth, ' ');
-  std::fprintf(stderr, "%s%-10s [%s] %ld/%ld %3d%% %s %s%s", tty_ ? "\r\033[K" : "",
-               title_.c_str(), bar.c_str(), done, total_, int(100 * fraction + 0.5), timing,
-               detail.c_str(), (final || !tty_) ? "\n" : "");
+  std::fprintf(stderr, "%s%-10s [%s] %ld/%ld %3d%% %s %s%s", tty_ ? "\r\033[K" : "", title_.c_str(),
+               bar.c_str(), done, total_, int(100 * fraction + 0.5), timing, detail.c_str(),
+               (final || !tty_) ? "\n" : "");
   std::fflush(stderr);
 }
 

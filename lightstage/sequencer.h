@@ -11,8 +11,8 @@
 namespace ls {
 
 struct CaptureProgress {
-  int done = 0;   // Frames in the session, this run and earlier runs.
-  int total = 0;  // Frames in the plan.
+  int done = 0;         // Frames in the session, this run and earlier runs.
+  int total = 0;        // Frames in the plan.
   std::string current;  // Name of the frame just written.
 };
 

@@ -41,7 +41,9 @@ std::string utc_now_iso8601() {
 // Stable id of a frame in the plan; the simulator seeds its noise with it.
 uint64_t sequence_key(const FrameKey& k) {
   return ((uint64_t(k.time_step) * 65536u + uint64_t(k.led_index + 1)) * 64u +
-          uint64_t(k.exposure_index)) * 256u + uint64_t(k.repeat);
+          uint64_t(k.exposure_index)) *
+             256u +
+         uint64_t(k.repeat);
 }
 
 std::string read_text(const fs::path& path) {
@@ -202,10 +204,14 @@ void Session::record_frame(const PlannedFrame& planned, const CapturedFrame& fra
   RawFrame raw = frame.raw;
   raw.bit_depth = stage_.camera.bit_depth;
   write_raw_frame(dir_ / rec.file, raw);  // Durable before it is journaled.
-  const json j = {{"t", rec.key.time_step},   {"led", rec.key.led_index},
-                  {"e", rec.key.exposure_index}, {"r", rec.key.repeat},
-                  {"file", rec.file},         {"exposure_s", rec.exposure_s},
-                  {"gain", rec.gain},         {"scene_time_s", rec.scene_time_s},
+  const json j = {{"t", rec.key.time_step},
+                  {"led", rec.key.led_index},
+                  {"e", rec.key.exposure_index},
+                  {"r", rec.key.repeat},
+                  {"file", rec.file},
+                  {"exposure_s", rec.exposure_s},
+                  {"gain", rec.gain},
+                  {"scene_time_s", rec.scene_time_s},
                   {"at", rec.captured_at}};
   append_journal(j.dump());
   frames_[rec.key] = rec;

@@ -141,10 +141,10 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds) {
 std::vector<Eigen::Vector3d> layout_directions(const JsonReader& r) {
   r.expect_object({"type", "frequency", "count", "min_elevation_deg"});
   const std::string type = r["type"].one_of({"geodesic", "fibonacci"});
-  const double min_elev = r.has("min_elevation_deg")
-                              ? r["min_elevation_deg"].number_in(-90, 89)
-                              : -11.5;
-  if (type == "geodesic") return geodesic_dome_directions(r["frequency"].integer_in(1, 32), min_elev);
+  const double min_elev =
+      r.has("min_elevation_deg") ? r["min_elevation_deg"].number_in(-90, 89) : -11.5;
+  if (type == "geodesic")
+    return geodesic_dome_directions(r["frequency"].integer_in(1, 32), min_elev);
   return fibonacci_dome_directions(r["count"].integer_in(1, 100000), min_elev);
 }
 
@@ -220,30 +220,36 @@ Stage load_stage(const fs::path& path) {
 std::string stage_to_json(const Stage& stage) {
   json leds = json::array();
   for (const auto& led : stage.leds) {
-    json j = {{"id", led.id},
-              {"color", vec_json(led.color_gain)},
-              {"intensity", led.intensity}};
+    json j = {{"id", led.id}, {"color", vec_json(led.color_gain)}, {"intensity", led.intensity}};
     if (led.distance_m) {
       j["position"] = vec_json(led.dir_in_stage * *led.distance_m);
     } else {
       j["direction"] = vec_json(led.dir_in_stage);
     }
     if (led.gpio_line >= 0) {
-      j["gpio"] = {{"chip", led.gpio_chip}, {"line", led.gpio_line}, {"active_low", led.active_low}};
+      j["gpio"] = {
+          {"chip", led.gpio_chip}, {"line", led.gpio_line}, {"active_low", led.active_low}};
     }
     leds.push_back(j);
   }
   const CameraSpec& c = stage.camera;
   json bracket = json::array();
-  for (const auto& s : c.bracket) bracket.push_back({{"exposure_s", s.exposure_s}, {"gain", s.gain}});
+  for (const auto& s : c.bracket)
+    bracket.push_back({{"exposure_s", s.exposure_s}, {"gain", s.gain}});
   json response;
   switch (c.response.kind) {
-    case CameraResponse::Kind::kLinear: response = {{"type", "linear"}}; break;
-    case CameraResponse::Kind::kGamma: response = {{"type", "gamma"}, {"gamma", c.response.gamma}}; break;
+    case CameraResponse::Kind::kLinear:
+      response = {{"type", "linear"}};
+      break;
+    case CameraResponse::Kind::kGamma:
+      response = {{"type", "gamma"}, {"gamma", c.response.gamma}};
+      break;
     case CameraResponse::Kind::kTable:
       response = {{"type", "table"}, {"file", c.response.table_file.string()}};
       break;
-    case CameraResponse::Kind::kRecover: response = {{"type", "recover"}}; break;
+    case CameraResponse::Kind::kRecover:
+      response = {{"type", "recover"}};
+      break;
   }
   json camera = {{"backend", c.backend},
                  {"device", c.device_id},
@@ -281,9 +287,9 @@ std::vector<Eigen::Vector3d> geodesic_dome_directions(int frequency, double min_
   LS_CHECK(frequency >= 1, "geodesic frequency must be >= 1");
   // Icosahedron, rotated so that one vertex is the zenith (+Y).
   const double phi = (1.0 + std::sqrt(5.0)) / 2.0;
-  std::vector<Eigen::Vector3d> v = {{-1, phi, 0}, {1, phi, 0},  {-1, -phi, 0}, {1, -phi, 0},
-                                    {0, -1, phi}, {0, 1, phi},  {0, -1, -phi}, {0, 1, -phi},
-                                    {phi, 0, -1}, {phi, 0, 1},  {-phi, 0, -1}, {-phi, 0, 1}};
+  std::vector<Eigen::Vector3d> v = {{-1, phi, 0}, {1, phi, 0}, {-1, -phi, 0}, {1, -phi, 0},
+                                    {0, -1, phi}, {0, 1, phi}, {0, -1, -phi}, {0, 1, -phi},
+                                    {phi, 0, -1}, {phi, 0, 1}, {-phi, 0, -1}, {-phi, 0, 1}};
   const int faces[20][3] = {{0, 11, 5}, {0, 5, 1},  {0, 1, 7},   {0, 7, 10}, {0, 10, 11},
                             {1, 5, 9},  {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
                             {3, 9, 4},  {3, 4, 2},  {3, 2, 6},   {3, 6, 8},  {3, 8, 9},

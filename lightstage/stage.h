@@ -1,7 +1,7 @@
 #pragma once
 // The stage description: the dome's LEDs, the camera and the capture plan.
-// Frames (DESIGN.md): right-handed stage frame, +Y up, the camera on +Z looking toward -Z, the stage
-// centre at the origin. An LED direction is the unit vector from the origin toward the LED.
+// Frames (DESIGN.md): right-handed stage frame, +Y up, the camera on +Z looking toward -Z, the
+// stage centre at the origin. An LED direction is the unit vector from the origin toward the LED.
 #include <Eigen/Core>
 #include <filesystem>
 #include <optional>
@@ -12,12 +12,12 @@
 namespace ls {
 
 struct Led {
-  int id = 0;                      // Stable id used in file names and manifests.
+  int id = 0;                             // Stable id used in file names and manifests.
   Eigen::Vector3d dir_in_stage{0, 1, 0};  // Unit vector from the origin toward the LED.
   std::optional<double> distance_m;       // Set when the stage file gives a position.
   Eigen::Vector3d color_gain{1, 1, 1};    // Calibrated RGB balance of this LED (relative).
-  double intensity = 1.0;          // Calibrated irradiance at the origin, facing the LED (E units).
-  std::string gpio_chip;           // For the gpiod back-end, e.g. "gpiochip0".
+  double intensity = 1.0;  // Calibrated irradiance at the origin, facing the LED (E units).
+  std::string gpio_chip;   // For the gpiod back-end, e.g. "gpiochip0".
   int gpio_line = -1;
   bool active_low = false;
 
@@ -60,10 +60,10 @@ struct CameraSpec {
   double radiometric_scale = 1.0;
   // Geometry: on +Z looking toward -Z. fov_y_deg == 0 means orthographic.
   double fov_y_deg = 0.0;
-  double distance_m = 4.0;       // Perspective: camera centre at (0, 0, distance_m).
-  double ortho_height_m = 2.4;   // Orthographic: height of the view at the origin.
-  double timeout_s = 5.0;        // One frame; then CameraTimeout.
-  int retries = 2;               // Retries of a timed-out frame before the session stops.
+  double distance_m = 4.0;      // Perspective: camera centre at (0, 0, distance_m).
+  double ortho_height_m = 2.4;  // Orthographic: height of the view at the origin.
+  double timeout_s = 5.0;       // One frame; then CameraTimeout.
+  int retries = 2;              // Retries of a timed-out frame before the session stops.
   SimulatedSensor simulated;
 };
 
@@ -85,7 +85,7 @@ struct Stage {
   double coverage_radius_deg = 0.0;
   std::string source = "<built-in>";  // File it came from, for messages.
 
-  int led_index(int id) const;  // Index into leds, or -1.
+  int led_index(int id) const;             // Index into leds, or -1.
   std::vector<int> capture_order() const;  // Indices into leds, in plan order.
   std::vector<Eigen::Vector3d> led_directions() const;
 };

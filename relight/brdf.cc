@@ -43,8 +43,8 @@ std::string Material::validate() const {
   if (error.empty() && specular != SpecularModel::kNone) {
     error = check_rgb("ks", ks, HUGE_VAL, "[0, inf)");
     if (error.empty() && !std::isfinite(ks.sum())) {
-      error = "ks must be finite, got (" + format_value(ks[0]) + ", " + format_value(ks[1]) +
-              ", " + format_value(ks[2]) + ")";
+      error = "ks must be finite, got (" + format_value(ks[0]) + ", " + format_value(ks[1]) + ", " +
+              format_value(ks[2]) + ")";
     }
   }
   if (error.empty() && specular == SpecularModel::kTorranceSparrow) {

@@ -37,11 +37,11 @@ T lambert(const Geometry<T>& g) {
   return g.above() ? T(1.0 / kPi) : T(0);
 }
 
-// Oren-Nayar (the "qualitative" model, Oren & Nayar 1994), sigma = std. dev. of facet slope angle in
-// radians, valid [0, pi/2]. f = albedo/pi * (A + B * max(0, cos(phi_i - phi_o)) * sin(alpha) tan(beta))
-// with alpha = max(theta_i, theta_o), beta = min. The product max(0, cos dphi) sin(alpha) tan(beta)
-// equals max(0, wi.wo - cos_i cos_o) / max(cos_i, cos_o): no angles, no division by sin.
-// Returns the factor multiplying albedo.
+// Oren-Nayar (the "qualitative" model, Oren & Nayar 1994), sigma = std. dev. of facet slope angle
+// in radians, valid [0, pi/2]. f = albedo/pi * (A + B * max(0, cos(phi_i - phi_o)) * sin(alpha)
+// tan(beta)) with alpha = max(theta_i, theta_o), beta = min. The product max(0, cos dphi)
+// sin(alpha) tan(beta) equals max(0, wi.wo - cos_i cos_o) / max(cos_i, cos_o): no angles, no
+// division by sin. Returns the factor multiplying albedo.
 template <class T>
 T oren_nayar(const Geometry<T>& g, const T& sigma) {
   if (!g.above()) return T(0);
@@ -114,7 +114,8 @@ struct Material {
 // RGB BRDF value in 1/sr (cos theta_i not included).
 template <class T>
 Vec3<T> eval(const Material& m, const Geometry<T>& g) {
-  const T diffuse = m.diffuse == DiffuseModel::kOrenNayar ? oren_nayar(g, T(m.sigma_rad)) : lambert(g);
+  const T diffuse =
+      m.diffuse == DiffuseModel::kOrenNayar ? oren_nayar(g, T(m.sigma_rad)) : lambert(g);
   Vec3<T> f = m.albedo.cast<T>() * diffuse;
   if (m.specular == SpecularModel::kTorranceSparrow) {
     f += m.ks.cast<T>() * torrance_sparrow(g, T(m.roughness));

@@ -72,9 +72,9 @@ Image to_validated_rgb(Image image, const std::string& source, bool allow_negati
         const float v = image.at(x, y, src[c]);
         if (!std::isfinite(v) || (v < 0.0f && !allow_negative)) {
           const std::string channel = image.channels == 1 ? std::string("Y") : rgb_names[c];
-          throw InputError(source + ": pixel (x=" + std::to_string(x) + ", y=" +
-                           std::to_string(y) + ") channel " + channel +
-                           ": radiance must be finite and >= 0, got " + format_value(v));
+          throw InputError(source + ": pixel (x=" + std::to_string(x) + ", y=" + std::to_string(y) +
+                           ") channel " + channel + ": radiance must be finite and >= 0, got " +
+                           format_value(v));
         }
         if (!already_rgb) rgb.at(x, y, c) = v;
       }

@@ -30,10 +30,10 @@ class EnvironmentMap {
   // How many values load() found negative and repaired (0 for in-memory maps).
   long long negative_values_repaired() const { return negative_values_repaired_; }
 
-  static Eigen::Vector3d direction(double u, double v);      // (u, v) -> unit direction.
-  static Eigen::Vector2d uv(const Eigen::Vector3d& dir);     // Inverse, u in [0,1), v in [0,1].
+  static Eigen::Vector3d direction(double u, double v);   // (u, v) -> unit direction.
+  static Eigen::Vector2d uv(const Eigen::Vector3d& dir);  // Inverse, u in [0,1), v in [0,1].
   double pixel_solid_angle_sr(int row) const;
-  Eigen::Vector3d pixel_direction(int x, int y) const;       // Direction of a pixel's centre.
+  Eigen::Vector3d pixel_direction(int x, int y) const;  // Direction of a pixel's centre.
   // Bilinear lookup (wraps in u) of the map rotated by rotation_deg about +Y.
   Eigen::Vector3f radiance_toward(const Eigen::Vector3d& dir, double rotation_deg = 0.0) const;
   // Sum over the sphere of L dw per channel (irradiance-like "total power" of the map).

@@ -23,9 +23,9 @@ std::vector<Eigen::Vector3d> normalized_directions(const std::vector<Eigen::Vect
   out.reserve(dirs.size());
   for (size_t i = 0; i < dirs.size(); ++i) {
     const double norm = dirs[i].norm();
-    LS_CHECK(std::isfinite(norm) && norm > 0.0,
-             "LED direction " + std::to_string(i) + " must be finite and non-zero, got norm " +
-                 std::to_string(norm));
+    LS_CHECK(std::isfinite(norm) && norm > 0.0, "LED direction " + std::to_string(i) +
+                                                    " must be finite and non-zero, got norm " +
+                                                    std::to_string(norm));
     out.push_back(dirs[i] / norm);
   }
   return out;
@@ -59,8 +59,7 @@ class NearestLed {
       const double v0 = double(by) / grid_h_, v1 = double(by + 1) / grid_h_;
       for (int bx = 0; bx < grid_w_; ++bx) {
         const double u0 = double(bx) / grid_w_, u1 = double(bx + 1) / grid_w_;
-        const Eigen::Vector3d centre =
-            EnvironmentMap::direction(0.5 * (u0 + u1), 0.5 * (v0 + v1));
+        const Eigen::Vector3d centre = EnvironmentMap::direction(0.5 * (u0 + u1), 0.5 * (v0 + v1));
         // Within a lat-long bucket the farthest point from the centre is a corner.
         double min_corner_dot = 1.0;
         for (double u : {u0, u1}) {
@@ -128,9 +127,8 @@ void for_each_cell_sample(const std::vector<Eigen::Vector3d>& unit_dirs,
                           int supersample, Visit&& visit) {
   const int height = width / 2;
   const int ss = supersample;
-  const bool all_valid = valid.empty() || std::all_of(valid.begin(), valid.end(), [](bool b) {
-                           return b;
-                         });
+  const bool all_valid =
+      valid.empty() || std::all_of(valid.begin(), valid.end(), [](bool b) { return b; });
   // Coverage is a property of the dome (all LEDs); cells of dead LEDs go to the nearest valid one.
   const NearestLed nearest_any(unit_dirs, {});
   const std::optional<NearestLed> nearest_valid =
@@ -170,8 +168,8 @@ void for_each_cell_sample(const std::vector<Eigen::Vector3d>& unit_dirs,
               if (best_dot < cos_coverage) {
                 cell = -1;
               } else if (nearest_valid) {
-                cell = nearest_valid->nearest(dir, nearest_valid->bucket(sample_u[sx], v),
-                                              &best_dot);
+                cell =
+                    nearest_valid->nearest(dir, nearest_valid->bucket(sample_u[sx], v), &best_dot);
               }
               visit(y, sx / ss, y, cell, weight_sr);
             }
@@ -260,8 +258,8 @@ LightWeights integrate_environment(const EnvironmentMap& map,
   const Image& radiance = map.radiance();
   for_each_cell_sample(dirs, valid, coverage_rad, map.width(), supersample,
                        [&](int block, int x, int y, int cell, double weight_sr) {
-                         double* acc =
-                             per_row.data() + block * stride + 3 * size_t(cell < 0 ? num_leds : cell);
+                         double* acc = per_row.data() + block * stride +
+                                       3 * size_t(cell < 0 ? num_leds : cell);
                          const float* l = &radiance.pixels[(size_t(y) * map.width() + x) * 3];
                          acc[0] += weight_sr * l[0];
                          acc[1] += weight_sr * l[1];
@@ -275,8 +273,8 @@ LightWeights integrate_environment(const EnvironmentMap& map,
   LightWeights weights;
   weights.irradiance_rgb.resize(3 * size_t(num_leds));
   for (size_t k = 0; k < 3 * size_t(num_leds); ++k) weights.irradiance_rgb[k] = float(sum[k]);
-  weights.uncovered_irradiance_rgb = Eigen::Vector3d(sum[3 * num_leds], sum[3 * num_leds + 1],
-                                                     sum[3 * num_leds + 2]);
+  weights.uncovered_irradiance_rgb =
+      Eigen::Vector3d(sum[3 * num_leds], sum[3 * num_leds + 1], sum[3 * num_leds + 2]);
   weights.total_irradiance_rgb = weights.uncovered_irradiance_rgb;
   for (int l = 0; l < num_leds; ++l) {
     weights.total_irradiance_rgb += Eigen::Vector3d(sum[3 * l], sum[3 * l + 1], sum[3 * l + 2]);

@@ -27,10 +27,10 @@ struct LightCells {
 double max_nearest_neighbour_angle(const std::vector<Eigen::Vector3d>& led_dirs);
 
 struct LightWeights {
-  std::vector<float> irradiance_rgb;           // 3 per LED: E_l per channel.
+  std::vector<float> irradiance_rgb;                  // 3 per LED: E_l per channel.
   Eigen::Vector3d uncovered_irradiance_rgb{0, 0, 0};  // Light of the map no LED stands for.
   Eigen::Vector3d total_irradiance_rgb{0, 0, 0};      // Whole map: covered + uncovered.
-  double uncovered_fraction() const;           // Of total luminance.
+  double uncovered_fraction() const;                  // Of total luminance.
 };
 
 // Integrates the map rotated by rotation_deg about +Y over each LED's cell. `valid` (optional, one

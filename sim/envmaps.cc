@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <functional>
@@ -26,7 +27,8 @@ Eigen::Vector3d direction(double u, double v) {
 Eigen::Vector3d from_elevation_azimuth(double elevation_deg, double x_weight, double z_weight) {
   const Eigen::Vector2d horizontal = Eigen::Vector2d(x_weight, z_weight).normalized();
   const double el = elevation_deg * kDegToRad;
-  return Eigen::Vector3d(std::cos(el) * horizontal.x(), std::sin(el), std::cos(el) * horizontal.y());
+  return Eigen::Vector3d(std::cos(el) * horizontal.x(), std::sin(el),
+                         std::cos(el) * horizontal.y());
 }
 
 double smoothstep(double e0, double e1, double x) {
@@ -41,8 +43,8 @@ using RadianceFn = std::function<Eigen::Vector3d(const Eigen::Vector3d&)>;
 // (16x16, solid-angle weighted) so the source's power is kept however small it is.
 Image render_map(int width, const RadianceFn& smooth, const RadianceFn& compact,
                  const Eigen::Vector3d& compact_dir, double compact_radius_rad) {
-  LS_CHECK(width >= 8 && width % 2 == 0, "map width must be even and >= 8, got " +
-                                             std::to_string(width));
+  LS_CHECK(width >= 8 && width % 2 == 0,
+           "map width must be even and >= 8, got " + std::to_string(width));
   const int height = width / 2;
   Image map(width, height, 3);
   map.channel_names = {"R", "G", "B"};
@@ -76,7 +78,8 @@ Image render_map(int width, const RadianceFn& smooth, const RadianceFn& compact,
 
 // Sky radiance: blue overhead, pale at the horizon, a dim ground below; brighter around the sun.
 Eigen::Vector3d sky_radiance(const Eigen::Vector3d& d, const Eigen::Vector3d& sun) {
-  const Eigen::Vector3d zenith(0.06, 0.12, 0.30), horizon(0.26, 0.28, 0.30), ground(0.05, 0.045, 0.04);
+  const Eigen::Vector3d zenith(0.06, 0.12, 0.30), horizon(0.26, 0.28, 0.30),
+      ground(0.05, 0.045, 0.04);
   Eigen::Vector3d sky;
   if (d.y() >= 0) {
     sky = horizon + (zenith - horizon) * std::sqrt(d.y());

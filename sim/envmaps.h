@@ -1,8 +1,8 @@
 #pragma once
-// Procedural lat-long radiance maps for the demo and tests (the physical world's skies and studios).
-// 3 channels, width x width/2, DESIGN.md's lat-long convention (row 0 is the zenith, the centre -Z).
-// Small bright features (sun, small source) are supersampled so each pixel holds its average
-// radiance: the maps' integrals match the analytic sources.
+// Procedural lat-long radiance maps for the demo and tests (the physical world's skies and
+// studios). 3 channels, width x width/2, DESIGN.md's lat-long convention (row 0 is the zenith, the
+// centre -Z). Small bright features (sun, small source) are supersampled so each pixel holds its
+// average radiance: the maps' integrals match the analytic sources.
 #include <Eigen/Core>
 
 #include "lightstage/image.h"

@@ -4,10 +4,13 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <string>
 
 #include "lightstage/errors.h"
+#include "relight/light_cells.h"
 #include "sim/sim_stage.h"
 #include "sim/tracer.h"
 
@@ -20,7 +23,17 @@ constexpr double kPi = 3.14159265358979323846;
 struct Texel {
   Eigen::Vector3d dir;            // Unit, stage frame (rotation applied).
   Eigen::Vector3d radiance_x_sr;  // Average radiance over the texel times its solid angle.
+  int x = 0, y = 0;               // On the coarse grid.
 };
+
+Eigen::Vector3d rotate_about_y(const Eigen::Vector3d& d0, double rotation_deg) {
+  // The map rotated by +alpha about +Y shows its unrotated texel d0 toward R_y(alpha) d0, the
+  // same sense as EnvironmentMap::radiance_toward and relight::integrate_environment.
+  const double alpha = rotation_deg * kPi / 180.0;
+  const double ca = std::cos(alpha), sa = std::sin(alpha);
+  return Eigen::Vector3d(ca * d0.x() + sa * d0.z(), d0.y(), -sa * d0.x() + ca * d0.z())
+      .normalized();
+}
 
 // Box-filters the map onto a coarse width x width/2 grid: each coarse texel gets the solid-angle
 // weighted average of the fine pixels it overlaps (fractional overlaps in u and in cos(theta),
@@ -34,7 +47,8 @@ std::vector<Texel> coarse_texels(const relight::EnvironmentMap& map, int coarse_
   std::vector<double> rows(size_t(fh) * cw * 3, 0.0);
   for (int X = 0; X < cw; ++X) {
     const double u0 = double(X) / cw, u1 = double(X + 1) / cw;
-    const int x_first = std::max(0, int(std::floor(u0 * fw))), x_last = std::min(fw - 1, int(std::ceil(u1 * fw)));
+    const int x_first = std::max(0, int(std::floor(u0 * fw))),
+              x_last = std::min(fw - 1, int(std::ceil(u1 * fw)));
     for (int x = x_first; x <= x_last; ++x) {
       const double overlap = std::min(u1, double(x + 1) / fw) - std::max(u0, double(x) / fw);
       if (overlap <= 0) continue;
@@ -45,8 +59,6 @@ std::vector<Texel> coarse_texels(const relight::EnvironmentMap& map, int coarse_
     }
   }
   // Pass 2, along v with cos(theta) as the measure: exact solid-angle weights.
-  const double alpha = rotation_deg * kPi / 180.0;
-  const double ca = std::cos(alpha), sa = std::sin(alpha);
   std::vector<Texel> texels;
   for (int Y = 0; Y < ch; ++Y) {
     const double c_top = std::cos(kPi * Y / ch), c_bottom = std::cos(kPi * (Y + 1) / ch);
@@ -63,26 +75,11 @@ std::vector<Texel> coarse_texels(const relight::EnvironmentMap& map, int coarse_
       }
       mean /= (c_top - c_bottom);
       if (!(mean.maxCoeff() > 0)) continue;
-      // The map rotated by +alpha about +Y shows its unrotated texel d0 toward R_y(alpha) d0, the
-      // same sense as EnvironmentMap::radiance_toward and relight::integrate_environment.
       const Eigen::Vector3d d0 = relight::EnvironmentMap::direction((X + 0.5) / cw, (Y + 0.5) / ch);
-      const Eigen::Vector3d d(ca * d0.x() + sa * d0.z(), d0.y(), -sa * d0.x() + ca * d0.z());
-      texels.push_back({d.normalized(), mean * solid_angle_sr});
+      texels.push_back({rotate_about_y(d0, rotation_deg), mean * solid_angle_sr, X, Y});
     }
   }
   return texels;
-}
-
-double max_nearest_neighbour_angle_rad(const std::vector<Eigen::Vector3d>& dirs) {
-  double worst = 0;
-  for (size_t i = 0; i < dirs.size(); ++i) {
-    double best_cos = -1;
-    for (size_t j = 0; j < dirs.size(); ++j) {
-      if (i != j) best_cos = std::max(best_cos, dirs[i].normalized().dot(dirs[j].normalized()));
-    }
-    worst = std::max(worst, std::acos(std::clamp(best_cos, -1.0, 1.0)));
-  }
-  return worst;
 }
 
 }  // namespace
@@ -97,7 +94,7 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
   if (!options.covered_by_leds.empty()) {
     const double radius = options.coverage_radius_rad > 0
                               ? options.coverage_radius_rad
-                              : max_nearest_neighbour_angle_rad(options.covered_by_leds);
+                              : relight::max_nearest_neighbour_angle(options.covered_by_leds);
     const double cos_radius = std::cos(radius);
     std::erase_if(texels, [&](const Texel& t) {
       for (const auto& led : options.covered_by_leds) {
@@ -107,22 +104,49 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
     });
   }
 
+  // Block corners on the coarse grid, (blocks_x + 1) x (blocks_y + 1), and each texel's four.
+  const int block = std::max(1, options.visibility_block);
+  const int cw = options.directions_width, ch = cw / 2;
+  const int blocks_x = (cw + block - 1) / block, blocks_y = (ch + block - 1) / block;
+  std::vector<Eigen::Vector3d> corner_dirs;
+  for (int j = 0; j <= blocks_y; ++j) {
+    for (int i = 0; i <= blocks_x; ++i) {
+      const Eigen::Vector3d d0 = relight::EnvironmentMap::direction(
+          double(std::min(i * block, cw)) / cw, double(std::min(j * block, ch)) / ch);
+      corner_dirs.push_back(rotate_about_y(d0, options.rotation_deg));
+    }
+  }
+  std::vector<std::array<int, 4>> texel_corners(texels.size());
+  for (size_t k = 0; k < texels.size(); ++k) {
+    const int i = texels[k].x / block, j = texels[k].y / block;
+    const int c00 = j * (blocks_x + 1) + i;
+    texel_corners[k] = {c00, c00 + 1, c00 + blocks_x + 1, c00 + blocks_x + 2};
+  }
+
   const std::vector<SurfaceHit> hits = trace_camera(scene, camera);
   const detail::Tracer tracer(scene);
   Image out(camera.width, camera.height, 3);
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height), [&](const auto& rows) {
+    std::vector<int8_t> corner_visible(corner_dirs.size());  // -1: not traced yet.
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < camera.width; ++x) {
         const SurfaceHit& h = hits[size_t(y) * camera.width + x];
         if (!h.hit) continue;
         const Eigen::Vector3d origin = h.position + detail::kShadowOffsetM * h.normal;
+        auto sees = [&](const Eigen::Vector3d& dir) { return !tracer.occluded(origin, dir, 0.0); };
+        std::fill(corner_visible.begin(), corner_visible.end(), int8_t(-1));
+        auto corner = [&](int c) {
+          if (corner_visible[c] < 0) corner_visible[c] = sees(corner_dirs[c]) ? 1 : 0;
+          return corner_visible[c];
+        };
         // Lambert's f is constant: sum the cosine-weighted light and multiply once.
         const bool lambert_only = h.material.diffuse == brdf::DiffuseModel::kLambert &&
                                   h.material.specular == brdf::SpecularModel::kNone;
         const double cos_o = h.normal.dot(h.wo);
         Eigen::Vector3d sum(0, 0, 0);
         if (cos_o > 0) {
-          for (const Texel& t : texels) {
+          for (size_t k = 0; k < texels.size(); ++k) {
+            const Texel& t = texels[k];
             const double cos_i = h.normal.dot(t.dir);
             if (cos_i <= 0) continue;
             Eigen::Vector3d weight;
@@ -134,8 +158,15 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
               if (!(f.maxCoeff() > 0)) continue;
               weight = t.radiance_x_sr.cwiseProduct(f) * cos_i;
             }
-            if (tracer.occluded(origin, t.dir, 0.0)) continue;
-            sum += weight;
+            bool lit;
+            if (block == 1) {
+              lit = sees(t.dir);
+            } else {
+              const auto& c = texel_corners[k];
+              const int corners = corner(c[0]) + corner(c[1]) + corner(c[2]) + corner(c[3]);
+              lit = corners == 4 ? true : corners == 0 ? false : sees(t.dir);
+            }
+            if (lit) sum += weight;
           }
           if (lambert_only) sum = sum.cwiseProduct(h.material.albedo) / kPi;
         }

@@ -71,8 +71,8 @@ SceneMaterial parse_material(const JsonReader& r, const std::string& source) {
     }
     m.albedo_texture = resolve(r["albedo_texture"].string(), source);
     if (!std::filesystem::exists(m.albedo_texture)) {
-      throw InputError(source + ": " + r.path() + ".albedo_texture: file not found: " +
-                       m.albedo_texture.string());
+      throw InputError(source + ": " + r.path() +
+                       ".albedo_texture: file not found: " + m.albedo_texture.string());
     }
   }
   return m;
@@ -205,7 +205,9 @@ constexpr std::string_view kDefaultSceneJson = R"json({
 
 }  // namespace
 
-int object_index_of_plane(const Scene& scene, int plane) { return int(scene.spheres.size()) + plane; }
+int object_index_of_plane(const Scene& scene, int plane) {
+  return int(scene.spheres.size()) + plane;
+}
 
 int object_index_of_height_field(const Scene& scene, int height_field) {
   return int(scene.spheres.size() + scene.planes.size()) + height_field;
@@ -274,8 +276,8 @@ Scene parse_scene(std::string_view json_text, const std::string& source_name) {
       } else {
         const auto file = resolve(h["heights_image"].string(), source_name);
         if (!std::filesystem::exists(file)) {
-          throw InputError(source_name + ": " + h.path() + ".heights_image: file not found: " +
-                           file.string());
+          throw InputError(source_name + ": " + h.path() +
+                           ".heights_image: file not found: " + file.string());
         }
         fill_from_image(hf, file, h.has("height_scale") ? h["height_scale"].number() : 1.0);
       }
@@ -283,7 +285,8 @@ Scene parse_scene(std::string_view json_text, const std::string& source_name) {
     }
   }
   if (scene.spheres.empty() && scene.planes.empty() && scene.height_fields.empty()) {
-    throw InputError(source_name + ": (top level): expected at least one sphere, plane or height "
+    throw InputError(source_name +
+                     ": (top level): expected at least one sphere, plane or height "
                      "field, got none");
   }
   return scene;

@@ -12,7 +12,8 @@
 
 namespace ls::sim {
 
-// A material with optional spatial variation over the object's own 2D coordinates (s, t) in [0,1]^2.
+// A material with optional spatial variation over the object's own 2D coordinates (s, t) in
+// [0,1]^2.
 struct SceneMaterial {
   std::string name;
   brdf::Material base;
@@ -41,10 +42,10 @@ struct Plane {
 // z = base_z + h(x, y) sampled on a grid; casts shadows on itself and on what lies below it.
 struct HeightField {
   Eigen::Vector3d center{0, 0, 0};  // Centre of the base rectangle.
-  double half_width = 1.0;   // Along X.
-  double half_height = 1.0;  // Along Y.
-  int resolution = 256;      // Grid samples per side.
-  std::vector<float> heights;  // resolution^2, row-major, row 0 at +Y (top).
+  double half_width = 1.0;          // Along X.
+  double half_height = 1.0;         // Along Y.
+  int resolution = 256;             // Grid samples per side.
+  std::vector<float> heights;       // resolution^2, row-major, row 0 at +Y (top).
   int material = 0;
   // Procedural description it was generated from, kept for manifests.
   std::string description;

@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -172,13 +173,11 @@ bool Tracer::hit_field(const Field& f, const Eigen::Vector3d& o, const Eigen::Ve
     const double za = o.z() + ta * d.z() - f.base_z, zb = o.z() + tb * d.z() - f.base_z;
     const size_t b = size_t(bi) * f.blocks + bj;
     if (std::min(za, zb) > f.block_max[b] && fa > 0) {
-      ta = tb;
-      fa = std::max(above(tb), 1e-300);  // Still above: the block edge samples are bounded too.
+      ta = tb;  // Still above at tb: the block's edge samples are within its range too.
       continue;
     }
     if (std::max(za, zb) < f.block_min[b] && fa < 0) {
       ta = tb;
-      fa = std::min(above(tb), -1e-300);
       continue;
     }
     while (ta < tb) {
@@ -490,8 +489,12 @@ struct SimStage::State {
     explicit Cam(State& s) : s_(s) {}
     CameraInfo info() const override {
       const CameraSpec& c = s_.stage.camera;
-      return {"sim:" + s_.stage.name, "lightstage simulated camera", c.width, c.height,
-              c.channels, c.bit_depth};
+      return {"sim:" + s_.stage.name,
+              "lightstage simulated camera",
+              c.width,
+              c.height,
+              c.channels,
+              c.bit_depth};
     }
     CapturedFrame capture(const FrameRequest& request) override { return s_.capture(request); }
 
@@ -513,13 +516,14 @@ struct SimStage::State {
     const std::string camera_name = "sim:" + stage.name;
     if (auto it = timeout_keys.find(request.sequence_key); it != timeout_keys.end()) {
       timeout_keys.erase(it);
-      throw CameraTimeout(camera_name + ": no frame within " + std::to_string(stage.camera.timeout_s) +
-                          " s (injected, sequence key " + std::to_string(request.sequence_key) +
-                          ")");
+      throw CameraTimeout(camera_name + ": no frame within " +
+                          std::to_string(stage.camera.timeout_s) + " s (injected, sequence key " +
+                          std::to_string(request.sequence_key) + ")");
     }
     if (timeout_after >= 0 && frames_delivered >= timeout_after) {
-      throw CameraTimeout(camera_name + ": no frame within " + std::to_string(stage.camera.timeout_s) +
-                          " s (injected after " + std::to_string(timeout_after) + " frames)");
+      throw CameraTimeout(camera_name + ": no frame within " +
+                          std::to_string(stage.camera.timeout_s) + " s (injected after " +
+                          std::to_string(timeout_after) + " frames)");
     }
     const CameraSpec& cam_spec = stage.camera;
     if (!(request.exposure_s > 0) || !(request.gain > 0)) {

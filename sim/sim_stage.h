@@ -14,7 +14,10 @@ namespace ls::sim {
 // Per-pixel surface hits for the stage's camera (computed once per scene and camera).
 std::vector<SurfaceHit> trace_camera(const Scene& scene, const CameraSpec& camera);
 
-// Whether `position` sees a distant light along `dir_in_stage` (shadow ray against all geometry).
+// Whether `position` sees a distant light along `dir_in_stage` (shadow ray against all geometry;
+// hits nearer than 0.2 mm are the surface the point lies on). Prepares the scene on every call:
+// for single queries. render_one_light and render_ground_truth prepare it once and offset their
+// shadow rays along the surface normal instead.
 bool visible(const Scene& scene, const Eigen::Vector3d& position, const Eigen::Vector3d& dir);
 
 // Noise-free radiance image of the scene lit by one distant LED of unit irradiance (at normal

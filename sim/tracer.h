@@ -39,12 +39,12 @@ class Tracer {
   };
   struct Field {
     const HeightField* hf;
-    int n;                   // Samples per side.
-    double x_left, y_top;    // World x of column 0, world y of row 0.
-    double dx, dy;           // Sample spacing in metres.
+    int n;                 // Samples per side.
+    double x_left, y_top;  // World x of column 0, world y of row 0.
+    double dx, dy;         // Sample spacing in metres.
     double base_z;
-    Eigen::Vector3d box_lo, box_hi;  // World bounds of the surface.
-    int blocks;                       // Blocks per side.
+    Eigen::Vector3d box_lo, box_hi;           // World bounds of the surface.
+    int blocks;                               // Blocks per side.
     std::vector<float> block_min, block_max;  // Height range of the samples each block spans.
   };
 

@@ -39,7 +39,8 @@ double median_ms(int repeats, F&& f) {
   for (int i = 0; i < repeats; ++i) {
     const auto t0 = std::chrono::steady_clock::now();
     f();
-    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    ms.push_back(
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   std::sort(ms.begin(), ms.end());
   return ms[ms.size() / 2];
@@ -49,7 +50,8 @@ void run_led_bench(const BenchArgs& args) {
   fs::create_directories(args.out);
   const sim::Scene scene = sim::default_scene();
   std::vector<relight::EnvironmentMap> maps;
-  for (const auto& path : shipped_environment_maps(false)) maps.push_back(relight::EnvironmentMap::load(path));
+  for (const auto& path : shipped_environment_maps(false))
+    maps.push_back(relight::EnvironmentMap::load(path));
 
   std::ofstream csv(args.out / "leds.csv");
   csv << "leds,map,relative_rmse,psnr_db,relight_ms,light_weights_ms,uncovered_fraction\n";
@@ -66,7 +68,8 @@ void run_led_bench(const BenchArgs& args) {
     fs::remove_all(dir);
     Session session = Session::create(dir, stage, {"sim", "", 1});
     sim::SimStage sim_stage(stage, scene, 1);
-    ProgressReporter progress("capture " + std::to_string(count), long(plan_frames(stage, 1).size()));
+    ProgressReporter progress("capture " + std::to_string(count),
+                              long(plan_frames(stage, 1).size()));
     SequencerOptions options;
     options.sleep = [](double) {};
     options.on_progress = [&](const CaptureProgress& p) { progress.update(p.done); };
@@ -79,9 +82,8 @@ void run_led_bench(const BenchArgs& args) {
     const double coverage = relight::max_nearest_neighbour_angle(dirs);
     for (size_t m = 0; m < maps.size(); ++m) {
       relight::LightWeights weights;
-      const double weights_ms = median_ms(3, [&] {
-        weights = relight::integrate_environment(maps[m], dirs, 0.0, coverage);
-      });
+      const double weights_ms = median_ms(
+          3, [&] { weights = relight::integrate_environment(maps[m], dirs, 0.0, coverage); });
       Image relit;
       const double relight_ms = median_ms(args.repeats, [&] {
         relight::relight_into(field, weights.irradiance_rgb.data(), relit);
@@ -115,10 +117,10 @@ void run_led_bench(const BenchArgs& args) {
                    ", labels = LEDs)",
                "relight time per frame, ms", "PSNR vs ground truth, dB", true},
               speed);
-  write_chart(args.out / "leds_error_vs_count.png",
-              {"Relighting error against ground truth vs number of LEDs", "LEDs",
-               "relative RMSE", true},
-              error);
+  write_chart(
+      args.out / "leds_error_vs_count.png",
+      {"Relighting error against ground truth vs number of LEDs", "LEDs", "relative RMSE", true},
+      error);
   std::fprintf(stderr, "wrote %s, leds_psnr_vs_time.png, leds_error_vs_count.png\n",
                (args.out / "leds.csv").c_str());
 }
@@ -126,8 +128,8 @@ void run_led_bench(const BenchArgs& args) {
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
-  auto* bench = app.add_subcommand(
-      "bench", "Measure speed and accuracy; writes CSV and chart images.");
+  auto* bench =
+      app.add_subcommand("bench", "Measure speed and accuracy; writes CSV and chart images.");
   bench->require_subcommand(1);
   auto args = std::make_shared<BenchArgs>();
   auto* leds = bench->add_subcommand(
@@ -136,8 +138,10 @@ void add_bench_command(CLI::App& app) {
       "grows (Fibonacci domes of the given sizes, the demo scene, every shipped map).");
   leds->add_option("--out", args->out, "Output directory.")->capture_default_str();
   leds->add_option("--counts", args->counts, "Dome sizes.")->delimiter(',')->capture_default_str();
-  leds->add_option("--resolution", args->resolution, "Camera width and height.")->capture_default_str();
-  leds->add_option("--repeats", args->repeats, "Timed repeats (median reported).")->capture_default_str();
+  leds->add_option("--resolution", args->resolution, "Camera width and height.")
+      ->capture_default_str();
+  leds->add_option("--repeats", args->repeats, "Timed repeats (median reported).")
+      ->capture_default_str();
   leds->callback([args] { run_led_bench(*args); });
 }
 

@@ -52,13 +52,15 @@ void add_build_command(CLI::App& app) {
       "Build the reflectance field of a session: dark subtraction, HDR merge through the camera "
       "response, division by each LED's calibrated irradiance and colour. Writes an OpenEXR with "
       "one channel per LED and colour (led042.R, ...).");
-  cmd->add_option("session", args->session, "Session directory.")->required()->check(
-      CLI::ExistingDirectory);
+  cmd->add_option("session", args->session, "Session directory.")
+      ->required()
+      ->check(CLI::ExistingDirectory);
   cmd->add_option("--out", args->out, "Field file to write (.exr).")->required();
   cmd->add_option("--time-step", args->time_step, "Time step to build (time-varying sessions).")
       ->capture_default_str();
   cmd->add_flag("--quiet", args->quiet, "No progress output.");
-  cmd->callback([args] { build_field_file(args->session, args->out, args->time_step, args->quiet); });
+  cmd->callback(
+      [args] { build_field_file(args->session, args->out, args->time_step, args->quiet); });
 }
 
 }  // namespace ls::cli

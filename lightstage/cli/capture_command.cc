@@ -1,9 +1,10 @@
 // lightstage capture: stage file + back-end -> session directory, resumable.
+#include <unistd.h>
+
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
-#include <unistd.h>
 
 #include "lightstage/cli/commands.h"
 #include "lightstage/errors.h"
@@ -45,7 +46,8 @@ class StopSignals {
   }
 
  private:
-  struct sigaction old_int_ {}, old_term_ {};
+  struct sigaction old_int_ {
+  }, old_term_{};
 };
 
 }  // namespace
@@ -98,9 +100,11 @@ int capture_session(const CaptureRequest& request) {
       run_capture(*session, sim_stage.lights(), sim_stage.camera(), options);
   progress.done();
 
-  std::fprintf(stderr, "%s: %d frames captured this run, %d already present, %d camera retries, "
-               "%.1f s\n", request.session_dir.c_str(), summary.frames_captured,
-               summary.frames_already_present, summary.camera_retries, summary.seconds);
+  std::fprintf(stderr,
+               "%s: %d frames captured this run, %d already present, %d camera retries, "
+               "%.1f s\n",
+               request.session_dir.c_str(), summary.frames_captured, summary.frames_already_present,
+               summary.camera_retries, summary.seconds);
   for (const auto& [index, reason] : session->dead_leds()) {
     std::fprintf(stderr, "warning: LED %d flagged dead: %s\n", stage.leds[index].id,
                  reason.c_str());
@@ -133,8 +137,8 @@ void add_capture_command(CLI::App& app) {
                   "Scene file for the simulated stage (JSON). Default: the built-in demo scene.")
       ->check(CLI::ExistingFile);
   auto* out = cmd->add_option("--out", request->session_dir, "New session directory to create.");
-  auto* resume = cmd->add_option("--resume", request->session_dir,
-                                 "Existing session directory to complete.");
+  auto* resume =
+      cmd->add_option("--resume", request->session_dir, "Existing session directory to complete.");
   out->excludes(resume);
   cmd->add_option("--seed", request->seed, "Noise seed of the simulated camera.")
       ->capture_default_str();

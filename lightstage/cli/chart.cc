@@ -11,7 +11,7 @@ namespace ls::cli {
 
 namespace {
 
-const cv::Scalar kColours[] = {{200, 90, 30},  {40, 140, 230}, {60, 170, 60},  {40, 40, 200},
+const cv::Scalar kColours[] = {{200, 90, 30},  {40, 140, 230}, {60, 170, 60},   {40, 40, 200},
                                {160, 80, 160}, {30, 160, 180}, {120, 120, 120}, {0, 0, 0}};
 
 std::string format_tick(double v) {
@@ -63,8 +63,7 @@ void write_chart(const std::filesystem::path& png, const ChartAxes& axes,
   cv::putText(img, axes.title, {L, 32}, cv::FONT_HERSHEY_SIMPLEX, 0.65, black, 1, cv::LINE_AA);
   cv::putText(img, axes.x_label + (axes.log_x ? " (log)" : ""), {L + 150, H - 20},
               cv::FONT_HERSHEY_SIMPLEX, 0.55, black, 1, cv::LINE_AA);
-  cv::putText(img, axes.y_label, {8, T - 10}, cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1,
-              cv::LINE_AA);
+  cv::putText(img, axes.y_label, {8, T - 10}, cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1, cv::LINE_AA);
   for (size_t k = 0; k < series.size(); ++k) {
     const auto& s = series[k];
     const cv::Scalar colour = kColours[k % std::size(kColours)];

@@ -12,8 +12,8 @@ void write_contact_sheet(const std::filesystem::path& out, const std::vector<Rel
   const int columns = std::min<int>(4, int(tiles.size()));
   const int rows = (int(tiles.size()) + columns - 1) / columns;
   constexpr int kLabel = 22, kTitle = 30, kGap = 4;
-  cv::Mat sheet(kTitle + rows * (tile_size + kLabel + kGap), columns * (tile_size + kGap),
-                CV_8UC3, cv::Scalar(24, 24, 24));
+  cv::Mat sheet(kTitle + rows * (tile_size + kLabel + kGap), columns * (tile_size + kGap), CV_8UC3,
+                cv::Scalar(24, 24, 24));
   cv::putText(sheet, title, {8, 21}, cv::FONT_HERSHEY_SIMPLEX, 0.6, {230, 230, 230}, 1,
               cv::LINE_AA);
   for (size_t i = 0; i < tiles.size(); ++i) {

@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <set>
 
 #include "capture/field.h"
 #include "lightstage/cli/commands.h"
@@ -28,6 +29,7 @@ std::vector<RelitOutput> relight_field_file(const RelightRequest& request) {
   fs::create_directories(request.out_dir);
 
   std::vector<RelitOutput> outputs;
+  std::set<std::string> used_names;  // Maps from different folders may share a file name.
   Image relit;
   ProgressReporter progress("relight", long(request.maps.size() * request.rotations_deg.size()),
                             request.quiet);
@@ -43,11 +45,13 @@ std::vector<RelitOutput> relight_field_file(const RelightRequest& request) {
       const auto t2 = std::chrono::steady_clock::now();
 
       std::string name = map_path.stem().string();
+      if (used_names.count(name)) name = map_path.parent_path().filename().string() + "_" + name;
       if (request.rotations_deg.size() > 1 || rotation != 0.0) {
         char buf[32];
         std::snprintf(buf, sizeof buf, "_rot%03d", int(std::lround(rotation)));
         name += buf;
       }
+      used_names.insert(name);
       relit.channel_names = {"R", "G", "B"};
       write_exr(request.out_dir / (name + ".exr"), relit);
       const double stops =
@@ -87,8 +91,8 @@ void add_relight_command(CLI::App& app) {
   cmd->add_option("--rotate", request->rotations_deg,
                   "Rotation(s) of the map about the vertical axis, degrees.")
       ->capture_default_str();
-  auto* exp_opt = cmd->add_option(
-      "--exposure", *exposure, "Preview exposure in stops (default: automatic per image).");
+  auto* exp_opt = cmd->add_option("--exposure", *exposure,
+                                  "Preview exposure in stops (default: automatic per image).");
   cmd->add_option("--coverage-deg", request->coverage_deg,
                   "Dome coverage radius around each LED, degrees (0: automatic).")
       ->capture_default_str();

@@ -43,10 +43,10 @@ void add_stage_command(CLI::App& app) {
     std::printf("%s (%s)\n", stage.name.c_str(), stage.source.c_str());
     std::printf("  LEDs: %zu, lowest at %.1f deg elevation, coverage radius %.1f deg\n",
                 stage.leds.size(), lowest, cells.coverage_radius_rad * 180 / M_PI);
-    std::printf("  solid angle per LED: min %.4f, median %.4f, max %.4f sr (max/min %.2f); "
-                "uncovered %.3f sr of 4pi\n",
-                sr.front(), sr[sr.size() / 2], sr.back(), sr.back() / sr.front(),
-                cells.uncovered_sr);
+    std::printf(
+        "  solid angle per LED: min %.4f, median %.4f, max %.4f sr (max/min %.2f); "
+        "uncovered %.3f sr of 4pi\n",
+        sr.front(), sr[sr.size() / 2], sr.back(), sr.back() / sr.front(), cells.uncovered_sr);
     const CameraSpec& c = stage.camera;
     std::printf("  camera: %s %dx%dx%d, %d-bit, bracket:", c.backend.c_str(), c.width, c.height,
                 c.channels, c.bit_depth);
@@ -67,19 +67,21 @@ void add_envmaps_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "envmaps",
       "Write the procedural lat-long radiance maps that ship for the demo: sky_sun.exr, "
-      "studio.exr, small_source.exr (and PNG previews).");
+      "softbox_studio.exr, small_source.exr (and PNG previews).");
   cmd->add_option("--out", args->out, "Directory.")->capture_default_str();
   cmd->add_option("--width", args->width, "Map width (height is half).")->capture_default_str();
   cmd->callback([args] {
     fs::create_directories(args->out);
-    const std::pair<const char*, Image> maps[] = {{"sky_sun", sim::make_sky_with_sun(args->width)},
-                                                  {"studio", sim::make_studio(args->width)},
-                                                  {"small_source", sim::make_small_source(args->width)}};
+    const std::pair<const char*, Image> maps[] = {
+        {"sky_sun", sim::make_sky_with_sun(args->width)},
+        {"softbox_studio", sim::make_studio(args->width)},
+        {"small_source", sim::make_small_source(args->width)}};
     for (auto& [name, image] : maps) {
       Image copy = image;
       copy.channel_names = {"R", "G", "B"};
       write_exr(args->out / (std::string(name) + ".exr"), copy);
-      write_png_preview(args->out / (std::string(name) + ".png"), copy, auto_exposure_stops(copy, 0.95));
+      write_png_preview(args->out / (std::string(name) + ".png"), copy,
+                        auto_exposure_stops(copy, 0.95));
       std::printf("wrote %s\n", (args->out / (std::string(name) + ".exr")).c_str());
     }
   });
@@ -103,7 +105,9 @@ std::vector<fs::path> shipped_environment_maps(bool include_shared) {
     maps.insert(maps.end(), found.begin(), found.end());
   };
   collect(data_dir() / "envmaps");
-  if (include_shared) collect(fs::path(LIGHTSTAGE_DATA_DIR).parent_path().parent_path() / "shared" / "data" / "envmaps");
+  if (include_shared)
+    collect(fs::path(LIGHTSTAGE_DATA_DIR).parent_path().parent_path() / "shared" / "data" /
+            "envmaps");
   return maps;
 }
 

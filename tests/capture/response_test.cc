@@ -165,8 +165,9 @@ TEST(Response, RecoverGammaCurveFromBracket) {
   std::printf("recovered gamma-2.2 response: worst |error| %.4f of full scale, worst relative "
               "error above 10%% DN %.2f%%\n",
               worst_abs, 100 * worst_rel_mid);
-  EXPECT_LT(worst_abs, 0.02);
-  EXPECT_LT(worst_rel_mid, 0.08);
+  // Measured: 0.006 of full scale and 1.9% (fixed seed); bounds leave 2x margin.
+  EXPECT_LT(worst_abs, 0.015);
+  EXPECT_LT(worst_rel_mid, 0.04);
 }
 
 TEST(Response, RecoverRejectsBadInput) {

@@ -15,9 +15,7 @@ namespace {
 
 using relight::EnvironmentMap;
 
-Image ConstantMap(float radiance, int width = 256) {
-  return Image(width, width / 2, 3, radiance);
-}
+Image ConstantMap(float radiance, int width = 256) { return Image(width, width / 2, 3, radiance); }
 
 sim::Scene LoneSphere(double albedo) {
   sim::Scene scene;
@@ -61,8 +59,9 @@ TEST(EndToEnd, LambertianSphereUnderConstantEnvironmentMatchesClosedForm) {
   const auto err = testing::compare_images(relit, expected, &mask);
   std::cout << "Lambertian sphere, constant map, 300 LEDs: relative RMSE " << err.relative_rmse
             << ", worst " << err.max_abs / (albedo * c) << " relative\n";
-  // Measured 0.6% (discretisation of the clamped cosine at 300 LEDs, plus camera noise).
-  EXPECT_TRUE(testing::ImageNear(relit, expected, 0.015, &mask));
+  // Measured 0.15% relative RMSE, 0.45% worst pixel (discretisation of the clamped cosine at 300
+  // LEDs, plus camera noise).
+  EXPECT_TRUE(testing::ImageNear(relit, expected, 0.004, &mask));
 }
 
 // Under a map that is exactly one LED's cell (radiance 1/Omega_l inside it, 0 elsewhere), E_l = 1
@@ -124,14 +123,17 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
   const sim::Scene scene = sim::default_scene();
   const auto field = testing::CaptureAndBuild(tmp / "s", stage, scene);
   const auto dirs = stage.led_directions();
-  // Bounds measured at 151 LEDs (relative RMSE): see the closing note; asserted with ~1.5x margin.
+  // Relative RMSE measured at 151 LEDs, 96x96, seed 1, 128-wide quadrature: sky_sun 0.117, softbox_studio 0.035,
+  // small_source 0.185 (a 2-degree source falls into one 14-degree cell: its shadows and highlights
+  // come from the LED's direction, not the source's). Asserted with ~1.4x margin.
   const std::pair<const char*, double> maps[] = {
-      {"sky_sun.exr", 0.20}, {"studio.exr", 0.12}, {"small_source.exr", 0.35}};
+      {"sky_sun.exr", 0.16}, {"softbox_studio.exr", 0.05}, {"small_source.exr", 0.26}};
   for (const auto& [name, bound] : maps) {
-    const EnvironmentMap map = EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / name);
+    const EnvironmentMap map =
+        EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / name);
     const Image relit = relight::relight(field, relight::integrate_environment(map, dirs));
     sim::GroundTruthOptions gt;
-    gt.directions_width = 256;
+    gt.directions_width = 128;
     gt.covered_by_leds = dirs;
     gt.coverage_radius_rad = relight::max_nearest_neighbour_angle(dirs);
     const Image truth = sim::render_ground_truth(scene, stage.camera, map, gt);

@@ -22,7 +22,8 @@ TEST(Image, FloatExrRoundTripsExactlyWithChannelNames) {
   ASSERT_EQ(back.channels, 4);
   // Channel order on reading may differ: compare by name.
   for (int c = 0; c < 4; ++c) {
-    const auto it = std::find(back.channel_names.begin(), back.channel_names.end(), img.channel_names[c]);
+    const auto it =
+        std::find(back.channel_names.begin(), back.channel_names.end(), img.channel_names[c]);
     ASSERT_NE(it, back.channel_names.end());
     const int bc = int(it - back.channel_names.begin());
     for (int y = 0; y < 9; ++y) {
@@ -40,7 +41,8 @@ TEST(Image, RawFramesRoundTripBitExactAtAnyBitDepth) {
     f.channels = 3;
     f.bit_depth = bits;
     f.pixels.resize(31 * 7 * 3);
-    for (size_t i = 0; i < f.pixels.size(); ++i) f.pixels[i] = uint16_t((i * 2654435761u) % (1u << bits));
+    for (size_t i = 0; i < f.pixels.size(); ++i)
+      f.pixels[i] = uint16_t((i * 2654435761u) % (1u << bits));
     write_raw_frame(tmp / "f.png", f);
     const RawFrame back = read_raw_frame(tmp / "f.png", bits);
     EXPECT_EQ(back.pixels, f.pixels) << bits << " bits";

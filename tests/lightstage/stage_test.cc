@@ -19,7 +19,8 @@ void ExpectStageError(const std::string& json, std::initializer_list<std::string
   } catch (const InputError& e) {
     const std::string msg = e.what();
     EXPECT_NE(msg.find("bad_stage.json"), std::string::npos) << msg;
-    for (const auto& f : fragments) EXPECT_NE(msg.find(f), std::string::npos) << "'" << f << "' not in: " << msg;
+    for (const auto& f : fragments)
+      EXPECT_NE(msg.find(f), std::string::npos) << "'" << f << "' not in: " << msg;
   }
 }
 
@@ -101,8 +102,8 @@ TEST(Stage, JsonRoundTripPreservesEverything) {
 TEST(Stage, GeneratedLayoutAndPositions) {
   const Stage s = parse_stage(R"({"layout": {"type": "fibonacci", "count": 40}})", "s.json");
   EXPECT_EQ(s.leds.size(), 40u);
-  const Stage p = parse_stage(R"({"leds": [{"position": [0, 2, 0]}, {"direction": [1, 0, 0]}]})",
-                              "p.json");
+  const Stage p =
+      parse_stage(R"({"leds": [{"position": [0, 2, 0]}, {"direction": [1, 0, 0]}]})", "p.json");
   EXPECT_NEAR(*p.leds[0].distance_m, 2.0, 1e-12);
   EXPECT_NEAR(p.leds[0].dir_in_stage.y(), 1.0, 1e-12);
   EXPECT_FALSE(p.leds[1].distance_m.has_value());
@@ -119,15 +120,17 @@ TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
                    {"leds[0].intensty", "unknown field"});
   ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensity": -2}]})",
                    {"leds[0].intensity", "positive"});
-  ExpectStageError(R"({"leds": [{"id": 1, "direction": [0, 1, 0]}, {"id": 1, "direction": [1, 0, 0]}]})",
-                   {"leds[1].id", "unique"});
+  ExpectStageError(
+      R"({"leds": [{"id": 1, "direction": [0, 1, 0]}, {"id": 1, "direction": [1, 0, 0]}]})",
+      {"leds[1].id", "unique"});
   ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
                        "camera": {"bracket": [{"exposure_s": -0.1}]}})",
                    {"camera.bracket[0].exposure_s", "positive", "-0.1"});
   ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10}, "camera": {"bit_depth": 20}})",
                    {"camera.bit_depth", "[8, 16]", "20"});
-  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10}, "camera": {"backend": "usb"}})",
-                   {"camera.backend", "\"sim\""});
+  ExpectStageError(
+      R"({"layout": {"type": "fibonacci", "count": 10}, "camera": {"backend": "usb"}})",
+      {"camera.backend", "\"sim\""});
   ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10}, "plan": {"led_order": [99]}})",
                    {"plan.led_order[0]", "id of an LED"});
   ExpectStageError(R"({"layout": {"type": "geodesic"}})", {"layout.frequency", "missing"});

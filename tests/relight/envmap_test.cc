@@ -32,10 +32,10 @@ void expect_dir_near(const Eigen::Vector3d& actual, const Eigen::Vector3d& expec
 TEST(EnvmapTest, ConventionAnchors) {
   for (double u : {0.0, 0.3, 0.9}) expect_dir_near(EnvironmentMap::direction(u, 0.0), {0, 1, 0});
   expect_dir_near(EnvironmentMap::direction(0.5, 1.0), {0, -1, 0});
-  expect_dir_near(EnvironmentMap::direction(0.5, 0.5), {0, 0, -1});   // Map centre: -Z.
-  expect_dir_near(EnvironmentMap::direction(0.75, 0.5), {1, 0, 0});   // u = 0.75: +X.
+  expect_dir_near(EnvironmentMap::direction(0.5, 0.5), {0, 0, -1});  // Map centre: -Z.
+  expect_dir_near(EnvironmentMap::direction(0.75, 0.5), {1, 0, 0});  // u = 0.75: +X.
   expect_dir_near(EnvironmentMap::direction(0.25, 0.5), {-1, 0, 0});
-  expect_dir_near(EnvironmentMap::direction(0.0, 0.5), {0, 0, 1});    // Seam: +Z (the camera).
+  expect_dir_near(EnvironmentMap::direction(0.0, 0.5), {0, 0, 1});  // Seam: +Z (the camera).
   EXPECT_LT((EnvironmentMap::uv({1, 0, 0}) - Eigen::Vector2d(0.75, 0.5)).norm(), 1e-12);
   EXPECT_LT((EnvironmentMap::uv({0, 0, -1}) - Eigen::Vector2d(0.5, 0.5)).norm(), 1e-12);
 
@@ -218,9 +218,9 @@ TEST(EnvmapTest, LoadsEverySharedMapAndMatchesReferenceStatistics) {
           << "first maximum at (" << max_x << ", " << max_y << ")";
       // The maximum may be tied (blouberg: x=56 and x=57 on row 232); the reference's pixel must
       // hold it, which also pins the row order (row 0 = zenith) and the column origin.
-      const double at_reference = std::max(
-          {image.at(ref.max_x, ref.max_y, 0), image.at(ref.max_x, ref.max_y, 1),
-           image.at(ref.max_x, ref.max_y, 2)});
+      const double at_reference =
+          std::max({image.at(ref.max_x, ref.max_y, 0), image.at(ref.max_x, ref.max_y, 1),
+                    image.at(ref.max_x, ref.max_y, 2)});
       EXPECT_EQ(at_reference, max_value);
     }
   }
@@ -261,9 +261,9 @@ TEST(EnvmapTest, LossyCompressionRingingIsRepairedKeepingEnergy) {
   const EnvironmentMap repaired = EnvironmentMap::load(file);
   EXPECT_EQ(repaired.negative_values_repaired(), 1);
   EXPECT_EQ(repaired.radiance().at(5, 3, 0), 0.0f);
-  EXPECT_LT(repaired.radiance().at(4, 3, 0), 1.0f);   // Same block: scaled down.
-  EXPECT_EQ(repaired.radiance().at(8, 3, 0), 1.0f);   // Next block: untouched.
-  EXPECT_EQ(repaired.radiance().at(4, 3, 1), 1.0f);   // Other channels: untouched.
+  EXPECT_LT(repaired.radiance().at(4, 3, 0), 1.0f);  // Same block: scaled down.
+  EXPECT_EQ(repaired.radiance().at(8, 3, 0), 1.0f);  // Next block: untouched.
+  EXPECT_EQ(repaired.radiance().at(4, 3, 1), 1.0f);  // Other channels: untouched.
   EXPECT_NEAR(repaired.integral()[0], raw_integral(image)[0], 1e-6 * raw_integral(image)[0]);
   EXPECT_EQ(EnvironmentMap(Image(32, 16, 3, 1.0f)).negative_values_repaired(), 0);
 }
@@ -313,9 +313,9 @@ TEST(EnvmapTest, RejectsWrongChannelCountAndAspect) {
 
   const fs::path wide = tmp / "three_to_one.exr";
   ls::write_exr(wide, Image(12, 4, 3, 1.0f));
-  expect_input_error([&] { EnvironmentMap::load(wide); },
-                     {wide.string(), "size: a lat-long map must be twice as wide as it is tall",
-                      "got 12x4"});
+  expect_input_error(
+      [&] { EnvironmentMap::load(wide); },
+      {wide.string(), "size: a lat-long map must be twice as wide as it is tall", "got 12x4"});
   expect_input_error([&] { EnvironmentMap(Image(300, 200, 3, 1.0f), "tall.hdr"); },
                      {"tall.hdr: size:", "got 300x200"});
 }

@@ -67,9 +67,10 @@ TEST(LightCellsTest, DefaultDomeSumsTo4PiAndReportsSpread) {
   std::vector<double> sorted = cells.solid_angle_sr;
   std::sort(sorted.begin(), sorted.end());
   EXPECT_GT(sorted.front(), 0.0);  // Every LED stands for some directions.
-  std::cout << "default dome: " << dirs.size() << " LEDs, cell solid angle min/median/max = "
-            << sorted.front() << " / " << sorted[sorted.size() / 2] << " / " << sorted.back()
-            << " sr, uncovered " << cells.uncovered_sr << " sr, coverage radius "
+  std::cout << "default dome: " << dirs.size()
+            << " LEDs, cell solid angle min/median/max = " << sorted.front() << " / "
+            << sorted[sorted.size() / 2] << " / " << sorted.back() << " sr, uncovered "
+            << cells.uncovered_sr << " sr, coverage radius "
             << cells.coverage_radius_rad * 180 / kPi << " deg, compute(1024) " << seconds * 1e3
             << " ms\n";
   ::testing::Test::RecordProperty("cell_sr_min", std::to_string(sorted.front()));
@@ -83,8 +84,9 @@ TEST(LightCellsTest, DefaultDomeSumsTo4PiAndReportsSpread) {
 TEST(LightCellsTest, RandomPointSetsSumTo4Pi) {
   for (int count : {1, 2, 5, 37, 150, 400}) {
     for (double coverage_rad : {0.0, 0.3, 4.0}) {
-      const LightCells cells = LightCells::compute(random_directions(count, 11 + count), coverage_rad,
-                                                   /*resolution=*/256, /*supersample=*/3);
+      const LightCells cells =
+          LightCells::compute(random_directions(count, 11 + count), coverage_rad,
+                              /*resolution=*/256, /*supersample=*/3);
       EXPECT_NEAR(total_sr(cells), 4 * kPi, 1e-6 * 4 * kPi) << count << " " << coverage_rad;
       if (coverage_rad > kPi) {
         EXPECT_EQ(cells.uncovered_sr, 0.0);

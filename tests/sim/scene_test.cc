@@ -11,10 +11,12 @@
 namespace ls::sim {
 namespace {
 
-std::string minimal_scene(const std::string& sphere_fields = R"("center": [0, 0, 0], "radius": 0.5)",
-                          const std::string& material_fields = R"("albedo": [0.5, 0.5, 0.5])") {
+std::string minimal_scene(
+    const std::string& sphere_fields = R"("center": [0, 0, 0], "radius": 0.5)",
+    const std::string& material_fields = R"("albedo": [0.5, 0.5, 0.5])") {
   return R"({"materials": [{"name": "m", )" + material_fields + R"(}],
-            "spheres": [{)" + sphere_fields + R"(, "material": "m"}]})";
+            "spheres": [{)" +
+         sphere_fields + R"(, "material": "m"}]})";
 }
 
 // Expects parse_scene to throw an InputError whose message contains every one of `parts`.
@@ -44,7 +46,8 @@ TEST(SceneFile, ParsesAllObjectKinds) {
                        "resolution": 33, "material": "clay",
                        "procedural": {"bumps": [{"x": 0, "y": 0, "height": 0.2, "width": 0.1}],
                                       "ridges": [{"amplitude": 0.01, "wavelength": 0.5}]}}]
-  })", "all.json");
+  })",
+                                  "all.json");
   ASSERT_EQ(scene.materials.size(), 2u);
   EXPECT_EQ(scene.materials[0].base.specular, brdf::SpecularModel::kPhong);
   EXPECT_DOUBLE_EQ(scene.materials[0].base.phong_exponent, 80);
@@ -88,12 +91,24 @@ TEST(SceneFile, DemoFileIsTheDefaultScene) {
   EXPECT_EQ(file.height_fields[0].heights, builtin.height_fields[0].heights);
 }
 
+TEST(SceneFile, ShippedExampleScenesLoad) {
+  for (const auto& entry :
+       std::filesystem::directory_iterator(ls::testing::source_dir() / "data/scenes")) {
+    if (entry.path().extension() != ".json") continue;
+    const Scene scene = load_scene(entry.path());
+    EXPECT_FALSE(scene.materials.empty()) << entry.path();
+    for (const auto& hf : scene.height_fields) EXPECT_FALSE(hf.description.empty());
+  }
+}
+
 TEST(SceneFile, DefaultSceneIsPlausibleAndFillsTheView) {
   const Scene scene = default_scene();
   for (const auto& m : scene.materials) {
     EXPECT_EQ(m.base.validate(), "") << m.name;
     EXPECT_LE(m.base.albedo.maxCoeff(), 0.9) << m.name;
-    if (m.checker_albedo) EXPECT_LE(m.checker_albedo->maxCoeff(), 0.9) << m.name;
+    if (m.checker_albedo) {
+      EXPECT_LE(m.checker_albedo->maxCoeff(), 0.9) << m.name;
+    }
   }
   // The backdrop covers the orthographic view [-1.2, 1.2]^2.
   ASSERT_FALSE(scene.planes.empty());

@@ -40,7 +40,8 @@ Eigen::Vector2d ortho_pixel_xy(const CameraSpec& camera, int x, int y) {
 TEST(TraceCamera, LambertSphereUnderOneLightMatchesClosedForm) {
   Scene scene;
   const double albedo = 0.6, radius = 0.5;
-  scene.spheres.push_back({{0, 0, 0}, radius, add_lambert(scene, Eigen::Vector3d::Constant(albedo))});
+  scene.spheres.push_back(
+      {{0, 0, 0}, radius, add_lambert(scene, Eigen::Vector3d::Constant(albedo))});
   const CameraSpec camera = ortho_camera(64);
   const auto hits = trace_camera(scene, camera);
   const Eigen::Vector3d light = Eigen::Vector3d(0.6, 0.5, 0.4).normalized();
@@ -56,7 +57,8 @@ TEST(TraceCamera, LambertSphereUnderOneLightMatchesClosedForm) {
       double expected = 0;
       if (r2 < radius * radius) {
         ASSERT_TRUE(hits[y * 64 + x].hit) << x << "," << y;
-        const Eigen::Vector3d n(p.x() / radius, p.y() / radius, std::sqrt(1 - r2 / (radius * radius)));
+        const Eigen::Vector3d n(p.x() / radius, p.y() / radius,
+                                std::sqrt(1 - r2 / (radius * radius)));
         EXPECT_LT((hits[y * 64 + x].normal - n).norm(), 1e-9);
         const double cos_l = n.dot(light);
         expected = albedo / kPi * std::max(0.0, cos_l);
@@ -221,7 +223,8 @@ UniformRig uniform_rig(double albedo = 0.5) {
 
 Scene plane_scene(double albedo = 0.5) {
   Scene scene;
-  scene.planes.push_back({{0, 0, 0}, {0, 0, 1}, 2, 2, add_lambert(scene, Eigen::Vector3d::Constant(albedo))});
+  scene.planes.push_back(
+      {{0, 0, 0}, {0, 0, 1}, 2, 2, add_lambert(scene, Eigen::Vector3d::Constant(albedo))});
   return scene;
 }
 
@@ -361,8 +364,8 @@ TEST(SimStage, FrameSumsLitLedsTimesTheirIrradiance) {
   const SimulatedSensor& s = stage.camera.simulated;
   for (int c = 0; c < 3; ++c) {
     const double radiance = 0.5 / kPi * (0.5 * 1.0 + stage.leds[1].color_gain[c] * 0.8);
-    const double x = radiance * exposure_s + s.dark_current_e_per_s * exposure_s / s.full_well_e +
-                     s.black_level;
+    const double x =
+        radiance * exposure_s + s.dark_current_e_per_s * exposure_s / s.full_well_e + s.black_level;
     double mean = 0;
     for (int p = 0; p < 32 * 32; ++p) mean += f.pixels[p * 3 + c];
     mean /= 32 * 32;

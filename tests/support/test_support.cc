@@ -84,9 +84,9 @@ ImageError compare_images(const Image& actual, const Image& expected, const Imag
   }
   const ImageError e = compare_images(actual, expected, mask);
   std::ostringstream msg;
-  msg << "relative RMSE " << e.relative_rmse << " (tolerance " << rel_tol << "), PSNR "
-      << e.psnr_db << " dB, worst |diff| " << e.max_abs << " at (" << e.worst_x << ", "
-      << e.worst_y << ", c" << e.worst_c << ")";
+  msg << "relative RMSE " << e.relative_rmse << " (tolerance " << rel_tol << "), PSNR " << e.psnr_db
+      << " dB, worst |diff| " << e.max_abs << " at (" << e.worst_x << ", " << e.worst_y << ", c"
+      << e.worst_c << ")";
   if (e.worst_x >= 0) {
     msg << ": actual " << actual.at(e.worst_x, e.worst_y, e.worst_c) << " expected "
         << expected.at(e.worst_x, e.worst_y, e.worst_c);

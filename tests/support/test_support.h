@@ -34,7 +34,7 @@ struct ImageError {
   double relative_rmse = 0;  // rmse / rms(expected).
   double max_abs = 0;
   int worst_x = -1, worst_y = -1, worst_c = -1;
-  double psnr_db = 0;        // Peak = max(expected).
+  double psnr_db = 0;  // Peak = max(expected).
 };
 // Compares over pixels where mask (if given, 1 channel) is non-zero.
 ImageError compare_images(const Image& actual, const Image& expected, const Image* mask = nullptr);
