@@ -104,7 +104,8 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
   const CameraSpec& camera = stage.camera;
   const std::string where = session.dir().string();
   const int num_exposures = int(camera.bracket.size());
-  if (num_exposures == 0) throw InputError(stage.source + ": camera.bracket: expected at least one step");
+  if (num_exposures == 0)
+    throw InputError(stage.source + ": camera.bracket: expected at least one step");
   if (options.time_step < 0 || options.time_step >= std::max(1, stage.plan.time_steps)) {
     throw InputError(where + ": time step " + std::to_string(options.time_step) +
                      " is outside the plan's " + std::to_string(stage.plan.time_steps) + " steps");
@@ -178,7 +179,8 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
       response = recover_from_session(session, brackets, usable);
       break;
   }
-  if (!response) response = ResponseCurve::from_spec(camera.response, camera.bit_depth, camera.channels);
+  if (!response)
+    response = ResponseCurve::from_spec(camera.response, camera.bit_depth, camera.channels);
 
   // Allocate the field first: it is the big allocation and refuses cleanly when it cannot fit.
   ReflectanceField field(camera.width, camera.height, std::move(lights));
@@ -193,11 +195,10 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
   auto check_size = [&](const RawFrame& frame, const FrameKey& key) {
     if (frame.width != camera.width || frame.height != camera.height ||
         frame.channels != camera.channels) {
-      throw InputError(where + ": frame " + key.name(stage) + " is " +
-                       std::to_string(frame.width) + "x" + std::to_string(frame.height) + "x" +
-                       std::to_string(frame.channels) + " but the camera is " +
-                       std::to_string(camera.width) + "x" + std::to_string(camera.height) + "x" +
-                       std::to_string(camera.channels));
+      throw InputError(where + ": frame " + key.name(stage) + " is " + std::to_string(frame.width) +
+                       "x" + std::to_string(frame.height) + "x" + std::to_string(frame.channels) +
+                       " but the camera is " + std::to_string(camera.width) + "x" +
+                       std::to_string(camera.height) + "x" + std::to_string(camera.channels));
     }
   };
 
@@ -228,8 +229,9 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
   const size_t per_led_bytes =
       frame_bytes * num_exposures + size_t(width) * height * (camera.channels + 1) * sizeof(float);
   const size_t spare = available_memory_bytes() / 2;
-  const int max_in_flight = int(std::clamp<size_t>(spare / std::max<size_t>(per_led_bytes, 1), 1,
-                                                   std::max(1u, std::thread::hardware_concurrency())));
+  const int max_in_flight =
+      int(std::clamp<size_t>(spare / std::max<size_t>(per_led_bytes, 1), 1,
+                             std::max(1u, std::thread::hardware_concurrency())));
   const int num_lights = int(order.size());
   std::vector<Eigen::Array3f> scale(num_lights, Eigen::Array3f::Zero());
   for (int i = 0; i < num_lights; ++i) {
@@ -261,8 +263,8 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
         const FrameRecord& record = *brackets[i].records[e];
         raw[e] = session.load_frame(record.key);
         check_size(raw[e], record.key);
-        bracket[e] = BracketFrame{&raw[e], darks[e] ? &*darks[e] : nullptr, record.exposure_s,
-                                  record.gain};
+        bracket[e] =
+            BracketFrame{&raw[e], darks[e] ? &*darks[e] : nullptr, record.exposure_s, record.gain};
       }
       const Image merged = merge_bracket(bracket, *response, options.merge);
       const int in_channels = camera.channels + 1;

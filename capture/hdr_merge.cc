@@ -41,8 +41,7 @@ void check_frame(const RawFrame& f, const RawFrame& first, const ResponseCurve& 
   }
   if (response.channels() != 1 && response.channels() != f.channels) {
     throw InputError("HDR merge: frames have " + std::to_string(f.channels) +
-                     " channels but the response curve has " +
-                     std::to_string(response.channels()));
+                     " channels but the response curve has " + std::to_string(response.channels()));
   }
 }
 
@@ -140,7 +139,8 @@ Image merge_bracket(const std::vector<BracketFrame>& bracket, const ResponseCurv
             weight_total += w;
             ++count;
           }
-          // Every exposure saturated: the shortest one's value is a lower bound, flagged by count 0.
+          // Every exposure saturated: the shortest one's value is a lower bound, flagged by count
+          // 0.
           o[c] = count > 0 ? float(weighted_sum / weight_total) : shortest_signal;
           min_count = std::min(min_count, count);
         }
@@ -156,7 +156,8 @@ Image merge_bracket(const std::vector<BracketFrame>& bracket, const ResponseCurv
 Image mean_dark(const std::vector<const RawFrame*>& darks, const ResponseCurve& response) {
   if (darks.empty()) throw InputError("mean dark: no dark frames given");
   for (size_t k = 0; k < darks.size(); ++k) {
-    if (darks[k] == nullptr) throw InputError("mean dark: dark frame " + std::to_string(k) + " is missing");
+    if (darks[k] == nullptr)
+      throw InputError("mean dark: dark frame " + std::to_string(k) + " is missing");
     check_frame(*darks[k], *darks[0], response, k);
   }
   const RawFrame& first = *darks[0];
@@ -167,19 +168,20 @@ Image mean_dark(const std::vector<const RawFrame*>& darks, const ResponseCurve& 
   const float inv_count = 1.0f / float(darks.size());
   Image out(first.width, first.height, channels);
   const size_t row_values = size_t(first.width) * channels;
-  tbb::parallel_for(tbb::blocked_range<int>(0, first.height), [&](const tbb::blocked_range<int>& rows) {
-    for (int y = rows.begin(); y < rows.end(); ++y) {
-      const size_t begin = size_t(y) * row_values;
-      for (size_t i = begin; i < begin + row_values; ++i) {
-        const size_t c = i % size_t(channels);
-        float sum = 0;
-        for (const RawFrame* d : darks) {
-          sum += lut[lut_stride * c + std::min<int>(d->pixels[i], max_dn)];
-        }
-        out.pixels[i] = sum * inv_count;
-      }
-    }
-  });
+  tbb::parallel_for(tbb::blocked_range<int>(0, first.height),
+                    [&](const tbb::blocked_range<int>& rows) {
+                      for (int y = rows.begin(); y < rows.end(); ++y) {
+                        const size_t begin = size_t(y) * row_values;
+                        for (size_t i = begin; i < begin + row_values; ++i) {
+                          const size_t c = i % size_t(channels);
+                          float sum = 0;
+                          for (const RawFrame* d : darks) {
+                            sum += lut[lut_stride * c + std::min<int>(d->pixels[i], max_dn)];
+                          }
+                          out.pixels[i] = sum * inv_count;
+                        }
+                      }
+                    });
   return out;
 }
 

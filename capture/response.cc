@@ -76,8 +76,7 @@ ResponseCurve load_table(const std::filesystem::path& file, int bit_depth, int c
     if (values.empty()) continue;  // Blank or comment line.
     if (values.size() != 1 && int(values.size()) != channels) {
       throw InputError(name + ":" + std::to_string(line_no) + ": expected 1 or " +
-                       std::to_string(channels) + " columns, got " +
-                       std::to_string(values.size()));
+                       std::to_string(channels) + " columns, got " + std::to_string(values.size()));
     }
     if (columns < 0) {
       columns = int(values.size());
@@ -89,8 +88,8 @@ ResponseCurve load_table(const std::filesystem::path& file, int bit_depth, int c
     }
     for (size_t c = 0; c < values.size(); ++c) {
       if (!std::isfinite(values[c])) {
-        throw InputError(name + ":" + std::to_string(line_no) + ": value " +
-                         std::to_string(c + 1) + " is not finite");
+        throw InputError(name + ":" + std::to_string(line_no) + ": value " + std::to_string(c + 1) +
+                         " is not finite");
       }
     }
     if (!rows.empty()) {
@@ -136,7 +135,10 @@ ResponseCurve load_table(const std::filesystem::path& file, int bit_depth, int c
 }  // namespace
 
 ResponseCurve::ResponseCurve(int bit_depth, int channels, std::vector<float> lut)
-    : bit_depth_(bit_depth), channels_(channels), size_(lut_size_for(bit_depth)), lut_(std::move(lut)) {
+    : bit_depth_(bit_depth),
+      channels_(channels),
+      size_(lut_size_for(bit_depth)),
+      lut_(std::move(lut)) {
   check_shape(bit_depth, channels, "camera response");
   LS_CHECK(lut_.size() == size_ * size_t(channels),
            "response LUT has " + std::to_string(lut_.size()) + " entries, expected " +
@@ -260,8 +262,8 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
 
   // Interpolate the 256-entry curve to the full bit depth. The curve is only known up to scale, so
   // it is normalised to read 1 at full scale. Its top end is the least constrained part of the
-  // solve (clipped samples pile up at 255, where OpenCV's weights do not reach 0), and measured on a
-  // gamma-2.2 camera it overshoots by ~60% at 255: so the values above kFitEnd are replaced by a
+  // solve (clipped samples pile up at 255, where OpenCV's weights do not reach 0), and measured on
+  // a gamma-2.2 camera it overshoots by ~60% at 255: so the values above kFitEnd are replaced by a
   // power law fitted in log-log over [kFitBegin, kFitEnd] (exact for linear and gamma cameras),
   // extrapolated to 255. A running max then enforces monotonicity.
   constexpr int kFitBegin = 96;
@@ -294,7 +296,8 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
     }
     const double slope = (count * s_uv - s_u * s_v) / det;
     const double intercept = (s_v - slope * s_u) / count;
-    for (int z = kFitEnd + 1; z < 256; ++z) g[z] = std::exp(intercept + slope * std::log(z / 255.0));
+    for (int z = kFitEnd + 1; z < 256; ++z)
+      g[z] = std::exp(intercept + slope * std::log(z / 255.0));
     double running = -std::numeric_limits<double>::infinity();
     for (int i = 0; i < 256; ++i) {
       running = std::max(running, g[i]);
@@ -302,7 +305,8 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
     }
     const double full_scale = g[255];
     if (!(full_scale > 0) || !std::isfinite(full_scale)) {
-      throw InputError("response recovery failed: the recovered curve is not positive at full scale");
+      throw InputError(
+          "response recovery failed: the recovered curve is not positive at full scale");
     }
     for (size_t dn = 0; dn < n; ++dn) {
       const double p = double(dn) * 255.0 / max_dn;

@@ -63,6 +63,45 @@ double bright_signal_fraction(const RawFrame& frame, const std::vector<float>& d
   return diff[k] / double(frame.max_value());
 }
 
+// Flags LEDs that are dark while their neighbours are lit (see SequencerOptions).
+void flag_dead_leds(Session& session, int time_step, double threshold) {
+  const Stage& stage = session.stage();
+  const auto& signals = session.led_signals();
+  const int n = int(stage.leds.size());
+  for (int i = 0; i < n; ++i) {
+    const auto it = signals.find({time_step, i});
+    if (it == signals.end() || it->second >= threshold) continue;
+    // Neighbours: LEDs within 1.6x the angle to the nearest one.
+    double nearest_cos = -1;
+    for (int j = 0; j < n; ++j) {
+      if (j != i)
+        nearest_cos =
+            std::max(nearest_cos, stage.leds[i].dir_in_stage.dot(stage.leds[j].dir_in_stage));
+    }
+    const double radius = 1.6 * std::acos(std::clamp(nearest_cos, -1.0, 1.0));
+    std::vector<double> around;
+    for (int j = 0; j < n; ++j) {
+      const double angle = std::acos(
+          std::clamp(stage.leds[i].dir_in_stage.dot(stage.leds[j].dir_in_stage), -1.0, 1.0));
+      if (j == i || angle > radius) continue;
+      if (const auto s = signals.find({time_step, j}); s != signals.end())
+        around.push_back(s->second);
+    }
+    if (around.empty()) continue;
+    // An LED on the edge of a dark region has dark neighbours too; a broken one is dark among
+    // lit ones. Lit: above 10x the threshold.
+    const auto lit =
+        std::count_if(around.begin(), around.end(), [&](double v) { return v > 10 * threshold; });
+    if (lit >= 0.8 * double(around.size())) {
+      std::ostringstream reason;
+      reason << "time step " << time_step << ": brightest frame exceeds the dark frame by "
+             << it->second * 100 << "% of full scale while " << lit << " of its " << around.size()
+             << " neighbours are lit";
+      session.mark_dead_led(i, reason.str());
+    }
+  }
+}
+
 }  // namespace
 
 CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,
@@ -152,15 +191,12 @@ CaptureSummary run_capture(Session& session, LightController& lights, Camera& ca
     }
     if (led >= 0) {
       lights.set_light(led, false);
-      // Judge only a complete bracket taken in this run.
-      const bool whole_bracket = end - i == stage.camera.bracket.size();
-      if (whole_bracket && brightest < options.dead_led_threshold) {
-        std::ostringstream reason;
-        reason << "brightest frame exceeds the dark frame by only " << brightest * 100
-               << "% of full scale";
-        session.mark_dead_led(led, reason.str());
-      }
+      // Only a whole bracket taken in this run tells how bright the LED is.
+      if (end - i == stage.camera.bracket.size()) session.record_led_signal(t, led, brightest);
     }
+    // Once the last LED of a time step is in, judge that step's dark LEDs.
+    const bool step_done = end == missing.size() || missing[end].key.time_step != t;
+    if (step_done && led >= 0) flag_dead_leds(session, t, options.dead_led_threshold);
     i = end;
   }
   return finish(CaptureSummary::Status::kComplete, "capture complete");

@@ -20,8 +20,11 @@ struct SequencerOptions {
   // Set asynchronously (e.g. by a SIGINT handler); checked before every frame.
   const std::atomic<bool>* stop_requested = nullptr;
   std::function<void(const CaptureProgress&)> on_progress;
-  // An LED whose brightest bracket frame exceeds the dark frame by less than this fraction of full
-  // scale (at the 99.9th percentile) is flagged dead; the capture continues.
+  // Dead LEDs. An LED is dark when its brightest bracket frame exceeds the dark frame by less than
+  // dead_led_threshold of full scale (99.9th percentile). A dark LED is judged broken, and flagged,
+  // only when nearly all its neighbours on the dome (80%) are clearly lit (> 10x the threshold): a
+  // whole dark region is the scene not being lit from there (LEDs behind an opaque backdrop), which
+  // is data, not a fault. Judged once every LED of a time step is captured; the capture continues.
   double dead_led_threshold = 0.002;
   // Sleeps for plan.settle_s and inter-step waits; tests replace it to run instantly.
   std::function<void(double seconds)> sleep;

@@ -153,6 +153,10 @@ Session Session::open(const fs::path& dir) {
                    "captured again\n";
       continue;
     }
+    if (j.contains("led_signal")) {
+      s.led_signals_[{j["t"].get<int>(), j["led_signal"].get<int>()}] = j["fraction"].get<double>();
+      continue;
+    }
     if (j.contains("dead_led")) {
       s.dead_leds_[j["dead_led"].get<int>()] = j.value("reason", "");
       continue;
@@ -229,6 +233,11 @@ void Session::mark_dead_led(int led_index, const std::string& reason) {
   if (dead_leds_.count(led_index)) return;
   append_journal(json{{"dead_led", led_index}, {"reason", reason}}.dump());
   dead_leds_[led_index] = reason;
+}
+
+void Session::record_led_signal(int time_step, int led_index, double fraction) {
+  append_journal(json{{"led_signal", led_index}, {"t", time_step}, {"fraction", fraction}}.dump());
+  led_signals_[{time_step, led_index}] = fraction;
 }
 
 void Session::write_manifest(const std::string& status) const {

@@ -70,9 +70,14 @@ class Session {
   void record_frame(const PlannedFrame& planned, const CapturedFrame& frame);
   RawFrame load_frame(const FrameKey& key) const;  // Throws InputError if absent or unreadable.
 
-  // LEDs whose frames were no brighter than the dark frames; later stages treat them as missing.
+  // LEDs judged broken (see sequencer.h); later stages treat them as missing, not as black lights.
   const std::map<int, std::string>& dead_leds() const { return dead_leds_; }
   void mark_dead_led(int led_index, const std::string& reason);
+
+  // Each LED's brightest signal above the dark frame (fraction of full scale) per time step,
+  // journaled so that the dead-LED judgement survives an interrupted capture.
+  const std::map<std::pair<int, int>, double>& led_signals() const { return led_signals_; }
+  void record_led_signal(int time_step, int led_index, double fraction_of_full_scale);
 
   // Rewrites the manifest with the given status ("capturing", "interrupted", "complete", ...).
   void write_manifest(const std::string& status) const;
@@ -86,6 +91,7 @@ class Session {
   SessionInfo info_;
   std::map<FrameKey, FrameRecord> frames_;
   std::map<int, std::string> dead_leds_;
+  std::map<std::pair<int, int>, double> led_signals_;  // (time step, LED index) -> signal.
 };
 
 }  // namespace ls

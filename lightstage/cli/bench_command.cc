@@ -12,6 +12,7 @@
 #include "capture/build_field.h"
 #include "lightstage/cli/chart.h"
 #include "lightstage/cli/commands.h"
+#include "lightstage/image_metrics.h"
 #include "lightstage/progress.h"
 #include "lightstage/sequencer.h"
 #include "relight/envmap.h"
@@ -30,7 +31,7 @@ struct BenchArgs {
   fs::path out = "bench-out";
   std::vector<int> counts{20, 40, 80, 150, 300};
   int resolution = 128;
-  int repeats = 7;
+  int repeats = 21;
 };
 
 template <class F>
@@ -54,7 +55,8 @@ void run_led_bench(const BenchArgs& args) {
     maps.push_back(relight::EnvironmentMap::load(path));
 
   std::ofstream csv(args.out / "leds.csv");
-  csv << "leds,map,relative_rmse,psnr_db,relight_ms,light_weights_ms,uncovered_fraction\n";
+  csv << "leds,map,relative_rmse,psnr_db,relight_ms,relight_gb_per_s,light_weights_ms,"
+         "uncovered_fraction\n";
   std::vector<ChartSeries> speed(maps.size()), error(maps.size());
   for (size_t m = 0; m < maps.size(); ++m) {
     speed[m].name = error[m].name = fs::path(maps[m].source()).stem().string();
@@ -92,16 +94,10 @@ void run_led_bench(const BenchArgs& args) {
       gt.covered_by_leds = dirs;
       gt.coverage_radius_rad = coverage;
       const Image truth = sim::render_ground_truth(scene, stage.camera, maps[m], gt);
-      double err = 0, ref = 0, peak = 0;
-      for (size_t i = 0; i < truth.pixels.size(); ++i) {
-        err += std::pow(double(relit.pixels[i]) - truth.pixels[i], 2);
-        ref += double(truth.pixels[i]) * truth.pixels[i];
-        peak = std::max(peak, double(truth.pixels[i]));
-      }
-      const double rel = std::sqrt(err / ref);
-      const double psnr = 10 * std::log10(peak * peak / (err / truth.pixels.size()));
+      const ImageError err = compare_images(relit, truth);
+      const double rel = err.relative_rmse, psnr = err.psnr_db;
       csv << count << ',' << speed[m].name << ',' << rel << ',' << psnr << ',' << relight_ms << ','
-          << weights_ms << ',' << weights.uncovered_fraction() << '\n';
+          << field.bytes() / (relight_ms * 1e6) << ',' << weights_ms << ',' << weights.uncovered_fraction() << '\n';
       std::printf("%6d %-14s %10.4f %8.2f %11.3f %11.2f %9.2f%%\n", count, speed[m].name.c_str(),
                   rel, psnr, relight_ms, weights_ms, 100 * weights.uncovered_fraction());
       speed[m].x.push_back(relight_ms);
@@ -113,8 +109,8 @@ void run_led_bench(const BenchArgs& args) {
   }
   const std::string res = std::to_string(args.resolution);
   write_chart(args.out / "leds_psnr_vs_time.png",
-              {"Relighting from the field: accuracy vs time per frame (" + res + "x" + res +
-                   ", labels = LEDs)",
+              {"Relighting from the field: PSNR vs time per frame (" + res + "x" + res +
+                   " px, point labels = LEDs)",
                "relight time per frame, ms", "PSNR vs ground truth, dB", true},
               speed);
   write_chart(

@@ -28,7 +28,7 @@ std::string format_tick(double v) {
 
 void write_chart(const std::filesystem::path& png, const ChartAxes& axes,
                  const std::vector<ChartSeries>& series) {
-  constexpr int W = 900, H = 600, L = 90, R = 200, T = 50, B = 70;
+  constexpr int W = 960, H = 620, L = 90, R = 200, T = 70, B = 70;
   cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
   auto tx = [&](double x) { return axes.log_x ? std::log10(std::max(x, 1e-12)) : x; };
   double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
@@ -60,7 +60,7 @@ void write_chart(const std::filesystem::path& png, const ChartAxes& axes,
                 cv::LINE_AA);
   }
   cv::rectangle(img, {L, T}, {W - R, H - B}, black, 1);
-  cv::putText(img, axes.title, {L, 32}, cv::FONT_HERSHEY_SIMPLEX, 0.65, black, 1, cv::LINE_AA);
+  cv::putText(img, axes.title, {12, 26}, cv::FONT_HERSHEY_SIMPLEX, 0.6, black, 1, cv::LINE_AA);
   cv::putText(img, axes.x_label + (axes.log_x ? " (log)" : ""), {L + 150, H - 20},
               cv::FONT_HERSHEY_SIMPLEX, 0.55, black, 1, cv::LINE_AA);
   cv::putText(img, axes.y_label, {8, T - 10}, cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1, cv::LINE_AA);

@@ -7,6 +7,7 @@
 
 #include "capture/field.h"
 #include "lightstage/cli/commands.h"
+#include "lightstage/image_metrics.h"
 #include "lightstage/session.h"
 #include "relight/envmap.h"
 #include "sim/ground_truth.h"
@@ -26,16 +27,6 @@ struct DemoArgs {
   bool truth = true;
   bool quiet = false;
 };
-
-double relative_rmse(const Image& a, const Image& b) {
-  double err = 0, ref = 0;
-  for (size_t i = 0; i < a.pixels.size(); ++i) {
-    const double d = double(a.pixels[i]) - b.pixels[i];
-    err += d * d;
-    ref += double(b.pixels[i]) * b.pixels[i];
-  }
-  return ref > 0 ? std::sqrt(err / ref) : 0.0;
-}
 
 void run_demo(const DemoArgs& args) {
   fs::create_directories(args.out);
@@ -98,15 +89,9 @@ void run_demo(const DemoArgs& args) {
     write_exr(args.out / "truth" / (name + ".exr"), truth);
     write_png_preview(args.out / "truth" / (name + ".png"), truth, stops);
     write_png_preview(args.out / "truth" / (name + "_relit.png"), relit, stops);
-    double peak = 0, mse = 0;
-    for (size_t i = 0; i < truth.pixels.size(); ++i) {
-      peak = std::max(peak, double(truth.pixels[i]));
-      mse += std::pow(double(relit.pixels[i]) - truth.pixels[i], 2);
-    }
-    mse /= double(truth.pixels.size());
-    const double rel = relative_rmse(relit, truth);
-    const double psnr = 10 * std::log10(peak * peak / std::max(mse, 1e-30));
-    std::printf("%-28s %12.4f %10.2f\n", name.c_str(), rel, psnr);
+    const ImageError err = compare_images(relit, truth);
+    const double rel = err.relative_rmse;
+    std::printf("%-28s %12.4f %10.2f\n", name.c_str(), rel, err.psnr_db);
     char label[96];
     std::snprintf(label, sizeof label, "%s relit (rel.RMSE %.3f)", name.c_str(), rel);
     comparison.push_back({args.out / "truth" / (name + "_relit.png"), label});

@@ -81,6 +81,7 @@ double worst_error(const ReflectanceField& field, const sim::SimStage& sim, cons
   const std::vector<int> order = stage.capture_order();
   for (int l = 0; l < field.num_lights(); ++l) {
     EXPECT_EQ(field.lights()[l].led_id, stage.leds[order[l]].id);
+    if (!field.lights()[l].valid) continue;
     const Image truth =
         sim::render_one_light(sim.scene(), sim.hits(), stage.leds[order[l]].dir_in_stage);
     errors.push_back(compare_led(field, l, truth));
@@ -90,7 +91,7 @@ double worst_error(const ReflectanceField& field, const sim::SimStage& sim, cons
   for (const LedError& e : errors) {
     if (e.truth_rms >= 0.02 * brightest) relevant.push_back(e.relative_rmse);
   }
-  EXPECT_GE(relevant.size(), size_t(kLeds / 2));
+  EXPECT_GE(relevant.size(), size_t(kLeds / 2));  // Most of the dome lights the scene.
   std::sort(relevant.begin(), relevant.end());
   if (median) *median = relevant[relevant.size() / 2];
   return relevant.back();
@@ -118,8 +119,13 @@ TEST(BuildField, LinearCameraMatchesNoiseFreeOneLightRenders) {
   EXPECT_EQ(field.width(), kSize);
   EXPECT_EQ(field.num_lights(), kLeds);
   EXPECT_EQ(progress_calls, kLeds);
-  EXPECT_EQ(summary.lights_used, kLeds);
-  EXPECT_TRUE(summary.lights_missing.empty());
+  // The sequencer flags LEDs behind the scene (nothing they light is visible) as dead; every
+  // other LED is used.
+  std::vector<int> dead;
+  for (const auto& [index, reason] : c.session.dead_leds()) dead.push_back(index);
+  EXPECT_EQ(summary.lights_missing, dead);
+  EXPECT_EQ(summary.lights_used, kLeds - int(dead.size()));
+  EXPECT_GE(summary.lights_used, kLeds / 2);
   EXPECT_EQ(summary.response_used, "linear");
   EXPECT_GT(summary.seconds, 0.0);
   EXPECT_GE(summary.saturated_fraction, 0.0);
@@ -127,11 +133,12 @@ TEST(BuildField, LinearCameraMatchesNoiseFreeOneLightRenders) {
   expect_finite(field);
   double median = 0;
   const double worst = worst_error(field, *c.sim, stage, &median);
-  std::printf("build_field vs truth (linear 12-bit): relative RMSE median %.2f%%, worst %.2f%%, "
-              "saturated %.4f%%, %.3f s\n",
-              100 * median, 100 * worst, 100 * summary.saturated_fraction, summary.seconds);
-  // Measured 0.9% median, 2.5% worst (fixed seed): shot and read noise of single frames.
-  EXPECT_LT(median, 0.02);
+  std::printf(
+      "build_field vs truth (linear 12-bit): relative RMSE median %.2f%%, worst %.2f%%, "
+      "saturated %.4f%%, %.3f s\n",
+      100 * median, 100 * worst, 100 * summary.saturated_fraction, summary.seconds);
+  // Measured 1.5% median, 3.4% worst (fixed seed): shot and read noise of single frames.
+  EXPECT_LT(median, 0.025);
   EXPECT_LT(worst, 0.05);
 }
 
@@ -149,7 +156,8 @@ TEST(BuildField, GammaAndRecoveredResponses) {
   const double worst = worst_error(field, *c.sim, stage, &median);
   std::printf("build_field vs truth (gamma 2.2): relative RMSE median %.2f%%, worst %.2f%%\n",
               100 * median, 100 * worst);
-  EXPECT_LT(median, 0.02);
+  // Measured 1.5% median, 2.9% worst.
+  EXPECT_LT(median, 0.025);
   EXPECT_LT(worst, 0.05);
 
   // The same camera, its response recovered from the frames (the simulator still encodes 2.2).
@@ -161,11 +169,14 @@ TEST(BuildField, GammaAndRecoveredResponses) {
   EXPECT_EQ(summary.response_used, "recovered");
   expect_finite(recovered);
   const double worst_recovered = worst_error(recovered, *r.sim, recover_stage, &median);
-  std::printf("build_field vs truth (recovered response): relative RMSE median %.2f%%, worst "
-              "%.2f%%\n",
-              100 * median, 100 * worst_recovered);
+  std::printf(
+      "build_field vs truth (recovered response): relative RMSE median %.2f%%, worst "
+      "%.2f%%\n",
+      100 * median, 100 * worst_recovered);
+  // Measured 3.8% median, 6.4% worst: the curve recovered from 3 exposures x4 apart is good to a
+  // few percent (response_test), which adds to the noise.
   EXPECT_LT(median, 0.06);
-  EXPECT_LT(worst_recovered, 0.12);
+  EXPECT_LT(worst_recovered, 0.10);
 }
 
 TEST(BuildField, DeadAndIncompleteLedsAreInvalidAndZero) {
@@ -181,6 +192,8 @@ TEST(BuildField, DeadAndIncompleteLedsAreInvalidAndZero) {
   };
   Captured c = capture(dir / "s", stage, options);
   ASSERT_FALSE(c.session.complete());
+  // Index 2 lights the scene from the front (the sequencer would not flag it).
+  ASSERT_EQ(c.session.dead_leds().count(2), 0u);
   c.session.mark_dead_led(2, "no brighter than dark (test)");
 
   BuildSummary summary;
@@ -192,9 +205,10 @@ TEST(BuildField, DeadAndIncompleteLedsAreInvalidAndZero) {
     const int led = order[l];
     bool complete = true;
     for (int e = 0; e < 3; ++e) complete = complete && c.session.frames().count({0, led, e, 0});
-    const bool expect_valid = complete && led != 2;
+    const bool expect_valid = complete && c.session.dead_leds().count(led) == 0;
     EXPECT_EQ(field.lights()[l].valid, expect_valid) << "LED index " << led;
-    const bool listed = std::count(summary.lights_missing.begin(), summary.lights_missing.end(), led);
+    const bool listed =
+        std::count(summary.lights_missing.begin(), summary.lights_missing.end(), led);
     EXPECT_EQ(listed, !expect_valid) << "LED index " << led;
     valid += expect_valid;
     if (!expect_valid) {
@@ -206,7 +220,8 @@ TEST(BuildField, DeadAndIncompleteLedsAreInvalidAndZero) {
     }
   }
   EXPECT_EQ(summary.lights_used, valid);
-  EXPECT_GE(valid, 4);      // LEDs 0..5 captured, minus the dead one.
+  EXPECT_GE(valid, 2);  // Some of LEDs 0..5 captured, minus the dead ones.
+  EXPECT_FALSE(field.lights()[2].valid);
   EXPECT_LT(valid, kLeds);  // The interrupted one and those after it are missing.
 }
 
@@ -221,6 +236,39 @@ TEST(BuildField, FieldRoundTripsThroughExr) {
   ASSERT_EQ(back.values(), field.values());
   EXPECT_FALSE(back.lights()[5].valid);
   EXPECT_EQ(back.lights()[7].dir_in_stage, field.lights()[7].dir_in_stage);
+}
+
+TEST(BuildField, SaturatedPixelsAreCountedAndLowerBounds) {
+  ls::testing::TempDir dir;
+  Stage stage = small_stage();
+  // LED index 2 lights the front of the scene; 100x its irradiance clips even the shortest
+  // exposure.
+  stage.leds[2].intensity = 60.0;
+  Captured c = capture(dir / "s", stage);
+  ASSERT_EQ(c.session.dead_leds().count(2), 0u);
+  BuildSummary summary;
+  const ReflectanceField field = build_field(c.session, {}, &summary);
+  expect_finite(field);
+  EXPECT_GT(summary.saturated_fraction, 0.0);
+  const Image truth =
+      sim::render_one_light(c.sim->scene(), c.sim->hits(), stage.leds[2].dir_in_stage);
+  double field_sum = 0, truth_sum = 0;
+  int clipped = 0;
+  for (int y = 0; y < kSize; ++y) {
+    for (int x = 0; x < kSize; ++x) {
+      for (int ch = 0; ch < 3; ++ch) {
+        field_sum += field.at(x, y, 2, ch);
+        truth_sum += truth.at(x, y, ch);
+        // Full scale in the shortest exposure, per unit irradiance of this LED.
+        const double ceiling = 0.01 / 0.0025 / stage.leds[2].irradiance_rgb()[ch];
+        clipped += truth.at(x, y, ch) > 1.2 * ceiling;
+        // A clipped pixel reads at most the ceiling (a lower bound), never more.
+        EXPECT_LT(field.at(x, y, 2, ch), 1.05 * std::max(ceiling, double(truth.at(x, y, ch))));
+      }
+    }
+  }
+  EXPECT_GT(clipped, 0);
+  EXPECT_LT(field_sum, truth_sum);  // Lower bounds where clipped, unbiased elsewhere.
 }
 
 TEST(BuildField, RejectsBadTimeStep) {

@@ -1,9 +1,9 @@
 #include "capture/field.h"
 
+#include <OpenImageIO/imageio.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
-#include <OpenImageIO/imageio.h>
 #include <chrono>
 #include <cstring>
 #include <limits>
@@ -23,7 +23,8 @@ std::vector<FieldLight> make_lights(int n) {
   for (int l = 0; l < n; ++l) {
     const double a = 0.3 * l;
     // Ids out of order and with gaps, as a capture order may be.
-    lights.push_back(FieldLight{(l * 37) % 211 + 1, Eigen::Vector3d(std::sin(a), 0.6, std::cos(a)).normalized(),
+    lights.push_back(FieldLight{(l * 37) % 211 + 1,
+                                Eigen::Vector3d(std::sin(a), 0.6, std::cos(a)).normalized(),
                                 l % 5 != 3});
   }
   return lights;
@@ -50,7 +51,8 @@ void expect_same(const ReflectanceField& a, const ReflectanceField& b) {
   for (int l = 0; l < a.num_lights(); ++l) {
     EXPECT_EQ(a.lights()[l].led_id, b.lights()[l].led_id);
     EXPECT_EQ(a.lights()[l].valid, b.lights()[l].valid);
-    EXPECT_EQ(a.lights()[l].dir_in_stage, b.lights()[l].dir_in_stage);  // Exact: JSON round-trips doubles.
+    EXPECT_EQ(a.lights()[l].dir_in_stage,
+              b.lights()[l].dir_in_stage);  // Exact: JSON round-trips doubles.
   }
   EXPECT_EQ(a.scene_time_s, b.scene_time_s);
   ASSERT_EQ(a.values().size(), b.values().size());
@@ -183,7 +185,8 @@ TEST(Field, MemoryRefusal) {
     ReflectanceField huge(65536, 65536, make_lights(200));
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), HasSubstr("reflectance field 65536x65536 with 200 LEDs needs 9600.0 GiB"));
+    EXPECT_THAT(e.what(),
+                HasSubstr("reflectance field 65536x65536 with 200 LEDs needs 9600.0 GiB"));
   }
 }
 
@@ -200,9 +203,10 @@ TEST(Field, WritesAndReadsHundredsOfChannelsFast) {
   expect_same(field, back);
   const double write_s = std::chrono::duration<double>(t1 - t0).count();
   const double read_s = std::chrono::duration<double>(t2 - t1).count();
-  std::printf("field 256x256x150 LEDs (%.0f MB, random data): write %.0f MB/s, read %.0f MB/s, "
-              "file %.0f MB\n",
-              mb, mb / write_s, mb / read_s, std::filesystem::file_size(dir / "big.exr") / 1e6);
+  std::printf(
+      "field 256x256x150 LEDs (%.0f MB, random data): write %.0f MB/s, read %.0f MB/s, "
+      "file %.0f MB\n",
+      mb, mb / write_s, mb / read_s, std::filesystem::file_size(dir / "big.exr") / 1e6);
 }
 
 }  // namespace

@@ -63,10 +63,12 @@ Bracket shoot_bracket(const SyntheticCamera& camera, const ResponseCurve& respon
   b.gain = gain;
   const std::vector<double> black(radiance.size(), 0.0);
   for (size_t k = 0; k < exposure_s.size(); ++k) {
-    b.frames.push_back(camera.shoot(kWidth, kHeight, kChannels, radiance, exposure_s[k], gain[k], rng));
+    b.frames.push_back(
+        camera.shoot(kWidth, kHeight, kChannels, radiance, exposure_s[k], gain[k], rng));
     std::vector<RawFrame> dark_frames;
     for (int r = 0; r < 4; ++r) {
-      dark_frames.push_back(camera.shoot(kWidth, kHeight, kChannels, black, exposure_s[k], gain[k], rng));
+      dark_frames.push_back(
+          camera.shoot(kWidth, kHeight, kChannels, black, exposure_s[k], gain[k], rng));
     }
     std::vector<const RawFrame*> pointers;
     for (const RawFrame& d : dark_frames) pointers.push_back(&d);
@@ -147,8 +149,8 @@ TEST(HdrMerge, GainIsTreatedLikeExposure) {
   camera.noise = false;
   const ResponseCurve response = ResponseCurve::linear(12, kChannels);
   const std::vector<double> truth = ramp_radiance();
-  const Bracket b = shoot_bracket(camera, response, truth, {0.001, 0.008, 0.064, 0.512},
-                                  {2, 2, 2, 2}, 3);
+  const Bracket b =
+      shoot_bracket(camera, response, truth, {0.001, 0.008, 0.064, 0.512}, {2, 2, 2, 2}, 3);
   const Image merged = merge_bracket(b.view(), response);
   for (int x = 0; x < kWidth; x += 7) {
     const double t = truth[size_t(x) * kChannels];

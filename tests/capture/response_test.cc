@@ -69,10 +69,11 @@ TEST(Response, TableFileOneAndThreeColumns) {
   std::string three;
   for (int dn = 0; dn < 8; ++dn) {
     one += std::to_string(dn * dn * 2) + "\n";
-    three += std::to_string(dn) + " " + std::to_string(2 * dn) + ", " + std::to_string(dn * dn) +
-             "\n";
+    three +=
+        std::to_string(dn) + " " + std::to_string(2 * dn) + ", " + std::to_string(dn * dn) + "\n";
   }
-  const ResponseCurve r1 = ResponseCurve::from_spec(table_spec(write_text(dir / "one.txt", one)), 3, 3);
+  const ResponseCurve r1 =
+      ResponseCurve::from_spec(table_spec(write_text(dir / "one.txt", one)), 3, 3);
   EXPECT_FLOAT_EQ(r1.to_linear(7, 0), 1.0f);
   EXPECT_FLOAT_EQ(r1.to_linear(2, 2), 8.0f / 98.0f);
   const ResponseCurve r3 =
@@ -139,7 +140,8 @@ TEST(Response, RecoverGammaCurveFromBracket) {
   std::mt19937_64 rng(7);
   const std::vector<double> exposure_s = {1.0 / 64, 1.0 / 16, 1.0 / 4, 1.0, 4.0};
   std::vector<RawFrame> frames;
-  for (double t : exposure_s) frames.push_back(camera.shoot(width, height, channels, radiance, t, 1.0, rng));
+  for (double t : exposure_s)
+    frames.push_back(camera.shoot(width, height, channels, radiance, t, 1.0, rng));
   std::vector<const RawFrame*> pointers;
   for (const RawFrame& f : frames) pointers.push_back(&f);
 
@@ -162,9 +164,10 @@ TEST(Response, RecoverGammaCurveFromBracket) {
       if (dn >= 410) worst_rel_mid = std::max(worst_rel_mid, std::abs(v / truth - 1.0));
     }
   }
-  std::printf("recovered gamma-2.2 response: worst |error| %.4f of full scale, worst relative "
-              "error above 10%% DN %.2f%%\n",
-              worst_abs, 100 * worst_rel_mid);
+  std::printf(
+      "recovered gamma-2.2 response: worst |error| %.4f of full scale, worst relative "
+      "error above 10%% DN %.2f%%\n",
+      worst_abs, 100 * worst_rel_mid);
   // Measured: 0.006 of full scale and 1.9% (fixed seed); bounds leave 2x margin.
   EXPECT_LT(worst_abs, 0.015);
   EXPECT_LT(worst_rel_mid, 0.04);

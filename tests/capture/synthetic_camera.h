@@ -20,7 +20,7 @@ struct SyntheticCamera {
   double read_noise_e = 4.0;
   double dark_current_e_per_s = 5.0;
   double black_level = 0.01;
-  double gamma = 1.0;    // The camera writes DN/max = v^(1/gamma).
+  double gamma = 1.0;  // The camera writes DN/max = v^(1/gamma).
   bool noise = true;
 
   int max_dn() const { return (1 << bit_depth) - 1; }

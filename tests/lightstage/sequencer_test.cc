@@ -121,6 +121,26 @@ TEST(Sequencer, DeadLedIsFlaggedAndTheCaptureContinues) {
   EXPECT_EQ(Session::open(tmp / "s").dead_leds().count(2), 1u);
 }
 
+TEST(Sequencer, LedsTheSceneHidesAreNotDeadButALoneDarkLedAmongThemIsNot) {
+  // Half the dome lights nothing the camera sees (as behind an opaque backdrop): data, not faults.
+  testing::TempDir tmp;
+  const Stage stage = SmallStage(40);
+  Session session = Session::create(tmp / "s", stage, {});
+  FakeLights lights(int(stage.leds.size()));
+  FakeCamera camera(lights);
+  int lone = -1;
+  for (int i = 0; i < int(stage.leds.size()); ++i) {
+    if (stage.leds[i].dir_in_stage.z() < 0) camera.dead_leds.insert(i);
+    if (lone < 0 && stage.leds[i].dir_in_stage.z() > 0.5) lone = i;
+  }
+  camera.dead_leds.insert(lone);  // And one broken LED among lit ones.
+  EXPECT_EQ(run_capture(session, lights, camera, Instant()).status,
+            CaptureSummary::Status::kComplete);
+  ASSERT_EQ(session.dead_leds().size(), 1u);
+  EXPECT_EQ(session.dead_leds().begin()->first, lone);
+  EXPECT_EQ(session.led_signals().size(), stage.leds.size());
+}
+
 TEST(Sequencer, HardwareErrorStillSwitchesAllLedsOff) {
   testing::TempDir tmp;
   const Stage stage = SmallStage();

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "lightstage/image.h"
+#include "lightstage/image_metrics.h"
 
 namespace ls::testing {
 
@@ -29,15 +30,8 @@ std::filesystem::path source_dir();
 std::filesystem::path shared_data_dir();
 std::filesystem::path cli_path();
 
-struct ImageError {
-  double rmse = 0;           // Over all pixels and channels.
-  double relative_rmse = 0;  // rmse / rms(expected).
-  double max_abs = 0;
-  int worst_x = -1, worst_y = -1, worst_c = -1;
-  double psnr_db = 0;  // Peak = max(expected).
-};
-// Compares over pixels where mask (if given, 1 channel) is non-zero.
-ImageError compare_images(const Image& actual, const Image& expected, const Image* mask = nullptr);
+using ls::compare_images;
+using ls::ImageError;
 
 // Passes when relative RMSE <= rel_tol; the message prints the error, the worst pixel and values.
 ::testing::AssertionResult ImageNear(const Image& actual, const Image& expected, double rel_tol,
