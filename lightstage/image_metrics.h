@@ -12,7 +12,8 @@ struct ImageError {
   int worst_x = -1, worst_y = -1, worst_c = -1;
 };
 
-// Compares where `mask` (optional, 1 channel) is non-zero. Sizes must match (infinite error if not).
+// Compares where `mask` (optional, 1 channel) is non-zero. Sizes must match (infinite error if
+// not).
 ImageError compare_images(const Image& actual, const Image& reference, const Image* mask = nullptr);
 
 }  // namespace ls

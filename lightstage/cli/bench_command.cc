@@ -97,7 +97,8 @@ void run_led_bench(const BenchArgs& args) {
       const ImageError err = compare_images(relit, truth);
       const double rel = err.relative_rmse, psnr = err.psnr_db;
       csv << count << ',' << speed[m].name << ',' << rel << ',' << psnr << ',' << relight_ms << ','
-          << field.bytes() / (relight_ms * 1e6) << ',' << weights_ms << ',' << weights.uncovered_fraction() << '\n';
+          << field.bytes() / (relight_ms * 1e6) << ',' << weights_ms << ','
+          << weights.uncovered_fraction() << '\n';
       std::printf("%6d %-14s %10.4f %8.2f %11.3f %11.2f %9.2f%%\n", count, speed[m].name.c_str(),
                   rel, psnr, relight_ms, weights_ms, 100 * weights.uncovered_fraction());
       speed[m].x.push_back(relight_ms);

@@ -123,9 +123,10 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
   const sim::Scene scene = sim::default_scene();
   const auto field = testing::CaptureAndBuild(tmp / "s", stage, scene);
   const auto dirs = stage.led_directions();
-  // Relative RMSE measured at 151 LEDs, 96x96, seed 1, 128-wide quadrature: sky_sun 0.117, softbox_studio 0.035,
-  // small_source 0.185 (a 2-degree source falls into one 14-degree cell: its shadows and highlights
-  // come from the LED's direction, not the source's). Asserted with ~1.4x margin.
+  // Relative RMSE measured at 151 LEDs, 96x96, seed 1, 128-wide quadrature: sky_sun 0.117,
+  // softbox_studio 0.035, small_source 0.185 (a 2-degree source falls into one 14-degree cell: its
+  // shadows and highlights come from the LED's direction, not the source's). Asserted with ~1.4x
+  // margin.
   const std::pair<const char*, double> maps[] = {
       {"sky_sun.exr", 0.16}, {"softbox_studio.exr", 0.05}, {"small_source.exr", 0.26}};
   for (const auto& [name, bound] : maps) {
