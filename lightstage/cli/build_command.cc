@@ -31,6 +31,8 @@ int build_field_file(const std::filesystem::path& session_dir, const std::filesy
                out.c_str(), field.width(), field.height(), field.num_lights(),
                field.bytes() / 1048576.0, summary.response_used.c_str(),
                100.0 * summary.saturated_fraction, summary.seconds);
+  for (const auto& warning : summary.warnings)
+    std::fprintf(stderr, "warning: %s\n", warning.c_str());
   if (!summary.lights_missing.empty()) {
     std::fprintf(stderr, "warning: %zu LEDs missing or dead, excluded from relighting:",
                  summary.lights_missing.size());
