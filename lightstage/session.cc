@@ -32,7 +32,7 @@ std::string utc_now_iso8601() {
       std::chrono::duration_cast<std::chrono::milliseconds>(now.time_since_epoch()).count() % 1000;
   std::tm tm{};
   gmtime_r(&t, &tm);
-  char buf[40];
+  char buf[96];
   std::snprintf(buf, sizeof buf, "%04d-%02d-%02dT%02d:%02d:%02d.%03dZ", tm.tm_year + 1900,
                 tm.tm_mon + 1, tm.tm_mday, tm.tm_hour, tm.tm_min, tm.tm_sec, int(ms));
   return buf;
@@ -136,6 +136,14 @@ Session Session::open(const fs::path& dir) {
   s.info_.backend = r["backend"].string();
   s.info_.scene_file = r.has("scene_file") ? r["scene_file"].string() : "";
   s.info_.seed = r["seed"].value().get<uint64_t>();
+
+  // A write killed mid-way leaves its temporary file (never journaled, so never a frame): sweep.
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir / "frames", ec)) {
+    if (entry.path().filename().string().find(".tmp") != std::string::npos) {
+      fs::remove(entry.path(), ec);
+    }
+  }
 
   // Replay the journal. A torn last line (killed mid-append) is ignored; its frame is re-captured.
   std::ifstream journal(dir / kJournal);

@@ -9,7 +9,7 @@ BUILD_DIR=${BUILD_DIR:-build}
 PACKAGES=(
   g++ cmake ninja-build pkg-config ccache clang-format git
   libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
-  libopencv-calib3d-dev
+  libopencv-calib3d-dev libopencv-videoio-dev
   libopenexr-dev libimath-dev libopenimageio-dev openimageio-tools
   libgpiod-dev gpiod libaravis-dev libusb-1.0-0-dev aravis-tools-cli
   libeigen3-dev libglfw3-dev libgl-dev libegl-dev

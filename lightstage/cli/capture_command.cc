@@ -6,6 +6,7 @@
 #include <csignal>
 #include <cstdio>
 
+#include "lightstage/backends.h"
 #include "lightstage/cli/commands.h"
 #include "lightstage/errors.h"
 #include "lightstage/progress.h"
@@ -54,6 +55,9 @@ class StopSignals {
 
 int capture_session(const CaptureRequest& request) {
   std::optional<Session> session;
+  // Real devices ("aravis", "v4l2": LEDs on gpiod) are opened before a session is created or
+  // resumed, so a missing chip, line or camera stops the command before anything is captured.
+  Hardware hardware;
   if (request.resume) {
     session.emplace(Session::open(request.session_dir));
     if (session->complete()) {
@@ -64,9 +68,11 @@ int capture_session(const CaptureRequest& request) {
     std::fprintf(stderr, "resuming %s: %zu frames present, %zu missing\n",
                  request.session_dir.c_str(), session->frames().size(),
                  session->missing_frames().size());
+    if (is_hardware_backend(session->info().backend)) hardware = open_hardware(session->stage());
   } else {
     const Stage stage =
         request.stage_file.empty() ? default_stage() : load_stage(request.stage_file);
+    if (is_hardware_backend(stage.camera.backend)) hardware = open_hardware(stage);
     SessionInfo info;
     info.backend = stage.camera.backend;
     info.seed = request.seed;
@@ -81,23 +87,29 @@ int capture_session(const CaptureRequest& request) {
   }
 
   const Stage& stage = session->stage();
-  if (session->info().backend != "sim") {
-    throw InputError(stage.source + ": camera.backend: the \"" + session->info().backend +
-                     "\" back-end is not available in this build; use \"sim\"");
+  SequencerOptions options;
+  std::unique_ptr<sim::SimStage> sim_stage;
+  LightController* lights = hardware.lights.get();
+  Camera* camera = hardware.camera.get();
+  if (camera == nullptr) {
+    if (session->info().backend != "sim") {
+      throw InputError(stage.source + ": camera.backend: expected \"sim\", \"aravis\" or " +
+                       "\"v4l2\", got \"" + session->info().backend + "\"");
+    }
+    const fs::path scene_copy = request.session_dir / "scene.json";
+    const sim::Scene scene =
+        fs::exists(scene_copy) ? sim::load_scene(scene_copy) : sim::default_scene();
+    sim_stage = std::make_unique<sim::SimStage>(stage, scene, session->info().seed);
+    lights = &sim_stage->lights();
+    camera = &sim_stage->camera();
+    options.sleep = [](double) {};  // The simulated stage needs no settling time.
   }
-  const fs::path scene_copy = request.session_dir / "scene.json";
-  const sim::Scene scene =
-      fs::exists(scene_copy) ? sim::load_scene(scene_copy) : sim::default_scene();
-  sim::SimStage sim_stage(stage, scene, session->info().seed);
 
   StopSignals signals;
   ProgressReporter progress("capture", long(plan_frames(stage, 0).size()), request.quiet);
-  SequencerOptions options;
   options.stop_requested = &g_stop_requested;
   options.on_progress = [&](const CaptureProgress& p) { progress.update(p.done, p.current); };
-  options.sleep = [](double) {};  // The simulated stage needs no settling time.
-  const CaptureSummary summary =
-      run_capture(*session, sim_stage.lights(), sim_stage.camera(), options);
+  const CaptureSummary summary = run_capture(*session, *lights, *camera, options);
   progress.done();
 
   std::fprintf(stderr,

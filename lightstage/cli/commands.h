@@ -23,6 +23,8 @@ void add_demo_command(CLI::App& app);
 void add_stage_command(CLI::App& app);
 void add_envmaps_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
+void add_devices_command(CLI::App& app);
+void add_check_command(CLI::App& app);
 
 // Steps shared by the demo and the single-step commands.
 struct CaptureRequest {

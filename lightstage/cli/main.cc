@@ -20,6 +20,8 @@ int main(int argc, char** argv) {
   ls::cli::add_stage_command(app);
   ls::cli::add_envmaps_command(app);
   ls::cli::add_bench_command(app);
+  ls::cli::add_devices_command(app);
+  ls::cli::add_check_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,71 @@
+#pragma once
+// LEDs on GPIO lines (libgpiod). The logic — which line belongs to which LED, polarity, the all-off
+// bookkeeping and the error messages — lives in GpioLights and is tested with a fake line driver;
+// the libgpiod 1.6 calls live only in gpiod_lights.cc behind GpioLineDriver (Debian 13 moves to the
+// incompatible 2.x API: one file to port).
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "lightstage/hardware.h"
+#include "lightstage/stage.h"
+
+namespace ls {
+
+// Physical output lines. Values are electrical levels (true = high); polarity is GpioLights' job.
+class GpioLineDriver {
+ public:
+  virtual ~GpioLineDriver() = default;
+  // Requests `line` of `chip` as an output driven to `initial_high` and returns a handle for
+  // set_level. Throws HardwareError naming the chip and line when the chip does not exist, the line
+  // is out of range or another program holds it.
+  virtual int request_output(const std::string& chip, int line, bool initial_high) = 0;
+  virtual void set_level(int handle, bool high) = 0;  // Throws HardwareError.
+  // Releases every requested line (also done by the destructor). Must not throw.
+  virtual void release_all() noexcept = 0;
+};
+
+// The libgpiod 1.6 driver. `consumer` is the name other programs (gpioinfo) see on the lines.
+std::unique_ptr<GpioLineDriver> make_gpiod_line_driver(const std::string& consumer = "lightstage");
+
+class GpioLights : public LightController {
+ public:
+  // Requests every LED's line once, all driven off. Throws InputError when the stage file gives an
+  // LED no line (or two LEDs the same line), HardwareError naming the LED id, chip and line when a
+  // line cannot be requested; lines already requested are switched off and released first.
+  GpioLights(const Stage& stage, std::unique_ptr<GpioLineDriver> driver);
+  ~GpioLights() override;
+  GpioLights(const GpioLights&) = delete;
+  GpioLights& operator=(const GpioLights&) = delete;
+
+  int num_lights() const override { return int(leds_.size()); }
+  void set_light(int led_index, bool on) override;
+  // Drives every line to its off level; keeps going past failures (remembered in last_error()).
+  void all_off() noexcept override;
+
+  bool is_on(int led_index) const { return leds_.at(led_index).on; }
+  int count_on() const;
+  const std::string& last_error() const { return last_error_; }
+  // "LED 12 (gpiochip0 line 4, active-low)", for messages and `lightstage check`.
+  std::string describe(int led_index) const;
+
+ private:
+  struct Line {
+    int id = 0;
+    std::string chip;
+    int line = -1;
+    bool active_low = false;
+    int handle = -1;
+    bool on = false;
+  };
+  bool level_for(const Line& l, bool on) const { return on != l.active_low; }
+
+  std::unique_ptr<GpioLineDriver> driver_;
+  std::vector<Line> leds_;
+  std::string last_error_;
+};
+
+// GPIO chips present on this machine ("gpiochip0 [pinctrl-bcm2711] (58 lines)"); empty when none.
+std::vector<std::string> list_gpio_chips();
+
+}  // namespace ls
