@@ -76,7 +76,17 @@ ReflectanceField::ReflectanceField(int width, int height, std::vector<FieldLight
   }
 }
 
-std::size_t available_memory_bytes() {
+ValidLights valid_lights(const ReflectanceField& field) {
+  ValidLights out;
+  for (int l = 0; l < field.num_lights(); ++l) {
+    if (!field.lights()[l].valid) continue;
+    out.index.push_back(l);
+    out.dirs_in_stage.push_back(field.lights()[l].dir_in_stage.normalized());
+  }
+  return out;
+}
+
+size_t available_memory_bytes() {
   std::optional<std::size_t> available;
   std::ifstream meminfo("/proc/meminfo");
   std::string key;

@@ -60,6 +60,13 @@ class ReflectanceField {
   std::vector<float> values_;
 };
 
+// The lights of a field that hold data (valid), as indices into lights() and unit directions.
+struct ValidLights {
+  std::vector<int> index;
+  std::vector<Eigen::Vector3d> dirs_in_stage;
+};
+ValidLights valid_lights(const ReflectanceField& field);
+
 // Memory the system can give us now (MemAvailable). Used to refuse what would not fit.
 std::size_t available_memory_bytes();
 // Throws InputError "<what> needs N GiB but only M GiB are available" when bytes > 80% available.

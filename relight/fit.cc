@@ -221,13 +221,9 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
   out.maps.channel_names = {"normal.x",   "normal.y", "normal.z", "albedo.r",  "albedo.g",
                             "albedo.b",   "sigma",    "ks",       "roughness", "model",
                             "confidence", "residual", "flags"};
-  std::vector<int> light_index;
-  std::vector<Eigen::Vector3d> dirs;
-  for (int l = 0; l < field.num_lights(); ++l) {
-    if (!field.lights()[l].valid) continue;
-    light_index.push_back(l);
-    dirs.push_back(field.lights()[l].dir_in_stage.normalized());
-  }
+  const capture::ValidLights valid = capture::valid_lights(field);
+  const std::vector<int>& light_index = valid.index;
+  const std::vector<Eigen::Vector3d>& dirs = valid.dirs_in_stage;
   const NormalOptions& no = options.normals;
   std::mutex summary_mutex;
   FitSummary& summary = out.summary;

@@ -100,13 +100,9 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
   out.flags = Image(width, height, 1);
   out.flags.channel_names = {"flags"};
 
-  std::vector<int> light_index;
-  std::vector<Eigen::Vector3d> dirs;
-  for (int l = 0; l < field.num_lights(); ++l) {
-    if (!field.lights()[l].valid) continue;
-    light_index.push_back(l);
-    dirs.push_back(field.lights()[l].dir_in_stage.normalized());
-  }
+  const capture::ValidLights valid = capture::valid_lights(field);
+  const std::vector<int>& light_index = valid.index;
+  const std::vector<Eigen::Vector3d>& dirs = valid.dirs_in_stage;
   const size_t n = dirs.size();
   const bool robust = options.method == NormalMethod::kRobust;
   std::atomic<int> flagged{0};

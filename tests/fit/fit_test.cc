@@ -12,43 +12,17 @@
 #include "lightstage/stage.h"
 #include "sim/sim_stage.h"
 #include "tests/e2e/e2e_fixtures.h"
+#include "tests/fit/fit_fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace ls::relight {
 namespace {
 
+using fit_testing::render_field;
+using fit_testing::SimField;
+
 constexpr double kPi = brdf::kPi;
 constexpr double kRadToDeg = 180.0 / kPi;
-
-// The ideal R(x, l) from the simulator plus Gaussian noise with the NoiseModel's variance
-// (the same helper as in normals_test.cc).
-struct SimField {
-  capture::ReflectanceField field;
-  std::vector<sim::SurfaceHit> hits;
-};
-
-SimField render_field(const Stage& stage, const sim::Scene& scene, const NoiseModel& noise,
-                      uint64_t seed) {
-  sim::SimStage sim_stage(stage, scene, seed);
-  std::vector<capture::FieldLight> lights;
-  for (const Led& led : stage.leds) lights.push_back({led.id, led.dir_in_stage, true});
-  SimField out{capture::ReflectanceField(stage.camera.width, stage.camera.height, lights),
-               sim_stage.hits()};
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> gauss;
-  for (int l = 0; l < int(stage.leds.size()); ++l) {
-    const Image& image = sim_stage.one_light_image(l);
-    for (int y = 0; y < image.height; ++y) {
-      for (int x = 0; x < image.width; ++x) {
-        for (int c = 0; c < 3; ++c) {
-          const double v = image.at(x, y, c);
-          out.field.at(x, y, l, c) = float(v + std::sqrt(noise.variance(v)) * gauss(rng));
-        }
-      }
-    }
-  }
-  return out;
-}
 
 // Three spheres in a row: matte (Lambert), rough matte (Oren-Nayar, sigma 30 deg), glossy
 // (Lambert + Torrance-Sparrow). Object index = sphere index = region.

@@ -9,6 +9,7 @@
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 #include "sim/sim_stage.h"
+#include "tests/fit/fit_fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace ls::relight {
@@ -16,34 +17,8 @@ namespace {
 
 constexpr double kRadToDeg = 180.0 / brdf::kPi;
 
-// The ideal R(x, l) from the simulator plus Gaussian noise with the NoiseModel's variance.
-struct SimField {
-  capture::ReflectanceField field;
-  std::vector<sim::SurfaceHit> hits;
-};
-
-SimField render_field(const Stage& stage, const sim::Scene& scene, const NoiseModel& noise,
-                      uint64_t seed) {
-  sim::SimStage sim_stage(stage, scene, seed);
-  std::vector<capture::FieldLight> lights;
-  for (const Led& led : stage.leds) lights.push_back({led.id, led.dir_in_stage, true});
-  SimField out{capture::ReflectanceField(stage.camera.width, stage.camera.height, lights),
-               sim_stage.hits()};
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> gauss;
-  for (int l = 0; l < int(stage.leds.size()); ++l) {
-    const Image& image = sim_stage.one_light_image(l);
-    for (int y = 0; y < image.height; ++y) {
-      for (int x = 0; x < image.width; ++x) {
-        for (int c = 0; c < 3; ++c) {
-          const double v = image.at(x, y, c);
-          out.field.at(x, y, l, c) = float(v + std::sqrt(noise.variance(v)) * gauss(rng));
-        }
-      }
-    }
-  }
-  return out;
-}
+using fit_testing::render_field;
+using fit_testing::SimField;
 
 Stage dome_stage(int leds, int image_size, double view_height_m) {
   Stage stage = stage_with_directions(fibonacci_dome_directions(leds, -11.5));
