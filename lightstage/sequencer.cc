@@ -117,7 +117,7 @@ CaptureSummary run_capture(Session& session, LightController& lights, Camera& ca
 
   CaptureSummary summary;
   const std::vector<PlannedFrame> missing = session.missing_frames();
-  const int total = int(plan_frames(stage, session.info().seed).size());
+  const int total = int(plan_frames(stage).size());
   summary.frames_already_present = total - int(missing.size());
   DarkCache darks(session);
 

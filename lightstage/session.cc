@@ -67,7 +67,7 @@ std::string FrameKey::name(const Stage& stage) const {
   return buf;
 }
 
-std::vector<PlannedFrame> plan_frames(const Stage& stage, uint64_t /*seed*/) {
+std::vector<PlannedFrame> plan_frames(const Stage& stage) {
   std::vector<PlannedFrame> plan;
   const auto order = stage.capture_order();
   const int steps = int(stage.camera.bracket.size());
@@ -188,7 +188,7 @@ Session Session::open(const fs::path& dir) {
 
 std::vector<PlannedFrame> Session::missing_frames() const {
   std::vector<PlannedFrame> missing;
-  for (const auto& f : plan_frames(stage_, info_.seed)) {
+  for (const auto& f : plan_frames(stage_)) {
     if (!frames_.count(f.key)) missing.push_back(f);
   }
   return missing;
@@ -253,7 +253,7 @@ void Session::write_manifest(const std::string& status) const {
   for (const auto& [index, reason] : dead_leds_) {
     dead.push_back({{"led_index", index}, {"led_id", stage_.leds[index].id}, {"reason", reason}});
   }
-  const size_t planned = plan_frames(stage_, info_.seed).size();
+  const size_t planned = plan_frames(stage_).size();
   const json doc = {{"format", kFormat},
                     {"status", status},
                     {"updated_at", utc_now_iso8601()},

@@ -34,7 +34,7 @@ struct PlannedFrame {
 };
 
 // The whole plan in capture order: per time step, the dark frames, then each LED's bracket.
-std::vector<PlannedFrame> plan_frames(const Stage& stage, uint64_t seed);
+std::vector<PlannedFrame> plan_frames(const Stage& stage);
 
 struct FrameRecord {
   FrameKey key;

@@ -70,8 +70,7 @@ void run_led_bench(const BenchArgs& args) {
     fs::remove_all(dir);
     Session session = Session::create(dir, stage, {"sim", "", 1});
     sim::SimStage sim_stage(stage, scene, 1);
-    ProgressReporter progress("capture " + std::to_string(count),
-                              long(plan_frames(stage, 1).size()));
+    ProgressReporter progress("capture " + std::to_string(count), long(plan_frames(stage).size()));
     SequencerOptions options;
     options.sleep = [](double) {};
     options.on_progress = [&](const CaptureProgress& p) { progress.update(p.done); };

@@ -106,7 +106,7 @@ int capture_session(const CaptureRequest& request) {
   }
 
   StopSignals signals;
-  ProgressReporter progress("capture", long(plan_frames(stage, 0).size()), request.quiet);
+  ProgressReporter progress("capture", long(plan_frames(stage).size()), request.quiet);
   options.stop_requested = &g_stop_requested;
   options.on_progress = [&](const CaptureProgress& p) { progress.update(p.done, p.current); };
   const CaptureSummary summary = run_capture(*session, *lights, *camera, options);

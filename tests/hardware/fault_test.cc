@@ -69,7 +69,7 @@ class Unplug : public ::testing::TestWithParam<UnpluggableCamera::Failure> {};
 TEST_P(Unplug, LedsOffNothingLostResumeAfterReconnectCompletes) {
   testing::TempDir tmp;
   const Stage stage = testing::FakeAravisStage();
-  const int total = int(plan_frames(stage, 1).size());
+  const int total = int(plan_frames(stage).size());
   testing::FakeLights lights(int(stage.leds.size()));
   {
     Session session = Session::create(tmp / "s", stage, {});

@@ -33,7 +33,7 @@ TEST(Sequencer, CapturesEveryPlannedFrameWithExactlyTheRightLedOn) {
   FakeCamera camera(lights);
   const CaptureSummary summary = run_capture(session, lights, camera, Instant());
   EXPECT_EQ(summary.status, CaptureSummary::Status::kComplete);
-  EXPECT_EQ(summary.frames_captured, int(plan_frames(stage, 1).size()));
+  EXPECT_EQ(summary.frames_captured, int(plan_frames(stage).size()));
   EXPECT_TRUE(session.complete());
   EXPECT_EQ(lights.max_on, 1);  // Never two LEDs at once.
   EXPECT_EQ(lights.count_on(), 0);
@@ -70,14 +70,14 @@ TEST(Sequencer, StopRequestLeavesLedsOffAndResumeCompletesOnlyWhatIsMissing) {
   const CaptureSummary second = run_capture(reopened, lights, camera2, Instant());
   EXPECT_EQ(second.status, CaptureSummary::Status::kComplete);
   EXPECT_EQ(second.frames_already_present, captured_first);
-  EXPECT_EQ(captured_first + second.frames_captured, int(plan_frames(stage, 1).size()));
+  EXPECT_EQ(captured_first + second.frames_captured, int(plan_frames(stage).size()));
   EXPECT_EQ(camera2.frames, second.frames_captured);  // Nothing captured twice.
 }
 
 TEST(Sequencer, CameraTimeoutIsRetriedThenTheSessionStopsCleanlyAndResumably) {
   testing::TempDir tmp;
   const Stage stage = SmallStage();
-  const auto plan = plan_frames(stage, 1);
+  const auto plan = plan_frames(stage);
   {
     Session session = Session::create(tmp / "s", stage, {});
     FakeLights lights(int(stage.leds.size()));

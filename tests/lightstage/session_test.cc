@@ -29,7 +29,7 @@ TEST(Session, PlanHasDarksThenEachLedsBracketPerTimeStepWithUniqueKeys) {
   Stage stage = SmallStage();
   stage.plan.time_steps = 2;
   stage.plan.interval_s = 60;
-  const auto plan = plan_frames(stage, 1);
+  const auto plan = plan_frames(stage);
   // Per step: 3 exposures x (2 darks + 5 LEDs).
   ASSERT_EQ(plan.size(), 2u * 3 * (2 + 5));
   EXPECT_TRUE(plan[0].key.is_dark());
@@ -43,7 +43,7 @@ TEST(Session, PlanHasDarksThenEachLedsBracketPerTimeStepWithUniqueKeys) {
 TEST(Session, RecordedFramesSurviveReopeningAndMissingIsThePlanMinusTheJournal) {
   testing::TempDir tmp;
   const Stage stage = SmallStage();
-  auto plan = plan_frames(stage, 1);
+  auto plan = plan_frames(stage);
   {
     Session s = Session::create(tmp / "s", stage, {});
     for (int i = 0; i < 10; ++i) s.record_frame(plan[i], Frame(uint16_t(100 + i)));
@@ -61,7 +61,7 @@ TEST(Session, RecordedFramesSurviveReopeningAndMissingIsThePlanMinusTheJournal) 
 TEST(Session, TornJournalLineAndMissingFrameFileAreRecapturedNotTrusted) {
   testing::TempDir tmp;
   const Stage stage = SmallStage();
-  auto plan = plan_frames(stage, 1);
+  auto plan = plan_frames(stage);
   {
     Session s = Session::create(tmp / "s", stage, {});
     for (int i = 0; i < 4; ++i) s.record_frame(plan[i], Frame(7));
