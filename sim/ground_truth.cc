@@ -132,7 +132,7 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
       for (int x = 0; x < camera.width; ++x) {
         const SurfaceHit& h = hits[size_t(y) * camera.width + x];
         if (!h.hit) continue;
-        const Eigen::Vector3d origin = h.position + detail::kShadowOffsetM * h.normal;
+        const Eigen::Vector3d origin = detail::shadow_ray_origin(h);
         auto sees = [&](const Eigen::Vector3d& dir) { return !tracer.occluded(origin, dir, 0.0); };
         std::fill(corner_visible.begin(), corner_visible.end(), int8_t(-1));
         auto corner = [&](int c) {

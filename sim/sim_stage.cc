@@ -326,9 +326,8 @@ void camera_ray(const CameraSpec& camera, int x, int y, Eigen::Vector3d* origin,
   }
 }
 
-// Shadow ray from a camera hit, offset along its normal so the surface does not shadow itself.
 bool hit_sees(const Tracer& tracer, const SurfaceHit& hit, const Eigen::Vector3d& dir) {
-  return !tracer.occluded(hit.position + detail::kShadowOffsetM * hit.normal, dir, 0.0);
+  return !tracer.occluded(detail::shadow_ray_origin(hit), dir, 0.0);
 }
 
 }  // namespace

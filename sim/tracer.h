@@ -73,4 +73,10 @@ Image render_one_light_with(const Tracer& tracer, const std::vector<SurfaceHit>&
 // The surface offset used for shadow rays, metres (scene scale is about a metre).
 inline constexpr double kShadowOffsetM = 2e-4;
 
+// Where shadow rays from a camera hit start: offset along its normal so the surface does not
+// shadow itself. The one-light images and the ground truth must use the same rule to agree.
+inline Eigen::Vector3d shadow_ray_origin(const SurfaceHit& hit) {
+  return hit.position + kShadowOffsetM * hit.normal;
+}
+
 }  // namespace ls::sim::detail
