@@ -24,6 +24,7 @@ constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
 constexpr double kMemoryShare = 0.8;
 constexpr const char* kLightsAttribute = "lightstage:lights";
 constexpr const char* kSceneTimeAttribute = "lightstage:scene_time_s";
+constexpr const char* kNoiseAttribute = "lightstage:noise";
 const char kChannelSuffix[3] = {'R', 'G', 'B'};
 
 std::string gib(double bytes) {
@@ -137,6 +138,12 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
   spec.alpha_channel = -1;
   spec.attribute(kLightsAttribute, lights.dump());
   spec.attribute(kSceneTimeAttribute, OIIO::TypeDesc::DOUBLE, &field.scene_time_s);
+  if (field.noise.measured) {
+    const nlohmann::json noise = {{"read_variance", field.noise.read_variance},
+                                  {"shot_variance_per_unit", field.noise.shot_variance_per_unit},
+                                  {"method", field.noise.method}};
+    spec.attribute(kNoiseAttribute, noise.dump());
+  }
   // RLE: lossless, and the fastest to write and read of the compressed modes. Measured on the demo
   // field (256x256, 151 LEDs, 119 MB; best of 3 on a shared 2-core machine), write / read MB/s and
   // file size: none 1000 / 377 / 119 MB, rle 651 / 340 / 92 MB, piz 191 / 142 / 77 MB,
@@ -238,6 +245,23 @@ ReflectanceField read_field(const std::filesystem::path& path) {
     field.scene_time_s = scene_time_s;
   } else if (const OIIO::ParamValue* t = spec.find_attribute(kSceneTimeAttribute)) {
     field.scene_time_s = t->get_float();
+  }
+  if (const OIIO::ParamValue* noise = spec.find_attribute(kNoiseAttribute)) {
+    try {
+      const nlohmann::json j = nlohmann::json::parse(noise->get_string());
+      field.noise.read_variance = j.at("read_variance").get<double>();
+      field.noise.shot_variance_per_unit = j.at("shot_variance_per_unit").get<double>();
+      field.noise.method = j.value("method", std::string());
+      if (!std::isfinite(field.noise.read_variance) || field.noise.read_variance < 0 ||
+          !std::isfinite(field.noise.shot_variance_per_unit) ||
+          field.noise.shot_variance_per_unit < 0) {
+        throw InputError("variances must be finite and non-negative");
+      }
+      field.noise.measured = true;
+    } catch (const std::exception& e) {
+      throw InputError(name + ": attribute '" + std::string(kNoiseAttribute) +
+                       "': expected {read_variance, shot_variance_per_unit, method}: " + e.what());
+    }
   }
 
   const int width = spec.width;

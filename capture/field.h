@@ -22,6 +22,16 @@ struct FieldLight {
   bool valid = true;  // False for an LED found dead or missing: its samples are zero, not data.
 };
 
+// Measurement noise of a field's values, in field units (value per unit LED irradiance):
+// variance(v) = read_variance + shot_variance_per_unit * max(v, 0). Estimated from the capture
+// when the field is built (how: `method`); `measured` false means nobody estimated it.
+struct FieldNoise {
+  double read_variance = 0.0;
+  double shot_variance_per_unit = 0.0;
+  bool measured = false;
+  std::string method;  // E.g. "dark-frame pairs + bracket pairs"; empty when not measured.
+};
+
 class ReflectanceField {
  public:
   ReflectanceField() = default;
@@ -49,6 +59,7 @@ class ReflectanceField {
   // Scene time of this field's capture (time-varying sessions have one field per time step).
   double scene_time_s = 0.0;
   std::string source;  // Session or file it came from, for messages.
+  FieldNoise noise;    // Stored in the "lightstage:noise" attribute.
 
  private:
   std::size_t offset(int x, int y) const {

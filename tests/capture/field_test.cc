@@ -41,6 +41,10 @@ ReflectanceField random_field(int width, int height, int num_lights, uint64_t se
     }
   }
   field.scene_time_s = 12.345678901234;
+  field.noise = {.read_variance = 1.25e-7,
+                 .shot_variance_per_unit = 3.5e-5,
+                 .measured = true,
+                 .method = "test"};
   return field;
 }
 
@@ -55,6 +59,10 @@ void expect_same(const ReflectanceField& a, const ReflectanceField& b) {
               b.lights()[l].dir_in_stage);  // Exact: JSON round-trips doubles.
   }
   EXPECT_EQ(a.scene_time_s, b.scene_time_s);
+  EXPECT_EQ(a.noise.measured, b.noise.measured);
+  EXPECT_EQ(a.noise.read_variance, b.noise.read_variance);
+  EXPECT_EQ(a.noise.shot_variance_per_unit, b.noise.shot_variance_per_unit);
+  EXPECT_EQ(a.noise.method, b.noise.method);
   ASSERT_EQ(a.values().size(), b.values().size());
   EXPECT_EQ(0, std::memcmp(a.values().data(), b.values().data(), a.bytes())) << "not bit-exact";
 }
