@@ -11,8 +11,10 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <random>
 #include <thread>
 
+#include "capture/noise_estimate.h"
 #include "capture/response.h"
 #include "lightstage/errors.h"
 
@@ -22,6 +24,12 @@ namespace {
 // LEDs whose brackets feed the response recovery (kRecover): a few views of the scene give the
 // solver a wider spread of radiances than one.
 constexpr int kRecoveryLeds = 3;
+// Photon transfer (noise_estimate.h) uses the brackets of this many LEDs, spread over the capture
+// order, and about this many pixels of each: plenty for a few dozen level bins.
+constexpr int kTransferLeds = 12;
+constexpr int kTransferPixelsPerLed = 10000;
+// Field values sampled to fit the linear noise model where the data are.
+constexpr size_t kNoiseFitValues = 20000;
 
 std::string format_gamma(double gamma) {
   char text[32];
@@ -93,6 +101,63 @@ ResponseCurve recover_from_session(const Session& session, const std::vector<Led
   std::vector<const RawFrame*> frames;
   for (const RawFrame& t : tiled) frames.push_back(&t);
   return recover_response(frames, exposure_gain);
+}
+
+double mean_value(const Image& image) {
+  if (image.pixels.empty()) return 0.0;
+  double sum = 0;
+  for (const float v : image.pixels) sum += v;
+  return sum / double(image.pixels.size());
+}
+
+// FieldNoise from the dark-frame read noise and photon transfer (noise_estimate.h), propagated
+// through the merge at the median LED irradiance (the field stores one model for all LEDs).
+FieldNoise estimate_field_noise(const ReflectanceField& field, const Stage& stage,
+                                const std::vector<bool>& usable, const std::vector<int>& order,
+                                const std::vector<NoiseStep>& steps, const MergeOptions& merge,
+                                SensorNoise& sensor, const std::vector<TransferSample>& transfer,
+                                BuildSummary* summary) {
+  summary->sensor_noise = sensor;
+  if (!sensor.read_measured) {
+    summary->warnings.push_back(
+        "noise not measured: needs at least 2 dark frames in every exposure step (plan.dark_frames)"
+        "; the fits will use their default noise model");
+    return {};
+  }
+  std::string method = "read: dark-frame pairs";
+  sensor.shot_measured = solve_shot_per_level(transfer, steps, sensor.read_variance,
+                                              &sensor.shot_per_level, &sensor.transfer_samples);
+  if (sensor.shot_measured) {
+    method += "; shot: photon transfer over bracket pairs";
+  } else if (stage.camera.backend == "sim" && stage.camera.simulated.full_well_e > 0) {
+    sensor.shot_per_level = 1.0 / stage.camera.simulated.full_well_e;
+    method += "; shot: simulated sensor's full well (no usable bracket pair)";
+  } else {
+    summary->warnings.push_back(
+        "noise not measured: no pair of exposure steps left enough well-exposed samples for "
+        "photon transfer; the fits will use their default noise model");
+    return {};
+  }
+  std::vector<double> irradiance;
+  for (size_t i = 0; i < order.size(); ++i) {
+    if (!usable[i]) continue;
+    const Eigen::Vector3d e = stage.leds[order[i]].irradiance_rgb();
+    irradiance.insert(irradiance.end(), {e.x(), e.y(), e.z()});
+  }
+  if (irradiance.empty()) return {};
+  std::nth_element(irradiance.begin(), irradiance.begin() + irradiance.size() / 2,
+                   irradiance.end());
+  const double median_irradiance = irradiance[irradiance.size() / 2];
+  const std::vector<float>& all = field.values();
+  // Random rather than strided indices: a stride could fall in step with the 3 * lights layout.
+  std::mt19937_64 rng(1);
+  std::uniform_int_distribution<size_t> pick(0, all.empty() ? 0 : all.size() - 1);
+  std::vector<float> values;
+  for (size_t i = 0; i < std::min(all.size(), kNoiseFitValues); ++i)
+    values.push_back(all[pick(rng)]);
+  summary->sensor_noise = sensor;
+  MergeNoiseModel model{steps, merge, stage.camera.radiometric_scale};
+  return fit_field_noise(sensor, model, median_irradiance, values, method);
 }
 
 }  // namespace
@@ -202,10 +267,19 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
     }
   };
 
-  // Mean dark frame per exposure step (linearised).
+  // Mean dark frame per exposure step (linearised), and the read noise from pairs of darks.
   std::vector<std::optional<Image>> darks(num_exposures);
+  std::vector<NoiseStep> noise_steps(num_exposures);
+  SensorNoise sensor;
+  sensor.read_variance.assign(num_exposures, 0.0);
+  sensor.read_measured = true;
+  for (int e = 0; e < num_exposures; ++e) {
+    noise_steps[e].exposure_s = camera.bracket[e].exposure_s;
+    noise_steps[e].gain = camera.bracket[e].gain;
+  }
   for (int e = 0; e < num_exposures; ++e) {
     if (dark_keys[e].empty()) {
+      sensor.read_measured = false;
       sum.warnings.push_back("no dark frames for exposure step " + std::to_string(e) +
                              " at time step " + std::to_string(options.time_step) +
                              ": that step is not dark-subtracted");
@@ -219,6 +293,15 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
     std::vector<const RawFrame*> pointers;
     for (const RawFrame& r : raw) pointers.push_back(&r);
     darks[e] = mean_dark(pointers, *response);
+    noise_steps[e].dark_frames = int(raw.size());
+    noise_steps[e].dark_level = mean_value(*darks[e]);
+    if (raw.size() >= 2) {
+      long long samples = 0;
+      sensor.read_variance[e] = dark_read_variance(pointers, *response, &samples);
+      sensor.dark_samples += samples;
+    } else {
+      sensor.read_measured = false;
+    }
   }
 
   // Merge each LED's bracket. LEDs run in parallel (frame decoding is serial per file); the number
@@ -241,6 +324,20 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
     // and dividing by the LED's irradiance gives R(x, l) per unit irradiance (1/sr).
     for (int c = 0; c < 3; ++c) scale[i][c] = float(camera.radiometric_scale / e[c]);
   }
+  // LEDs whose brackets feed photon transfer.
+  std::vector<bool> transfer_led(num_lights, false);
+  {
+    std::vector<int> candidates;
+    for (int i = 0; i < num_lights; ++i) {
+      if (usable[i]) candidates.push_back(i);
+    }
+    const size_t picks = std::min<size_t>(candidates.size(), kTransferLeds);
+    for (size_t p = 0; p < picks; ++p)
+      transfer_led[candidates[p * candidates.size() / picks]] = true;
+  }
+  const int transfer_stride = std::max(1, width * height / kTransferPixelsPerLed);
+  std::vector<TransferSample> transfer;
+  std::mutex transfer_mutex;
   std::atomic<long long> saturated_pixels{0};
   std::mutex progress_mutex;
   int done = 0;
@@ -267,6 +364,18 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
             BracketFrame{&raw[e], darks[e] ? &*darks[e] : nullptr, record.exposure_s, record.gain};
       }
       const Image merged = merge_bracket(bracket, *response, options.merge);
+      if (transfer_led[i]) {
+        std::vector<const RawFrame*> frames;
+        std::vector<const Image*> step_darks;
+        for (int e = 0; e < num_exposures; ++e) {
+          frames.push_back(&raw[e]);
+          step_darks.push_back(darks[e] ? &*darks[e] : nullptr);
+        }
+        std::vector<TransferSample> samples = transfer_samples(
+            frames, step_darks, *response, noise_steps, options.merge, transfer_stride);
+        std::lock_guard<std::mutex> lock(transfer_mutex);
+        transfer.insert(transfer.end(), samples.begin(), samples.end());
+      }
       const int in_channels = camera.channels + 1;
       long long saturated = 0;
       for (int y = 0; y < height; ++y) {
@@ -285,6 +394,8 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
   sum.lights_used = int(std::count(usable.begin(), usable.end(), true));
   const double samples = double(sum.lights_used) * width * height;
   sum.saturated_fraction = samples > 0 ? double(saturated_pixels.load()) / samples : 0.0;
+  field.noise = estimate_field_noise(field, stage, usable, order, noise_steps, options.merge,
+                                     sensor, transfer, &sum);
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return field;
 }

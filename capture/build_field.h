@@ -7,6 +7,7 @@
 
 #include "capture/field.h"
 #include "capture/hdr_merge.h"
+#include "capture/noise_estimate.h"
 #include "lightstage/session.h"
 
 namespace ls::capture {
@@ -24,6 +25,7 @@ struct BuildSummary {
   std::string response_used;        // "linear", "gamma 2.2", "table FILE", "recovered".
   double seconds = 0.0;
   std::vector<std::string> warnings;  // E.g. an exposure step without dark frames.
+  SensorNoise sensor_noise;  // What the noise estimate measured (the field's noise is from it).
 };
 
 ReflectanceField build_field(const Session& session, const BuildOptions& options,

@@ -198,7 +198,7 @@ ResponseCurve ResponseCurve::from_spec(const CameraResponse& spec, int bit_depth
 }
 
 ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
-                               const std::vector<double>& exposure_s) {
+                               const std::vector<double>& exposure_s, ResponseMethod method) {
   if (frames.size() < 2) {
     throw InputError("response recovery needs at least 2 frames of a bracket, got " +
                      std::to_string(frames.size()));
@@ -253,12 +253,19 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
   // OpenCV solves the system by SVD, cubic in the sample count: 300 samples take ~0.6 s (1000 take
   // 7 s). With 12-bit noise reduced to 8 bits the default smoothness (10) lets the curve wiggle by
   // +-5%; lambda 100 keeps a gamma-2.2 curve within 2% above 10% of full scale (response_test).
-  cv::Ptr<cv::CalibrateDebevec> calibrate =
-      cv::createCalibrateDebevec(/*samples=*/300, /*lambda=*/100.0f, /*random=*/false);
+  cv::Ptr<cv::CalibrateCRF> calibrate;
+  if (method == ResponseMethod::kRobertson) {
+    // Every pixel (no sampling), iterative maximum likelihood, no smoothness term: on a simulated
+    // 12-bit gamma-2.2 bracket reduced to 8 bits it errs by up to 20% in the mid range where
+    // Debevec errs by 1% (tests/calibration/robertson_test.cc), so Debevec stays the default.
+    calibrate = cv::createCalibrateRobertson(/*max_iter=*/100, /*threshold=*/0.001f);
+  } else {
+    calibrate = cv::createCalibrateDebevec(/*samples=*/300, /*lambda=*/100.0f, /*random=*/false);
+  }
   cv::Mat curve;  // 256 x 1, CV_32FC3: exposure (arbitrary scale) per 8-bit value.
   calibrate->process(images, curve, times);
   LS_CHECK(curve.rows == 256 && curve.type() == CV_32FC3,
-           "unexpected Debevec curve shape " + std::to_string(curve.rows));
+           "unexpected response curve shape " + std::to_string(curve.rows));
 
   // Interpolate the 256-entry curve to the full bit depth. The curve is only known up to scale, so
   // it is normalised to read 1 at full scale. Its top end is the least constrained part of the

@@ -33,7 +33,11 @@ class ResponseCurve {
 // Recovers the response from bracketed frames of a static scene (Debevec & Malik via OpenCV's photo
 // module, which works on 8-bit data: frames are reduced to 8 bits for the solve and the 256-entry
 // curve is interpolated back to full bit depth). Normalised so that full scale maps to 1.
+// Debevec & Malik (a smoothness-regularised least-squares solve) or Robertson et al. (iterative
+// maximum likelihood, no smoothness term); both from OpenCV's photo module.
+enum class ResponseMethod { kDebevec, kRobertson };
 ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
-                               const std::vector<double>& exposure_s);
+                               const std::vector<double>& exposure_s,
+                               ResponseMethod method = ResponseMethod::kDebevec);
 
 }  // namespace ls::capture

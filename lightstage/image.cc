@@ -1,11 +1,14 @@
 #include "lightstage/image.h"
 
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 #include <fcntl.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <random>
 
@@ -27,17 +30,23 @@ fs::path temp_sibling(const fs::path& path) {
                                std::to_string(rng() % 1000000) + path.extension().string());
 }
 
-void fsync_path(const fs::path& path, bool directory) {
+// Returns 0 or the errno of the failed open or fsync (a full disk can first show here).
+int fsync_path(const fs::path& path, bool directory) {
   const int fd = ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
-  if (fd < 0) return;
-  ::fsync(fd);
+  if (fd < 0) return errno;
+  const int result = ::fsync(fd) == 0 ? 0 : errno;
   ::close(fd);
+  return result;
 }
 
 // Renames tmp over path after making tmp durable; removes tmp on failure.
 void commit_temp(const fs::path& tmp, const fs::path& path) {
-  fsync_path(tmp, false);
   std::error_code ec;
+  if (const int error = fsync_path(tmp, false); error != 0) {
+    fs::remove(tmp, ec);
+    throw InputError(path.string() +
+                     ": cannot make the file durable (fsync): " + std::strerror(error));
+  }
   fs::rename(tmp, path, ec);
   if (ec) {
     fs::remove(tmp, ec);
@@ -46,22 +55,54 @@ void commit_temp(const fs::path& tmp, const fs::path& path) {
   fsync_path(path.parent_path().empty() ? fs::path(".") : path.parent_path(), true);
 }
 
+// Writes bytes to a new file, checking every write and the fsync (a full disk fails here, not
+// silently later), then renames it over path.
+void write_bytes_atomic(const fs::path& path, const void* data, size_t size) {
+  const fs::path tmp = temp_sibling(path);
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  if (fd < 0) {
+    throw InputError(path.string() + ": cannot create file: " + std::strerror(errno));
+  }
+  const char* bytes = static_cast<const char*>(data);
+  int error = 0;
+  for (size_t done = 0; done < size && error == 0;) {
+    const ssize_t n = ::write(fd, bytes + done, size - done);
+    if (n > 0) {
+      done += size_t(n);
+    } else if (n < 0 && errno != EINTR) {
+      error = errno;
+    }
+  }
+  if (error == 0 && ::fsync(fd) != 0) error = errno;
+  if (::close(fd) != 0 && error == 0) error = errno;
+  if (error != 0) {
+    std::error_code ec;
+    fs::remove(tmp, ec);
+    throw InputError(path.string() + ": cannot write: " + std::strerror(error));
+  }
+  commit_temp(tmp, path);
+}
+
+// Encodes in memory (the format from path's extension), then writes with write_bytes_atomic: an
+// encoder's own file writes do not all report a full disk.
 void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc in_type,
                      const void* data) {
   if (!path.parent_path().empty()) {
     std::error_code ec;
     fs::create_directories(path.parent_path(), ec);
   }
-  const fs::path tmp = temp_sibling(path);
-  auto out = OIIO::ImageOutput::create(tmp.string());
+  std::vector<unsigned char> encoded;
+  OIIO::Filesystem::IOVecOutput memory(encoded);
+  auto out = OIIO::ImageOutput::create(path.string());
   if (!out) throw InputError(path.string() + ": cannot write this format: " + OIIO::geterror());
-  if (!out->open(tmp.string(), spec) || !out->write_image(in_type, data) || !out->close()) {
-    const std::string err = out->geterror();
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw InputError(path.string() + ": write failed: " + err);
+  if (!out->supports("ioproxy") || !out->set_ioproxy(&memory)) {
+    throw InputError(path.string() + ": the " + out->format_name() +
+                     " writer cannot encode to memory");
   }
-  commit_temp(tmp, path);
+  if (!out->open(path.string(), spec) || !out->write_image(in_type, data) || !out->close()) {
+    throw InputError(path.string() + ": encoding failed: " + out->geterror());
+  }
+  write_bytes_atomic(path, encoded.data(), encoded.size());
 }
 
 float srgb_encode(float linear) {
@@ -164,18 +205,7 @@ RawFrame read_raw_frame(const fs::path& path, int bit_depth) {
 }
 
 void write_file_atomic(const fs::path& path, const std::string& contents) {
-  const fs::path tmp = temp_sibling(path);
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    out << contents;
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw InputError(path.string() + ": cannot write (disk full or not writable?)");
-    }
-  }
-  commit_temp(tmp, path);
+  write_bytes_atomic(path, contents.data(), contents.size());
 }
 
 }  // namespace ls

@@ -1,12 +1,17 @@
 #include "lightstage/sequencer.h"
 
+#include <sys/statvfs.h>
+
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <map>
+#include <optional>
 #include <sstream>
 #include <thread>
 
 #include "lightstage/errors.h"
+#include "lightstage/frame_writer.h"
 
 namespace ls {
 
@@ -24,47 +29,97 @@ class AllOffGuard {
   LightController& lights_;
 };
 
-// Mean dark frame per (time step, exposure step) in DN, for the dead-LED check.
+// Mean dark frame per (time step, exposure step) in DN, for the dead-LED check: from the dark
+// frames of this run as they are captured, else (a resumed capture) from the session's files.
 class DarkCache {
  public:
-  explicit DarkCache(const Session& session) : session_(session) {}
+  DarkCache(const Session& session, FrameWriter& writer) : session_(session), writer_(writer) {}
+
+  void add(const FrameKey& key, const RawFrame& frame) {
+    Sum& sum = captured_[{key.time_step, key.exposure_index}];
+    if (sum.total.empty()) sum.total.assign(frame.pixels.size(), 0.0f);
+    if (sum.total.size() != frame.pixels.size()) return;
+    for (size_t i = 0; i < frame.pixels.size(); ++i) sum.total[i] += frame.pixels[i];
+    ++sum.count;
+  }
 
   const std::vector<float>* get(int time_step, int exposure_index) {
     const auto key = std::make_pair(time_step, exposure_index);
-    if (auto it = cache_.find(key); it != cache_.end()) return &it->second;
-    std::vector<float> mean;
+    if (auto it = mean_.find(key); it != mean_.end()) return &it->second;
+    std::vector<float> total;
     int count = 0;
-    for (int r = 0; r < session_.stage().plan.dark_frames; ++r) {
-      const FrameKey k{time_step, -1, exposure_index, r};
-      if (!session_.frames().count(k)) continue;
-      const RawFrame f = session_.load_frame(k);
-      if (mean.empty()) mean.assign(f.pixels.size(), 0.0f);
-      if (mean.size() != f.pixels.size()) continue;
-      for (size_t i = 0; i < mean.size(); ++i) mean[i] += f.pixels[i];
-      ++count;
+    if (auto it = captured_.find(key); it != captured_.end()) {
+      total = std::move(it->second.total);
+      count = it->second.count;
+      captured_.erase(it);
+    } else {
+      writer_.flush();  // The session is read only when nothing is in flight.
+      for (int r = 0; r < session_.stage().plan.dark_frames; ++r) {
+        const FrameKey k{time_step, -1, exposure_index, r};
+        if (!session_.frames().count(k)) continue;
+        const RawFrame f = session_.load_frame(k);
+        if (total.empty()) total.assign(f.pixels.size(), 0.0f);
+        if (total.size() != f.pixels.size()) continue;
+        for (size_t i = 0; i < total.size(); ++i) total[i] += f.pixels[i];
+        ++count;
+      }
     }
     if (count == 0) return nullptr;
-    for (auto& v : mean) v /= float(count);
-    return &(cache_[key] = std::move(mean));
+    for (auto& v : total) v /= float(count);
+    return &(mean_[key] = std::move(total));
   }
 
  private:
+  struct Sum {
+    std::vector<float> total;
+    int count = 0;
+  };
   const Session& session_;
-  std::map<std::pair<int, int>, std::vector<float>> cache_;
+  FrameWriter& writer_;
+  std::map<std::pair<int, int>, Sum> captured_;
+  std::map<std::pair<int, int>, std::vector<float>> mean_;
 };
 
-// 99.9th percentile of (frame - dark) as a fraction of full scale.
+// 99.9th percentile of (frame - dark) as a fraction of full scale, over at most ~64k samples (a
+// strided subset: the check must not cost a large sensor milliseconds per frame).
 double bright_signal_fraction(const RawFrame& frame, const std::vector<float>& dark) {
   if (dark.size() != frame.pixels.size() || frame.pixels.empty()) return 1.0;
-  std::vector<float> diff(frame.pixels.size());
-  for (size_t i = 0; i < diff.size(); ++i) diff[i] = float(frame.pixels[i]) - dark[i];
+  const size_t stride = std::max<size_t>(1, frame.pixels.size() / 65536);
+  std::vector<float> diff;
+  diff.reserve(frame.pixels.size() / stride + 1);
+  for (size_t i = 0; i < frame.pixels.size(); i += stride) {
+    diff.push_back(float(frame.pixels[i]) - dark[i]);
+  }
   const size_t k = std::min(diff.size() - 1, size_t(0.999 * diff.size()));
   std::nth_element(diff.begin(), diff.begin() + k, diff.end());
   return diff[k] / double(frame.max_value());
 }
 
+// Refuses to start a capture that cannot fit on the disk: each missing frame is budgeted at its
+// uncompressed size (noisy high-bit-depth frames hardly compress), plus its journal line.
+void require_free_space(const Session& session, const std::vector<PlannedFrame>& missing) {
+  if (missing.empty()) return;
+  const CameraSpec& camera = session.stage().camera;
+  const double frame_bytes =
+      double(camera.width) * camera.height * camera.channels * (camera.bit_depth > 8 ? 2 : 1) +
+      4096.0;
+  const double needed = frame_bytes * double(missing.size()) + (1 << 20);
+  struct statvfs fs {};
+  if (::statvfs(session.dir().c_str(), &fs) != 0) return;  // Cannot tell: the writes will say.
+  const double available = double(fs.f_bavail) * double(fs.f_frsize);
+  if (available < needed) {
+    char message[256];
+    std::snprintf(message, sizeof message,
+                  ": the %zu frames still to capture need up to %.1f MiB, but the disk has only "
+                  "%.1f MiB free; free some space or capture to another disk",
+                  missing.size(), needed / (1 << 20), available / (1 << 20));
+    throw InputError(session.dir().string() + message);
+  }
+}
+
 // Flags LEDs that are dark while their neighbours are lit (see SequencerOptions).
-void flag_dead_leds(Session& session, int time_step, double threshold) {
+void flag_dead_leds(const Session& session, FrameWriter& writer, int time_step, double threshold) {
+  writer.flush();  // Reads the LED signals journaled so far.
   const Stage& stage = session.stage();
   const auto& signals = session.led_signals();
   const int n = int(stage.leds.size());
@@ -97,7 +152,7 @@ void flag_dead_leds(Session& session, int time_step, double threshold) {
       reason << "time step " << time_step << ": brightest frame exceeds the dark frame by "
              << it->second * 100 << "% of full scale while " << lit << " of its " << around.size()
              << " neighbours are lit";
-      session.mark_dead_led(i, reason.str());
+      if (!session.dead_leds().count(i)) writer.mark_dead_led(i, reason.str());
     }
   }
 }
@@ -119,17 +174,42 @@ CaptureSummary run_capture(Session& session, LightController& lights, Camera& ca
   const std::vector<PlannedFrame> missing = session.missing_frames();
   const int total = int(plan_frames(stage).size());
   summary.frames_already_present = total - int(missing.size());
-  DarkCache darks(session);
+  require_free_space(session, missing);  // Before any LED is switched on.
 
-  auto finish = [&](CaptureSummary::Status status, const std::string& message) {
+  std::optional<FrameWriter> writer;
+  writer.emplace(session);
+  DarkCache darks(session, *writer);
+
+  // Every exit: LEDs off (by the caller and the guard), then whatever is queued saved before the
+  // manifest says how the capture ended.
+  auto finish = [&](CaptureSummary::Status status, std::string message) {
+    lights.all_off();
+    try {
+      writer->flush();
+    } catch (const std::exception& e) {
+      if (status != CaptureSummary::Status::kWriteFailed) {
+        status = CaptureSummary::Status::kWriteFailed;
+        message = std::string("cannot save frames: ") + e.what() +
+                  "; all LEDs are off and every frame saved before that is kept; free space "
+                  "and resume with --resume";
+      }
+    }
+    writer.reset();
+    summary.frames_captured = int(session.frames().size()) - summary.frames_already_present;
     summary.status = status;
     summary.message = message;
     summary.seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
-    const char* state = status == CaptureSummary::Status::kComplete      ? "complete"
-                        : status == CaptureSummary::Status::kInterrupted ? "interrupted"
-                                                                         : "camera-failed";
-    session.write_manifest(state);
+    const char* state = status == CaptureSummary::Status::kComplete       ? "complete"
+                        : status == CaptureSummary::Status::kInterrupted  ? "interrupted"
+                        : status == CaptureSummary::Status::kCameraFailed ? "camera-failed"
+                                                                          : "write-failed";
+    try {
+      session.write_manifest(state);
+    } catch (const std::exception& e) {
+      // The journal, not the manifest, says what was captured; a stale manifest costs nothing.
+      summary.message += std::string(" (manifest not updated: ") + e.what() + ")";
+    }
     return summary;
   };
 
@@ -138,66 +218,79 @@ CaptureSummary run_capture(Session& session, LightController& lights, Camera& ca
 
   // Frames of one LED (or the dark frames of one time step) form a group: the LED goes on once,
   // the whole bracket is exposed, and it goes off before the next group.
+  int frames_taken = 0;
   size_t i = 0;
-  while (i < missing.size()) {
-    const int t = missing[i].key.time_step;
-    const int led = missing[i].key.led_index;
-    size_t end = i;
-    while (end < missing.size() && missing[end].key.time_step == t &&
-           missing[end].key.led_index == led) {
-      ++end;
-    }
-    if (stop_requested()) {
-      return finish(CaptureSummary::Status::kInterrupted,
-                    "stopped on request; all LEDs are off and every frame taken is saved");
-    }
-    if (led >= 0) {
-      lights.set_light(led, true);
-      if (stage.plan.settle_s > 0) sleep(stage.plan.settle_s);
-    }
-    double brightest = 0.0;
-    for (size_t k = i; k < end; ++k) {
-      const PlannedFrame& planned = missing[k];
-      CapturedFrame frame;
-      for (int attempt = 0;; ++attempt) {
-        try {
-          frame = camera.capture(planned.request);
-          break;
-        } catch (const CameraTimeout& e) {
-          if (attempt >= stage.camera.retries) {
-            lights.all_off();
-            std::ostringstream msg;
-            msg << "camera gave no frame for " << planned.key.name(stage) << " after "
-                << attempt + 1 << " attempts (" << e.what()
-                << "); all LEDs are off, every frame taken is saved; resume with --resume";
-            return finish(CaptureSummary::Status::kCameraFailed, msg.str());
-          }
-          ++summary.camera_retries;
-        }
+  try {
+    while (i < missing.size()) {
+      const int t = missing[i].key.time_step;
+      const int led = missing[i].key.led_index;
+      size_t end = i;
+      while (end < missing.size() && missing[end].key.time_step == t &&
+             missing[end].key.led_index == led) {
+        ++end;
       }
-      session.record_frame(planned, frame);
-      ++summary.frames_captured;
+      if (stop_requested()) {
+        return finish(CaptureSummary::Status::kInterrupted,
+                      "stopped on request; all LEDs are off and every frame taken is saved");
+      }
       if (led >= 0) {
-        if (const auto* dark = darks.get(t, planned.key.exposure_index)) {
-          brightest = std::max(brightest, bright_signal_fraction(frame.raw, *dark));
+        lights.set_light(led, true);
+        if (stage.plan.settle_s > 0) sleep(stage.plan.settle_s);
+      }
+      double brightest = 0.0;
+      for (size_t k = i; k < end; ++k) {
+        const PlannedFrame& planned = missing[k];
+        CapturedFrame frame;
+        for (int attempt = 0;; ++attempt) {
+          try {
+            frame = camera.capture(planned.request);
+            break;
+          } catch (const CameraTimeout& e) {
+            if (attempt >= stage.camera.retries) {
+              lights.all_off();
+              std::ostringstream msg;
+              msg << "camera gave no frame for " << planned.key.name(stage) << " after "
+                  << attempt + 1 << " attempts (" << e.what()
+                  << "); all LEDs are off, every frame taken is saved; resume with --resume";
+              return finish(CaptureSummary::Status::kCameraFailed, msg.str());
+            }
+            ++summary.camera_retries;
+          }
+        }
+        if (led >= 0) {
+          if (const auto* dark = darks.get(t, planned.key.exposure_index)) {
+            brightest = std::max(brightest, bright_signal_fraction(frame.raw, *dark));
+          } else {
+            brightest = 1.0;  // No dark reference: cannot judge.
+          }
         } else {
-          brightest = 1.0;  // No dark reference: cannot judge.
+          darks.add(planned.key, frame.raw);
+        }
+        writer->write(planned, std::move(frame));
+        ++frames_taken;
+        if (options.on_progress) {
+          options.on_progress(
+              {summary.frames_already_present + frames_taken, total, planned.key.name(stage)});
         }
       }
-      if (options.on_progress) {
-        options.on_progress({summary.frames_already_present + summary.frames_captured, total,
-                             planned.key.name(stage)});
+      if (led >= 0) {
+        lights.set_light(led, false);
+        // Only a whole bracket taken in this run tells how bright the LED is.
+        if (end - i == stage.camera.bracket.size()) writer->record_led_signal(t, led, brightest);
       }
+      // Once the last LED of a time step is in, judge that step's dark LEDs.
+      const bool step_done = end == missing.size() || missing[end].key.time_step != t;
+      if (step_done && led >= 0) {
+        flag_dead_leds(session, *writer, t, options.dead_led_threshold);
+      }
+      i = end;
     }
-    if (led >= 0) {
-      lights.set_light(led, false);
-      // Only a whole bracket taken in this run tells how bright the LED is.
-      if (end - i == stage.camera.bracket.size()) session.record_led_signal(t, led, brightest);
-    }
-    // Once the last LED of a time step is in, judge that step's dark LEDs.
-    const bool step_done = end == missing.size() || missing[end].key.time_step != t;
-    if (step_done && led >= 0) flag_dead_leds(session, t, options.dead_led_threshold);
-    i = end;
+  } catch (const InputError& e) {
+    // Only the frame writer throws InputError here: the disk is full or not writable.
+    return finish(CaptureSummary::Status::kWriteFailed,
+                  std::string("cannot save frames: ") + e.what() +
+                      "; all LEDs are off and every frame saved before that is kept; free space "
+                      "and resume with --resume");
   }
   return finish(CaptureSummary::Status::kComplete, "capture complete");
 }

@@ -1,6 +1,9 @@
 #pragma once
-// Drives a capture: LED on, bracket, LED off, with dark frames, over time steps. Every frame is
-// durably in the session before the next LED turns on; every exit path switches all LEDs off.
+// Drives a capture: LED on, bracket, LED off, with dark frames, over time steps. Frames are saved
+// by a FrameWriter thread while the next ones are exposed; whatever the exit (done, stopped,
+// camera or disk failure), all LEDs go off and every frame taken is saved, or re-captured on
+// resume if the disk refused it. A capture that cannot fit on the disk is refused before it starts
+// (InputError).
 #include <atomic>
 #include <functional>
 #include <string>
@@ -31,9 +34,10 @@ struct SequencerOptions {
 };
 
 struct CaptureSummary {
-  enum class Status { kComplete, kInterrupted, kCameraFailed };
+  // kWriteFailed: a frame could not be saved (disk full, directory gone or not writable).
+  enum class Status { kComplete, kInterrupted, kCameraFailed, kWriteFailed };
   Status status = Status::kComplete;
-  int frames_captured = 0;  // This run.
+  int frames_captured = 0;  // This run, saved in the session.
   int frames_already_present = 0;
   int camera_retries = 0;
   std::string message;  // Why it stopped, for the operator.

@@ -3,8 +3,10 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
 #include <ctime>
 #include <fstream>
 #include <iostream>
@@ -145,8 +147,20 @@ Session Session::open(const fs::path& dir) {
     }
   }
 
-  // Replay the journal. A torn last line (killed mid-append) is ignored; its frame is re-captured.
-  std::ifstream journal(dir / kJournal);
+  // Replay the journal. A torn last line (killed mid-append) is ignored, and cut off so that the
+  // next append starts on a line of its own; its frame is captured again.
+  const fs::path journal_path = dir / kJournal;
+  const std::string journal_text = fs::exists(journal_path) ? read_text(journal_path) : "";
+  if (!journal_text.empty() && journal_text.back() != '\n') {
+    std::cerr << "warning: " << journal_path.string()
+              << ": incomplete last journal line ignored (interrupted write); that frame will be "
+                 "captured again\n";
+    const size_t complete = journal_text.rfind('\n');
+    fs::resize_file(journal_path, complete == std::string::npos ? 0 : complete + 1, ec);
+    if (ec)
+      throw InputError(journal_path.string() + ": cannot cut the torn last line: " + ec.message());
+  }
+  std::istringstream journal(journal_text);
   std::string line;
   int line_no = 0;
   while (std::getline(journal, line)) {
@@ -194,18 +208,27 @@ std::vector<PlannedFrame> Session::missing_frames() const {
   return missing;
 }
 
-void Session::append_journal(const std::string& line) const {
+void Session::append_journal(const std::string& lines) const {
   const fs::path path = dir_ / kJournal;
   const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
   if (fd < 0) throw InputError(path.string() + ": cannot open journal for appending");
-  const std::string data = line + "\n";
-  const ssize_t n = ::write(fd, data.data(), data.size());
-  const bool ok = n == ssize_t(data.size()) && ::fsync(fd) == 0;
+  const off_t end_before = ::lseek(fd, 0, SEEK_END);
+  const ssize_t n = ::write(fd, lines.data(), lines.size());
+  const int write_errno = errno;
+  const bool ok = n == ssize_t(lines.size()) && ::fsync(fd) == 0;
+  // A partial append (disk full) must not leave half a line for the next append to run into.
+  if (!ok && end_before >= 0) {
+    [[maybe_unused]] const int cut = ::ftruncate(fd, end_before);  // Best effort.
+  }
   ::close(fd);
-  if (!ok) throw InputError(path.string() + ": cannot append to journal (disk full?)");
+  if (!ok) {
+    throw InputError(path.string() +
+                     ": cannot append to journal: " + std::strerror(n < 0 ? write_errno : errno));
+  }
 }
 
-void Session::record_frame(const PlannedFrame& planned, const CapturedFrame& frame) {
+FrameRecord Session::write_frame_file(const PlannedFrame& planned,
+                                      const CapturedFrame& frame) const {
   FrameRecord rec;
   rec.key = planned.key;
   rec.file = "frames/" + planned.key.name(stage_) + ".png";
@@ -215,8 +238,14 @@ void Session::record_frame(const PlannedFrame& planned, const CapturedFrame& fra
   rec.captured_at = utc_now_iso8601();
   RawFrame raw = frame.raw;
   raw.bit_depth = stage_.camera.bit_depth;
-  write_raw_frame(dir_ / rec.file, raw);  // Durable before it is journaled.
-  const json j = {{"t", rec.key.time_step},
+  write_raw_frame(dir_ / rec.file, raw);  // Durable (fsync'ed and renamed) before it is journaled.
+  return rec;
+}
+
+void Session::journal_frames(const std::vector<FrameRecord>& records) {
+  std::string lines;
+  for (const FrameRecord& rec : records) {
+    lines += json{{"t", rec.key.time_step},
                   {"led", rec.key.led_index},
                   {"e", rec.key.exposure_index},
                   {"r", rec.key.repeat},
@@ -224,9 +253,17 @@ void Session::record_frame(const PlannedFrame& planned, const CapturedFrame& fra
                   {"exposure_s", rec.exposure_s},
                   {"gain", rec.gain},
                   {"scene_time_s", rec.scene_time_s},
-                  {"at", rec.captured_at}};
-  append_journal(j.dump());
-  frames_[rec.key] = rec;
+                  {"at", rec.captured_at}}
+                 .dump() +
+             "\n";
+  }
+  if (lines.empty()) return;
+  append_journal(lines);
+  for (const FrameRecord& rec : records) frames_[rec.key] = rec;
+}
+
+void Session::record_frame(const PlannedFrame& planned, const CapturedFrame& frame) {
+  journal_frames({write_frame_file(planned, frame)});
 }
 
 RawFrame Session::load_frame(const FrameKey& key) const {
@@ -239,12 +276,13 @@ RawFrame Session::load_frame(const FrameKey& key) const {
 
 void Session::mark_dead_led(int led_index, const std::string& reason) {
   if (dead_leds_.count(led_index)) return;
-  append_journal(json{{"dead_led", led_index}, {"reason", reason}}.dump());
+  append_journal(json{{"dead_led", led_index}, {"reason", reason}}.dump() + "\n");
   dead_leds_[led_index] = reason;
 }
 
 void Session::record_led_signal(int time_step, int led_index, double fraction) {
-  append_journal(json{{"led_signal", led_index}, {"t", time_step}, {"fraction", fraction}}.dump());
+  append_journal(json{{"led_signal", led_index}, {"t", time_step}, {"fraction", fraction}}.dump() +
+                 "\n");
   led_signals_[{time_step, led_index}] = fraction;
 }
 

@@ -68,6 +68,13 @@ class Session {
 
   // Writes the frame atomically, then journals it. After this returns the frame survives kill -9.
   void record_frame(const PlannedFrame& planned, const CapturedFrame& frame);
+  // The two halves of record_frame, for writing on another thread (FrameWriter):
+  // write_frame_file touches only the frame's own file (fsync'ed, renamed into place) and may run
+  // concurrently with anything; journal_frames appends the records in one fsync'ed write and makes
+  // them frames of the session. A frame whose file is written but not journaled is not a frame: a
+  // resume captures it again.
+  FrameRecord write_frame_file(const PlannedFrame& planned, const CapturedFrame& frame) const;
+  void journal_frames(const std::vector<FrameRecord>& records);
   RawFrame load_frame(const FrameKey& key) const;  // Throws InputError if absent or unreadable.
 
   // LEDs judged broken (see sequencer.h); later stages treat them as missing, not as black lights.
@@ -84,7 +91,7 @@ class Session {
 
  private:
   Session() = default;
-  void append_journal(const std::string& line) const;
+  void append_journal(const std::string& lines) const;  // One or more '\n'-ended lines.
 
   std::filesystem::path dir_;
   Stage stage_;

@@ -105,7 +105,8 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
   if (r.has("retries")) cam.retries = r["retries"].integer_in(0, 100);
   if (r.has("simulated_sensor")) {
     const JsonReader s = r["simulated_sensor"];
-    s.expect_object({"full_well_e", "read_noise_e", "dark_current_e_per_s", "black_level"});
+    s.expect_object(
+        {"full_well_e", "read_noise_e", "dark_current_e_per_s", "black_level", "real_time"});
     auto& sim = cam.simulated;
     if (s.has("full_well_e")) sim.full_well_e = s["full_well_e"].positive("(electrons)");
     if (s.has("read_noise_e")) sim.read_noise_e = s["read_noise_e"].number_in(0, 1e4);
@@ -113,6 +114,7 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
       sim.dark_current_e_per_s = s["dark_current_e_per_s"].number_in(0, 1e9);
     }
     if (s.has("black_level")) sim.black_level = s["black_level"].number_in(0, 0.5);
+    if (s.has("real_time")) sim.real_time = s["real_time"].boolean();
   }
   return cam;
 }
@@ -269,7 +271,8 @@ std::string stage_to_json(const Stage& stage) {
                   {{"full_well_e", c.simulated.full_well_e},
                    {"read_noise_e", c.simulated.read_noise_e},
                    {"dark_current_e_per_s", c.simulated.dark_current_e_per_s},
-                   {"black_level", c.simulated.black_level}}}};
+                   {"black_level", c.simulated.black_level},
+                   {"real_time", c.simulated.real_time}}}};
   json plan = {{"dark_frames", stage.plan.dark_frames},
                {"settle_s", stage.plan.settle_s},
                {"time_steps", stage.plan.time_steps},

@@ -44,6 +44,9 @@ struct SimulatedSensor {
   double read_noise_e = 4.0;          // Gaussian read noise, electrons RMS.
   double dark_current_e_per_s = 5.0;  // Thermal electrons per second of exposure.
   double black_level = 0.01;          // Offset as a fraction of full scale, before the response.
+  // Each frame takes its exposure time, as on a real camera (to try interrupting a capture, or
+  // timing); false: frames come as fast as they render.
+  bool real_time = false;
 };
 
 struct CameraSpec {

@@ -1,9 +1,11 @@
 #include "relight/fit.h"
 
+#include <OpenImageIO/imageio.h>
 #include <ceres/tiny_solver.h>
 #include <ceres/tiny_solver_autodiff_function.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -13,6 +15,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "lightstage/errors.h"
@@ -25,6 +28,7 @@ constexpr double kPi = 3.14159265358979323846;
 constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};
 constexpr double kMinRoughness = 0.02;
 constexpr double kMaxPhongExponent = 1e4;
+constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
 
 struct Sample {
   Eigen::Vector3d l;  // Unit, toward the LED.
@@ -218,9 +222,10 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
   const auto start_time = std::chrono::steady_clock::now();
   ModelMaps out;
   out.maps = Image(width, height, kMapChannelCount);
-  out.maps.channel_names = {"normal.x",   "normal.y", "normal.z", "albedo.r",  "albedo.g",
-                            "albedo.b",   "sigma",    "ks",       "roughness", "model",
-                            "confidence", "residual", "flags"};
+  out.maps.channel_names = model_map_channel_names();
+  out.noise = options.normals.noise;
+  out.noise_source = options.noise_source;
+  std::atomic<long> rows_done{0};
   const capture::ValidLights valid = capture::valid_lights(field);
   const std::vector<int>& light_index = valid.index;
   const std::vector<Eigen::Vector3d>& dirs = valid.dirs_in_stage;
@@ -349,6 +354,8 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
         ++local.fitted;
         ++local.per_model[best];
       }
+      const long done = ++rows_done;
+      if (options.progress) options.progress(done, height);
     }
     const std::lock_guard lock(summary_mutex);
     summary.fitted += local.fitted;
@@ -361,8 +368,45 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
   return out;
 }
 
+const std::vector<std::string>& model_map_channel_names() {
+  static const std::vector<std::string> names = {
+      "normal.x", "normal.y",  "normal.z", "albedo.r",   "albedo.g", "albedo.b", "sigma",
+      "ks",       "roughness", "model",    "confidence", "residual", "flags"};
+  return names;
+}
+
 void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps) {
-  write_exr(path, maps.maps);
+  const Image& image = maps.maps;
+  LS_CHECK(image.channels == kMapChannelCount &&
+               image.pixels.size() == image.num_pixels() * kMapChannelCount,
+           "model maps have " + std::to_string(image.channels) + " channels");
+  // Written here rather than with write_exr: the noise model goes into an attribute.
+  OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::FLOAT);
+  spec.channelnames = model_map_channel_names();
+  spec.attribute("compression", "zip");
+  const nlohmann::json noise = {{"read_variance", maps.noise.a},
+                                {"shot_variance_per_unit", maps.noise.b},
+                                {"source", maps.noise_source}};
+  spec.attribute(kFitNoiseAttribute, noise.dump());
+  if (!path.parent_path().empty()) std::filesystem::create_directories(path.parent_path());
+  // Temporary sibling + rename: a killed writer never leaves a half file under the real name.
+  std::filesystem::path tmp = path;
+  tmp.replace_extension(".tmp" + std::to_string(::getpid()) + path.extension().string());
+  auto out = OIIO::ImageOutput::create(tmp.string());
+  if (!out) throw InputError(path.string() + ": cannot write OpenEXR: " + OIIO::geterror());
+  if (!out->open(tmp.string(), spec) ||
+      !out->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data()) || !out->close()) {
+    const std::string error = out->geterror();
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+    throw InputError(path.string() + ": write failed: " + error);
+  }
+  std::error_code ec;
+  std::filesystem::rename(tmp, path, ec);
+  if (ec) {
+    std::filesystem::remove(tmp, ec);
+    throw InputError(path.string() + ": cannot rename the temporary file into place");
+  }
   const Image& src = maps.maps;
   auto preview = [&](const std::string& name, int first, int channels, auto transform) {
     Image image(src.width, src.height, channels);
@@ -387,6 +431,108 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps) 
   preview("residual", kMapResidual, 1,
           [](float v) { return std::log10(1 + std::max(v, 0.f)) / 2; });
   preview("flags", kMapFlags, 1, [](float v) { return v / 31; });
+}
+
+ModelMaps read_model_maps(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  if (!std::filesystem::exists(path)) throw InputError(name + ": file not found");
+  auto in = OIIO::ImageInput::open(name);
+  if (!in) throw InputError(name + ": cannot read model maps: " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  const std::vector<std::string>& names = model_map_channel_names();
+  // File channel of each MapChannel (EXR stores channels sorted by name).
+  std::vector<int> file_channel(kMapChannelCount, -1);
+  for (int c = 0; c < kMapChannelCount; ++c) {
+    for (int f = 0; f < spec.nchannels; ++f) {
+      if (spec.channelnames[f] == names[c]) file_channel[c] = f;
+    }
+    if (file_channel[c] < 0) {
+      throw InputError(name + ": channel '" + names[c] +
+                       "': missing (not model maps from 'lightstage fit'?)");
+    }
+  }
+  if (spec.nchannels != kMapChannelCount) {
+    throw InputError(name + ": channels: expected " + std::to_string(int(kMapChannelCount)) +
+                     " (model maps), got " + std::to_string(spec.nchannels));
+  }
+  if (spec.width <= 0 || spec.height <= 0) throw InputError(name + ": image has no pixels");
+  Image raw(spec.width, spec.height, spec.nchannels);
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())) {
+    throw InputError(name + ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
+  }
+  ModelMaps out;
+  out.noise_source = "unknown (no '" + std::string(kFitNoiseAttribute) + "' attribute)";
+  if (const OIIO::ParamValue* noise = spec.find_attribute(kFitNoiseAttribute)) {
+    try {
+      const nlohmann::json j = nlohmann::json::parse(noise->get_string());
+      out.noise.a = j.at("read_variance").get<double>();
+      out.noise.b = j.at("shot_variance_per_unit").get<double>();
+      out.noise_source = j.value("source", std::string());
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(name + ": attribute '" + kFitNoiseAttribute +
+                       "': expected {read_variance, shot_variance_per_unit, source}: " + e.what());
+    }
+    if (!(std::isfinite(out.noise.a) && out.noise.a >= 0 && std::isfinite(out.noise.b) &&
+          out.noise.b >= 0)) {
+      throw InputError(name + ": attribute '" + kFitNoiseAttribute +
+                       "': expected finite non-negative variances");
+    }
+  }
+  in->close();
+
+  out.maps = Image(spec.width, spec.height, kMapChannelCount);
+  out.maps.channel_names = names;
+  for (size_t i = 0; i < raw.num_pixels(); ++i) {
+    for (int c = 0; c < kMapChannelCount; ++c) {
+      out.maps.pixels[i * kMapChannelCount + c] = raw.pixels[i * spec.nchannels + file_channel[c]];
+    }
+  }
+  FitSummary& summary = out.summary;
+  summary.pixels = spec.width * spec.height;
+  auto fail = [&](int channel, int x, int y, const std::string& expected) {
+    char where[96];
+    std::snprintf(where, sizeof where, " at (%d, %d), got %.9g", x, y,
+                  double(out.maps.at(x, y, channel)));
+    throw InputError(name + ": channel '" + names[channel] + "': expected " + expected + where);
+  };
+  const double max_sigma = 0.5 * kPi + 1e-6;
+  for (int y = 0; y < spec.height; ++y) {
+    for (int x = 0; x < spec.width; ++x) {
+      for (int c = 0; c < kMapChannelCount; ++c) {
+        if (!std::isfinite(out.maps.at(x, y, c))) fail(c, x, y, "a finite value");
+      }
+      const float model = out.maps.at(x, y, kMapModel);
+      if (!(model == std::floor(model) && model >= 0 && model <= 4)) {
+        fail(kMapModel, x, y, "an integer in 0..4 (FitModel)");
+      }
+      const float flags = out.maps.at(x, y, kMapFlags);
+      if (!(flags == std::floor(flags) && flags >= 0)) {
+        fail(kMapFlags, x, y, "a non-negative integer");
+      }
+      if (model == 0) {
+        ++summary.flagged;
+        continue;
+      }
+      ++summary.fitted;
+      ++summary.per_model[int(model)];
+      const Eigen::Vector3d n(out.maps.at(x, y, kMapNormalX), out.maps.at(x, y, kMapNormalY),
+                              out.maps.at(x, y, kMapNormalZ));
+      if (std::abs(n.norm() - 1) > 1e-3) fail(kMapNormalX, x, y, "a unit normal (x, y, z)");
+      for (int c = kMapAlbedoR; c <= kMapAlbedoB; ++c) {
+        if (out.maps.at(x, y, c) < 0) fail(c, x, y, "an albedo >= 0");
+      }
+      const float sigma = out.maps.at(x, y, kMapSigma);
+      if (!(sigma >= 0 && sigma <= max_sigma)) fail(kMapSigma, x, y, "sigma in [0, pi/2] rad");
+      if (!(out.maps.at(x, y, kMapKs) >= 0)) fail(kMapKs, x, y, "k_s >= 0");
+      const float roughness = out.maps.at(x, y, kMapRoughness);
+      const bool has_lobe = model == float(FitModel::kLambertTorranceSparrow) ||
+                            model == float(FitModel::kLambertPhong);
+      if (has_lobe && !(roughness > 0 && roughness <= 1)) {
+        fail(kMapRoughness, x, y, "a roughness in (0, 1] on a pixel with a specular lobe");
+      }
+    }
+  }
+  return out;
 }
 
 }  // namespace ls::relight

@@ -28,6 +28,7 @@
 // summary); a pixel with no finite fit is flagged, never NaN.
 #include <Eigen/Core>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -58,6 +59,11 @@ struct FitOptions {
   int max_iterations = 50;
   // View direction (unit, toward the camera) per pixel, row-major; empty = orthographic (0, 0, 1).
   std::vector<Eigen::Vector3d> view_dir_per_pixel;
+  // Where normals.noise came from, stored with the maps (e.g. "measured: dark-frame pairs").
+  std::string noise_source = "default NoiseModel";
+  // Called as rows finish with (rows done, rows in all), from TBB worker threads, concurrently:
+  // it must be thread-safe (ProgressReporter::update is). Empty: no progress.
+  std::function<void(long done, long total)> progress;
 
   std::string validate() const;
 };
@@ -93,7 +99,11 @@ struct FitSummary {
 
 struct ModelMaps {
   Image maps;  // kMapChannelCount named channels: normal.x/y/z, albedo.r/g/b, sigma, ks, ...
-  FitSummary summary;
+  FitSummary summary;  // Not stored in the file: read_model_maps fills only pixels/fitted/flagged.
+  // The noise model the fit weighted its residuals with (so kMapResidual can be read) and where it
+  // came from; stored in the "lightstage:fit_noise" attribute.
+  NoiseModel noise;
+  std::string noise_source;
   float at(int x, int y, MapChannel c) const { return maps.at(x, y, c); }
   FitModel model(int x, int y) const { return FitModel(int(maps.at(x, y, kMapModel))); }
 };
@@ -108,5 +118,15 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
 // <stem>.normal.png (0.5 + 0.5 n), .albedo.png, .sigma.png (/ (pi/2)), .ks.png, .roughness.png,
 // .model.png (model / 4), .confidence.png, .residual.png (log10(1 + r) / 2), .flags.png.
 void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps);
+
+// Reads what write_model_maps wrote, bit-exactly (channels found by name, in any order). Validates
+// every channel: finite values, model in 0..4, flags a non-negative integer, unit normals and
+// albedo/sigma/ks/roughness within their bounds on fitted pixels. Errors are InputErrors naming
+// the file and the channel: "maps.exr: channel 'model': expected an integer in 0..4 at (3, 7),
+// got 9".
+ModelMaps read_model_maps(const std::filesystem::path& path);
+
+// Channel names of ModelMaps::maps, indexed by MapChannel.
+const std::vector<std::string>& model_map_channel_names();
 
 }  // namespace ls::relight

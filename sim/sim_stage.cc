@@ -5,11 +5,13 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <optional>
 #include <set>
 #include <string>
+#include <thread>
 
 #include "lightstage/errors.h"
 #include "sim/tracer.h"
@@ -540,6 +542,8 @@ struct SimStage::State {
     }
     const int w = cam_spec.width, h = cam_spec.height;
     const size_t n = size_t(w) * h;
+    const auto exposure_ends =
+        std::chrono::steady_clock::now() + std::chrono::duration<double>(request.exposure_s);
 
     // Radiance: the sum of the lit LEDs' one-light images times their RGB irradiance.
     std::vector<const float*> sources;
@@ -598,6 +602,7 @@ struct SimStage::State {
         }
       }
     });
+    if (sensor.real_time) std::this_thread::sleep_until(exposure_ends);
     ++frames_delivered;
     return frame;
   }

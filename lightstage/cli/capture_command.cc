@@ -131,6 +131,10 @@ int capture_session(const CaptureRequest& request) {
     case CaptureSummary::Status::kCameraFailed:
       std::fprintf(stderr, "camera failure: %s\n", summary.message.c_str());
       return kExitHardwareError;
+    case CaptureSummary::Status::kWriteFailed:
+      std::fprintf(stderr, "storage failure: %s\nresume with: lightstage capture --resume %s\n",
+                   summary.message.c_str(), request.session_dir.c_str());
+      return kExitStorageError;
   }
   return 0;
 }

@@ -70,7 +70,7 @@ void write_chart(const std::filesystem::path& png, const ChartAxes& axes,
     for (size_t i = 0; i < s.x.size(); ++i) {
       if (!std::isfinite(s.x[i]) || !std::isfinite(s.y[i])) continue;
       const cv::Point p = to_px(s.x[i], s.y[i]);
-      if (i > 0 && std::isfinite(s.x[i - 1]) && std::isfinite(s.y[i - 1])) {
+      if (s.connect && i > 0 && std::isfinite(s.x[i - 1]) && std::isfinite(s.y[i - 1])) {
         cv::line(img, to_px(s.x[i - 1], s.y[i - 1]), p, colour, 2, cv::LINE_AA);
       }
       cv::circle(img, p, 5, colour, cv::FILLED, cv::LINE_AA);

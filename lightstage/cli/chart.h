@@ -10,6 +10,7 @@ struct ChartSeries {
   std::string name;
   std::vector<double> x, y;
   std::vector<std::string> point_labels;  // Optional, one per point.
+  bool connect = true;  // Lines between consecutive points; false: a scatter of unordered points.
 };
 
 struct ChartAxes {

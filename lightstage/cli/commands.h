@@ -1,7 +1,7 @@
 #pragma once
 // The lightstage subcommands. Each adds itself to the CLI11 app; parsing and printing live here,
 // the work in the libraries. Exit codes: 0 done, 1 usage, 2 bad input, 3 hardware fault,
-// 130 interrupted (resumable).
+// 4 frames could not be saved (resumable), 130 interrupted (resumable).
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -14,6 +14,7 @@ namespace ls::cli {
 
 inline constexpr int kExitInputError = 2;
 inline constexpr int kExitHardwareError = 3;
+inline constexpr int kExitStorageError = 4;  // Frames could not be saved (disk full); resumable.
 inline constexpr int kExitInterrupted = 130;
 
 void add_capture_command(CLI::App& app);
@@ -23,8 +24,13 @@ void add_demo_command(CLI::App& app);
 void add_stage_command(CLI::App& app);
 void add_envmaps_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
+// `bench compact` (needs add_bench_command first) and `compress` (compact_command.cc).
+void add_compact_commands(CLI::App& app);
 void add_devices_command(CLI::App& app);
 void add_check_command(CLI::App& app);
+void add_calibrate_command(CLI::App& app);
+void add_fit_command(CLI::App& app);
+void add_import_command(CLI::App& app);
 
 // Steps shared by the demo and the single-step commands.
 struct CaptureRequest {
@@ -49,6 +55,12 @@ struct RelightRequest {
   double coverage_deg = 0.0;
   std::filesystem::path out_dir;
   bool quiet = false;
+  // --models: render fitted model maps (relight/model_render.h) instead of the field; with a
+  // field too, the field fills the flagged pixels. --edits: an edit file applied to the maps.
+  std::filesystem::path models_file;
+  std::filesystem::path edits_file;
+  int directions_width = 64;      // Lat-long grid the map is integrated on for models.
+  std::vector<double> light_dir;  // --light X Y Z (models): a directional light of unit irradiance.
 };
 // Returns the written preview PNGs with their labels, for contact sheets.
 struct RelitOutput {
@@ -64,5 +76,15 @@ void write_contact_sheet(const std::filesystem::path& out, const std::vector<Rel
 // Shipped maps: data/envmaps in the source tree, plus ../shared/data/envmaps when present.
 std::vector<std::filesystem::path> shipped_environment_maps(bool include_shared);
 std::filesystem::path data_dir();
+
+// lightstage fit: field -> model maps (relight/fit.h).
+struct FitRequest {
+  std::filesystem::path field_file;
+  std::filesystem::path out;
+  bool phong = false;
+  std::string method = "robust";  // Photometric-stereo normals: "robust" or "ls".
+  bool quiet = false;
+};
+int fit_field_file(const FitRequest& request);
 
 }  // namespace ls::cli

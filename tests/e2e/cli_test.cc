@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "lightstage/stage.h"
+#include "tests/e2e/cli_process.h"
 #include "tests/support/test_support.h"
 
 namespace ls {
@@ -17,51 +18,12 @@ namespace {
 
 namespace fs = std::filesystem;
 using testing::cli_path;
+using testing::CountLines;
 using testing::run_command;
-
-std::string Slurp(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), {}};
-}
-
-int CountLines(const fs::path& p) {
-  std::ifstream in(p);
-  int n = 0;
-  std::string line;
-  while (std::getline(in, line)) n += !line.empty();
-  return n;
-}
-
-// A stage small enough to capture in a few seconds.
-fs::path WriteSmallStage(const fs::path& dir) {
-  Stage stage = stage_with_directions(fibonacci_dome_directions(30, -10));
-  stage.camera.width = stage.camera.height = 48;
-  write_file_atomic(dir / "stage.json", stage_to_json(stage));
-  return dir / "stage.json";
-}
-
-pid_t Spawn(const std::vector<std::string>& args) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    std::vector<char*> argv;
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    freopen("/dev/null", "w", stderr);
-    execv(argv[0], argv.data());
-    _exit(127);
-  }
-  return pid;
-}
-
-// Waits until the session's journal has at least n lines (or the process ends).
-void WaitForFrames(const fs::path& session, int n, pid_t pid) {
-  for (int i = 0; i < 2000; ++i) {
-    if (CountLines(session / "frames.jsonl") >= n) return;
-    int status;
-    if (waitpid(pid, &status, WNOHANG) == pid) return;
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  }
-}
+using testing::Slurp;
+using testing::Spawn;
+using testing::WaitForFrames;
+using testing::WriteSmallStage;
 
 TEST(Cli, KilledCaptureResumesToExactlyTheFramesOfAnUninterruptedOne) {
   testing::TempDir tmp;
@@ -97,7 +59,7 @@ TEST(Cli, KilledCaptureResumesToExactlyTheFramesOfAnUninterruptedOne) {
   ASSERT_EQ(whole, resumed);
   ASSERT_EQ(whole.size(), size_t(3 * (2 + 30)));
   for (const auto& name : whole) {
-    ASSERT_EQ(Slurp(tmp / "whole" / "frames" / name), Slurp(tmp / "killed" / "frames" / name))
+    ASSERT_TRUE(Slurp(tmp / "whole" / "frames" / name) == Slurp(tmp / "killed" / "frames" / name))
         << name;
   }
   EXPECT_NE(Slurp(tmp / "killed" / "manifest.json").find("\"complete\""), std::string::npos);

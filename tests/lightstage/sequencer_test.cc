@@ -2,6 +2,11 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
 #include "tests/lightstage/fake_hardware.h"
 #include "tests/support/test_support.h"
 
@@ -157,6 +162,57 @@ TEST(Sequencer, HardwareErrorStillSwitchesAllLedsOff) {
   EXPECT_THROW(run_capture(session, lights, camera, Instant()), HardwareError);
   EXPECT_EQ(lights.count_on(), 0);
   EXPECT_EQ(Session::open(tmp / "s").frames().size(), size_t(3 * 2 + 3 * 3));
+}
+
+// The frames directory stops being writable mid-capture (as when a disk fills or is unmounted; the
+// tests run as root, so permissions cannot stand in for it: frames/ is swapped for a plain file).
+TEST(Sequencer, FramesThatCannotBeSavedStopTheCaptureCleanlyAndResumeRecapturesThem) {
+  testing::TempDir tmp;
+  const Stage stage = SmallStage();
+  Session session = Session::create(tmp / "s", stage, {});
+  struct SabotagingCamera : FakeCamera {
+    using FakeCamera::FakeCamera;
+    CapturedFrame capture(const FrameRequest& r) override {
+      if (frames == 20) {
+        // Let the writer thread save some frames first, so that there is something to keep.
+        for (int i = 0; i < 500 && JournalLines() < 10; ++i) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        }
+        std::filesystem::rename(dir / "frames", dir / "frames.away");
+        std::ofstream(dir / "frames") << "not a directory";
+      }
+      return FakeCamera::capture(r);
+    }
+    int JournalLines() const {
+      std::ifstream in(dir / "frames.jsonl");
+      int n = 0;
+      for (std::string line; std::getline(in, line);) ++n;
+      return n;
+    }
+    std::filesystem::path dir;
+  };
+  FakeLights lights(int(stage.leds.size()));
+  SabotagingCamera camera(lights);
+  camera.dir = tmp / "s";
+  const CaptureSummary stopped = run_capture(session, lights, camera, Instant());
+  EXPECT_EQ(stopped.status, CaptureSummary::Status::kWriteFailed);
+  EXPECT_NE(stopped.message.find("cannot save frames"), std::string::npos) << stopped.message;
+  EXPECT_EQ(lights.count_on(), 0);
+  EXPECT_LE(stopped.frames_captured, 20);
+  EXPECT_GE(stopped.frames_captured, 9);  // At least the 10 journal lines waited for, bar one.
+
+  std::filesystem::remove(tmp / "s" / "frames");
+  std::filesystem::rename(tmp / "s" / "frames.away", tmp / "s" / "frames");
+  Session reopened = Session::open(tmp / "s");
+  EXPECT_EQ(int(reopened.frames().size()), stopped.frames_captured);
+  for (const auto& [key, record] : reopened.frames()) {
+    EXPECT_NO_THROW(reopened.load_frame(key)) << record.file;
+  }
+  FakeCamera healthy(lights);
+  const CaptureSummary resumed = run_capture(reopened, lights, healthy, Instant());
+  EXPECT_EQ(resumed.status, CaptureSummary::Status::kComplete);
+  EXPECT_TRUE(reopened.complete());
+  EXPECT_EQ(healthy.frames, int(plan_frames(stage).size()) - stopped.frames_captured);
 }
 
 }  // namespace

@@ -69,9 +69,13 @@ TEST(Session, TornJournalLineAndMissingFrameFileAreRecapturedNotTrusted) {
   // A kill during an append leaves a partial line; a lost file leaves a dangling entry.
   std::ofstream(tmp / "s" / "frames.jsonl", std::ios::app) << "{\"t\": 0, \"led\": 1, \"e";
   std::filesystem::remove(tmp / "s" / "frames" / (plan[2].key.name(stage) + ".png"));
-  const Session s = Session::open(tmp / "s");
-  EXPECT_EQ(s.frames().size(), 3u);
-  EXPECT_EQ(s.missing_frames().front().key, plan[2].key);
+  {
+    Session s = Session::open(tmp / "s");
+    EXPECT_EQ(s.frames().size(), 3u);
+    EXPECT_EQ(s.missing_frames().front().key, plan[2].key);
+    s.record_frame(plan[2], Frame(7));  // Appended after the cut, not onto the torn line.
+  }
+  EXPECT_EQ(Session::open(tmp / "s").frames().size(), 4u);
 }
 
 TEST(Session, RefusesToOverwriteAnExistingSessionAndNamesNonSessions) {

@@ -1,0 +1,612 @@
+#include "capture/light_calibration.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <numeric>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "lightstage/errors.h"
+
+namespace ls::capture {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+double luminance(const Image& image, size_t pixel) {
+  const float* p = image.pixels.data() + pixel * image.channels;
+  if (image.channels >= 3) return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+  return p[0];
+}
+
+cv::Mat luminance_mat(const Image& image) {
+  cv::Mat out(image.height, image.width, CV_32F);
+  for (int y = 0; y < image.height; ++y) {
+    float* row = out.ptr<float>(y);
+    for (int x = 0; x < image.width; ++x)
+      row[x] = float(luminance(image, size_t(y) * image.width + x));
+  }
+  return out;
+}
+
+std::string format(const char* fmt, double a, double b = 0, double c = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, fmt, a, b, c);
+  return buf;
+}
+
+}  // namespace
+
+double angle_between_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  // atan2 of |a x b| and a.b stays accurate for tiny angles, unlike acos.
+  return std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
+}
+
+// ---------------------------------------------------------------------------------------------
+// ViewCamera
+
+ViewCamera ViewCamera::from_spec(const CameraSpec& camera) {
+  ViewCamera v;
+  v.width = camera.width;
+  v.height = camera.height;
+  v.cx = 0.5 * camera.width;
+  v.cy = 0.5 * camera.height;
+  if (camera.fov_y_deg <= 0) {
+    v.orthographic = true;
+    v.metres_per_pixel = camera.ortho_height_m / camera.height;
+  } else {
+    v.orthographic = false;
+    v.fy = 0.5 * camera.height / std::tan(0.5 * camera.fov_y_deg * kDeg);
+    v.fx = v.fy;  // Square pixels.
+    v.centre_in_stage = Eigen::Vector3d(0, 0, camera.distance_m);
+  }
+  return v;
+}
+
+ViewCamera ViewCamera::orthographic_pixels(int width, int height) {
+  ViewCamera v;
+  v.width = width;
+  v.height = height;
+  v.cx = 0.5 * width;
+  v.cy = 0.5 * height;
+  v.orthographic = true;
+  v.metres_per_pixel = 1.0;
+  return v;
+}
+
+void ViewCamera::ray(const Eigen::Vector2d& pixel, Eigen::Vector3d* origin,
+                     Eigen::Vector3d* dir) const {
+  if (orthographic) {
+    // Far in front of anything the image shows.
+    const double z = 10.0 * (width + height) * metres_per_pixel;
+    *origin = Eigen::Vector3d((pixel.x() - cx) * metres_per_pixel,
+                              -(pixel.y() - cy) * metres_per_pixel, z);
+    *dir = Eigen::Vector3d(0, 0, -1);
+  } else {
+    *origin = centre_in_stage;
+    *dir = Eigen::Vector3d((pixel.x() - cx) / fx, -(pixel.y() - cy) / fy, -1.0).normalized();
+  }
+}
+
+Eigen::Vector2d ViewCamera::project(const Eigen::Vector3d& p) const {
+  if (orthographic) return {p.x() / metres_per_pixel + cx, -p.y() / metres_per_pixel + cy};
+  const Eigen::Vector3d q = p - centre_in_stage;
+  const double depth = std::max(-q.z(), 1e-12);
+  return {cx + fx * q.x() / depth, cy - fy * q.y() / depth};
+}
+
+// ---------------------------------------------------------------------------------------------
+// Spheres
+
+std::vector<SphereOutline> find_sphere_outlines(const Image& reference, int max_spheres,
+                                                double min_radius_px) {
+  std::vector<SphereOutline> out;
+  if (reference.width < 4 || reference.height < 4 || max_spheres < 1) return out;
+  const cv::Mat lum = luminance_mat(reference);
+  // Scale so that the brightest 0.1% saturate: robust to highlights, keeps 8 bits for Otsu.
+  std::vector<float> sorted(lum.begin<float>(), lum.end<float>());
+  const size_t k = size_t(0.999 * double(sorted.size() - 1));
+  std::nth_element(sorted.begin(), sorted.begin() + k, sorted.end());
+  const double top = sorted[k];
+  if (!(top > 0)) return out;
+  cv::Mat bytes;
+  lum.convertTo(bytes, CV_8U, 255.0 / top);
+  cv::Mat binary;
+  cv::threshold(bytes, binary, 0, 255, cv::THRESH_BINARY | cv::THRESH_OTSU);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(binary, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  std::vector<std::pair<double, int>> by_area;
+  for (size_t i = 0; i < contours.size(); ++i) {
+    by_area.push_back({cv::contourArea(contours[i]), int(i)});
+  }
+  std::sort(by_area.rbegin(), by_area.rend());
+  for (const auto& [area, index] : by_area) {
+    if (int(out.size()) >= max_spheres) break;
+    if (area < kPi * min_radius_px * min_radius_px) break;
+    // The region with its holes filled (dark reflections inside the sphere), then its moments.
+    cv::Mat mask = cv::Mat::zeros(binary.size(), CV_8U);
+    cv::drawContours(mask, contours, index, cv::Scalar(255), cv::FILLED);
+    const cv::Moments m = cv::moments(mask, /*binaryImage=*/true);
+    if (m.m00 <= 0) continue;
+    SphereOutline s;
+    s.center_px = Eigen::Vector2d(m.m10 / m.m00 + 0.5, m.m01 / m.m00 + 0.5);
+    s.radius_px = std::sqrt(m.m00 / kPi);
+    // A uniform ellipse has second moments a^2/4 and b^2/4 along its axes.
+    Eigen::Matrix2d cov;
+    cov << m.mu20 / m.m00, m.mu11 / m.m00, m.mu11 / m.m00, m.mu02 / m.m00;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);
+    const double a = 2.0 * std::sqrt(std::max(eig.eigenvalues()(1), 0.0));
+    const double b = 2.0 * std::sqrt(std::max(eig.eigenvalues()(0), 0.0));
+    // Scale the axes so that pi a b equals the measured area (removes the pixelation bias).
+    const double scale = a * b > 0 ? s.radius_px / std::sqrt(a * b) : 1.0;
+    s.major_semi_axis_px = eig.eigenvectors().col(1) * a * scale;
+    out.push_back(s);
+  }
+  std::sort(out.begin(), out.end(), [](const SphereOutline& l, const SphereOutline& r) {
+    return l.center_px.x() < r.center_px.x();
+  });
+  return out;
+}
+
+std::optional<SphereOutline> find_sphere_circle_hough(const Image& reference, double min_radius_px,
+                                                      double max_radius_px) {
+  const cv::Mat lum = luminance_mat(reference);
+  double lo = 0, hi = 0;
+  cv::minMaxLoc(lum, &lo, &hi);
+  if (!(hi > lo)) return std::nullopt;
+  cv::Mat bytes;
+  lum.convertTo(bytes, CV_8U, 255.0 / (hi - lo), -255.0 * lo / (hi - lo));
+  cv::GaussianBlur(bytes, bytes, cv::Size(0, 0), 2.0);
+  std::vector<cv::Vec3f> circles;
+  cv::HoughCircles(bytes, circles, cv::HOUGH_GRADIENT, /*dp=*/2, /*minDist=*/min_radius_px,
+                   /*param1=*/100, /*param2=*/50, int(min_radius_px), int(max_radius_px));
+  if (circles.empty()) return std::nullopt;
+  SphereOutline s;
+  // OpenCV's pixel centres are integers; ours are at +0.5.
+  s.center_px = Eigen::Vector2d(circles[0][0] + 0.5, circles[0][1] + 0.5);
+  s.radius_px = circles[0][2];
+  s.major_semi_axis_px = Eigen::Vector2d(s.radius_px, 0);
+  return s;
+}
+
+MirrorSphere locate_sphere(const SphereOutline& outline, const ViewCamera& camera, double radius_m,
+                           double center_z_m) {
+  MirrorSphere s;
+  if (camera.orthographic) {
+    Eigen::Vector3d origin, dir;
+    camera.ray(outline.center_px, &origin, &dir);
+    s.center_in_stage = Eigen::Vector3d(origin.x(), origin.y(), center_z_m);
+    s.radius_m = outline.radius_px * camera.metres_per_pixel;
+    return s;
+  }
+  if (!(radius_m > 0)) {
+    throw InputError("mirror sphere: radius_m: a pinhole camera needs the sphere's radius, got " +
+                     std::to_string(radius_m));
+  }
+  // The tangent cone from the camera centre: its generators through the ends of the outline's
+  // major axis make the half angle alpha with its axis, and sin(alpha) = radius / distance.
+  Eigen::Vector2d axis = outline.major_semi_axis_px;
+  if (axis.norm() < 1e-9) axis = Eigen::Vector2d(outline.radius_px, 0);
+  Eigen::Vector3d o1, d1, o2, d2;
+  camera.ray(outline.center_px - axis, &o1, &d1);
+  camera.ray(outline.center_px + axis, &o2, &d2);
+  const double alpha = 0.5 * std::atan2(d1.cross(d2).norm(), d1.dot(d2));
+  s.radius_m = radius_m;
+  s.center_in_stage =
+      camera.centre_in_stage + (radius_m / std::sin(alpha)) * (d1 + d2).normalized();
+  return s;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Highlights
+
+std::optional<Highlight> find_highlight(const Image& image, const SphereOutline& outline,
+                                        const HighlightOptions& options, std::string* problem) {
+  const double r = outline.radius_px;
+  const int x0 = std::max(0, int(std::floor(outline.center_px.x() - r)));
+  const int x1 = std::min(image.width - 1, int(std::ceil(outline.center_px.x() + r)));
+  const int y0 = std::max(0, int(std::floor(outline.center_px.y() - r)));
+  const int y1 = std::min(image.height - 1, int(std::ceil(outline.center_px.y() + r)));
+  if (x1 <= x0 || y1 <= y0) {
+    *problem = "the sphere lies outside the image";
+    return std::nullopt;
+  }
+  const int w = x1 - x0 + 1, h = y1 - y0 + 1;
+  cv::Mat values(h, w, CV_32F, cv::Scalar(-1.0f));  // -1: outside the disc.
+  std::vector<float> inside;
+  double peak = 0;
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const Eigen::Vector2d d = Eigen::Vector2d(x + 0.5, y + 0.5) - outline.center_px;
+      if (d.norm() > 0.995 * r) continue;
+      const float v = float(luminance(image, size_t(y) * image.width + x));
+      values.at<float>(y - y0, x - x0) = v;
+      inside.push_back(v);
+      peak = std::max(peak, double(v));
+    }
+  }
+  if (inside.empty()) {
+    *problem = "the sphere's disc holds no pixels";
+    return std::nullopt;
+  }
+  auto percentile = [&](double q) {
+    const size_t k = size_t(q * double(inside.size() - 1));
+    std::nth_element(inside.begin(), inside.begin() + k, inside.end());
+    return double(inside[k]);
+  };
+  const double p50 = percentile(0.5), p90 = percentile(0.9);
+  // Pixel noise from neighbour differences (robust: their median absolute value), which a
+  // reflection's smooth texture hardly raises: a dark frame's noise peak must not pass for a
+  // highlight.
+  std::vector<float> steps;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x + 1 < w; ++x) {
+      const float a = values.at<float>(y, x), b = values.at<float>(y, x + 1);
+      if (a >= 0 && b >= 0) steps.push_back(std::abs(a - b));
+    }
+  }
+  double sigma = 0;
+  if (!steps.empty()) {
+    std::nth_element(steps.begin(), steps.begin() + steps.size() / 2, steps.end());
+    sigma = 1.4826 * steps[steps.size() / 2] / std::sqrt(2.0);
+  }
+  if (!(peak > options.min_peak) || !(peak > options.min_contrast * std::max(p90, 0.0)) ||
+      !(peak > p50 + options.min_snr * sigma)) {
+    *problem = format(
+        "no highlight: the brightest pixel (%.4g) does not stand out from the "
+        "disc (median %.4g, 90th percentile %.4g)",
+        peak, p50, p90);
+    return std::nullopt;
+  }
+  const double threshold = options.blob_fraction * peak;
+  cv::Mat mask = values > threshold;
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  std::vector<double> energy(n, 0.0), sx(n, 0.0), sy(n, 0.0);
+  std::vector<int> count(n, 0), saturated(n, 0);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int l = labels.at<int>(y, x);
+      if (l == 0) continue;
+      const double v = values.at<float>(y, x);
+      const double wgt = v - threshold;
+      energy[l] += wgt;
+      sx[l] += wgt * (x0 + x + 0.5);
+      sy[l] += wgt * (y0 + y + 0.5);
+      ++count[l];
+      if (options.saturation_level > 0 && v >= options.saturation_level) ++saturated[l];
+    }
+  }
+  int best = 0, second = 0;
+  for (int l = 1; l < n; ++l) {
+    if (best == 0 || energy[l] > energy[best]) {
+      second = best;
+      best = l;
+    } else if (second == 0 || energy[l] > energy[second]) {
+      second = l;
+    }
+  }
+  if (best == 0 || !(energy[best] > 0)) {
+    *problem = "no highlight blob above the threshold";
+    return std::nullopt;
+  }
+  if (second != 0 && energy[second] > options.second_blob_ratio * energy[best]) {
+    *problem = format("two highlights: the second has %.0f%% of the first's energy, at %.0f px",
+                      100.0 * energy[second] / energy[best],
+                      (Eigen::Vector2d(sx[second] / energy[second], sy[second] / energy[second]) -
+                       Eigen::Vector2d(sx[best] / energy[best], sy[best] / energy[best]))
+                          .norm());
+    return std::nullopt;
+  }
+  Highlight hl;
+  hl.center_px = Eigen::Vector2d(sx[best] / energy[best], sy[best] / energy[best]);
+  hl.peak = peak;
+  hl.pixels = count[best];
+  hl.saturated_pixels = saturated[best];
+  return hl;
+}
+
+std::optional<LightRay> reflect_at(const ViewCamera& camera, const MirrorSphere& sphere,
+                                   const Eigen::Vector2d& pixel) {
+  Eigen::Vector3d o, d;
+  camera.ray(pixel, &o, &d);
+  const Eigen::Vector3d oc = o - sphere.center_in_stage;
+  const double b = oc.dot(d);
+  const double c = oc.squaredNorm() - sphere.radius_m * sphere.radius_m;
+  const double disc = b * b - c;
+  if (disc < 0) return std::nullopt;
+  const double t = -b - std::sqrt(disc);
+  const Eigen::Vector3d p = o + t * d;
+  const Eigen::Vector3d n = (p - sphere.center_in_stage).normalized();
+  const Eigen::Vector3d v = -d;
+  LightRay ray;
+  ray.origin = p;
+  ray.dir = (2.0 * n.dot(v) * n - v).normalized();
+  ray.normal_angle_deg = angle_between_deg(n, v);
+  return ray;
+}
+
+std::optional<Eigen::Vector3d> closest_point_to_rays(const std::vector<LightRay>& rays,
+                                                     double* rms_distance_m, double min_angle_deg) {
+  if (rays.size() < 2) return std::nullopt;
+  double widest = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    for (size_t j = i + 1; j < rays.size(); ++j) {
+      widest = std::max(widest, angle_between_deg(rays[i].dir, rays[j].dir));
+    }
+  }
+  if (widest < min_angle_deg) return std::nullopt;
+  Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (const LightRay& r : rays) {
+    const Eigen::Matrix3d perp = Eigen::Matrix3d::Identity() - r.dir * r.dir.transpose();
+    a += perp;
+    b += perp * r.origin;
+  }
+  const Eigen::Vector3d p = a.ldlt().solve(b);
+  if (!p.allFinite()) return std::nullopt;
+  double sum2 = 0;
+  for (const LightRay& r : rays) {
+    if ((p - r.origin).dot(r.dir) <= 0) return std::nullopt;  // Behind a sphere.
+    const Eigen::Vector3d q = p - r.origin;
+    sum2 += (q - q.dot(r.dir) * r.dir).squaredNorm();
+  }
+  if (rms_distance_m) *rms_distance_m = std::sqrt(sum2 / double(rays.size()));
+  return p;
+}
+
+DirectionCalibration calibrate_directions(const std::vector<const Image*>& images,
+                                          const std::vector<std::string>& names,
+                                          const std::vector<SphereOutline>& outlines,
+                                          const std::vector<MirrorSphere>& spheres,
+                                          const ViewCamera& camera,
+                                          const DirectionOptions& options) {
+  LS_CHECK(outlines.size() == spheres.size(), "one outline per sphere");
+  LS_CHECK(names.size() == images.size(), "one name per image");
+  DirectionCalibration result;
+  for (size_t i = 0; i < images.size(); ++i) {
+    LedDirectionEstimate est;
+    est.led_index = int(i);
+    const Image& image = *images[i];
+    auto report = [&](int sphere, const std::string& what) {
+      result.problems.push_back({int(i), sphere, names[i], what});
+    };
+    if (image.width != camera.width || image.height != camera.height) {
+      report(-1, "image is " + std::to_string(image.width) + "x" + std::to_string(image.height) +
+                     ", the camera " + std::to_string(camera.width) + "x" +
+                     std::to_string(camera.height));
+      result.leds.push_back(est);
+      continue;
+    }
+    for (size_t s = 0; s < spheres.size(); ++s) {
+      std::string problem;
+      const auto hl = find_highlight(image, outlines[s], options.highlight, &problem);
+      if (!hl) {
+        report(int(s), problem);
+        continue;
+      }
+      const auto ray = reflect_at(camera, spheres[s], hl->center_px);
+      if (!ray) {
+        report(int(s), "the highlight lies outside the sphere");
+        continue;
+      }
+      if (ray->normal_angle_deg > options.highlight.max_normal_angle_deg) {
+        report(int(s), format("highlight too near the rim (normal %.1f deg from the view)",
+                              ray->normal_angle_deg));
+        continue;
+      }
+      est.rays.push_back(*ray);
+    }
+    if (est.rays.empty()) {
+      result.leds.push_back(est);
+      continue;
+    }
+    est.ok = true;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const LightRay& r : est.rays) mean += r.dir;
+    est.dir_in_stage = mean.normalized();
+    std::vector<LightRay> steady;  // Rays good enough to triangulate with.
+    for (const LightRay& r : est.rays) {
+      if (r.normal_angle_deg <= options.max_triangulation_normal_deg) steady.push_back(r);
+    }
+    double miss = 0;
+    if (const auto p = closest_point_to_rays(steady, &miss, options.min_triangulation_angle_deg);
+        p && p->norm() <= options.max_distance_m && p->norm() > 0) {
+      est.position_in_stage = *p;
+      est.ray_miss_m = miss;
+      est.dir_in_stage = p->normalized();
+    }
+    result.leds.push_back(est);
+  }
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------------
+// White target
+
+double FlatField::at(double u, double v) const {
+  if (coefficients.size() != 6) return 1.0;
+  const double m[6] = {1, u, v, u * u, u * v, v * v};
+  double s = 0;
+  for (int k = 0; k < 6; ++k) s += coefficients[k] * m[k];
+  return s;
+}
+
+IntensityCalibration calibrate_intensities(const std::vector<const Image*>& images,
+                                           const std::vector<std::string>& names,
+                                           const Stage& stage, const WhitePlane& plane,
+                                           const ViewCamera& camera,
+                                           const IntensityOptions& options) {
+  LS_CHECK(names.size() == images.size(), "one name per image");
+  if (images.size() != stage.leds.size()) {
+    throw InputError(stage.source + ": leds: expected one white-target image per LED (" +
+                     std::to_string(stage.leds.size()) + "), got " + std::to_string(images.size()));
+  }
+  const Eigen::Vector3d n = plane.normal.normalized();
+  const double radiance_per_irradiance = plane.albedo / kPi;  // Lambertian, 1/sr.
+  const Eigen::Vector2d origin_px = camera.project(Eigen::Vector3d::Zero());
+  auto to_uv = [&](const Eigen::Vector2d& px) {
+    return Eigen::Vector2d(2.0 * px.x() / camera.width - 1.0, 2.0 * px.y() / camera.height - 1.0);
+  };
+  const Eigen::Vector2d origin_uv = to_uv(origin_px);
+  const int step = std::max(1, options.step);
+  IntensityCalibration result;
+  for (size_t i = 0; i < images.size(); ++i) {
+    const Image& image = *images[i];
+    const Led& led = stage.leds[i];
+    LedIntensityEstimate est;
+    est.led_index = int(i);
+    auto report = [&](const std::string& what) {
+      result.problems.push_back({int(i), -1, names[i], what});
+      result.leds.push_back(est);
+    };
+    if (image.width != camera.width || image.height != camera.height || image.channels < 1) {
+      report("image is " + std::to_string(image.width) + "x" + std::to_string(image.height) +
+             ", the camera " + std::to_string(camera.width) + "x" + std::to_string(camera.height));
+      continue;
+    }
+    // A plain vector and a flag (not std::optional): GCC 12 warns falsely on optional Eigen.
+    const bool near_led = led.distance_m.has_value();
+    const Eigen::Vector3d led_pos = led.distance_m.value_or(0.0) * led.dir_in_stage.normalized();
+    // Rows of the fit: (u, v), the geometry factor, and the per-channel observed radiance.
+    std::vector<Eigen::Vector2d> uv;
+    std::vector<Eigen::Vector3d> q;  // Observed radiance / (albedo/pi * geometry), per channel.
+    long considered = 0, clipped = 0;
+    for (int y = step / 2; y < image.height; y += step) {
+      for (int x = step / 2; x < image.width; x += step) {
+        const Eigen::Vector2d px(x + 0.5, y + 0.5);
+        Eigen::Vector3d o, d;
+        camera.ray(px, &o, &d);
+        const double denom = d.dot(n);
+        if (std::abs(denom) < 1e-9) continue;
+        const Eigen::Vector3d p = o + ((plane.center_in_stage - o).dot(n) / denom) * d;
+        double geometry;
+        if (near_led) {
+          const Eigen::Vector3d to_led = led_pos - p;
+          const double r2 = to_led.squaredNorm();
+          geometry = std::max(0.0, n.dot(to_led.normalized())) * led_pos.squaredNorm() / r2;
+        } else {
+          geometry = std::max(0.0, n.dot(led.dir_in_stage.normalized()));
+        }
+        if (geometry < 0.05) continue;  // Grazing: the cosine amplifies every error.
+        ++considered;
+        Eigen::Vector3d value;
+        bool clip = false, dark = false;
+        for (int c = 0; c < 3; ++c) {
+          const double v = image.at(x, y, std::min(c, image.channels - 1));
+          if (options.saturation_level > 0 && v >= options.saturation_level) clip = true;
+          if (!(v > options.min_signal)) dark = true;
+          value[c] = v;
+        }
+        if (clip) {
+          ++clipped;
+          continue;
+        }
+        if (dark) continue;
+        uv.push_back(to_uv(px));
+        q.push_back(value / (radiance_per_irradiance * geometry));
+      }
+    }
+    if (considered == 0) {
+      report("the white target is not lit by this LED (it faces away)");
+      continue;
+    }
+    const double clipped_fraction = double(clipped) / double(considered);
+    if (clipped_fraction > options.max_saturated_fraction) {
+      report(format("saturated: %.1f%% of the white target is clipped", 100.0 * clipped_fraction));
+      continue;
+    }
+    if (uv.size() < 12) {
+      report("too few usable pixels on the white target (" + std::to_string(uv.size()) + ")");
+      continue;
+    }
+    // The shape s(u, v) from the channel sum, least squares over the quadratic monomials.
+    Eigen::MatrixXd a(uv.size(), 6);
+    Eigen::VectorXd sum(uv.size());
+    for (size_t k = 0; k < uv.size(); ++k) {
+      const double u = uv[k].x(), v = uv[k].y();
+      a.row(k) << 1, u, v, u * u, u * v, v * v;
+      sum[k] = q[k].sum();
+    }
+    const Eigen::VectorXd coef = a.colPivHouseholderQr().solve(sum);
+    const double u0 = origin_uv.x(), v0 = origin_uv.y();
+    const double at_origin = coef[0] + coef[1] * u0 + coef[2] * v0 + coef[3] * u0 * u0 +
+                             coef[4] * u0 * v0 + coef[5] * v0 * v0;
+    if (!(at_origin > 0) || !coef.allFinite()) {
+      report("the white target's fit is not positive at the stage origin");
+      continue;
+    }
+    est.flat_field.coefficients.assign(coef.data(), coef.data() + 6);
+    for (double& c : est.flat_field.coefficients) c /= at_origin;
+    const Eigen::VectorXd fitted = a * coef;
+    est.fit_rms = std::sqrt((sum - fitted).squaredNorm() / double(uv.size())) / sum.mean();
+    // Per-channel scale of the shared shape, least squares: E_c = sum(q_c s) / sum(s^2).
+    Eigen::Vector3d num = Eigen::Vector3d::Zero();
+    double den = 0;
+    for (size_t k = 0; k < uv.size(); ++k) {
+      const double s = fitted[k] / at_origin;
+      num += q[k] * s;
+      den += s * s;
+    }
+    est.irradiance_rgb = num / den;
+    est.ok = est.irradiance_rgb.allFinite() && est.irradiance_rgb.minCoeff() > 0;
+    if (!est.ok) {
+      report("the white target gives a non-positive irradiance");
+      continue;
+    }
+    result.leds.push_back(est);
+  }
+  return result;
+}
+
+StageUpdate apply_directions(const DirectionCalibration& calibration, Stage* stage) {
+  StageUpdate update;
+  for (const LedDirectionEstimate& e : calibration.leds) {
+    if (!e.ok || e.led_index < 0 || e.led_index >= int(stage->leds.size())) continue;
+    Led& led = stage->leds[e.led_index];
+    led.dir_in_stage = e.dir_in_stage.normalized();
+    if (e.position_in_stage) led.distance_m = e.position_in_stage->norm();
+    ++update.directions_changed;
+  }
+  return update;
+}
+
+StageUpdate apply_intensities(const IntensityCalibration& calibration, Stage* stage) {
+  StageUpdate update;
+  for (const LedIntensityEstimate& e : calibration.leds) {
+    if (!e.ok || e.led_index < 0 || e.led_index >= int(stage->leds.size())) continue;
+    Led& led = stage->leds[e.led_index];
+    led.intensity = e.irradiance_rgb.mean();
+    led.color_gain = e.irradiance_rgb / led.intensity;
+    ++update.intensities_changed;
+  }
+  return update;
+}
+
+Image flat_field_image(const IntensityCalibration& calibration, const Stage& stage, int width,
+                       int height) {
+  const int n = int(calibration.leds.size());
+  Image out(width, height, std::max(n, 1), 1.0f);
+  out.channel_names.clear();
+  for (int l = 0; l < n; ++l) {
+    const int idx = calibration.leds[l].led_index;
+    const int id = idx >= 0 && idx < int(stage.leds.size()) ? stage.leds[idx].id : idx;
+    char name[32];
+    std::snprintf(name, sizeof name, "led%03d.Y", id);
+    out.channel_names.push_back(name);
+    const FlatField& f = calibration.leds[l].flat_field;
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        const double u = 2.0 * (x + 0.5) / width - 1.0, v = 2.0 * (y + 0.5) / height - 1.0;
+        out.at(x, y, l) = float(f.at(u, v));
+      }
+    }
+  }
+  if (n == 0) out.channel_names = {"Y"};
+  return out;
+}
+
+}  // namespace ls::capture

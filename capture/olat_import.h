@@ -1,0 +1,87 @@
+#pragma once
+// Importers of existing one-light-at-a-time (OLAT) photo sets into a ReflectanceField, so that
+// `fit` and `relight` take real photographs:
+//  * RTI sets described by an .lp file: line 1 a count N, then N lines "image x y z";
+//  * the DiLiGenT photometric-stereo layout: a folder with filenames.txt, light_directions.txt,
+//    light_intensities.txt, mask.png and 16-bit PNGs.
+// Field value = linear pixel value / light intensity (per channel), i.e. the pixel's value per unit
+// irradiance of that light, up to one global scale (field.h). Lights get ids 0..N-1 in file order.
+//
+// Direction frames: both formats give unit vectors toward the light in the camera's frame, x right
+// and y up in the image, z toward the camera. The stage frame has the camera on +Z looking toward
+// -Z with +Y up, so image right is +X: the mapping is the identity.
+//
+// Saturation: a pixel at the file's maximum code (255 or 65535) is only a lower bound. The field
+// has no per-sample mask and relight/normals.h and fit.h only know whole lights (FieldLight::valid)
+// and a per-pixel shadow threshold, so such samples are counted and reported (summary), and kept as
+// lower bounds by default, as build_field does for samples saturated in every exposure; with
+// `zero_saturated` they become 0, which the normals and fits then treat as shadowed (left out) at
+// the cost of darkening relit highlights.
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+
+namespace ls::capture {
+
+enum class OlatFormat { kRtiLp, kDiligent };
+const char* to_string(OlatFormat format);
+
+// How integer pixel codes map to linear values (float files are always read as linear).
+enum class TransferCurve {
+  kSrgb,    // IEC 61966-2-1 piecewise curve.
+  kGamma,   // linear = code^gamma, code normalised to [0, 1].
+  kLinear,  // linear = code (raw sensor data, e.g. DiLiGenT's 16-bit PNGs).
+};
+
+struct OlatImportOptions {
+  // Empty: the format's default (RTI .lp sets: sRGB, they are usually JPEGs; DiLiGenT: linear).
+  std::optional<TransferCurve> transfer;
+  double gamma = 2.2;  // For TransferCurve::kGamma; in (0, 10].
+  // > 0: downsizes (area averaging) so that max(width, height) <= max_size. 0 keeps the size.
+  int max_size = 0;
+  // Saturated samples (max code): false keeps them as lower bounds, true writes 0 (see above).
+  bool zero_saturated = false;
+  // Called as images finish, from worker threads but never two at a time.
+  std::function<void(int done, int total)> on_progress;
+
+  // Empty when valid; otherwise a sentence naming the option and its valid range.
+  std::string validate() const;
+};
+
+struct OlatImportSummary {
+  OlatFormat format = OlatFormat::kRtiLp;
+  std::filesystem::path source;  // The .lp file or the DiLiGenT folder.
+  int images = 0;
+  int source_width = 0, source_height = 0;  // As stored.
+  int width = 0, height = 0;                // Of the field (after --max-size).
+  std::string pixel_format;                 // Of the first image, e.g. "8-bit RGB", "16-bit grey".
+  std::string transfer_undone;              // "sRGB curve", "gamma 2.2", "none (linear)".
+  double min_dir_z = 0, max_dir_z = 0;      // Range of the light directions' z (toward camera).
+  long long saturated_samples = 0;          // Pixel channels at the maximum code, all images.
+  double saturated_fraction = 0.0;          // Of all samples.
+  int masked_out_pixels = 0;                // DiLiGenT: pixels outside mask.png (set to 0).
+  bool intensities_divided = false;         // DiLiGenT: light_intensities.txt divided out.
+  std::vector<std::string> notes;           // E.g. image paths found by file name only.
+  double seconds = 0.0;
+};
+
+// Which format `source` is: an .lp file, a folder with exactly one .lp file, or a folder with
+// filenames.txt and light_directions.txt (DiLiGenT). InputError naming it otherwise.
+OlatFormat detect_olat_format(const std::filesystem::path& source);
+
+// `lp_file` may also be a folder holding exactly one .lp file.
+ReflectanceField import_rti_lp(const std::filesystem::path& lp_file,
+                               const OlatImportOptions& options,
+                               OlatImportSummary* summary = nullptr);
+ReflectanceField import_diligent(const std::filesystem::path& folder,
+                                 const OlatImportOptions& options,
+                                 OlatImportSummary* summary = nullptr);
+// Detects the format and imports.
+ReflectanceField import_olat(const std::filesystem::path& source, const OlatImportOptions& options,
+                             OlatImportSummary* summary = nullptr);
+
+}  // namespace ls::capture
