@@ -323,6 +323,21 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
     // Merged signal is "full scale per second at gain 1"; radiometric_scale turns it into radiance,
     // and dividing by the LED's irradiance gives R(x, l) per unit irradiance (1/sr).
     for (int c = 0; c < 3; ++c) scale[i][c] = float(camera.radiometric_scale / e[c]);
+    // Saturation ceiling: a sample clipped in every exposure keeps the shortest exposure's value,
+    // (linear - dark) / (exposure * gain) with linear >= saturation_level (hdr_merge.h), so no
+    // clipped sample lies below (saturation_level - dark level) / (exposure * gain) of that step.
+    int shortest = 0;
+    auto exposure_gain = [&](int e) {
+      return brackets[i].records[e]->exposure_s * brackets[i].records[e]->gain;
+    };
+    for (int e = 1; e < num_exposures; ++e) {
+      if (exposure_gain(e) < exposure_gain(shortest)) shortest = e;
+    }
+    const double ceiling = (options.merge.saturation_level - noise_steps[shortest].dark_level) /
+                           exposure_gain(shortest);
+    if (ceiling > 0 && std::isfinite(ceiling)) {
+      for (int c = 0; c < 3; ++c) field.lights()[i].saturates_at[c] = float(ceiling) * scale[i][c];
+    }
   }
   // LEDs whose brackets feed photon transfer.
   std::vector<bool> transfer_led(num_lights, false);

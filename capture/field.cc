@@ -130,10 +130,16 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
   nlohmann::json lights = nlohmann::json::array();
   for (const FieldLight& light : field.lights()) {
     for (int c = 0; c < 3; ++c) spec.channelnames.push_back(channel_name(light.led_id, c));
-    lights.push_back(
-        {{"id", light.led_id},
-         {"dir", {light.dir_in_stage.x(), light.dir_in_stage.y(), light.dir_in_stage.z()}},
-         {"valid", light.valid}});
+    nlohmann::json entry = {
+        {"id", light.led_id},
+        {"dir", {light.dir_in_stage.x(), light.dir_in_stage.y(), light.dir_in_stage.z()}},
+        {"valid", light.valid}};
+    // JSON has no infinity: a light that never saturates simply has no key.
+    if (light.saturates_at.allFinite()) {
+      entry["saturates_at"] = {light.saturates_at.x(), light.saturates_at.y(),
+                               light.saturates_at.z()};
+    }
+    lights.push_back(entry);
   }
   spec.alpha_channel = -1;
   spec.attribute(kLightsAttribute, lights.dump());
@@ -198,11 +204,21 @@ ReflectanceField read_field(const std::filesystem::path& path) {
       light.dir_in_stage = {dir[0].get<double>(), dir[1].get<double>(), dir[2].get<double>()};
       light.valid = e.at("valid").get<bool>();
       if (!light.dir_in_stage.allFinite()) throw InputError("dir must be finite");
+      if (e.contains("saturates_at")) {
+        const auto& sat = e.at("saturates_at");
+        if (!sat.is_array() || sat.size() != 3) throw InputError("saturates_at must be [r, g, b]");
+        light.saturates_at = {sat[0].get<float>(), sat[1].get<float>(), sat[2].get<float>()};
+        if (!(light.saturates_at.array() > 0).all() || !light.saturates_at.allFinite()) {
+          throw InputError("saturates_at must be finite and positive");
+        }
+      }
       lights.push_back(light);
     }
   } catch (const std::exception& e) {
-    throw InputError(name + ": attribute '" + std::string(kLightsAttribute) +
-                     "': expected a JSON array of {id, dir: [x, y, z], valid}: " + e.what());
+    throw InputError(
+        name + ": attribute '" + std::string(kLightsAttribute) +
+        "': expected a JSON array of {id, dir: [x, y, z], valid, saturates_at?: [r, g, b]}: " +
+        e.what());
   }
   const int num_lights = int(lights.size());
   const int num_channels = spec.nchannels;

@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <filesystem>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -20,7 +21,24 @@ struct FieldLight {
   int led_id = 0;
   Eigen::Vector3d dir_in_stage{0, 1, 0};
   bool valid = true;  // False for an LED found dead or missing: its samples are zero, not data.
+  // Saturation ceiling per channel (RGB), in field units: the value a sample takes when the sensor
+  // clipped it in every exposure (the HDR merge then keeps a lower bound). Samples at or above
+  // kCensoredFraction * saturates_at are censored: the truth is at least that, not that.
+  // +infinity: never saturates (simulated, or unknown for older files).
+  Eigen::Vector3f saturates_at = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
 };
+
+// A channel value at or above this fraction of its light's saturates_at is censored (a lower
+// bound). Below 1 so that a clipped sample whose dark level was a little above the mean still
+// counts.
+inline constexpr float kCensoredFraction = 0.999f;
+// Whether any channel of a light's sample (3 values, RGB) is censored by saturation.
+inline bool is_saturated(const FieldLight& light, const float* rgb) {
+  for (int c = 0; c < 3; ++c) {
+    if (rgb[c] >= kCensoredFraction * light.saturates_at[c]) return true;
+  }
+  return false;
+}
 
 // Measurement noise of a field's values, in field units (value per unit LED irradiance):
 // variance(v) = read_variance + shot_variance_per_unit * max(v, 0). Estimated from the capture
@@ -84,8 +102,9 @@ std::size_t available_memory_bytes();
 void require_memory(std::size_t bytes, const std::string& what);
 
 // OpenEXR, float, one channel per LED and colour named "led042.R" etc., pixel-interleaved (which
-// is exactly the in-memory layout); LED directions and validity in the "lightstage:lights"
-// attribute.
+// is exactly the in-memory layout); LED directions, validity and (where finite) saturation ceilings
+// in the "lightstage:lights" attribute ({id, dir, valid, saturates_at: [r, g, b]}; saturates_at is
+// optional on read, absent = never saturates).
 void write_field(const std::filesystem::path& path, const ReflectanceField& field);
 ReflectanceField read_field(const std::filesystem::path& path);
 

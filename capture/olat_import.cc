@@ -388,6 +388,12 @@ long long import_image(const ImportJob& job, int light, const ImageHeader& first
   }
   const float* values = rgb.ptr<float>();
   const Eigen::Vector3f inverse_intensity = entry.intensity_rgb.cwiseInverse();
+  // An integer file clips at its largest code: after the transfer curve and the intensity that is
+  // this light's ceiling. (A field pixel averaged from clipped and unclipped image pixels lies
+  // below it and is not caught.) Float files carry no ceiling.
+  if (integer) {
+    field.lights()[light].saturates_at = (*table)[max_code] * inverse_intensity;
+  }
   for (int y = 0; y < field.height(); ++y) {
     for (int x = 0; x < field.width(); ++x) {
       const float* v = values + (std::size_t(y) * field.width() + x) * 3;

@@ -179,6 +179,7 @@ const char* to_string(FitModel model) {
 std::string FitOptions::validate() const {
   if (std::string e = normals.validate(); !e.empty()) return "normals: " + e;
   if (max_iterations < 1) return "max_iterations: expected >= 1";
+  if (!(max_specular_albedo > 0)) return "max_specular_albedo: expected > 0";
   for (const double m : roughness_starts) {
     if (!(m > kMinRoughness && m < 1)) return "roughness_starts: expected values in (0.02, 1)";
   }
@@ -192,7 +193,8 @@ std::string FitSummary::to_string() const {
   std::ostringstream s;
   s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged; models:";
   for (int m = 1; m < 5; ++m) s << ' ' << relight::to_string(FitModel(m)) << '=' << per_model[m];
-  s << "; " << discarded_nonfinite_fits << " non-finite fits discarded; " << seconds << " s";
+  s << "; " << discarded_nonfinite_fits << " non-finite fits discarded, "
+    << discarded_implausible_lobes << " lobes with implausible k_s discarded; " << seconds << " s";
   return s.str();
 }
 
@@ -256,8 +258,13 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
         const double threshold =
             std::max(no.shadow_sigmas * std::sqrt(no.noise.a), no.shadow_fraction * y_max);
         int count = 0;
+        int saturated = 0;
         for (size_t i = 0; i < dirs.size(); ++i) {
           const float* v = px + 3 * light_index[i];
+          if (capture::is_saturated(field.lights()[light_index[i]], v)) {
+            ++saturated;  // A lower bound, not a measurement.
+            continue;
+          }
           const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
           if (!(lum > threshold) || !std::isfinite(lum)) continue;
           Sample& s = samples[count++];
@@ -267,8 +274,9 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
             s.inv_sigma[c] = 1 / std::sqrt(no.noise.variance(v[c]));
           }
         }
-        if (count < no.min_lights) {
-          m[kMapFlags] = float(kFitFailed);
+        if (count < no.min_lights || saturated > no.max_saturated_fraction * (count + saturated)) {
+          m[kMapFlags] =
+              float((count < no.min_lights ? kFitFailed : 0) | (saturated > 0 ? kSaturated : 0));
           ++local.flagged;
           continue;
         }
@@ -297,6 +305,8 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
           start[2 + c] = std::sqrt(std::max(sxx > 0 ? sxy / sxx : 0.0, 1e-4));
         }
         std::array<ModelFit, 5> fits;
+        // Lobe fits thrown away for k_s > max_specular_albedo, per model (not non-finite ones).
+        std::array<bool, 5> implausible{};
         fits[1] = run_fit<FitModel::kLambert>(d, start, options.max_iterations);
         if (fits[1].ok) start = fits[1].x;
         if (options.fit_oren_nayar) {
@@ -311,6 +321,10 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
             s[5] = std::sqrt(0.05);
             s[6] = logit((m0 - kMinRoughness) / (1 - kMinRoughness));
             ModelFit f = run_fit<FitModel::kLambertTorranceSparrow>(d, s, options.max_iterations);
+            if (f.ok && f.ks > options.max_specular_albedo) {
+              implausible[3] = true;
+              continue;
+            }
             if (f.ok && f.bic < fits[3].bic) fits[3] = f;
           }
         }
@@ -319,13 +333,23 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
           s[5] = std::sqrt(0.05);
           s[6] = logit(49.0 / (kMaxPhongExponent - 1));  // Exponent 50.
           fits[4] = run_fit<FitModel::kLambertPhong>(d, s, options.max_iterations);
+          if (fits[4].ok && fits[4].ks > options.max_specular_albedo) {
+            implausible[4] = true;
+            fits[4] = ModelFit{};
+          }
         }
         int best = 0;
         for (int k = 1; k < 5; ++k) {
           const bool tried = k == 1 || (k == 2 && options.fit_oren_nayar) ||
                              (k == 3 && options.fit_torrance_sparrow) ||
                              (k == 4 && options.fit_phong);
-          if (tried && !fits[k].ok) ++local.discarded_nonfinite_fits;
+          if (tried && !fits[k].ok) {
+            if (implausible[k]) {
+              ++local.discarded_implausible_lobes;
+            } else {
+              ++local.discarded_nonfinite_fits;
+            }
+          }
           // Strictly lower BIC needed: ties go to the simpler model (lower index).
           if (fits[k].ok && (best == 0 || fits[k].bic < fits[best].bic)) best = k;
         }
@@ -361,6 +385,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
     summary.fitted += local.fitted;
     summary.flagged += local.flagged;
     summary.discarded_nonfinite_fits += local.discarded_nonfinite_fits;
+    summary.discarded_implausible_lobes += local.discarded_implausible_lobes;
     for (int k = 0; k < 5; ++k) summary.per_model[k] += local.per_model[k];
   });
   summary.seconds =
@@ -430,7 +455,7 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps) 
   preview("confidence", kMapConfidence, 1, identity);
   preview("residual", kMapResidual, 1,
           [](float v) { return std::log10(1 + std::max(v, 0.f)) / 2; });
-  preview("flags", kMapFlags, 1, [](float v) { return v / 31; });
+  preview("flags", kMapFlags, 1, [](float v) { return v / 63; });  // Bits up to kSaturated (32).
 }
 
 ModelMaps read_model_maps(const std::filesystem::path& path) {

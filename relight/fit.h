@@ -17,8 +17,9 @@
 // Samples: every valid light whose luminance is above the shadow threshold (NormalOptions), all
 // three channels, each residual divided by its noise sigma (NoiseModel, from the measured value),
 // so chi^2 = sum of squared residuals is chi^2-distributed with n - k degrees of freedom when the
-// model is right. Samples at or below the threshold are left out: a near-zero value where the
-// model says "lit" is almost always a cast shadow (the models have no visibility term), and
+// model is right. Samples at their light's saturation ceiling (capture/field.h) are left out too:
+// they are lower bounds. Samples at or below the threshold are left out: a near-zero value where
+// the model says "lit" is almost always a cast shadow (the models have no visibility term), and
 // including it would bias albedo and normal; a near-zero value where the model says "unlit"
 // carries almost no information. Samples above the threshold that the model predicts unlit (n.l
 // <= 0) stay in and count against it.
@@ -47,6 +48,9 @@ enum class FitModel : int {
 };
 const char* to_string(FitModel model);
 
+// Default bound on a lobe's k_s, shared with ModelRenderOptions (relight/model_render.h).
+inline constexpr double kDefaultMaxSpecularAlbedo = 2.0;
+
 struct FitOptions {
   // Normals (used when fit_models estimates them) and the shadow threshold and noise model of the
   // fits: one NoiseModel for both.
@@ -57,6 +61,11 @@ struct FitOptions {
   // Torrance-Sparrow is multimodal in roughness: one LM start per entry, the best kept.
   std::vector<double> roughness_starts{0.08, 0.3};
   int max_iterations = 50;
+  // A lobe fit (Torrance-Sparrow or Phong) with k_s above this is discarded and the pixel falls
+  // back to a simpler model: k_s is the lobe's albedo (Fresnel folded in), at most about 1 for
+  // calibrated data; 3e4..1e8 happen where no sample constrains the lobe (near silhouettes, under
+  // clipping). 2 leaves margin for calibration error. Raise it for data in uncalibrated units.
+  double max_specular_albedo = kDefaultMaxSpecularAlbedo;
   // View direction (unit, toward the camera) per pixel, row-major; empty = orthographic (0, 0, 1).
   std::vector<Eigen::Vector3d> view_dir_per_pixel;
   // Where normals.noise came from, stored with the maps (e.g. "measured: dark-frame pairs").
@@ -91,8 +100,9 @@ struct FitSummary {
   int pixels = 0;
   int fitted = 0;
   int flagged = 0;
-  int per_model[5] = {0, 0, 0, 0, 0};  // Indexed by FitModel.
-  int discarded_nonfinite_fits = 0;    // Individual model fits thrown away (not pixels).
+  int per_model[5] = {0, 0, 0, 0, 0};   // Indexed by FitModel.
+  int discarded_nonfinite_fits = 0;     // Individual model fits thrown away (not pixels).
+  int discarded_implausible_lobes = 0;  // Lobe fits with k_s > max_specular_albedo (per model).
   double seconds = 0;
   std::string to_string() const;
 };

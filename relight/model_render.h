@@ -65,12 +65,12 @@ struct ModelRenderOptions {
   // image is given (same size, >= 3 channels), e.g. the field relit under the same lighting: then
   // they take its value, so a model render can be a drop-in for a field render.
   const Image* flagged_fallback = nullptr;
-  // The lobe's k_s is clamped to this when rendering. fit.cc does not bound k_s, and a pixel near
-  // the silhouette whose lobe no sample constrains can get a non-physical one (k_s ~ 3e4 on 11 of
-  // 1895 pixels of the test scene) that shines under directions between or below the LEDs. 1 is
-  // the physical limit for calibrated data (k_s is the lobe's albedo, Fresnel folded in); raise it
-  // for data in uncalibrated units. Infinity: render the fit as it is.
-  float max_specular_albedo = 1.0f;
+  // The lobe's k_s is clamped to this when rendering: the same bound fit_models applies
+  // (FitOptions::max_specular_albedo), kept here for maps fitted with a higher bound or by older
+  // versions, where a pixel near the silhouette whose lobe no sample constrains could get a
+  // non-physical k_s (~3e4) that shines under directions between or below the LEDs. Infinity:
+  // render the fit as it is.
+  float max_specular_albedo = float(kDefaultMaxSpecularAlbedo);
 };
 
 // 3-channel linear radiance image the size of the maps. Rows in parallel (TBB); never NaN (the maps

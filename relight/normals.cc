@@ -24,7 +24,8 @@ struct Scratch {
   std::vector<double> weight;  // Current LS weight (0 = not used).
   std::vector<double> abs_u;   // |normalised residual|, for the MAD.
   std::vector<int> order;      // For trimming.
-  explicit Scratch(size_t n) : y(n), sigma(n), weight(n), abs_u(n), order(n) {}
+  std::vector<char> usable;    // Lit (above the shadow threshold) and not saturated.
+  explicit Scratch(size_t n) : y(n), sigma(n), weight(n), abs_u(n), order(n), usable(n) {}
 };
 
 struct Solve {
@@ -81,6 +82,9 @@ std::string NormalOptions::validate() const {
     return "trim_bright_fraction: expected [0, 0.5)";
   }
   if (irls_iterations < 0) return "irls_iterations: expected >= 0";
+  if (!(max_saturated_fraction >= 0 && max_saturated_fraction <= 1)) {
+    return "max_saturated_fraction: expected [0, 1]";
+  }
   if (!(tukey_c > 0)) return "tukey_c: expected > 0";
   return {};
 }
@@ -104,6 +108,7 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
   const std::vector<int>& light_index = valid.index;
   const std::vector<Eigen::Vector3d>& dirs = valid.dirs_in_stage;
   const size_t n = dirs.size();
+  const std::vector<capture::FieldLight>& lights = field.lights();
   const bool robust = options.method == NormalMethod::kRobust;
   std::atomic<int> flagged{0};
 
@@ -124,16 +129,24 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
         const double threshold = std::max(options.shadow_sigmas * std::sqrt(options.noise.a),
                                           options.shadow_fraction * y_max);
         int lit = 0;
+        int saturated = 0;
         for (size_t i = 0; i < n; ++i) {
-          const bool use = s.y[i] > threshold;
+          const bool censored =
+              capture::is_saturated(lights[light_index[i]], px + 3 * light_index[i]);
+          const bool use = s.y[i] > threshold && !censored;
+          s.usable[i] = use;
           s.weight[i] = use ? 1.0 / (s.sigma[i] * s.sigma[i]) : 0.0;
           lit += use;
+          saturated += censored;
         }
         int flags = 0;
-        if (lit == 0) {
+        if (lit == 0 && saturated == 0) {
           flags |= kAllShadowed;
         } else if (lit < options.min_lights) {
           flags |= kTooFewLights;
+          if (saturated > 0) flags |= kSaturated;
+        } else if (saturated > options.max_saturated_fraction * (lit + saturated)) {
+          flags |= kSaturated;
         }
 
         Solve solve;
@@ -158,12 +171,12 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
           for (int it = 0; it < options.irls_iterations && solve.ok; ++it) {
             int k = 0;
             for (size_t i = 0; i < n; ++i) {
-              if (!(s.y[i] > threshold)) continue;
+              if (!s.usable[i]) continue;
               s.abs_u[k++] = std::abs(s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
             }
             const double scale = std::max(1.4826 * median_of(s.abs_u, k), 1.0);
             for (size_t i = 0; i < n; ++i) {
-              if (!(s.y[i] > threshold)) continue;
+              if (!s.usable[i]) continue;
               const double u =
                   (s.y[i] - dirs[i].dot(solve.g)) / (s.sigma[i] * options.tukey_c * scale);
               const double t = 1 - u * u;

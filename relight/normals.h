@@ -44,7 +44,12 @@ struct NormalOptions {
   // max(shadow_sigmas * sqrt(noise.a), shadow_fraction * brightest luminance of the pixel).
   double shadow_sigmas = 4.0;
   double shadow_fraction = 0.01;
-  int min_lights = 4;                  // Fewer usable lights: flagged kTooFewLights.
+  int min_lights = 4;  // Fewer usable lights: flagged kTooFewLights.
+  // Samples at their light's saturation ceiling (FieldLight::saturates_at, capture/field.h) are
+  // lower bounds, not measurements: they are left out like shadowed ones. A pixel that loses more
+  // than this fraction of its lit samples so is flagged kSaturated: what remains are the dim,
+  // grazing samples, which pin the normal down poorly once the surface is not Lambertian.
+  double max_saturated_fraction = 0.75;
   double min_condition = 0.05;         // sqrt(lambda_min / lambda_max) of L^T W L; below: flagged.
   double trim_bright_fraction = 0.15;  // kRobust: brightest lit samples left out of the start.
   int irls_iterations = 4;             // kRobust.
@@ -61,6 +66,9 @@ enum NormalFlag : int {
   kIllConditioned = 2,  // The used lights span too narrow a cone (see min_condition).
   kAllShadowed = 4,     // No sample above the noise (background, or black).
   kFacingAway = 8,      // The solution points away from the camera or has albedo <= 0.
+  // (16 is kFitFailed, relight/fit.h.)
+  kSaturated = 32,  // Saturation censored too many samples (see max_saturated_fraction); also set
+                    // with kTooFewLights when censoring is what left too few.
 };
 
 struct NormalMap {

@@ -299,4 +299,66 @@ Image render_white_plane(const WhitePlaneTarget& target, const Led& led, const L
   return out;
 }
 
+BoardPose board_facing_camera(const Chessboard& board, const Eigen::Vector3d& center_in_stage,
+                              double tilt_x_deg, double tilt_y_deg) {
+  // Untilted: board x along stage +X, board y (rows) along stage -Y, so the printed side (-z in
+  // the board frame) faces stage +Z, the camera, and the image shows the board upright.
+  Eigen::Matrix3d facing;
+  facing << 1, 0, 0, 0, -1, 0, 0, 0, -1;
+  const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(tilt_y_deg * kDeg, Eigen::Vector3d::UnitY()) *
+                                Eigen::AngleAxisd(tilt_x_deg * kDeg, Eigen::Vector3d::UnitX()))
+                                   .toRotationMatrix();
+  BoardPose pose;
+  pose.rotation = tilt * facing;
+  const Eigen::Vector3d board_centre(0.5 * (board.inner_cols - 1) * board.square_m,
+                                     0.5 * (board.inner_rows - 1) * board.square_m, 0.0);
+  pose.translation = center_in_stage - pose.rotation * board_centre;
+  return pose;
+}
+
+Image render_chessboard(const Chessboard& board, const BoardPose& pose, const CameraSpec& camera,
+                        int supersample) {
+  LS_CHECK(board.inner_cols >= 2 && board.inner_rows >= 2 && board.square_m > 0,
+           "chessboard: " + std::to_string(board.inner_cols) + "x" +
+               std::to_string(board.inner_rows) + " corners, square " +
+               std::to_string(board.square_m) + " m");
+  const int ss = std::max(1, supersample);
+  const Eigen::Matrix3d board_from_stage = pose.rotation.transpose();
+  // Squares are indexed from the one left of and above the first inner corner (-1, -1); the card
+  // reaches one square beyond the pattern on every side.
+  const double lo = -2.0 * board.square_m;
+  const double hi_x = (board.inner_cols + 1) * board.square_m;
+  const double hi_y = (board.inner_rows + 1) * board.square_m;
+  Image out(camera.width, camera.height, 3);
+  tbb::parallel_for(tbb::blocked_range<int>(0, camera.height), [&](const auto& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < camera.width; ++x) {
+        double sum = 0;
+        for (int sy = 0; sy < ss; ++sy) {
+          for (int sx = 0; sx < ss; ++sx) {
+            Eigen::Vector3d o, d;
+            camera_ray(camera, x + (sx + 0.5) / ss, y + (sy + 0.5) / ss, &o, &d);
+            const Eigen::Vector3d ob = board_from_stage * (o - pose.translation);
+            const Eigen::Vector3d db = board_from_stage * d;
+            if (std::abs(db.z()) < 1e-12) continue;
+            const double t = -ob.z() / db.z();
+            if (t <= 0) continue;
+            const Eigen::Vector3d p = ob + t * db;
+            if (p.x() < lo || p.x() > hi_x || p.y() < lo || p.y() > hi_y) continue;
+            const int i = int(std::floor(p.x() / board.square_m));
+            const int j = int(std::floor(p.y() / board.square_m));
+            const bool in_pattern =
+                i >= -1 && i < board.inner_cols && j >= -1 && j < board.inner_rows;
+            const bool black = in_pattern && ((i + j) % 2 + 2) % 2 == 0;
+            sum += black ? board.black_radiance : board.white_radiance;
+          }
+        }
+        const float v = float(sum / (ss * ss));
+        for (int c = 0; c < 3; ++c) out.at(x, y, c) = v;
+      }
+    }
+  });
+  return out;
+}
+
 }  // namespace ls::sim

@@ -11,6 +11,7 @@
 //    honest target. Pixels are supersampled (box filter).
 //  * A matte white plane facing the camera: Lambertian, lit by each LED with its beam
 //    non-uniformity and, for LEDs at a finite distance, the 1/r^2 falloff and the local cosine.
+//  * A printed chessboard at any pose, for camera intrinsics (capture/camera_calibration.h).
 //  * A sensor: optical blur, shot and read noise, clipping at full scale, quantisation.
 #include <Eigen/Core>
 #include <cstdint>
@@ -96,5 +97,33 @@ struct WhitePlaneTarget {
 // Radiance image of the white plane lit by one LED of the perturbed stage (its beam applied).
 Image render_white_plane(const WhitePlaneTarget& target, const Led& led, const LedBeam& beam,
                          const CameraSpec& camera);
+
+// A printed chessboard on a flat card: inner_cols x inner_rows inner corners (OpenCV's pattern
+// size), squares square_m wide, a white margin of one square around the pattern. Board frame: the
+// first inner corner at the origin, x along the columns, y along the rows, the card in z = 0 and
+// its printed side facing -z.
+struct Chessboard {
+  int inner_cols = 9;
+  int inner_rows = 6;
+  double square_m = 0.03;
+  double black_radiance = 0.05;
+  double white_radiance = 0.9;
+};
+
+// Where the board is: stage_from_board maps board coordinates to the stage frame.
+struct BoardPose {
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d translation{0, 0, 0};
+};
+
+// A pose that shows the board's printed side to the stage's camera (on +Z): the board centred
+// at `center_in_stage`, tilted by tilt_x_deg about the stage X axis and tilt_y_deg about Y.
+BoardPose board_facing_camera(const Chessboard& board, const Eigen::Vector3d& center_in_stage,
+                              double tilt_x_deg, double tilt_y_deg);
+
+// Radiance image (RGB, grey) of the chessboard seen by the stage's camera (orthographic or
+// pinhole, as the simulator), supersample^2 samples per pixel (box filter), on a black background.
+Image render_chessboard(const Chessboard& board, const BoardPose& pose, const CameraSpec& camera,
+                        int supersample = 4);
 
 }  // namespace ls::sim

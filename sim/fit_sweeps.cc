@@ -183,7 +183,8 @@ void shadow_wedges(capture::ReflectanceField& field, const std::vector<SurfaceHi
 }
 
 // Clips the brightest `fraction` of the positive samples at the level below them, as a camera
-// whose every exposure saturated leaves a lower bound.
+// whose every exposure saturated leaves a lower bound, and tells the field so (saturates_at, as
+// build_field does), which lets normals and fits censor the clipped samples.
 void saturate(capture::ReflectanceField& field, double fraction) {
   if (fraction <= 0) return;
   std::vector<float> positive;
@@ -200,6 +201,7 @@ void saturate(capture::ReflectanceField& field, double fraction) {
       for (int i = 0; i < 3 * field.num_lights(); ++i) px[i] = std::min(px[i], clip);
     }
   }
+  for (capture::FieldLight& light : field.lights()) light.saturates_at.setConstant(clip);
 }
 
 void kill_leds(capture::ReflectanceField& field, double fraction, uint64_t seed) {

@@ -243,15 +243,21 @@ bool Tracer::intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir
 
 bool Tracer::occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                       double t_min) const {
+  return occluded(origin, dir, t_min, kInf);
+}
+
+bool Tracer::occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_min,
+                      double t_max) const {
+  // Each hit_* returns its nearest crossing past t_min, so comparing it with t_max is enough.
   double t = 0;
   for (int i = 0; i < int(scene_.spheres.size()); ++i) {
-    if (hit_sphere(i, origin, dir, t_min, &t)) return true;
+    if (hit_sphere(i, origin, dir, t_min, &t) && t < t_max) return true;
   }
   for (int i = 0; i < int(planes_.size()); ++i) {
-    if (hit_plane(i, origin, dir, t_min, &t)) return true;
+    if (hit_plane(i, origin, dir, t_min, &t) && t < t_max) return true;
   }
   for (const Field& f : fields_) {
-    if (hit_field(f, origin, dir, t_min, /*any=*/true, &t)) return true;
+    if (hit_field(f, origin, dir, t_min, /*any=*/true, &t) && t < t_max) return true;
   }
   return false;
 }
@@ -407,11 +413,59 @@ Image render_one_light_with(const Tracer& tracer, const std::vector<SurfaceHit>&
   return out;
 }
 
+Image render_one_near_light_with(const Tracer& tracer, const std::vector<SurfaceHit>& hits,
+                                 const Eigen::Vector3d& led_position_in_stage) {
+  if (hits.empty()) return Image();
+  const int width = hits.back().pixel_x + 1, height = hits.back().pixel_y + 1;
+  LS_CHECK(size_t(width) * height == hits.size(),
+           "hits do not form an image: " + std::to_string(hits.size()) + " hits");
+  // Irradiance at x per unit irradiance at the origin (both facing the LED): (d0 / r)^2.
+  const double d0_squared = led_position_in_stage.squaredNorm();
+  LS_CHECK(d0_squared > 0, "a near LED at the stage centre");
+  Image out(width, height, 3);
+  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const auto& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < width; ++x) {
+        const SurfaceHit& h = hits[size_t(y) * width + x];
+        if (!h.hit) continue;
+        const Eigen::Vector3d to_led = led_position_in_stage - h.position;
+        const double r_squared = to_led.squaredNorm();
+        if (!(r_squared > 1e-12)) continue;  // The LED sits on the surface: no defined light.
+        const Eigen::Vector3d wi = to_led / std::sqrt(r_squared);
+        const auto g = brdf::Geometry<double>::from_world(h.normal, wi, h.wo);
+        if (!(g.cos_i > 0)) continue;
+        const Eigen::Vector3d f = brdf::eval(h.material, g);
+        if (!(f.maxCoeff() > 0)) continue;
+        // Shadow ray from the offset origin to the LED itself: geometry behind it does not count.
+        const Eigen::Vector3d origin = shadow_ray_origin(h);
+        const Eigen::Vector3d to_led_from_origin = led_position_in_stage - origin;
+        const double reach = to_led_from_origin.norm();
+        if (tracer.occluded(origin, to_led_from_origin / reach, 0.0, reach)) continue;
+        const double falloff = d0_squared / r_squared;
+        for (int c = 0; c < 3; ++c) out.at(x, y, c) = float(f[c] * g.cos_i * falloff);
+      }
+    }
+  });
+  return out;
+}
+
 }  // namespace detail
 
 Image render_one_light(const Scene& scene, const std::vector<SurfaceHit>& hits,
                        const Eigen::Vector3d& dir_in_stage) {
   return detail::render_one_light_with(Tracer(scene), hits, dir_in_stage);
+}
+
+Image render_one_near_light(const Scene& scene, const std::vector<SurfaceHit>& hits,
+                            const Eigen::Vector3d& led_position_in_stage) {
+  return detail::render_one_near_light_with(Tracer(scene), hits, led_position_in_stage);
+}
+
+Image render_one_led(const Scene& scene, const std::vector<SurfaceHit>& hits, const Led& led) {
+  if (led.distance_m) {
+    return render_one_near_light(scene, hits, *led.distance_m * led.dir_in_stage.normalized());
+  }
+  return render_one_light(scene, hits, led.dir_in_stage);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -508,7 +562,11 @@ struct SimStage::State {
 
   const Image& one_light_image(int led) {
     if (!one_light[led]) {
-      one_light[led] = detail::render_one_light_with(*tracer, hits, stage.leds[led].dir_in_stage);
+      const Led& l = stage.leds[led];
+      one_light[led] = l.distance_m
+                           ? detail::render_one_near_light_with(
+                                 *tracer, hits, *l.distance_m * l.dir_in_stage.normalized())
+                           : detail::render_one_light_with(*tracer, hits, l.dir_in_stage);
     }
     return *one_light[led];
   }
@@ -612,6 +670,12 @@ SimStage::SimStage(Stage stage, Scene scene, uint64_t seed) : state_(std::make_u
   state_->stage = std::move(stage);
   state_->scene = std::move(scene);
   state_->seed = seed;
+  for (const Led& led : state_->stage.leds) {
+    if (led.distance_m && !(*led.distance_m > 0)) {
+      throw InputError(state_->stage.source + ": leds: LED " + std::to_string(led.id) +
+                       ": expected a positive distance, got " + std::to_string(*led.distance_m));
+    }
+  }
   state_->tracer = std::make_unique<Tracer>(state_->scene);
   state_->hits = trace_camera(state_->scene, state_->stage.camera);
   const size_t leds = state_->stage.leds.size();

@@ -25,6 +25,19 @@ bool visible(const Scene& scene, const Eigen::Vector3d& position, const Eigen::V
 Image render_one_light(const Scene& scene, const std::vector<SurfaceHit>& hits,
                        const Eigen::Vector3d& dir_in_stage);
 
+// Noise-free radiance image under one LED at a finite position (a point source, near field):
+// x is lit from the direction toward the LED with irradiance (d0 / |P - x|)^2 times the irradiance
+// at the origin, d0 = |P|, so a unit LED keeps Led::intensity's meaning (irradiance at the origin,
+// facing the LED); L_o = f_r * cos(theta_i) * (d0 / r)^2 * V, the shadow ray ending at the LED.
+// render_ground_truth integrates environment maps, which are light at infinity: it has no near
+// LEDs, and captures of near LEDs agree with it only as far as the dome approximates infinity.
+Image render_one_near_light(const Scene& scene, const std::vector<SurfaceHit>& hits,
+                            const Eigen::Vector3d& led_position_in_stage);
+
+// render_one_near_light at distance_m * dir_in_stage when the LED has a distance, otherwise
+// render_one_light along dir_in_stage (bit for bit).
+Image render_one_led(const Scene& scene, const std::vector<SurfaceHit>& hits, const Led& led);
+
 class SimStage {
  public:
   SimStage(Stage stage, Scene scene, uint64_t seed);
@@ -36,7 +49,8 @@ class SimStage {
   const Scene& scene() const;
   const std::vector<SurfaceHit>& hits() const;
   // The noise-free one-light image of LED `led_index` (the ideal R(x, l), ignoring set_dead_led),
-  // rendered on first use and cached.
+  // rendered on first use and cached; near-field (render_one_near_light) when the LED has a
+  // distance_m, distant otherwise.
   const Image& one_light_image(int led_index);
 
   // Failure injection for tests: the camera times out on these sequence keys (once each), or

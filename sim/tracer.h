@@ -23,6 +23,9 @@ class Tracer {
                  RayHit* hit) const;
   // Any hit with t in (t_min, inf): the shadow-ray query.
   bool occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_min) const;
+  // Any hit with t in (t_min, t_max): the shadow ray toward a light at a finite distance t_max.
+  bool occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double t_min,
+                double t_max) const;
 
   // Shading data at a hit: unit geometric/shading normal (not yet facing the viewer) and the
   // object's own (s, t) coordinates in [0,1]^2 for spatially varying materials.
@@ -69,6 +72,10 @@ void plane_tangents(const Eigen::Vector3d& normal, Eigen::Vector3d* u, Eigen::Ve
 // render_one_light with a tracer built once by the caller.
 Image render_one_light_with(const Tracer& tracer, const std::vector<SurfaceHit>& hits,
                             const Eigen::Vector3d& dir_in_stage);
+
+// render_one_near_light with a tracer built once by the caller.
+Image render_one_near_light_with(const Tracer& tracer, const std::vector<SurfaceHit>& hits,
+                                 const Eigen::Vector3d& led_position_in_stage);
 
 // The surface offset used for shadow rays, metres (scene scale is about a metre).
 inline constexpr double kShadowOffsetM = 2e-4;

@@ -2,12 +2,14 @@
 // photographs, written into a calibrated stage file.
 //   lightstage calibrate directions --stage S.json --images DIR --out CAL.json
 //   lightstage calibrate intensities --stage CAL.json --white DIR --out CAL2.json
+//   lightstage calibrate camera --images DIR --board 9x6 --square 30 [--stage S --out CAL.json]
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <regex>
 
+#include "capture/camera_calibration.h"
 #include "capture/light_calibration.h"
 #include "lightstage/cli/commands.h"
 #include "lightstage/errors.h"
@@ -34,6 +36,9 @@ struct CalibrateArgs {
   fs::path flat_field;
   fs::path out;
   bool quiet = false;
+  std::string board = "9x6";  // Inner corners, WxH.
+  double square_mm = 30.0;
+  bool square_pixels = false;
 };
 
 bool is_image(const fs::path& p) {
@@ -239,6 +244,82 @@ int run_intensities(const CalibrateArgs& args) {
   return update.intensities_changed > 0 ? 0 : kExitInputError;
 }
 
+capture::ChessboardSpec parse_board(const std::string& text, double square_mm) {
+  static const std::regex pattern(R"((\d+)[xX](\d+))");
+  std::smatch m;
+  if (!std::regex_match(text, m, pattern)) {
+    throw InputError("--board: expected WxH inner corners (e.g. 9x6), got \"" + text + "\"");
+  }
+  capture::ChessboardSpec spec;
+  spec.inner_cols = std::stoi(m[1]);
+  spec.inner_rows = std::stoi(m[2]);
+  spec.square_m = square_mm * 1e-3;
+  spec.check();
+  return spec;
+}
+
+int run_camera(const CalibrateArgs& args) {
+  const capture::ChessboardSpec board = parse_board(args.board, args.square_mm);
+  if (!fs::is_directory(args.images_dir)) {
+    throw InputError(args.images_dir.string() + ": expected a directory of images");
+  }
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(args.images_dir)) {
+    if (e.is_regular_file() && is_image(e.path())) files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  if (files.empty()) throw InputError(args.images_dir.string() + ": no images");
+  std::vector<Image> images;
+  std::vector<std::string> names;
+  ProgressReporter progress("read chessboard views", long(files.size()), args.quiet);
+  for (size_t i = 0; i < files.size(); ++i) {
+    images.push_back(read_image(files[i]));
+    names.push_back(files[i].filename().string());
+    progress.update(long(i + 1));
+  }
+  progress.done();
+  std::vector<const Image*> pointers;
+  for (const Image& im : images) pointers.push_back(&im);
+  capture::CameraCalibrationOptions options;
+  options.fix_aspect_ratio = args.square_pixels;
+  const capture::CameraCalibration cal = capture::calibrate_camera(pointers, names, board, options);
+  for (const auto& v : cal.views) {
+    if (v.found) {
+      std::printf("%-32s board found, reprojection RMS %.3f px\n", v.image.c_str(),
+                  v.rms_reprojection_px);
+    } else {
+      std::printf("%-32s no %s board found: left out\n", v.image.c_str(), args.board.c_str());
+    }
+  }
+  if (!cal.ok) {
+    std::fprintf(stderr, "calibrate camera: %s\n", cal.problem.c_str());
+    return kExitInputError;
+  }
+  std::printf(
+      "\n%dx%d: fx %.3f fy %.3f px, principal point (%.3f, %.3f) px (pixel centres at +0.5), "
+      "fov_y %.4f deg\n",
+      cal.width, cal.height, cal.fx, cal.fy, cal.cx, cal.cy, cal.fov_y_deg());
+  std::printf("distortion (k1 k2 p1 p2 k3):");
+  for (double d : cal.distortion) std::printf(" %.6f", d);
+  std::printf("\nreprojection RMS %.4f px\n", cal.rms_reprojection_px);
+  if (!args.out.empty()) {
+    if (args.stage_file.empty()) throw InputError("--out: needs --stage (the stage to update)");
+    Stage stage = load_stage(args.stage_file);
+    if (stage.camera.width != cal.width || stage.camera.height != cal.height) {
+      throw InputError(args.stage_file.string() + ": camera: expected " +
+                       std::to_string(cal.width) + "x" + std::to_string(cal.height) +
+                       " like the photographs, got " + std::to_string(stage.camera.width) + "x" +
+                       std::to_string(stage.camera.height));
+    }
+    // The stage file's camera is a centred pinhole: only the field of view carries over.
+    stage.camera.fov_y_deg = cal.fov_y_deg();
+    write_file_atomic(args.out, stage_to_json(stage));
+    std::printf("fov_y_deg %.4f -> %s (principal point and distortion not stored)\n",
+                stage.camera.fov_y_deg, args.out.c_str());
+  }
+  return 0;
+}
+
 }  // namespace
 
 void add_calibrate_command(CLI::App& app) {
@@ -302,6 +383,27 @@ void add_calibrate_command(CLI::App& app) {
     sub->add_flag("--quiet", args->quiet, "No progress output.");
     sub->callback([args] {
       if (const int code = run_intensities(*args); code != 0) throw CLI::RuntimeError(code);
+    });
+  }
+  {
+    auto args = std::make_shared<CalibrateArgs>();
+    auto* sub = cmd->add_subcommand(
+        "camera",
+        "Camera intrinsics from photographs of a chessboard in --images (several poses, tilted): "
+        "focal lengths, principal point, distortion. With --stage and --out, writes the stage "
+        "with the fitted fov_y_deg.");
+    sub->add_option("--images", args->images_dir, "Directory of chessboard photographs.")
+        ->required();
+    sub->add_option("--board", args->board, "Inner corners, WxH (W != H).")->capture_default_str();
+    sub->add_option("--square", args->square_mm, "Square size in millimetres.")
+        ->capture_default_str();
+    sub->add_flag("--square-pixels", args->square_pixels, "Fit one focal length (fx = fy).");
+    sub->add_option("--stage", args->stage_file, "Stage file to update (with --out).")
+        ->check(CLI::ExistingFile);
+    sub->add_option("--out", args->out, "Stage file to write with the fitted field of view.");
+    sub->add_flag("--quiet", args->quiet, "No progress output.");
+    sub->callback([args] {
+      if (const int code = run_camera(*args); code != 0) throw CLI::RuntimeError(code);
     });
   }
 }

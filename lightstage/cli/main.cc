@@ -28,8 +28,11 @@ int main(int argc, char** argv) {
   ls::cli::add_import_command(app);
   try {
     app.parse(argc, argv);
+  } catch (const CLI::RuntimeError& e) {
+    return e.get_exit_code();  // A subcommand's own exit code (2, 3, 4, 130).
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // Prints the message (or the help); any usage error exits with the documented 1.
+    return app.exit(e) == 0 ? 0 : 1;
   } catch (const ls::InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
     return ls::cli::kExitInputError;

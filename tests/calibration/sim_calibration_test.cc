@@ -51,8 +51,8 @@ struct SphereShots {
 
 // Renders every LED's mirror-ball photograph, exposed so that the highlights clip (a real
 // calibration exposes for the dim ones), then fits the ball outlines from the reference shot.
-SphereShots shoot_spheres(const Stage& truth, uint64_t seed) {
-  const CameraSpec camera = target_camera();
+SphereShots shoot_spheres(const Stage& truth, uint64_t seed,
+                          const CameraSpec& camera = target_camera()) {
   const sim::MirrorSphereRenderer renderer(balls(), camera, /*supersample=*/8);
   SphereShots shots;
   sim::SensorModel sensor;
@@ -73,7 +73,8 @@ SphereShots shoot_spheres(const Stage& truth, uint64_t seed) {
   return shots;
 }
 
-capture::DirectionCalibration calibrate(const SphereShots& shots) {
+capture::DirectionCalibration calibrate(const SphereShots& shots,
+                                        const CameraSpec& camera = target_camera()) {
   std::vector<const Image*> images;
   std::vector<std::string> names;
   for (size_t i = 0; i < shots.images.size(); ++i) {
@@ -83,7 +84,7 @@ capture::DirectionCalibration calibrate(const SphereShots& shots) {
   capture::DirectionOptions options;
   options.highlight.saturation_level = 100.0;
   return capture::calibrate_directions(images, names, shots.outlines, shots.spheres,
-                                       capture::ViewCamera::from_spec(target_camera()), options);
+                                       capture::ViewCamera::from_spec(camera), options);
 }
 
 TEST(MirrorSphereSim, OutlinesFoundWithSubPixelAccuracy) {
@@ -202,6 +203,73 @@ TEST(MirrorSphereSim, DirectionsOfDistantLedsWithinAFifthOfADegree) {
   EXPECT_GE(ok, 130);
   EXPECT_LT(worst, 0.2);
   EXPECT_LT(rms, 0.06);
+}
+
+// The same balls seen through a pinhole (CameraSpec fov_y_deg > 0) 1.5 m away with a 12 deg
+// vertical field of view (0.32 m high at the balls, about the orthographic view): the outlines
+// are ellipses whose centres are not the projected ball centres, and every pixel's ray has its
+// own direction, which the calibration's pinhole path must get right.
+CameraSpec perspective_target_camera() {
+  CameraSpec c = target_camera();
+  c.fov_y_deg = 12.0;
+  c.distance_m = 1.5;
+  return c;
+}
+
+TEST(MirrorSphereSim, PerspectiveCameraDirectionsOfDistantLeds) {
+  const CameraSpec camera = perspective_target_camera();
+  sim::StagePerturbation perturbation;
+  perturbation.seed = 11;  // The dome of the orthographic tests.
+  const sim::PerturbedStage perturbed = sim::perturb_stage(default_stage(), perturbation);
+  const SphereShots shots = shoot_spheres(perturbed.truth, 500, camera);
+  ASSERT_EQ(shots.spheres.size(), 2u);
+  double worst_centre = 0;
+  for (int s = 0; s < 2; ++s) {
+    worst_centre =
+        std::max(worst_centre, (shots.spheres[s].center_in_stage - balls()[s].center).norm());
+  }
+  struct Errors {
+    int ok = 0;
+    double rms = 0, worst = 0;
+  };
+  auto errors_of = [&](const capture::DirectionCalibration& cal) {
+    Errors e;
+    for (size_t l = 0; l < cal.leds.size(); ++l) {
+      const Led& truth = perturbed.truth.leds[l];
+      if (!cal.leds[l].ok) {
+        // The view rays fan out by up to 8 deg, so the rim cut-off moves by up to half of that.
+        EXPECT_GT(true_normal_angle_deg(truth), 56.0) << "LED " << l << " refused";
+        continue;
+      }
+      ++e.ok;
+      const double err = angle_between_deg(cal.leds[l].dir_in_stage, truth.dir_in_stage);
+      e.worst = std::max(e.worst, err);
+      e.rms += err * err;
+    }
+    e.rms = std::sqrt(e.rms / std::max(e.ok, 1));
+    return e;
+  };
+  const Errors fitted = errors_of(calibrate(shots, camera));
+  SphereShots placed = shots;  // The balls where they truly are: the highlights' share alone.
+  for (int s = 0; s < 2; ++s) placed.spheres[s].center_in_stage = balls()[s].center;
+  const Errors highlights = errors_of(calibrate(placed, camera));
+  std::printf(
+      "perspective: balls located within %.3f mm; %d of %zu LEDs calibrated, error RMS %.4f deg, "
+      "worst %.4f deg; with the true ball centres RMS %.4f, worst %.4f deg\n",
+      1e3 * worst_centre, fitted.ok, shots.images.size(), fitted.rms, fitted.worst, highlights.rms,
+      highlights.worst);
+  // Measured: balls within 0.431 mm (mostly depth: the tangent cone's half angle is 0.067 rad,
+  // so a 0.02 px error in the outline's major axis moves the ball 0.4 mm along the view ray;
+  // orthographic views take the depth as given); 136 of 151 LEDs, RMS 0.069 deg, worst 0.284 deg.
+  // With the true centres: RMS 0.035, worst 0.189 deg, as orthographic (0.034, 0.127). So the
+  // pinhole path meets the 0.2 deg; a ball placed from its outline alone does not quite:
+  // measure its distance (or use the two balls' known spacing) where 0.2 deg is needed.
+  EXPECT_LT(worst_centre, 0.7e-3);
+  EXPECT_GE(fitted.ok, 130);
+  EXPECT_LT(fitted.worst, 0.35);
+  EXPECT_LT(fitted.rms, 0.09);
+  EXPECT_LT(highlights.worst, 0.22);
+  EXPECT_LT(highlights.rms, 0.05);
 }
 
 TEST(MirrorSphereSim, PositionsOfNearLedsWithinOnePercentOfTheDomeRadius) {

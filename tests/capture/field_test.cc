@@ -26,6 +26,9 @@ std::vector<FieldLight> make_lights(int n) {
     lights.push_back(FieldLight{(l * 37) % 211 + 1,
                                 Eigen::Vector3d(std::sin(a), 0.6, std::cos(a)).normalized(),
                                 l % 5 != 3});
+    // Every other light has a saturation ceiling; the rest never saturate (no key in the file,
+    // as in files written before the key existed).
+    if (l % 2 == 0) lights.back().saturates_at = Eigen::Vector3f(1.5f, 2.25f, 3.0f + 0.1f * l);
   }
   return lights;
 }
@@ -57,6 +60,7 @@ void expect_same(const ReflectanceField& a, const ReflectanceField& b) {
     EXPECT_EQ(a.lights()[l].valid, b.lights()[l].valid);
     EXPECT_EQ(a.lights()[l].dir_in_stage,
               b.lights()[l].dir_in_stage);  // Exact: JSON round-trips doubles.
+    EXPECT_EQ(a.lights()[l].saturates_at, b.lights()[l].saturates_at);  // Infinity included.
   }
   EXPECT_EQ(a.scene_time_s, b.scene_time_s);
   EXPECT_EQ(a.noise.measured, b.noise.measured);
@@ -96,6 +100,10 @@ TEST(Field, ShuffledChannelOrderOnDiskReadsRight) {
   const int width = 9, height = 7, num_lights = 6;
   ReflectanceField field = random_field(width, height, num_lights, 3);
   field.noise = {};  // Written by hand below without a noise attribute: read back as unmeasured.
+  // Nor with saturation ceilings, as files written before they existed: read back as "never".
+  for (FieldLight& l : field.lights()) {
+    l.saturates_at.setConstant(std::numeric_limits<float>::infinity());
+  }
   // Write the same field with its channels in a random order, by hand.
   const int nch = 3 * num_lights;
   std::vector<int> order(nch);
@@ -169,6 +177,11 @@ TEST(Field, ReadValidatesAndNamesTheFile) {
   const std::string f4 = (dir / "badjson.exr").string();
   write_plain_exr(f4, {"led004.R", "led004.G", "led004.B"}, R"([{"id": 4}])");
   EXPECT_THAT(read_error(f4), HasSubstr(f4));
+  const std::string f5 = (dir / "badsat.exr").string();
+  write_plain_exr(f5, {"led004.R", "led004.G", "led004.B"},
+                  R"([{"id": 4, "dir": [0, 1, 0], "valid": true, "saturates_at": [1, 0, 1]}])");
+  EXPECT_THAT(read_error(f5), HasSubstr(f5));
+  EXPECT_THAT(read_error(f5), HasSubstr("saturates_at must be finite and positive"));
   EXPECT_THAT(read_error(dir / "absent.exr"), HasSubstr("absent.exr"));
   // A valid minimal file reads.
   const std::string ok = (dir / "ok.exr").string();

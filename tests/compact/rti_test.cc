@@ -108,6 +108,9 @@ struct FormatCase {
   bool lrgb;
   const char* extension;
 };
+void PrintTo(const FormatCase& c, std::ostream* os) {
+  *os << to_string(c.basis) << (c.lrgb ? " LRGB " : " ") << c.extension;
+}
 
 class RtiFormatRoundTrip : public ::testing::TestWithParam<FormatCase> {};
 

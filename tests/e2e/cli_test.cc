@@ -137,13 +137,18 @@ TEST(Cli, MalformedStageSceneAndMapFilesGiveClearErrors) {
 }
 
 TEST(Cli, HelpExplainsEverySubcommand) {
-  for (const char* cmd : {"capture", "build", "relight", "demo", "stage", "envmaps"}) {
+  for (const char* cmd : {"capture", "build", "relight", "demo", "stage", "envmaps", "import",
+                          "fit", "calibrate", "compress", "bench", "devices", "check"}) {
     std::string out;
     EXPECT_EQ(run_command(cli_path().string() + " " + cmd + " --help", &out), 0) << cmd;
     EXPECT_NE(out.find("Options"), std::string::npos) << cmd << ": " << out;
   }
   std::string out;
-  EXPECT_NE(run_command(cli_path().string(), &out), 0);
+  EXPECT_EQ(run_command(cli_path().string(), &out), 1) << out;  // No subcommand: usage.
+  EXPECT_EQ(run_command(cli_path().string() + " capture --no-such-option", &out), 1) << out;
+  EXPECT_NE(out.find("--no-such-option"), std::string::npos) << out;
+  EXPECT_EQ(run_command(cli_path().string() + " capture", &out), 1) << out;  // Needs --out.
+  EXPECT_NE(out.find("--out"), std::string::npos) << out;
 }
 
 }  // namespace
