@@ -14,6 +14,7 @@
 #include <random>
 #include <thread>
 
+#include "capture/light_calibration.h"
 #include "capture/noise_estimate.h"
 #include "capture/response.h"
 #include "lightstage/errors.h"
@@ -214,6 +215,10 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
     const Led& led = stage.leds[order[i]];
     usable[i] = brackets[i].complete() && session.dead_leds().count(order[i]) == 0;
     lights[i] = FieldLight{led.id, led.dir_in_stage, usable[i]};
+    if (led.distance_m) {
+      lights[i].position_in_stage = *led.distance_m * led.dir_in_stage.normalized();
+      ++sum.near_lights;
+    }
     if (!usable[i]) sum.lights_missing.push_back(order[i]);
     if (usable[i]) {
       const Eigen::Vector3d e = led.irradiance_rgb();
@@ -247,9 +252,48 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
   if (!response)
     response = ResponseCurve::from_spec(camera.response, camera.bit_depth, camera.channels);
 
+  // The flat fields, validated before any frame is merged.
+  std::optional<FlatFieldMaps> flat;
+  if (!stage.calibration.flat_field.empty()) {
+    flat = read_flat_field(stage.calibration.flat_field, stage);
+    sum.flat_field = stage.calibration.flat_field.string();
+    for (size_t i = 0; i < order.size(); ++i) {
+      if (flat->by_led_id.count(stage.leds[order[i]].id)) ++sum.flat_field_lights;
+    }
+    if (sum.flat_field_lights < int(order.size())) {
+      sum.warnings.push_back(
+          sum.flat_field + ": holds flat fields for " + std::to_string(sum.flat_field_lights) +
+          " of " + std::to_string(order.size()) + " LEDs; the others are taken as uniform");
+    }
+  }
+
   // Allocate the field first: it is the big allocation and refuses cleanly when it cannot fit.
   ReflectanceField field(camera.width, camera.height, std::move(lights));
   field.source = where;
+  field.view = FieldView{camera.fov_y_deg, camera.distance_m, camera.ortho_height_m,
+                         stage.calibration.reference_z_m};
+  // Per-pixel factor of LED i: (|P - X| / |P|)^2 / flat(X) (build_field.h); empty when uniform.
+  auto pixel_gain = [&](int i, std::vector<float>* gain) {
+    const Led& led = stage.leds[order[i]];
+    const auto& position = field.lights()[i].position_in_stage;
+    const bool flat_here = flat && flat->by_led_id.count(led.id);
+    gain->clear();
+    if (!position && !flat_here) return;
+    gain->resize(size_t(camera.width) * camera.height);
+    const double d0_squared = position ? position->squaredNorm() : 1.0;
+    for (int y = 0; y < camera.height; ++y) {
+      for (int x = 0; x < camera.width; ++x) {
+        double g = 1.0;
+        if (position) {
+          const Eigen::Vector3d to_led =
+              *position - reference_point(*field.view, camera.width, camera.height, x, y);
+          g = to_led.squaredNorm() / d0_squared;
+        }
+        if (flat_here) g /= flat->at(led.id, x, y, camera.width, camera.height);
+        (*gain)[size_t(y) * camera.width + x] = float(g);
+      }
+    }
+  };
   for (size_t i = 0; i < order.size(); ++i) {
     if (usable[i]) {
       field.scene_time_s = brackets[i].records[0]->scene_time_s;
@@ -336,7 +380,14 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
     const double ceiling = (options.merge.saturation_level - noise_steps[shortest].dark_level) /
                            exposure_gain(shortest);
     if (ceiling > 0 && std::isfinite(ceiling)) {
-      for (int c = 0; c < 3; ++c) field.lights()[i].saturates_at[c] = float(ceiling) * scale[i][c];
+      // With a per-pixel gain the ceiling varies over the image: the lowest one is kept, so that
+      // no clipped sample passes for a measurement (a few near-ceiling ones are censored too).
+      std::vector<float> gain;
+      pixel_gain(i, &gain);
+      const float lowest = gain.empty() ? 1.0f : *std::min_element(gain.begin(), gain.end());
+      for (int c = 0; c < 3; ++c) {
+        field.lights()[i].saturates_at[c] = float(ceiling) * scale[i][c] * lowest;
+      }
     }
   }
   // LEDs whose brackets feed photon transfer.
@@ -392,12 +443,15 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
         transfer.insert(transfer.end(), samples.begin(), samples.end());
       }
       const int in_channels = camera.channels + 1;
+      std::vector<float> gain;
+      pixel_gain(i, &gain);
       long long saturated = 0;
       for (int y = 0; y < height; ++y) {
         for (int x = 0; x < width; ++x) {
           const float* m = &merged.pixels[(size_t(y) * width + x) * in_channels];
           float* out = field.pixel(x, y) + 3 * i;
-          for (int c = 0; c < 3; ++c) out[c] = m[camera.channels == 1 ? 0 : c] * scale[i][c];
+          const float g = gain.empty() ? 1.0f : gain[size_t(y) * width + x];
+          for (int c = 0; c < 3; ++c) out[c] = m[camera.channels == 1 ? 0 : c] * scale[i][c] * g;
           saturated += m[in_channels - 1] == 0.0f;
         }
       }

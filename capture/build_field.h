@@ -1,6 +1,11 @@
 #pragma once
 // Session -> reflectance field: dark subtraction, HDR merge of each LED's bracket, conversion to
 // radiance (camera.radiometric_scale) and division by each LED's calibrated irradiance per channel.
+// With the stage's calibration (lightstage/stage.h StageCalibration):
+//  * a flat field side car: each LED's values are divided by its flat field at the pixel (bilinear
+//    from the side car's grid), so R is per unit of the irradiance the LED really gives there;
+//  * near LEDs (Led::distance_m): each value is multiplied by (|P - X| / |P|)^2, X the pixel's
+//    reference point (capture/field.h), and the field stores the LEDs' positions and the view.
 #include <functional>
 #include <string>
 #include <vector>
@@ -25,7 +30,10 @@ struct BuildSummary {
   std::string response_used;        // "linear", "gamma 2.2", "table FILE", "recovered".
   double seconds = 0.0;
   std::vector<std::string> warnings;  // E.g. an exposure step without dark frames.
-  SensorNoise sensor_noise;  // What the noise estimate measured (the field's noise is from it).
+  SensorNoise sensor_noise;   // What the noise estimate measured (the field's noise is from it).
+  std::string flat_field;     // The side car divided out; empty: none applied.
+  int flat_field_lights = 0;  // LEDs it held a flat field for (the others are taken as uniform).
+  int near_lights = 0;        // LEDs with positions, scaled to irradiance at the reference point.
 };
 
 ReflectanceField build_field(const Session& session, const BuildOptions& options,

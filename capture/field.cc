@@ -11,6 +11,7 @@
 #include <fstream>
 #include <new>
 #include <nlohmann/json.hpp>
+#include <numbers>
 #include <sstream>
 #include <unordered_map>
 
@@ -25,6 +26,7 @@ constexpr double kMemoryShare = 0.8;
 constexpr const char* kLightsAttribute = "lightstage:lights";
 constexpr const char* kSceneTimeAttribute = "lightstage:scene_time_s";
 constexpr const char* kNoiseAttribute = "lightstage:noise";
+constexpr const char* kViewAttribute = "lightstage:view";
 const char kChannelSuffix[3] = {'R', 'G', 'B'};
 
 std::string gib(double bytes) {
@@ -87,6 +89,40 @@ ValidLights valid_lights(const ReflectanceField& field) {
   return out;
 }
 
+Eigen::Vector3d reference_point(const FieldView& view, int width, int height, int x, int y) {
+  // Pixel centres, row 0 at the top (+Y): the simulator's and CameraSpec's convention.
+  const double half_h = 0.5 * view.ortho_height_m;
+  const double aspect = double(width) / height;
+  const double ndc_x = 2.0 * (x + 0.5) / width - 1.0;
+  const double ndc_y = 1.0 - 2.0 * (y + 0.5) / height;
+  if (view.fov_y_deg <= 0) {
+    return {ndc_x * half_h * aspect, ndc_y * half_h, view.reference_z_m};
+  }
+  const double tan_half = std::tan(0.5 * view.fov_y_deg * std::numbers::pi / 180.0);
+  const double depth = view.camera_distance_m - view.reference_z_m;  // Along -Z, metres.
+  if (!(depth > 0)) return {0, 0, view.reference_z_m};
+  return {ndc_x * tan_half * aspect * depth, ndc_y * tan_half * depth, view.reference_z_m};
+}
+
+bool has_near_lights(const ReflectanceField& field) {
+  if (!field.view) return false;
+  for (const FieldLight& light : field.lights()) {
+    if (light.position_in_stage) return true;
+  }
+  return false;
+}
+
+Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, int y) {
+  const FieldLight& l = field.lights()[light];
+  if (l.position_in_stage && field.view) {
+    const Eigen::Vector3d to_led =
+        *l.position_in_stage - reference_point(*field.view, field.width(), field.height(), x, y);
+    const double distance = to_led.norm();
+    if (distance > 1e-9) return to_led / distance;
+  }
+  return l.dir_in_stage.normalized();
+}
+
 size_t available_memory_bytes() {
   std::optional<std::size_t> available;
   std::ifstream meminfo("/proc/meminfo");
@@ -139,6 +175,10 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
       entry["saturates_at"] = {light.saturates_at.x(), light.saturates_at.y(),
                                light.saturates_at.z()};
     }
+    if (light.position_in_stage) {
+      const Eigen::Vector3d& p = *light.position_in_stage;
+      entry["position"] = {p.x(), p.y(), p.z()};
+    }
     lights.push_back(entry);
   }
   spec.alpha_channel = -1;
@@ -149,6 +189,14 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
                                   {"shot_variance_per_unit", field.noise.shot_variance_per_unit},
                                   {"method", field.noise.method}};
     spec.attribute(kNoiseAttribute, noise.dump());
+  }
+  if (field.view) {
+    const FieldView& v = *field.view;
+    const nlohmann::json view = {{"fov_y_deg", v.fov_y_deg},
+                                 {"camera_distance_m", v.camera_distance_m},
+                                 {"ortho_height_m", v.ortho_height_m},
+                                 {"reference_z_m", v.reference_z_m}};
+    spec.attribute(kViewAttribute, view.dump());
   }
   // RLE: lossless, and the fastest to write and read of the compressed modes. Measured on the demo
   // field (256x256, 151 LEDs, 119 MB; best of 3 on a shared 2-core machine), write / read MB/s and
@@ -212,12 +260,22 @@ ReflectanceField read_field(const std::filesystem::path& path) {
           throw InputError("saturates_at must be finite and positive");
         }
       }
+      if (e.contains("position")) {
+        const auto& p = e.at("position");
+        if (!p.is_array() || p.size() != 3) throw InputError("position must be [x, y, z]");
+        light.position_in_stage =
+            Eigen::Vector3d(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+        if (!light.position_in_stage->allFinite() || !(light.position_in_stage->norm() > 0)) {
+          throw InputError("position must be finite and away from the stage centre");
+        }
+      }
       lights.push_back(light);
     }
   } catch (const std::exception& e) {
     throw InputError(
         name + ": attribute '" + std::string(kLightsAttribute) +
-        "': expected a JSON array of {id, dir: [x, y, z], valid, saturates_at?: [r, g, b]}: " +
+        "': expected a JSON array of {id, dir: [x, y, z], valid, saturates_at?: [r, g, b], "
+        "position?: [x, y, z]}: " +
         e.what());
   }
   const int num_lights = int(lights.size());
@@ -277,6 +335,29 @@ ReflectanceField read_field(const std::filesystem::path& path) {
     } catch (const std::exception& e) {
       throw InputError(name + ": attribute '" + std::string(kNoiseAttribute) +
                        "': expected {read_variance, shot_variance_per_unit, method}: " + e.what());
+    }
+  }
+
+  if (const OIIO::ParamValue* view = spec.find_attribute(kViewAttribute)) {
+    try {
+      const nlohmann::json j = nlohmann::json::parse(view->get_string());
+      FieldView v;
+      v.fov_y_deg = j.at("fov_y_deg").get<double>();
+      v.camera_distance_m = j.at("camera_distance_m").get<double>();
+      v.ortho_height_m = j.at("ortho_height_m").get<double>();
+      v.reference_z_m = j.at("reference_z_m").get<double>();
+      if (!std::isfinite(v.fov_y_deg) || v.fov_y_deg < 0 || v.fov_y_deg >= 180 ||
+          !(v.camera_distance_m > 0) || !std::isfinite(v.camera_distance_m) ||
+          !(v.ortho_height_m > 0) || !std::isfinite(v.ortho_height_m) ||
+          !std::isfinite(v.reference_z_m)) {
+        throw InputError("fov_y_deg in [0, 180), positive finite distances, finite reference_z_m");
+      }
+      field.view = v;
+    } catch (const std::exception& e) {
+      throw InputError(name + ": attribute '" + std::string(kViewAttribute) +
+                       "': expected {fov_y_deg, camera_distance_m, ortho_height_m, "
+                       "reference_z_m}: " +
+                       e.what());
     }
   }
 

@@ -3,6 +3,11 @@
 // calibrated irradiance at the origin, after dark subtraction and HDR merge (DESIGN.md). It already
 // contains f_r(x, w_l, w_o) * cos(theta_l) and any shadowing; relighting is I(x) = sum_l R(x, l) *
 // E_l.
+// Near LEDs (FieldLight::position_in_stage set): R(x, l) is per unit of the LED's irradiance at the
+// pixel's reference point X(x) (FieldView: where the pixel's camera ray meets the plane z =
+// reference_z_m), i.e. the build multiplied by (|P - X| / |P|)^2, and the light arrives along
+// light_dir_at() = (P - X) / |P - X| rather than along dir_in_stage. A flat field, when the stage
+// has one, is divided out too: R is per unit of the LED's irradiance as calibrated at that pixel.
 //
 // Layout: pixel-major, values[((y * width + x) * num_lights + l) * 3 + c], float32.
 // Why: relighting streams every pixel's 3L values exactly once, contiguously, against a small E
@@ -12,6 +17,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -26,6 +32,18 @@ struct FieldLight {
   // kCensoredFraction * saturates_at are censored: the truth is at least that, not that.
   // +infinity: never saturates (simulated, or unknown for older files).
   Eigen::Vector3f saturates_at = Eigen::Vector3f::Constant(std::numeric_limits<float>::infinity());
+  // Near LED: its position in metres (stage frame); unset for a distant LED.
+  std::optional<Eigen::Vector3d> position_in_stage;
+};
+
+// Where a field's pixels lie in the stage: the camera's geometry (CameraSpec's, lightstage/
+// stage.h: on +Z looking toward -Z, square pixels, row 0 at the top) and the reference surface, the
+// plane z = reference_z_m that stands in for the unknown surface when near LEDs need a distance.
+struct FieldView {
+  double fov_y_deg = 0.0;        // 0: orthographic.
+  double camera_distance_m = 4;  // Pinhole: centre at (0, 0, camera_distance_m).
+  double ortho_height_m = 2.4;   // Orthographic: height of the view.
+  double reference_z_m = 0.0;
 };
 
 // A channel value at or above this fraction of its light's saturates_at is censored (a lower
@@ -78,6 +96,9 @@ class ReflectanceField {
   double scene_time_s = 0.0;
   std::string source;  // Session or file it came from, for messages.
   FieldNoise noise;    // Stored in the "lightstage:noise" attribute.
+  // Stored in the "lightstage:view" attribute; unset (older files, imports): near LEDs are treated
+  // as distant, along dir_in_stage.
+  std::optional<FieldView> view;
 
  private:
   std::size_t offset(int x, int y) const {
@@ -96,15 +117,27 @@ struct ValidLights {
 };
 ValidLights valid_lights(const ReflectanceField& field);
 
+// The reference point of pixel (x, y) (its centre) in the stage frame, metres: where its camera ray
+// meets the plane z = view.reference_z_m. A pinhole camera at or behind the plane sees it nowhere:
+// the point straight below the camera is returned.
+Eigen::Vector3d reference_point(const FieldView& view, int width, int height, int x, int y);
+// Whether any light of the field has a position and the field knows its view (per-pixel lights).
+bool has_near_lights(const ReflectanceField& field);
+// Unit direction toward light `light` (index into lights()) seen from pixel (x, y): from the
+// pixel's reference point toward the LED for near lights (when the field has a view), otherwise
+// the light's dir_in_stage.
+Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, int y);
+
 // Memory the system can give us now (MemAvailable). Used to refuse what would not fit.
 std::size_t available_memory_bytes();
 // Throws InputError "<what> needs N GiB but only M GiB are available" when bytes > 80% available.
 void require_memory(std::size_t bytes, const std::string& what);
 
 // OpenEXR, float, one channel per LED and colour named "led042.R" etc., pixel-interleaved (which
-// is exactly the in-memory layout); LED directions, validity and (where finite) saturation ceilings
-// in the "lightstage:lights" attribute ({id, dir, valid, saturates_at: [r, g, b]}; saturates_at is
-// optional on read, absent = never saturates).
+// is exactly the in-memory layout); LED directions, validity, (where finite) saturation ceilings
+// and (near LEDs) positions in the "lightstage:lights" attribute ({id, dir, valid, saturates_at:
+// [r, g, b], position: [x, y, z]}; saturates_at and position are optional on read, absent = never
+// saturates, distant); the view in "lightstage:view" (optional).
 void write_field(const std::filesystem::path& path, const ReflectanceField& field);
 ReflectanceField read_field(const std::filesystem::path& path);
 

@@ -7,6 +7,7 @@
 #include <numeric>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#include <regex>
 
 #include "lightstage/errors.h"
 
@@ -606,6 +607,62 @@ Image flat_field_image(const IntensityCalibration& calibration, const Stage& sta
     }
   }
   if (n == 0) out.channel_names = {"Y"};
+  return out;
+}
+
+double FlatFieldMaps::at(int led_id, int x, int y, int image_width, int image_height) const {
+  const auto it = by_led_id.find(led_id);
+  if (it == by_led_id.end() || width <= 0 || height <= 0) return 1.0;
+  // The pixel centre in the grid's sample coordinates (sample i's centre at i).
+  const double gx = std::clamp((x + 0.5) * width / image_width - 0.5, 0.0, width - 1.0);
+  const double gy = std::clamp((y + 0.5) * height / image_height - 0.5, 0.0, height - 1.0);
+  const int x0 = std::min(int(gx), width - 1), y0 = std::min(int(gy), height - 1);
+  const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
+  const double fx = gx - x0, fy = gy - y0;
+  const std::vector<float>& m = it->second;
+  auto v = [&](int xx, int yy) { return double(m[size_t(yy) * width + xx]); };
+  return (1 - fy) * ((1 - fx) * v(x0, y0) + fx * v(x1, y0)) +
+         fy * ((1 - fx) * v(x0, y1) + fx * v(x1, y1));
+}
+
+FlatFieldMaps read_flat_field(const std::filesystem::path& file, const Stage& stage) {
+  const std::string name = file.string();
+  const Image image = read_image(file);
+  FlatFieldMaps out;
+  out.file = file;
+  out.width = image.width;
+  out.height = image.height;
+  static const std::regex pattern(R"(led(\d+)\.Y)");
+  for (int c = 0; c < image.channels; ++c) {
+    const std::string channel =
+        c < int(image.channel_names.size()) ? image.channel_names[c] : "#" + std::to_string(c);
+    std::smatch m;
+    if (!std::regex_match(channel, m, pattern)) {
+      throw InputError(
+          name + ": channel '" + channel +
+          "': expected a flat field named ledNNN.Y (lightstage calibrate intensities)");
+    }
+    const int id = std::stoi(m[1]);
+    if (stage.led_index(id) < 0) {
+      throw InputError(name + ": channel '" + channel + "': expected an LED of " + stage.source +
+                       ", got LED id " + std::to_string(id) + " which it does not have");
+    }
+    std::vector<float> values(image.num_pixels());
+    for (int y = 0; y < image.height; ++y) {
+      for (int x = 0; x < image.width; ++x) {
+        const float v = image.at(x, y, c);
+        if (!(v > 0) || !std::isfinite(v)) {
+          throw InputError(name + ": channel '" + channel + "': expected positive finite values" +
+                           ", got " + std::to_string(v) + " at (" + std::to_string(x) + ", " +
+                           std::to_string(y) + ")");
+        }
+        values[size_t(y) * image.width + x] = v;
+      }
+    }
+    if (!out.by_led_id.emplace(id, std::move(values)).second) {
+      throw InputError(name + ": channel '" + channel + "': expected once, got twice");
+    }
+  }
   return out;
 }
 

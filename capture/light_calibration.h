@@ -11,6 +11,8 @@
 // so its centre is (i + 0.5, j + 0.5) (the simulator's convention). Directions are in the stage
 // frame (+Y up, camera on +Z looking toward -Z).
 #include <Eigen/Core>
+#include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -223,6 +225,23 @@ StageUpdate apply_intensities(const IntensityCalibration& calibration, Stage* st
 // width x height samples over the camera's field of view.
 Image flat_field_image(const IntensityCalibration& calibration, const Stage& stage, int width,
                        int height);
+
+// The side car read back for the field build: each LED's flat field sampled on a grid over the
+// camera's view (as flat_field_image writes it), validated on read.
+struct FlatFieldMaps {
+  std::filesystem::path file;
+  int width = 0, height = 0;
+  std::map<int, std::vector<float>> by_led_id;  // width * height samples, row-major, all > 0.
+
+  // The LED's flat field at the centre of pixel (x, y) of an image_width x image_height image of
+  // the same view: bilinear between the grid's sample centres, clamped at its border. 1 for an LED
+  // the side car does not hold (uniform).
+  double at(int led_id, int x, int y, int image_width, int image_height) const;
+};
+
+// Reads `file`: every channel must be "ledNNN.Y" naming an LED of the stage, once, and every value
+// finite and positive. Otherwise InputError "FILE: channel 'led042.Y': expected ..., got ...".
+FlatFieldMaps read_flat_field(const std::filesystem::path& file, const Stage& stage);
 
 double angle_between_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 

@@ -11,12 +11,11 @@
 // and y up in the image, z toward the camera. The stage frame has the camera on +Z looking toward
 // -Z with +Y up, so image right is +X: the mapping is the identity.
 //
-// Saturation: a pixel at the file's maximum code (255 or 65535) is only a lower bound. The field
-// has no per-sample mask and relight/normals.h and fit.h only know whole lights (FieldLight::valid)
-// and a per-pixel shadow threshold, so such samples are counted and reported (summary), and kept as
-// lower bounds by default, as build_field does for samples saturated in every exposure; with
-// `zero_saturated` they become 0, which the normals and fits then treat as shadowed (left out) at
-// the cost of darkening relit highlights.
+// Saturation: a pixel at the file's maximum code (255 or 65535) is only a lower bound. Integer
+// files give each light its ceiling (FieldLight::saturates_at: the maximum code after the transfer
+// curve and the intensity), so relight/normals.h and fit.h leave such samples out as censored; they
+// are counted and reported (summary). With `zero_saturated` they become 0 instead, which the
+// normals and fits treat as shadowed (left out), at the cost of darkening relit highlights.
 #include <filesystem>
 #include <functional>
 #include <optional>

@@ -32,6 +32,13 @@ set_property(TARGET opencv::videoio APPEND PROPERTY INTERFACE_LINK_LIBRARIES ope
 pkg_check_modules(GPIOD REQUIRED IMPORTED_TARGET libgpiodcxx)
 pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 
+# The viewer (issue 5): GLFW window + OpenGL 3.3 core (no loader: GL_GLEXT_PROTOTYPES against
+# libglvnd's libOpenGL), Dear ImGui from Debian's pkg-config file (includes the GLFW/GL3 back-ends).
+find_package(glfw3 REQUIRED)
+set(OpenGL_GL_PREFERENCE GLVND)
+find_package(OpenGL REQUIRED)
+pkg_check_modules(IMGUI REQUIRED IMPORTED_TARGET imgui)
+
 if(LIGHTSTAGE_BUILD_TESTS)
   find_package(GTest REQUIRED)
 endif()

@@ -132,7 +132,8 @@ Image read_image(const fs::path& path) {
   return image;
 }
 
-void write_exr(const fs::path& path, const Image& image, ExrPixelType type) {
+void write_exr(const fs::path& path, const Image& image, ExrPixelType type,
+               const ExrAttributes& attributes) {
   LS_CHECK(image.pixels.size() == image.num_pixels() * image.channels, "image size mismatch");
   OIIO::ImageSpec spec(image.width, image.height, image.channels,
                        type == ExrPixelType::kHalf ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
@@ -141,6 +142,7 @@ void write_exr(const fs::path& path, const Image& image, ExrPixelType type) {
     spec.channelnames = image.channel_names;
   }
   spec.attribute("compression", "zip");
+  for (const auto& [name, value] : attributes) spec.attribute(name, value);
   write_with_oiio(path, spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
 }
 

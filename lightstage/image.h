@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace ls {
@@ -44,9 +45,13 @@ enum class ExrPixelType { kFloat, kHalf };
 // the file.
 Image read_image(const std::filesystem::path& path);
 
-// Writes an OpenEXR with the image's channel names (or R,G,B,A / Y). Atomic: temp file + rename.
+// Named string attributes of an EXR header (e.g. {"lightstage:fit_noise", "{...json...}"}).
+using ExrAttributes = std::vector<std::pair<std::string, std::string>>;
+
+// Writes an OpenEXR (zip) with the image's channel names (or R,G,B,A / Y) and the given string
+// attributes. Atomic: temp file + fsync + rename.
 void write_exr(const std::filesystem::path& path, const Image& image,
-               ExrPixelType type = ExrPixelType::kFloat);
+               ExrPixelType type = ExrPixelType::kFloat, const ExrAttributes& attributes = {});
 
 // Tone-mapped 8-bit sRGB preview: value * 2^exposure_stops, clamped, sRGB-encoded. Atomic.
 void write_png_preview(const std::filesystem::path& path, const Image& image,

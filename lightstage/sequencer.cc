@@ -169,6 +169,10 @@ CaptureSummary run_capture(Session& session, LightController& lights, Camera& ca
   auto stop_requested = [&] {
     return options.stop_requested && options.stop_requested->load(std::memory_order_relaxed);
   };
+  auto clock_s = options.clock_s ? options.clock_s : [] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  };
 
   CaptureSummary summary;
   const std::vector<PlannedFrame> missing = session.missing_frames();
@@ -220,6 +224,19 @@ CaptureSummary run_capture(Session& session, LightController& lights, Camera& ca
   // the whole bracket is exposed, and it goes off before the next group.
   int frames_taken = 0;
   size_t i = 0;
+  // Time steps: the one being captured, when it began (clock_s) and the schedule's origin.
+  int current_step = -1;
+  double step_started_s = 0.0, schedule_origin_s = 0.0;
+  auto end_step = [&](int step) {
+    const double took_s = clock_s() - step_started_s;
+    const double interval_s = stage.plan.step_interval_s(step);
+    if (interval_s > 0 && took_s > interval_s) {
+      const TimeStepOverrun overrun{step, took_s, interval_s};
+      writer->flush();  // The session is touched only when nothing is in flight.
+      session.record_time_step_overrun(overrun);
+      summary.overruns.push_back(overrun);
+    }
+  };
   try {
     while (i < missing.size()) {
       const int t = missing[i].key.time_step;
@@ -228,6 +245,22 @@ CaptureSummary run_capture(Session& session, LightController& lights, Camera& ca
       while (end < missing.size() && missing[end].key.time_step == t &&
              missing[end].key.led_index == led) {
         ++end;
+      }
+      if (t != current_step) {
+        if (current_step >= 0) end_step(current_step);
+        if (current_step < 0) {
+          schedule_origin_s = clock_s() - stage.plan.step_time_s(t);
+        } else if (options.wait_for_time_steps) {
+          // Wait in short sleeps so that a stop request is seen.
+          const double start_s = schedule_origin_s + stage.plan.step_time_s(t);
+          // Within a microsecond is on time (and a sleep too short to move the clock ends).
+          for (double left = start_s - clock_s(); left > 1e-6; left = start_s - clock_s()) {
+            if (stop_requested()) break;
+            sleep(std::min(left, 0.1));
+          }
+        }
+        current_step = t;
+        step_started_s = clock_s();
       }
       if (stop_requested()) {
         return finish(CaptureSummary::Status::kInterrupted,
@@ -285,6 +318,7 @@ CaptureSummary run_capture(Session& session, LightController& lights, Camera& ca
       }
       i = end;
     }
+    if (current_step >= 0) end_step(current_step);
   } catch (const InputError& e) {
     // Only the frame writer throws InputError here: the disk is full or not writable.
     return finish(CaptureSummary::Status::kWriteFailed,

@@ -7,6 +7,7 @@
 #include <atomic>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "lightstage/hardware.h"
 #include "lightstage/session.h"
@@ -31,6 +32,14 @@ struct SequencerOptions {
   double dead_led_threshold = 0.002;
   // Sleeps for plan.settle_s and inter-step waits; tests replace it to run instantly.
   std::function<void(double seconds)> sleep;
+  // Time steps in real time (hardware, or the simulator's camera.simulated.real_time): the first
+  // frame of step t waits until its start time, start = when this run began its first step +
+  // (step_time_s(t) - step_time_s(that first step)). Otherwise steps follow each other at once and
+  // the plan times are only the scene times the frames carry (the simulator renders them).
+  bool wait_for_time_steps = false;
+  // Monotonic clock in seconds (default: std::chrono::steady_clock), for step start times and
+  // overruns; tests replace it together with `sleep`.
+  std::function<double()> clock_s;
 };
 
 struct CaptureSummary {
@@ -42,6 +51,9 @@ struct CaptureSummary {
   int camera_retries = 0;
   std::string message;  // Why it stopped, for the operator.
   double seconds = 0.0;
+  // Time steps completed in this run whose capture took longer than the plan's interval to the
+  // next step (also journaled in the session and listed in its manifest).
+  std::vector<TimeStepOverrun> overruns;
 };
 
 CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,

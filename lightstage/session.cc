@@ -74,7 +74,7 @@ std::vector<PlannedFrame> plan_frames(const Stage& stage) {
   const auto order = stage.capture_order();
   const int steps = int(stage.camera.bracket.size());
   for (int t = 0; t < stage.plan.time_steps; ++t) {
-    const double scene_time_s = t * stage.plan.interval_s;
+    const double scene_time_s = stage.plan.step_time_s(t);
     auto add = [&](int led, int e, int r) {
       PlannedFrame f;
       f.key = {t, led, e, r};
@@ -177,6 +177,11 @@ Session Session::open(const fs::path& dir) {
     }
     if (j.contains("led_signal")) {
       s.led_signals_[{j["t"].get<int>(), j["led_signal"].get<int>()}] = j["fraction"].get<double>();
+      continue;
+    }
+    if (j.contains("overrun")) {
+      s.overruns_[j["overrun"].get<int>()] = {j["overrun"].get<int>(), j["capture_s"].get<double>(),
+                                              j["interval_s"].get<double>()};
       continue;
     }
     if (j.contains("dead_led")) {
@@ -286,7 +291,23 @@ void Session::record_led_signal(int time_step, int led_index, double fraction) {
   led_signals_[{time_step, led_index}] = fraction;
 }
 
+void Session::record_time_step_overrun(const TimeStepOverrun& overrun) {
+  append_journal(json{{"overrun", overrun.time_step},
+                      {"capture_s", overrun.capture_s},
+                      {"interval_s", overrun.interval_s}}
+                     .dump() +
+                 "\n");
+  overruns_[overrun.time_step] = overrun;
+}
+
 void Session::write_manifest(const std::string& status) const {
+  json overruns = json::array();
+  for (const auto& [step, o] : overruns_) {
+    overruns.push_back({{"time_step", step},
+                        {"scene_time_s", stage_.plan.step_time_s(step)},
+                        {"capture_s", o.capture_s},
+                        {"interval_s", o.interval_s}});
+  }
   json dead = json::array();
   for (const auto& [index, reason] : dead_leds_) {
     dead.push_back({{"led_index", index}, {"led_id", stage_.leds[index].id}, {"reason", reason}});
@@ -302,6 +323,7 @@ void Session::write_manifest(const std::string& status) const {
                     {"frames_captured", frames_.size()},
                     {"journal", kJournal},
                     {"dead_leds", dead},
+                    {"time_step_overruns", overruns},
                     {"stage", json::parse(stage_to_json(stage_))}};
   write_file_atomic(dir_ / kManifest, doc.dump(2) + "\n");
 }

@@ -45,6 +45,13 @@ struct FrameRecord {
   std::string captured_at;  // ISO 8601 UTC.
 };
 
+// A time step whose capture took longer than the time to the next step (CapturePlan).
+struct TimeStepOverrun {
+  int time_step = 0;
+  double capture_s = 0.0;   // Wall-clock time from its first frame to its last, this run.
+  double interval_s = 0.0;  // What the plan allowed: CapturePlan::step_interval_s.
+};
+
 struct SessionInfo {
   std::string backend = "sim";
   std::string scene_file;  // Simulated stage only.
@@ -86,6 +93,11 @@ class Session {
   const std::map<std::pair<int, int>, double>& led_signals() const { return led_signals_; }
   void record_led_signal(int time_step, int led_index, double fraction_of_full_scale);
 
+  // Time steps that overran their interval, journaled and listed in the manifest
+  // ("time_step_overruns"); a step overrunning again on resume replaces its entry.
+  const std::map<int, TimeStepOverrun>& time_step_overruns() const { return overruns_; }
+  void record_time_step_overrun(const TimeStepOverrun& overrun);
+
   // Rewrites the manifest with the given status ("capturing", "interrupted", "complete", ...).
   void write_manifest(const std::string& status) const;
 
@@ -99,6 +111,7 @@ class Session {
   std::map<FrameKey, FrameRecord> frames_;
   std::map<int, std::string> dead_leds_;
   std::map<std::pair<int, int>, double> led_signals_;  // (time step, LED index) -> signal.
+  std::map<int, TimeStepOverrun> overruns_;            // By time step.
 };
 
 }  // namespace ls

@@ -120,7 +120,7 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
 }
 
 CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds) {
-  r.expect_object({"led_order", "dark_frames", "settle_s", "time_steps", "interval_s"});
+  r.expect_object({"led_order", "dark_frames", "settle_s", "time_steps", "interval_s", "times_s"});
   CapturePlan plan;
   if (r.has("led_order")) {
     const JsonReader order = r["led_order"];
@@ -137,7 +137,41 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds) {
   if (r.has("settle_s")) plan.settle_s = r["settle_s"].number_in(0, 60, "(seconds)");
   if (r.has("time_steps")) plan.time_steps = r["time_steps"].integer_in(1, 100000);
   if (r.has("interval_s")) plan.interval_s = r["interval_s"].number_in(0, 1e6, "(seconds)");
+  if (r.has("times_s")) {
+    const JsonReader times = r["times_s"];
+    if (r.has("time_steps") || r.has("interval_s")) {
+      times.fail("either \"times_s\" or \"time_steps\" and \"interval_s\", not both");
+    }
+    if (times.size() == 0 || times.size() > 100000) times.fail("a list of 1 to 100000 times");
+    for (size_t i = 0; i < times.size(); ++i) {
+      const double t = times[i].number_in(0, 1e9, "(seconds, >= 0)");
+      if (i > 0 && !(t > plan.times_s.back())) {
+        std::ostringstream expected;
+        expected << "a time greater than the previous one (" << plan.times_s.back()
+                 << " s): times_s must increase";
+        times[i].fail(expected.str());
+      }
+      plan.times_s.push_back(t);
+    }
+    plan.time_steps = int(plan.times_s.size());
+  }
   return plan;
+}
+
+StageCalibration parse_calibration(const JsonReader& r, const fs::path& base_dir) {
+  r.expect_object({"flat_field", "reference_z_m"});
+  StageCalibration calibration;
+  if (r.has("flat_field")) {
+    const fs::path file = r["flat_field"].string();
+    if (file.empty()) r["flat_field"].fail("a file name (the flat-field side car, .exr)");
+    // Absolute: a session's manifest keeps the stage, and must still find the file from there.
+    calibration.flat_field =
+        fs::absolute(file.is_absolute() ? file : base_dir / file).lexically_normal();
+  }
+  if (r.has("reference_z_m")) {
+    calibration.reference_z_m = r["reference_z_m"].number_in(-100, 100, "(metres)");
+  }
+  return calibration;
 }
 
 std::vector<Eigen::Vector3d> layout_directions(const JsonReader& r) {
@@ -153,6 +187,16 @@ std::vector<Eigen::Vector3d> layout_directions(const JsonReader& r) {
 json vec_json(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
 
 }  // namespace
+
+double CapturePlan::step_time_s(int t) const {
+  if (!times_s.empty()) return times_s.at(size_t(t));
+  return t * interval_s;
+}
+
+double CapturePlan::step_interval_s(int t) const {
+  if (t + 1 >= time_steps) return 0.0;
+  return step_time_s(t + 1) - step_time_s(t);
+}
 
 int Stage::led_index(int id) const {
   for (size_t i = 0; i < leds.size(); ++i) {
@@ -181,7 +225,8 @@ std::vector<Eigen::Vector3d> Stage::led_directions() const {
 Stage parse_stage(std::string_view json_text, const std::string& source_name) {
   const json doc = JsonReader::parse(json_text, source_name);
   const JsonReader r(doc, source_name);
-  r.expect_object({"name", "leds", "layout", "camera", "plan", "coverage_radius_deg"});
+  r.expect_object(
+      {"name", "leds", "layout", "camera", "plan", "coverage_radius_deg", "calibration"});
   const fs::path base_dir = fs::path(source_name).parent_path();
 
   Stage stage = default_stage();
@@ -205,6 +250,7 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
   if (r.has("camera")) stage.camera = parse_camera(r["camera"], base_dir);
   if (stage.camera.bracket.empty()) stage.camera.bracket = default_stage().camera.bracket;
   if (r.has("plan")) stage.plan = parse_plan(r["plan"], stage.leds);
+  if (r.has("calibration")) stage.calibration = parse_calibration(r["calibration"], base_dir);
   if (r.has("coverage_radius_deg")) {
     stage.coverage_radius_deg = r["coverage_radius_deg"].number_in(0, 180, "(0 = automatic)");
   }
@@ -273,16 +319,26 @@ std::string stage_to_json(const Stage& stage) {
                    {"dark_current_e_per_s", c.simulated.dark_current_e_per_s},
                    {"black_level", c.simulated.black_level},
                    {"real_time", c.simulated.real_time}}}};
-  json plan = {{"dark_frames", stage.plan.dark_frames},
-               {"settle_s", stage.plan.settle_s},
-               {"time_steps", stage.plan.time_steps},
-               {"interval_s", stage.plan.interval_s}};
+  json plan = {{"dark_frames", stage.plan.dark_frames}, {"settle_s", stage.plan.settle_s}};
+  if (stage.plan.times_s.empty()) {
+    plan["time_steps"] = stage.plan.time_steps;
+    plan["interval_s"] = stage.plan.interval_s;
+  } else {
+    plan["times_s"] = stage.plan.times_s;
+  }
   if (!stage.plan.led_order.empty()) plan["led_order"] = stage.plan.led_order;
-  const json doc = {{"name", stage.name},
-                    {"coverage_radius_deg", stage.coverage_radius_deg},
-                    {"leds", leds},
-                    {"camera", camera},
-                    {"plan", plan}};
+  json doc = {{"name", stage.name},
+              {"coverage_radius_deg", stage.coverage_radius_deg},
+              {"leds", leds},
+              {"camera", camera},
+              {"plan", plan}};
+  if (!stage.calibration.flat_field.empty() || stage.calibration.reference_z_m != 0.0) {
+    json calibration = {{"reference_z_m", stage.calibration.reference_z_m}};
+    if (!stage.calibration.flat_field.empty()) {
+      calibration["flat_field"] = stage.calibration.flat_field.string();
+    }
+    doc["calibration"] = calibration;
+  }
   return doc.dump(2) + "\n";
 }
 

@@ -76,6 +76,25 @@ struct CapturePlan {
   double settle_s = 0.0;       // Wait after switching an LED before exposing.
   int time_steps = 1;          // Captures of a changing scene.
   double interval_s = 0.0;     // Nominal time between time steps.
+  // Or the scene time of each step (seconds, >= 0, increasing); when set, time_steps is its size
+  // and interval_s is not used.
+  std::vector<double> times_s;
+
+  // Scene time of time step t, seconds: times_s[t], or t * interval_s.
+  double step_time_s(int t) const;
+  // Time from step t's start to the next step's; 0 for the last step (nothing follows it).
+  double step_interval_s(int t) const;
+};
+
+// Calibration results applied when a field is built (`lightstage calibrate intensities` writes
+// them). Stage file: "calibration": {"flat_field": "cal.flatfield.exr", "reference_z_m": 0}.
+struct StageCalibration {
+  // Side car holding each LED's flat field (one channel "ledNNN.Y" per LED over the camera's view,
+  // capture/light_calibration.h); resolved against the stage file's folder. Empty: none.
+  std::filesystem::path flat_field;
+  // Near LEDs (Led::distance_m): a pixel's surface point is taken where its camera ray meets the
+  // plane z = reference_z_m (metres, stage frame).
+  double reference_z_m = 0.0;
 };
 
 struct Stage {
@@ -83,6 +102,7 @@ struct Stage {
   std::vector<Led> leds;
   CameraSpec camera;
   CapturePlan plan;
+  StageCalibration calibration;
   // Directions further than this from every LED are not covered by the dome (0 = automatic: the
   // largest nearest-neighbour angle between LEDs).
   double coverage_radius_deg = 0.0;

@@ -5,7 +5,6 @@
 #include <ceres/tiny_solver_autodiff_function.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -40,6 +39,7 @@ struct PixelData {
   const Sample* samples = nullptr;
   int count = 0;
   Eigen::Vector3d n0, t1, t2, wo;  // PS normal, its tangents, the view direction.
+  bool refine_normal = true;       // Off: the two normal angles stay 0 (zero Jacobian columns).
 };
 
 template <FitModel M>
@@ -58,6 +58,7 @@ double logit(double p) { return std::log(p / (1 - p)); }
 template <class T>
 brdf::Vec3<T> normal_from(const PixelData& d, const T* p) {
   using std::sqrt;
+  if (!d.refine_normal) return d.n0.cast<T>();
   brdf::Vec3<T> n = d.n0.cast<T>() + d.t1.cast<T>() * p[0] + d.t2.cast<T>() * p[1];
   const T inv_len = T(1) / sqrt(n.dot(n));
   return n * inv_len;
@@ -129,7 +130,7 @@ ModelFit run_fit(const PixelData& d, const std::array<double, 7>& start, int max
   solver.Solve(function, &x);
 
   ModelFit fit;
-  fit.k = K;
+  fit.k = d.refine_normal ? K : K - 2;
   if (!x.allFinite()) return fit;
   // chi^2 at the returned parameters, evaluated here rather than trusted from the solver.
   thread_local std::vector<double> residuals;
@@ -139,7 +140,7 @@ ModelFit run_fit(const PixelData& d, const std::array<double, 7>& start, int max
   for (const double r : residuals) chi2 += r * r;
   if (!std::isfinite(chi2)) return fit;
   fit.chi2 = chi2;
-  fit.bic = chi2 + K * std::log(double(residuals.size()));
+  fit.bic = chi2 + fit.k * std::log(double(residuals.size()));
   for (int i = 0; i < K; ++i) fit.x[i] = x(i);
   fit.normal = normal_from(d, x.data());
   fit.albedo = Eigen::Vector3d(x(2) * x(2), x(3) * x(3), x(4) * x(4));
@@ -268,7 +269,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
           const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
           if (!(lum > threshold) || !std::isfinite(lum)) continue;
           Sample& s = samples[count++];
-          s.l = dirs[i];
+          s.l = capture::light_dir_at(field, light_index[i], x, y);  // Per pixel for near LEDs.
           for (int c = 0; c < 3; ++c) {
             s.v[c] = v[c];
             s.inv_sigma[c] = 1 / std::sqrt(no.noise.variance(v[c]));
@@ -288,6 +289,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
                    .normalized();
         d.t1 = d.n0.unitOrthogonal();
         d.t2 = d.n0.cross(d.t1);
+        d.refine_normal = options.refine_normal;
         d.wo = options.view_dir_per_pixel.empty()
                    ? Eigen::Vector3d(0, 0, 1)
                    : options.view_dir_per_pixel[size_t(y) * width + x].normalized();
@@ -405,33 +407,12 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps) 
   LS_CHECK(image.channels == kMapChannelCount &&
                image.pixels.size() == image.num_pixels() * kMapChannelCount,
            "model maps have " + std::to_string(image.channels) + " channels");
-  // Written here rather than with write_exr: the noise model goes into an attribute.
-  OIIO::ImageSpec spec(image.width, image.height, image.channels, OIIO::TypeDesc::FLOAT);
-  spec.channelnames = model_map_channel_names();
-  spec.attribute("compression", "zip");
   const nlohmann::json noise = {{"read_variance", maps.noise.a},
                                 {"shot_variance_per_unit", maps.noise.b},
                                 {"source", maps.noise_source}};
-  spec.attribute(kFitNoiseAttribute, noise.dump());
-  if (!path.parent_path().empty()) std::filesystem::create_directories(path.parent_path());
-  // Temporary sibling + rename: a killed writer never leaves a half file under the real name.
-  std::filesystem::path tmp = path;
-  tmp.replace_extension(".tmp" + std::to_string(::getpid()) + path.extension().string());
-  auto out = OIIO::ImageOutput::create(tmp.string());
-  if (!out) throw InputError(path.string() + ": cannot write OpenEXR: " + OIIO::geterror());
-  if (!out->open(tmp.string(), spec) ||
-      !out->write_image(OIIO::TypeDesc::FLOAT, image.pixels.data()) || !out->close()) {
-    const std::string error = out->geterror();
-    std::error_code ec;
-    std::filesystem::remove(tmp, ec);
-    throw InputError(path.string() + ": write failed: " + error);
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::filesystem::remove(tmp, ec);
-    throw InputError(path.string() + ": cannot rename the temporary file into place");
-  }
+  Image named = image;
+  named.channel_names = model_map_channel_names();
+  write_exr(path, named, ExrPixelType::kFloat, {{kFitNoiseAttribute, noise.dump()}});
   const Image& src = maps.maps;
   auto preview = [&](const std::string& name, int first, int channels, auto transform) {
     Image image(src.width, src.height, channels);

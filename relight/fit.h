@@ -61,6 +61,9 @@ struct FitOptions {
   // Torrance-Sparrow is multimodal in roughness: one LM start per entry, the best kept.
   std::vector<double> roughness_starts{0.08, 0.3};
   int max_iterations = 50;
+  // Off: the normal is held at the given (photometric-stereo) normal and k drops by 2, e.g. for a
+  // scene whose geometry does not change over time (relight/temporal_fit.h).
+  bool refine_normal = true;
   // A lobe fit (Torrance-Sparrow or Phong) with k_s above this is discarded and the pixel falls
   // back to a simpler model: k_s is the lobe's albedo (Fresnel folded in), at most about 1 for
   // calibrated data; 3e4..1e8 happen where no sample constrains the lobe (near silhouettes, under

@@ -19,13 +19,15 @@ constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};
 
 // Per-thread scratch, sized once per row range: the per-pixel loop does not allocate.
 struct Scratch {
-  std::vector<double> y;       // Luminance per valid light.
-  std::vector<double> sigma;   // Noise sigma of y.
-  std::vector<double> weight;  // Current LS weight (0 = not used).
-  std::vector<double> abs_u;   // |normalised residual|, for the MAD.
-  std::vector<int> order;      // For trimming.
-  std::vector<char> usable;    // Lit (above the shadow threshold) and not saturated.
-  explicit Scratch(size_t n) : y(n), sigma(n), weight(n), abs_u(n), order(n), usable(n) {}
+  std::vector<double> y;                    // Luminance per valid light.
+  std::vector<double> sigma;                // Noise sigma of y.
+  std::vector<double> weight;               // Current LS weight (0 = not used).
+  std::vector<double> abs_u;                // |normalised residual|, for the MAD.
+  std::vector<int> order;                   // For trimming.
+  std::vector<char> usable;                 // Lit (above the shadow threshold) and not saturated.
+  std::vector<Eigen::Vector3d> pixel_dirs;  // Near lights: this pixel's direction to each light.
+  explicit Scratch(size_t n)
+      : y(n), sigma(n), weight(n), abs_u(n), order(n), usable(n), pixel_dirs(n) {}
 };
 
 struct Solve {
@@ -106,9 +108,11 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
 
   const capture::ValidLights valid = capture::valid_lights(field);
   const std::vector<int>& light_index = valid.index;
-  const std::vector<Eigen::Vector3d>& dirs = valid.dirs_in_stage;
-  const size_t n = dirs.size();
+  const std::vector<Eigen::Vector3d>& distant_dirs = valid.dirs_in_stage;
+  const size_t n = distant_dirs.size();
   const std::vector<capture::FieldLight>& lights = field.lights();
+  // Near LEDs (positions in the field): each pixel sees them from its own reference point.
+  const bool per_pixel_dirs = capture::has_near_lights(field);
   const bool robust = options.method == NormalMethod::kRobust;
   std::atomic<int> flagged{0};
 
@@ -118,6 +122,12 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         const float* px = field.pixel(x, y);
+        if (per_pixel_dirs) {
+          for (size_t i = 0; i < n; ++i) {
+            s.pixel_dirs[i] = capture::light_dir_at(field, light_index[i], x, y);
+          }
+        }
+        const std::vector<Eigen::Vector3d>& dirs = per_pixel_dirs ? s.pixel_dirs : distant_dirs;
         double y_max = 0;
         for (size_t i = 0; i < n; ++i) {
           const float* v = px + 3 * light_index[i];

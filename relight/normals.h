@@ -4,7 +4,8 @@
 // The field holds R(x, l) = f_r * cos(theta_l) * V per unit LED irradiance. For a Lambertian pixel
 // R = (albedo / pi) * max(0, n . l), so on the luminance Y the unknowns g = (albedo_Y / pi) * n
 // solve the linear system L g = Y over the lit samples (L: one light direction per row). Everything
-// is weighted by the measurement noise model below.
+// is weighted by the measurement noise model below. With near LEDs (positions in the field), each
+// pixel's rows of L are its own directions toward the LEDs (capture::light_dir_at).
 #include <string>
 
 #include "capture/field.h"

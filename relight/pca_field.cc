@@ -498,6 +498,18 @@ void PcaField::relight_led_weights_into(const float* led_irradiance_rgb, Image& 
       });
 }
 
+std::vector<float> PcaField::project_led_weights(const float* led_irradiance_rgb) const {
+  Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> e(led_irradiance_rgb,
+                                                                               num_lights(), 3);
+  std::vector<float> out(bases_.size() * size_t(rank_) * 3);
+  for (size_t t = 0; t < bases_.size(); ++t) {
+    Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> w(
+        out.data() + t * size_t(rank_) * 3, rank_, 3);
+    w.noalias() = bases_[t].transpose() * e;
+  }
+  return out;
+}
+
 // File layout (little-endian): "LSPCA1\n"; int32 width, height, lights, rank, tile_size;
 // float64 rbf sigma (rad); per LED float64 x, y, z and uint8 valid; per tile (row-major over
 // tiles) the L x k basis as float32, column by column; per pixel (row-major, row 0 at the top)

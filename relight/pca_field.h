@@ -36,6 +36,7 @@
 // directions (LightInterpolator), as the open RTI builders interpolate their per-light samples
 // (relight/OpenLIME "rbf"); interpolating exactly at the LEDs, so a light on an LED is that LED.
 #include <Eigen/Core>
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -155,6 +156,16 @@ class PcaField : public CompactField {
   int tile_size() const { return tile_size_; }
   // The reconstruction of one pixel's value under LED l.
   float reconstruct(int x, int y, int light, int c) const;
+
+  // For GPU relighting (viewer/gpu_relight.cc), which does the per-pixel sum itself:
+  // the number of tiles (1 for a global basis; row-major, tiles_across() per row of tiles),
+  std::size_t num_tiles() const { return bases_.size(); }
+  int tiles_across() const { return tiles_x(); }
+  // the coefficients (per pixel, row-major from the top row: k x 3, [j * 3 + c]),
+  const std::vector<float>& coefficients() const { return coefs_; }
+  // and the per-LED irradiance (3 per LED) projected on each tile's basis, exactly as
+  // relight_led_weights_into does it: per tile k x 3, [(t * k + j) * 3 + c].
+  std::vector<float> project_led_weights(const float* led_irradiance_rgb) const;
 
   // Binary file (little-endian), documented in pca_field.cc: magic "LSPCA1\n", sizes, LED
   // directions and validity, the RBF sigma, the bases (float32) and coefficients (float32).

@@ -123,7 +123,7 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
     texel_corners[k] = {c00, c00 + 1, c00 + blocks_x + 1, c00 + blocks_x + 2};
   }
 
-  const std::vector<SurfaceHit> hits = trace_camera(scene, camera);
+  const std::vector<SurfaceHit> hits = trace_camera(scene, camera, options.scene_time_s);
   const detail::Tracer tracer(scene);
   Image out(camera.width, camera.height, 3);
   tbb::parallel_for(tbb::blocked_range<int>(0, camera.height), [&](const auto& rows) {
@@ -175,6 +175,14 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
     }
   });
   return out;
+}
+
+Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
+                          const relight::EnvironmentMap& map, const GroundTruthOptions& options,
+                          double time_s) {
+  GroundTruthOptions at_time = options;
+  at_time.scene_time_s = time_s;
+  return render_ground_truth(scene, camera, map, at_time);
 }
 
 }  // namespace ls::sim

@@ -26,9 +26,15 @@ struct GroundTruthOptions {
   // whose four corners agree takes that answer for all its texels. It misses shadow detail smaller
   // than a block (n = 4 at 256 directions: 5.6 deg), notably penumbrae of small sources.
   int visibility_block = 1;
+  // Scene time (seconds) at which time-varying materials are evaluated (sim/time_varying.h).
+  double scene_time_s = 0.0;
 };
 
 Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
                           const relight::EnvironmentMap& map, const GroundTruthOptions& options);
+// The scene as it is at scene time `time_s` (seconds); overrides options.scene_time_s.
+Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
+                          const relight::EnvironmentMap& map, const GroundTruthOptions& options,
+                          double time_s);
 
 }  // namespace ls::sim

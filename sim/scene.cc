@@ -15,8 +15,9 @@ namespace {
 
 constexpr double kDegToRad = brdf::kPi / 180.0;
 
-brdf::Material parse_brdf(const JsonReader& r) {
-  brdf::Material m;
+// The BRDF fields of `r` over `start` (fields not given keep start's values).
+brdf::Material parse_brdf(const JsonReader& r, const brdf::Material& start = brdf::Material()) {
+  brdf::Material m = start;
   if (r.has("diffuse")) {
     m.diffuse = r["diffuse"].one_of({"lambert", "oren-nayar"}) == "lambert"
                     ? brdf::DiffuseModel::kLambert
@@ -44,9 +45,81 @@ std::filesystem::path resolve(const std::string& file, const std::string& source
   return p;
 }
 
+MaterialProcess parse_process(const JsonReader& r, const brdf::Material& base,
+                              const std::string& source) {
+  r.expect_object({"kind", "rate_per_s", "onset_s", "wet", "dry", "spatial"});
+  MaterialProcess p;
+  const std::string kind = r["kind"].one_of({"paint_drying", "wet_drying", "dust_settling"});
+  p.kind = kind == "paint_drying" ? ProcessKind::kPaintDrying
+           : kind == "wet_drying" ? ProcessKind::kWetDrying
+                                  : ProcessKind::kDustSettling;
+  p.rate_per_s = r["rate_per_s"].positive("(1/s)");
+  if (r.has("onset_s")) p.onset_s = r["onset_s"].number_in(0, 1e9, "(seconds)");
+  auto endpoint = [&](const char* key, const brdf::Material& start) {
+    if (!r.has(key)) return start;
+    const JsonReader e = r[key];
+    e.expect_object(
+        {"diffuse", "albedo", "sigma_deg", "specular", "ks", "roughness", "phong_exponent"});
+    return parse_brdf(e, start);
+  };
+  // Both endpoints start from the material's own fields, so a process that gives only "wet" dries
+  // to the material itself. Dust is the exception: its dry end is the wet surface under dust,
+  // without gloss and with the same roughness (validate() requires that).
+  p.wet = endpoint("wet", base);
+  brdf::Material dry_start = base;
+  if (p.kind == ProcessKind::kDustSettling) {
+    dry_start = p.wet;
+    dry_start.ks.setZero();
+  }
+  p.dry = endpoint("dry", dry_start);
+  if (r.has("spatial")) {
+    const JsonReader sp = r["spatial"];
+    sp.expect_object({"kind", "center", "speed_per_s", "max_radius", "stroke_duration_s",
+                      "rate_scale_at_start", "rate_scale_at_end", "band_center",
+                      "band_half_width"});
+    SpatialVariation& v = p.spatial;
+    const std::string k = sp["kind"].one_of({"uniform", "spreading_patch", "stroke"});
+    v.kind = k == "uniform"           ? SpatialVariation::Kind::kUniform
+             : k == "spreading_patch" ? SpatialVariation::Kind::kSpreadingPatch
+                                      : SpatialVariation::Kind::kStroke;
+    auto allow = [&](const char* key, SpatialVariation::Kind only) {
+      if (sp.has(key) && v.kind != only) sp[key].fail(std::string("no ") + key + " for " + k);
+      return sp.has(key);
+    };
+    using K = SpatialVariation::Kind;
+    if (allow("center", K::kSpreadingPatch)) {
+      const JsonReader c = sp["center"];
+      if (c.size() != 2) c.fail("[s, t] (two numbers in [0, 1])");
+      v.center = {c[0].number_in(0, 1), c[1].number_in(0, 1)};
+    }
+    if (allow("speed_per_s", K::kSpreadingPatch)) {
+      v.speed_per_s = sp["speed_per_s"].positive("((s, t) units per second)");
+    }
+    if (allow("max_radius", K::kSpreadingPatch)) {
+      v.max_radius = sp["max_radius"].number_in(0, 2, "((s, t) units; 0 = the whole object)");
+    }
+    if (allow("stroke_duration_s", K::kStroke)) {
+      v.stroke_duration_s = sp["stroke_duration_s"].number_in(0, 1e9, "(seconds)");
+    }
+    if (allow("rate_scale_at_start", K::kStroke)) {
+      v.rate_scale_at_start = sp["rate_scale_at_start"].positive("(rate multiplier at s = 0)");
+    }
+    if (allow("rate_scale_at_end", K::kStroke)) {
+      v.rate_scale_at_end = sp["rate_scale_at_end"].positive("(rate multiplier at s = 1)");
+    }
+    if (allow("band_center", K::kStroke)) v.band_center = sp["band_center"].number_in(0, 1);
+    if (allow("band_half_width", K::kStroke)) {
+      v.band_half_width = sp["band_half_width"].positive("(along t)");
+    }
+  }
+  const std::string problem = p.validate();
+  if (!problem.empty()) throw InputError(source + ": " + r.path() + "." + problem);
+  return p;
+}
+
 SceneMaterial parse_material(const JsonReader& r, const std::string& source) {
   r.expect_object({"name", "diffuse", "albedo", "sigma_deg", "specular", "ks", "roughness",
-                   "phong_exponent", "checker", "albedo_texture"});
+                   "phong_exponent", "checker", "albedo_texture", "process"});
   SceneMaterial m;
   m.name = r["name"].string();
   if (m.name.empty()) r["name"].fail("a non-empty material name");
@@ -74,6 +147,12 @@ SceneMaterial parse_material(const JsonReader& r, const std::string& source) {
       throw InputError(source + ": " + r.path() +
                        ".albedo_texture: file not found: " + m.albedo_texture.string());
     }
+  }
+  if (r.has("process")) {
+    if (m.checker_albedo || !m.albedo_texture.empty()) {
+      r["process"].fail("no checker or albedo_texture together with a process");
+    }
+    m.process = parse_process(r["process"], m.base, source);
   }
   return m;
 }
@@ -203,6 +282,44 @@ constexpr std::string_view kDefaultSceneJson = R"json({
 }
 )json";
 
+// The time-varying scene (data/scenes/time_varying.json holds the same text).
+constexpr std::string_view kTimeVaryingSceneJson = R"json({
+  "materials": [
+    {"name": "drying-paint", "diffuse": "oren-nayar", "specular": "torrance-sparrow",
+     "process": {"kind": "paint_drying", "rate_per_s": 0.008333, "onset_s": 0,
+       "wet": {"albedo": [0.08, 0.16, 0.45], "sigma_deg": 0, "ks": [0.5, 0.5, 0.5],
+               "roughness": 0.08},
+       "dry": {"albedo": [0.25, 0.42, 0.75], "sigma_deg": 20, "ks": [0.04, 0.04, 0.04],
+               "roughness": 0.35},
+       "spatial": {"kind": "uniform"}}},
+    {"name": "matte-white", "diffuse": "lambert", "albedo": [0.8, 0.78, 0.75]},
+    {"name": "dusty-gloss", "diffuse": "lambert", "albedo": [0.6, 0.1, 0.08],
+     "specular": "torrance-sparrow", "ks": [0.45, 0.45, 0.45], "roughness": 0.15,
+     "process": {"kind": "dust_settling", "rate_per_s": 0.005, "onset_s": 0,
+       "dry": {"albedo": [0.55, 0.5, 0.42]},
+       "spatial": {"kind": "stroke", "stroke_duration_s": 60, "rate_scale_at_start": 0.5,
+                   "rate_scale_at_end": 2.0}}},
+    {"name": "wet-sand", "diffuse": "lambert", "albedo": [0.5, 0.42, 0.33],
+     "process": {"kind": "wet_drying", "rate_per_s": 0.03333, "onset_s": 60,
+       "wet": {"albedo": [0.14, 0.11, 0.08]},
+       "spatial": {"kind": "spreading_patch", "center": [0.5, 0.5], "speed_per_s": 0.001667,
+                   "max_radius": 0.45}}},
+    {"name": "grey-backdrop", "diffuse": "lambert", "albedo": [0.4, 0.4, 0.4]}
+  ],
+  "spheres": [
+    {"center": [-0.74, 0.48, 0.0], "radius": 0.34, "material": "drying-paint"},
+    {"center": [0.0, 0.48, 0.0], "radius": 0.3, "material": "matte-white"},
+    {"center": [0.74, 0.48, 0.0], "radius": 0.34, "material": "dusty-gloss"}
+  ],
+  "planes": [
+    {"center": [0.0, -0.55, -0.2], "normal": [0, 0, 1], "half_width": 1.0, "half_height": 0.45,
+     "material": "wet-sand"},
+    {"center": [0.0, 0.0, -0.6], "normal": [0, 0, 1], "half_width": 2.0, "half_height": 2.0,
+     "material": "grey-backdrop"}
+  ]
+}
+)json";
+
 }  // namespace
 
 int object_index_of_plane(const Scene& scene, int plane) {
@@ -304,6 +421,19 @@ Scene default_scene() {
   // Parsed from text so that data/scenes/demo.json (the same text) is provably this scene.
   Scene scene = parse_scene(kDefaultSceneJson, "<built-in>");
   return scene;
+}
+
+}  // namespace ls::sim
+
+namespace ls::sim {
+
+Scene time_varying_scene() { return parse_scene(kTimeVaryingSceneJson, "<built-in>"); }
+
+bool has_time_varying_materials(const Scene& scene) {
+  for (const SceneMaterial& m : scene.materials) {
+    if (m.process) return true;
+  }
+  return false;
 }
 
 }  // namespace ls::sim

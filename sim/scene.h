@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "relight/brdf.h"
+#include "sim/time_varying.h"
 
 namespace ls::sim {
 
@@ -21,6 +22,9 @@ struct SceneMaterial {
   std::optional<Eigen::Vector3d> checker_albedo;  // Alternates with base.albedo.
   int checker_cells = 8;
   std::filesystem::path albedo_texture;
+  // A time-varying material (sim/time_varying.h); then `base` is what points outside the process's
+  // region keep, and neither a checker nor a texture is allowed.
+  std::optional<MaterialProcess> process;
 };
 
 struct Sphere {
@@ -66,6 +70,14 @@ Scene parse_scene(std::string_view json_text, const std::string& source_name);
 // field with cast shadows, on a checkered ground plane.
 Scene default_scene();
 
+// A time-varying scene (data/scenes/time_varying.json holds the same text), over about 10 minutes
+// of scene time: a sphere of paint drying (lambda = 1/120 s, uniform), a wet plane drying in a
+// patch spreading from its centre (sigmoid, kappa = 1/30 s, front speed 1/600 per s), a glossy
+// sphere gathering dust along a stroke (lambda = 1/200 s, faster toward s = 1) and a static matte
+// sphere, before a grey backdrop.
+Scene time_varying_scene();
+bool has_time_varying_materials(const Scene& scene);
+
 // What the camera sees at one pixel.
 struct SurfaceHit {
   bool hit = false;
@@ -74,6 +86,8 @@ struct SurfaceHit {
   Eigen::Vector3d wo{0, 0, 1};      // Unit, toward the camera.
   brdf::Material material;          // With spatial variation already applied.
   int object = -1;                  // For region masks in tests.
+  int material_index = -1;          // Into Scene::materials; -1 when !hit.
+  Eigen::Vector2d st{0, 0};         // The object's own (s, t) in [0,1]^2 at the hit.
   // The pixel this hit belongs to (trace_camera returns them row-major); render_one_light takes
   // the image size from the last one.
   int pixel_x = 0;

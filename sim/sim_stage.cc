@@ -14,6 +14,7 @@
 #include <thread>
 
 #include "lightstage/errors.h"
+#include "sim/time_varying.h"
 #include "sim/tracer.h"
 
 namespace ls::sim {
@@ -371,11 +372,31 @@ std::vector<SurfaceHit> trace_camera(const Scene& scene, const CameraSpec& camer
         tracer.surface(h.position, rh.object, &h.normal, &st);
         if (h.normal.dot(h.wo) < 0) h.normal = -h.normal;  // Back sides of planes.
         const int m = tracer.material_of(rh.object);
-        h.material = shade_material(scene.materials[m], &textures[m], st);
+        h.material_index = m;
+        h.st = st;
+        h.material = scene.materials[m].process
+                         ? material_at(scene.materials[m], st.x(), st.y(), /*time_s=*/0.0)
+                         : shade_material(scene.materials[m], &textures[m], st);
       }
     }
   });
   return hits;
+}
+
+std::vector<SurfaceHit> at_time(const Scene& scene, std::vector<SurfaceHit> hits, double time_s) {
+  for (SurfaceHit& h : hits) {
+    if (!h.hit || h.material_index < 0) continue;
+    LS_CHECK(h.material_index < int(scene.materials.size()),
+             "hit material " + std::to_string(h.material_index) + " of " +
+                 std::to_string(scene.materials.size()));
+    const SceneMaterial& m = scene.materials[h.material_index];
+    if (m.process) h.material = material_at(m, h.st.x(), h.st.y(), time_s);
+  }
+  return hits;
+}
+
+std::vector<SurfaceHit> trace_camera(const Scene& scene, const CameraSpec& camera, double time_s) {
+  return at_time(scene, trace_camera(scene, camera), time_s);
 }
 
 bool visible(const Scene& scene, const Eigen::Vector3d& position, const Eigen::Vector3d& dir) {
@@ -513,7 +534,11 @@ struct SimStage::State {
   Stage stage;
   Scene scene;
   uint64_t seed = 0;
-  std::unique_ptr<Tracer> tracer;  // Refers to `scene`, which never moves after construction.
+  std::unique_ptr<Tracer> tracer;        // Refers to `scene`, which never moves after construction.
+  std::vector<SurfaceHit> hits_at_zero;  // Materials at scene time 0.
+  bool time_varying = false;             // Any material with a process.
+  // The cache of one scene time: hits with their materials then, and the one-light images.
+  double cached_time_s = 0.0;
   std::vector<SurfaceHit> hits;
   std::vector<std::optional<Image>> one_light;  // Per LED, computed on first use.
   std::vector<bool> on, dead;
@@ -560,6 +585,14 @@ struct SimStage::State {
   Lights lights{*this};
   Cam cam{*this};
 
+  // Moves the cache to `time_s`: a static scene looks the same at every time, so it keeps one.
+  void set_time(double time_s) {
+    if (!time_varying || time_s == cached_time_s) return;
+    hits = at_time(scene, hits_at_zero, time_s);
+    cached_time_s = time_s;
+    for (auto& image : one_light) image.reset();
+  }
+
   const Image& one_light_image(int led) {
     if (!one_light[led]) {
       const Led& l = stage.leds[led];
@@ -600,6 +633,7 @@ struct SimStage::State {
     }
     const int w = cam_spec.width, h = cam_spec.height;
     const size_t n = size_t(w) * h;
+    set_time(request.scene_time_s);  // The scene as it is at this frame's plan time.
     const auto exposure_ends =
         std::chrono::steady_clock::now() + std::chrono::duration<double>(request.exposure_s);
 
@@ -677,7 +711,9 @@ SimStage::SimStage(Stage stage, Scene scene, uint64_t seed) : state_(std::make_u
     }
   }
   state_->tracer = std::make_unique<Tracer>(state_->scene);
-  state_->hits = trace_camera(state_->scene, state_->stage.camera);
+  state_->hits_at_zero = trace_camera(state_->scene, state_->stage.camera);
+  state_->hits = state_->hits_at_zero;
+  state_->time_varying = has_time_varying_materials(state_->scene);
   const size_t leds = state_->stage.leds.size();
   state_->one_light.resize(leds);
   state_->on.assign(leds, false);
@@ -691,11 +727,19 @@ Camera& SimStage::camera() { return state_->cam; }
 const Stage& SimStage::stage() const { return state_->stage; }
 const Scene& SimStage::scene() const { return state_->scene; }
 const std::vector<SurfaceHit>& SimStage::hits() const { return state_->hits; }
+double SimStage::scene_time_s() const { return state_->cached_time_s; }
+
+void SimStage::set_scene_time(double time_s) { state_->set_time(time_s); }
 
 const Image& SimStage::one_light_image(int led_index) {
   LS_CHECK(led_index >= 0 && led_index < int(state_->stage.leds.size()),
            "LED index " + std::to_string(led_index) + " out of range");
   return state_->one_light_image(led_index);
+}
+
+const Image& SimStage::one_light_image(int led_index, double time_s) {
+  state_->set_time(time_s);
+  return one_light_image(led_index);
 }
 
 void SimStage::inject_timeouts(std::vector<uint64_t> sequence_keys) {

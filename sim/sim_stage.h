@@ -11,8 +11,14 @@
 
 namespace ls::sim {
 
-// Per-pixel surface hits for the stage's camera (computed once per scene and camera).
+// Per-pixel surface hits for the stage's camera (computed once per scene and camera), with the
+// materials at scene time 0.
 std::vector<SurfaceHit> trace_camera(const Scene& scene, const CameraSpec& camera);
+// The same hits with the materials at scene time `time_s` (seconds).
+std::vector<SurfaceHit> trace_camera(const Scene& scene, const CameraSpec& camera, double time_s);
+// Re-evaluates the time-varying materials of `hits` (from trace_camera of the same scene) at scene
+// time `time_s`: geometry does not change, only materials with a process do.
+std::vector<SurfaceHit> at_time(const Scene& scene, std::vector<SurfaceHit> hits, double time_s);
 
 // Whether `position` sees a distant light along `dir_in_stage` (shadow ray against all geometry;
 // hits nearer than 0.2 mm are the surface the point lies on). Prepares the scene on every call:
@@ -47,11 +53,18 @@ class SimStage {
   Camera& camera();
   const Stage& stage() const;
   const Scene& scene() const;
-  const std::vector<SurfaceHit>& hits() const;
+  // Each frame is rendered at its FrameRequest::scene_time_s. The stage caches the hits and the
+  // one-light images of one scene time (the latest frame's, initially 0): frames of one time step
+  // share them, and the next time step replaces them. A scene without time-varying materials
+  // keeps one cache for all times.
+  const std::vector<SurfaceHit>& hits() const;  // At scene_time_s().
+  double scene_time_s() const;
+  void set_scene_time(double time_s);
   // The noise-free one-light image of LED `led_index` (the ideal R(x, l), ignoring set_dead_led),
   // rendered on first use and cached; near-field (render_one_near_light) when the LED has a
-  // distance_m, distant otherwise.
+  // distance_m, distant otherwise. At scene_time_s(), or at `time_s` (which moves the cache).
   const Image& one_light_image(int led_index);
+  const Image& one_light_image(int led_index, double time_s);
 
   // Failure injection for tests: the camera times out on these sequence keys (once each), or
   // after `frames` more successful frames (forever, until cleared with a negative count).

@@ -354,6 +354,8 @@ void run_fit_bench(const FitBenchArgs& args) {
 
 }  // namespace
 
+void add_bench_temporal_command(CLI::App& bench);  // bench_temporal.cc
+
 void add_bench_command(CLI::App& app) {
   auto* bench =
       app.add_subcommand("bench", "Measure speed and accuracy; writes CSV and chart images.");
@@ -405,6 +407,7 @@ void add_bench_command(CLI::App& app) {
       ->check(CLI::Range(1, 1000))
       ->capture_default_str();
   fit->callback([fit_args] { run_fit_bench(*fit_args); });
+  add_bench_temporal_command(*bench);
 }
 
 }  // namespace ls::cli

@@ -1,6 +1,7 @@
 // lightstage build: session -> reflectance field (OpenEXR).
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 
 #include "capture/build_field.h"
 #include "lightstage/cli/commands.h"
@@ -31,6 +32,15 @@ int build_field_file(const std::filesystem::path& session_dir, const std::filesy
                out.c_str(), field.width(), field.height(), field.num_lights(),
                field.bytes() / 1048576.0, summary.response_used.c_str(),
                100.0 * summary.saturated_fraction, summary.seconds);
+  if (!summary.flat_field.empty()) {
+    std::fprintf(stderr, "flat field applied to %d LEDs: %s\n", summary.flat_field_lights,
+                 summary.flat_field.c_str());
+  }
+  if (summary.near_lights > 0) {
+    std::fprintf(stderr,
+                 "%d near LEDs: per-pixel distance and direction (reference plane z = %g m)\n",
+                 summary.near_lights, session.stage().calibration.reference_z_m);
+  }
   for (const auto& warning : summary.warnings)
     std::fprintf(stderr, "warning: %s\n", warning.c_str());
   if (!summary.lights_missing.empty()) {
@@ -42,10 +52,38 @@ int build_field_file(const std::filesystem::path& session_dir, const std::filesy
   return 0;
 }
 
+namespace {
+
+// One field per time step: DIR/field_t000.exr, ... (each stores its scene time, capture/field.h).
+int build_all_time_steps(const std::filesystem::path& session_dir,
+                         const std::filesystem::path& out_dir, bool quiet) {
+  const Session session = Session::open(session_dir);
+  std::error_code ec;
+  std::filesystem::create_directories(out_dir, ec);
+  if (ec || !std::filesystem::is_directory(out_dir)) {
+    throw InputError(out_dir.string() + ": --out: expected a directory for --all-time-steps (" +
+                     (ec ? ec.message() : std::string("not a directory")) + ")");
+  }
+  const CapturePlan& plan = session.stage().plan;
+  for (int t = 0; t < plan.time_steps; ++t) {
+    char name[32];
+    std::snprintf(name, sizeof name, "field_t%03d.exr", t);
+    if (!quiet) {
+      std::fprintf(stderr, "time step %d of %d (scene time %g s)\n", t + 1, plan.time_steps,
+                   plan.step_time_s(t));
+    }
+    build_field_file(session_dir, out_dir / name, t, quiet);
+  }
+  return 0;
+}
+
+}  // namespace
+
 void add_build_command(CLI::App& app) {
   struct Args {
     std::filesystem::path session, out;
     int time_step = 0;
+    bool all_time_steps = false;
     bool quiet = false;
   };
   auto args = std::make_shared<Args>();
@@ -57,12 +95,24 @@ void add_build_command(CLI::App& app) {
   cmd->add_option("session", args->session, "Session directory.")
       ->required()
       ->check(CLI::ExistingDirectory);
-  cmd->add_option("--out", args->out, "Field file to write (.exr).")->required();
-  cmd->add_option("--time-step", args->time_step, "Time step to build (time-varying sessions).")
-      ->capture_default_str();
+  cmd->add_option("--out", args->out,
+                  "Field file to write (.exr); with --all-time-steps, the directory to write "
+                  "field_t000.exr, field_t001.exr, ... into.")
+      ->required();
+  auto* step =
+      cmd->add_option("--time-step", args->time_step, "Time step to build (time-varying sessions).")
+          ->capture_default_str();
+  cmd->add_flag("--all-time-steps", args->all_time_steps,
+                "Build one field per time step into the --out directory.")
+      ->excludes(step);
   cmd->add_flag("--quiet", args->quiet, "No progress output.");
-  cmd->callback(
-      [args] { build_field_file(args->session, args->out, args->time_step, args->quiet); });
+  cmd->callback([args] {
+    if (args->all_time_steps) {
+      build_all_time_steps(args->session, args->out, args->quiet);
+    } else {
+      build_field_file(args->session, args->out, args->time_step, args->quiet);
+    }
+  });
 }
 
 }  // namespace ls::cli

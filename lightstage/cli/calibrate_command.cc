@@ -234,11 +234,19 @@ int run_intensities(const CalibrateArgs& args) {
                 after.color_gain[1], after.color_gain[2], 100.0 * e.fit_rms);
   }
   print_problems(all.problems);
-  write_file_atomic(args.out, stage_to_json(calibrated));
   fs::path flat = args.flat_field;
   if (flat.empty()) flat = fs::path(args.out).replace_extension(".flatfield.exr");
   write_exr(flat, capture::flat_field_image(
                       all, stage, 64, std::max(1, 64 * stage.camera.height / stage.camera.width)));
+  // The calibrated stage names its side car (relative to itself when beside it), so that `build`
+  // divides the flat fields out; written after the side car, so it never names a missing file.
+  if (update.intensities_changed > 0) {
+    const fs::path out_dir = fs::absolute(args.out).parent_path();
+    calibrated.calibration.flat_field = fs::absolute(flat).parent_path() == out_dir
+                                            ? flat.filename()
+                                            : fs::absolute(flat).lexically_normal();
+  }
+  write_file_atomic(args.out, stage_to_json(calibrated));
   std::printf("\n%d of %zu LED intensities calibrated -> %s (flat fields: %s)\n",
               update.intensities_changed, stage.leds.size(), args.out.c_str(), flat.c_str());
   return update.intensities_changed > 0 ? 0 : kExitInputError;

@@ -102,8 +102,11 @@ int capture_session(const CaptureRequest& request) {
     sim_stage = std::make_unique<sim::SimStage>(stage, scene, session->info().seed);
     lights = &sim_stage->lights();
     camera = &sim_stage->camera();
-    options.sleep = [](double) {};  // The simulated stage needs no settling time.
+    // The simulated stage needs no settling time, and renders each time step at its plan time;
+    // in real time it waits for each step's start as the hardware does.
+    if (!stage.camera.simulated.real_time) options.sleep = [](double) {};
   }
+  options.wait_for_time_steps = sim_stage == nullptr || stage.camera.simulated.real_time;
 
   StopSignals signals;
   ProgressReporter progress("capture", long(plan_frames(stage).size()), request.quiet);
@@ -117,6 +120,12 @@ int capture_session(const CaptureRequest& request) {
                "%.1f s\n",
                request.session_dir.c_str(), summary.frames_captured, summary.frames_already_present,
                summary.camera_retries, summary.seconds);
+  for (const TimeStepOverrun& o : summary.overruns) {
+    std::fprintf(stderr,
+                 "warning: time step %d (scene time %g s) took %.2f s to capture, longer than its "
+                 "interval of %g s to the next step\n",
+                 o.time_step, stage.plan.step_time_s(o.time_step), o.capture_s, o.interval_s);
+  }
   for (const auto& [index, reason] : session->dead_leds()) {
     std::fprintf(stderr, "warning: LED %d flagged dead: %s\n", stage.leds[index].id,
                  reason.c_str());

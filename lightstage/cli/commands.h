@@ -31,6 +31,7 @@ void add_check_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_import_command(CLI::App& app);
+void add_view_command(CLI::App& app);  // view_command.cc: the interactive viewer.
 
 // Steps shared by the demo and the single-step commands.
 struct CaptureRequest {

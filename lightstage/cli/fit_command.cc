@@ -1,8 +1,10 @@
 // lightstage fit: reflectance field -> per-pixel BRDF model maps (EXR + PNG previews).
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <memory>
+#include <vector>
 
 #include "capture/field.h"
 #include "lightstage/cli/commands.h"
@@ -10,6 +12,7 @@
 #include "lightstage/progress.h"
 #include "relight/fit.h"
 #include "relight/normals.h"
+#include "relight/temporal_fit.h"
 
 namespace ls::cli {
 
@@ -71,6 +74,89 @@ int fit_field_file(const FitRequest& request) {
   return 0;
 }
 
+namespace {
+
+// The time-step fields: files as given, or the field_t*.exr (else *.exr) files of a directory.
+std::vector<fs::path> expand_time_inputs(const std::vector<fs::path>& inputs) {
+  std::vector<fs::path> files;
+  for (const fs::path& in : inputs) {
+    if (!fs::is_directory(in)) {
+      files.push_back(in);
+      continue;
+    }
+    std::vector<fs::path> found, any;
+    for (const auto& entry : fs::directory_iterator(in)) {
+      if (entry.path().extension() != ".exr") continue;
+      any.push_back(entry.path());
+      if (entry.path().filename().string().rfind("field_t", 0) == 0) found.push_back(entry.path());
+    }
+    if (found.empty()) found = any;
+    if (found.empty()) throw InputError(in.string() + ": expected field .exr files, found none");
+    std::sort(found.begin(), found.end());
+    files.insert(files.end(), found.begin(), found.end());
+  }
+  return files;
+}
+
+int fit_time_fields(const FitRequest& request, const std::vector<fs::path>& inputs) {
+  const std::vector<fs::path> files = expand_time_inputs(inputs);
+  std::vector<capture::ReflectanceField> fields;
+  {
+    ProgressReporter reading("read fields", long(files.size()), request.quiet);
+    for (const fs::path& f : files) {
+      fields.push_back(capture::read_field(f));
+      reading.update(long(fields.size()));
+    }
+    reading.done();
+  }
+  relight::TemporalFitOptions options;
+  options.brdf.normals.method = request.method == "ls" ? relight::NormalMethod::kLeastSquares
+                                                       : relight::NormalMethod::kRobust;
+  // The noise of the first field that measured it (same camera for every step).
+  options.brdf.noise_source = "default NoiseModel (no field carries a measured noise)";
+  for (const capture::ReflectanceField& f : fields) {
+    if (!f.noise.measured) continue;
+    options.brdf.normals.noise.a = f.noise.read_variance;
+    options.brdf.normals.noise.b = f.noise.shot_variance_per_unit;
+    options.brdf.noise_source =
+        "measured" + (f.noise.method.empty() ? "" : " (" + f.noise.method + ")");
+    break;
+  }
+  if (const std::string error = options.validate(); !error.empty()) {
+    throw InputError(files.front().string() + ": noise: " + error);
+  }
+  if (!request.quiet) {
+    std::fprintf(stderr, "%zu time steps, noise: %s\n", fields.size(),
+                 options.brdf.noise_source.c_str());
+  }
+  const auto start = std::chrono::steady_clock::now();
+  ProgressReporter progress("fit over time", long(fields.size() + 1) * fields.front().height(),
+                            request.quiet);
+  options.progress = [&](long done, long) { progress.update(done); };
+  const relight::TemporalMaps maps = relight::fit_temporal(fields, options);
+  progress.done();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  relight::write_temporal_maps(request.out, maps);
+  const relight::TemporalSummary& s = maps.summary;
+  std::printf("%s: %dx%d pixels, %zu steps from %.1f s to %.1f s, %d fitted, %d flagged\n",
+              request.out.c_str(), maps.maps.width, maps.maps.height, maps.step_times_s.size(),
+              maps.first_time_s(), maps.last_time_s(), s.fitted, s.flagged);
+  for (int m = 1; m < relight::kTemporalModelCount; ++m) {
+    std::printf("  %-12s %8d pixels (%.1f%% of fitted)\n",
+                relight::to_string(relight::TemporalModel(m)), s.per_model[m],
+                s.fitted > 0 ? 100.0 * s.per_model[m] / s.fitted : 0.0);
+  }
+  std::printf("  flagged: %d faster than sampling, %d too few steps, %d with a dropped step\n",
+              s.faster_than_sampling, s.too_few_steps, s.step_dropped);
+  std::printf("  %.2f s: per-step BRDF fits %.2f s, temporal fits %.2f s (%.1f us/pixel)\n",
+              seconds, s.seconds_steps, s.seconds_temporal,
+              s.pixels > 0 ? 1e6 * s.seconds_temporal / s.pixels : 0.0);
+  return 0;
+}
+
+}  // namespace
+
 void add_fit_command(CLI::App& app) {
   auto request = std::make_shared<FitRequest>();
   auto* cmd = app.add_subcommand(
@@ -80,9 +166,15 @@ void add_fit_command(CLI::App& app) {
       "the model chosen by BIC. Writes MAPS.exr (normal, albedo, sigma, ks, roughness, model, "
       "confidence, residual, flags) and a PNG preview per map beside it; 'lightstage relight "
       "--models MAPS.exr' renders them.");
+  auto time_inputs = std::make_shared<std::vector<fs::path>>();
   cmd->add_option("field", request->field_file, "Reflectance field (.exr from 'lightstage build').")
-      ->required()
       ->check(CLI::ExistingFile);
+  cmd->add_option("--time", *time_inputs,
+                  "Time-varying fit (issue 6): one field per time step (their scene_time_s), or a "
+                  "directory of field_tNNN.exr. Writes temporal maps (process per pixel, rate, "
+                  "onset, wet and dry parameters) for 'lightstage relight --time T --temporal'.")
+      ->expected(1, -1)
+      ->check(CLI::ExistingPath);
   cmd->add_option("--out", request->out, "Model maps to write (.exr).")->required();
   cmd->add_flag("--phong", request->phong, "Also fit Lambert + Phong (for comparison).");
   cmd->add_option("--method", request->method,
@@ -91,7 +183,19 @@ void add_fit_command(CLI::App& app) {
       ->check(CLI::IsMember({"robust", "ls"}))
       ->capture_default_str();
   cmd->add_flag("--quiet", request->quiet, "No progress output.");
-  cmd->callback([request] { fit_field_file(*request); });
+  cmd->callback([request, time_inputs] {
+    if (!time_inputs->empty()) {
+      if (!request->field_file.empty()) {
+        throw CLI::ValidationError("fit", "give either a field or --time FIELDS..., not both");
+      }
+      fit_time_fields(*request, *time_inputs);
+      return;
+    }
+    if (request->field_file.empty()) {
+      throw CLI::ValidationError("fit", "a field (or --time FIELDS...) is required");
+    }
+    fit_field_file(*request);
+  });
 }
 
 }  // namespace ls::cli

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   ls::cli::add_calibrate_command(app);
   ls::cli::add_fit_command(app);
   ls::cli::add_import_command(app);
+  ls::cli::add_view_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::RuntimeError& e) {

@@ -17,6 +17,7 @@
 #include "relight/model_edit.h"
 #include "relight/model_render.h"
 #include "relight/relight.h"
+#include "relight/temporal_render.h"
 
 namespace ls::cli {
 
@@ -137,6 +138,61 @@ std::vector<RelitOutput> relight_models_file(const RelightRequest& request) {
   return outputs;
 }
 
+// --temporal T.exr --time S: the time-varying models of 'lightstage fit --time' at scene time S
+// (time edits from --edits: relight/temporal_render.h), rendered as --models renders.
+std::vector<RelitOutput> relight_temporal_file(const RelightRequest& request,
+                                               const fs::path& temporal_file, double time_s) {
+  relight::TemporalMaps maps = relight::read_temporal_maps(temporal_file);
+  if (!request.edits_file.empty()) {
+    const relight::TemporalEdits edits =
+        relight::read_temporal_edits(request.edits_file, maps.maps.width, maps.maps.height);
+    const std::vector<int> counts = relight::apply_temporal_edits(edits, maps);
+    for (size_t i = 0; i < counts.size() && !request.quiet; ++i) {
+      std::fprintf(stderr, "  %s: time[%zu] changed %d pixels\n",
+                   request.edits_file.filename().c_str(), i, counts[i]);
+    }
+  }
+  fs::create_directories(request.out_dir);
+  relight::EnvironmentSampling sampling;
+  sampling.directions_width = request.directions_width;
+  std::vector<RelitOutput> outputs;
+  std::set<std::string> used_names;
+  int extrapolated = 0;
+  char suffix[32];
+  std::snprintf(suffix, sizeof suffix, "_t%.0fs", time_s);
+  if (request.light_dir.size() == 3) {
+    const Eigen::Vector3d dir(request.light_dir[0], request.light_dir[1], request.light_dir[2]);
+    Image relit = relight::render_temporal(
+        maps, time_s, relight::LightingForModels::directional(dir, Eigen::Vector3d(1, 1, 1)), {},
+        &extrapolated);
+    outputs.push_back(write_relit(request, std::string("light") + suffix, relit));
+  }
+  ProgressReporter progress(
+      "relight at t", long(request.maps.size() * request.rotations_deg.size()), request.quiet);
+  long done = 0;
+  for (const auto& map_path : request.maps) {
+    const relight::EnvironmentMap map = relight::EnvironmentMap::load(map_path);
+    for (double rotation : request.rotations_deg) {
+      Image relit = relight::render_temporal(
+          maps, time_s, relight::LightingForModels::environment(map, rotation, sampling), {},
+          &extrapolated);
+      const std::string name =
+          output_name(map_path, rotation, request.rotations_deg.size() > 1, used_names) + suffix;
+      outputs.push_back(write_relit(request, name, relit));
+      progress.update(++done, name);
+    }
+  }
+  progress.done();
+  std::printf("t = %.1f s (captured %.1f .. %.1f s)%s\n", time_s, maps.first_time_s(),
+              maps.last_time_s(),
+              extrapolated > 0 ? ": EXTRAPOLATED beyond the captured steps" : "");
+  if (extrapolated > 0) {
+    std::printf("  %d varying pixels extrapolated (flag %d in their model maps)\n", extrapolated,
+                relight::kExtrapolated);
+  }
+  return outputs;
+}
+
 }  // namespace
 
 std::vector<RelitOutput> relight_field_file(const RelightRequest& request) {
@@ -229,7 +285,30 @@ void add_relight_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--out", request->out_dir, "Output directory.")->required();
   cmd->add_flag("--quiet", request->quiet, "No progress output.");
-  cmd->callback([request, exposure, exp_opt, edits_opt] {
+  auto temporal_file = std::make_shared<fs::path>();
+  auto time_s = std::make_shared<double>(0.0);
+  auto* temporal_opt =
+      cmd->add_option("--temporal", *temporal_file,
+                      "Temporal maps from 'lightstage fit --time', rendered at --time (with "
+                      "--edits: a time edit file, see relight/temporal_render.h).")
+          ->check(CLI::ExistingFile);
+  auto* time_opt = cmd->add_option("--time", *time_s,
+                                   "With --temporal: scene time in seconds (any time; "
+                                   "outside the captured steps it is flagged).");
+  cmd->callback([request, exposure, exp_opt, edits_opt, temporal_file, time_s, temporal_opt,
+                 time_opt] {
+    if (temporal_opt->count() > 0) {
+      if (time_opt->count() == 0) throw CLI::ValidationError("--temporal", "give --time T too");
+      if (request->maps.empty() && request->light_dir.empty()) {
+        throw CLI::ValidationError("--env", "give at least one map (or --light)");
+      }
+      request->auto_exposure = exp_opt->count() == 0;
+      request->exposure_stops = *exposure;
+      const auto outputs = relight_temporal_file(*request, *temporal_file, *time_s);
+      write_contact_sheet(request->out_dir / "contact_sheet.png", outputs,
+                          "temporal: " + temporal_file->filename().string());
+      return;
+    }
     if (request->field_file.empty() && request->models_file.empty()) {
       throw CLI::ValidationError("relight", "give a field, --models MAPS.exr, or both");
     }

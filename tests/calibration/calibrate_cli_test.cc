@@ -98,6 +98,9 @@ TEST(CalibrateCli, DirectionsThenIntensitiesRecoverThePerturbedDome) {
   std::printf("%s", output.c_str());
   EXPECT_TRUE(std::filesystem::exists(dir / "calibrated.flatfield.exr"));
   const Stage calibrated = load_stage(dir / "calibrated.json");
+  // The calibrated stage names its flat fields, so that `build` divides them out.
+  EXPECT_EQ(calibrated.calibration.flat_field, dir / "calibrated.flatfield.exr");
+  EXPECT_NO_THROW(capture::read_flat_field(calibrated.calibration.flat_field, calibrated));
   double worst_e = 0;
   int intensities = 0;
   for (size_t l = 0; l < nominal.leds.size(); ++l) {

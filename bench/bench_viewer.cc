@@ -1,0 +1,213 @@
+// Viewer frame time on the GPU (issue 5): relighting a 512 x 512 x 150-LED field per source (field
+// in half and in float, PCA k = 16, fitted models under 512 and 2048 distant lights, exact and
+// through the prefiltered environment), one frame = weights upload + draw + glFinish, in a hidden
+// GlWindow. Needs a display:
+//   xvfb-run -a -s "-screen 0 1280x720x24" build/bench/bench_viewer   (llvmpipe)
+// The upload itself (once per source) is timed too (BM_UploadField).
+#include <benchmark/benchmark.h>
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include <cmath>
+#include <iostream>
+#include <memory>
+
+#include "capture/field.h"
+#include "lightstage/stage.h"
+#include "relight/fit.h"
+#include "relight/model_render.h"
+#include "relight/pca_field.h"
+#include "viewer/gl_window.h"
+#include "viewer/gpu_relight.h"
+
+namespace {
+
+constexpr int kSize = 512;
+constexpr int kLeds = 150;
+constexpr double kPi = 3.14159265358979323846;
+
+ls::viewer::GlWindow& window() {
+  static auto* w = [] {
+    auto* created = new ls::viewer::GlWindow(256, 256, "bench_viewer", false);
+    std::cout << "renderer: " << created->renderer() << std::endl;
+    return created;
+  }();
+  return *w;
+}
+
+Eigen::Vector3d normal_at(int x, int y) {
+  return Eigen::Vector3d(std::sin(x * 0.01), std::cos(y * 0.013), 1.5).normalized();
+}
+
+// A cheap analytic field (what a frame costs does not depend on the values): Lambertian shading
+// of a smoothly varying normal with a colour ramp, R = albedo / pi * max(0, n . d_l).
+const ls::capture::ReflectanceField& field() {
+  static std::unique_ptr<ls::capture::ReflectanceField> f;
+  if (!f) {
+    std::vector<ls::capture::FieldLight> lights;
+    int id = 0;
+    for (const Eigen::Vector3d& d : ls::fibonacci_dome_directions(kLeds, 10.0)) {
+      lights.push_back({id++, d, true});
+    }
+    f = std::make_unique<ls::capture::ReflectanceField>(kSize, kSize, lights);
+    for (int y = 0; y < kSize; ++y) {
+      for (int x = 0; x < kSize; ++x) {
+        const Eigen::Vector3d n = normal_at(x, y);
+        float* v = f->pixel(x, y);
+        for (int l = 0; l < kLeds; ++l) {
+          const double shading = std::max(0.0, n.dot(lights[l].dir_in_stage)) / kPi;
+          for (int c = 0; c < 3; ++c) v[l * 3 + c] = float(shading * (0.3 + 0.2 * c));
+        }
+      }
+    }
+  }
+  return *f;
+}
+
+// Every LED lit (the worst case: nothing skipped), unequal weights.
+ls::viewer::ViewLighting led_lighting() {
+  ls::viewer::ViewLighting lighting;
+  for (int l = 0; l < kLeds; ++l) {
+    for (int c = 0; c < 3; ++c) lighting.led_irradiance_rgb.push_back(0.01f * (1 + l % 7 + c));
+  }
+  return lighting;
+}
+
+// `count` distant lights spread over the sphere (Fibonacci), as an environment at
+// directions_width^2 / 2 texels gives.
+ls::viewer::ViewLighting distant_lights(int count) {
+  ls::viewer::ViewLighting lighting;
+  const double golden = kPi * (3.0 - std::sqrt(5.0));
+  for (int k = 0; k < count; ++k) {
+    const double y = 1.0 - 2.0 * (k + 0.5) / count, r = std::sqrt(1.0 - y * y);
+    lighting.lights.dirs_in_stage.emplace_back(float(r * std::cos(golden * k)), float(y),
+                                               float(r * std::sin(golden * k)));
+    lighting.lights.irradiance_rgb.emplace_back(0.02f, 0.015f, 0.01f);
+  }
+  return lighting;
+}
+
+// Lambert + Torrance-Sparrow on every pixel (the most expensive common model).
+ls::relight::ModelMaps model_maps() {
+  ls::relight::ModelMaps maps;
+  maps.maps = ls::Image(kSize, kSize, ls::relight::kMapChannelCount);
+  for (int y = 0; y < kSize; ++y) {
+    for (int x = 0; x < kSize; ++x) {
+      const Eigen::Vector3d n = normal_at(x, y);
+      const float values[] = {float(n.x()), float(n.y()), float(n.z()), 0.5f, 0.4f, 0.3f, 0.0f,
+                              0.3f,         0.2f,         3.0f,         1.0f, 1.0f, 0.0f};
+      for (int c = 0; c < ls::relight::kMapChannelCount; ++c) maps.maps.at(x, y, c) = values[c];
+    }
+  }
+  return maps;
+}
+
+void run_frames(benchmark::State& state, ls::viewer::GpuSource& source,
+                const ls::viewer::ViewLighting& lighting) {
+  ls::viewer::GpuTarget target(source.width(), source.height());
+  source.render(lighting, target);  // Warm-up: shader compile on first draw.
+  glFinish();
+  for (auto _ : state) {
+    source.render(lighting, target);
+    glFinish();
+  }
+  state.SetLabel(source.note());
+  state.counters["fps"] =
+      benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+}
+
+void BM_FieldFrame(benchmark::State& state) {
+  window();
+  const auto precision =
+      state.range(0) ? ls::viewer::FieldPrecision::kHalf : ls::viewer::FieldPrecision::kFloat;
+  const auto source = ls::viewer::upload_field(field(), std::size_t(4) << 30, precision);
+  run_frames(state, *source, led_lighting());
+}
+BENCHMARK(BM_FieldFrame)
+    ->ArgName("half")
+    ->Arg(1)
+    ->Arg(0)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+void BM_PcaFrame(benchmark::State& state) {
+  window();
+  static const ls::relight::PcaField pca = [] {
+    ls::relight::PcaOptions options;
+    options.rank = 16;
+    return ls::relight::PcaField::build(field(), options);
+  }();
+  const auto source = ls::viewer::upload_pca(pca);
+  run_frames(state, *source, led_lighting());
+}
+BENCHMARK(BM_PcaFrame)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_ModelsFrame(benchmark::State& state) {
+  window();
+  static const ls::relight::ModelMaps maps = model_maps();
+  const auto source = ls::viewer::upload_models(maps, {}, ls::viewer::ModelShading::kExact);
+  run_frames(state, *source, distant_lights(int(state.range(0))));
+}
+BENCHMARK(BM_ModelsFrame)
+    ->ArgName("lights")
+    ->Arg(512)
+    ->Arg(2048)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// The same maps and lights through the prefiltered environment (ModelShading::kPrefiltered): one
+// pass with no per-light work. The lighting does not change between frames, so this is the frame
+// alone; BM_ModelsPrefilterRebuild is what a new rotation adds once.
+void BM_ModelsPrefilteredFrame(benchmark::State& state) {
+  window();
+  static const ls::relight::ModelMaps maps = model_maps();
+  const auto source = ls::viewer::upload_models(maps, {}, ls::viewer::ModelShading::kPrefiltered);
+  run_frames(state, *source, distant_lights(int(state.range(0))));
+}
+BENCHMARK(BM_ModelsPrefilteredFrame)
+    ->ArgName("lights")
+    ->Arg(512)
+    ->Arg(2048)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// A frame whose lights changed (a new rotation each frame): the CPU prefiltering (SH9 and the
+// 8-level stack), its upload and the draw.
+void BM_ModelsPrefilterRebuild(benchmark::State& state) {
+  window();
+  static const ls::relight::ModelMaps maps = model_maps();
+  const auto source = ls::viewer::upload_models(maps, {}, ls::viewer::ModelShading::kPrefiltered);
+  ls::viewer::ViewLighting lighting = distant_lights(int(state.range(0)));
+  ls::viewer::GpuTarget target(source->width(), source->height());
+  source->render(lighting, target);
+  glFinish();
+  float scale = 1.0f;
+  for (auto _ : state) {
+    scale = scale > 1.5f ? 1.0f : scale * 1.01f;  // Different lights: the cache misses.
+    for (Eigen::Vector3f& e : lighting.lights.irradiance_rgb) e.x() = 0.02f * scale;
+    source->render(lighting, target);
+    glFinish();
+  }
+  state.SetLabel(source->note());
+}
+BENCHMARK(BM_ModelsPrefilterRebuild)
+    ->ArgName("lights")
+    ->Arg(512)
+    ->Arg(2048)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+void BM_UploadField(benchmark::State& state) {
+  window();
+  for (auto _ : state) {
+    const auto source =
+        ls::viewer::upload_field(field(), std::size_t(4) << 30, ls::viewer::FieldPrecision::kHalf);
+    glFinish();
+  }
+}
+BENCHMARK(BM_UploadField)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+
+}  // namespace
+
+BENCHMARK_MAIN();

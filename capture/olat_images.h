@@ -1,0 +1,43 @@
+#pragma once
+// The pixel half of the OLAT importers (capture/olat_import.h): a list of images, each with its
+// light's direction and intensity, read as linear RGB into a ReflectanceField. The text formats
+// that produce the list (.lp files, DiLiGenT folders) are parsed in olat_import.cc.
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+#include "capture/olat_import.h"
+
+namespace ls::capture {
+
+// One light of an OLAT set, as its files describe it.
+struct OlatLight {
+  std::filesystem::path image;
+  Eigen::Vector3d dir_in_stage{0, 0, 1};
+  Eigen::Vector3f intensity_rgb{1, 1, 1};  // Divided out of the pixel values.
+  std::string where;                       // "FILE:LINE" of the line that names the image.
+};
+
+struct OlatImageSet {
+  OlatFormat format = OlatFormat::kRtiLp;
+  std::filesystem::path source;
+  std::vector<OlatLight> lights;
+  TransferCurve transfer = TransferCurve::kSrgb;
+  std::vector<float> mask;  // Empty, or 1/0 per pixel at the images' size (1 = object).
+  int mask_width = 0, mask_height = 0;
+  std::string mask_name;
+  std::vector<std::string> notes;
+};
+
+// Reads every image (in parallel), undoes the transfer curve, applies the mask, downsizes to
+// options.max_size and divides by each light's intensity. All images must share the first one's
+// size. Integer files give each light its saturation ceiling (FieldLight::saturates_at).
+ReflectanceField import_images(OlatImageSet set, const OlatImportOptions& options,
+                               OlatImportSummary* summary);
+
+// Reads a mask image into set.mask (non-zero in any of the first three channels = object).
+void read_mask(const std::filesystem::path& mask_file, OlatImageSet& set);
+
+}  // namespace ls::capture
