@@ -18,6 +18,7 @@
 #include "relight/fit.h"
 #include "relight/model_render.h"
 #include "relight/pca_field.h"
+#include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"
 
@@ -131,17 +132,36 @@ BENCHMARK(BM_FieldFrame)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
-void BM_PcaFrame(benchmark::State& state) {
+// What the viewer uses on a software renderer (viewer/cpu_sources.h): CPU relighting + upload.
+void BM_FieldFrameOnCpu(benchmark::State& state) {
   window();
+  const auto source = ls::viewer::relight_field_on_cpu(field());
+  run_frames(state, *source, led_lighting());
+}
+BENCHMARK(BM_FieldFrameOnCpu)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+const ls::relight::PcaField& pca16() {
   static const ls::relight::PcaField pca = [] {
     ls::relight::PcaOptions options;
     options.rank = 16;
     return ls::relight::PcaField::build(field(), options);
   }();
-  const auto source = ls::viewer::upload_pca(pca);
+  return pca;
+}
+
+void BM_PcaFrame(benchmark::State& state) {
+  window();
+  const auto source = ls::viewer::upload_pca(pca16());
   run_frames(state, *source, led_lighting());
 }
 BENCHMARK(BM_PcaFrame)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+void BM_PcaFrameOnCpu(benchmark::State& state) {
+  window();
+  const auto source = ls::viewer::relight_pca_on_cpu(pca16());
+  run_frames(state, *source, led_lighting());
+}
+BENCHMARK(BM_PcaFrameOnCpu)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_ModelsFrame(benchmark::State& state) {
   window();

@@ -51,6 +51,9 @@ class GpuTarget {
   unsigned framebuffer() const { return framebuffer_; }
   // glReadPixels into a 3-channel Image (row 0 at the top, as every Image).
   Image read_back() const;
+  // The reverse: writes an image of the target's size (row 0 at the top; 1 channel is grey, extra
+  // channels are ignored) into the texture, so that read_back() returns it.
+  void upload(const Image& image);
 
  private:
   int width_ = 0, height_ = 0;

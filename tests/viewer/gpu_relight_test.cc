@@ -25,6 +25,7 @@
 #include "relight/relight.h"
 #include "sim/leave_lights_out.h"
 #include "tests/support/test_support.h"
+#include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
 
 namespace ls::viewer {
@@ -184,6 +185,30 @@ TEST_F(GpuRelight, PcaMatchesTheCpuGlobalAndTiled) {
       EXPECT_LT(d.mean_relative, 1e-5);
     }
   }
+}
+
+// The software-renderer path (viewer/cpu_sources.h): the CPU result, uploaded and read back
+// through the same target, row order included.
+TEST_F(GpuRelight, CpuSourcesUploadTheCpuRelightingExactly) {
+  EXPECT_EQ(software_renderer(), window_->renderer().find("llvmpipe") != std::string::npos);
+  relight::PcaOptions options;
+  options.rank = 12;
+  const relight::PcaField pca = relight::PcaField::build(*field_, options);
+  const auto field_source = relight_field_on_cpu(*field_);
+  const auto pca_source = relight_pca_on_cpu(pca);
+  EXPECT_NE(field_source->note().find("CPU"), std::string::npos);
+  for (const ViewLighting& lighting : {environment(137), point_light()}) {
+    EXPECT_EQ(
+        difference(gpu_render(*field_source, lighting), cpu_field(*field_, lighting)).max_relative,
+        0.0);
+    Image cpu;
+    pca.relight_led_weights_into(lighting.led_irradiance_rgb.data(), cpu);
+    EXPECT_EQ(difference(gpu_render(*pca_source, lighting), cpu).max_relative, 0.0);
+  }
+  ViewLighting wrong = environment(0);
+  wrong.led_irradiance_rgb.pop_back();
+  GpuTarget target(field_->width(), field_->height());
+  EXPECT_THROW(field_source->render(wrong, target), InputError);
 }
 
 TEST_F(GpuRelight, FieldOverTheBudgetFallsBackToPcaAndSaysSo) {

@@ -1,0 +1,82 @@
+#include "viewer/cpu_sources.h"
+
+#define GL_GLEXT_PROTOTYPES
+#include <GL/glcorearb.h>
+
+#include <cstring>
+#include <string>
+#include <utility>
+
+#include "lightstage/errors.h"
+#include "relight/relight.h"
+#include "viewer/gl_util.h"
+
+namespace ls::viewer {
+namespace {
+
+class CpuFieldSource : public GpuSource {
+ public:
+  explicit CpuFieldSource(const capture::ReflectanceField& field) : field_(field) {}
+  std::string name() const override { return "field"; }
+  std::string note() const override {
+    return "field: " + std::to_string(field_.num_lights()) + " LEDs, " +
+           gl_util::mb(field_.bytes()) +
+           " in memory; software OpenGL: relit on the CPU and uploaded (faster than its shader)";
+  }
+  int width() const override { return field_.width(); }
+  int height() const override { return field_.height(); }
+  std::size_t bytes() const override { return 0; }
+  void render(const ViewLighting& lighting, GpuTarget& target) override {
+    gl_util::check_target(*this, target);
+    gl_util::check_led_weights(*this, lighting, field_.num_lights());
+    relight::relight_into(field_, lighting.led_irradiance_rgb.data(), image_);
+    target.upload(image_);
+  }
+
+ private:
+  const capture::ReflectanceField& field_;
+  Image image_;
+};
+
+class CpuPcaSource : public GpuSource {
+ public:
+  explicit CpuPcaSource(relight::PcaField pca) : pca_(std::move(pca)) {}
+  std::string name() const override { return pca_.name(); }
+  std::string note() const override {
+    return pca_.name() + ": software OpenGL: relit on the CPU and uploaded";
+  }
+  int width() const override { return pca_.width(); }
+  int height() const override { return pca_.height(); }
+  std::size_t bytes() const override { return 0; }
+  void render(const ViewLighting& lighting, GpuTarget& target) override {
+    gl_util::check_target(*this, target);
+    gl_util::check_led_weights(*this, lighting, pca_.num_lights());
+    pca_.relight_led_weights_into(lighting.led_irradiance_rgb.data(), image_);
+    target.upload(image_);
+  }
+
+ private:
+  relight::PcaField pca_;
+  Image image_;
+};
+
+}  // namespace
+
+bool software_renderer() {
+  const auto* renderer = reinterpret_cast<const char*>(glGetString(GL_RENDERER));
+  if (renderer == nullptr) return false;
+  for (const char* name : {"llvmpipe", "softpipe", "swrast"}) {
+    if (std::strstr(renderer, name) != nullptr) return true;
+  }
+  return false;
+}
+
+std::unique_ptr<GpuSource> relight_field_on_cpu(const capture::ReflectanceField& field) {
+  return std::make_unique<CpuFieldSource>(field);
+}
+
+std::unique_ptr<GpuSource> relight_pca_on_cpu(const relight::PcaField& pca) {
+  return std::make_unique<CpuPcaSource>(pca);
+}
+
+}  // namespace ls::viewer
