@@ -32,30 +32,7 @@ ModelSelection read_selection(const JsonReader& r, const std::filesystem::path& 
   if (!r.has("model") && !r.has("mask")) r.fail(R"(an object with "model" and/or "mask")");
   ModelSelection s;
   if (r.has("model")) s.model = read_model_name(r["model"]);
-  if (r.has("mask")) {
-    const JsonReader m = r["mask"];
-    s.mask_file = m.string();
-    const std::filesystem::path file =
-        s.mask_file.is_absolute() ? s.mask_file : base_dir / s.mask_file;
-    Image image;
-    try {
-      image = read_image(file);
-    } catch (const InputError& e) {
-      m.fail(std::string("a readable mask image (") + e.what() + ")");
-    }
-    if (image.width != width || image.height != height) {
-      m.fail("a mask of " + std::to_string(width) + "x" + std::to_string(height) +
-             " pixels (the maps' size), but " + file.string() + " is " +
-             std::to_string(image.width) + "x" + std::to_string(image.height));
-    }
-    const int colour = std::min(image.channels, 3);
-    s.mask.resize(image.num_pixels());
-    for (size_t i = 0; i < image.num_pixels(); ++i) {
-      float sum = 0;
-      for (int c = 0; c < colour; ++c) sum += image.pixels[i * image.channels + c];
-      s.mask[i] = sum / colour >= 0.5f;
-    }
-  }
+  if (r.has("mask")) s.mask = read_selection_mask(r["mask"], base_dir, width, height, &s.mask_file);
   return s;
 }
 
@@ -208,6 +185,31 @@ std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps) {
     counts.push_back(count);
   }
   return counts;
+}
+
+std::vector<uint8_t> read_selection_mask(const JsonReader& m, const std::filesystem::path& base_dir,
+                                         int width, int height, std::filesystem::path* mask_file) {
+  *mask_file = m.string();
+  const std::filesystem::path file = mask_file->is_absolute() ? *mask_file : base_dir / *mask_file;
+  Image image;
+  try {
+    image = read_image(file);
+  } catch (const InputError& e) {
+    m.fail(std::string("a readable mask image (") + e.what() + ")");
+  }
+  if (image.width != width || image.height != height) {
+    m.fail("a mask of " + std::to_string(width) + "x" + std::to_string(height) +
+           " pixels (the maps' size), but " + file.string() + " is " + std::to_string(image.width) +
+           "x" + std::to_string(image.height));
+  }
+  const int colour = std::min(image.channels, 3);
+  std::vector<uint8_t> mask(image.num_pixels());
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    float sum = 0;
+    for (int c = 0; c < colour; ++c) sum += image.pixels[i * image.channels + c];
+    mask[i] = sum / colour >= 0.5f;
+  }
+  return mask;
 }
 
 }  // namespace ls::relight

@@ -40,6 +40,10 @@
 
 #include "relight/fit.h"
 
+namespace ls {
+class JsonReader;
+}  // namespace ls
+
 namespace ls::relight {
 
 struct ModelSelection {
@@ -80,6 +84,13 @@ ModelEdits parse_model_edits(std::string_view json_text, const std::string& sour
 
 // The edit file's name of a model ("lambert", "oren_nayar", "torrance_sparrow", "phong").
 const char* edit_model_name(FitModel model);
+
+// An edit file's "mask" value (`mask_field`: a path relative to base_dir, or absolute) read as a
+// selection: width x height, row-major, 1 where the mean of the colour channels is >= 0.5. Its
+// path as written goes to *mask_file. Errors (unreadable, wrong size) name the field.
+std::vector<uint8_t> read_selection_mask(const JsonReader& mask_field,
+                                         const std::filesystem::path& base_dir, int width,
+                                         int height, std::filesystem::path* mask_file);
 
 // Applies the edits in order; returns the number of pixels each edit selected.
 std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps);

@@ -7,6 +7,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/json_reader.h"
+#include "relight/model_edit.h"
 
 namespace ls::relight {
 namespace {
@@ -47,30 +48,7 @@ TemporalSelection read_selection(const JsonReader& r, const std::filesystem::pat
   if (!r.has("model") && !r.has("mask")) r.fail(R"(an object with "model" and/or "mask")");
   TemporalSelection s;
   if (r.has("model")) s.model = read_temporal_model_name(r["model"]);
-  if (r.has("mask")) {
-    const JsonReader m = r["mask"];
-    s.mask_file = m.string();
-    const std::filesystem::path file =
-        s.mask_file.is_absolute() ? s.mask_file : base_dir / s.mask_file;
-    Image image;
-    try {
-      image = read_image(file);
-    } catch (const std::exception& e) {
-      m.fail(std::string("a readable mask image (") + e.what() + ")");
-    }
-    if (image.width != width || image.height != height) {
-      m.fail("a mask of " + std::to_string(width) + "x" + std::to_string(height) +
-             " (the maps' size), got " + std::to_string(image.width) + "x" +
-             std::to_string(image.height));
-    }
-    s.mask.resize(image.num_pixels());
-    const int colour = std::min(image.channels, 3);
-    for (size_t i = 0; i < image.num_pixels(); ++i) {
-      float sum = 0;
-      for (int c = 0; c < colour; ++c) sum += image.pixels[i * image.channels + c];
-      s.mask[i] = sum / colour >= 0.5f;
-    }
-  }
+  if (r.has("mask")) s.mask = read_selection_mask(r["mask"], base_dir, width, height, &s.mask_file);
   return s;
 }
 

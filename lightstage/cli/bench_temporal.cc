@@ -34,21 +34,11 @@ struct TemporalBenchArgs {
   double duration_s = 600;
 };
 
-std::vector<sim::SurfaceHit> hits_at(const sim::Scene& scene, std::vector<sim::SurfaceHit> hits,
-                                     double time_s) {
-  for (sim::SurfaceHit& h : hits) {
-    if (h.hit && h.material_index >= 0 && scene.materials[h.material_index].process) {
-      h.material = sim::material_at(scene.materials[h.material_index], h.st.x(), h.st.y(), time_s);
-    }
-  }
-  return hits;
-}
-
 // Ideal one-light field at time t plus noise from the fit's noise model.
 capture::ReflectanceField field_at(const Stage& stage, const sim::Scene& scene,
                                    const std::vector<sim::SurfaceHit>& hits, double time_s,
                                    uint64_t seed) {
-  const std::vector<sim::SurfaceHit> timed = hits_at(scene, hits, time_s);
+  const std::vector<sim::SurfaceHit> timed = sim::at_time(scene, hits, time_s);
   std::vector<capture::FieldLight> lights;
   for (const Led& led : stage.leds) lights.push_back({led.id, led.dir_in_stage, true});
   capture::ReflectanceField field(stage.camera.width, stage.camera.height, lights);
@@ -111,7 +101,7 @@ void run_temporal_bench(const TemporalBenchArgs& args) {
     double err2 = 0, ref2 = 0;
     const Eigen::Vector3d light = Eigen::Vector3d(0.25, 0.3, 0.92).normalized();
     for (const double t : test_times) {
-      const Image truth = sim::render_one_light(scene, hits_at(scene, hits, t), light);
+      const Image truth = sim::render_one_light(scene, sim::at_time(scene, hits, t), light);
       const Image model = relight::render_temporal(
           maps, t, relight::LightingForModels::directional(light, Eigen::Vector3d(1, 1, 1)));
       for (const sim::SurfaceHit& h : hits) {

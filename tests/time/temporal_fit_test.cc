@@ -18,7 +18,6 @@ namespace ls::relight {
 namespace {
 
 using time_testing::field_at;
-using time_testing::hits_at;
 using time_testing::truth_of;
 
 double median(std::vector<double> v) {
@@ -217,7 +216,7 @@ TEST(TemporalFit, DriestStepNormalsAreTheMostAccurate) {
 // covers exactly. Pixels in a cast shadow of the true scene are left out (the models have no
 // visibility).
 double render_error(const Fitted& f, double time_s, int* extrapolated) {
-  const std::vector<sim::SurfaceHit> truth_hits = hits_at(f.world.scene, f.world.hits, time_s);
+  const std::vector<sim::SurfaceHit> truth_hits = sim::at_time(f.world.scene, f.world.hits, time_s);
   double err2 = 0, ref2 = 0;
   for (const Eigen::Vector3d& dir :
        {Eigen::Vector3d(0.25, 0.3, 0.92), Eigen::Vector3d(-0.4, 0.1, 0.91)}) {

@@ -15,17 +15,6 @@
 
 namespace ls::relight::time_testing {
 
-// The hits with every material taken at scene time time_s.
-inline std::vector<sim::SurfaceHit> hits_at(const sim::Scene& scene,
-                                            std::vector<sim::SurfaceHit> hits, double time_s) {
-  for (sim::SurfaceHit& h : hits) {
-    if (h.hit && h.material_index >= 0 && scene.materials[h.material_index].process) {
-      h.material = sim::material_at(scene.materials[h.material_index], h.st.x(), h.st.y(), time_s);
-    }
-  }
-  return hits;
-}
-
 // The true process at a hit (not varying for static materials and the background).
 inline sim::ProcessTruth truth_of(const sim::Scene& scene, const sim::SurfaceHit& h) {
   if (!h.hit || h.material_index < 0) return {};
@@ -38,7 +27,7 @@ inline capture::ReflectanceField field_at(const Stage& stage, const sim::Scene& 
                                           const std::vector<sim::SurfaceHit>& hits, double time_s,
                                           const NoiseModel& noise, uint64_t seed,
                                           const std::vector<int>& dead = {}) {
-  const std::vector<sim::SurfaceHit> timed = hits_at(scene, hits, time_s);
+  const std::vector<sim::SurfaceHit> timed = sim::at_time(scene, hits, time_s);
   std::vector<capture::FieldLight> lights;
   for (const Led& led : stage.leds) lights.push_back({led.id, led.dir_in_stage, true});
   for (const int l : dead) lights[l].valid = false;
