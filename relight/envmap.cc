@@ -208,4 +208,58 @@ Eigen::Vector3d EnvironmentMap::integral() const {
   return total;
 }
 
+Eigen::Vector3d rotate_about_y(const Eigen::Vector3d& d, double rotation_deg) {
+  const double a = rotation_deg * kPi / 180.0;
+  const double c = std::cos(a), s = std::sin(a);
+  return Eigen::Vector3d(c * d.x() + s * d.z(), d.y(), -s * d.x() + c * d.z()).normalized();
+}
+
+std::vector<CoarseTexel> box_filter_environment(const EnvironmentMap& map, int width,
+                                                double rotation_deg) {
+  if (width < 4 || width % 2 != 0) {
+    throw InputError("environment box filter: width: expected an even number >= 4, got " +
+                     std::to_string(width));
+  }
+  const int fw = map.width(), fh = map.height();
+  const int cw = width, ch = width / 2;
+  const Image& fine = map.radiance();
+  // Pass 1, along u: per fine row, the mean over each coarse column.
+  std::vector<double> rows(size_t(fh) * cw * 3, 0.0);
+  for (int X = 0; X < cw; ++X) {
+    const double u0 = double(X) / cw, u1 = double(X + 1) / cw;
+    const int x_first = std::max(0, int(std::floor(u0 * fw)));
+    const int x_last = std::min(fw - 1, int(std::ceil(u1 * fw)));
+    for (int x = x_first; x <= x_last; ++x) {
+      const double overlap = std::min(u1, double(x + 1) / fw) - std::max(u0, double(x) / fw);
+      if (overlap <= 0) continue;
+      const double w = overlap * cw;  // Fraction of the coarse column.
+      for (int y = 0; y < fh; ++y) {
+        for (int c = 0; c < 3; ++c) rows[(size_t(y) * cw + X) * 3 + c] += w * fine.at(x, y, c);
+      }
+    }
+  }
+  // Pass 2, along v with cos(theta) as the measure: exact solid-angle weights.
+  std::vector<CoarseTexel> out;
+  for (int Y = 0; Y < ch; ++Y) {
+    const double c_top = std::cos(kPi * Y / ch), c_bottom = std::cos(kPi * (Y + 1) / ch);
+    const double solid_angle_sr = (2 * kPi / cw) * (c_top - c_bottom);
+    const int y_first = std::max(0, int(std::floor(double(Y) / ch * fh)));
+    const int y_last = std::min(fh - 1, int(std::ceil(double(Y + 1) / ch * fh)));
+    for (int X = 0; X < cw; ++X) {
+      Eigen::Vector3d mean(0, 0, 0);
+      for (int y = y_first; y <= y_last; ++y) {
+        const double overlap = std::min(c_top, std::cos(kPi * y / fh)) -
+                               std::max(c_bottom, std::cos(kPi * (y + 1) / fh));
+        if (overlap <= 0) continue;
+        for (int c = 0; c < 3; ++c) mean[c] += overlap * rows[(size_t(y) * cw + X) * 3 + c];
+      }
+      mean /= (c_top - c_bottom);
+      if (!(mean.maxCoeff() > 0)) continue;
+      const Eigen::Vector3d d0 = EnvironmentMap::direction((X + 0.5) / cw, (Y + 0.5) / ch);
+      out.push_back({rotate_about_y(d0, rotation_deg), mean * solid_angle_sr, X, Y});
+    }
+  }
+  return out;
+}
+
 }  // namespace ls::relight

@@ -47,4 +47,22 @@ class EnvironmentMap {
   long long negative_values_repaired_ = 0;
 };
 
+// A direction of the unrotated map as the map rotated by rotation_deg about +Y shows it:
+// R_y(rotation) d, the sense of radiance_toward and integrate_environment.
+Eigen::Vector3d rotate_about_y(const Eigen::Vector3d& dir, double rotation_deg);
+
+// One texel of a map box-filtered onto a coarse lat-long grid.
+struct CoarseTexel {
+  Eigen::Vector3d dir_in_stage;  // Texel centre in the rotated map (unit, toward the light).
+  Eigen::Vector3d
+      radiance_x_sr;  // Mean radiance times solid angle: irradiance at normal incidence.
+  int x = 0, y = 0;   // On the coarse grid.
+};
+// Box-filters the map, rotated by rotation_deg about +Y, onto a width x width/2 grid: each coarse
+// texel gets the solid-angle weighted mean of the fine pixels it overlaps (fractional overlaps in u
+// and in cos(theta), so any pair of resolutions works). Returns the texels with light, row by row.
+// InputError unless width is even and >= 4.
+std::vector<CoarseTexel> box_filter_environment(const EnvironmentMap& map, int width,
+                                                double rotation_deg = 0.0);
+
 }  // namespace ls::relight

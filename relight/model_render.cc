@@ -15,14 +15,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-Eigen::Vector3d rotate_about_y(const Eigen::Vector3d& d, double rotation_deg) {
-  // The map rotated by +alpha shows its unrotated direction d toward R_y(alpha) d: the same sense
-  // as integrate_environment and EnvironmentMap::radiance_toward.
-  const double a = rotation_deg * kPi / 180.0;
-  const double c = std::cos(a), s = std::sin(a);
-  return Eigen::Vector3d(c * d.x() + s * d.z(), d.y(), -s * d.x() + c * d.z()).normalized();
-}
-
 // Directions as structure-of-arrays so the Lambert sum vectorises.
 struct Lights {
   std::vector<float> x, y, z, r, g, b;
@@ -141,49 +133,11 @@ LightingForModels LightingForModels::environment(const EnvironmentMap& map, doub
     throw InputError("model lighting: directions_width: expected an even number >= 4, got " +
                      std::to_string(directions_width));
   }
-  // Box filter: each coarse texel gets the solid-angle weighted mean of the fine pixels it
-  // overlaps (fractional overlaps in u and in cos(theta), so any pair of resolutions works).
-  const int fw = map.width(), fh = map.height();
-  const int cw = directions_width, ch = directions_width / 2;
-  const Image& fine = map.radiance();
-  // Pass 1, along u: per fine row, the mean over each coarse column.
-  std::vector<double> rows(size_t(fh) * cw * 3, 0.0);
-  for (int X = 0; X < cw; ++X) {
-    const double u0 = double(X) / cw, u1 = double(X + 1) / cw;
-    const int x_first = std::max(0, int(std::floor(u0 * fw)));
-    const int x_last = std::min(fw - 1, int(std::ceil(u1 * fw)));
-    for (int x = x_first; x <= x_last; ++x) {
-      const double overlap = std::min(u1, double(x + 1) / fw) - std::max(u0, double(x) / fw);
-      if (overlap <= 0) continue;
-      const double w = overlap * cw;  // Fraction of the coarse column.
-      for (int y = 0; y < fh; ++y) {
-        for (int c = 0; c < 3; ++c) rows[(size_t(y) * cw + X) * 3 + c] += w * fine.at(x, y, c);
-      }
-    }
-  }
-  // Pass 2, along v with cos(theta) as the measure: exact solid-angle weights.
   LightingForModels out;
-  for (int Y = 0; Y < ch; ++Y) {
-    const double c_top = std::cos(kPi * Y / ch), c_bottom = std::cos(kPi * (Y + 1) / ch);
-    const double solid_angle_sr = (2 * kPi / cw) * (c_top - c_bottom);
-    const int y_first = std::max(0, int(std::floor(double(Y) / ch * fh)));
-    const int y_last = std::min(fh - 1, int(std::ceil(double(Y + 1) / ch * fh)));
-    for (int X = 0; X < cw; ++X) {
-      Eigen::Vector3d mean(0, 0, 0);
-      for (int y = y_first; y <= y_last; ++y) {
-        const double overlap = std::min(c_top, std::cos(kPi * y / fh)) -
-                               std::max(c_bottom, std::cos(kPi * (y + 1) / fh));
-        if (overlap <= 0) continue;
-        for (int c = 0; c < 3; ++c) mean[c] += overlap * rows[(size_t(y) * cw + X) * 3 + c];
-      }
-      mean /= (c_top - c_bottom);
-      if (!(mean.maxCoeff() > 0)) continue;
-      const Eigen::Vector3d d0 = EnvironmentMap::direction((X + 0.5) / cw, (Y + 0.5) / ch);
-      const Eigen::Vector3d dir = rotate_about_y(d0, rotation_deg);
-      if (!is_covered(dir)) continue;
-      out.dirs_in_stage.push_back(dir.cast<float>());
-      out.irradiance_rgb.push_back((mean * solid_angle_sr).cast<float>());
-    }
+  for (const CoarseTexel& texel : box_filter_environment(map, directions_width, rotation_deg)) {
+    if (!is_covered(texel.dir_in_stage)) continue;
+    out.dirs_in_stage.push_back(texel.dir_in_stage.cast<float>());
+    out.irradiance_rgb.push_back(texel.radiance_x_sr.cast<float>());
   }
   return out;
 }

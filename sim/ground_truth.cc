@@ -20,68 +20,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-struct Texel {
-  Eigen::Vector3d dir;            // Unit, stage frame (rotation applied).
-  Eigen::Vector3d radiance_x_sr;  // Average radiance over the texel times its solid angle.
-  int x = 0, y = 0;               // On the coarse grid.
-};
-
-Eigen::Vector3d rotate_about_y(const Eigen::Vector3d& d0, double rotation_deg) {
-  // The map rotated by +alpha about +Y shows its unrotated texel d0 toward R_y(alpha) d0, the
-  // same sense as EnvironmentMap::radiance_toward and relight::integrate_environment.
-  const double alpha = rotation_deg * kPi / 180.0;
-  const double ca = std::cos(alpha), sa = std::sin(alpha);
-  return Eigen::Vector3d(ca * d0.x() + sa * d0.z(), d0.y(), -sa * d0.x() + ca * d0.z())
-      .normalized();
-}
-
-// Box-filters the map onto a coarse width x width/2 grid: each coarse texel gets the solid-angle
-// weighted average of the fine pixels it overlaps (fractional overlaps in u and in cos(theta),
-// so any pair of resolutions works). Returns the texels whose light is not zero.
-std::vector<Texel> coarse_texels(const relight::EnvironmentMap& map, int coarse_width,
-                                 double rotation_deg) {
-  const int fw = map.width(), fh = map.height();
-  const int cw = coarse_width, ch = coarse_width / 2;
-  const Image& fine = map.radiance();
-  // Pass 1, along u: per fine row, the mean over each coarse column.
-  std::vector<double> rows(size_t(fh) * cw * 3, 0.0);
-  for (int X = 0; X < cw; ++X) {
-    const double u0 = double(X) / cw, u1 = double(X + 1) / cw;
-    const int x_first = std::max(0, int(std::floor(u0 * fw))),
-              x_last = std::min(fw - 1, int(std::ceil(u1 * fw)));
-    for (int x = x_first; x <= x_last; ++x) {
-      const double overlap = std::min(u1, double(x + 1) / fw) - std::max(u0, double(x) / fw);
-      if (overlap <= 0) continue;
-      const double w = overlap * cw;  // Fraction of the coarse column.
-      for (int y = 0; y < fh; ++y) {
-        for (int c = 0; c < 3; ++c) rows[(size_t(y) * cw + X) * 3 + c] += w * fine.at(x, y, c);
-      }
-    }
-  }
-  // Pass 2, along v with cos(theta) as the measure: exact solid-angle weights.
-  std::vector<Texel> texels;
-  for (int Y = 0; Y < ch; ++Y) {
-    const double c_top = std::cos(kPi * Y / ch), c_bottom = std::cos(kPi * (Y + 1) / ch);
-    const double solid_angle_sr = (2 * kPi / cw) * (c_top - c_bottom);
-    const int y_first = std::max(0, int(std::floor(double(Y) / ch * fh)));
-    const int y_last = std::min(fh - 1, int(std::ceil(double(Y + 1) / ch * fh)));
-    for (int X = 0; X < cw; ++X) {
-      Eigen::Vector3d mean(0, 0, 0);
-      for (int y = y_first; y <= y_last; ++y) {
-        const double overlap = std::min(c_top, std::cos(kPi * y / fh)) -
-                               std::max(c_bottom, std::cos(kPi * (y + 1) / fh));
-        if (overlap <= 0) continue;
-        for (int c = 0; c < 3; ++c) mean[c] += overlap * rows[(size_t(y) * cw + X) * 3 + c];
-      }
-      mean /= (c_top - c_bottom);
-      if (!(mean.maxCoeff() > 0)) continue;
-      const Eigen::Vector3d d0 = relight::EnvironmentMap::direction((X + 0.5) / cw, (Y + 0.5) / ch);
-      texels.push_back({rotate_about_y(d0, rotation_deg), mean * solid_angle_sr, X, Y});
-    }
-  }
-  return texels;
-}
-
 }  // namespace
 
 Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
@@ -90,15 +28,16 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
     throw InputError("ground truth: directions_width: expected an even number >= 4, got " +
                      std::to_string(options.directions_width));
   }
-  std::vector<Texel> texels = coarse_texels(map, options.directions_width, options.rotation_deg);
+  std::vector<relight::CoarseTexel> texels =
+      relight::box_filter_environment(map, options.directions_width, options.rotation_deg);
   if (!options.covered_by_leds.empty()) {
     const double radius = options.coverage_radius_rad > 0
                               ? options.coverage_radius_rad
                               : relight::max_nearest_neighbour_angle(options.covered_by_leds);
     const double cos_radius = std::cos(radius);
-    std::erase_if(texels, [&](const Texel& t) {
+    std::erase_if(texels, [&](const relight::CoarseTexel& t) {
       for (const auto& led : options.covered_by_leds) {
-        if (t.dir.dot(led.normalized()) >= cos_radius) return false;
+        if (t.dir_in_stage.dot(led.normalized()) >= cos_radius) return false;
       }
       return true;
     });
@@ -113,7 +52,7 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
     for (int i = 0; i <= blocks_x; ++i) {
       const Eigen::Vector3d d0 = relight::EnvironmentMap::direction(
           double(std::min(i * block, cw)) / cw, double(std::min(j * block, ch)) / ch);
-      corner_dirs.push_back(rotate_about_y(d0, options.rotation_deg));
+      corner_dirs.push_back(relight::rotate_about_y(d0, options.rotation_deg));
     }
   }
   std::vector<std::array<int, 4>> texel_corners(texels.size());
@@ -146,25 +85,25 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
         Eigen::Vector3d sum(0, 0, 0);
         if (cos_o > 0) {
           for (size_t k = 0; k < texels.size(); ++k) {
-            const Texel& t = texels[k];
-            const double cos_i = h.normal.dot(t.dir);
+            const relight::CoarseTexel& t = texels[k];
+            const double cos_i = h.normal.dot(t.dir_in_stage);
             if (cos_i <= 0) continue;
             Eigen::Vector3d weight;
             if (lambert_only) {
               weight = t.radiance_x_sr * cos_i;
             } else {
-              const Eigen::Vector3d f =
-                  brdf::eval(h.material, brdf::Geometry<double>{cos_i, cos_o, t.dir.dot(h.wo)});
+              const Eigen::Vector3d f = brdf::eval(
+                  h.material, brdf::Geometry<double>{cos_i, cos_o, t.dir_in_stage.dot(h.wo)});
               if (!(f.maxCoeff() > 0)) continue;
               weight = t.radiance_x_sr.cwiseProduct(f) * cos_i;
             }
             bool lit;
             if (block == 1) {
-              lit = sees(t.dir);
+              lit = sees(t.dir_in_stage);
             } else {
               const auto& c = texel_corners[k];
               const int corners = corner(c[0]) + corner(c[1]) + corner(c[2]) + corner(c[3]);
-              lit = corners == 4 ? true : corners == 0 ? false : sees(t.dir);
+              lit = corners == 4 ? true : corners == 0 ? false : sees(t.dir_in_stage);
             }
             if (lit) sum += weight;
           }

@@ -91,6 +91,27 @@ std::vector<std::pair<fs::path, int>> list_photos(const fs::path& dir, const Sta
   return out;
 }
 
+// Calibrates one photograph at a time (a dome's worth need not fit in memory) with
+// calibrate_one(image, file name, LED index), and gathers the estimates and problems under each
+// photograph's LED.
+template <class Calibration, class CalibrateOne>
+Calibration calibrate_each_photo(const std::vector<std::pair<fs::path, int>>& photos,
+                                 const char* what, bool quiet, CalibrateOne calibrate_one) {
+  Calibration all;
+  ProgressReporter progress(what, long(photos.size()), quiet);
+  for (size_t i = 0; i < photos.size(); ++i) {
+    const Image image = read_image(photos[i].first);
+    Calibration one = calibrate_one(image, photos[i].first.filename().string(), photos[i].second);
+    for (auto& e : one.leds) e.led_index = photos[i].second;
+    for (auto& p : one.problems) p.led_index = photos[i].second;
+    all.leds.insert(all.leds.end(), one.leds.begin(), one.leds.end());
+    all.problems.insert(all.problems.end(), one.problems.begin(), one.problems.end());
+    progress.update(long(i + 1));
+  }
+  progress.done();
+  return all;
+}
+
 void check_size(const Image& image, const fs::path& file, const Stage& stage) {
   if (image.width != stage.camera.width || image.height != stage.camera.height) {
     throw InputError(stage.source + ": camera: expected the photographs' size " +
@@ -157,20 +178,11 @@ int run_directions(const CalibrateArgs& args) {
   capture::DirectionOptions options;
   options.highlight.blob_fraction = args.blob_fraction;
   options.highlight.saturation_level = args.saturation;
-  capture::DirectionCalibration all;
-  ProgressReporter progress("calibrate directions", long(photos.size()), args.quiet);
-  for (size_t i = 0; i < photos.size(); ++i) {
-    const Image image = read_image(photos[i].first);
-    // One image at a time: a dome's worth of photographs need not fit in memory.
-    capture::DirectionCalibration one = capture::calibrate_directions(
-        {&image}, {photos[i].first.filename().string()}, outlines, spheres, camera, options);
-    for (auto& e : one.leds) e.led_index = photos[i].second;
-    for (auto& p : one.problems) p.led_index = photos[i].second;
-    all.leds.insert(all.leds.end(), one.leds.begin(), one.leds.end());
-    all.problems.insert(all.problems.end(), one.problems.begin(), one.problems.end());
-    progress.update(long(i + 1));
-  }
-  progress.done();
+  const auto all = calibrate_each_photo<capture::DirectionCalibration>(
+      photos, "calibrate directions", args.quiet,
+      [&](const Image& image, const std::string& name, int) {
+        return capture::calibrate_directions({&image}, {name}, outlines, spheres, camera, options);
+      });
   Stage calibrated = nominal;
   const capture::StageUpdate update = capture::apply_directions(all, &calibrated);
   std::printf("%6s %10s %12s %s\n", "LED", "moved deg", "distance m", "status");
@@ -203,21 +215,13 @@ int run_intensities(const CalibrateArgs& args) {
   plane.albedo = args.albedo;
   capture::IntensityOptions options;
   options.saturation_level = args.saturation;
-  capture::IntensityCalibration all;
-  ProgressReporter progress("calibrate intensities", long(photos.size()), args.quiet);
-  for (size_t i = 0; i < photos.size(); ++i) {
-    const Image image = read_image(photos[i].first);
-    Stage one_led = stage;
-    one_led.leds = {stage.leds[photos[i].second]};
-    capture::IntensityCalibration one = capture::calibrate_intensities(
-        {&image}, {photos[i].first.filename().string()}, one_led, plane, camera, options);
-    for (auto& e : one.leds) e.led_index = photos[i].second;
-    for (auto& p : one.problems) p.led_index = photos[i].second;
-    all.leds.insert(all.leds.end(), one.leds.begin(), one.leds.end());
-    all.problems.insert(all.problems.end(), one.problems.begin(), one.problems.end());
-    progress.update(long(i + 1));
-  }
-  progress.done();
+  const auto all = calibrate_each_photo<capture::IntensityCalibration>(
+      photos, "calibrate intensities", args.quiet,
+      [&](const Image& image, const std::string& name, int led_index) {
+        Stage one_led = stage;
+        one_led.leds = {stage.leds[led_index]};
+        return capture::calibrate_intensities({&image}, {name}, one_led, plane, camera, options);
+      });
   Stage calibrated = stage;
   const capture::StageUpdate update = capture::apply_intensities(all, &calibrated);
   std::printf("%6s %12s %10s %20s %10s\n", "LED", "intensity", "change %", "colour (R G B)",
