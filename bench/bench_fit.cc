@@ -12,12 +12,12 @@
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
-#include "relight/envmap.h"
-#include "relight/fit.h"
-#include "relight/light_cells.h"
-#include "relight/model_render.h"
-#include "relight/normals.h"
-#include "relight/relight.h"
+#include "relight/lighting/envmap.h"
+#include "relight/fit/fit.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/fit/model_render.h"
+#include "relight/fit/normals.h"
+#include "relight/lighting/relight.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
 

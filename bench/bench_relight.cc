@@ -15,9 +15,9 @@
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
-#include "relight/envmap.h"
-#include "relight/light_cells.h"
-#include "relight/relight.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/lighting/relight.h"
 
 namespace {
 

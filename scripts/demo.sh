@@ -4,4 +4,4 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
-exec ./build/lightstage/cli/lightstage demo --out demo-out "$@"
+exec ./build/app/cli/lightstage demo --out demo-out "$@"

@@ -10,7 +10,7 @@
 #include <string>
 
 #include "lightstage/errors.h"
-#include "relight/light_cells.h"
+#include "relight/lighting/light_cells.h"
 #include "sim/sim_stage.h"
 #include "sim/tracer.h"
 

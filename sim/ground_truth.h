@@ -8,7 +8,7 @@
 
 #include "lightstage/image.h"
 #include "lightstage/stage.h"
-#include "relight/envmap.h"
+#include "relight/lighting/envmap.h"
 #include "sim/scene.h"
 
 namespace ls::sim {

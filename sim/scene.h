@@ -8,7 +8,7 @@
 #include <string_view>
 #include <vector>
 
-#include "relight/brdf.h"
+#include "relight/lighting/brdf.h"
 #include "sim/time_varying.h"
 
 namespace ls::sim {

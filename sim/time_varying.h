@@ -37,7 +37,7 @@
 #include <Eigen/Core>
 #include <string>
 
-#include "relight/brdf.h"
+#include "relight/lighting/brdf.h"
 
 namespace ls::sim {
 

@@ -8,7 +8,7 @@
 #include <utility>
 
 #include "lightstage/errors.h"
-#include "relight/relight.h"
+#include "relight/lighting/relight.h"
 #include "viewer/gl_util.h"
 
 namespace ls::viewer {

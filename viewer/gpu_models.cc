@@ -24,7 +24,7 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Models: the maps in a 5-layer RGBA32F array, the distant lights in a uniform buffer, up to
 // LIGHTS_PER_PASS per pass (more lights: further passes added by blending); the shader is
-// relight/model_render.cc's shade() with relight/brdf.h's models, line for line. (Lights in a
+// relight/fit/model_render.cc's shade() with relight/lighting/brdf.h's models, line for line. (Lights in a
 // texture, the first version, cost two fetches per light: 1.6x slower on llvmpipe.)
 
 // "#define LIGHTS_PER_PASS n" goes after the version line.
@@ -59,7 +59,7 @@ out vec4 radiance;
 
 const float kPi = 3.14159265358979323846;
 
-// relight/brdf.h, cos(theta_i) not inside; the callers have checked cos_i > 0 and cos_o > 0.
+// relight/lighting/brdf.h, cos(theta_i) not inside; the callers have checked cos_i > 0 and cos_o > 0.
 float oren_nayar(float cos_i, float cos_o, float cos_io, float sigma) {
   float s2 = sigma * sigma;
   float a = 1.0 - 0.5 * s2 / (s2 + 0.33);

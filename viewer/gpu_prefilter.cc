@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "relight/brdf.h"
-#include "relight/envmap.h"
+#include "relight/lighting/brdf.h"
+#include "relight/lighting/envmap.h"
 
 namespace ls::viewer::model_prefilter {
 namespace {

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "relight/model_render.h"
+#include "relight/fit/model_render.h"
 
 namespace ls::viewer::model_prefilter {
 

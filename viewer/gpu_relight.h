@@ -21,10 +21,10 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
-#include "relight/fit.h"
-#include "relight/light_cells.h"
-#include "relight/model_render.h"
-#include "relight/pca_field.h"
+#include "relight/fit/fit.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/fit/model_render.h"
+#include "relight/compact/pca_field.h"
 
 namespace ls::viewer {
 
@@ -97,7 +97,7 @@ std::unique_ptr<GpuSource> upload_pca(const relight::PcaField& pca);
 
 // How the models source shades (added by vpre, issue 5 "fitted BRDFs against a prefiltered
 // environment").
-//  * kExact: the BRDF summed over every distant light (relight/model_render.h, line for line;
+//  * kExact: the BRDF summed over every distant light (relight/fit/model_render.h, line for line;
 //    1.9e-5 of the peak from render_models). Cost is linear in the lights: 2.2 s a frame at 512^2
 //    under 512 lights on llvmpipe.
 //  * kPrefiltered: the lights turned, on the CPU, into (a) 9 spherical-harmonic coefficients of

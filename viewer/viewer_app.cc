@@ -22,11 +22,11 @@
 #include "capture/build_field.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
-#include "relight/envmap.h"
-#include "relight/light_cells.h"
-#include "relight/model_edit.h"
-#include "relight/model_render.h"
-#include "relight/pca_field.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/fit/model_edit.h"
+#include "relight/fit/model_render.h"
+#include "relight/compact/pca_field.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
 #include "viewer/viewer_app_impl.h"
@@ -43,7 +43,7 @@ fs::path data_dir() {
   return LIGHTSTAGE_DATA_DIR;
 }
 
-// LED directions and validity from a .lspca header (layout in relight/pca_field.cc): "LSPCA1\n",
+// LED directions and validity from a .lspca header (layout in relight/compact/pca_field.cc): "LSPCA1\n",
 // int32 width, height, lights, rank, tile_size, float64 sigma, per LED float64 x, y, z, uint8
 // valid.
 void read_pca_leds(const fs::path& path, std::vector<Eigen::Vector3d>& dirs,
@@ -323,7 +323,7 @@ const ViewLighting& ViewerApp::Impl::current_lighting() {
     l.lights = relight::LightingForModels::directional(state.light_dir.normalized(),
                                                        Eigen::Vector3d(1, 1, 1));
     if (!led_dirs.empty()) {
-      // Between the LEDs the field is interpolated (relight/pca_field.h LightInterpolator).
+      // Between the LEDs the field is interpolated (relight/compact/pca_field.h LightInterpolator).
       const relight::LightInterpolator interpolator(led_dirs, led_valid);
       l.led_irradiance_rgb = interpolator.led_irradiance(l.lights);
     }

@@ -14,9 +14,9 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
-#include "relight/envmap.h"
-#include "relight/model_render.h"
-#include "relight/pca_field.h"
+#include "relight/lighting/envmap.h"
+#include "relight/fit/model_render.h"
+#include "relight/compact/pca_field.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"
 #include "viewer/viewer_app.h"

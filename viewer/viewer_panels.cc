@@ -23,11 +23,11 @@
 #include "capture/build_field.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
-#include "relight/envmap.h"
-#include "relight/light_cells.h"
-#include "relight/model_edit.h"
-#include "relight/model_render.h"
-#include "relight/pca_field.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/fit/model_edit.h"
+#include "relight/fit/model_render.h"
+#include "relight/compact/pca_field.h"
 #include "viewer/gl_window.h"
 
 namespace ls::viewer {

@@ -3,7 +3,7 @@
 // is lit, displayed and edited. Scripts change it through apply(), and to_command_line() writes the
 // `lightstage view ...` line that reproduces it (parse_view_command_line reads it back).
 //
-// Directions are in the stage frame (relight/envmap.h: +Y up, unit, toward the light); rotation is
+// Directions are in the stage frame (relight/lighting/envmap.h: +Y up, unit, toward the light); rotation is
 // the environment's rotation about +Y in degrees, as `lightstage relight --rotate`.
 #include <Eigen/Core>
 #include <filesystem>
@@ -12,8 +12,8 @@
 #include <string_view>
 #include <vector>
 
-#include "relight/fit.h"
-#include "relight/model_edit.h"
+#include "relight/fit/fit.h"
+#include "relight/fit/model_edit.h"
 
 namespace CLI {
 class App;
@@ -53,7 +53,7 @@ struct BrushDab {
 };
 
 // An edit of the fitted models: the selection (a model class and/or the brush, both: AND) and what
-// it does. Becomes one entry of the edit file relight/model_edit.h reads.
+// it does. Becomes one entry of the edit file relight/fit/model_edit.h reads.
 struct ViewEdit {
   std::optional<relight::FitModel> model_class;
   std::vector<BrushDab> brush;  // Empty: no brush (the model class alone selects).
@@ -70,7 +70,7 @@ struct ViewEdit {
   bool operator==(const ViewEdit&) const = default;
 };
 
-// Writes the edit file (JSON, relight/model_edit.h) beside which brush masks go as PNGs
+// Writes the edit file (JSON, relight/fit/model_edit.h) beside which brush masks go as PNGs
 // (<stem>.mask<i>.png). `lightstage relight --models M --edits FILE` reproduces the edited render.
 void write_edit_file(const std::filesystem::path& path, const std::vector<ViewEdit>& edits,
                      int width, int height);

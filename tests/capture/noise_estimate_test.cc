@@ -10,7 +10,7 @@
 
 #include "capture/build_field.h"
 #include "lightstage/errors.h"
-#include "lightstage/sequencer.h"
+#include "lightstage/controller/sequencer.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
 #include "tests/support/test_support.h"

@@ -13,16 +13,16 @@
 
 #include "capture/build_field.h"
 #include "lightstage/errors.h"
-#include "lightstage/sequencer.h"
+#include "lightstage/controller/sequencer.h"
 #include "lightstage/session.h"
-#include "relight/envmap.h"
-#include "relight/fit.h"
-#include "relight/light_cells.h"
-#include "relight/model_edit.h"
-#include "relight/model_render.h"
-#include "relight/pca_field.h"
-#include "relight/relight.h"
-#include "sim/leave_lights_out.h"
+#include "relight/lighting/envmap.h"
+#include "relight/fit/fit.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/fit/model_edit.h"
+#include "relight/fit/model_render.h"
+#include "relight/compact/pca_field.h"
+#include "relight/lighting/relight.h"
+#include "evaluation/leave_lights_out.h"
 #include "sim/sim_stage.h"
 #include "tests/support/test_support.h"
 #include "viewer/viewer_state.h"
@@ -279,7 +279,7 @@ TEST_F(ViewerApp_, ScriptedSequenceMatchesTheCpuRelighting) {
       max_relative_difference(app.relit_image(), relight::render_models(*maps_, model_lights(137))),
       0.05);
 
-  // The saved edit file reproduces the same maps through relight/model_edit.h.
+  // The saved edit file reproduces the same maps through relight/fit/model_edit.h.
   const fs::path edit_file = dir_->path() / "edits.json";
   write_edit_file(edit_file, app.state().edits, 64, 48);
   relight::ModelMaps reread = *maps_;

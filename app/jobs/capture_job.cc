@@ -1,0 +1,80 @@
+#include "app/jobs/capture_job.h"
+
+#include "lightstage/backend_registry.h"
+#include "lightstage/errors.h"
+#include "lightstage/session.h"
+
+namespace ls::jobs {
+
+namespace fs = std::filesystem;
+
+std::string CaptureOptions::validate() const {
+  if (session_dir.empty()) return "give --out DIR (new session) or --resume DIR";
+  if (resume && !stage_file.empty()) return "--resume uses the session's own stage: drop --stage";
+  if (resume && !scene_file.empty()) return "--resume uses the session's own scene: drop --scene";
+  return {};
+}
+
+CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks& callbacks) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("capture: " + problem);
+  }
+  CaptureJobSummary summary;
+  std::optional<Session> session;
+  OpenedBackend devices;
+  if (options.resume) {
+    session.emplace(Session::open(options.session_dir));
+    summary.frames_present_before = int(session->frames().size());
+    summary.frames_missing_before = int(session->missing_frames().size());
+    if (session->complete()) {
+      summary.already_complete = true;
+      return summary;
+    }
+    const Backend& backend =
+        backend_registry().find(session->info().backend, session->stage().source);
+    fs::path input_file;
+    if (!backend.input_file_name.empty() && fs::exists(options.session_dir / backend.input_file_name)) {
+      input_file = options.session_dir / backend.input_file_name;
+    }
+    devices = backend.open({session->stage(), input_file, session->info().seed});
+  } else {
+    const Stage stage =
+        options.stage_file.empty() ? default_stage() : load_stage(options.stage_file);
+    const Backend& backend = backend_registry().find(stage.camera.backend, stage.source);
+    if (!options.scene_file.empty() && backend.input_file_name.empty()) {
+      throw InputError(options.scene_file.string() + ": the \"" + backend.name + "\" back-end (" +
+                       stage.source + ": camera.backend) takes no scene file");
+    }
+    // The devices (and the scene they read) before anything is created; then a copy of the scene
+    // in the session, so that it is self-contained and resumable from anywhere.
+    devices = backend.open({stage, options.scene_file, options.seed});
+    SessionInfo info;
+    info.backend = stage.camera.backend;
+    info.seed = options.seed;
+    session.emplace(Session::create(options.session_dir, stage, info));
+    if (!options.scene_file.empty()) {
+      fs::copy_file(options.scene_file, options.session_dir / backend.input_file_name,
+                    fs::copy_options::overwrite_existing);
+    }
+  }
+
+  const Stage& stage = session->stage();
+  SequencerOptions sequencer;
+  // A simulated clock needs no settling time and renders each time step at its plan time; in
+  // real time the capture waits for each step's start as the hardware does.
+  if (devices.simulated_time) sequencer.sleep = [](double) {};
+  sequencer.wait_for_time_steps = !devices.simulated_time;
+  sequencer.stop_requested = callbacks.stop_requested;
+  sequencer.on_progress = callbacks.on_progress;
+  if (callbacks.on_start) callbacks.on_start(summary, int(plan_frames(stage).size()));
+  summary.capture = run_capture(*session, *devices.lights, *devices.camera, sequencer);
+  for (const TimeStepOverrun& o : summary.capture.overruns) {
+    summary.overrun_step_times_s.push_back(stage.plan.step_time_s(o.time_step));
+  }
+  for (const auto& [index, reason] : session->dead_leds()) {
+    summary.dead_leds.emplace_back(stage.leds[index].id, reason);
+  }
+  return summary;
+}
+
+}  // namespace ls::jobs

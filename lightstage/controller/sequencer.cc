@@ -1,0 +1,332 @@
+#include "lightstage/controller/sequencer.h"
+
+#include <sys/statvfs.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <thread>
+
+#include "lightstage/errors.h"
+#include "lightstage/controller/frame_writer.h"
+
+namespace ls {
+
+namespace {
+
+// Switches every LED off when the capture leaves scope, however it leaves.
+class AllOffGuard {
+ public:
+  explicit AllOffGuard(LightController& lights) : lights_(lights) { lights_.all_off(); }
+  ~AllOffGuard() { lights_.all_off(); }
+  AllOffGuard(const AllOffGuard&) = delete;
+  AllOffGuard& operator=(const AllOffGuard&) = delete;
+
+ private:
+  LightController& lights_;
+};
+
+// Mean dark frame per (time step, exposure step) in DN, for the dead-LED check: from the dark
+// frames of this run as they are captured, else (a resumed capture) from the session's files.
+class DarkCache {
+ public:
+  DarkCache(const Session& session, FrameWriter& writer) : session_(session), writer_(writer) {}
+
+  void add(const FrameKey& key, const RawFrame& frame) {
+    Sum& sum = captured_[{key.time_step, key.exposure_index}];
+    if (sum.total.empty()) sum.total.assign(frame.pixels.size(), 0.0f);
+    if (sum.total.size() != frame.pixels.size()) return;
+    for (size_t i = 0; i < frame.pixels.size(); ++i) sum.total[i] += frame.pixels[i];
+    ++sum.count;
+  }
+
+  const std::vector<float>* get(int time_step, int exposure_index) {
+    const auto key = std::make_pair(time_step, exposure_index);
+    if (auto it = mean_.find(key); it != mean_.end()) return &it->second;
+    std::vector<float> total;
+    int count = 0;
+    if (auto it = captured_.find(key); it != captured_.end()) {
+      total = std::move(it->second.total);
+      count = it->second.count;
+      captured_.erase(it);
+    } else {
+      writer_.flush();  // The session is read only when nothing is in flight.
+      for (int r = 0; r < session_.stage().plan.dark_frames; ++r) {
+        const FrameKey k{time_step, -1, exposure_index, r};
+        if (!session_.frames().count(k)) continue;
+        const RawFrame f = session_.load_frame(k);
+        if (total.empty()) total.assign(f.pixels.size(), 0.0f);
+        if (total.size() != f.pixels.size()) continue;
+        for (size_t i = 0; i < total.size(); ++i) total[i] += f.pixels[i];
+        ++count;
+      }
+    }
+    if (count == 0) return nullptr;
+    for (auto& v : total) v /= float(count);
+    return &(mean_[key] = std::move(total));
+  }
+
+ private:
+  struct Sum {
+    std::vector<float> total;
+    int count = 0;
+  };
+  const Session& session_;
+  FrameWriter& writer_;
+  std::map<std::pair<int, int>, Sum> captured_;
+  std::map<std::pair<int, int>, std::vector<float>> mean_;
+};
+
+// 99.9th percentile of (frame - dark) as a fraction of full scale, over at most ~64k samples (a
+// strided subset: the check must not cost a large sensor milliseconds per frame).
+double bright_signal_fraction(const RawFrame& frame, const std::vector<float>& dark) {
+  if (dark.size() != frame.pixels.size() || frame.pixels.empty()) return 1.0;
+  const size_t stride = std::max<size_t>(1, frame.pixels.size() / 65536);
+  std::vector<float> diff;
+  diff.reserve(frame.pixels.size() / stride + 1);
+  for (size_t i = 0; i < frame.pixels.size(); i += stride) {
+    diff.push_back(float(frame.pixels[i]) - dark[i]);
+  }
+  const size_t k = std::min(diff.size() - 1, size_t(0.999 * diff.size()));
+  std::nth_element(diff.begin(), diff.begin() + k, diff.end());
+  return diff[k] / double(frame.max_value());
+}
+
+// Refuses to start a capture that cannot fit on the disk: each missing frame is budgeted at its
+// uncompressed size (noisy high-bit-depth frames hardly compress), plus its journal line.
+void require_free_space(const Session& session, const std::vector<PlannedFrame>& missing) {
+  if (missing.empty()) return;
+  const CameraSpec& camera = session.stage().camera;
+  const double frame_bytes =
+      double(camera.width) * camera.height * camera.channels * (camera.bit_depth > 8 ? 2 : 1) +
+      4096.0;
+  const double needed = frame_bytes * double(missing.size()) + (1 << 20);
+  struct statvfs fs {};
+  if (::statvfs(session.dir().c_str(), &fs) != 0) return;  // Cannot tell: the writes will say.
+  const double available = double(fs.f_bavail) * double(fs.f_frsize);
+  if (available < needed) {
+    char message[256];
+    std::snprintf(message, sizeof message,
+                  ": the %zu frames still to capture need up to %.1f MiB, but the disk has only "
+                  "%.1f MiB free; free some space or capture to another disk",
+                  missing.size(), needed / (1 << 20), available / (1 << 20));
+    throw InputError(session.dir().string() + message);
+  }
+}
+
+// Flags LEDs that are dark while their neighbours are lit (see SequencerOptions).
+void flag_dead_leds(const Session& session, FrameWriter& writer, int time_step, double threshold) {
+  writer.flush();  // Reads the LED signals journaled so far.
+  const Stage& stage = session.stage();
+  const auto& signals = session.led_signals();
+  const int n = int(stage.leds.size());
+  for (int i = 0; i < n; ++i) {
+    const auto it = signals.find({time_step, i});
+    if (it == signals.end() || it->second >= threshold) continue;
+    // Neighbours: LEDs within 1.6x the angle to the nearest one.
+    double nearest_cos = -1;
+    for (int j = 0; j < n; ++j) {
+      if (j != i)
+        nearest_cos =
+            std::max(nearest_cos, stage.leds[i].dir_in_stage.dot(stage.leds[j].dir_in_stage));
+    }
+    const double radius = 1.6 * std::acos(std::clamp(nearest_cos, -1.0, 1.0));
+    std::vector<double> around;
+    for (int j = 0; j < n; ++j) {
+      const double angle = std::acos(
+          std::clamp(stage.leds[i].dir_in_stage.dot(stage.leds[j].dir_in_stage), -1.0, 1.0));
+      if (j == i || angle > radius) continue;
+      if (const auto s = signals.find({time_step, j}); s != signals.end())
+        around.push_back(s->second);
+    }
+    if (around.empty()) continue;
+    // An LED on the edge of a dark region has dark neighbours too; a broken one is dark among
+    // lit ones. Lit: above 10x the threshold.
+    const auto lit =
+        std::count_if(around.begin(), around.end(), [&](double v) { return v > 10 * threshold; });
+    if (lit >= 0.8 * double(around.size())) {
+      std::ostringstream reason;
+      reason << "time step " << time_step << ": brightest frame exceeds the dark frame by "
+             << it->second * 100 << "% of full scale while " << lit << " of its " << around.size()
+             << " neighbours are lit";
+      if (!session.dead_leds().count(i)) writer.mark_dead_led(i, reason.str());
+    }
+  }
+}
+
+}  // namespace
+
+CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,
+                           const SequencerOptions& options) {
+  const auto started = std::chrono::steady_clock::now();
+  const Stage& stage = session.stage();
+  auto sleep = options.sleep ? options.sleep : [](double s) {
+    std::this_thread::sleep_for(std::chrono::duration<double>(s));
+  };
+  auto stop_requested = [&] {
+    return options.stop_requested && options.stop_requested->load(std::memory_order_relaxed);
+  };
+  auto clock_s = options.clock_s ? options.clock_s : [] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+        .count();
+  };
+
+  CaptureSummary summary;
+  const std::vector<PlannedFrame> missing = session.missing_frames();
+  const int total = int(plan_frames(stage).size());
+  summary.frames_already_present = total - int(missing.size());
+  require_free_space(session, missing);  // Before any LED is switched on.
+
+  std::optional<FrameWriter> writer;
+  writer.emplace(session);
+  DarkCache darks(session, *writer);
+
+  // Every exit: LEDs off (by the caller and the guard), then whatever is queued saved before the
+  // manifest says how the capture ended.
+  auto finish = [&](CaptureSummary::Status status, std::string message) {
+    lights.all_off();
+    try {
+      writer->flush();
+    } catch (const std::exception& e) {
+      if (status != CaptureSummary::Status::kWriteFailed) {
+        status = CaptureSummary::Status::kWriteFailed;
+        message = std::string("cannot save frames: ") + e.what() +
+                  "; all LEDs are off and every frame saved before that is kept; free space "
+                  "and resume with --resume";
+      }
+    }
+    writer.reset();
+    summary.frames_captured = int(session.frames().size()) - summary.frames_already_present;
+    summary.status = status;
+    summary.message = message;
+    summary.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    const char* state = status == CaptureSummary::Status::kComplete       ? "complete"
+                        : status == CaptureSummary::Status::kInterrupted  ? "interrupted"
+                        : status == CaptureSummary::Status::kCameraFailed ? "camera-failed"
+                                                                          : "write-failed";
+    try {
+      session.write_manifest(state);
+    } catch (const std::exception& e) {
+      // The journal, not the manifest, says what was captured; a stale manifest costs nothing.
+      summary.message += std::string(" (manifest not updated: ") + e.what() + ")";
+    }
+    return summary;
+  };
+
+  session.write_manifest("capturing");
+  AllOffGuard guard(lights);
+
+  // Frames of one LED (or the dark frames of one time step) form a group: the LED goes on once,
+  // the whole bracket is exposed, and it goes off before the next group.
+  int frames_taken = 0;
+  size_t i = 0;
+  // Time steps: the one being captured, when it began (clock_s) and the schedule's origin.
+  int current_step = -1;
+  double step_started_s = 0.0, schedule_origin_s = 0.0;
+  auto end_step = [&](int step) {
+    const double took_s = clock_s() - step_started_s;
+    const double interval_s = stage.plan.step_interval_s(step);
+    if (interval_s > 0 && took_s > interval_s) {
+      const TimeStepOverrun overrun{step, took_s, interval_s};
+      writer->flush();  // The session is touched only when nothing is in flight.
+      session.record_time_step_overrun(overrun);
+      summary.overruns.push_back(overrun);
+    }
+  };
+  try {
+    while (i < missing.size()) {
+      const int t = missing[i].key.time_step;
+      const int led = missing[i].key.led_index;
+      size_t end = i;
+      while (end < missing.size() && missing[end].key.time_step == t &&
+             missing[end].key.led_index == led) {
+        ++end;
+      }
+      if (t != current_step) {
+        if (current_step >= 0) end_step(current_step);
+        if (current_step < 0) {
+          schedule_origin_s = clock_s() - stage.plan.step_time_s(t);
+        } else if (options.wait_for_time_steps) {
+          // Wait in short sleeps so that a stop request is seen.
+          const double start_s = schedule_origin_s + stage.plan.step_time_s(t);
+          // Within a microsecond is on time (and a sleep too short to move the clock ends).
+          for (double left = start_s - clock_s(); left > 1e-6; left = start_s - clock_s()) {
+            if (stop_requested()) break;
+            sleep(std::min(left, 0.1));
+          }
+        }
+        current_step = t;
+        step_started_s = clock_s();
+      }
+      if (stop_requested()) {
+        return finish(CaptureSummary::Status::kInterrupted,
+                      "stopped on request; all LEDs are off and every frame taken is saved");
+      }
+      if (led >= 0) {
+        lights.set_light(led, true);
+        if (stage.plan.settle_s > 0) sleep(stage.plan.settle_s);
+      }
+      double brightest = 0.0;
+      for (size_t k = i; k < end; ++k) {
+        const PlannedFrame& planned = missing[k];
+        CapturedFrame frame;
+        for (int attempt = 0;; ++attempt) {
+          try {
+            frame = camera.capture(planned.request);
+            break;
+          } catch (const CameraTimeout& e) {
+            if (attempt >= stage.camera.retries) {
+              lights.all_off();
+              std::ostringstream msg;
+              msg << "camera gave no frame for " << planned.key.name(stage) << " after "
+                  << attempt + 1 << " attempts (" << e.what()
+                  << "); all LEDs are off, every frame taken is saved; resume with --resume";
+              return finish(CaptureSummary::Status::kCameraFailed, msg.str());
+            }
+            ++summary.camera_retries;
+          }
+        }
+        if (led >= 0) {
+          if (const auto* dark = darks.get(t, planned.key.exposure_index)) {
+            brightest = std::max(brightest, bright_signal_fraction(frame.raw, *dark));
+          } else {
+            brightest = 1.0;  // No dark reference: cannot judge.
+          }
+        } else {
+          darks.add(planned.key, frame.raw);
+        }
+        writer->write(planned, std::move(frame));
+        ++frames_taken;
+        if (options.on_progress) {
+          options.on_progress(
+              {summary.frames_already_present + frames_taken, total, planned.key.name(stage)});
+        }
+      }
+      if (led >= 0) {
+        lights.set_light(led, false);
+        // Only a whole bracket taken in this run tells how bright the LED is.
+        if (end - i == stage.camera.bracket.size()) writer->record_led_signal(t, led, brightest);
+      }
+      // Once the last LED of a time step is in, judge that step's dark LEDs.
+      const bool step_done = end == missing.size() || missing[end].key.time_step != t;
+      if (step_done && led >= 0) {
+        flag_dead_leds(session, *writer, t, options.dead_led_threshold);
+      }
+      i = end;
+    }
+    if (current_step >= 0) end_step(current_step);
+  } catch (const InputError& e) {
+    // Only the frame writer throws InputError here: the disk is full or not writable.
+    return finish(CaptureSummary::Status::kWriteFailed,
+                  std::string("cannot save frames: ") + e.what() +
+                      "; all LEDs are off and every frame saved before that is kept; free space "
+                      "and resume with --resume");
+  }
+  return finish(CaptureSummary::Status::kComplete, "capture complete");
+}
+
+}  // namespace ls

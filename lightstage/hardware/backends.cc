@@ -1,0 +1,80 @@
+#include "lightstage/hardware/backends.h"
+
+#include <algorithm>
+#include <filesystem>
+
+#include "lightstage/hardware/aravis_camera.h"
+#include "lightstage/errors.h"
+#include "lightstage/hardware/gpiod_lights.h"
+#include "lightstage/hardware/v4l2_camera.h"
+
+namespace ls {
+
+bool is_hardware_backend(const std::string& backend) {
+  return backend == "aravis" || backend == "v4l2";
+}
+
+std::unique_ptr<LightController> open_gpio_lights(const Stage& stage) {
+  return std::make_unique<GpioLights>(stage, make_gpiod_line_driver("lightstage"));
+}
+
+namespace {
+
+InputError unknown_backend(const CameraSpec& spec, const std::string& stage_source) {
+  return InputError(stage_source + ": camera.backend: expected \"aravis\" or \"v4l2\" for real " +
+                    "hardware (\"sim\" is the simulated stage), got \"" + spec.backend + "\"");
+}
+
+}  // namespace
+
+std::unique_ptr<Camera> open_camera(const CameraSpec& spec, const std::string& stage_source) {
+  try {
+    if (spec.backend == "aravis") return std::make_unique<AravisCamera>(spec);
+    if (spec.backend == "v4l2") return std::make_unique<V4l2Camera>(spec);
+  } catch (const InputError& e) {
+    throw InputError(stage_source + ": " + e.what());
+  }
+  throw unknown_backend(spec, stage_source);
+}
+
+Hardware open_hardware(const Stage& stage) {
+  if (!is_hardware_backend(stage.camera.backend)) throw unknown_backend(stage.camera, stage.source);
+  Hardware hw;
+  hw.lights = open_gpio_lights(stage);
+  hw.camera = open_camera(stage.camera, stage.source);
+  return hw;
+}
+
+void register_hardware_backends(BackendRegistry& registry) {
+  for (const char* name : {"aravis", "v4l2"}) {
+    Backend backend;
+    backend.name = name;
+    backend.description = std::string(name) + " camera, LEDs on GPIO lines (libgpiod)";
+    backend.open = [](const BackendRequest& request) {
+      Hardware hw = open_hardware(request.stage);
+      return OpenedBackend{std::move(hw.lights), std::move(hw.camera), /*simulated_time=*/false};
+    };
+    registry.add(std::move(backend));
+  }
+}
+
+DeviceList list_devices(bool list_aravis) {
+  DeviceList out;
+  out.gpio_chips = list_gpio_chips();
+  if (list_aravis) {
+    for (const auto& d : discover_aravis_cameras()) {
+      out.aravis_cameras.push_back(d.id + "  (" + d.vendor + " " + d.model + ", serial " +
+                                   d.serial + ", " + d.protocol +
+                                   (d.address.empty() ? "" : " " + d.address) + ")");
+    }
+  }
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator("/dev", ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind("video", 0) == 0) out.video_devices.push_back(entry.path().string());
+  }
+  std::sort(out.video_devices.begin(), out.video_devices.end());
+  return out;
+}
+
+}  // namespace ls

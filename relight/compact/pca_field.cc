@@ -1,0 +1,599 @@
+#include "relight/compact/pca_field.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <mutex>
+#include <sstream>
+
+#include "lightstage/errors.h"
+#include "lightstage/image.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/lighting/relight.h"
+
+namespace ls::relight {
+
+namespace {
+
+double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
+
+void ensure_rgb_image(Image& out, int width, int height) {
+  if (out.width != width || out.height != height || out.channels != 3 ||
+      out.pixels.size() != size_t(width) * height * 3) {
+    out = Image(width, height, 3);
+  }
+  out.channel_names = {"R", "G", "B"};
+}
+
+// Sum over the (pixel, channel) samples of a pixel rectangle of v v^T, v = the L light samples.
+Eigen::MatrixXd gram_of_rect(const capture::ReflectanceField& field, int x0, int y0, int x1,
+                             int y1) {
+  const int num_lights = field.num_lights();
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(num_lights, num_lights);
+  constexpr int kBlockPixels = 128;  // Samples per rank update: 3 x 128 columns.
+  Eigen::MatrixXd block(num_lights, 3 * kBlockPixels);
+  int filled = 0;
+  auto flush = [&] {
+    if (filled == 0) return;
+    gram.selfadjointView<Eigen::Lower>().rankUpdate(block.leftCols(3 * filled));
+    filled = 0;
+  };
+  for (int y = y0; y < y1; ++y) {
+    for (int x = x0; x < x1; ++x) {
+      const float* v = field.pixel(x, y);
+      for (int c = 0; c < 3; ++c) {
+        double* col = block.col(3 * filled + c).data();
+        for (int l = 0; l < num_lights; ++l) col[l] = v[3 * l + c];
+      }
+      if (++filled == kBlockPixels) flush();
+    }
+  }
+  flush();
+  return gram.selfadjointView<Eigen::Lower>();
+}
+
+struct Spectrum {
+  Eigen::VectorXd values;   // Descending, >= 0.
+  Eigen::MatrixXd vectors;  // Columns in the same order.
+};
+
+Spectrum eigen_descending(const Eigen::MatrixXd& gram) {
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> solver(gram);
+  LS_CHECK(solver.info() == Eigen::Success, "PCA: eigen-decomposition of the Gram matrix failed");
+  const int n = int(gram.rows());
+  Spectrum s{Eigen::VectorXd(n), Eigen::MatrixXd(n, n)};
+  for (int j = 0; j < n; ++j) {
+    s.values(j) = std::max(0.0, solver.eigenvalues()(n - 1 - j));
+    s.vectors.col(j) = solver.eigenvectors().col(n - 1 - j);
+  }
+  return s;
+}
+
+template <class T>
+void write_pod(std::ostream& out, const T& value) {
+  out.write(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+template <class T>
+T read_pod(std::istream& in, const std::string& file, const std::string& field) {
+  T value;
+  in.read(reinterpret_cast<char*>(&value), sizeof(T));
+  if (!in) throw InputError(file + ": " + field + ": expected more data, got end of file");
+  return value;
+}
+
+constexpr char kPcaMagic[] = "LSPCA1\n";
+
+// Held-out error of every rank (see PcaRankRule::kHeldOutLights): the training lights' Gram is a
+// sub-matrix of the full one, so only its eigen-decomposition and the predictions are new.
+std::vector<double> held_out_errors(const capture::ReflectanceField& field,
+                                    const Eigen::MatrixXd& gram, int max_rank, double sigma_rad) {
+  std::vector<int> train, test;
+  for (int l = 0; l < field.num_lights(); ++l) {
+    if (!field.lights()[l].valid) continue;
+    (l % 5 == 2 ? test : train).push_back(l);
+  }
+  if (test.empty() || train.size() < 2) return {};
+  const int nt = int(train.size()), nh = int(test.size());
+  Eigen::MatrixXd gram_train(nt, nt);
+  for (int i = 0; i < nt; ++i) {
+    for (int j = 0; j < nt; ++j) gram_train(i, j) = gram(train[i], train[j]);
+  }
+  const Spectrum spectrum = eigen_descending(gram_train);
+  const int k_max = std::min(max_rank, nt);
+  const Eigen::MatrixXd basis = spectrum.vectors.leftCols(k_max);  // nt x K
+  std::vector<Eigen::Vector3d> train_dirs;
+  for (int l : train) train_dirs.push_back(field.lights()[l].dir_in_stage);
+  const LightInterpolator interpolator(train_dirs, {}, sigma_rad);
+  Eigen::MatrixXd r(nh, nt);
+  std::vector<double> w;
+  for (int h = 0; h < nh; ++h) {
+    interpolator.weights_at(field.lights()[test[h]].dir_in_stage, w);
+    for (int i = 0; i < nt; ++i) r(h, i) = w[i];
+  }
+  const Eigen::MatrixXf predict = (r * basis).cast<float>();        // nh x K
+  const Eigen::MatrixXf project = basis.transpose().cast<float>();  // K x nt
+  const long pixels = long(field.width()) * field.height();
+  const long stride = std::max<long>(1, pixels / 65536);
+  std::mutex mutex;
+  std::vector<double> errors(k_max + 1, 0.0);
+  tbb::parallel_for(tbb::blocked_range<long>(0, (pixels + stride - 1) / stride),
+                    [&](const tbb::blocked_range<long>& range) {
+                      std::vector<double> local(k_max + 1, 0.0);
+                      Eigen::VectorXf v(nt), truth(nh), pred(nh), c(k_max);
+                      for (long i = range.begin(); i < range.end(); ++i) {
+                        const long p = i * stride;
+                        const float* values =
+                            field.pixel(int(p % field.width()), int(p / field.width()));
+                        for (int ch = 0; ch < 3; ++ch) {
+                          for (int t = 0; t < nt; ++t) v(t) = values[3 * train[t] + ch];
+                          for (int h = 0; h < nh; ++h) truth(h) = values[3 * test[h] + ch];
+                          c.noalias() = project * v;
+                          pred.setZero();
+                          local[0] += (pred - truth).squaredNorm();
+                          for (int k = 0; k < k_max; ++k) {
+                            pred += predict.col(k) * c(k);
+                            local[k + 1] += (pred - truth).squaredNorm();
+                          }
+                        }
+                      }
+                      std::lock_guard<std::mutex> lock(mutex);
+                      for (int k = 0; k <= k_max; ++k) errors[k] += local[k];
+                    });
+  const double count = 3.0 * nh * double((pixels + stride - 1) / stride);
+  for (double& e : errors) e /= count;
+  return errors;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------
+// LightInterpolator
+
+LightInterpolator::LightInterpolator(const std::vector<Eigen::Vector3d>& led_dirs,
+                                     const std::vector<bool>& valid, double sigma_rad) {
+  for (const auto& d : led_dirs) dirs_.push_back(d.normalized());
+  for (int l = 0; l < int(dirs_.size()); ++l) {
+    if (valid.empty() || valid[l]) active_.push_back(l);
+  }
+  const int n = int(active_.size());
+  if (n == 0) return;
+  if (!(sigma_rad > 0)) {
+    double sum = 0;
+    for (int i = 0; i < n; ++i) {
+      double nearest = M_PI;
+      for (int j = 0; j < n; ++j) {
+        if (i != j)
+          nearest = std::min(nearest, angle_between(dirs_[active_[i]], dirs_[active_[j]]));
+      }
+      sum += nearest;
+    }
+    sigma_rad = n > 1 ? sum / n : 1.0;
+  }
+  sigma_rad_ = sigma_rad;
+  cutoff_cos_ = 4 * sigma_rad < M_PI ? std::cos(4 * sigma_rad) : -1.0;
+  Eigen::MatrixXd psi(n, n);
+  std::vector<double> r;
+  for (int m = 0; m < n; ++m) {
+    double sum = 0;
+    for (int i = 0; i < n; ++i) {
+      // The same cut-off as weights_at, so that r(d_m) is exactly the unit vector e_m.
+      if (dirs_[active_[m]].dot(dirs_[active_[i]]) < cutoff_cos_) {
+        psi(m, i) = 0;
+        continue;
+      }
+      const double a = angle_between(dirs_[active_[m]], dirs_[active_[i]]);
+      psi(m, i) = std::exp(-a * a / (2 * sigma_rad * sigma_rad));
+      sum += psi(m, i);
+    }
+    psi.row(m) /= sum;
+  }
+  psi_inverse_ = psi.partialPivLu().inverse();
+}
+
+void LightInterpolator::weights_at(const Eigen::Vector3d& dir, std::vector<double>& r) const {
+  r.assign(dirs_.size(), 0.0);
+  const int n = int(active_.size());
+  if (n == 0) return;
+  const Eigen::Vector3d d = dir.normalized();
+  Eigen::VectorXd psi(n);
+  double sum = 0;
+  for (int i = 0; i < n; ++i) {
+    const double c = d.dot(dirs_[active_[i]]);
+    if (c < cutoff_cos_) {
+      psi(i) = 0;
+      continue;
+    }
+    const double a = angle_between(d, dirs_[active_[i]]);
+    psi(i) = std::exp(-a * a / (2 * sigma_rad_ * sigma_rad_));
+    sum += psi(i);
+  }
+  // Far from every LED: nothing stands for this direction (see the header). The normalisation
+  // would otherwise blow a vanishing tail up to full weight.
+  if (!(sum > 1e-12)) return;
+  // Fade out where the nearest Gaussian is weak (outside the dome), so the normalisation does not
+  // extend the outermost LEDs to the whole sphere.
+  const double max_g = psi.maxCoeff();
+  const double fade = std::min(1.0, max_g / std::exp(-0.5 * 4.0));  // Full weight within 2 sigma.
+  psi *= fade / sum;
+  const Eigen::VectorXd active_r = psi_inverse_.transpose() * psi;
+  for (int i = 0; i < n; ++i) r[active_[i]] = active_r(i);
+}
+
+std::vector<float> LightInterpolator::led_irradiance(const LightingForModels& lights) const {
+  std::vector<float> out(3 * dirs_.size(), 0.0f);
+  std::vector<double> r;
+  for (size_t k = 0; k < lights.dirs_in_stage.size(); ++k) {
+    weights_at(lights.dirs_in_stage[k].cast<double>(), r);
+    const Eigen::Vector3f& e = lights.irradiance_rgb[k];
+    for (size_t l = 0; l < r.size(); ++l) {
+      if (r[l] == 0) continue;
+      for (int c = 0; c < 3; ++c) out[3 * l + c] += float(r[l] * e[c]);
+    }
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// RawCompactField
+
+RawCompactField::RawCompactField(const capture::ReflectanceField& field, double sigma_rad)
+    : field_(&field, [](const capture::ReflectanceField*) {}) {
+  init(sigma_rad);
+}
+
+RawCompactField::RawCompactField(capture::ReflectanceField&& field, double sigma_rad)
+    : field_(std::make_shared<const capture::ReflectanceField>(std::move(field))) {
+  init(sigma_rad);
+}
+
+void RawCompactField::init(double sigma_rad) {
+  std::vector<Eigen::Vector3d> dirs;
+  std::vector<bool> valid;
+  for (const auto& light : field_->lights()) {
+    dirs.push_back(light.dir_in_stage);
+    valid.push_back(light.valid);
+  }
+  interpolator_ = LightInterpolator(dirs, valid, sigma_rad);
+}
+
+void RawCompactField::relight_into(const LightingForModels& lights, Image& out) const {
+  const std::vector<float> e = interpolator_.led_irradiance(lights);
+  relight::relight_into(*field_, e.data(), out);
+}
+
+// ---------------------------------------------------------------------------------------------
+// PcaField
+
+std::string PcaOptions::validate() const {
+  if (rank < 0)
+    return "rank: expected 0 (automatic) or a positive number, got " + std::to_string(rank);
+  if (max_rank < 1) return "max_rank: expected >= 1, got " + std::to_string(max_rank);
+  if (tile_size < 0)
+    return "tile_size: expected 0 (global) or > 0, got " + std::to_string(tile_size);
+  if (!(rbf_sigma_rad >= 0 && rbf_sigma_rad < M_PI)) return "rbf_sigma_rad: expected [0, pi)";
+  if (!(keep_above_noise > 0)) return "keep_above_noise: expected > 0";
+  return "";
+}
+
+std::string PcaSummary::to_string() const {
+  std::ostringstream s;
+  s << "PCA rank " << rank << (auto_rank ? " (automatic)" : "") << ", noise variance "
+    << noise_variance << " per value (" << (noise_measured ? "measured: " : "estimated: ")
+    << noise_method << "), residual " << (rank < int(residual_ms.size()) ? residual_ms[rank] : 0)
+    << " per value, " << seconds << " s";
+  return s.str();
+}
+
+int PcaField::tiles_x() const {
+  return tile_size_ > 0 ? (width_ + tile_size_ - 1) / tile_size_ : 1;
+}
+
+int PcaField::tile_of(int x, int y) const {
+  return tile_size_ > 0 ? (y / tile_size_) * tiles_x() + x / tile_size_ : 0;
+}
+
+PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOptions& options,
+                         PcaSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (const std::string e = options.validate(); !e.empty()) {
+    throw InputError(field.source + ": PCA options: " + e);
+  }
+  const int width = field.width(), height = field.height(), num_lights = field.num_lights();
+  if (width == 0 || height == 0 || num_lights == 0) {
+    throw InputError(field.source + ": field: expected pixels and lights to compress, got " +
+                     std::to_string(width) + "x" + std::to_string(height) + " pixels and " +
+                     std::to_string(num_lights) + " lights");
+  }
+  PcaField out;
+  out.width_ = width;
+  out.height_ = height;
+  out.tile_size_ = options.tile_size >= std::max(width, height) ? 0 : options.tile_size;
+  for (const auto& light : field.lights()) {
+    out.led_dirs_.push_back(light.dir_in_stage);
+    out.led_valid_.push_back(light.valid);
+  }
+  int valid_lights = 0;
+  for (bool v : out.led_valid_) valid_lights += v ? 1 : 0;
+
+  // Gram matrices per tile (global: bands of rows, summed).
+  const int tx = out.tiles_x();
+  const int ty = out.tile_size_ > 0 ? (height + out.tile_size_ - 1) / out.tile_size_ : 1;
+  std::vector<Eigen::MatrixXd> tile_grams(size_t(tx) * ty);
+  if (out.tile_size_ > 0) {
+    tbb::parallel_for(0, tx * ty, [&](int t) {
+      const int x0 = (t % tx) * out.tile_size_, y0 = (t / tx) * out.tile_size_;
+      tile_grams[t] = gram_of_rect(field, x0, y0, std::min(width, x0 + out.tile_size_),
+                                   std::min(height, y0 + out.tile_size_));
+    });
+  } else {
+    const int band = std::max(1, 4096 / width);
+    const int bands = (height + band - 1) / band;
+    std::vector<Eigen::MatrixXd> band_grams(bands);
+    tbb::parallel_for(0, bands, [&](int b) {
+      band_grams[b] = gram_of_rect(field, 0, b * band, width, std::min(height, (b + 1) * band));
+    });
+    tile_grams[0] = Eigen::MatrixXd::Zero(num_lights, num_lights);
+    for (const auto& g : band_grams) tile_grams[0] += g;
+  }
+  Eigen::MatrixXd global_gram = Eigen::MatrixXd::Zero(num_lights, num_lights);
+  for (const auto& g : tile_grams) global_gram += g;
+  const Spectrum global = eigen_descending(global_gram);
+  std::vector<Spectrum> spectra(tile_grams.size());
+  if (out.tile_size_ > 0) {
+    tbb::parallel_for(0, int(tile_grams.size()),
+                      [&](int t) { spectra[t] = eigen_descending(tile_grams[t]); });
+  } else {
+    spectra[0] = global;
+  }
+
+  // Residual per value after k terms, for the bases actually used.
+  const double samples = 3.0 * double(width) * height;  // (pixel, channel) vectors.
+  const double values = samples * std::max(valid_lights, 1);
+  std::vector<double> residual(num_lights + 1, 0.0);
+  for (const Spectrum& s : spectra) {
+    double tail = 0;
+    for (int k = num_lights; k >= 0; --k) {
+      residual[k] += tail / values;
+      if (k > 0) tail += s.values(k - 1);
+    }
+  }
+
+  // Noise floor.
+  PcaSummary sum;
+  sum.mean_square = global.values.sum() / values;
+  if (field.noise.measured) {
+    double positive_sum = 0;
+    for (float v : field.values()) positive_sum += v > 0 ? v : 0;
+    sum.noise_variance =
+        field.noise.read_variance + field.noise.shot_variance_per_unit * positive_sum / values;
+    sum.noise_measured = true;
+    sum.noise_method = field.noise.method.empty() ? "field noise" : field.noise.method;
+  } else {
+    std::vector<double> spectrum(global.values.data(),
+                                 global.values.data() + std::max(valid_lights, 1));
+    const size_t tenth = spectrum.size() - 1 - (spectrum.size() - 1) / 10;  // Descending order.
+    const double spread = std::pow(1 - std::sqrt(std::max(valid_lights, 1) / samples), 2);
+    sum.noise_variance = spectrum[tenth] / (samples * spread);
+    sum.noise_measured = false;
+    sum.noise_method = "10th percentile of the PCA eigenvalues (Marchenko-Pastur lower edge)";
+  }
+  const int max_rank = std::min(options.max_rank, std::max(valid_lights, 1));
+  int rank = options.rank;
+  if (rank == 0) {
+    sum.auto_rank = true;
+    rank = max_rank;
+    for (int k = 1; k <= max_rank; ++k) {
+      // Component k (0-based) is the first one left out.
+      if (k >= valid_lights ||
+          global.values(k) / samples <= options.keep_above_noise * sum.noise_variance) {
+        rank = k;
+        break;
+      }
+    }
+  }
+  if (options.rank == 0 && options.rank_rule == PcaRankRule::kHeldOutLights) {
+    sum.held_out_ms = held_out_errors(field, global_gram, max_rank, options.rbf_sigma_rad);
+    if (!sum.held_out_ms.empty()) {
+      const double best = *std::min_element(sum.held_out_ms.begin() + 1, sum.held_out_ms.end());
+      for (int k = 1; k < int(sum.held_out_ms.size()); ++k) {
+        if (sum.held_out_ms[k] <= 1.01 * best) {
+          rank = k;
+          break;
+        }
+      }
+      sum.noise_method += "; rank from held-out LEDs";
+    }
+  }
+  rank = std::min(rank, max_rank);
+  out.rank_ = rank;
+  for (const Spectrum& s : spectra) out.bases_.push_back(s.vectors.leftCols(rank).cast<float>());
+
+  // Coefficients: C = B^T V per pixel (V: L x 3).
+  out.coefs_.assign(size_t(width) * height * rank * 3, 0.0f);
+  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < width; ++x) {
+        const Eigen::MatrixXf& basis = out.bases_[out.tile_of(x, y)];
+        Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> v(
+            field.pixel(x, y), num_lights, 3);
+        Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> c(
+            out.coefs_.data() + (size_t(y) * width + x) * rank * 3, rank, 3);
+        c.noalias() = basis.transpose() * v;
+      }
+    }
+  });
+  out.sigma_rad_ = options.rbf_sigma_rad;
+  out.interpolator_ = LightInterpolator(out.led_dirs_, out.led_valid_, options.rbf_sigma_rad);
+  out.sigma_rad_ = out.interpolator_.sigma_rad();
+
+  sum.rank = rank;
+  sum.residual_ms = residual;
+  sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (summary) *summary = sum;
+  return out;
+}
+
+std::string PcaField::name() const {
+  return "pca k=" + std::to_string(rank_) +
+         (tile_size_ > 0 ? " tile " + std::to_string(tile_size_) : "");
+}
+
+double PcaField::bytes_per_pixel() const {
+  const double pixels = double(width_) * height_;
+  const double basis_bytes = double(bases_.size()) * num_lights() * rank_ * sizeof(float);
+  return 3.0 * rank_ * sizeof(float) + (pixels > 0 ? basis_bytes / pixels : 0);
+}
+
+float PcaField::reconstruct(int x, int y, int light, int c) const {
+  const Eigen::MatrixXf& basis = bases_[tile_of(x, y)];
+  const float* coef = coefs_.data() + (size_t(y) * width_ + x) * rank_ * 3;
+  float v = 0;
+  for (int j = 0; j < rank_; ++j) v += basis(light, j) * coef[3 * j + c];
+  return v;
+}
+
+void PcaField::relight_into(const LightingForModels& lights, Image& out) const {
+  const std::vector<float> e = interpolator_.led_irradiance(lights);
+  relight_led_weights_into(e.data(), out);
+}
+
+void PcaField::relight_led_weights_into(const float* led_irradiance_rgb, Image& out) const {
+  ensure_rgb_image(out, width_, height_);
+  const int num = num_lights();
+  Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> e(led_irradiance_rgb,
+                                                                               num, 3);
+  // Per tile: the lighting in the basis, k x 3 (row-major, like the coefficients).
+  std::vector<Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> w(bases_.size());
+  for (size_t t = 0; t < bases_.size(); ++t) w[t].noalias() = bases_[t].transpose() * e;
+  const int count = 3 * rank_;
+  float* out_pixels = out.pixels.data();
+  const int rows_per_task = std::max(1, 16384 / std::max(1, width_));
+  tbb::parallel_for(
+      tbb::blocked_range<int>(0, height_, rows_per_task), [&](const tbb::blocked_range<int>& rows) {
+        for (int y = rows.begin(); y < rows.end(); ++y) {
+          for (int x = 0; x < width_; ++x) {
+            const float* __restrict coef = coefs_.data() + (size_t(y) * width_ + x) * count;
+            const float* __restrict wt = w[tile_of(x, y)].data();
+            float r = 0, g = 0, b = 0;
+            for (int i = 0; i < count; i += 3) {
+              r += coef[i] * wt[i];
+              g += coef[i + 1] * wt[i + 1];
+              b += coef[i + 2] * wt[i + 2];
+            }
+            float* o = out_pixels + (size_t(y) * width_ + x) * 3;
+            o[0] = r;
+            o[1] = g;
+            o[2] = b;
+          }
+        }
+      });
+}
+
+std::vector<float> PcaField::project_led_weights(const float* led_irradiance_rgb) const {
+  Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> e(led_irradiance_rgb,
+                                                                               num_lights(), 3);
+  std::vector<float> out(bases_.size() * size_t(rank_) * 3);
+  for (size_t t = 0; t < bases_.size(); ++t) {
+    Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> w(
+        out.data() + t * size_t(rank_) * 3, rank_, 3);
+    w.noalias() = bases_[t].transpose() * e;
+  }
+  return out;
+}
+
+// File layout (little-endian): "LSPCA1\n"; int32 width, height, lights, rank, tile_size;
+// float64 rbf sigma (rad); per LED float64 x, y, z and uint8 valid; per tile (row-major over
+// tiles) the L x k basis as float32, column by column; per pixel (row-major, row 0 at the top)
+// k x 3 float32 coefficients, [j * 3 + c].
+void PcaField::write(const std::filesystem::path& path) const {
+  std::ostringstream out;
+  out.write(kPcaMagic, sizeof(kPcaMagic) - 1);
+  for (int v : {width_, height_, num_lights(), rank_, tile_size_}) write_pod<int32_t>(out, v);
+  write_pod<double>(out, sigma_rad_);
+  for (int l = 0; l < num_lights(); ++l) {
+    for (int i = 0; i < 3; ++i) write_pod<double>(out, led_dirs_[l](i));
+    write_pod<uint8_t>(out, led_valid_[l] ? 1 : 0);
+  }
+  for (const auto& basis : bases_) {
+    out.write(reinterpret_cast<const char*>(basis.data()), basis.size() * sizeof(float));
+  }
+  out.write(reinterpret_cast<const char*>(coefs_.data()), coefs_.size() * sizeof(float));
+  write_file_atomic(path, out.str());
+}
+
+PcaField PcaField::read(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(file + ": cannot open for reading");
+  char magic[sizeof(kPcaMagic) - 1];
+  in.read(magic, sizeof(magic));
+  if (!in || std::memcmp(magic, kPcaMagic, sizeof(magic)) != 0) {
+    throw InputError(file + ": header: expected \"LSPCA1\", got something else (not a PCA field)");
+  }
+  PcaField out;
+  out.width_ = read_pod<int32_t>(in, file, "width");
+  out.height_ = read_pod<int32_t>(in, file, "height");
+  const int lights = read_pod<int32_t>(in, file, "lights");
+  out.rank_ = read_pod<int32_t>(in, file, "rank");
+  out.tile_size_ = read_pod<int32_t>(in, file, "tile_size");
+  auto check = [&](bool ok, const std::string& field, const std::string& what, long long got) {
+    if (!ok)
+      throw InputError(file + ": " + field + ": expected " + what + ", got " + std::to_string(got));
+  };
+  check(out.width_ > 0 && out.width_ <= 65536, "width", "1..65536", out.width_);
+  check(out.height_ > 0 && out.height_ <= 65536, "height", "1..65536", out.height_);
+  check(lights > 0 && lights <= 100000, "lights", "1..100000", lights);
+  check(out.rank_ > 0 && out.rank_ <= lights, "rank", "1..lights", out.rank_);
+  check(out.tile_size_ >= 0, "tile_size", ">= 0", out.tile_size_);
+  out.sigma_rad_ = read_pod<double>(in, file, "rbf_sigma");
+  if (!(out.sigma_rad_ > 0 && out.sigma_rad_ < M_PI)) {
+    throw InputError(file + ": rbf_sigma: expected an angle in (0, pi) radians");
+  }
+  for (int l = 0; l < lights; ++l) {
+    Eigen::Vector3d d;
+    for (int i = 0; i < 3; ++i)
+      d(i) = read_pod<double>(in, file, "lights[" + std::to_string(l) + "]");
+    if (!(d.allFinite() && std::abs(d.norm() - 1) < 1e-3)) {
+      throw InputError(file + ": lights[" + std::to_string(l) +
+                       "].direction: expected a unit vector");
+    }
+    out.led_dirs_.push_back(d);
+    out.led_valid_.push_back(read_pod<uint8_t>(in, file, "lights") != 0);
+  }
+  const int tiles = out.tile_size_ > 0
+                        ? out.tiles_x() * ((out.height_ + out.tile_size_ - 1) / out.tile_size_)
+                        : 1;
+  for (int t = 0; t < tiles; ++t) {
+    Eigen::MatrixXf basis(lights, out.rank_);
+    in.read(reinterpret_cast<char*>(basis.data()), basis.size() * sizeof(float));
+    if (!in)
+      throw InputError(file + ": basis[" + std::to_string(t) + "]: expected " +
+                       std::to_string(basis.size()) + " floats, got end of file");
+    if (!basis.allFinite())
+      throw InputError(file + ": basis[" + std::to_string(t) + "]: expected finite values");
+    out.bases_.push_back(std::move(basis));
+  }
+  out.coefs_.resize(size_t(out.width_) * out.height_ * out.rank_ * 3);
+  in.read(reinterpret_cast<char*>(out.coefs_.data()), out.coefs_.size() * sizeof(float));
+  if (!in)
+    throw InputError(file + ": coefficients: expected " + std::to_string(out.coefs_.size()) +
+                     " floats, got end of file");
+  for (float v : out.coefs_) {
+    if (!std::isfinite(v)) throw InputError(file + ": coefficients: expected finite values");
+  }
+  in.peek();
+  if (!in.eof()) throw InputError(file + ": coefficients: expected end of file, got more data");
+  out.interpolator_ = LightInterpolator(out.led_dirs_, out.led_valid_, out.sigma_rad_);
+  return out;
+}
+
+}  // namespace ls::relight

@@ -1,0 +1,62 @@
+#pragma once
+// The RTI interchange formats (issue 7), in the layouts RTIViewer and relight/OpenLIME read:
+//
+//  .ptm (PTM_1.2, HP Labs; uncompressed PTM_FORMAT_RGB and PTM_FORMAT_LRGB):
+//    "PTM_1.2\n" "PTM_FORMAT_RGB\n" (or _LRGB) "<width>\n" "<height>\n"
+//    "<6 scales>\n" "<6 integer biases>\n", then bytes, rows bottom to top:
+//    RGB: three blocks (R, G, B), each rows x pixels x 6 coefficients;
+//    LRGB: rows x pixels x 6 luminance coefficients, then rows x pixels x 3 colour bytes.
+//    Coefficient a_j = (byte - bias_j) * scale_j, in 8-bit code units (255 = white), order
+//    u^2, v^2, uv, u, v, 1. LRGB pixel value = colour_byte / 255 * L(u, v).
+//  .rti (HSH, RTIViewer's "#HSH1.2"): text header "#HSH1.2\n", comment lines starting with '#',
+//    "3\n" (HSH), "<width> <height> 3\n", "<terms> 2 1\n", then terms float32 scales and terms
+//    float32 biases (little-endian), then bytes, rows bottom to top, per pixel the R terms, G
+//    terms, B terms: coefficient = byte / 255 * scale_j + bias_j; the evaluated value is 1 at
+//    white.
+//
+// Values in the files are display units (white = 255 codes for PTM, 1 for HSH); fields are in
+// field units. The writer maps field units to display units with a gain (default: the brightest
+// fitted sample becomes white). The .rti writer records the gain in a comment line
+// "#lightstage field_gain <g>", so reading it back returns field units; .ptm has no room for it,
+// so a .ptm reads back in display units (gain 1 = "white is 1").
+//
+// Quantisation is per coefficient over the whole image (as the reference builders do): PTM range
+// [min(min_j, 0), max(max_j, 0)] onto integer bias and 0..255; HSH [min_j, max_j] onto 0..255.
+#include <cstdint>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "relight/compact/rti_fits.h"
+
+namespace ls::relight {
+
+enum class RtiFileFormat { kPtmRgb, kPtmLrgb, kHsh };
+
+// A quantised file as it is stored (rows top to bottom here; the encoder flips them).
+struct RtiFile {
+  RtiFileFormat format = RtiFileFormat::kHsh;
+  int width = 0, height = 0;
+  int terms = 0;                   // 6 for PTM; 4, 9 or 16 for HSH.
+  std::vector<float> scale, bias;  // Per term (PTM biases are integers).
+  // Per pixel (row-major, row 0 at the top): PTM RGB and HSH: 3 x terms, [c * terms + j];
+  // PTM LRGB: 6 luminance bytes then 3 colour bytes.
+  std::vector<uint8_t> data;
+  double field_gain = 0.0;  // Display units per field unit, when the file records it (.rti).
+
+  int bytes_per_pixel() const { return format == RtiFileFormat::kPtmLrgb ? 9 : 3 * terms; }
+};
+
+// Field -> file. gain: display units (white = 1) per field unit; <= 0: 1 / max_sample_value.
+RtiFile quantise(const RtiField& field, double gain = 0.0);
+// File -> field, in field units when the file records its gain, else in display units (white 1).
+RtiField dequantise(const RtiFile& file);
+
+// Exact byte (de)serialisation. decode throws InputError "<name>: <field>: expected X, got Y".
+std::string encode_rti_file(const RtiFile& file);
+RtiFile decode_rti_file(const std::string& bytes, const std::string& name);
+
+void write_rti_file(const std::filesystem::path& path, const RtiFile& file);  // Atomic.
+RtiFile read_rti_file(const std::filesystem::path& path);
+
+}  // namespace ls::relight

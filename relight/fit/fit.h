@@ -1,0 +1,145 @@
+#pragma once
+// Per-pixel appearance fitting and model choice (issue #3).
+//
+// For every pixel, starting from the photometric-stereo normal, fits
+//   Lambert (albedo RGB), nested in both of
+//   Oren-Nayar (albedo RGB, sigma; sigma = 0 is Lambert) and
+//   Lambert + Torrance-Sparrow (albedo RGB, white k_s, Beckmann roughness; k_s = 0 is Lambert),
+// and, as a comparison, Lambert + Phong (albedo RGB, white k_s, exponent). Every model also refines
+// the normal (two offsets in the tangent plane of the photometric-stereo normal, i.e. two small
+// angles: PS is biased for non-Lambertian surfaces, e.g. Oren-Nayar flattens the shading toward
+// the viewer), so k = 5, 6, 7, 7 parameters.
+//
+// Each fit is bounded Levenberg-Marquardt (ceres::TinySolver, autodiff Jets through relight/lighting/brdf.h)
+// with the bounds built into the parametrisation: albedo = u^2, k_s = u^2, sigma = (pi/2)
+// sigmoid(u), roughness = 0.02 + 0.98 sigmoid(u), Phong exponent = 1 + (1e4 - 1) sigmoid(u).
+//
+// Samples: every valid light whose luminance is above the shadow threshold (NormalOptions), all
+// three channels, each residual divided by its noise sigma (NoiseModel, from the measured value),
+// so chi^2 = sum of squared residuals is chi^2-distributed with n - k degrees of freedom when the
+// model is right. Samples at their light's saturation ceiling (capture/field.h) are left out too:
+// they are lower bounds. Samples at or below the threshold are left out: a near-zero value where
+// the model says "lit" is almost always a cast shadow (the models have no visibility term), and
+// including it would bias albedo and normal; a near-zero value where the model says "unlit"
+// carries almost no information. Samples above the threshold that the model predicts unlit (n.l
+// <= 0) stay in and count against it.
+//
+// Model choice: BIC = chi^2 + k ln(n), n = number of residuals; the lowest BIC wins, ties go to the
+// simpler model. A fit whose parameters or chi^2 are not finite is discarded (counted in the
+// summary); a pixel with no finite fit is flagged, never NaN.
+#include <Eigen/Core>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+#include "lightstage/image.h"
+#include "relight/fit/normals.h"
+
+namespace ls::relight {
+
+enum class FitModel : int {
+  kNone = 0,  // Flagged: no fit.
+  kLambert = 1,
+  kOrenNayar = 2,
+  kLambertTorranceSparrow = 3,
+  kLambertPhong = 4,
+};
+const char* to_string(FitModel model);
+
+// Default bound on a lobe's k_s, shared with ModelRenderOptions (relight/fit/model_render.h).
+inline constexpr double kDefaultMaxSpecularAlbedo = 2.0;
+
+struct FitOptions {
+  // Normals (used when fit_models estimates them) and the shadow threshold and noise model of the
+  // fits: one NoiseModel for both.
+  NormalOptions normals;
+  bool fit_oren_nayar = true;
+  bool fit_torrance_sparrow = true;
+  bool fit_phong = false;  // Comparison only: off by default.
+  // Torrance-Sparrow is multimodal in roughness: one LM start per entry, the best kept.
+  std::vector<double> roughness_starts{0.08, 0.3};
+  int max_iterations = 50;
+  // Off: the normal is held at the given (photometric-stereo) normal and k drops by 2, e.g. for a
+  // scene whose geometry does not change over time (relight/time/temporal_fit.h).
+  bool refine_normal = true;
+  // A lobe fit (Torrance-Sparrow or Phong) with k_s above this is discarded and the pixel falls
+  // back to a simpler model: k_s is the lobe's albedo (Fresnel folded in), at most about 1 for
+  // calibrated data; 3e4..1e8 happen where no sample constrains the lobe (near silhouettes, under
+  // clipping). 2 leaves margin for calibration error. Raise it for data in uncalibrated units.
+  double max_specular_albedo = kDefaultMaxSpecularAlbedo;
+  // View direction (unit, toward the camera) per pixel, row-major; empty = orthographic (0, 0, 1).
+  std::vector<Eigen::Vector3d> view_dir_per_pixel;
+  // Where normals.noise came from, stored with the maps (e.g. "measured: dark-frame pairs").
+  std::string noise_source = "default NoiseModel";
+  // Called as rows finish with (rows done, rows in all), from TBB worker threads, concurrently:
+  // it must be thread-safe (ProgressReporter::update is). Empty: no progress.
+  std::function<void(long done, long total)> progress;
+
+  std::string validate() const;
+};
+
+// Channels of ModelMaps::maps, in order.
+enum MapChannel : int {
+  kMapNormalX = 0,
+  kMapNormalY,
+  kMapNormalZ,
+  kMapAlbedoR,
+  kMapAlbedoG,
+  kMapAlbedoB,
+  kMapSigma,       // Oren-Nayar sigma in radians (0 unless model = Oren-Nayar).
+  kMapKs,          // Specular albedo (white), 0 for diffuse models.
+  kMapRoughness,   // Beckmann m; for Phong the equivalent m = sqrt(2 / (exponent + 2)).
+  kMapModel,       // FitModel as a number.
+  kMapConfidence,  // BIC weight of the chosen model, exp(-BIC/2) normalised over the candidates.
+  kMapResidual,    // Reduced chi^2 of the chosen model (about 1 when it explains the data).
+  kMapFlags,       // NormalFlag bits | kFitFailed.
+  kMapChannelCount,
+};
+inline constexpr int kFitFailed = 16;
+
+struct FitSummary {
+  int pixels = 0;
+  int fitted = 0;
+  int flagged = 0;
+  int per_model[5] = {0, 0, 0, 0, 0};   // Indexed by FitModel.
+  int discarded_nonfinite_fits = 0;     // Individual model fits thrown away (not pixels).
+  int discarded_implausible_lobes = 0;  // Lobe fits with k_s > max_specular_albedo (per model).
+  double seconds = 0;
+  std::string to_string() const;
+};
+
+struct ModelMaps {
+  Image maps;  // kMapChannelCount named channels: normal.x/y/z, albedo.r/g/b, sigma, ks, ...
+  FitSummary summary;  // Not stored in the file: read_model_maps fills only pixels/fitted/flagged.
+  // The noise model the fit weighted its residuals with (so kMapResidual can be read) and where it
+  // came from; stored in the "lightstage:fit_noise" attribute.
+  NoiseModel noise;
+  std::string noise_source;
+  float at(int x, int y, MapChannel c) const { return maps.at(x, y, c); }
+  FitModel model(int x, int y) const { return FitModel(int(maps.at(x, y, kMapModel))); }
+};
+
+// Estimates normals (options.normals) and fits every pixel.
+ModelMaps fit_models(const capture::ReflectanceField& field, const FitOptions& options);
+// Fits every pixel starting from given normals (flagged normals are not fitted).
+ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& normals,
+                     const FitOptions& options);
+
+// Writes the maps as one EXR (float, named channels) and a PNG preview per map beside it:
+// <stem>.normal.png (0.5 + 0.5 n), .albedo.png, .sigma.png (/ (pi/2)), .ks.png, .roughness.png,
+// .model.png (model / 4), .confidence.png, .residual.png (log10(1 + r) / 2), .flags.png.
+void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps);
+
+// Reads what write_model_maps wrote, bit-exactly (channels found by name, in any order). Validates
+// every channel: finite values, model in 0..4, flags a non-negative integer, unit normals and
+// albedo/sigma/ks/roughness within their bounds on fitted pixels. Errors are InputErrors naming
+// the file and the channel: "maps.exr: channel 'model': expected an integer in 0..4 at (3, 7),
+// got 9".
+ModelMaps read_model_maps(const std::filesystem::path& path);
+
+// Channel names of ModelMaps::maps, indexed by MapChannel.
+const std::vector<std::string>& model_map_channel_names();
+
+}  // namespace ls::relight

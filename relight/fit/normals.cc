@@ -1,0 +1,252 @@
+#include "relight/fit/normals.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <vector>
+
+#include "lightstage/errors.h"
+
+namespace ls::relight {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};
+
+// Per-thread scratch, sized once per row range: the per-pixel loop does not allocate.
+struct Scratch {
+  std::vector<double> y;                    // Luminance per valid light.
+  std::vector<double> sigma;                // Noise sigma of y.
+  std::vector<double> weight;               // Current LS weight (0 = not used).
+  std::vector<double> abs_u;                // |normalised residual|, for the MAD.
+  std::vector<int> order;                   // For trimming.
+  std::vector<char> usable;                 // Lit (above the shadow threshold) and not saturated.
+  std::vector<Eigen::Vector3d> pixel_dirs;  // Near lights: this pixel's direction to each light.
+  explicit Scratch(size_t n)
+      : y(n), sigma(n), weight(n), abs_u(n), order(n), usable(n), pixel_dirs(n) {}
+};
+
+struct Solve {
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  double condition = 0;  // sqrt(lambda_min / lambda_max) of the used directions' scatter.
+  int used = 0;
+  bool ok = false;
+};
+
+// Weighted LS for g over the lights with weight > 0.
+Solve weighted_solve(const std::vector<Eigen::Vector3d>& dirs, const Scratch& s) {
+  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d geometry = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d atb = Eigen::Vector3d::Zero();
+  Solve out;
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    const double w = s.weight[i];
+    if (!(w > 0)) continue;
+    const Eigen::Vector3d& l = dirs[i];
+    ata.noalias() += w * l * l.transpose();
+    geometry.noalias() += l * l.transpose();
+    atb += w * s.y[i] * l;
+    ++out.used;
+  }
+  if (out.used < 3) return out;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(geometry, Eigen::EigenvaluesOnly);
+  const Eigen::Vector3d ev = eig.eigenvalues();  // Ascending.
+  out.condition = ev(2) > 0 ? std::sqrt(std::max(ev(0), 0.0) / ev(2)) : 0.0;
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
+  if (ldlt.info() != Eigen::Success) return out;
+  out.g = ldlt.solve(atb);
+  out.ok = out.g.allFinite();
+  return out;
+}
+
+double median_of(std::vector<double>& v, int n) {
+  auto mid = v.begin() + n / 2;
+  std::nth_element(v.begin(), mid, v.begin() + n);
+  return *mid;
+}
+
+}  // namespace
+
+std::string NormalOptions::validate() const {
+  if (!(noise.a > 0) || !(noise.b >= 0)) {
+    return "noise: expected a > 0 and b >= 0 (sigma^2 = a + b * value)";
+  }
+  if (!(shadow_sigmas >= 0) || !(shadow_fraction >= 0 && shadow_fraction < 1)) {
+    return "shadow_sigmas must be >= 0 and shadow_fraction in [0, 1)";
+  }
+  if (min_lights < 3) return "min_lights: expected at least 3 (three unknowns per pixel)";
+  if (!(min_condition >= 0 && min_condition < 1)) return "min_condition: expected [0, 1)";
+  if (!(trim_bright_fraction >= 0 && trim_bright_fraction < 0.5)) {
+    return "trim_bright_fraction: expected [0, 0.5)";
+  }
+  if (irls_iterations < 0) return "irls_iterations: expected >= 0";
+  if (!(max_saturated_fraction >= 0 && max_saturated_fraction <= 1)) {
+    return "max_saturated_fraction: expected [0, 1]";
+  }
+  if (!(tukey_c > 0)) return "tukey_c: expected > 0";
+  return {};
+}
+
+NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalOptions& options) {
+  if (const std::string error = options.validate(); !error.empty()) {
+    throw InputError("normal options: " + error);
+  }
+  const int width = field.width(), height = field.height();
+  NormalMap out;
+  out.normal = Image(width, height, 3);
+  out.normal.channel_names = {"normal.x", "normal.y", "normal.z"};
+  out.albedo = Image(width, height, 3);
+  out.albedo.channel_names = {"albedo.r", "albedo.g", "albedo.b"};
+  out.confidence = Image(width, height, 1);
+  out.confidence.channel_names = {"confidence"};
+  out.flags = Image(width, height, 1);
+  out.flags.channel_names = {"flags"};
+
+  const capture::ValidLights valid = capture::valid_lights(field);
+  const std::vector<int>& light_index = valid.index;
+  const std::vector<Eigen::Vector3d>& distant_dirs = valid.dirs_in_stage;
+  const size_t n = distant_dirs.size();
+  const std::vector<capture::FieldLight>& lights = field.lights();
+  // Near LEDs (positions in the field): each pixel sees them from its own reference point.
+  const bool per_pixel_dirs = capture::has_near_lights(field);
+  const bool robust = options.method == NormalMethod::kRobust;
+  std::atomic<int> flagged{0};
+
+  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
+    Scratch s(n);
+    int flagged_here = 0;
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < width; ++x) {
+        const float* px = field.pixel(x, y);
+        if (per_pixel_dirs) {
+          for (size_t i = 0; i < n; ++i) {
+            s.pixel_dirs[i] = capture::light_dir_at(field, light_index[i], x, y);
+          }
+        }
+        const std::vector<Eigen::Vector3d>& dirs = per_pixel_dirs ? s.pixel_dirs : distant_dirs;
+        double y_max = 0;
+        for (size_t i = 0; i < n; ++i) {
+          const float* v = px + 3 * light_index[i];
+          const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
+          s.y[i] = std::isfinite(lum) ? lum : 0.0;
+          s.sigma[i] = std::sqrt(options.noise.variance(s.y[i]));
+          y_max = std::max(y_max, s.y[i]);
+        }
+        const double threshold = std::max(options.shadow_sigmas * std::sqrt(options.noise.a),
+                                          options.shadow_fraction * y_max);
+        int lit = 0;
+        int saturated = 0;
+        for (size_t i = 0; i < n; ++i) {
+          const bool censored =
+              capture::is_saturated(lights[light_index[i]], px + 3 * light_index[i]);
+          const bool use = s.y[i] > threshold && !censored;
+          s.usable[i] = use;
+          s.weight[i] = use ? 1.0 / (s.sigma[i] * s.sigma[i]) : 0.0;
+          lit += use;
+          saturated += censored;
+        }
+        int flags = 0;
+        if (lit == 0 && saturated == 0) {
+          flags |= kAllShadowed;
+        } else if (lit < options.min_lights) {
+          flags |= kTooFewLights;
+          if (saturated > 0) flags |= kSaturated;
+        } else if (saturated > options.max_saturated_fraction * (lit + saturated)) {
+          flags |= kSaturated;
+        }
+
+        Solve solve;
+        if (flags == 0 && robust) {
+          // Trimmed start: leave out the brightest lit samples (where highlights live).
+          int m = 0;
+          for (size_t i = 0; i < n; ++i) {
+            if (s.weight[i] > 0) s.order[m++] = int(i);
+          }
+          const int drop = int(options.trim_bright_fraction * m);
+          if (m - drop >= options.min_lights && drop > 0) {
+            std::nth_element(s.order.begin(), s.order.begin() + (m - drop), s.order.begin() + m,
+                             [&](int a, int b) { return s.y[a] < s.y[b]; });
+            std::copy(s.weight.begin(), s.weight.end(), s.abs_u.begin());  // Keep full weights.
+            for (int k = m - drop; k < m; ++k) s.weight[s.order[k]] = 0;
+            solve = weighted_solve(dirs, s);
+            std::copy(s.abs_u.begin(), s.abs_u.end(), s.weight.begin());
+          } else {
+            solve = weighted_solve(dirs, s);
+          }
+          // Tukey IRLS over all lit samples, residuals in noise units, scale from their MAD.
+          for (int it = 0; it < options.irls_iterations && solve.ok; ++it) {
+            int k = 0;
+            for (size_t i = 0; i < n; ++i) {
+              if (!s.usable[i]) continue;
+              s.abs_u[k++] = std::abs(s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
+            }
+            const double scale = std::max(1.4826 * median_of(s.abs_u, k), 1.0);
+            for (size_t i = 0; i < n; ++i) {
+              if (!s.usable[i]) continue;
+              const double u =
+                  (s.y[i] - dirs[i].dot(solve.g)) / (s.sigma[i] * options.tukey_c * scale);
+              const double t = 1 - u * u;
+              s.weight[i] = t > 0 ? t * t / (s.sigma[i] * s.sigma[i]) : 0.0;
+            }
+            const Solve next = weighted_solve(dirs, s);
+            if (!next.ok || next.used < options.min_lights) break;
+            solve = next;
+          }
+        } else if (flags == 0) {
+          solve = weighted_solve(dirs, s);
+        }
+
+        double norm = solve.g.norm();
+        if (flags == 0) {
+          if (!solve.ok || solve.used < options.min_lights) {
+            flags |= kTooFewLights;
+          } else if (solve.condition < options.min_condition) {
+            flags |= kIllConditioned;
+          } else if (!(norm > 0) || solve.g.z() < -0.2 * norm) {
+            flags |= kFacingAway;
+          }
+        }
+        float* normal = &out.normal.at(x, y, 0);
+        float* albedo = &out.albedo.at(x, y, 0);
+        out.flags.at(x, y, 0) = float(flags);
+        if (flags != 0) {
+          ++flagged_here;
+          continue;  // Maps stay zero: never NaN.
+        }
+        const Eigen::Vector3d nrm = solve.g / norm;
+        // Albedo per channel by weighted LS with the shading fixed; chi^2 of the luminance fit.
+        double sxx = 0, sxy[3] = {0, 0, 0}, chi2 = 0;
+        int used = 0;
+        for (size_t i = 0; i < n; ++i) {
+          if (!(s.weight[i] > 0)) continue;
+          const double shade = std::max(0.0, nrm.dot(dirs[i])) / kPi;
+          const double w = s.weight[i] * s.sigma[i] * s.sigma[i];  // Robust factor only.
+          const float* v = px + 3 * light_index[i];
+          sxx += w * shade * shade;
+          for (int c = 0; c < 3; ++c) sxy[c] += w * shade * v[c];
+          const double r = (s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
+          chi2 += r * r;
+          ++used;
+        }
+        for (int c = 0; c < 3; ++c) {
+          normal[c] = float(nrm(c));
+          albedo[c] = sxx > 0 ? float(std::max(0.0, sxy[c] / sxx)) : 0.0f;
+        }
+        // Confidence: how well the used lights pin down 3 unknowns (1 = isotropic cone), times
+        // how well the Lambertian model explains them (1 when residuals are at the noise level).
+        const double reduced_chi2 = used > 3 ? chi2 / (used - 3) : 1.0;
+        const double fit_quality = reduced_chi2 > 1 ? 1.0 / std::sqrt(reduced_chi2) : 1.0;
+        out.confidence.at(x, y, 0) = float(std::clamp(solve.condition * fit_quality, 0.0, 1.0));
+      }
+    }
+    flagged += flagged_here;
+  });
+  out.flagged_pixels = flagged.load();
+  return out;
+}
+
+}  // namespace ls::relight

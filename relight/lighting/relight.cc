@@ -1,0 +1,80 @@
+#include "relight/lighting/relight.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <string>
+
+#include "lightstage/errors.h"
+
+namespace ls::relight {
+
+namespace {
+
+// Values per chunk: 8 lights x RGB. A fixed-size inner loop over independent accumulator lanes
+// vectorises without reassociating sums (no -ffast-math needed), and 24 is a multiple of 3 so lane
+// k always holds channel k % 3.
+constexpr int kChunk = 24;
+
+inline void shade_pixel(const float* __restrict values, const float* __restrict irradiance_rgb,
+                        int count, float* __restrict out_rgb) {
+  float acc[kChunk] = {};
+  int i = 0;
+  for (; i + kChunk <= count; i += kChunk) {
+    for (int k = 0; k < kChunk; ++k) acc[k] += values[i + k] * irradiance_rgb[i + k];
+  }
+  // The tail is a whole number of lights (count is a multiple of 3).
+  for (int k = 0; i + k < count; ++k) acc[k] += values[i + k] * irradiance_rgb[i + k];
+  float r = 0, g = 0, b = 0;
+  for (int k = 0; k < kChunk; k += 3) {
+    r += acc[k];
+    g += acc[k + 1];
+    b += acc[k + 2];
+  }
+  out_rgb[0] = r;
+  out_rgb[1] = g;
+  out_rgb[2] = b;
+}
+
+}  // namespace
+
+void relight_into(const capture::ReflectanceField& field, const float* irradiance_rgb, Image& out) {
+  const int width = field.width(), height = field.height();
+  if (out.width != width || out.height != height || out.channels != 3 ||
+      out.pixels.size() != size_t(width) * height * 3) {
+    out = Image(width, height, 3);
+  }
+  out.channel_names = {"R", "G", "B"};
+  if (width == 0 || height == 0) return;
+  const int count = 3 * field.num_lights();
+  // Tiles of at least ~256 KiB of field so task overhead stays negligible on small fields.
+  const size_t row_bytes = size_t(width) * count * sizeof(float);
+  const int rows_per_tile =
+      std::max<int>(1, int((size_t(256) << 10) / std::max<size_t>(row_bytes, 1)));
+  float* out_pixels = out.pixels.data();
+  tbb::parallel_for(
+      tbb::blocked_range<int>(0, height, rows_per_tile), [&](const tbb::blocked_range<int>& rows) {
+        for (int y = rows.begin(); y < rows.end(); ++y) {
+          const float* values = field.pixel(0, y);
+          float* out_row = out_pixels + size_t(y) * width * 3;
+          for (int x = 0; x < width; ++x) {
+            shade_pixel(values + size_t(x) * count, irradiance_rgb, count, out_row + 3 * x);
+          }
+        }
+      });
+}
+
+Image relight(const capture::ReflectanceField& field, const LightWeights& weights) {
+  if (weights.irradiance_rgb.size() != 3 * size_t(field.num_lights())) {
+    throw InputError(field.source + ": lights: the field has " +
+                     std::to_string(field.num_lights()) + " lights but the weights have " +
+                     std::to_string(weights.irradiance_rgb.size() / 3) +
+                     " (computed for another stage?)");
+  }
+  Image out;
+  relight_into(field, weights.irradiance_rgb.data(), out);
+  return out;
+}
+
+}  // namespace ls::relight

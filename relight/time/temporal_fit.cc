@@ -1,0 +1,160 @@
+#include "relight/time/temporal_fit.h"
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "lightstage/errors.h"
+
+namespace ls::relight {
+namespace {
+
+// Field with every step's lights side by side (for pooled photometric stereo).
+capture::ReflectanceField pooled_field(const std::vector<const capture::ReflectanceField*>& steps) {
+  std::vector<capture::FieldLight> lights;
+  for (auto* f : steps) lights.insert(lights.end(), f->lights().begin(), f->lights().end());
+  capture::ReflectanceField pooled(steps[0]->width(), steps[0]->height(), lights);
+  for (int y = 0; y < pooled.height(); ++y) {
+    for (int x = 0; x < pooled.width(); ++x) {
+      float* out = pooled.pixel(x, y);
+      for (auto* f : steps)
+        out = std::copy(f->pixel(x, y), f->pixel(x, y) + 3 * f->num_lights(), out);
+    }
+  }
+  return pooled;
+}
+
+NormalMap normals_from(const std::vector<const capture::ReflectanceField*>& sorted,
+                       const NormalOptions& options, NormalSource source) {
+  if (source == NormalSource::kPooled && sorted.size() > 1) {
+    return estimate_normals(pooled_field(sorted), options);
+  }
+  return estimate_normals(source == NormalSource::kLast ? *sorted.back() : *sorted.front(),
+                          options);
+}
+
+void check_same_layout(const std::vector<capture::ReflectanceField>& steps) {
+  if (steps.empty()) throw InputError("temporal fit: expected at least one field, got none");
+  const auto& a = steps[0];
+  for (const auto& f : steps) {
+    if (f.width() != a.width() || f.height() != a.height()) {
+      throw InputError(f.source + ": size: expected " + std::to_string(a.width()) + "x" +
+                       std::to_string(a.height()) + " (as " + a.source + "), got " +
+                       std::to_string(f.width()) + "x" + std::to_string(f.height()));
+    }
+    if (!std::isfinite(f.scene_time_s)) {
+      throw InputError(f.source + ": scene_time_s: expected a finite time");
+    }
+  }
+}
+
+}  // namespace
+
+const char* to_string(TemporalModel model) {
+  switch (model) {
+    case TemporalModel::kNone:
+      return "none";
+    case TemporalModel::kConstant:
+      return "constant";
+    case TemporalModel::kExponential:
+      return "exponential";
+    case TemporalModel::kSigmoid:
+      return "sigmoid";
+    case TemporalModel::kDust:
+      return "dust";
+  }
+  return "?";
+}
+
+const char* temporal_param_name(int param) {
+  static const char* names[kTemporalParamCount] = {"albedo.r", "albedo.g", "albedo.b",
+                                                   "sigma",    "ks",       "roughness"};
+  return param >= 0 && param < kTemporalParamCount ? names[param] : "?";
+}
+
+const std::vector<std::string>& temporal_channel_names() {
+  static const std::vector<std::string> names = [] {
+    std::vector<std::string> n = {"normal.x", "normal.y", "normal.z", "model", "rate", "onset"};
+    for (int p = 0; p < kTemporalParamCount; ++p)
+      n.push_back(std::string("wet.") + temporal_param_name(p));
+    for (int p = 0; p < kTemporalParamCount; ++p)
+      n.push_back(std::string("dry.") + temporal_param_name(p));
+    for (const char* c : {"confidence", "residual", "steps_used", "flags"}) n.push_back(c);
+    return n;
+  }();
+  return names;
+}
+
+std::string TemporalFitOptions::validate() const {
+  if (std::string e = brdf.validate(); !e.empty()) return "brdf: " + e;
+  if (!(max_rate_times_interval > 0 && std::isfinite(max_rate_times_interval))) {
+    return "max_rate_times_interval: expected > 0";
+  }
+  if (max_iterations < 1) return "max_iterations: expected >= 1";
+  return {};
+}
+
+std::string TemporalSummary::to_string() const {
+  std::ostringstream s;
+  s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged; models:";
+  for (int m = 1; m < kTemporalModelCount; ++m) {
+    s << ' ' << relight::to_string(TemporalModel(m)) << '=' << per_model[m];
+  }
+  s << "; flags: faster-than-sampling=" << faster_than_sampling
+    << " too-few-steps=" << too_few_steps << " step-dropped=" << step_dropped
+    << "; per-step BRDF fits " << seconds_steps << " s, temporal fits " << seconds_temporal << " s";
+  return s.str();
+}
+
+NormalMap estimate_temporal_normals(const std::vector<capture::ReflectanceField>& steps,
+                                    const NormalOptions& options, NormalSource source) {
+  check_same_layout(steps);
+  std::vector<const capture::ReflectanceField*> sorted;
+  for (const auto& f : steps) sorted.push_back(&f);
+  return normals_from(sorted, options, source);
+}
+
+TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
+                          const TemporalFitOptions& options) {
+  if (const std::string error = options.validate(); !error.empty()) {
+    throw InputError("temporal fit options: " + error);
+  }
+  check_same_layout(input);
+  std::vector<const capture::ReflectanceField*> order;
+  for (const auto& f : input) order.push_back(&f);
+  std::stable_sort(order.begin(), order.end(),
+                   [](auto* a, auto* b) { return a->scene_time_s < b->scene_time_s; });
+  for (size_t i = 1; i < order.size(); ++i) {
+    if (order[i]->scene_time_s == order[i - 1]->scene_time_s) {
+      throw InputError(order[i]->source + ": scene_time_s: expected a time different from " +
+                       order[i - 1]->source + "'s, got both " +
+                       std::to_string(order[i]->scene_time_s) + " s");
+    }
+  }
+  const auto start_time = std::chrono::steady_clock::now();
+  const NormalMap normals = normals_from(order, options.brdf.normals, options.normal_source);
+  const long total_rows = long(order.size() + 1) * input[0].height();
+  std::atomic<long> done_rows{0};
+  std::vector<StepFit> steps;
+  for (auto* f : order) {
+    steps.push_back(fit_step(*f, normals, options));
+    done_rows += f->height();
+    if (options.progress) options.progress(done_rows, total_rows);
+  }
+  const double seconds_steps =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+  TemporalFitOptions temporal = options;
+  const long base = done_rows;
+  if (options.progress) {
+    temporal.progress = [&, base](long done, long) { options.progress(base + done, total_rows); };
+  }
+  TemporalMaps out = fit_temporal_models(steps, normals, temporal);
+  out.summary.seconds_steps = seconds_steps;
+  return out;
+}
+
+}  // namespace ls::relight

@@ -1,0 +1,183 @@
+#pragma once
+// Time-varying BRDFs (issue 6; Sun, Sunkavalli, Ramamoorthi, Belhumeur, Nayar 2007): from one
+// reflectance field per time step of the same scene, per pixel
+//   1. one normal for all steps (photometric stereo, relight/fit/normals.h, on the last, driest step
+//      by default: see NormalSource), held fixed: the geometry does not change;
+//   2. per step, the full BRDF with that normal: Oren-Nayar diffuse (albedo RGB, sigma) + white
+//      Torrance-Sparrow lobe (k_s, Beckmann roughness), samples and noise weighting as in
+//      relight/fit/fit.h. Always the full model, never a per-step model choice, so every step gives the
+//      same six parameters; what stays constant over time is decided by the temporal model choice.
+//      Each parameter's uncertainty comes from the fit's Jacobian: cov = (J^T J)^-1 (residuals are
+//      already divided by the measured noise) scaled by max(1, reduced chi^2) so a misfit widens
+//      it, with a floor (kParamSigmaFloor) standing for model error;
+//   3. over time, one process per pixel shared by its six parameters (as in the paper: one rate,
+//      one onset), each parameter with its own wet (start) and dry (end) value:
+//        constant     p(t) = dry
+//        exponential  p(t) = wet before the onset, then dry + (wet - dry) e^(-lambda (t - onset))
+//        sigmoid      p(t) = wet + (dry - wet) / (1 + e^(-kappa (t - onset)))
+//        dust         the exponential with k_s decaying to 0 and sigma, roughness constant
+//                     (rho(tau) = (1 - T) rho_dust + T rho_d + e^(-lambda tau) rho_s, T =
+//                     e^(-lambda tau)): the dust colour is the dry albedo.
+//      Each is fitted by bounded weighted least squares (ceres::TinySolver, autodiff; the rate and
+//      onset bounds are built into the parametrisation), started from a grid over (rate, onset)
+//      with the endpoints solved linearly at each grid point (they are linear given the shape).
+//      The simplest model by BIC = chi^2 + k ln(n) (n: residuals used; ties to the simpler) wins,
+//      the criterion of relight/fit/fit.h. A model with as many parameters per series as usable steps
+//      or more (constant 1, exponential/sigmoid/dust 4) is not considered (flag kTooFewSteps).
+//
+// Times are seconds of scene time (ReflectanceField::scene_time_s). Rates are 1/s. The rate is
+// bounded by max_rate_times_interval / (smallest step interval): a faster process is a step
+// between two samples, its rate is only a lower bound (flag kFasterThanSampling).
+#include <Eigen/Core>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+#include "lightstage/image.h"
+#include "relight/fit/fit.h"
+#include "relight/fit/normals.h"
+
+namespace ls::relight {
+
+enum class TemporalModel : int {
+  kNone = 0,  // Flagged: not fitted.
+  kConstant = 1,
+  kExponential = 2,
+  kSigmoid = 3,
+  kDust = 4,
+};
+const char* to_string(TemporalModel model);
+inline constexpr int kTemporalModelCount = 5;
+
+// The per-step BRDF parameters, in order.
+enum TemporalParam : int {
+  kParamAlbedoR = 0,
+  kParamAlbedoG,
+  kParamAlbedoB,
+  kParamSigma,      // Oren-Nayar sigma, radians, [0, pi/2].
+  kParamKs,         // White Torrance-Sparrow k_s, >= 0.
+  kParamRoughness,  // Beckmann m, [0.02, 1].
+  kTemporalParamCount,
+};
+// "albedo.r", "albedo.g", "albedo.b", "sigma", "ks", "roughness".
+const char* temporal_param_name(int param);
+// Smallest per-step standard deviation of each parameter (model error; relative noise alone would
+// claim more than the BRDF model can deliver).
+inline constexpr double kParamSigmaFloor[kTemporalParamCount] = {0.003, 0.003, 0.003,
+                                                                 0.01,  0.003, 0.005};
+
+// Bit codes in the flags channel (0 = ok).
+enum TemporalFlag : int {
+  kTemporalNoNormal = 1,      // Normal flagged (background, too few lights): not fitted.
+  kTooFewSteps = 2,           // Some models were not considered (too few usable steps).
+  kStepDropped = 4,           // At least one step was unusable here (dead LEDs, failed fit).
+  kFasterThanSampling = 8,    // Rate at its bound: a step between two samples; rate is a bound.
+  kTemporalFitFailed = 16,    // No temporal model could be fitted (no usable step).
+  kOnsetAtCaptureStart = 32,  // The process was already running at the first step.
+  kExtrapolated = 64,         // (render_temporal only) t outside the captured steps.
+};
+
+// Measured on the simulator's time-varying scene (tests/time, 40 LEDs, 10 steps): mean normal
+// error pooled 0.73, first 0.71, last 0.58 degrees. The wet steps have the strongest, sharpest
+// lobes, which bias photometric stereo; pooling averages that in and mixes changing albedos.
+enum class NormalSource {
+  kPooled,  // One field with every step's lights side by side.
+  kFirst,   // The first step's field (the wettest).
+  kLast,    // The last step's field (the driest): the default.
+};
+
+struct TemporalFitOptions {
+  // Noise, shadow thresholds, roughness starts, k_s bound of the per-step fits (refine_normal is
+  // ignored: the normal is always held fixed).
+  FitOptions brdf;
+  NormalSource normal_source = NormalSource::kLast;
+  bool fit_exponential = true;
+  bool fit_sigmoid = true;
+  bool fit_dust = true;
+  double max_rate_times_interval = 4.0;  // lambda, kappa <= this / smallest step interval.
+  int max_iterations = 60;
+  // Called as rows finish (rows done, rows in all) from worker threads; must be thread-safe.
+  std::function<void(long done, long total)> progress;
+  std::string validate() const;
+};
+
+// Per step, per pixel BRDF parameters and their standard deviations (both kTemporalParamCount
+// channels; sigma is 0 where the step is unusable at that pixel).
+struct StepFit {
+  double time_s = 0;
+  Image value;
+  Image sigma;
+  int valid_lights = 0;
+};
+
+// Channels of TemporalMaps::maps, in order.
+enum TemporalChannel : int {
+  kTNormalX = 0,
+  kTNormalY,
+  kTNormalZ,
+  kTModel,  // TemporalModel as a number.
+  kTRate,   // lambda (exponential, dust) or kappa (sigmoid), 1/s; 0 for constant.
+  kTOnset,  // Onset (exponential, dust: start of the decay; sigmoid: midpoint), seconds.
+  kTWet,    // kTemporalParamCount channels: wet.albedo.r ... wet.roughness.
+  kTDry = kTWet + kTemporalParamCount,         // dry.albedo.r ... dry.roughness.
+  kTConfidence = kTDry + kTemporalParamCount,  // BIC weight of the chosen model.
+  kTResidual,   // Reduced chi^2 of the chosen model over the per-step parameters.
+  kTStepsUsed,  // Usable steps at this pixel.
+  kTFlags,      // TemporalFlag bits.
+  kTemporalChannelCount,
+};
+const std::vector<std::string>& temporal_channel_names();
+
+struct TemporalSummary {
+  int pixels = 0;
+  int fitted = 0;
+  int flagged = 0;  // Not fitted.
+  int per_model[kTemporalModelCount] = {0, 0, 0, 0, 0};
+  int faster_than_sampling = 0;
+  int too_few_steps = 0;
+  int step_dropped = 0;
+  double seconds_steps = 0;     // Per-step BRDF fits.
+  double seconds_temporal = 0;  // Temporal model fits.
+  std::string to_string() const;
+};
+
+struct TemporalMaps {
+  Image maps;  // kTemporalChannelCount named channels.
+  std::vector<double> step_times_s;
+  NoiseModel noise;
+  std::string noise_source;
+  TemporalSummary summary;
+  double first_time_s() const { return step_times_s.empty() ? 0 : step_times_s.front(); }
+  double last_time_s() const { return step_times_s.empty() ? 0 : step_times_s.back(); }
+  float at(int x, int y, int c) const { return maps.at(x, y, c); }
+  TemporalModel model(int x, int y) const { return TemporalModel(int(maps.at(x, y, kTModel))); }
+};
+
+// The fixed normals: estimate_normals on the source the options name.
+NormalMap estimate_temporal_normals(const std::vector<capture::ReflectanceField>& steps,
+                                    const NormalOptions& options, NormalSource source);
+// Per-step BRDF fits with fixed normals.
+StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normals,
+                 const TemporalFitOptions& options);
+// Temporal models from per-step fits (sorted by time, at least one).
+TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const NormalMap& normals,
+                                 const TemporalFitOptions& options);
+// All of it. Fields must share size and lights (same LED ids, in order); they are sorted by
+// scene_time_s, and two with the same time are an InputError.
+TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& steps,
+                          const TemporalFitOptions& options);
+
+// One pixel's temporal curve of one parameter at time t (no clamping to bounds).
+double temporal_value(TemporalModel model, double rate, double onset, double wet, double dry,
+                      double t);
+
+// One EXR with named channels + the step times and noise in the "lightstage:temporal" attribute,
+// and PNG previews beside it: <stem>.model.png, .rate.png, .onset.png, .wet_albedo.png,
+// .dry_albedo.png, .confidence.png, .flags.png.
+void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps);
+// Reads what write_temporal_maps wrote; InputErrors name the file and the channel.
+TemporalMaps read_temporal_maps(const std::filesystem::path& path);
+
+}  // namespace ls::relight

@@ -1,0 +1,147 @@
+// Temporal maps file I/O: one EXR with named channels and the step times, PNG previews beside it.
+#include <OpenImageIO/imageio.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "lightstage/errors.h"
+#include "relight/time/temporal_fit.h"
+
+namespace ls::relight {
+namespace {
+
+constexpr const char* kTemporalAttribute = "lightstage:temporal";
+
+}  // namespace
+
+void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps) {
+  const Image& image = maps.maps;
+  LS_CHECK(image.channels == kTemporalChannelCount &&
+               image.pixels.size() == image.num_pixels() * kTemporalChannelCount,
+           "temporal maps have " + std::to_string(image.channels) + " channels");
+  const nlohmann::json meta = {{"step_times_s", maps.step_times_s},
+                               {"read_variance", maps.noise.a},
+                               {"shot_variance_per_unit", maps.noise.b},
+                               {"noise_source", maps.noise_source}};
+  Image named = image;
+  named.channel_names = temporal_channel_names();
+  write_exr(path, named, ExrPixelType::kFloat, {{kTemporalAttribute, meta.dump()}});
+  const double span = std::max(maps.last_time_s() - maps.first_time_s(), 1e-9);
+  double max_rate = 0;
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    max_rate = std::max(max_rate, double(image.pixels[i * image.channels + kTRate]));
+  }
+  auto preview = [&](const std::string& name, int first, int channels, auto transform) {
+    Image p(image.width, image.height, channels);
+    for (size_t i = 0; i < image.num_pixels(); ++i) {
+      for (int c = 0; c < channels; ++c) {
+        const float v = image.pixels[i * image.channels + first + c];
+        p.pixels[i * channels + c] = std::isfinite(v) ? float(transform(v)) : 0.0f;
+      }
+    }
+    std::filesystem::path file = path;
+    file.replace_extension(name + ".png");
+    write_png_preview(file, p);
+  };
+  auto identity = [](float v) { return v; };
+  preview("model", kTModel, 1, [](float v) { return v / 4; });
+  preview("rate", kTRate, 1, [&](float v) { return max_rate > 0 ? v / max_rate : 0.0; });
+  preview("onset", kTOnset, 1, [&](float v) { return (v - maps.first_time_s()) / span; });
+  preview("wet_albedo", kTWet, 3, identity);
+  preview("dry_albedo", kTDry, 3, identity);
+  preview("wet_ks", kTWet + int(kParamKs), 1, identity);
+  preview("dry_ks", kTDry + int(kParamKs), 1, identity);
+  preview("confidence", kTConfidence, 1, identity);
+  preview("flags", kTFlags, 1, [](float v) { return v / 127; });
+}
+
+TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  if (!std::filesystem::exists(path)) throw InputError(name + ": file not found");
+  auto in = OIIO::ImageInput::open(name);
+  if (!in) throw InputError(name + ": cannot read temporal maps: " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  const std::vector<std::string>& names = temporal_channel_names();
+  std::vector<int> file_channel(kTemporalChannelCount, -1);
+  for (int c = 0; c < kTemporalChannelCount; ++c) {
+    for (int f = 0; f < spec.nchannels; ++f) {
+      if (spec.channelnames[f] == names[c]) file_channel[c] = f;
+    }
+    if (file_channel[c] < 0) {
+      throw InputError(name + ": channel '" + names[c] +
+                       "': missing (not temporal maps from 'lightstage fit --time'?)");
+    }
+  }
+  if (spec.width <= 0 || spec.height <= 0) throw InputError(name + ": image has no pixels");
+  Image raw(spec.width, spec.height, spec.nchannels);
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())) {
+    throw InputError(name + ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
+  }
+  TemporalMaps out;
+  const OIIO::ParamValue* meta = spec.find_attribute(kTemporalAttribute);
+  if (!meta) {
+    throw InputError(name + ": attribute '" + kTemporalAttribute + "': missing (step times)");
+  }
+  try {
+    const nlohmann::json j = nlohmann::json::parse(meta->get_string());
+    out.step_times_s = j.at("step_times_s").get<std::vector<double>>();
+    out.noise.a = j.at("read_variance").get<double>();
+    out.noise.b = j.at("shot_variance_per_unit").get<double>();
+    out.noise_source = j.value("noise_source", std::string());
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(
+        name + ": attribute '" + kTemporalAttribute +
+        "': expected {step_times_s, read_variance, shot_variance_per_unit}: " + e.what());
+  }
+  if (out.step_times_s.empty() ||
+      !std::is_sorted(out.step_times_s.begin(), out.step_times_s.end())) {
+    throw InputError(name + ": attribute '" + kTemporalAttribute +
+                     "': step_times_s: expected a non-empty increasing list");
+  }
+  in->close();
+  out.maps = Image(spec.width, spec.height, kTemporalChannelCount);
+  out.maps.channel_names = names;
+  for (size_t i = 0; i < raw.num_pixels(); ++i) {
+    for (int c = 0; c < kTemporalChannelCount; ++c) {
+      out.maps.pixels[i * kTemporalChannelCount + c] =
+          raw.pixels[i * spec.nchannels + file_channel[c]];
+    }
+  }
+  TemporalSummary& summary = out.summary;
+  summary.pixels = spec.width * spec.height;
+  for (int y = 0; y < spec.height; ++y) {
+    for (int x = 0; x < spec.width; ++x) {
+      for (int c = 0; c < kTemporalChannelCount; ++c) {
+        const float v = out.maps.at(x, y, c);
+        if (!std::isfinite(v)) {
+          throw InputError(name + ": channel '" + names[c] + "': expected a finite value at (" +
+                           std::to_string(x) + ", " + std::to_string(y) + ")");
+        }
+      }
+      const float model = out.maps.at(x, y, kTModel);
+      if (!(model == std::floor(model) && model >= 0 && model < kTemporalModelCount)) {
+        throw InputError(name + ": channel 'model': expected an integer in 0..4 at (" +
+                         std::to_string(x) + ", " + std::to_string(y) + "), got " +
+                         std::to_string(model));
+      }
+      const float flags = out.maps.at(x, y, kTFlags);
+      if (!(flags == std::floor(flags) && flags >= 0)) {
+        throw InputError(name + ": channel 'flags': expected a non-negative integer at (" +
+                         std::to_string(x) + ", " + std::to_string(y) + ")");
+      }
+      if (model == 0) {
+        ++summary.flagged;
+      } else {
+        ++summary.fitted;
+        ++summary.per_model[int(model)];
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace ls::relight

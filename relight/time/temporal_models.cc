@@ -1,0 +1,449 @@
+// Temporal curve models (constant / exponential / sigmoid / dust), their fits and the BIC choice
+// per pixel (relight/time/temporal_fit.h, step 3).
+#include <ceres/tiny_solver.h>
+#include <ceres/tiny_solver_autodiff_function.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "lightstage/errors.h"
+#include "relight/time/temporal_fit.h"
+#include "relight/time/temporal_fit_internal.h"
+
+namespace ls::relight {
+namespace {
+
+using temporal_internal::kMaxSigma;
+using temporal_internal::kMinRoughness;
+using temporal_internal::kNoInformationSigma;
+using temporal_internal::logit;
+using temporal_internal::sigmoid;
+
+// ---------------------------------------------------------------------------------------------
+// Temporal models. Each parameter j follows p_j(t) = dry_j + (wet_j - dry_j) s(t), s = 1 at the
+// wet end, 0 at the dry end (the roughness series is fitted as 1/m: harmonic in the weight, as
+// the paint model of the paper).
+
+template <class T>
+T shape_weight(TemporalModel model, const T& rate, const T& onset, double t) {
+  using std::exp;
+  switch (model) {
+    case TemporalModel::kExponential:
+    case TemporalModel::kDust:
+      return T(t) < onset ? T(1) : exp(-rate * (T(t) - onset));
+    case TemporalModel::kSigmoid:
+      return T(1) / (T(1) + exp(rate * (T(t) - onset)));
+    default:
+      return T(0);
+  }
+}
+
+// Which parameters move under each model (dust: k_s decays to 0, sigma and roughness constant).
+bool param_moves(TemporalModel model, int p) {
+  if (model == TemporalModel::kConstant || model == TemporalModel::kNone) return false;
+  if (model == TemporalModel::kDust) return p <= kParamAlbedoB || p == kParamKs;
+  return true;
+}
+bool dry_pinned_to_zero(TemporalModel model, int p) {
+  return model == TemporalModel::kDust && p == kParamKs;
+}
+
+struct Series {
+  int steps = 0;  // Usable steps.
+  double t[64];
+  double y[64][kTemporalParamCount];
+  double w[64][kTemporalParamCount];  // 1 / sigma, 0 = no information.
+};
+constexpr int kMaxSteps = 64;
+
+// Bounds of the nonlinear parameters.
+struct ShapeBounds {
+  double log_rate_lo, log_rate_hi;
+  double onset_lo, onset_hi;
+};
+
+// Endpoints linear given the shape; returns chi^2 and fills wet/dry.
+double solve_endpoints(TemporalModel model, const Series& s, double rate, double onset, double* wet,
+                       double* dry) {
+  double chi2 = 0;
+  double shape[kMaxSteps];
+  for (int i = 0; i < s.steps; ++i) shape[i] = shape_weight(model, rate, onset, s.t[i]);
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    if (!param_moves(model, p)) {
+      double sw = 0, swy = 0;
+      for (int i = 0; i < s.steps; ++i) {
+        sw += s.w[i][p] * s.w[i][p];
+        swy += s.w[i][p] * s.w[i][p] * s.y[i][p];
+      }
+      wet[p] = dry[p] = sw > 0 ? swy / sw : 0;
+    } else if (dry_pinned_to_zero(model, p)) {
+      double saa = 0, say = 0;
+      for (int i = 0; i < s.steps; ++i) {
+        const double w2 = s.w[i][p] * s.w[i][p];
+        saa += w2 * shape[i] * shape[i];
+        say += w2 * shape[i] * s.y[i][p];
+      }
+      dry[p] = 0;
+      wet[p] = saa > 1e-300 ? say / saa : 0;
+    } else {
+      // Basis (1 - s, s) for (dry, wet); a tiny ridge keeps it solvable when s is the same at
+      // every step (then wet and dry are equal, the ridge decides).
+      Eigen::Matrix2d a = Eigen::Matrix2d::Zero();
+      Eigen::Vector2d b = Eigen::Vector2d::Zero();
+      for (int i = 0; i < s.steps; ++i) {
+        const double w2 = s.w[i][p] * s.w[i][p];
+        const Eigen::Vector2d basis(1 - shape[i], shape[i]);
+        a += w2 * basis * basis.transpose();
+        b += w2 * basis * s.y[i][p];
+      }
+      const double ridge = 1e-9 * std::max(a.trace(), 1e-300);
+      a(0, 0) += ridge;
+      a(1, 1) += ridge;
+      a(0, 1) -= ridge;
+      a(1, 0) -= ridge;  // Pulls wet toward dry, not toward 0.
+      const Eigen::Vector2d x = a.ldlt().solve(b);
+      dry[p] = std::isfinite(x(0)) ? x(0) : 0;
+      wet[p] = std::isfinite(x(1)) ? x(1) : dry[p];
+    }
+    for (int i = 0; i < s.steps; ++i) {
+      const double r = (dry[p] + (wet[p] - dry[p]) * shape[i] - s.y[i][p]) * s.w[i][p];
+      chi2 += r * r;
+    }
+  }
+  return chi2;
+}
+
+constexpr int num_endpoint_params(TemporalModel model) {
+  return model == TemporalModel::kDust ? 9 : 2 * kTemporalParamCount;
+}
+
+// x = [u_rate, u_onset, endpoints...]; endpoints in parameter order, wet then dry for a moving
+// parameter, one value for a constant one, wet only for a k_s pinned at 0.
+template <TemporalModel M>
+struct TemporalCost {
+  const Series* s;
+  ShapeBounds bounds;
+  int NumResiduals() const { return s->steps * kTemporalParamCount; }
+  template <class T>
+  void unpack(const T* x, T* rate, T* onset, T* wet, T* dry) const {
+    using std::exp;
+    *rate = exp(T(bounds.log_rate_lo) + T(bounds.log_rate_hi - bounds.log_rate_lo) * sigmoid(x[0]));
+    *onset = T(bounds.onset_lo) + T(bounds.onset_hi - bounds.onset_lo) * sigmoid(x[1]);
+    int k = 2;
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      if (!param_moves(M, p)) {
+        wet[p] = dry[p] = x[k++];
+      } else if (dry_pinned_to_zero(M, p)) {
+        wet[p] = x[k++];
+        dry[p] = T(0);
+      } else {
+        wet[p] = x[k++];
+        dry[p] = x[k++];
+      }
+    }
+  }
+  template <class T>
+  bool operator()(const T* x, T* r) const {
+    T rate, onset, wet[kTemporalParamCount], dry[kTemporalParamCount];
+    unpack(x, &rate, &onset, wet, dry);
+    for (int i = 0; i < s->steps; ++i) {
+      const T shape = shape_weight(M, rate, onset, s->t[i]);
+      for (int p = 0; p < kTemporalParamCount; ++p) {
+        r[i * kTemporalParamCount + p] =
+            (dry[p] + (wet[p] - dry[p]) * shape - T(s->y[i][p])) * T(s->w[i][p]);
+      }
+    }
+    return true;
+  }
+};
+
+struct TemporalResult {
+  bool ok = false;
+  double chi2 = std::numeric_limits<double>::infinity();
+  int k = 0;
+  double rate = 0, onset = 0;
+  double wet[kTemporalParamCount] = {}, dry[kTemporalParamCount] = {};
+};
+
+template <TemporalModel M>
+TemporalResult fit_process(const Series& s, const ShapeBounds& bounds, int iterations) {
+  constexpr int K = 2 + num_endpoint_params(M);
+  TemporalResult best;
+  best.k = K;
+  // Grid start: rates log-spaced over the bounds, onsets at the steps and between them.
+  std::vector<double> onsets;
+  for (int i = 0; i < s.steps; ++i) {
+    onsets.push_back(s.t[i]);
+    if (i + 1 < s.steps) onsets.push_back(0.5 * (s.t[i] + s.t[i + 1]));
+  }
+  for (double& o : onsets) o = std::clamp(o, bounds.onset_lo, bounds.onset_hi);
+  constexpr int kRates = 14;
+  double grid_rate = 0, grid_onset = 0, grid_chi2 = std::numeric_limits<double>::infinity();
+  double wet[kTemporalParamCount], dry[kTemporalParamCount];
+  for (int r = 0; r < kRates; ++r) {
+    const double rate = std::exp(bounds.log_rate_lo +
+                                 (bounds.log_rate_hi - bounds.log_rate_lo) * (r + 0.5) / kRates);
+    for (const double onset : onsets) {
+      const double chi2 = solve_endpoints(M, s, rate, onset, wet, dry);
+      if (chi2 < grid_chi2) {
+        grid_chi2 = chi2;
+        grid_rate = rate;
+        grid_onset = onset;
+      }
+    }
+  }
+  if (!std::isfinite(grid_chi2)) return best;
+  solve_endpoints(M, s, grid_rate, grid_onset, wet, dry);
+  Eigen::Matrix<double, K, 1> x;
+  x(0) =
+      logit((std::log(grid_rate) - bounds.log_rate_lo) / (bounds.log_rate_hi - bounds.log_rate_lo));
+  x(1) = bounds.onset_hi > bounds.onset_lo
+             ? logit((grid_onset - bounds.onset_lo) / (bounds.onset_hi - bounds.onset_lo))
+             : 0.0;
+  int k = 2;
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    if (!param_moves(M, p)) {
+      x(k++) = wet[p];
+    } else if (dry_pinned_to_zero(M, p)) {
+      x(k++) = wet[p];
+    } else {
+      x(k++) = wet[p];
+      x(k++) = dry[p];
+    }
+  }
+  using Function = ceres::TinySolverAutoDiffFunction<TemporalCost<M>, Eigen::Dynamic, K>;
+  const TemporalCost<M> cost{&s, bounds};
+  const Function function(cost);
+  ceres::TinySolver<Function> solver;
+  solver.options.max_num_iterations = iterations;
+  const Eigen::Matrix<double, K, 1> x_grid = x;
+  solver.Solve(function, &x);
+  auto chi2_at = [&](const Eigen::Matrix<double, K, 1>& v) {
+    thread_local std::vector<double> residuals;
+    residuals.resize(size_t(cost.NumResiduals()));
+    cost(v.data(), residuals.data());
+    double chi2 = 0;
+    for (const double r : residuals) chi2 += r * r;
+    return chi2;
+  };
+  double chi2 = x.allFinite() ? chi2_at(x) : std::numeric_limits<double>::infinity();
+  if (!std::isfinite(chi2) || chi2 > chi2_at(x_grid)) {  // Never worse than the grid start.
+    x = x_grid;
+    chi2 = chi2_at(x);
+  }
+  if (!std::isfinite(chi2)) return best;
+  cost.unpack(x.data(), &best.rate, &best.onset, best.wet, best.dry);
+  best.chi2 = chi2;
+  best.ok = std::isfinite(best.rate) && std::isfinite(best.onset);
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    best.ok = best.ok && std::isfinite(best.wet[p]) && std::isfinite(best.dry[p]);
+  }
+  return best;
+}
+
+TemporalResult fit_constant(const Series& s) {
+  TemporalResult out;
+  out.k = kTemporalParamCount;
+  out.chi2 = solve_endpoints(TemporalModel::kConstant, s, 0, 0, out.wet, out.dry);
+  out.ok = std::isfinite(out.chi2);
+  return out;
+}
+
+// Converts a series value back from the fitted space (roughness is fitted as 1/m).
+double to_physical(int p, double v) {
+  if (p == kParamRoughness) return v > 1.0 ? 1.0 / v : 1.0;  // 1/m >= 1 for m <= 1.
+  return v;
+}
+
+double clamp_param(int p, double v) {
+  switch (p) {
+    case kParamSigma:
+      return std::clamp(v, 0.0, kMaxSigma);
+    case kParamRoughness:
+      return std::clamp(v, kMinRoughness, 1.0);
+    default:
+      return std::max(v, 0.0);
+  }
+}
+
+}  // namespace
+
+double temporal_value(TemporalModel model, double rate, double onset, double wet, double dry,
+                      double t) {
+  const double s = shape_weight(model, rate, onset, t);
+  return dry + (wet - dry) * s;
+}
+
+TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const NormalMap& normals,
+                                 const TemporalFitOptions& options) {
+  if (const std::string error = options.validate(); !error.empty()) {
+    throw InputError("temporal fit options: " + error);
+  }
+  if (steps.empty()) throw InputError("temporal fit: expected at least one time step, got none");
+  if (steps.size() > size_t(kMaxSteps)) {
+    throw InputError("temporal fit: expected at most " + std::to_string(kMaxSteps) +
+                     " time steps, got " + std::to_string(steps.size()));
+  }
+  const auto start_time = std::chrono::steady_clock::now();
+  const int width = normals.normal.width, height = normals.normal.height;
+  TemporalMaps out;
+  out.maps = Image(width, height, kTemporalChannelCount);
+  out.maps.channel_names = temporal_channel_names();
+  for (const StepFit& s : steps) out.step_times_s.push_back(s.time_s);
+  out.noise = options.brdf.normals.noise;
+  out.noise_source = options.brdf.noise_source;
+  const double t_first = out.step_times_s.front(), t_last = out.step_times_s.back();
+  double min_interval = std::numeric_limits<double>::infinity();
+  for (size_t i = 1; i < steps.size(); ++i) {
+    min_interval = std::min(min_interval, steps[i].time_s - steps[i - 1].time_s);
+  }
+  const double span = t_last - t_first;
+  ShapeBounds bounds{};
+  if (steps.size() > 1) {
+    bounds.log_rate_hi = std::log(options.max_rate_times_interval / min_interval);
+    // Slowest: 5% of the change over 100 capture spans (indistinguishable from constant).
+    bounds.log_rate_lo = std::log(0.05 / (100 * span));
+    bounds.onset_lo = t_first;
+    bounds.onset_hi = t_last;
+  }
+  TemporalSummary& summary = out.summary;
+  summary.pixels = width * height;
+  std::mutex mutex;
+  std::atomic<long> rows_done{0};
+  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
+    TemporalSummary local;
+    Series series;
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < width; ++x) {
+        float* m = &out.maps.at(x, y, 0);
+        int flags = 0;
+        if (int(normals.flags.at(x, y, 0)) != 0) {
+          m[kTFlags] = kTemporalNoNormal;
+          ++local.flagged;
+          continue;
+        }
+        for (int c = 0; c < 3; ++c) m[kTNormalX + c] = normals.normal.at(x, y, c);
+        series.steps = 0;
+        for (const StepFit& s : steps) {
+          if (!(s.sigma.at(x, y, 0) > 0)) {
+            flags |= kStepDropped;
+            continue;
+          }
+          const int i = series.steps++;
+          series.t[i] = s.time_s;
+          for (int p = 0; p < kTemporalParamCount; ++p) {
+            double v = s.value.at(x, y, p), sd = s.sigma.at(x, y, p);
+            if (p == kParamRoughness) {  // Fitted as 1/m: sigma(1/m) = sigma(m) / m^2.
+              sd = sd / (v * v);
+              v = 1 / v;
+            }
+            series.y[i][p] = v;
+            series.w[i][p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
+          }
+        }
+        if (series.steps == 0) {
+          m[kTFlags] = float(flags | kTemporalFitFailed);
+          ++local.flagged;
+          continue;
+        }
+        std::array<TemporalResult, kTemporalModelCount> fits;
+        fits[1] = fit_constant(series);
+        // A model needs more usable steps than its parameters per series (4: wet, dry, rate,
+        // onset).
+        const bool enough = series.steps >= 5;
+        const bool wants_process =
+            options.fit_exponential || options.fit_sigmoid || options.fit_dust;
+        if (!enough && wants_process) flags |= kTooFewSteps;
+        if (enough && options.fit_exponential) {
+          fits[2] =
+              fit_process<TemporalModel::kExponential>(series, bounds, options.max_iterations);
+        }
+        if (enough && options.fit_sigmoid) {
+          fits[3] = fit_process<TemporalModel::kSigmoid>(series, bounds, options.max_iterations);
+        }
+        if (enough && options.fit_dust) {
+          fits[4] = fit_process<TemporalModel::kDust>(series, bounds, options.max_iterations);
+        }
+        const double n = double(series.steps * kTemporalParamCount);
+        int best = 0;
+        std::array<double, kTemporalModelCount> bic;
+        bic.fill(std::numeric_limits<double>::infinity());
+        // Order of simplicity for ties: constant (6), dust (11), exponential, sigmoid (14).
+        for (const int k : {1, 4, 2, 3}) {
+          if (!fits[k].ok) continue;
+          bic[k] = fits[k].chi2 + fits[k].k * std::log(n);
+          if (best == 0 || bic[k] < bic[best]) best = k;
+        }
+        if (best == 0) {
+          m[kTFlags] = float(flags | kTemporalFitFailed);
+          ++local.flagged;
+          continue;
+        }
+        const TemporalResult& f = fits[best];
+        double weight_sum = 0;
+        for (int k = 1; k < kTemporalModelCount; ++k) {
+          if (std::isfinite(bic[k])) weight_sum += std::exp(-0.5 * (bic[k] - bic[best]));
+        }
+        const TemporalModel model = TemporalModel(best);
+        if (model != TemporalModel::kConstant) {
+          // Faster than sampling: 90% or more of the change falls between two consecutive
+          // steps (or the rate sits at its bound): the curve there is a step whose rate and
+          // onset the data only bound.
+          double max_jump = 0;
+          for (size_t i = 1; i < out.step_times_s.size(); ++i) {
+            max_jump = std::max(
+                max_jump, std::abs(shape_weight(model, f.rate, f.onset, out.step_times_s[i]) -
+                                   shape_weight(model, f.rate, f.onset, out.step_times_s[i - 1])));
+          }
+          if (max_jump >= 0.9 || std::log(f.rate) >= bounds.log_rate_hi - 0.05) {
+            flags |= kFasterThanSampling;
+          }
+          if (f.onset <= t_first + 1e-6 * std::max(span, 1.0) && model != TemporalModel::kSigmoid) {
+            flags |= kOnsetAtCaptureStart;
+          }
+        }
+        m[kTModel] = float(best);
+        m[kTRate] = model == TemporalModel::kConstant ? 0.0f : float(f.rate);
+        m[kTOnset] = model == TemporalModel::kConstant ? float(t_first) : float(f.onset);
+        for (int p = 0; p < kTemporalParamCount; ++p) {
+          m[kTWet + p] = float(clamp_param(p, to_physical(p, f.wet[p])));
+          m[kTDry + p] = float(clamp_param(p, to_physical(p, f.dry[p])));
+        }
+        m[kTConfidence] = float(1 / weight_sum);
+        const double dof = n - f.k;
+        m[kTResidual] = float(dof > 0 ? f.chi2 / dof : f.chi2);
+        m[kTStepsUsed] = float(series.steps);
+        m[kTFlags] = float(flags);
+        ++local.fitted;
+        ++local.per_model[best];
+        if (flags & kFasterThanSampling) ++local.faster_than_sampling;
+        if (flags & kTooFewSteps) ++local.too_few_steps;
+        if (flags & kStepDropped) ++local.step_dropped;
+      }
+      const long done = ++rows_done;
+      if (options.progress) options.progress(done, height);
+    }
+    const std::lock_guard lock(mutex);
+    summary.fitted += local.fitted;
+    summary.flagged += local.flagged;
+    summary.faster_than_sampling += local.faster_than_sampling;
+    summary.too_few_steps += local.too_few_steps;
+    summary.step_dropped += local.step_dropped;
+    for (int k = 0; k < kTemporalModelCount; ++k) summary.per_model[k] += local.per_model[k];
+  });
+  summary.seconds_temporal =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+  return out;
+}
+
+}  // namespace ls::relight

@@ -1,0 +1,247 @@
+#include "relight/time/temporal_render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "lightstage/errors.h"
+#include "lightstage/json_reader.h"
+#include "relight/fit/model_edit.h"
+
+namespace ls::relight {
+namespace {
+
+constexpr double kMaxSigma = 0.5 * 3.14159265358979323846;
+constexpr double kMinRoughness = 0.02;
+
+double clamp_param(int p, double v) {
+  if (p == kParamSigma) return std::clamp(v, 0.0, kMaxSigma);
+  if (p == kParamRoughness) return std::clamp(v, kMinRoughness, 1.0);
+  return std::max(v, 0.0);
+}
+
+// One parameter of one pixel at time t (roughness harmonic: 1/m follows the curve).
+double param_at(const float* m, int p, double t) {
+  const TemporalModel model = TemporalModel(int(m[kTModel]));
+  double wet = m[kTWet + p], dry = m[kTDry + p];
+  if (p == kParamRoughness) {
+    wet = 1 / std::max(wet, kMinRoughness);
+    dry = 1 / std::max(dry, kMinRoughness);
+  }
+  double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t);
+  if (p == kParamRoughness) v = v > 0 ? 1 / v : 1.0;
+  return clamp_param(p, std::isfinite(v) ? v : dry);
+}
+
+TemporalModel read_temporal_model_name(const JsonReader& r) {
+  const std::string name = r.one_of({"constant", "exponential", "sigmoid", "dust"});
+  if (name == "constant") return TemporalModel::kConstant;
+  if (name == "exponential") return TemporalModel::kExponential;
+  if (name == "sigmoid") return TemporalModel::kSigmoid;
+  return TemporalModel::kDust;
+}
+
+TemporalSelection read_selection(const JsonReader& r, const std::filesystem::path& base_dir,
+                                 int width, int height) {
+  r.expect_object({"model", "mask"});
+  if (!r.has("model") && !r.has("mask")) r.fail(R"(an object with "model" and/or "mask")");
+  TemporalSelection s;
+  if (r.has("model")) s.model = read_temporal_model_name(r["model"]);
+  if (r.has("mask")) s.mask = read_selection_mask(r["mask"], base_dir, width, height, &s.mask_file);
+  return s;
+}
+
+bool selected(const TemporalSelection& s, const TemporalMaps& maps, int x, int y) {
+  const TemporalModel model = maps.model(x, y);
+  if (model == TemporalModel::kNone) return false;
+  if (s.model && *s.model != model) return false;
+  if (!s.mask.empty() && !s.mask[size_t(y) * maps.maps.width + x]) return false;
+  return true;
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+}  // namespace
+
+TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
+  const int width = maps.maps.width, height = maps.maps.height;
+  TemporalState out;
+  out.maps.maps = Image(width, height, kMapChannelCount);
+  out.maps.maps.channel_names = model_map_channel_names();
+  out.maps.noise = maps.noise;
+  out.maps.noise_source = maps.noise_source;
+  const bool outside = time_s < maps.first_time_s() || time_s > maps.last_time_s();
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const float* m = maps.maps.pixels.data() + (size_t(y) * width + x) * kTemporalChannelCount;
+      float* o = &out.maps.maps.at(x, y, 0);
+      const TemporalModel model = TemporalModel(int(m[kTModel]));
+      int flags = int(m[kTFlags]) & ~kExtrapolated;
+      if (model == TemporalModel::kNone) {
+        o[kMapFlags] = float(flags | kFitFailed);
+        continue;
+      }
+      if (outside && model != TemporalModel::kConstant) {
+        flags |= kExtrapolated;
+        ++out.extrapolated_pixels;
+      }
+      double q[kTemporalParamCount];
+      for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s);
+      for (int c = 0; c < 3; ++c) {
+        o[kMapNormalX + c] = m[kTNormalX + c];
+        o[kMapAlbedoR + c] = float(q[kParamAlbedoR + c]);
+      }
+      o[kMapSigma] = float(q[kParamSigma]);
+      o[kMapKs] = float(q[kParamKs]);
+      o[kMapRoughness] = float(q[kParamRoughness]);
+      o[kMapModel] =
+          float(q[kParamKs] > 0 ? FitModel::kLambertTorranceSparrow : FitModel::kOrenNayar);
+      o[kMapConfidence] = m[kTConfidence];
+      o[kMapResidual] = m[kTResidual];
+      o[kMapFlags] = float(flags);
+    }
+  }
+  return out;
+}
+
+Image render_temporal(const TemporalMaps& maps, double time_s, const LightingForModels& lighting,
+                      const ModelRenderOptions& options, int* extrapolated_pixels) {
+  const TemporalState state = models_at_time(maps, time_s);
+  if (extrapolated_pixels) *extrapolated_pixels = state.extrapolated_pixels;
+  // Oren-Nayar + Torrance-Sparrow is the sum of an Oren-Nayar render and a lobe-only render
+  // (render_models is linear in the BRDF).
+  ModelMaps diffuse = state.maps, lobe = state.maps;
+  for (size_t i = 0; i < diffuse.maps.num_pixels(); ++i) {
+    float* d = &diffuse.maps.pixels[i * kMapChannelCount];
+    float* l = &lobe.maps.pixels[i * kMapChannelCount];
+    if (d[kMapModel] == 0) continue;
+    d[kMapModel] = float(FitModel::kOrenNayar);
+    d[kMapKs] = 0;
+    l[kMapModel] = float(FitModel::kLambertTorranceSparrow);
+    l[kMapAlbedoR] = l[kMapAlbedoG] = l[kMapAlbedoB] = 0;
+  }
+  Image out = render_models(diffuse, lighting, options);
+  ModelRenderOptions lobe_options = options;
+  lobe_options.flagged_fallback = nullptr;  // Already in the diffuse part.
+  const Image specular = render_models(lobe, lighting, lobe_options);
+  for (size_t i = 0; i < out.pixels.size(); ++i) {
+    const float v = out.pixels[i] + specular.pixels[i];
+    out.pixels[i] = std::isfinite(v) ? v : 0.0f;
+  }
+  return out;
+}
+
+TemporalEdits parse_temporal_edits(std::string_view json_text, const std::string& source,
+                                   const std::filesystem::path& base_dir, int width, int height) {
+  const nlohmann::json root = JsonReader::parse(json_text, source);
+  const JsonReader r(root, source);
+  r.expect_object({"time"});
+  TemporalEdits out;
+  out.source = source;
+  if (!r.has("time")) return out;
+  const JsonReader list = r["time"];
+  list.expect_array();
+  for (size_t i = 0; i < list.size(); ++i) {
+    const JsonReader e = list[i];
+    e.expect_object({"select", "rate_scale", "transfer_from"});
+    TemporalEdit edit;
+    edit.select = read_selection(e["select"], base_dir, width, height);
+    if (e.has("rate_scale")) edit.rate_scale = e["rate_scale"].positive();
+    if (e.has("transfer_from")) {
+      edit.transfer_from = read_selection(e["transfer_from"], base_dir, width, height);
+    }
+    out.edits.push_back(std::move(edit));
+  }
+  return out;
+}
+
+TemporalEdits read_temporal_edits(const std::filesystem::path& path, int width, int height) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path.string() + ": cannot read the edit file");
+  std::stringstream text;
+  text << in.rdbuf();
+  return parse_temporal_edits(text.str(), path.string(), path.parent_path(), width, height);
+}
+
+std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& maps) {
+  const int width = maps.maps.width, height = maps.maps.height;
+  const double first = maps.first_time_s();
+  std::vector<int> counts;
+  for (size_t e = 0; e < edits.edits.size(); ++e) {
+    const TemporalEdit& edit = edits.edits[e];
+    // The source process, summarised once before anything changes.
+    TemporalModel source_model = TemporalModel::kNone;
+    double source_rate = 0, source_onset = first;
+    double change[kTemporalParamCount] = {};
+    if (edit.transfer_from) {
+      int votes[kTemporalModelCount] = {};
+      for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+          if (selected(*edit.transfer_from, maps, x, y)) ++votes[int(maps.model(x, y))];
+        }
+      }
+      int best = 0;
+      for (int k = 2; k < kTemporalModelCount; ++k) {
+        if (votes[k] > votes[best]) best = k;
+      }
+      if (best == 0) {
+        throw InputError(edits.source + ": time[" + std::to_string(e) +
+                         "].transfer_from: expected a region with a varying (non-constant) "
+                         "process, got none");
+      }
+      source_model = TemporalModel(best);
+      std::vector<double> rates, onsets, changes[kTemporalParamCount];
+      for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+          if (!selected(*edit.transfer_from, maps, x, y) || maps.model(x, y) != source_model) {
+            continue;
+          }
+          rates.push_back(maps.at(x, y, kTRate));
+          onsets.push_back(maps.at(x, y, kTOnset));
+          for (int p = 0; p < kTemporalParamCount; ++p) {
+            const double wet = maps.at(x, y, kTWet + p), dry = maps.at(x, y, kTDry + p);
+            if (p <= kParamAlbedoB) {
+              changes[p].push_back(dry > 1e-4 ? wet / dry : 1.0);
+            } else {
+              changes[p].push_back(wet - dry);
+            }
+          }
+        }
+      }
+      source_rate = median(rates);
+      source_onset = median(onsets);
+      for (int p = 0; p < kTemporalParamCount; ++p) change[p] = median(changes[p]);
+    }
+    int count = 0;
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        if (!selected(edit.select, maps, x, y)) continue;
+        float* m = &maps.maps.at(x, y, 0);
+        if (edit.transfer_from) {
+          m[kTModel] = float(source_model);
+          m[kTRate] = float(source_rate);
+          m[kTOnset] = float(source_onset);
+          for (int p = 0; p < kTemporalParamCount; ++p) {
+            const double dry = m[kTDry + p];
+            const double wet = p <= kParamAlbedoB ? dry * change[p] : dry + change[p];
+            m[kTWet + p] = float(clamp_param(p, wet));
+          }
+        }
+        if (edit.rate_scale != 1.0 && maps.model(x, y) != TemporalModel::kConstant) {
+          m[kTRate] = float(m[kTRate] * edit.rate_scale);
+          m[kTOnset] = float(first + (m[kTOnset] - first) / edit.rate_scale);
+        }
+        ++count;
+      }
+    }
+    counts.push_back(count);
+  }
+  return counts;
+}
+
+}  // namespace ls::relight

@@ -1,0 +1,75 @@
+#pragma once
+// Time-varying BRDFs at any time (relight/time/temporal_fit.h): the per-pixel BRDF at scene time t,
+// between, before or beyond the captured steps, rendered with relight/fit/model_render.h, and time
+// edits (speed up or slow down a process per region; transfer a process from one region to
+// another, as in the paper's effect transfer).
+//
+// Edit file (JSON, comments allowed, unknown keys are errors; masks relative to the file, white =
+// selected, the maps' size):
+//   {
+//     "time": [                                    // Applied in order.
+//       { "select": {"mask": "stroke.png", "model": "exponential"},   // "model" and/or "mask";
+//         "rate_scale": 2.0 },                     // model: constant|exponential|sigmoid|dust.
+//                                                  // The process runs rate_scale times faster
+//                                                  // from the first step: rate x s, onset moved
+//                                                  // to first + (onset - first) / s.
+//       { "select": {"mask": "red_plane.png"},     // Target.
+//         "transfer_from": {"mask": "blue_paint.png"} }   // Source (same selection syntax).
+//     ]
+//   }
+// Transfer: the source region's process (the model that most of its fitted pixels chose; rate
+// and onset: medians over those pixels) with its normalised change per parameter (median of
+// wet/dry for the albedo channels, median of wet - dry for sigma, k_s, roughness) is applied to
+// each target pixel's own dry parameters: wet = dry x ratio (albedo), dry + difference (others),
+// clamped to bounds. A source region with no varying pixel is an InputError naming the edit.
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "relight/fit/fit.h"
+#include "relight/fit/model_render.h"
+#include "relight/time/temporal_fit.h"
+
+namespace ls::relight {
+
+// ModelMaps at scene time t: model Oren-Nayar + Torrance-Sparrow is not a FitModel, so the maps
+// hold the parameters with model = kLambertTorranceSparrow where k_s > 0, else kOrenNayar;
+// render_temporal renders both lobes. kMapFlags carries kExtrapolated (temporal_fit.h) when t is
+// outside [first step, last step] on a fitted, non-constant pixel.
+struct TemporalState {
+  ModelMaps maps;
+  int extrapolated_pixels = 0;
+};
+TemporalState models_at_time(const TemporalMaps& maps, double time_s);
+
+// Renders the temporal maps at time t under the lighting: the diffuse (Oren-Nayar) and the lobe
+// (Torrance-Sparrow) parts through render_models, summed. 3-channel radiance, never NaN.
+Image render_temporal(const TemporalMaps& maps, double time_s, const LightingForModels& lighting,
+                      const ModelRenderOptions& options = {}, int* extrapolated_pixels = nullptr);
+
+struct TemporalSelection {
+  std::optional<TemporalModel> model;
+  std::filesystem::path mask_file;
+  std::vector<uint8_t> mask;  // width x height, 1 = selected; empty: no mask.
+};
+
+struct TemporalEdit {
+  TemporalSelection select;
+  double rate_scale = 1.0;
+  std::optional<TemporalSelection> transfer_from;
+};
+
+struct TemporalEdits {
+  std::string source;
+  std::vector<TemporalEdit> edits;
+};
+
+TemporalEdits read_temporal_edits(const std::filesystem::path& path, int width, int height);
+TemporalEdits parse_temporal_edits(std::string_view json_text, const std::string& source,
+                                   const std::filesystem::path& base_dir, int width, int height);
+// Applies the edits in order; returns the number of pixels each edit changed.
+std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& maps);
+
+}  // namespace ls::relight

@@ -1,0 +1,155 @@
+// The lightstage executable as a user drives it: kill -9 and resume, Ctrl-C, bad input, --help.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <sstream>
+#include <thread>
+
+#include "lightstage/stage.h"
+#include "tests/app/cli_process.h"
+#include "tests/support/test_support.h"
+
+namespace ls {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::cli_path;
+using testing::CountLines;
+using testing::run_command;
+using testing::Slurp;
+using testing::Spawn;
+using testing::WaitForFrames;
+using testing::WriteSmallStage;
+
+TEST(Cli, KilledCaptureResumesToExactlyTheFramesOfAnUninterruptedOne) {
+  testing::TempDir tmp;
+  const fs::path stage = WriteSmallStage(tmp.path());
+  const std::string cli = cli_path().string();
+  std::string out;
+  ASSERT_EQ(run_command(cli + " capture --quiet --stage " + stage.string() + " --out " +
+                            (tmp / "whole").string(),
+                        &out),
+            0)
+      << out;
+
+  const pid_t pid = Spawn(
+      {cli, "capture", "--quiet", "--stage", stage.string(), "--out", (tmp / "killed").string()});
+  WaitForFrames(tmp / "killed", 40, pid);
+  kill(pid, SIGKILL);
+  int status;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "capture finished before it could be killed";
+  const int before = CountLines(tmp / "killed" / "frames.jsonl");
+  EXPECT_GE(before, 40);
+
+  ASSERT_EQ(run_command(cli + " capture --quiet --resume " + (tmp / "killed").string(), &out), 0)
+      << out;
+  // Same frames, bit for bit, and nothing else.
+  std::vector<std::string> whole, resumed;
+  for (const auto& e : fs::directory_iterator(tmp / "whole" / "frames"))
+    whole.push_back(e.path().filename());
+  for (const auto& e : fs::directory_iterator(tmp / "killed" / "frames"))
+    resumed.push_back(e.path().filename());
+  std::sort(whole.begin(), whole.end());
+  std::sort(resumed.begin(), resumed.end());
+  ASSERT_EQ(whole, resumed);
+  ASSERT_EQ(whole.size(), size_t(3 * (2 + 30)));
+  for (const auto& name : whole) {
+    ASSERT_TRUE(Slurp(tmp / "whole" / "frames" / name) == Slurp(tmp / "killed" / "frames" / name))
+        << name;
+  }
+  EXPECT_NE(Slurp(tmp / "killed" / "manifest.json").find("\"complete\""), std::string::npos);
+}
+
+TEST(Cli, InterruptStopsCleanlyWithExitCode130AndTellsHowToResume) {
+  testing::TempDir tmp;
+  const fs::path stage = WriteSmallStage(tmp.path());
+  const pid_t pid = Spawn({cli_path().string(), "capture", "--quiet", "--stage", stage.string(),
+                           "--out", (tmp / "s").string()});
+  WaitForFrames(tmp / "s", 20, pid);
+  kill(pid, SIGINT);
+  int status;
+  waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 130);
+  EXPECT_NE(Slurp(tmp / "s" / "manifest.json").find("\"interrupted\""), std::string::npos);
+  std::string out;
+  EXPECT_EQ(
+      run_command(cli_path().string() + " capture --quiet --resume " + (tmp / "s").string(), &out),
+      0)
+      << out;
+}
+
+void ExpectCliError(const std::string& args, std::initializer_list<std::string> fragments) {
+  std::string out;
+  const int code = run_command(cli_path().string() + " " + args, &out);
+  EXPECT_EQ(code, 2) << args << "\n" << out;
+  for (const auto& f : fragments)
+    EXPECT_NE(out.find(f), std::string::npos) << "'" << f << "' not in: " << out;
+}
+
+TEST(Cli, MalformedStageSceneAndMapFilesGiveClearErrors) {
+  testing::TempDir tmp;
+  std::ofstream(tmp / "stage.json") << R"({"layout": {"type": "fibonacci", "count": 10},
+    "camera": {"bracket": [{"exposure_s": "fast"}]}})";
+  ExpectCliError(
+      "capture --stage " + (tmp / "stage.json").string() + " --out " + (tmp / "s").string(),
+      {"stage.json", "camera.bracket[0].exposure_s", "expected"});
+  EXPECT_FALSE(fs::exists(tmp / "s" / "manifest.json"));  // Nothing created for bad input.
+
+  std::ofstream(tmp / "scene.json") << R"({"materials": [{"name": "m", "albedo": [0.5, 0.5, 0.5]}],
+    "spheres": [{"center": [0, 0, 0], "radius": -1, "material": "m"}]})";
+  ExpectCliError(
+      "capture --scene " + (tmp / "scene.json").string() + " --out " + (tmp / "s2").string(),
+      {"scene.json", "spheres[0].radius"});
+
+  // A truncated map, and a map with a NaN.
+  const std::string real = Slurp(testing::source_dir() / "data" / "envmaps" / "softbox_studio.exr");
+  std::ofstream(tmp / "cut.exr", std::ios::binary) << real.substr(0, real.size() / 3);
+  Image nan_map(64, 32, 3, 1.0f);
+  nan_map.at(5, 7, 1) = NAN;
+  write_exr(tmp / "nan.exr", nan_map);
+  // A field to relight.
+  std::string out;
+  const fs::path stage = WriteSmallStage(tmp.path());
+  ASSERT_EQ(run_command(cli_path().string() + " capture --quiet --stage " + stage.string() +
+                            " --out " + (tmp / "ok").string(),
+                        &out),
+            0)
+      << out;
+  ASSERT_EQ(run_command(cli_path().string() + " build --quiet " + (tmp / "ok").string() +
+                            " --out " + (tmp / "f.exr").string(),
+                        &out),
+            0)
+      << out;
+  ExpectCliError("relight " + (tmp / "f.exr").string() + " --env " + (tmp / "cut.exr").string() +
+                     " --out " + (tmp / "r").string(),
+                 {"cut.exr"});
+  ExpectCliError("relight " + (tmp / "f.exr").string() + " --env " + (tmp / "nan.exr").string() +
+                     " --out " + (tmp / "r").string(),
+                 {"nan.exr", "x=5", "y=7"});
+  ExpectCliError("build " + tmp.path().string() + " --out " + (tmp / "g.exr").string(),
+                 {"not a lightstage session"});
+}
+
+TEST(Cli, HelpExplainsEverySubcommand) {
+  for (const char* cmd : {"capture", "build", "relight", "demo", "stage", "envmaps", "import",
+                          "fit", "calibrate", "compress", "bench", "devices", "check"}) {
+    std::string out;
+    EXPECT_EQ(run_command(cli_path().string() + " " + cmd + " --help", &out), 0) << cmd;
+    EXPECT_NE(out.find("Options"), std::string::npos) << cmd << ": " << out;
+  }
+  std::string out;
+  EXPECT_EQ(run_command(cli_path().string(), &out), 1) << out;  // No subcommand: usage.
+  EXPECT_EQ(run_command(cli_path().string() + " capture --no-such-option", &out), 1) << out;
+  EXPECT_NE(out.find("--no-such-option"), std::string::npos) << out;
+  EXPECT_EQ(run_command(cli_path().string() + " capture", &out), 1) << out;  // Needs --out.
+  EXPECT_NE(out.find("--out"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace ls

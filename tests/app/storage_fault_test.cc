@@ -1,0 +1,142 @@
+// A disk that fills up, before and during a capture, and a session directory that cannot be
+// written. Each test mounts a small tmpfs; CTest runs this binary inside a private mount namespace
+// (`unshare -m`), so the mounts are invisible to the rest of the machine and vanish with it.
+#include <gtest/gtest.h>
+#include <sys/mount.h>
+
+#include <fstream>
+#include <set>
+
+#include "lightstage/image.h"
+#include "lightstage/session.h"
+#include "tests/app/cli_process.h"
+#include "tests/support/test_support.h"
+
+namespace ls {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::cli_path;
+using testing::CountLines;
+using testing::run_command;
+using testing::Slurp;
+using testing::Spawn;
+using testing::WaitForFrames;
+using testing::WriteSmallStage;
+
+// A tmpfs of `size` at dir, unmounted when the test ends.
+class SmallDisk {
+ public:
+  SmallDisk(const fs::path& dir, const std::string& size) : dir_(dir) {
+    fs::create_directories(dir);
+    const std::string options = "size=" + size;
+    mounted_ = ::mount("tmpfs", dir.c_str(), "tmpfs", 0, options.c_str()) == 0;
+  }
+  ~SmallDisk() {
+    if (mounted_) ::umount2(dir_.c_str(), MNT_DETACH);
+  }
+  bool mounted() const { return mounted_; }
+  bool make_read_only() {
+    return ::mount(nullptr, dir_.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr) == 0;
+  }
+
+ private:
+  fs::path dir_;
+  bool mounted_ = false;
+};
+
+// Fills the disk holding dir until a write fails; returns the filler file.
+fs::path FillDisk(const fs::path& dir) {
+  const fs::path filler = dir / "filler";
+  std::ofstream out(filler, std::ios::binary);
+  const std::string block(64 * 1024, 'x');
+  while (out.write(block.data(), block.size()) && out.flush()) {
+  }
+  return filler;
+}
+
+TEST(StorageFault, CaptureThatCannotFitIsRefusedBeforeItStarts) {
+  testing::TempDir tmp;
+  const fs::path stage = WriteSmallStage(tmp.path());
+  SmallDisk disk(tmp / "disk", "512k");  // The capture needs ~2.4 MiB at worst.
+  ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
+  std::string out;
+  const int code = run_command(cli_path().string() + " capture --quiet --stage " + stage.string() +
+                                   " --out " + (tmp / "disk" / "s").string(),
+                               &out);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find("frames still to capture need up to"), std::string::npos) << out;
+  EXPECT_NE(out.find((tmp / "disk" / "s").string()), std::string::npos) << out;
+  EXPECT_EQ(CountLines(tmp / "disk" / "s" / "frames.jsonl"), 0) << "nothing may be captured";
+}
+
+TEST(StorageFault, ReadOnlySessionDiskIsRefusedBeforeCapture) {
+  testing::TempDir tmp;
+  const fs::path stage = WriteSmallStage(tmp.path());
+  SmallDisk disk(tmp / "disk", "8m");
+  ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
+  ASSERT_TRUE(disk.make_read_only());
+  std::string out;
+  const int code = run_command(cli_path().string() + " capture --quiet --stage " + stage.string() +
+                                   " --out " + (tmp / "disk" / "s").string(),
+                               &out);
+  EXPECT_EQ(code, 2) << out;
+  EXPECT_NE(out.find((tmp / "disk" / "s").string()), std::string::npos) << out;
+}
+
+// The disk fills up part-way: the capture stops with exit 4, all LEDs off, every journaled frame
+// intact on disk and nothing half-written counted; once space is freed, --resume completes to
+// exactly the frames of an uninterrupted capture.
+TEST(StorageFault, DiskFullDuringCaptureStopsCleanlyAndResumes) {
+  testing::TempDir tmp;
+  const fs::path stage = WriteSmallStage(tmp.path());
+  const std::string cli = cli_path().string();
+  std::string out;
+  ASSERT_EQ(run_command(cli + " capture --quiet --stage " + stage.string() + " --out " +
+                            (tmp / "whole").string(),
+                        &out),
+            0)
+      << out;
+
+  SmallDisk disk(tmp / "disk", "8m");
+  ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
+  const fs::path session_dir = tmp / "disk" / "s";
+  const fs::path log = tmp / "capture.log";
+  const pid_t pid = Spawn(
+      {cli, "capture", "--quiet", "--stage", stage.string(), "--out", session_dir.string()}, log);
+  WaitForFrames(session_dir, 30, pid);
+  const fs::path filler = FillDisk(tmp / "disk");
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid) << "capture finished before the disk filled up";
+  ASSERT_TRUE(WIFEXITED(status));
+  const std::string messages = Slurp(log);
+  EXPECT_EQ(WEXITSTATUS(status), 4) << messages;
+  EXPECT_NE(messages.find("storage failure"), std::string::npos) << messages;
+  EXPECT_NE(messages.find("--resume " + session_dir.string()), std::string::npos) << messages;
+
+  // What the journal lists is on disk, whole, and nothing else is counted.
+  const Session stopped = Session::open(session_dir);
+  const size_t planned = plan_frames(stopped.stage()).size();
+  ASSERT_GE(stopped.frames().size(), 20u);
+  ASSERT_LT(stopped.frames().size(), planned) << "the disk filled up after the capture ended";
+  for (const auto& [key, record] : stopped.frames()) {
+    EXPECT_EQ(Slurp(session_dir / record.file), Slurp(tmp / "whole" / record.file)) << record.file;
+  }
+
+  fs::remove(filler);
+  ASSERT_EQ(run_command(cli + " capture --quiet --resume " + session_dir.string(), &out), 0) << out;
+  const Session resumed = Session::open(session_dir);
+  ASSERT_EQ(resumed.frames().size(), planned);
+  for (const auto& [key, record] : resumed.frames()) {
+    ASSERT_EQ(Slurp(session_dir / record.file), Slurp(tmp / "whole" / record.file)) << record.file;
+  }
+  std::set<std::string> files;
+  for (const auto& e : fs::directory_iterator(session_dir / "frames")) {
+    files.insert(e.path().filename().string());
+  }
+  EXPECT_EQ(files.size(), planned) << "stray or temporary files left in frames/";
+  EXPECT_NE(Slurp(session_dir / "manifest.json").find("\"complete\""), std::string::npos);
+}
+
+}  // namespace
+}  // namespace ls

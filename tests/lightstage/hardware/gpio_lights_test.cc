@@ -1,0 +1,153 @@
+#include <gtest/gtest.h>
+
+#include <memory>
+
+#include "lightstage/errors.h"
+#include "lightstage/hardware/gpiod_lights.h"
+#include "tests/lightstage/hardware/fake_line_driver.h"
+
+namespace ls {
+namespace {
+
+using testing::FakeGpio;
+using testing::FakeLineDriver;
+
+// Three LEDs (ids 10, 11, 12) on gpiochip0 lines 4, 5, 6; LED 11 is active-low.
+Stage GpioStage() {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(3, 0));
+  stage.source = "stage.json";
+  for (int i = 0; i < 3; ++i) {
+    stage.leds[i].id = 10 + i;
+    stage.leds[i].gpio_chip = "gpiochip0";
+    stage.leds[i].gpio_line = 4 + i;
+  }
+  stage.leds[1].active_low = true;
+  return stage;
+}
+
+bool Level(const FakeGpio& gpio, int line) { return gpio.level.at({"gpiochip0", line}); }
+
+TEST(GpioLights, RequestsEveryLineOnceDrivenOffWithItsPolarity) {
+  FakeGpio gpio;
+  GpioLights lights(GpioStage(), std::make_unique<FakeLineDriver>(gpio));
+  EXPECT_EQ(lights.num_lights(), 3);
+  EXPECT_EQ(gpio.level.size(), 3u);
+  EXPECT_FALSE(Level(gpio, 4));
+  EXPECT_TRUE(Level(gpio, 5));  // Active-low: off is high.
+  EXPECT_FALSE(Level(gpio, 6));
+  EXPECT_EQ(lights.count_on(), 0);
+}
+
+TEST(GpioLights, SwitchesTheMappedLineAtTheConfiguredPolarity) {
+  FakeGpio gpio;
+  GpioLights lights(GpioStage(), std::make_unique<FakeLineDriver>(gpio));
+  lights.set_light(1, true);
+  EXPECT_FALSE(Level(gpio, 5));  // Active-low on = low.
+  EXPECT_FALSE(Level(gpio, 4));
+  lights.set_light(1, false);
+  lights.set_light(2, true);
+  EXPECT_TRUE(Level(gpio, 5));
+  EXPECT_TRUE(Level(gpio, 6));
+  EXPECT_TRUE(lights.is_on(2));
+  EXPECT_EQ(lights.count_on(), 1);
+}
+
+TEST(GpioLights, AllOffKeepsGoingPastAFailingLineAndNeverThrows) {
+  FakeGpio gpio;
+  GpioLights lights(GpioStage(), std::make_unique<FakeLineDriver>(gpio));
+  lights.set_light(0, true);
+  lights.set_light(2, true);
+  gpio.failing_handles = {0};
+  static_assert(noexcept(lights.all_off()));
+  lights.all_off();
+  EXPECT_TRUE(Level(gpio, 4));   // The failing line stays where it was...
+  EXPECT_FALSE(Level(gpio, 6));  // ...the others are off.
+  EXPECT_TRUE(Level(gpio, 5));
+  EXPECT_NE(lights.last_error().find("LED 10 (gpiochip0 line 4"), std::string::npos)
+      << lights.last_error();
+  EXPECT_TRUE(lights.is_on(0));
+  EXPECT_FALSE(lights.is_on(2));
+}
+
+TEST(GpioLights, DestructionSwitchesOffAndReleases) {
+  FakeGpio gpio;
+  {
+    GpioLights lights(GpioStage(), std::make_unique<FakeLineDriver>(gpio));
+    lights.set_light(0, true);
+  }
+  EXPECT_TRUE(gpio.level.empty());
+  EXPECT_GE(gpio.releases, 1);
+}
+
+TEST(GpioLights, SetLightFailureNamesTheLed) {
+  FakeGpio gpio;
+  GpioLights lights(GpioStage(), std::make_unique<FakeLineDriver>(gpio));
+  gpio.failing_handles = {2};
+  try {
+    lights.set_light(2, true);
+    FAIL() << "expected HardwareError";
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find("LED 12 (gpiochip0 line 6"), std::string::npos)
+        << e.what();
+  }
+}
+
+void ExpectHardwareError(FakeGpio& gpio, const Stage& stage, const std::string& needle) {
+  try {
+    GpioLights lights(stage, std::make_unique<FakeLineDriver>(gpio));
+    FAIL() << "expected HardwareError containing " << needle;
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+  }
+}
+
+TEST(GpioLights, MissingChipIsAnErrorNamingLedChipAndLine) {
+  FakeGpio gpio;
+  Stage stage = GpioStage();
+  stage.leds[2].gpio_chip = "gpiochip7";
+  ExpectHardwareError(gpio, stage, "LED 12 (gpiochip7 line 6");
+  EXPECT_TRUE(gpio.level.empty()) << "lines requested before the failure are released";
+}
+
+TEST(GpioLights, MissingLineAndBusyLineAreErrors) {
+  FakeGpio gpio;
+  Stage stage = GpioStage();
+  stage.leds[0].gpio_line = 40;
+  ExpectHardwareError(gpio, stage, "LED 10 (gpiochip0 line 40");
+  gpio.held_by_others[{"gpiochip0", 5}] = "other-daemon";
+  ExpectHardwareError(gpio, GpioStage(), "held by \"other-daemon\"");
+}
+
+TEST(GpioLights, StageWithoutLinesOrWithSharedLinesIsAnInputError) {
+  FakeGpio gpio;
+  Stage stage = GpioStage();
+  stage.leds[1].gpio_chip.clear();
+  EXPECT_THROW(GpioLights(stage, std::make_unique<FakeLineDriver>(gpio)), InputError);
+  stage = GpioStage();
+  stage.leds[2].gpio_line = 4;
+  try {
+    GpioLights lights(stage, std::make_unique<FakeLineDriver>(gpio));
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("already used by LED 10"), std::string::npos) << e.what();
+  }
+}
+
+// The real libgpiod driver: no GPIO chip exists on CI machines, and no machine has this one.
+TEST(GpiodDriver, MissingChipIsAClearHardwareError) {
+  Stage stage = GpioStage();
+  for (auto& led : stage.leds) led.gpio_chip = "gpiochip-lightstage-absent";
+  try {
+    GpioLights lights(stage, make_gpiod_line_driver());
+    FAIL();
+  } catch (const HardwareError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("LED 10 (gpiochip-lightstage-absent line 4"), std::string::npos) << what;
+    EXPECT_NE(what.find("cannot be opened"), std::string::npos) << what;
+  }
+}
+
+TEST(GpiodDriver, ListingChipsNeverThrows) { EXPECT_NO_THROW(list_gpio_chips()); }
+
+}  // namespace
+}  // namespace ls

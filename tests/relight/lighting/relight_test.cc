@@ -1,0 +1,127 @@
+#include "relight/lighting/relight.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "capture/field.h"
+#include "lightstage/errors.h"
+
+namespace {
+
+using ls::Image;
+using ls::capture::FieldLight;
+using ls::capture::ReflectanceField;
+
+ReflectanceField random_field(int width, int height, int num_lights, unsigned seed) {
+  std::vector<FieldLight> lights(num_lights);
+  for (int l = 0; l < num_lights; ++l) lights[l].led_id = l;
+  ReflectanceField field(width, height, lights);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> value(0.0f, 2.0f);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      float* p = field.pixel(x, y);
+      for (int i = 0; i < 3 * num_lights; ++i) p[i] = value(rng);
+    }
+  }
+  field.source = "random";
+  return field;
+}
+
+// Sizes include light counts that are not a multiple of the 8-light chunk, and a single light.
+TEST(RelightTest, MatchesDoublePrecisionReference) {
+  struct Size {
+    int width, height, lights;
+  };
+  for (const Size s : {Size{1, 1, 1}, Size{7, 5, 3}, Size{16, 9, 8}, Size{33, 17, 13},
+                       Size{64, 40, 150}, Size{5, 300, 9}, Size{128, 3, 17}}) {
+    SCOPED_TRACE(std::to_string(s.width) + "x" + std::to_string(s.height) + "x" +
+                 std::to_string(s.lights));
+    const ReflectanceField field = random_field(s.width, s.height, s.lights, 100 + s.lights);
+    std::mt19937 rng(s.lights);
+    std::uniform_real_distribution<float> irradiance(-0.5f, 3.0f);  // Negative lobes too.
+    ls::relight::LightWeights weights;
+    for (int i = 0; i < 3 * s.lights; ++i) weights.irradiance_rgb.push_back(irradiance(rng));
+    const Image out = ls::relight::relight(field, weights);
+    ASSERT_EQ(out.width, s.width);
+    ASSERT_EQ(out.height, s.height);
+    ASSERT_EQ(out.channels, 3);
+    int bad = 0;
+    for (int y = 0; y < s.height; ++y) {
+      for (int x = 0; x < s.width; ++x) {
+        for (int c = 0; c < 3; ++c) {
+          double expected = 0, magnitude = 0;
+          for (int l = 0; l < s.lights; ++l) {
+            const double term = double(field.at(x, y, l, c)) * weights.irradiance_rgb[3 * l + c];
+            expected += term;
+            magnitude += std::abs(term);
+          }
+          const double tol = 1e-6 * magnitude + 1e-30;
+          if (!(std::abs(out.at(x, y, c) - expected) <= tol) && ++bad <= 5) {
+            ADD_FAILURE() << "pixel (" << x << ", " << y << ") channel " << c << ": got "
+                          << out.at(x, y, c) << ", expected " << expected;
+          }
+        }
+      }
+    }
+    EXPECT_EQ(bad, 0);
+  }
+}
+
+TEST(RelightTest, OneHotIrradianceReturnsThatLightsImageExactly) {
+  const int lights = 11;
+  const ReflectanceField field = random_field(23, 14, lights, 3);
+  Image out;
+  std::vector<float> e(3 * lights, 0.0f);
+  for (int target : {0, 5, 10}) {
+    std::fill(e.begin(), e.end(), 0.0f);
+    e[3 * target] = e[3 * target + 1] = e[3 * target + 2] = 1.0f;
+    ls::relight::relight_into(field, e.data(), out);
+    for (int y = 0; y < field.height(); ++y) {
+      for (int x = 0; x < field.width(); ++x) {
+        for (int c = 0; c < 3; ++c) {
+          ASSERT_EQ(out.at(x, y, c), field.at(x, y, target, c)) << x << "," << y << "," << c;
+        }
+      }
+    }
+  }
+  // One channel of one light: only that channel lights up.
+  std::fill(e.begin(), e.end(), 0.0f);
+  e[3 * 4 + 1] = 1.0f;
+  ls::relight::relight_into(field, e.data(), out);
+  EXPECT_EQ(out.at(3, 2, 0), 0.0f);
+  EXPECT_EQ(out.at(3, 2, 1), field.at(3, 2, 4, 1));
+  EXPECT_EQ(out.at(3, 2, 2), 0.0f);
+}
+
+TEST(RelightTest, RelightIntoReusesTheCallersImage) {
+  const ReflectanceField field = random_field(40, 30, 20, 9);
+  std::vector<float> e(60, 0.25f);
+  Image out;
+  ls::relight::relight_into(field, e.data(), out);
+  const float* storage = out.pixels.data();
+  const float first = out.at(7, 8, 2);
+  e.assign(60, 0.5f);
+  ls::relight::relight_into(field, e.data(), out);
+  EXPECT_EQ(out.pixels.data(), storage);  // No reallocation across frames.
+  EXPECT_FLOAT_EQ(out.at(7, 8, 2), 2 * first);
+}
+
+TEST(RelightTest, WeightsForAnotherStageAreAnInputError) {
+  const ReflectanceField field = random_field(4, 4, 5, 1);
+  ls::relight::LightWeights weights;
+  weights.irradiance_rgb.assign(3 * 6, 1.0f);
+  try {
+    ls::relight::relight(field, weights);
+    ADD_FAILURE() << "no InputError";
+  } catch (const ls::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("random: lights: the field has 5 lights"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
