@@ -155,7 +155,8 @@ void require_memory(std::size_t bytes, const std::string& what) {
   }
 }
 
-void write_field(const std::filesystem::path& path, const ReflectanceField& field) {
+void write_field(const std::filesystem::path& path, const ReflectanceField& field,
+                 const ExrAttributes& attributes) {
   const std::string name = path.string();
   if (field.width() <= 0 || field.height() <= 0 || field.num_lights() <= 0) {
     throw InputError(name + ": cannot write an empty reflectance field");
@@ -198,6 +199,7 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
                                  {"reference_z_m", v.reference_z_m}};
     spec.attribute(kViewAttribute, view.dump());
   }
+  for (const auto& [name, value] : attributes) spec.attribute(name, value);
   // RLE: lossless, and the fastest to write and read of the compressed modes. Measured on the demo
   // field (256x256, 151 LEDs, 119 MB; best of 3 on a shared 2-core machine), write / read MB/s and
   // file size: none 1000 / 377 / 119 MB, rle 651 / 340 / 92 MB, piz 191 / 142 / 77 MB,

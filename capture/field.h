@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "lightstage/image.h"
+
 namespace ls::capture {
 
 struct FieldLight {
@@ -137,8 +139,10 @@ void require_memory(std::size_t bytes, const std::string& what);
 // is exactly the in-memory layout); LED directions, validity, (where finite) saturation ceilings
 // and (near LEDs) positions in the "lightstage:lights" attribute ({id, dir, valid, saturates_at:
 // [r, g, b], position: [x, y, z]}; saturates_at and position are optional on read, absent = never
-// saturates, distant); the view in "lightstage:view" (optional).
-void write_field(const std::filesystem::path& path, const ReflectanceField& field);
+// saturates, distant); the view in "lightstage:view" (optional); `attributes` as given (e.g. the
+// options the field was built with).
+void write_field(const std::filesystem::path& path, const ReflectanceField& field,
+                 const ExrAttributes& attributes = {});
 ReflectanceField read_field(const std::filesystem::path& path);
 
 }  // namespace ls::capture

@@ -29,7 +29,7 @@ class CpuFieldSource : public GpuSource {
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     gl_util::check_target(*this, target);
     gl_util::check_led_weights(*this, lighting, field_.num_lights());
-    relight::relight_into(field_, lighting.led_irradiance_rgb.data(), image_);
+    relight::relight_into(field_, lighting.led_irradiance_rgb, image_);
     target.upload(image_);
   }
 

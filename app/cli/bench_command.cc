@@ -100,7 +100,7 @@ void run_led_bench(const BenchArgs& args) {
           3, [&] { weights = relight::integrate_environment(maps[m], dirs, 0.0, coverage); });
       Image relit;
       const double relight_ms = median_ms(args.repeats, [&] {
-        relight::relight_into(field, weights.irradiance_rgb.data(), relit);
+        relight::relight_into(field, weights.irradiance_rgb, relit);
       });
       sim::GroundTruthOptions gt;
       gt.covered_by_leds = dirs;
@@ -241,11 +241,7 @@ void run_fit_bench(const FitBenchArgs& args) {
   fs::remove_all(dir);  // Frames are only a means here.
 
   relight::FitOptions base;
-  if (field.noise.measured) {
-    base.normals.noise.a = field.noise.read_variance;
-    base.normals.noise.b = field.noise.shot_variance_per_unit;
-    base.noise_source = "measured (" + field.noise.method + ")";
-  }
+  base.use_noise_of(field);
   std::fprintf(stderr, "noise: %s: variance = %.3g + %.3g * v\n", base.noise_source.c_str(),
                base.normals.noise.a, base.normals.noise.b);
   const double pixels = double(field.width()) * field.height();
@@ -298,7 +294,7 @@ void run_fit_bench(const FitBenchArgs& args) {
     const Image truth = sim::render_ground_truth(scene, stage.camera, env_maps[m], gt);
     Image field_relit;
     const double relight_ms = median_ms(args.repeats, [&] {
-      relight::relight_into(field, weights.irradiance_rgb.data(), field_relit);
+      relight::relight_into(field, weights.irradiance_rgb, field_relit);
     });
     const ImageError field_error = compare_images(field_relit, truth);
     csv << "field," << map_name << ",0,0,0," << relight_ms << ',' << relight_ms / 1e3 << ','

@@ -6,7 +6,11 @@
 #include <string>
 #include <vector>
 
+#include "app/jobs/build_job.h"
 #include "app/jobs/capture_job.h"
+#include "app/jobs/fit_job.h"
+#include "app/jobs/job.h"
+#include "app/jobs/relight_job.h"
 
 namespace CLI {
 class App;
@@ -35,52 +39,18 @@ void add_fit_command(CLI::App& app);
 void add_import_command(CLI::App& app);
 void add_view_command(CLI::App& app);  // view_command.cc: the interactive viewer.
 
-// Steps shared by the demo and the single-step commands.
-// Runs the capture job with progress, Ctrl-C handling and the operator's messages; the exit code.
+// Prints a job's progress on stderr, one bar per phase (lightstage/progress.h); silent when quiet.
+jobs::ProgressFn progress_printer(bool quiet);
+
+// The jobs with the operator's messages, shared by the demo and the single-step commands; each
+// returns the exit code.
 int capture_session(const jobs::CaptureOptions& options, bool quiet);
-
-int build_field_file(const std::filesystem::path& session_dir, const std::filesystem::path& out,
-                     int time_step, bool quiet);
-
-struct RelightRequest {
-  std::filesystem::path field_file;
-  std::vector<std::filesystem::path> maps;
-  std::vector<double> rotations_deg{0.0};
-  double exposure_stops = 0.0;
-  bool auto_exposure = true;
-  double coverage_deg = 0.0;
-  std::filesystem::path out_dir;
-  bool quiet = false;
-  // --models: render fitted model maps (relight/fit/model_render.h) instead of the field; with a
-  // field too, the field fills the flagged pixels. --edits: an edit file applied to the maps.
-  std::filesystem::path models_file;
-  std::filesystem::path edits_file;
-  int directions_width = 64;      // Lat-long grid the map is integrated on for models.
-  std::vector<double> light_dir;  // --light X Y Z (models): a directional light of unit irradiance.
-};
-// Returns the written preview PNGs with their labels, for contact sheets.
-struct RelitOutput {
-  std::filesystem::path png;
-  std::string label;
-};
-std::vector<RelitOutput> relight_field_file(const RelightRequest& request);
-
-// Lays PNG previews out in a labelled grid.
-void write_contact_sheet(const std::filesystem::path& out, const std::vector<RelitOutput>& tiles,
-                         const std::string& title, int tile_size = 256);
+int build_field_file(const jobs::BuildJobOptions& options, bool quiet);
+jobs::RelightSummary relight_and_report(const jobs::RelightOptions& options, bool quiet);
+int fit_field_file(const jobs::FitJobOptions& options, bool quiet);
 
 // Shipped maps: data/envmaps in the source tree, plus ../shared/data/envmaps when present.
 std::vector<std::filesystem::path> shipped_environment_maps(bool include_shared);
 std::filesystem::path data_dir();
-
-// lightstage fit: field -> model maps (relight/fit/fit.h).
-struct FitRequest {
-  std::filesystem::path field_file;
-  std::filesystem::path out;
-  bool phong = false;
-  std::string method = "robust";  // Photometric-stereo normals: "robust" or "ls".
-  bool quiet = false;
-};
-int fit_field_file(const FitRequest& request);
 
 }  // namespace ls::cli

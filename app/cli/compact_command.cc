@@ -17,6 +17,7 @@
 #include "capture/olat_import.h"
 #include "app/cli/chart.h"
 #include "app/cli/commands.h"
+#include "app/jobs/compress_job.h"
 #include "lightstage/errors.h"
 #include "lightstage/progress.h"
 #include "relight/fit/fit.h"
@@ -86,10 +87,7 @@ std::vector<Candidate> candidates(bool quick) {
   if (!quick) {
     out.push_back({"models", [](const capture::ReflectanceField& f) {
                      relight::FitOptions options;
-                     if (f.noise.measured) {
-                       options.normals.noise.a = f.noise.read_variance;
-                       options.normals.noise.b = f.noise.shot_variance_per_unit;
-                     }
+                     options.use_noise_of(f);
                      return std::unique_ptr<relight::CompactField>(
                          new relight::ModelCompactField(relight::fit_models(f, options)));
                    }});
@@ -233,65 +231,6 @@ void run_compact_bench(const CompactBenchArgs& args) {
                (args.out / "compact.csv").c_str());
 }
 
-struct CompressArgs {
-  fs::path input;
-  fs::path out;
-  std::string format = "pca";
-  std::string rank = "auto";
-  int tile = 0;
-  double gain = 0.0;
-};
-
-void run_compress(const CompressArgs& args) {
-  const std::string ext = args.input.extension().string();
-  capture::ReflectanceField field =
-      (ext == ".lp" || fs::is_directory(args.input))
-          ? capture::import_olat(args.input, capture::OlatImportOptions{})
-          : capture::read_field(args.input);
-  if (args.format == "pca") {
-    relight::PcaOptions options;
-    if (args.rank != "auto") {
-      try {
-        options.rank = std::stoi(args.rank);
-      } catch (const std::exception&) {
-        options.rank = -1;
-      }
-      if (options.rank <= 0) {
-        throw InputError("--rank: expected a positive integer or \"auto\", got \"" + args.rank +
-                         "\"");
-      }
-    }
-    options.tile_size = args.tile;
-    relight::PcaSummary summary;
-    const relight::PcaField pca = relight::PcaField::build(field, options, &summary);
-    pca.write(args.out);
-    std::printf("%s\n%s: %.1f bytes per pixel (raw field: %.1f)\n", summary.to_string().c_str(),
-                args.out.c_str(), pca.bytes_per_pixel(), 12.0 * field.num_lights());
-    return;
-  }
-  relight::RtiFitOptions options;
-  if (args.format == "ptm" || args.format == "ptm-rgb") {
-    options.basis = relight::RtiBasis::kPtm;
-  } else if (args.format == "ptm-lrgb") {
-    options.basis = relight::RtiBasis::kPtm;
-    options.lrgb = true;
-  } else if (args.format == "hsh2") {
-    options.basis = relight::RtiBasis::kHsh2;
-  } else if (args.format == "hsh3") {
-    options.basis = relight::RtiBasis::kHsh3;
-  } else if (args.format == "hsh4") {
-    options.basis = relight::RtiBasis::kHsh4;
-  } else {
-    throw InputError("--format: expected pca, ptm, ptm-lrgb, hsh2, hsh3 or hsh4, got \"" +
-                     args.format + "\"");
-  }
-  const relight::RtiField fit = relight::RtiField::fit(field, options);
-  relight::write_rti_file(args.out, relight::quantise(fit, args.gain));
-  std::printf("%s: %s from %d LEDs, %.0f bytes per pixel (raw field: %.0f)\n", args.out.c_str(),
-              fit.name().c_str(), fit.lights_used, fit.bytes_per_pixel(),
-              12.0 * field.num_lights());
-}
-
 }  // namespace
 
 void add_compact_commands(CLI::App& app) {
@@ -309,7 +248,7 @@ void add_compact_commands(CLI::App& app) {
       ->capture_default_str();
   compact->callback([bench_args] { run_compact_bench(*bench_args); });
 
-  auto args = std::make_shared<CompressArgs>();
+  auto args = std::make_shared<jobs::CompressOptions>();
   auto* compress = app.add_subcommand(
       "compress",
       "Writes a compact representation of a field (EXR, or an .lp capture imported directly): "
@@ -328,7 +267,18 @@ void add_compact_commands(CLI::App& app) {
                    "RTI files: display units (white = 1) per field unit; 0: the brightest "
                    "sample is white.")
       ->capture_default_str();
-  compress->callback([args] { run_compress(*args); });
+  compress->callback([args] {
+    // A bad --format or --rank is bad input (exit 2), as before options were validated here.
+    const jobs::CompressSummary summary = jobs::compress(*args);
+    if (args->format == "pca") {
+      std::printf("%s\n%s: %.1f bytes per pixel (raw field: %.1f)\n", summary.details.c_str(),
+                  args->out.c_str(), summary.bytes_per_pixel, summary.raw_bytes_per_pixel);
+    } else {
+      std::printf("%s: %s %s, %.0f bytes per pixel (raw field: %.0f)\n", args->out.c_str(),
+                  summary.representation.c_str(), summary.details.c_str(), summary.bytes_per_pixel,
+                  summary.raw_bytes_per_pixel);
+    }
+  });
 }
 
 }  // namespace ls::cli

@@ -7,6 +7,7 @@
 
 #include "capture/field.h"
 #include "app/cli/commands.h"
+#include "app/jobs/contact_sheet.h"
 #include "lightstage/image_metrics.h"
 #include "lightstage/session.h"
 #include "relight/lighting/envmap.h"
@@ -52,19 +53,23 @@ void run_demo(const DemoArgs& args) {
 
   const fs::path field_file = args.out / "field.exr";
   std::fprintf(stderr, "== 2/4 build the reflectance field -> %s\n", field_file.c_str());
-  build_field_file(session_dir, field_file, 0, args.quiet);
+  jobs::BuildJobOptions build;
+  build.session_dir = session_dir;
+  build.out = field_file;
+  build_field_file(build, args.quiet);
 
   std::fprintf(stderr, "== 3/4 relight under every shipped environment map -> %s\n",
                (args.out / "relit").c_str());
-  RelightRequest relight;
+  jobs::RelightOptions relight;
   relight.field_file = field_file;
   relight.maps = shipped_environment_maps(args.shared_maps);
   relight.out_dir = args.out / "relit";
-  relight.quiet = args.quiet;
-  const auto outputs = relight_field_file(relight);
-  write_contact_sheet(args.out / "contact_sheet.png", outputs,
-                      "lightstage demo: simulated capture, relit under " +
-                          std::to_string(outputs.size()) + " environment maps");
+  const jobs::RelightSummary relit = relight_and_report(relight, args.quiet);
+  std::vector<jobs::Preview> previews;
+  for (const jobs::RelitImage& image : relit.images) previews.push_back({image.png, image.label});
+  jobs::write_contact_sheet(args.out / "contact_sheet.png", previews,
+                            "lightstage demo: simulated capture, relit under " +
+                                std::to_string(previews.size()) + " environment maps");
 
   if (!args.truth) return;
   std::fprintf(stderr, "== 4/4 compare with the directly rendered ground truth -> %s\n",
@@ -72,7 +77,7 @@ void run_demo(const DemoArgs& args) {
   const Session session = Session::open(session_dir);
   const Stage& stage = session.stage();
   const sim::Scene scene = sim::default_scene();
-  std::vector<RelitOutput> comparison;
+  std::vector<jobs::Preview> comparison;
   std::printf("%-28s %12s %10s\n", "map", "rel. RMSE", "PSNR dB");
   for (const auto& map_path : shipped_environment_maps(false)) {
     const relight::EnvironmentMap map = relight::EnvironmentMap::load(map_path);
@@ -95,7 +100,7 @@ void run_demo(const DemoArgs& args) {
     comparison.push_back({args.out / "truth" / (name + "_relit.png"), label});
     comparison.push_back({args.out / "truth" / (name + ".png"), name + " ground truth"});
   }
-  write_contact_sheet(args.out / "comparison.png", comparison,
+  jobs::write_contact_sheet(args.out / "comparison.png", comparison,
                       "relit from the captured field vs ground truth rendered from the scene");
   std::fprintf(stderr, "done: see %s and %s\n", (args.out / "contact_sheet.png").c_str(),
                (args.out / "comparison.png").c_str());

@@ -267,7 +267,7 @@ void RawCompactField::init(double sigma_rad) {
 
 void RawCompactField::relight_into(const LightingForModels& lights, Image& out) const {
   const std::vector<float> e = interpolator_.led_irradiance(lights);
-  relight::relight_into(*field_, e.data(), out);
+  relight::relight_into(*field_, e, out);
 }
 
 // ---------------------------------------------------------------------------------------------

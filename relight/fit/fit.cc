@@ -402,7 +402,18 @@ const std::vector<std::string>& model_map_channel_names() {
   return names;
 }
 
-void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps) {
+void FitOptions::use_noise_of(const capture::ReflectanceField& field) {
+  if (!field.noise.measured) {
+    noise_source = "default NoiseModel (the field carries no measured noise)";
+    return;
+  }
+  normals.noise.a = field.noise.read_variance;
+  normals.noise.b = field.noise.shot_variance_per_unit;
+  noise_source = "measured" + (field.noise.method.empty() ? "" : " (" + field.noise.method + ")");
+}
+
+void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
+                      const ExrAttributes& attributes) {
   const Image& image = maps.maps;
   LS_CHECK(image.channels == kMapChannelCount &&
                image.pixels.size() == image.num_pixels() * kMapChannelCount,
@@ -412,7 +423,9 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps) 
                                 {"source", maps.noise_source}};
   Image named = image;
   named.channel_names = model_map_channel_names();
-  write_exr(path, named, ExrPixelType::kFloat, {{kFitNoiseAttribute, noise.dump()}});
+  ExrAttributes header = attributes;
+  header.emplace_back(kFitNoiseAttribute, noise.dump());
+  write_exr(path, named, ExrPixelType::kFloat, header);
   const Image& src = maps.maps;
   auto preview = [&](const std::string& name, int first, int channels, auto transform) {
     Image image(src.width, src.height, channels);

@@ -78,6 +78,9 @@ struct FitOptions {
   std::function<void(long done, long total)> progress;
 
   std::string validate() const;
+  // Weighs the fit with the field's own measured noise (capture/noise_estimate.h) when it carries
+  // one, and says so in noise_source; else keeps the defaults and says that.
+  void use_noise_of(const capture::ReflectanceField& field);
 };
 
 // Channels of ModelMaps::maps, in order.
@@ -130,7 +133,8 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
 // Writes the maps as one EXR (float, named channels) and a PNG preview per map beside it:
 // <stem>.normal.png (0.5 + 0.5 n), .albedo.png, .sigma.png (/ (pi/2)), .ks.png, .roughness.png,
 // .model.png (model / 4), .confidence.png, .residual.png (log10(1 + r) / 2), .flags.png.
-void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps);
+void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
+                      const ExrAttributes& attributes = {});
 
 // Reads what write_model_maps wrote, bit-exactly (channels found by name, in any order). Validates
 // every channel: finite values, model in 0..4, flags a non-negative integer, unit normals and

@@ -39,7 +39,13 @@ inline void shade_pixel(const float* __restrict values, const float* __restrict 
 
 }  // namespace
 
-void relight_into(const capture::ReflectanceField& field, const float* irradiance_rgb, Image& out) {
+void relight_into(const capture::ReflectanceField& field, std::span<const float> irradiance_rgb,
+                  Image& out) {
+  if (irradiance_rgb.size() != 3 * size_t(field.num_lights())) {
+    throw InputError(field.source + ": lights: the field has " +
+                     std::to_string(field.num_lights()) + " lights but the weights have " +
+                     std::to_string(irradiance_rgb.size() / 3) + " (computed for another stage?)");
+  }
   const int width = field.width(), height = field.height();
   if (out.width != width || out.height != height || out.channels != 3 ||
       out.pixels.size() != size_t(width) * height * 3) {
@@ -59,21 +65,15 @@ void relight_into(const capture::ReflectanceField& field, const float* irradianc
           const float* values = field.pixel(0, y);
           float* out_row = out_pixels + size_t(y) * width * 3;
           for (int x = 0; x < width; ++x) {
-            shade_pixel(values + size_t(x) * count, irradiance_rgb, count, out_row + 3 * x);
+            shade_pixel(values + size_t(x) * count, irradiance_rgb.data(), count, out_row + 3 * x);
           }
         }
       });
 }
 
 Image relight(const capture::ReflectanceField& field, const LightWeights& weights) {
-  if (weights.irradiance_rgb.size() != 3 * size_t(field.num_lights())) {
-    throw InputError(field.source + ": lights: the field has " +
-                     std::to_string(field.num_lights()) + " lights but the weights have " +
-                     std::to_string(weights.irradiance_rgb.size() / 3) +
-                     " (computed for another stage?)");
-  }
   Image out;
-  relight_into(field, weights.irradiance_rgb.data(), out);
+  relight_into(field, weights.irradiance_rgb, out);
   return out;
 }
 

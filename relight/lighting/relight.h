@@ -1,5 +1,7 @@
 #pragma once
 // Relighting a reflectance field: I(x) = sum_l R(x, l) * E_l, per channel.
+#include <span>
+
 #include "capture/field.h"
 #include "lightstage/image.h"
 #include "relight/lighting/light_cells.h"
@@ -7,10 +9,12 @@
 namespace ls::relight {
 
 // Streams the field once (row tiles in parallel, no allocation in the loop). Output: 3-channel
-// linear radiance image. E must have 3 * field.num_lights() entries.
+// linear radiance image. Throws InputError unless E has 3 * field.num_lights() entries (weights
+// computed for another stage).
 Image relight(const capture::ReflectanceField& field, const LightWeights& weights);
 
 // Same, into a caller-owned image (reused across frames, e.g. a rotation sequence).
-void relight_into(const capture::ReflectanceField& field, const float* irradiance_rgb, Image& out);
+void relight_into(const capture::ReflectanceField& field, std::span<const float> irradiance_rgb,
+                  Image& out);
 
 }  // namespace ls::relight

@@ -176,7 +176,8 @@ double temporal_value(TemporalModel model, double rate, double onset, double wet
 // One EXR with named channels + the step times and noise in the "lightstage:temporal" attribute,
 // and PNG previews beside it: <stem>.model.png, .rate.png, .onset.png, .wet_albedo.png,
 // .dry_albedo.png, .confidence.png, .flags.png.
-void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps);
+void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps,
+                         const ExrAttributes& attributes = {});
 // Reads what write_temporal_maps wrote; InputErrors name the file and the channel.
 TemporalMaps read_temporal_maps(const std::filesystem::path& path);
 

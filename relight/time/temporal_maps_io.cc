@@ -18,7 +18,8 @@ constexpr const char* kTemporalAttribute = "lightstage:temporal";
 
 }  // namespace
 
-void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps) {
+void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps,
+                         const ExrAttributes& attributes) {
   const Image& image = maps.maps;
   LS_CHECK(image.channels == kTemporalChannelCount &&
                image.pixels.size() == image.num_pixels() * kTemporalChannelCount,
@@ -29,7 +30,9 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
                                {"noise_source", maps.noise_source}};
   Image named = image;
   named.channel_names = temporal_channel_names();
-  write_exr(path, named, ExrPixelType::kFloat, {{kTemporalAttribute, meta.dump()}});
+  ExrAttributes header = attributes;
+  header.emplace_back(kTemporalAttribute, meta.dump());
+  write_exr(path, named, ExrPixelType::kFloat, header);
   const double span = std::max(maps.last_time_s() - maps.first_time_s(), 1e-9);
   double max_rate = 0;
   for (size_t i = 0; i < image.num_pixels(); ++i) {

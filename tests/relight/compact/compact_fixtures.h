@@ -77,8 +77,7 @@ inline sim::CompactBuilder raw_builder() {
 inline sim::CompactBuilder model_builder() {
   return [](const capture::ReflectanceField& f) -> std::unique_ptr<relight::CompactField> {
     relight::FitOptions options;
-    options.normals.noise.a = f.noise.read_variance;
-    options.normals.noise.b = f.noise.shot_variance_per_unit;
+    options.use_noise_of(f);
     return std::make_unique<relight::ModelCompactField>(relight::fit_models(f, options));
   };
 }

@@ -284,12 +284,10 @@ TEST(FitModels, CapturedFieldThroughThePipeline) {
     if (!light.valid) continue;
     EXPECT_TRUE(light.saturates_at.allFinite() && (light.saturates_at.array() > 0).all());
   }
-  // The field's own measured noise, as `lightstage fit` uses it (app/cli/fit_command.cc).
+  // The field's own measured noise, as `lightstage fit` uses it (app/jobs/fit_job.cc).
   ASSERT_TRUE(field.noise.measured);
   FitOptions options;
-  options.normals.noise.a = field.noise.read_variance;
-  options.normals.noise.b = field.noise.shot_variance_per_unit;
-  options.noise_source = "measured (" + field.noise.method + ")";
+  options.use_noise_of(field);
   std::cout << "measured noise: variance = " << options.normals.noise.a << " + "
             << options.normals.noise.b << " * v\n";
   const ModelMaps maps = fit_models(field, options);

@@ -1,12 +1,12 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "app/cli/commands.h"
+#include "app/jobs/contact_sheet.h"
 #include "lightstage/errors.h"
 
-namespace ls::cli {
+namespace ls::jobs {
 
-void write_contact_sheet(const std::filesystem::path& out, const std::vector<RelitOutput>& tiles,
+void write_contact_sheet(const std::filesystem::path& out, const std::vector<Preview>& tiles,
                          const std::string& title, int tile_size) {
   if (tiles.empty()) return;
   const int columns = std::min<int>(4, int(tiles.size()));
@@ -30,4 +30,4 @@ void write_contact_sheet(const std::filesystem::path& out, const std::vector<Rel
   if (!cv::imwrite(out.string(), sheet)) throw InputError(out.string() + ": cannot write");
 }
 
-}  // namespace ls::cli
+}  // namespace ls::jobs

@@ -1,0 +1,34 @@
+#include <memory>
+#include <mutex>
+#include <optional>
+
+#include "app/cli/commands.h"
+#include "lightstage/progress.h"
+
+namespace ls::cli {
+
+jobs::ProgressFn progress_printer(bool quiet) {
+  struct State {
+    std::mutex mutex;  // Jobs report from worker threads.
+    std::string phase;
+    std::optional<ProgressReporter> bar;
+  };
+  auto state = std::make_shared<State>();
+  return [state, quiet](const std::string& phase, long done, long total, const std::string& item) {
+    std::lock_guard lock(state->mutex);
+    if (!state->bar || state->phase != phase) {
+      state->bar.reset();  // Finishes the previous phase's line first.
+      state->bar.emplace(phase, total, quiet);
+      state->phase = phase;
+    }
+    if (done >= total) {
+      state->bar->done();
+      state->bar.reset();
+      state->phase.clear();
+    } else {
+      state->bar->update(done, item);
+    }
+  };
+}
+
+}  // namespace ls::cli

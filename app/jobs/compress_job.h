@@ -1,0 +1,31 @@
+#pragma once
+// Compress a field (or an .lp one-light set, imported on the way) into a compact representation:
+// the lightstage PCA format, .ptm (PTM 1.2 RGB/LRGB) or .rti (HSH).
+#include <filesystem>
+#include <string>
+
+#include "app/jobs/job.h"
+
+namespace ls::jobs {
+
+struct CompressOptions {
+  std::filesystem::path input;  // Field EXR, .lp file, or a folder holding one .lp.
+  std::filesystem::path out;
+  std::string format = "pca";  // pca | ptm | ptm-rgb | ptm-lrgb | hsh2 | hsh3 | hsh4
+  std::string rank = "auto";   // PCA: a positive number, or auto (from the noise floor).
+  int tile = 0;                // PCA tile size in pixels; 0: one global basis.
+  double gain = 0.0;           // RTI files: display units per field unit; 0: brightest = white.
+  std::string validate() const;
+};
+
+struct CompressSummary {
+  std::string representation;  // E.g. "pca k=12", "hsh3".
+  std::string details;         // The builder's own summary (PCA rank choice, lights used).
+  double bytes_per_pixel = 0.0;
+  double raw_bytes_per_pixel = 0.0;  // The float field it came from.
+};
+
+// Throws InputError for bad options or inputs; the output is written only on success.
+CompressSummary compress(const CompressOptions& options, const ProgressFn& progress = {});
+
+}  // namespace ls::jobs

@@ -1,0 +1,138 @@
+#include "app/jobs/fit_job.h"
+
+#include <algorithm>
+#include <chrono>
+#include <nlohmann/json.hpp>
+
+#include "capture/field.h"
+#include "lightstage/errors.h"
+#include "relight/fit/normals.h"
+
+namespace ls::jobs {
+
+namespace fs = std::filesystem;
+
+std::string FitJobOptions::validate() const {
+  if (!time_inputs.empty() && !field_file.empty()) {
+    return "give either a field or --time FIELDS..., not both";
+  }
+  if (time_inputs.empty() && field_file.empty()) return "a field (or --time FIELDS...) is required";
+  if (out.empty()) return "--out: give the maps file to write (.exr)";
+  if (method != "robust" && method != "ls") {
+    return "--method: expected robust or ls, got \"" + method + "\"";
+  }
+  return {};
+}
+
+std::string FitJobOptions::to_json() const {
+  nlohmann::json j;
+  j["field"] = field_file.string();
+  for (const fs::path& t : time_inputs) j["time"].push_back(t.string());
+  j["phong"] = phong;
+  j["method"] = method;
+  return j.dump();
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+relight::NormalMethod normal_method(const FitJobOptions& options) {
+  return options.method == "ls" ? relight::NormalMethod::kLeastSquares
+                                : relight::NormalMethod::kRobust;
+}
+
+void check(const FitJobOptions& options) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("fit: " + problem);
+  }
+}
+
+// The time-step fields: files as given, or the field_t*.exr (else *.exr) files of a directory.
+std::vector<fs::path> expand_time_inputs(const std::vector<fs::path>& inputs) {
+  std::vector<fs::path> files;
+  for (const fs::path& in : inputs) {
+    if (!fs::is_directory(in)) {
+      files.push_back(in);
+      continue;
+    }
+    std::vector<fs::path> found, any;
+    for (const auto& entry : fs::directory_iterator(in)) {
+      if (entry.path().extension() != ".exr") continue;
+      any.push_back(entry.path());
+      if (entry.path().filename().string().rfind("field_t", 0) == 0) found.push_back(entry.path());
+    }
+    if (found.empty()) found = any;
+    if (found.empty()) throw InputError(in.string() + ": expected field .exr files, found none");
+    std::sort(found.begin(), found.end());
+    files.insert(files.end(), found.begin(), found.end());
+  }
+  return files;
+}
+
+}  // namespace
+
+FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
+                  const NoiseNoticeFn& noise_notice) {
+  check(options);
+  if (!options.time_inputs.empty()) throw InputError("fit: --time fields: use fit_over_time");
+  const capture::ReflectanceField field = capture::read_field(options.field_file);
+  relight::FitOptions fit;
+  fit.fit_phong = options.phong;
+  fit.normals.method = normal_method(options);
+  // The noise model weights every residual and sets the shadow threshold: the field's own
+  // measurement when it carries one; otherwise NoiseModel's defaults, which describe the simulated
+  // 12-bit camera near mid exposure (and are ~3x conservative in sigma for its merged brackets,
+  // which only makes model choice more cautious: tests/relight/fit/fit_test.cc).
+  fit.use_noise_of(field);
+  if (noise_notice) noise_notice(fit.noise_source, fit.normals.noise);
+  if (const std::string error = fit.validate(); !error.empty()) {
+    throw InputError(options.field_file.string() + ": noise: " + error);
+  }
+  const auto start = Clock::now();
+  report(progress, "normals", 0, 1, "photometric stereo");
+  const relight::NormalMap normals = relight::estimate_normals(field, fit.normals);
+  report(progress, "normals", 1, 1);
+  fit.progress = [&](long done, long total) { report(progress, "fit", done, total); };
+  const relight::ModelMaps maps = relight::fit_models(field, normals, fit);
+  FitJobSummary summary{maps.summary, field.width(), field.height(), fit.noise_source,
+                        fit.normals.noise, seconds_since(start)};
+  relight::write_model_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
+  return summary;
+}
+
+TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const ProgressFn& progress,
+                                    const NoiseNoticeFn& noise_notice) {
+  check(options);
+  if (options.time_inputs.empty()) throw InputError("fit: give the time-step fields (--time)");
+  const std::vector<fs::path> files = expand_time_inputs(options.time_inputs);
+  std::vector<capture::ReflectanceField> fields;
+  for (const fs::path& f : files) {
+    fields.push_back(capture::read_field(f));
+    report(progress, "read fields", long(fields.size()), long(files.size()), f.filename());
+  }
+  relight::TemporalFitOptions fit;
+  fit.brdf.normals.method = normal_method(options);
+  // The noise of the first field that measured it (same camera for every step).
+  fit.brdf.noise_source = "default NoiseModel (no field carries a measured noise)";
+  const auto measured = std::find_if(fields.begin(), fields.end(),
+                                     [](const auto& f) { return f.noise.measured; });
+  if (measured != fields.end()) fit.brdf.use_noise_of(*measured);
+  if (const std::string error = fit.validate(); !error.empty()) {
+    throw InputError(files.front().string() + ": noise: " + error);
+  }
+  if (noise_notice) noise_notice(fit.brdf.noise_source, fit.brdf.normals.noise);
+  const auto start = Clock::now();
+  fit.progress = [&](long done, long total) { report(progress, "fit over time", done, total); };
+  const relight::TemporalMaps maps = relight::fit_temporal(fields, fit);
+  TemporalFitJobSummary summary{maps.summary,       maps.maps.width,        maps.maps.height,
+                                maps.step_times_s, fit.brdf.noise_source, seconds_since(start)};
+  relight::write_temporal_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
+  return summary;
+}
+
+}  // namespace ls::jobs

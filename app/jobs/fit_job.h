@@ -1,0 +1,50 @@
+#pragma once
+// Fit a reflectance field (per-pixel normals and BRDF models) or a series of fields over time
+// (time-varying models), weighted by the noise the capture measured.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "app/jobs/job.h"
+#include "relight/fit/fit.h"
+#include "relight/time/temporal_fit.h"
+
+namespace ls::jobs {
+
+struct FitJobOptions {
+  std::filesystem::path field_file;
+  // Time-varying fit: one field per time step, or directories of field_tNNN.exr (else *.exr).
+  std::vector<std::filesystem::path> time_inputs;
+  std::filesystem::path out;
+  bool phong = false;              // Also fit Lambert + Phong (comparison).
+  std::string method = "robust";   // Photometric-stereo normals: "robust" or "ls".
+  std::string validate() const;
+  std::string to_json() const;  // Recorded in the maps (kOptionsAttribute).
+};
+
+struct FitJobSummary {
+  relight::FitSummary fit;
+  int width = 0, height = 0;
+  std::string noise_source;
+  relight::NoiseModel noise;
+  double seconds = 0.0;  // Normals and fits.
+};
+
+struct TemporalFitJobSummary {
+  relight::TemporalSummary fit;
+  int width = 0, height = 0;
+  std::vector<double> step_times_s;
+  std::string noise_source;
+  double seconds = 0.0;
+};
+
+// Says which noise weighs the fit (before it starts); then the fit runs.
+using NoiseNoticeFn = std::function<void(const std::string& source, const relight::NoiseModel&)>;
+
+// Throws InputError for bad options or inputs.
+FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress = {},
+                  const NoiseNoticeFn& noise_notice = {});
+TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const ProgressFn& progress = {},
+                                    const NoiseNoticeFn& noise_notice = {});
+
+}  // namespace ls::jobs

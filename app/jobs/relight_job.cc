@@ -1,0 +1,319 @@
+#include "app/jobs/relight_job.h"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "app/jobs/contact_sheet.h"
+#include "capture/field.h"
+#include "lightstage/errors.h"
+#include "lightstage/image.h"
+#include "relight/fit/model_edit.h"
+#include "relight/fit/model_render.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/lighting/relight.h"
+#include "relight/time/temporal_render.h"
+
+namespace ls::jobs {
+
+namespace fs = std::filesystem;
+
+std::string RelightOptions::validate() const {
+  const bool models = !models_file.empty();
+  if (!temporal_file.empty()) {
+    if (!time_s) return "--temporal: give --time T too";
+    if (!std::isfinite(*time_s)) return "--time: expected a finite scene time in seconds";
+    if (models) return "--temporal: give either --temporal or --models, not both";
+    if (maps.empty() && !light_dir) return "--env: give at least one map (or --light)";
+  } else {
+    if (time_s) return "--time: renders time-varying models: give --temporal T.exr";
+    if (field_file.empty() && !models) return "give a field, --models MAPS.exr, or both";
+    if (maps.empty() && !(models && light_dir)) {
+      return "--env: give at least one map (or --light with --models)";
+    }
+    if (light_dir && !models) return "--light: a directional light renders models: give --models";
+    if (!edits_file.empty() && !models) {
+      return "--edits: edits apply to model maps: give --models MAPS.exr";
+    }
+  }
+  if (light_dir && !(light_dir->allFinite() && light_dir->norm() > 0)) {
+    return "--light: expected a non-zero finite direction";
+  }
+  if (directions_width < 4 || directions_width > 4096 || directions_width % 2 != 0) {
+    return "--directions: expected an even number in 4..4096";
+  }
+  if (exposure_stops && !std::isfinite(*exposure_stops)) return "--exposure: expected a number";
+  for (double r : rotations_deg) {
+    if (!std::isfinite(r)) return "--rotate: expected finite angles in degrees";
+  }
+  if (!(std::isfinite(coverage_deg) && coverage_deg >= 0)) {
+    return "--coverage-deg: expected a finite angle >= 0";
+  }
+  if (out_dir.empty()) return "--out: give the output directory";
+  return {};
+}
+
+std::string RelightOptions::to_json() const {
+  nlohmann::json j;
+  j["field"] = field_file.string();
+  j["models"] = models_file.string();
+  j["temporal"] = temporal_file.string();
+  if (time_s) j["time_s"] = *time_s;
+  j["edits"] = edits_file.string();
+  for (const fs::path& m : maps) j["env"].push_back(m.string());
+  j["rotate_deg"] = rotations_deg;
+  if (light_dir) j["light"] = {(*light_dir)[0], (*light_dir)[1], (*light_dir)[2]};
+  if (exposure_stops) j["exposure_stops"] = *exposure_stops;
+  j["coverage_deg"] = coverage_deg;
+  j["directions"] = directions_width;
+  return j.dump();
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+// Output name of a map and rotation: the map's stem, its folder when two maps share a stem, and
+// the rotation when there is one.
+std::string output_name(const fs::path& map_path, double rotation, bool several_rotations,
+                        std::set<std::string>& used_names) {
+  std::string name = map_path.stem().string();
+  if (used_names.count(name)) name = map_path.parent_path().filename().string() + "_" + name;
+  if (several_rotations || rotation != 0.0) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "_rot%03d", int(std::lround(rotation)));
+    name += buf;
+  }
+  used_names.insert(name);
+  return name;
+}
+
+// Walks the maps and rotations in output order, loading each map once.
+class MapRotations {
+ public:
+  explicit MapRotations(const RelightOptions& options) : options_(options) {}
+  long count() const { return long(options_.maps.size() * options_.rotations_deg.size()); }
+  template <typename Fn>  // fn(map, rotation_deg, output name)
+  void for_each(Fn&& fn) {
+    for (const fs::path& map_path : options_.maps) {
+      const relight::EnvironmentMap map = relight::EnvironmentMap::load(map_path);
+      for (double rotation : options_.rotations_deg) {
+        fn(map, rotation,
+           output_name(map_path, rotation, options_.rotations_deg.size() > 1, used_names_));
+      }
+    }
+  }
+
+ private:
+  const RelightOptions& options_;
+  std::set<std::string> used_names_;  // Maps from different folders may share a file name.
+};
+
+class RelitWriter {
+ public:
+  RelitWriter(const RelightOptions& options, RelightSummary& summary)
+      : options_(options), summary_(summary), attributes_{{kOptionsAttribute, options.to_json()}} {
+    fs::create_directories(options.out_dir);
+  }
+  void write(const std::string& name, Image& relit, std::string detail = {}) {
+    relit.channel_names = {"R", "G", "B"};
+    RelitImage out{options_.out_dir / (name + ".exr"), options_.out_dir / (name + ".png"), name,
+                   std::move(detail)};
+    write_exr(out.exr, relit, ExrPixelType::kFloat, attributes_);
+    write_png_preview(out.png, relit, options_.exposure_stops.value_or(auto_exposure_stops(relit)));
+    summary_.images.push_back(std::move(out));
+  }
+
+ private:
+  const RelightOptions& options_;
+  RelightSummary& summary_;
+  ExrAttributes attributes_;
+};
+
+struct FieldLights {
+  std::vector<Eigen::Vector3d> dirs;
+  std::vector<bool> valid;
+};
+
+FieldLights field_lights(const capture::ReflectanceField& field) {
+  FieldLights out;
+  for (const auto& light : field.lights()) {
+    out.dirs.push_back(light.dir_in_stage);
+    out.valid.push_back(light.valid);
+  }
+  return out;
+}
+
+double coverage_rad(const RelightOptions& options) { return options.coverage_deg * M_PI / 180.0; }
+
+void relight_field(const RelightOptions& options, RelightSummary& summary,
+                   const ProgressFn& progress) {
+  const capture::ReflectanceField field = capture::read_field(options.field_file);
+  const FieldLights lights = field_lights(field);
+  RelitWriter writer(options, summary);
+  MapRotations jobs(options);
+  Image relit;
+  long done = 0;
+  jobs.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+    const auto t0 = Clock::now();
+    const relight::LightWeights weights = relight::integrate_environment(
+        map, lights.dirs, rotation, coverage_rad(options), lights.valid);
+    const auto t1 = Clock::now();
+    relight::relight_into(field, weights.irradiance_rgb, relit);
+    const auto t2 = Clock::now();
+    char detail[160];
+    std::snprintf(detail, sizeof detail,
+                  "light weights %.1f ms, relight %.1f ms; %.2f%% of the map's light falls "
+                  "outside the dome's coverage and is not represented",
+                  ms_between(t0, t1), ms_between(t1, t2), 100.0 * weights.uncovered_fraction());
+    writer.write(name, relit, detail);
+    report(progress, "relight", ++done, jobs.count(), name);
+  });
+}
+
+// The fitted maps (edited when asked) rendered under each map; a field, when given too, fills the
+// pixels the fit flagged and bounds the models' light to the dome's coverage.
+void relight_models(const RelightOptions& options, RelightSummary& summary,
+                    const ProgressFn& progress) {
+  relight::ModelMaps maps = relight::read_model_maps(options.models_file);
+  const int width = maps.maps.width, height = maps.maps.height;
+  if (!options.edits_file.empty()) {
+    const relight::ModelEdits edits = relight::read_model_edits(options.edits_file, width, height);
+    const std::vector<int> counts = relight::apply_model_edits(edits, maps);
+    for (size_t i = 0; i < counts.size(); ++i) {
+      summary.edit_reports.push_back(options.edits_file.filename().string() + ": edits[" +
+                                     std::to_string(i) + "] changed " + std::to_string(counts[i]) +
+                                     " pixels");
+    }
+  }
+  std::optional<capture::ReflectanceField> field;
+  FieldLights lights;
+  if (!options.field_file.empty()) {
+    field = capture::read_field(options.field_file);
+    if (field->width() != width || field->height() != height) {
+      throw InputError(options.field_file.string() + ": size: expected " + std::to_string(width) +
+                       "x" + std::to_string(height) + " (the size of " +
+                       options.models_file.string() + "), got " + std::to_string(field->width()) +
+                       "x" + std::to_string(field->height()));
+    }
+    lights = field_lights(*field);
+  }
+  // With a field, the models get the light the field gets (the dome's coverage): the fit saw no
+  // other, and a lobe aimed below the dome is not bounded by any measurement.
+  relight::EnvironmentSampling sampling;
+  sampling.directions_width = options.directions_width;
+  sampling.covered_by_leds = lights.dirs;
+  sampling.coverage_radius_rad = coverage_rad(options);
+  RelitWriter writer(options, summary);
+  MapRotations jobs(options);
+  const long total = jobs.count() + (options.light_dir ? 1 : 0);
+  long done = 0;
+  if (options.light_dir) {
+    // The field cannot be lit from an arbitrary direction: flagged pixels stay black here.
+    Image relit = relight::render_models(
+        maps, relight::LightingForModels::directional(*options.light_dir, Eigen::Vector3d::Ones()));
+    writer.write("light", relit);
+    report(progress, "relight", ++done, total, "light");
+  }
+  Image fallback;
+  relight::ModelRenderOptions render;
+  jobs.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+    const auto t0 = Clock::now();
+    const relight::LightingForModels lighting =
+        relight::LightingForModels::environment(map, rotation, sampling);
+    if (field) {
+      const relight::LightWeights weights = relight::integrate_environment(
+          map, lights.dirs, rotation, coverage_rad(options), lights.valid);
+      relight::relight_into(*field, weights.irradiance_rgb, fallback);
+      render.flagged_fallback = &fallback;
+    }
+    const auto t1 = Clock::now();
+    Image relit = relight::render_models(maps, lighting, render);
+    const auto t2 = Clock::now();
+    char detail[160];
+    std::snprintf(detail, sizeof detail, "lights %.1f ms (%zu directions%s), model render %.1f ms",
+                  ms_between(t0, t1), lighting.dirs_in_stage.size(),
+                  field ? " within the dome; field for flagged pixels" : " over the sphere",
+                  ms_between(t1, t2));
+    writer.write(name, relit, detail);
+    report(progress, "relight", ++done, total, name);
+  });
+}
+
+// The time-varying models of `lightstage fit --time` at the scene time (time edits from the edits
+// file: relight/time/temporal_render.h), rendered as the models are.
+void relight_temporal(const RelightOptions& options, RelightSummary& summary,
+                      const ProgressFn& progress) {
+  relight::TemporalMaps maps = relight::read_temporal_maps(options.temporal_file);
+  if (!options.edits_file.empty()) {
+    const relight::TemporalEdits edits =
+        relight::read_temporal_edits(options.edits_file, maps.maps.width, maps.maps.height);
+    const std::vector<int> counts = relight::apply_temporal_edits(edits, maps);
+    for (size_t i = 0; i < counts.size(); ++i) {
+      summary.edit_reports.push_back(options.edits_file.filename().string() + ": time[" +
+                                     std::to_string(i) + "] changed " + std::to_string(counts[i]) +
+                                     " pixels");
+    }
+  }
+  summary.first_time_s = maps.first_time_s();
+  summary.last_time_s = maps.last_time_s();
+  const double time_s = *options.time_s;
+  relight::EnvironmentSampling sampling;
+  sampling.directions_width = options.directions_width;
+  char suffix[32];
+  std::snprintf(suffix, sizeof suffix, "_t%.0fs", time_s);
+  RelitWriter writer(options, summary);
+  MapRotations jobs(options);
+  int extrapolated = 0;
+  if (options.light_dir) {
+    Image relit = relight::render_temporal(
+        maps, time_s,
+        relight::LightingForModels::directional(*options.light_dir, Eigen::Vector3d::Ones()), {},
+        &extrapolated);
+    writer.write(std::string("light") + suffix, relit);
+  }
+  long done = 0;
+  jobs.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+    Image relit = relight::render_temporal(
+        maps, time_s, relight::LightingForModels::environment(map, rotation, sampling), {},
+        &extrapolated);
+    writer.write(name + suffix, relit);
+    report(progress, "relight at t", ++done, jobs.count(), name + suffix);
+  });
+  summary.extrapolated_pixels = extrapolated;
+}
+
+}  // namespace
+
+RelightSummary relight(const RelightOptions& options, const ProgressFn& progress) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("relight: " + problem);
+  }
+  RelightSummary summary;
+  std::string title;
+  if (!options.temporal_file.empty()) {
+    relight_temporal(options, summary, progress);
+    title = "temporal: " + options.temporal_file.filename().string();
+  } else if (!options.models_file.empty()) {
+    relight_models(options, summary, progress);
+    title = "models: " + options.models_file.filename().string();
+  } else {
+    relight_field(options, summary, progress);
+    title = "relit: " + options.field_file.filename().string();
+  }
+  if (!options.edits_file.empty()) title += " + " + options.edits_file.filename().string();
+  std::vector<Preview> previews;
+  for (const RelitImage& image : summary.images) previews.push_back({image.png, image.label});
+  summary.contact_sheet = options.out_dir / "contact_sheet.png";
+  write_contact_sheet(summary.contact_sheet, previews, title);
+  return summary;
+}
+
+}  // namespace ls::jobs
