@@ -10,10 +10,10 @@
 #include <random>
 
 #include "capture/field.h"
-#include "relight/compact/pca_field.h"
-#include "relight/lighting/relight.h"
-#include "relight/compact/rti_fits.h"
 #include "evaluation/leave_lights_out.h"
+#include "relight/compact/pca_field.h"
+#include "relight/compact/rti_fits.h"
+#include "relight/lighting/relight.h"
 
 namespace {
 

@@ -12,11 +12,11 @@
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
-#include "relight/lighting/envmap.h"
 #include "relight/fit/fit.h"
-#include "relight/lighting/light_cells.h"
 #include "relight/fit/model_render.h"
 #include "relight/fit/normals.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"

@@ -257,7 +257,8 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
   if (method == ResponseMethod::kRobertson) {
     // Every pixel (no sampling), iterative maximum likelihood, no smoothness term: on a simulated
     // 12-bit gamma-2.2 bracket reduced to 8 bits it errs by up to 20% in the mid range where
-    // Debevec errs by 1% (tests/capture/calibration/robertson_test.cc), so Debevec stays the default.
+    // Debevec errs by 1% (tests/capture/calibration/robertson_test.cc), so Debevec stays the
+    // default.
     calibrate = cv::createCalibrateRobertson(/*max_iter=*/100, /*threshold=*/0.001f);
   } else {
     calibrate = cv::createCalibrateDebevec(/*samples=*/300, /*lambda=*/100.0f, /*random=*/false);

@@ -24,7 +24,8 @@ constexpr double kRadToDeg = 180.0 / kPi;
 // A fitted normal further off than this on a pixel the fit did not flag is a failure nobody was
 // told about.
 constexpr double kGrossErrorDeg = 30.0;
-// Bounds on outputs: unit normals to this tolerance; the fit's parameter ranges (relight/fit/fit.h).
+// Bounds on outputs: unit normals to this tolerance; the fit's parameter ranges
+// (relight/fit/fit.h).
 constexpr double kUnitTolerance = 1e-3;
 constexpr double kMaxSigma = kPi / 2 + 1e-6;
 constexpr double kMaxRoughness = 1.0 + 1e-6;

@@ -22,11 +22,11 @@
 #include "capture/build_field.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
-#include "relight/lighting/envmap.h"
-#include "relight/lighting/light_cells.h"
+#include "relight/compact/pca_field.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
-#include "relight/compact/pca_field.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
 #include "viewer/viewer_app_impl.h"
@@ -43,9 +43,9 @@ fs::path data_dir() {
   return LIGHTSTAGE_DATA_DIR;
 }
 
-// LED directions and validity from a .lspca header (layout in relight/compact/pca_field.cc): "LSPCA1\n",
-// int32 width, height, lights, rank, tile_size, float64 sigma, per LED float64 x, y, z, uint8
-// valid.
+// LED directions and validity from a .lspca header (layout in relight/compact/pca_field.cc):
+// "LSPCA1\n", int32 width, height, lights, rank, tile_size, float64 sigma, per LED float64 x, y, z,
+// uint8 valid.
 void read_pca_leds(const fs::path& path, std::vector<Eigen::Vector3d>& dirs,
                    std::vector<bool>& valid) {
   std::ifstream in(path, std::ios::binary);

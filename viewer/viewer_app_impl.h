@@ -14,9 +14,9 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
-#include "relight/lighting/envmap.h"
-#include "relight/fit/model_render.h"
 #include "relight/compact/pca_field.h"
+#include "relight/fit/model_render.h"
+#include "relight/lighting/envmap.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"
 #include "viewer/viewer_app.h"

@@ -4,8 +4,8 @@
 //              (median time over repeats), and the error against ground truth rendered directly
 //              from the scene. Writes leds.csv and two charts (PSNR against relight time; error
 //              against LEDs).
-//  fit-sweeps: failure sweeps of normals and fits (evaluation/fit_sweeps.h): fit_sweeps.csv and one chart
-//              per axis (normal error against the axis, flagged fraction as point labels).
+//  fit-sweeps: failure sweeps of normals and fits (evaluation/fit_sweeps.h): fit_sweeps.csv and
+//              one chart per axis (normal error against the axis, flagged fraction as labels).
 //  fit:        per-pixel model fits against field relighting: fit throughput and the error of
 //              relighting from each model (and the BIC choice) against ground truth, with the
 //              field-relighting points on the same chart (fit.csv, fit_error_vs_time.png).
@@ -18,19 +18,19 @@
 #include <limits>
 #include <optional>
 
-#include "capture/build_field.h"
 #include "app/cli/chart.h"
 #include "app/cli/commands.h"
+#include "capture/build_field.h"
+#include "evaluation/fit_sweeps.h"
+#include "lightstage/controller/sequencer.h"
 #include "lightstage/image_metrics.h"
 #include "lightstage/progress.h"
-#include "lightstage/controller/sequencer.h"
-#include "relight/lighting/envmap.h"
 #include "relight/fit/fit.h"
-#include "relight/lighting/light_cells.h"
 #include "relight/fit/model_render.h"
 #include "relight/fit/normals.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
-#include "evaluation/fit_sweeps.h"
 #include "sim/ground_truth.h"
 #include "sim/sim_stage.h"
 
@@ -99,9 +99,8 @@ void run_led_bench(const BenchArgs& args) {
       const double weights_ms = median_ms(
           3, [&] { weights = relight::integrate_environment(maps[m], dirs, 0.0, coverage); });
       Image relit;
-      const double relight_ms = median_ms(args.repeats, [&] {
-        relight::relight_into(field, weights.irradiance_rgb, relit);
-      });
+      const double relight_ms = median_ms(
+          args.repeats, [&] { relight::relight_into(field, weights.irradiance_rgb, relit); });
       sim::GroundTruthOptions gt;
       gt.covered_by_leds = dirs;
       gt.coverage_radius_rad = coverage;
@@ -293,9 +292,8 @@ void run_fit_bench(const FitBenchArgs& args) {
     gt.coverage_radius_rad = coverage;
     const Image truth = sim::render_ground_truth(scene, stage.camera, env_maps[m], gt);
     Image field_relit;
-    const double relight_ms = median_ms(args.repeats, [&] {
-      relight::relight_into(field, weights.irradiance_rgb, field_relit);
-    });
+    const double relight_ms = median_ms(
+        args.repeats, [&] { relight::relight_into(field, weights.irradiance_rgb, field_relit); });
     const ImageError field_error = compare_images(field_relit, truth);
     csv << "field," << map_name << ",0,0,0," << relight_ms << ',' << relight_ms / 1e3 << ','
         << field_error.relative_rmse << ',' << field_error.psnr_db << ",0\n";

@@ -1,7 +1,7 @@
-// lightstage bench temporal: time-varying BRDF fits (relight/time/temporal_fit.h) on the simulator's
-// time-varying scene as the number of time steps grows: fit time per pixel (per-step BRDF fits and
-// temporal model fits) and the error against ground truth (rendering at uncaptured times, and
-// the recovered rates). Writes temporal.csv and two charts.
+// lightstage bench temporal: time-varying BRDF fits (relight/time/temporal_fit.h) on the
+// simulator's time-varying scene as the number of time steps grows: fit time per pixel (per-step
+// BRDF fits and temporal model fits) and the error against ground truth (rendering at uncaptured
+// times, and the recovered rates). Writes temporal.csv and two charts.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>

@@ -4,8 +4,9 @@
 //    time per frame, PSNR and SSIM on held-out LEDs. Writes compact.csv and, per scene, PSNR
 //    against relight time and PSNR against bytes per pixel as PNG charts.
 //  * lightstage compress FIELD --out OUT [--format F] [--rank k|auto] [--tile N] [--gain G]:
-//    writes one representation (.ptm, .rti, or the PCA binary format of relight/compact/pca_field.h).
-//    FIELD is a field EXR, or an .lp capture (or a folder holding one), imported directly.
+//    writes one representation (.ptm, .rti, or the PCA binary format of
+//    relight/compact/pca_field.h). FIELD is a field EXR, or an .lp capture (or a folder holding
+//    one), imported directly.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -13,19 +14,19 @@
 #include <fstream>
 #include <map>
 
-#include "capture/field.h"
-#include "capture/olat_import.h"
 #include "app/cli/chart.h"
 #include "app/cli/commands.h"
 #include "app/jobs/compress_job.h"
+#include "capture/field.h"
+#include "capture/olat_import.h"
+#include "evaluation/leave_lights_out.h"
 #include "lightstage/errors.h"
 #include "lightstage/progress.h"
-#include "relight/fit/fit.h"
-#include "relight/lighting/light_cells.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
-#include "evaluation/leave_lights_out.h"
+#include "relight/fit/fit.h"
+#include "relight/lighting/light_cells.h"
 
 namespace ls::cli {
 

@@ -10,8 +10,8 @@
 #include <sstream>
 #include <thread>
 
-#include "lightstage/errors.h"
 #include "lightstage/controller/frame_writer.h"
+#include "lightstage/errors.h"
 
 namespace ls {
 

@@ -16,14 +16,14 @@
 #include <random>
 #include <string>
 
-#include "lightstage/errors.h"
-#include "relight/lighting/envmap.h"
-#include "relight/fit/fit.h"
-#include "relight/lighting/light_cells.h"
-#include "relight/fit/model_render.h"
-#include "relight/compact/pca_field.h"
-#include "relight/lighting/relight.h"
 #include "evaluation/leave_lights_out.h"
+#include "lightstage/errors.h"
+#include "relight/compact/pca_field.h"
+#include "relight/fit/fit.h"
+#include "relight/fit/model_render.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/lighting/relight.h"
 #include "tests/support/test_support.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"

@@ -8,10 +8,10 @@
 
 #include "capture/field.h"
 #include "capture/olat_import.h"
-#include "relight/fit/fit.h"
+#include "evaluation/leave_lights_out.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
-#include "evaluation/leave_lights_out.h"
+#include "relight/fit/fit.h"
 #include "tests/support/test_support.h"
 
 namespace ls::compact_testing {

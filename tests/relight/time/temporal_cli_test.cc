@@ -7,8 +7,8 @@
 #include "capture/field.h"
 #include "relight/time/temporal_fit.h"
 #include "sim/scene.h"
-#include "tests/support/test_support.h"
 #include "tests/relight/time/time_fixtures.h"
+#include "tests/support/test_support.h"
 
 namespace ls::relight {
 namespace {
