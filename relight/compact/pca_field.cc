@@ -301,75 +301,35 @@ int PcaField::tile_of(int x, int y) const {
   return tile_size_ > 0 ? (y / tile_size_) * tiles_x() + x / tile_size_ : 0;
 }
 
-PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOptions& options,
-                         PcaSummary* summary) {
-  const auto t0 = std::chrono::steady_clock::now();
-  if (const std::string e = options.validate(); !e.empty()) {
-    throw InputError(field.source + ": PCA options: " + e);
-  }
+namespace {
+
+// Gram matrices per tile of tile_size pixels (0: one, summed over bands of rows).
+std::vector<Eigen::MatrixXd> tile_gram_matrices(const capture::ReflectanceField& field,
+                                                int tile_size, int tiles_x, int tiles_y) {
   const int width = field.width(), height = field.height(), num_lights = field.num_lights();
-  if (width == 0 || height == 0 || num_lights == 0) {
-    throw InputError(field.source + ": field: expected pixels and lights to compress, got " +
-                     std::to_string(width) + "x" + std::to_string(height) + " pixels and " +
-                     std::to_string(num_lights) + " lights");
-  }
-  PcaField out;
-  out.width_ = width;
-  out.height_ = height;
-  out.tile_size_ = options.tile_size >= std::max(width, height) ? 0 : options.tile_size;
-  for (const auto& light : field.lights()) {
-    out.led_dirs_.push_back(light.dir_in_stage);
-    out.led_valid_.push_back(light.valid);
-  }
-  int valid_lights = 0;
-  for (bool v : out.led_valid_) valid_lights += v ? 1 : 0;
-
-  // Gram matrices per tile (global: bands of rows, summed).
-  const int tx = out.tiles_x();
-  const int ty = out.tile_size_ > 0 ? (height + out.tile_size_ - 1) / out.tile_size_ : 1;
-  std::vector<Eigen::MatrixXd> tile_grams(size_t(tx) * ty);
-  if (out.tile_size_ > 0) {
-    tbb::parallel_for(0, tx * ty, [&](int t) {
-      const int x0 = (t % tx) * out.tile_size_, y0 = (t / tx) * out.tile_size_;
-      tile_grams[t] = gram_of_rect(field, x0, y0, std::min(width, x0 + out.tile_size_),
-                                   std::min(height, y0 + out.tile_size_));
+  std::vector<Eigen::MatrixXd> tile_grams(size_t(tiles_x) * tiles_y);
+  if (tile_size > 0) {
+    tbb::parallel_for(0, tiles_x * tiles_y, [&](int t) {
+      const int x0 = (t % tiles_x) * tile_size, y0 = (t / tiles_x) * tile_size;
+      tile_grams[t] = gram_of_rect(field, x0, y0, std::min(width, x0 + tile_size),
+                                   std::min(height, y0 + tile_size));
     });
-  } else {
-    const int band = std::max(1, 4096 / width);
-    const int bands = (height + band - 1) / band;
-    std::vector<Eigen::MatrixXd> band_grams(bands);
-    tbb::parallel_for(0, bands, [&](int b) {
-      band_grams[b] = gram_of_rect(field, 0, b * band, width, std::min(height, (b + 1) * band));
-    });
-    tile_grams[0] = Eigen::MatrixXd::Zero(num_lights, num_lights);
-    for (const auto& g : band_grams) tile_grams[0] += g;
+    return tile_grams;
   }
-  Eigen::MatrixXd global_gram = Eigen::MatrixXd::Zero(num_lights, num_lights);
-  for (const auto& g : tile_grams) global_gram += g;
-  const Spectrum global = eigen_descending(global_gram);
-  std::vector<Spectrum> spectra(tile_grams.size());
-  if (out.tile_size_ > 0) {
-    tbb::parallel_for(0, int(tile_grams.size()),
-                      [&](int t) { spectra[t] = eigen_descending(tile_grams[t]); });
-  } else {
-    spectra[0] = global;
-  }
+  const int band = std::max(1, 4096 / width);
+  const int bands = (height + band - 1) / band;
+  std::vector<Eigen::MatrixXd> band_grams(bands);
+  tbb::parallel_for(0, bands, [&](int b) {
+    band_grams[b] = gram_of_rect(field, 0, b * band, width, std::min(height, (b + 1) * band));
+  });
+  tile_grams[0] = Eigen::MatrixXd::Zero(num_lights, num_lights);
+  for (const auto& g : band_grams) tile_grams[0] += g;
+  return tile_grams;
+}
 
-  // Residual per value after k terms, for the bases actually used.
-  const double samples = 3.0 * double(width) * height;  // (pixel, channel) vectors.
-  const double values = samples * std::max(valid_lights, 1);
-  std::vector<double> residual(num_lights + 1, 0.0);
-  for (const Spectrum& s : spectra) {
-    double tail = 0;
-    for (int k = num_lights; k >= 0; --k) {
-      residual[k] += tail / values;
-      if (k > 0) tail += s.values(k - 1);
-    }
-  }
-
-  // Noise floor.
-  PcaSummary sum;
-  sum.mean_square = global.values.sum() / values;
+// The noise floor per value: from the field's measured noise, else from the spectrum's tail.
+void estimate_noise_floor(const capture::ReflectanceField& field, const Spectrum& global,
+                          int valid_lights, double samples, double values, PcaSummary& sum) {
   if (field.noise.measured) {
     double positive_sum = 0;
     for (float v : field.values()) positive_sum += v > 0 ? v : 0;
@@ -377,15 +337,22 @@ PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOption
         field.noise.read_variance + field.noise.shot_variance_per_unit * positive_sum / values;
     sum.noise_measured = true;
     sum.noise_method = field.noise.method.empty() ? "field noise" : field.noise.method;
-  } else {
-    std::vector<double> spectrum(global.values.data(),
-                                 global.values.data() + std::max(valid_lights, 1));
-    const size_t tenth = spectrum.size() - 1 - (spectrum.size() - 1) / 10;  // Descending order.
-    const double spread = std::pow(1 - std::sqrt(std::max(valid_lights, 1) / samples), 2);
-    sum.noise_variance = spectrum[tenth] / (samples * spread);
-    sum.noise_measured = false;
-    sum.noise_method = "10th percentile of the PCA eigenvalues (Marchenko-Pastur lower edge)";
+    return;
   }
+  std::vector<double> spectrum(global.values.data(),
+                               global.values.data() + std::max(valid_lights, 1));
+  const size_t tenth = spectrum.size() - 1 - (spectrum.size() - 1) / 10;  // Descending order.
+  const double spread = std::pow(1 - std::sqrt(std::max(valid_lights, 1) / samples), 2);
+  sum.noise_variance = spectrum[tenth] / (samples * spread);
+  sum.noise_measured = false;
+  sum.noise_method = "10th percentile of the PCA eigenvalues (Marchenko-Pastur lower edge)";
+}
+
+// The rank: options.rank, or (0) the first component at the noise floor, or the best on held-out
+// LEDs (PcaRankRule::kHeldOutLights).
+int choose_rank(const capture::ReflectanceField& field, const PcaOptions& options,
+                const Spectrum& global, const Eigen::MatrixXd& global_gram, int valid_lights,
+                double samples, PcaSummary& sum) {
   const int max_rank = std::min(options.max_rank, std::max(valid_lights, 1));
   int rank = options.rank;
   if (rank == 0) {
@@ -413,7 +380,65 @@ PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOption
       sum.noise_method += "; rank from held-out LEDs";
     }
   }
-  rank = std::min(rank, max_rank);
+  return std::min(rank, max_rank);
+}
+
+}  // namespace
+
+PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOptions& options,
+                         PcaSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (const std::string e = options.validate(); !e.empty()) {
+    throw InputError(field.source + ": PCA options: " + e);
+  }
+  const int width = field.width(), height = field.height(), num_lights = field.num_lights();
+  if (width == 0 || height == 0 || num_lights == 0) {
+    throw InputError(field.source + ": field: expected pixels and lights to compress, got " +
+                     std::to_string(width) + "x" + std::to_string(height) + " pixels and " +
+                     std::to_string(num_lights) + " lights");
+  }
+  PcaField out;
+  out.width_ = width;
+  out.height_ = height;
+  out.tile_size_ = options.tile_size >= std::max(width, height) ? 0 : options.tile_size;
+  for (const auto& light : field.lights()) {
+    out.led_dirs_.push_back(light.dir_in_stage);
+    out.led_valid_.push_back(light.valid);
+  }
+  int valid_lights = 0;
+  for (bool v : out.led_valid_) valid_lights += v ? 1 : 0;
+
+  // Gram matrices per tile (global: bands of rows, summed).
+  const int tx = out.tiles_x();
+  const int ty = out.tile_size_ > 0 ? (height + out.tile_size_ - 1) / out.tile_size_ : 1;
+  const std::vector<Eigen::MatrixXd> tile_grams = tile_gram_matrices(field, out.tile_size_, tx, ty);
+  Eigen::MatrixXd global_gram = Eigen::MatrixXd::Zero(num_lights, num_lights);
+  for (const auto& g : tile_grams) global_gram += g;
+  const Spectrum global = eigen_descending(global_gram);
+  std::vector<Spectrum> spectra(tile_grams.size());
+  if (out.tile_size_ > 0) {
+    tbb::parallel_for(0, int(tile_grams.size()),
+                      [&](int t) { spectra[t] = eigen_descending(tile_grams[t]); });
+  } else {
+    spectra[0] = global;
+  }
+
+  // Residual per value after k terms, for the bases actually used.
+  const double samples = 3.0 * double(width) * height;  // (pixel, channel) vectors.
+  const double values = samples * std::max(valid_lights, 1);
+  std::vector<double> residual(num_lights + 1, 0.0);
+  for (const Spectrum& s : spectra) {
+    double tail = 0;
+    for (int k = num_lights; k >= 0; --k) {
+      residual[k] += tail / values;
+      if (k > 0) tail += s.values(k - 1);
+    }
+  }
+
+  PcaSummary sum;
+  sum.mean_square = global.values.sum() / values;
+  estimate_noise_floor(field, global, valid_lights, samples, values, sum);
+  const int rank = choose_rank(field, options, global, global_gram, valid_lights, samples, sum);
   out.rank_ = rank;
   for (const Spectrum& s : spectra) out.bases_.push_back(s.vectors.leftCols(rank).cast<float>());
 
