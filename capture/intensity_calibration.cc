@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <regex>
 
 #include "capture/light_calibration.h"
 #include "lightstage/errors.h"
