@@ -125,7 +125,7 @@ std::vector<Eigen::Vector3d> GpuRelight::led_dirs_;
 
 Image cpu_field(const capture::ReflectanceField& field, const ViewLighting& lighting) {
   Image out;
-  relight::relight_into(field, lighting.led_irradiance_rgb.data(), out);
+  relight::relight_into(field, lighting.led_irradiance_rgb, out);
   return out;
 }
 

@@ -322,7 +322,7 @@ TEST_F(ViewerApp_, ScriptedSequenceMatchesTheCpuRelighting) {
   const auto lights = relight::LightingForModels::directional(
       Eigen::Vector3d(0.3, 0.4, 0.8).normalized(), Eigen::Vector3d(1, 1, 1));
   Image cpu_point;
-  relight::relight_into(*field_, interpolator.led_irradiance(lights).data(), cpu_point);
+  relight::relight_into(*field_, interpolator.led_irradiance(lights), cpu_point);
   const double point_error = max_relative_difference(app.relit_image(), cpu_point);
   std::cout << "point light vs CPU: max " << point_error << " of the peak\n";
   EXPECT_LT(point_error, 2e-3);

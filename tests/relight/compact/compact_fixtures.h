@@ -12,6 +12,7 @@
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/fit/fit.h"
+#include "relight/fit/model_render.h"
 #include "tests/support/test_support.h"
 
 namespace ls::compact_testing {
