@@ -353,7 +353,7 @@ double flux_ratio(const Image& a, const Image& b) {
 // documents. Measured on this scene (softbox, 137 degrees): 0.204 of the peak at most; bound 0.25
 // (a regression guard, +23%). Over the whole image the prefiltered render carries the exact
 // render's light (SH9 keeps the constant and linear terms of the irradiance, the split sum the
-// lobe's energy): flux ratio measured FLUX, bound 1 +- 0.05. gpu_relight_test measures the method
+// lobe's energy): flux ratio bound 1 +- 0.05 (to be measured). gpu_relight_test measures the method
 // itself.
 TEST_F(ViewerApp_, ModelsUnderAnEnvironmentUseThePrefilteredEnvironment) {
   ViewState state = initial_state();
