@@ -26,6 +26,7 @@
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
 #include "relight/fit/fit.h"
+#include "relight/fit/model_render.h"
 #include "relight/lighting/light_cells.h"
 
 namespace ls::cli {

@@ -1,5 +1,6 @@
 // LightInterpolator (directions between the LEDs) and the raw field as a CompactField
 // (relight/compact/pca_field.h).
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 
