@@ -163,8 +163,12 @@ TEST(Cli, HelpExplainsEverySubcommand) {
           << cmd << " --help lacks " << word << ": " << out;
     }
     // Options of other commands are not listed: --resume is capture's, --blink check's.
-    if (cmd != "capture") EXPECT_EQ(out.find("--resume"), std::string::npos) << cmd << ": " << out;
-    if (cmd != "check") EXPECT_EQ(out.find("--blink"), std::string::npos) << cmd << ": " << out;
+    if (cmd != "capture") {
+      EXPECT_EQ(out.find("--resume"), std::string::npos) << cmd << ": " << out;
+    }
+    if (cmd != "check") {
+      EXPECT_EQ(out.find("--blink"), std::string::npos) << cmd << ": " << out;
+    }
   }
   std::string out;
   EXPECT_EQ(run_command(cli_path().string(), &out), 1) << out;  // No subcommand: usage.
