@@ -1,15 +1,16 @@
 #pragma once
 // Time-varying BRDFs (issue 6; Sun, Sunkavalli, Ramamoorthi, Belhumeur, Nayar 2007): from one
 // reflectance field per time step of the same scene, per pixel
-//   1. one normal for all steps (photometric stereo, relight/fit/normals.h, on the last, driest step
+//   1. one normal for all steps (photometric stereo, relight/fit/normals.h, on the last, driest
+//   step
 //      by default: see NormalSource), held fixed: the geometry does not change;
 //   2. per step, the full BRDF with that normal: Oren-Nayar diffuse (albedo RGB, sigma) + white
 //      Torrance-Sparrow lobe (k_s, Beckmann roughness), samples and noise weighting as in
-//      relight/fit/fit.h. Always the full model, never a per-step model choice, so every step gives the
-//      same six parameters; what stays constant over time is decided by the temporal model choice.
-//      Each parameter's uncertainty comes from the fit's Jacobian: cov = (J^T J)^-1 (residuals are
-//      already divided by the measured noise) scaled by max(1, reduced chi^2) so a misfit widens
-//      it, with a floor (kParamSigmaFloor) standing for model error;
+//      relight/fit/fit.h. Always the full model, never a per-step model choice, so every step gives
+//      the same six parameters; what stays constant over time is decided by the temporal model
+//      choice. Each parameter's uncertainty comes from the fit's Jacobian: cov = (J^T J)^-1
+//      (residuals are already divided by the measured noise) scaled by max(1, reduced chi^2) so a
+//      misfit widens it, with a floor (kParamSigmaFloor) standing for model error;
 //   3. over time, one process per pixel shared by its six parameters (as in the paper: one rate,
 //      one onset), each parameter with its own wet (start) and dry (end) value:
 //        constant     p(t) = dry
@@ -22,8 +23,9 @@
 //      onset bounds are built into the parametrisation), started from a grid over (rate, onset)
 //      with the endpoints solved linearly at each grid point (they are linear given the shape).
 //      The simplest model by BIC = chi^2 + k ln(n) (n: residuals used; ties to the simpler) wins,
-//      the criterion of relight/fit/fit.h. A model with as many parameters per series as usable steps
-//      or more (constant 1, exponential/sigmoid/dust 4) is not considered (flag kTooFewSteps).
+//      the criterion of relight/fit/fit.h. A model with as many parameters per series as usable
+//      steps or more (constant 1, exponential/sigmoid/dust 4) is not considered (flag
+//      kTooFewSteps).
 //
 // Times are seconds of scene time (ReflectanceField::scene_time_s). Rates are 1/s. The rate is
 // bounded by max_rate_times_interval / (smallest step interval): a faster process is a step
@@ -77,7 +79,12 @@ enum TemporalFlag : int {
   kTemporalFitFailed = 16,    // No temporal model could be fitted (no usable step).
   kOnsetAtCaptureStart = 32,  // The process was already running at the first step.
   kExtrapolated = 64,         // (render_temporal only) t outside the captured steps.
+  // A solver stopped on its iteration limit: the chosen temporal model's fit (max_iterations) or
+  // the chosen per-step BRDF fit of a used step (brdf.max_iterations); the values are where LM
+  // stopped, not at a minimum. The bit of kFitNotConverged (fit.h): models_at_time carries it.
+  kTemporalNotConverged = 128,
 };
+static_assert(kTemporalNotConverged == kFitNotConverged);
 
 // Measured on the simulator's time-varying scene (tests/time, 40 LEDs, 10 steps): mean normal
 // error pooled 0.73, first 0.71, last 0.58 degrees. The wet steps have the strongest, sharpest
@@ -97,7 +104,7 @@ struct TemporalFitOptions {
   bool fit_sigmoid = true;
   bool fit_dust = true;
   double max_rate_times_interval = 4.0;  // lambda, kappa <= this / smallest step interval.
-  int max_iterations = 60;
+  int max_iterations = 60;  // Per temporal model fit (brdf.max_iterations: per step fit).
   // Called as rows finish (rows done, rows in all) from worker threads; must be thread-safe.
   std::function<void(long done, long total)> progress;
   std::string validate() const;
@@ -109,6 +116,9 @@ struct StepFit {
   double time_s = 0;
   Image value;
   Image sigma;
+  // 1 channel: kTemporalNotConverged where the chosen per-step fit stopped on its iteration
+  // limit, else 0. Empty: no such information (treated as 0).
+  Image flags;
   int valid_lights = 0;
 };
 
@@ -138,6 +148,7 @@ struct TemporalSummary {
   int faster_than_sampling = 0;
   int too_few_steps = 0;
   int step_dropped = 0;
+  int not_converged = 0;        // Fitted pixels flagged kTemporalNotConverged.
   double seconds_steps = 0;     // Per-step BRDF fits.
   double seconds_temporal = 0;  // Temporal model fits.
   std::string to_string() const;
