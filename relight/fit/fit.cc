@@ -1,8 +1,6 @@
 #include "relight/fit/fit.h"
 
 #include <OpenImageIO/imageio.h>
-#include <ceres/tiny_solver.h>
-#include <ceres/tiny_solver_autodiff_function.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -18,22 +16,19 @@
 #include <sstream>
 
 #include "lightstage/errors.h"
+#include "relight/fit/pixel_solver.h"
 #include "relight/lighting/brdf.h"
 
 namespace ls::relight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};
-constexpr double kMinRoughness = 0.02;
+using pixel::kMinRoughness;
+using pixel::kPi;
+using pixel::Sample;
+using pixel::SolverStatus;
+
 constexpr double kMaxPhongExponent = 1e4;
 constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
-
-struct Sample {
-  Eigen::Vector3d l;  // Unit, toward the LED.
-  double v[3];        // Measured R per channel.
-  double inv_sigma[3];
-};
 
 struct PixelData {
   const Sample* samples = nullptr;
@@ -47,13 +42,6 @@ constexpr int kNumParams = M == FitModel::kLambert     ? 5
                            : M == FitModel::kOrenNayar ? 6
                                                        : 7;
 
-template <class T>
-T sigmoid(const T& u) {
-  using std::exp;
-  return T(1) / (T(1) + exp(-u));
-}
-double logit(double p) { return std::log(p / (1 - p)); }
-
 // Parameter vector: [normal angle a, normal angle b, sqrt(albedo) r g b, model-specific...].
 template <class T>
 brdf::Vec3<T> normal_from(const PixelData& d, const T* p) {
@@ -64,6 +52,22 @@ brdf::Vec3<T> normal_from(const PixelData& d, const T* p) {
   return n * inv_len;
 }
 
+// The model's physical parameters from the raw ones (bounds as in fit.h): sigma, k_s and the lobe
+// shape (Beckmann m, or the Phong exponent).
+template <FitModel M, class T>
+void lobe_params(const T* p, T* sigma, T* ks, T* shape) {
+  *sigma = *ks = *shape = T(0);
+  if constexpr (M == FitModel::kOrenNayar) *sigma = pixel::bounded(p[5], 0.0, 0.5 * kPi);
+  if constexpr (M == FitModel::kLambertTorranceSparrow) {
+    *ks = pixel::non_negative(p[5]);
+    *shape = pixel::bounded(p[6], kMinRoughness, 1.0);
+  }
+  if constexpr (M == FitModel::kLambertPhong) {
+    *ks = pixel::non_negative(p[5]);
+    *shape = pixel::bounded(p[6], 1.0, kMaxPhongExponent);
+  }
+}
+
 template <FitModel M>
 struct Cost {
   const PixelData* d;
@@ -71,44 +75,30 @@ struct Cost {
 
   template <class T>
   bool operator()(const T* p, T* r) const {
-    const brdf::Vec3<T> n = normal_from(*d, p);
-    const brdf::Vec3<T> wo = d->wo.cast<T>();
-    const T albedo[3] = {p[2] * p[2], p[3] * p[3], p[4] * p[4]};
-    T sigma(0), ks(0), shape(0);
-    if constexpr (M == FitModel::kOrenNayar) sigma = T(0.5 * kPi) * sigmoid(p[5]);
-    if constexpr (M == FitModel::kLambertTorranceSparrow) {
-      ks = p[5] * p[5];
-      shape = T(kMinRoughness) + T(1 - kMinRoughness) * sigmoid(p[6]);
-    }
-    if constexpr (M == FitModel::kLambertPhong) {
-      ks = p[5] * p[5];
-      shape = T(1) + T(kMaxPhongExponent - 1) * sigmoid(p[6]);
-    }
-    for (int i = 0; i < d->count; ++i) {
-      const Sample& s = d->samples[i];
-      const auto g = brdf::Geometry<T>::from_world(n, s.l.cast<T>(), wo);
-      T diffuse;
-      if constexpr (M == FitModel::kOrenNayar) {
-        diffuse = brdf::oren_nayar(g, sigma);
-      } else {
-        diffuse = brdf::lambert(g);
-      }
-      T specular(0);
+    const T albedo[3] = {pixel::non_negative(p[2]), pixel::non_negative(p[3]),
+                         pixel::non_negative(p[4])};
+    T sigma, ks, shape;
+    lobe_params<M>(p, &sigma, &ks, &shape);
+    const auto diffuse = [&](const brdf::Geometry<T>& g) {
+      if constexpr (M == FitModel::kOrenNayar) return brdf::oren_nayar(g, sigma);
+      return brdf::lambert(g);
+    };
+    const auto specular = [&](const brdf::Geometry<T>& g) {
       if constexpr (M == FitModel::kLambertTorranceSparrow) {
-        specular = ks * brdf::torrance_sparrow(g, shape);
+        return ks * brdf::torrance_sparrow(g, shape);
       }
-      if constexpr (M == FitModel::kLambertPhong) specular = ks * brdf::phong(g, shape);
-      const T cos_i = g.cos_i > T(0) ? g.cos_i : T(0);
-      for (int c = 0; c < 3; ++c) {
-        r[3 * i + c] = ((albedo[c] * diffuse + specular) * cos_i - T(s.v[c])) * T(s.inv_sigma[c]);
-      }
-    }
+      if constexpr (M == FitModel::kLambertPhong) return ks * brdf::phong(g, shape);
+      return T(0);
+    };
+    pixel::sample_residuals(d->samples, d->count, normal_from(*d, p),
+                            brdf::Vec3<T>(d->wo.cast<T>()), albedo, diffuse, specular, r);
     return true;
   }
 };
 
 struct ModelFit {
   bool ok = false;
+  SolverStatus status = SolverStatus::kFailed;
   double chi2 = std::numeric_limits<double>::infinity();
   double bic = std::numeric_limits<double>::infinity();
   int k = 0;
@@ -120,43 +110,116 @@ struct ModelFit {
 template <FitModel M>
 ModelFit run_fit(const PixelData& d, const std::array<double, 7>& start, int max_iterations) {
   constexpr int K = kNumParams<M>;
-  using Function = ceres::TinySolverAutoDiffFunction<Cost<M>, Eigen::Dynamic, K>;
-  const Cost<M> cost{&d};
-  const Function function(cost);
-  ceres::TinySolver<Function> solver;
-  solver.options.max_num_iterations = max_iterations;
-  Eigen::Matrix<double, K, 1> x;
-  for (int i = 0; i < K; ++i) x(i) = start[i];
-  solver.Solve(function, &x);
-
+  const Eigen::Matrix<double, K, 1> x0 =
+      Eigen::Map<const Eigen::Matrix<double, K, 1>>(start.data());
+  const pixel::SolveResult<K> solved = pixel::solve(Cost<M>{&d}, x0, max_iterations);
+  const Eigen::Matrix<double, K, 1>& x = solved.x;
   ModelFit fit;
+  fit.status = solved.status;
   fit.k = d.refine_normal ? K : K - 2;
-  if (!x.allFinite()) return fit;
-  // chi^2 at the returned parameters, evaluated here rather than trusted from the solver.
-  thread_local std::vector<double> residuals;
-  residuals.resize(size_t(cost.NumResiduals()));
-  cost(x.data(), residuals.data());
-  double chi2 = 0;
-  for (const double r : residuals) chi2 += r * r;
-  if (!std::isfinite(chi2)) return fit;
-  fit.chi2 = chi2;
-  fit.bic = chi2 + fit.k * std::log(double(residuals.size()));
+  if (!solved.usable()) return fit;
+  fit.chi2 = solved.chi2;
+  fit.bic = fit.chi2 + fit.k * std::log(double(3 * d.count));
   for (int i = 0; i < K; ++i) fit.x[i] = x(i);
   fit.normal = normal_from(d, x.data());
   fit.albedo = Eigen::Vector3d(x(2) * x(2), x(3) * x(3), x(4) * x(4));
-  if constexpr (M == FitModel::kOrenNayar) fit.sigma = 0.5 * kPi * sigmoid(x(5));
-  if constexpr (M == FitModel::kLambertTorranceSparrow) {
-    fit.ks = x(5) * x(5);
-    fit.roughness = kMinRoughness + (1 - kMinRoughness) * sigmoid(x(6));
-  }
-  if constexpr (M == FitModel::kLambertPhong) {
-    fit.ks = x(5) * x(5);
-    const double exponent = 1 + (kMaxPhongExponent - 1) * sigmoid(x(6));
-    fit.roughness = std::sqrt(2 / (exponent + 2));
-  }
+  double shape;
+  lobe_params<M>(x.data(), &fit.sigma, &fit.ks, &shape);
+  if constexpr (M == FitModel::kLambertTorranceSparrow) fit.roughness = shape;
+  if constexpr (M == FitModel::kLambertPhong) fit.roughness = std::sqrt(2 / (shape + 2));
   fit.ok = fit.normal.allFinite() && fit.albedo.allFinite() && std::isfinite(fit.sigma) &&
            std::isfinite(fit.ks) && std::isfinite(fit.roughness);
   return fit;
+}
+
+// Every candidate model's fit, indexed by FitModel (not ok: not tried or discarded);
+// implausible[k]: a lobe fit of model k was thrown away for k_s > max_specular_albedo.
+std::array<ModelFit, 5> fit_candidates(const PixelData& d, const FitOptions& options,
+                                       std::array<bool, 5>* implausible) {
+  // Lambert start: closed-form albedo per channel with the PS normal.
+  std::array<double, 7> start{};
+  const Eigen::Vector3d albedo = pixel::lambert_albedo(d.samples, d.count, d.n0);
+  for (int c = 0; c < 3; ++c) start[2 + c] = pixel::non_negative_inverse(albedo(c), 1e-4);
+  std::array<ModelFit, 5> fits;
+  fits[1] = run_fit<FitModel::kLambert>(d, start, options.max_iterations);
+  if (fits[1].ok) start = fits[1].x;
+  if (options.fit_oren_nayar) {
+    std::array<double, 7> s = start;
+    for (int c = 2; c < 5; ++c) s[c] *= 1.07;             // A(sigma) ~ 0.87 at the start sigma.
+    s[5] = pixel::bounded_inverse(0.42, 0.0, 0.5 * kPi);  // sigma = 0.42 rad (24 degrees).
+    fits[2] = run_fit<FitModel::kOrenNayar>(d, s, options.max_iterations);
+  }
+  if (options.fit_torrance_sparrow) {
+    for (const double m0 : options.roughness_starts) {
+      std::array<double, 7> s = start;
+      s[5] = std::sqrt(0.05);
+      s[6] = pixel::bounded_inverse(m0, kMinRoughness, 1.0);
+      ModelFit f = run_fit<FitModel::kLambertTorranceSparrow>(d, s, options.max_iterations);
+      if (f.ok && f.ks > options.max_specular_albedo) {
+        (*implausible)[3] = true;
+        continue;
+      }
+      if (f.ok && f.bic < fits[3].bic) fits[3] = f;
+    }
+  }
+  if (options.fit_phong) {
+    std::array<double, 7> s = start;
+    s[5] = std::sqrt(0.05);
+    s[6] = pixel::bounded_inverse(50.0, 1.0, kMaxPhongExponent);  // Exponent 50.
+    fits[4] = run_fit<FitModel::kLambertPhong>(d, s, options.max_iterations);
+    if (fits[4].ok && fits[4].ks > options.max_specular_albedo) {
+      (*implausible)[4] = true;
+      fits[4] = ModelFit{};
+    }
+  }
+  return fits;
+}
+
+// Fits one pixel with usable samples: chooses the model, writes the map values m, counts in local.
+void fit_pixel(const PixelData& d, const FitOptions& options, float* m, FitSummary& local) {
+  std::array<bool, 5> implausible{};
+  const std::array<ModelFit, 5> fits = fit_candidates(d, options, &implausible);
+  int best = 0;
+  for (int k = 1; k < 5; ++k) {
+    const bool tried = k == 1 || (k == 2 && options.fit_oren_nayar) ||
+                       (k == 3 && options.fit_torrance_sparrow) || (k == 4 && options.fit_phong);
+    if (tried && !fits[k].ok) {
+      if (implausible[k]) {
+        ++local.discarded_implausible_lobes;
+      } else {
+        ++local.discarded_nonfinite_fits;
+      }
+    }
+    // Strictly lower BIC needed: ties go to the simpler model (lower index).
+    if (fits[k].ok && (best == 0 || fits[k].bic < fits[best].bic)) best = k;
+  }
+  if (best == 0) {
+    m[kMapFlags] = float(kFitFailed);
+    ++local.flagged;
+    return;
+  }
+  const ModelFit& f = fits[best];
+  double weight_sum = 0;
+  for (int k = 1; k < 5; ++k) {
+    if (fits[k].ok) weight_sum += std::exp(-0.5 * (fits[k].bic - f.bic));
+  }
+  for (int c = 0; c < 3; ++c) {
+    m[kMapNormalX + c] = float(f.normal(c));
+    m[kMapAlbedoR + c] = float(f.albedo(c));
+  }
+  m[kMapSigma] = float(f.sigma);
+  m[kMapKs] = float(f.ks);
+  m[kMapRoughness] = float(f.roughness);
+  m[kMapModel] = float(best);
+  m[kMapConfidence] = float(1 / weight_sum);
+  const int dof = 3 * d.count - f.k;
+  m[kMapResidual] = float(dof > 0 ? f.chi2 / dof : f.chi2);
+  // The chosen parameters are where the solver stopped, not at a minimum.
+  const bool not_converged = f.status != SolverStatus::kConverged;
+  m[kMapFlags] = float(not_converged ? kFitNotConverged : 0);
+  local.not_converged += not_converged;
+  ++local.fitted;
+  ++local.per_model[best];
 }
 
 }  // namespace
@@ -195,7 +258,8 @@ std::string FitSummary::to_string() const {
   s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged; models:";
   for (int m = 1; m < 5; ++m) s << ' ' << relight::to_string(FitModel(m)) << '=' << per_model[m];
   s << "; " << discarded_nonfinite_fits << " non-finite fits discarded, "
-    << discarded_implausible_lobes << " lobes with implausible k_s discarded; " << seconds << " s";
+    << discarded_implausible_lobes << " lobes with implausible k_s discarded; " << not_converged
+    << " fitted pixels not converged (iteration limit); " << seconds << " s";
   return s.str();
 }
 
@@ -216,11 +280,9 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
            "normal map is " + std::to_string(normals.normal.width) + "x" +
                std::to_string(normals.normal.height) + ", field is " + std::to_string(width) + "x" +
                std::to_string(height));
-  if (!options.view_dir_per_pixel.empty() &&
-      options.view_dir_per_pixel.size() != size_t(width) * height) {
-    throw InputError("fit options: view_dir_per_pixel: expected " +
-                     std::to_string(size_t(width) * height) + " directions, got " +
-                     std::to_string(options.view_dir_per_pixel.size()));
+  if (const std::string error = pixel::check_view_dirs(options.view_dir_per_pixel, width, height);
+      !error.empty()) {
+    throw InputError("fit options: " + error);
   }
   const auto start_time = std::chrono::steady_clock::now();
   ModelMaps out;
@@ -230,51 +292,25 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
   out.noise_source = options.noise_source;
   std::atomic<long> rows_done{0};
   const capture::ValidLights valid = capture::valid_lights(field);
-  const std::vector<int>& light_index = valid.index;
-  const std::vector<Eigen::Vector3d>& dirs = valid.dirs_in_stage;
   const NormalOptions& no = options.normals;
   std::mutex summary_mutex;
   FitSummary& summary = out.summary;
   summary.pixels = width * height;
 
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
-    std::vector<Sample> samples(dirs.size());
+    std::vector<Sample> samples(valid.index.size());
     FitSummary local;
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         float* m = &out.maps.at(x, y, 0);
-        int flags = int(normals.flags.at(x, y, 0));
+        const int flags = int(normals.flags.at(x, y, 0));
         if (flags != 0) {
           m[kMapFlags] = float(flags);
           ++local.flagged;
           continue;
         }
-        // Samples above the shadow threshold, as in estimate_normals.
-        const float* px = field.pixel(x, y);
-        double y_max = 0;
-        for (const int l : light_index) {
-          const float* v = px + 3 * l;
-          y_max = std::max(y_max, kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2]);
-        }
-        const double threshold =
-            std::max(no.shadow_sigmas * std::sqrt(no.noise.a), no.shadow_fraction * y_max);
-        int count = 0;
-        int saturated = 0;
-        for (size_t i = 0; i < dirs.size(); ++i) {
-          const float* v = px + 3 * light_index[i];
-          if (capture::is_saturated(field.lights()[light_index[i]], v)) {
-            ++saturated;  // A lower bound, not a measurement.
-            continue;
-          }
-          const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
-          if (!(lum > threshold) || !std::isfinite(lum)) continue;
-          Sample& s = samples[count++];
-          s.l = capture::light_dir_at(field, light_index[i], x, y);  // Per pixel for near LEDs.
-          for (int c = 0; c < 3; ++c) {
-            s.v[c] = v[c];
-            s.inv_sigma[c] = 1 / std::sqrt(no.noise.variance(v[c]));
-          }
-        }
+        const auto [count, saturated] =
+            pixel::gather_samples(field, valid, no, x, y, samples.data());
         if (count < no.min_lights || saturated > no.max_saturated_fraction * (count + saturated)) {
           m[kMapFlags] =
               float((count < no.min_lights ? kFitFailed : 0) | (saturated > 0 ? kSaturated : 0));
@@ -284,101 +320,12 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
         PixelData d;
         d.samples = samples.data();
         d.count = count;
-        d.n0 = Eigen::Vector3d(normals.normal.at(x, y, 0), normals.normal.at(x, y, 1),
-                               normals.normal.at(x, y, 2))
-                   .normalized();
+        d.n0 = pixel::normal_at(normals, x, y);
         d.t1 = d.n0.unitOrthogonal();
         d.t2 = d.n0.cross(d.t1);
         d.refine_normal = options.refine_normal;
-        d.wo = options.view_dir_per_pixel.empty()
-                   ? Eigen::Vector3d(0, 0, 1)
-                   : options.view_dir_per_pixel[size_t(y) * width + x].normalized();
-
-        // Lambert start: closed-form albedo per channel with the PS normal.
-        std::array<double, 7> start{};
-        for (int c = 0; c < 3; ++c) {
-          double sxx = 0, sxy = 0;
-          for (int i = 0; i < count; ++i) {
-            const double shade = std::max(0.0, d.n0.dot(samples[i].l)) / kPi;
-            const double w = samples[i].inv_sigma[c] * samples[i].inv_sigma[c];
-            sxx += w * shade * shade;
-            sxy += w * shade * samples[i].v[c];
-          }
-          start[2 + c] = std::sqrt(std::max(sxx > 0 ? sxy / sxx : 0.0, 1e-4));
-        }
-        std::array<ModelFit, 5> fits;
-        // Lobe fits thrown away for k_s > max_specular_albedo, per model (not non-finite ones).
-        std::array<bool, 5> implausible{};
-        fits[1] = run_fit<FitModel::kLambert>(d, start, options.max_iterations);
-        if (fits[1].ok) start = fits[1].x;
-        if (options.fit_oren_nayar) {
-          std::array<double, 7> s = start;
-          for (int c = 2; c < 5; ++c) s[c] *= 1.07;  // A(sigma) ~ 0.87 at the start sigma.
-          s[5] = logit(0.42 / (0.5 * kPi));          // sigma = 0.42 rad (24 degrees).
-          fits[2] = run_fit<FitModel::kOrenNayar>(d, s, options.max_iterations);
-        }
-        if (options.fit_torrance_sparrow) {
-          for (const double m0 : options.roughness_starts) {
-            std::array<double, 7> s = start;
-            s[5] = std::sqrt(0.05);
-            s[6] = logit((m0 - kMinRoughness) / (1 - kMinRoughness));
-            ModelFit f = run_fit<FitModel::kLambertTorranceSparrow>(d, s, options.max_iterations);
-            if (f.ok && f.ks > options.max_specular_albedo) {
-              implausible[3] = true;
-              continue;
-            }
-            if (f.ok && f.bic < fits[3].bic) fits[3] = f;
-          }
-        }
-        if (options.fit_phong) {
-          std::array<double, 7> s = start;
-          s[5] = std::sqrt(0.05);
-          s[6] = logit(49.0 / (kMaxPhongExponent - 1));  // Exponent 50.
-          fits[4] = run_fit<FitModel::kLambertPhong>(d, s, options.max_iterations);
-          if (fits[4].ok && fits[4].ks > options.max_specular_albedo) {
-            implausible[4] = true;
-            fits[4] = ModelFit{};
-          }
-        }
-        int best = 0;
-        for (int k = 1; k < 5; ++k) {
-          const bool tried = k == 1 || (k == 2 && options.fit_oren_nayar) ||
-                             (k == 3 && options.fit_torrance_sparrow) ||
-                             (k == 4 && options.fit_phong);
-          if (tried && !fits[k].ok) {
-            if (implausible[k]) {
-              ++local.discarded_implausible_lobes;
-            } else {
-              ++local.discarded_nonfinite_fits;
-            }
-          }
-          // Strictly lower BIC needed: ties go to the simpler model (lower index).
-          if (fits[k].ok && (best == 0 || fits[k].bic < fits[best].bic)) best = k;
-        }
-        if (best == 0) {
-          m[kMapFlags] = float(kFitFailed);
-          ++local.flagged;
-          continue;
-        }
-        const ModelFit& f = fits[best];
-        double weight_sum = 0;
-        for (int k = 1; k < 5; ++k) {
-          if (fits[k].ok) weight_sum += std::exp(-0.5 * (fits[k].bic - f.bic));
-        }
-        for (int c = 0; c < 3; ++c) {
-          m[kMapNormalX + c] = float(f.normal(c));
-          m[kMapAlbedoR + c] = float(f.albedo(c));
-        }
-        m[kMapSigma] = float(f.sigma);
-        m[kMapKs] = float(f.ks);
-        m[kMapRoughness] = float(f.roughness);
-        m[kMapModel] = float(best);
-        m[kMapConfidence] = float(1 / weight_sum);
-        const int dof = 3 * count - f.k;
-        m[kMapResidual] = float(dof > 0 ? f.chi2 / dof : f.chi2);
-        m[kMapFlags] = 0;
-        ++local.fitted;
-        ++local.per_model[best];
+        d.wo = pixel::view_dir_at(options.view_dir_per_pixel, size_t(y) * width + x);
+        fit_pixel(d, options, m, local);
       }
       const long done = ++rows_done;
       if (options.progress) options.progress(done, height);
@@ -388,6 +335,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
     summary.flagged += local.flagged;
     summary.discarded_nonfinite_fits += local.discarded_nonfinite_fits;
     summary.discarded_implausible_lobes += local.discarded_implausible_lobes;
+    summary.not_converged += local.not_converged;
     for (int k = 0; k < 5; ++k) summary.per_model[k] += local.per_model[k];
   });
   summary.seconds =
@@ -449,7 +397,7 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
   preview("confidence", kMapConfidence, 1, identity);
   preview("residual", kMapResidual, 1,
           [](float v) { return std::log10(1 + std::max(v, 0.f)) / 2; });
-  preview("flags", kMapFlags, 1, [](float v) { return v / 63; });  // Bits up to kSaturated (32).
+  preview("flags", kMapFlags, 1, [](float v) { return v / 255; });  // Bits up to 128.
 }
 
 ModelMaps read_model_maps(const std::filesystem::path& path) {
@@ -534,6 +482,7 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
       }
       ++summary.fitted;
       ++summary.per_model[int(model)];
+      summary.not_converged += (int(flags) & kFitNotConverged) != 0;
       const Eigen::Vector3d n(out.maps.at(x, y, kMapNormalX), out.maps.at(x, y, kMapNormalY),
                               out.maps.at(x, y, kMapNormalZ));
       if (std::abs(n.norm() - 1) > 1e-3) fail(kMapNormalX, x, y, "a unit normal (x, y, z)");

@@ -10,10 +10,11 @@
 // angles: PS is biased for non-Lambertian surfaces, e.g. Oren-Nayar flattens the shading toward
 // the viewer), so k = 5, 6, 7, 7 parameters.
 //
-// Each fit is bounded Levenberg-Marquardt (ceres::TinySolver, autodiff Jets through
-// relight/lighting/brdf.h) with the bounds built into the parametrisation: albedo = u^2, k_s = u^2,
-// sigma = (pi/2) sigmoid(u), roughness = 0.02 + 0.98 sigmoid(u), Phong exponent = 1 + (1e4 - 1)
-// sigmoid(u).
+// Each fit is bounded Levenberg-Marquardt (ceres::TinySolver through relight/fit/pixel_solver.h,
+// autodiff Jets through relight/lighting/brdf.h) with the bounds built into the parametrisation:
+// albedo = u^2, k_s = u^2, sigma = (pi/2) sigmoid(u), roughness = 0.02 + 0.98 sigmoid(u), Phong
+// exponent = 1 + (1e4 - 1) sigmoid(u). A chosen fit whose solver stopped on max_iterations is
+// kept but flagged kFitNotConverged.
 //
 // Samples: every valid light whose luminance is above the shadow threshold (NormalOptions), all
 // three channels, each residual divided by its noise sigma (NoiseModel, from the measured value),
@@ -61,6 +62,7 @@ struct FitOptions {
   bool fit_phong = false;  // Comparison only: off by default.
   // Torrance-Sparrow is multimodal in roughness: one LM start per entry, the best kept.
   std::vector<double> roughness_starts{0.08, 0.3};
+  // Per LM fit; a chosen fit that stops on it is flagged kFitNotConverged.
   int max_iterations = 50;
   // Off: the normal is held at the given (photometric-stereo) normal and k drops by 2, e.g. for a
   // scene whose geometry does not change over time (relight/time/temporal_fit.h).
@@ -98,10 +100,16 @@ enum MapChannel : int {
   kMapModel,       // FitModel as a number.
   kMapConfidence,  // BIC weight of the chosen model, exp(-BIC/2) normalised over the candidates.
   kMapResidual,    // Reduced chi^2 of the chosen model (about 1 when it explains the data).
-  kMapFlags,       // NormalFlag bits | kFitFailed.
+  kMapFlags,       // NormalFlag bits | kFitFailed | kFitNotConverged.
   kMapChannelCount,
 };
-inline constexpr int kFitFailed = 16;
+// Flag bits of kMapFlags beside the NormalFlag bits (relight/fit/normals.h); the codes are stored
+// in maps on disk: never renumber.
+inline constexpr int kFitFailed = 16;  // No model could be fitted (the pixel is not fitted).
+// The chosen model's solver stopped on max_iterations: the pixel is fitted, but its parameters are
+// where LM stopped, not at a minimum. 128, not 64: models_at_time (relight/time/temporal_render.h)
+// carries kExtrapolated (64) in kMapFlags, and kTemporalNotConverged is this same bit.
+inline constexpr int kFitNotConverged = 128;
 
 struct FitSummary {
   int pixels = 0;
@@ -110,13 +118,15 @@ struct FitSummary {
   int per_model[5] = {0, 0, 0, 0, 0};   // Indexed by FitModel.
   int discarded_nonfinite_fits = 0;     // Individual model fits thrown away (not pixels).
   int discarded_implausible_lobes = 0;  // Lobe fits with k_s > max_specular_albedo (per model).
+  int not_converged = 0;                // Fitted pixels flagged kFitNotConverged.
   double seconds = 0;
   std::string to_string() const;
 };
 
 struct ModelMaps {
   Image maps;  // kMapChannelCount named channels: normal.x/y/z, albedo.r/g/b, sigma, ks, ...
-  FitSummary summary;  // Not stored in the file: read_model_maps fills only pixels/fitted/flagged.
+  // Not stored in the file: read_model_maps fills only pixels/fitted/flagged/not_converged.
+  FitSummary summary;
   // The noise model the fit weighted its residuals with (so kMapResidual can be read) and where it
   // came from; stored in the "lightstage:fit_noise" attribute.
   NoiseModel noise;

@@ -70,6 +70,7 @@ enum NormalFlag : int {
   // (16 is kFitFailed, relight/fit/fit.h.)
   kSaturated = 32,  // Saturation censored too many samples (see max_saturated_fraction); also set
                     // with kTooFewLights when censoring is what left too few.
+  // (128 is kFitNotConverged, relight/fit/fit.h.)
 };
 
 struct NormalMap {

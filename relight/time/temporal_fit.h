@@ -78,7 +78,12 @@ enum TemporalFlag : int {
   kTemporalFitFailed = 16,    // No temporal model could be fitted (no usable step).
   kOnsetAtCaptureStart = 32,  // The process was already running at the first step.
   kExtrapolated = 64,         // (render_temporal only) t outside the captured steps.
+  // A solver stopped on its iteration limit: the chosen temporal model's fit (max_iterations) or
+  // the chosen per-step BRDF fit of a used step (brdf.max_iterations); the values are where LM
+  // stopped, not at a minimum. The bit of kFitNotConverged (fit.h): models_at_time carries it.
+  kTemporalNotConverged = 128,
 };
+static_assert(kTemporalNotConverged == kFitNotConverged);
 
 // Measured on the simulator's time-varying scene (tests/time, 40 LEDs, 10 steps): mean normal
 // error pooled 0.73, first 0.71, last 0.58 degrees. The wet steps have the strongest, sharpest
@@ -98,7 +103,7 @@ struct TemporalFitOptions {
   bool fit_sigmoid = true;
   bool fit_dust = true;
   double max_rate_times_interval = 4.0;  // lambda, kappa <= this / smallest step interval.
-  int max_iterations = 60;
+  int max_iterations = 60;  // Per temporal model fit (brdf.max_iterations: per step fit).
   // Called as rows finish (rows done, rows in all) from worker threads; must be thread-safe.
   std::function<void(long done, long total)> progress;
   std::string validate() const;
@@ -110,6 +115,9 @@ struct StepFit {
   double time_s = 0;
   Image value;
   Image sigma;
+  // 1 channel: kTemporalNotConverged where the chosen per-step fit stopped on its iteration
+  // limit, else 0. Empty: no such information (treated as 0).
+  Image flags;
   int valid_lights = 0;
 };
 
@@ -139,6 +147,7 @@ struct TemporalSummary {
   int faster_than_sampling = 0;
   int too_few_steps = 0;
   int step_dropped = 0;
+  int not_converged = 0;        // Fitted pixels flagged kTemporalNotConverged.
   double seconds_steps = 0;     // Per-step BRDF fits.
   double seconds_temporal = 0;  // Temporal model fits.
   std::string to_string() const;

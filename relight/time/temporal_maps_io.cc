@@ -59,7 +59,7 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
   preview("wet_ks", kTWet + int(kParamKs), 1, identity);
   preview("dry_ks", kTDry + int(kParamKs), 1, identity);
   preview("confidence", kTConfidence, 1, identity);
-  preview("flags", kTFlags, 1, [](float v) { return v / 127; });
+  preview("flags", kTFlags, 1, [](float v) { return v / 255; });  // Bits up to 128.
 }
 
 TemporalMaps read_temporal_maps(const std::filesystem::path& path) {

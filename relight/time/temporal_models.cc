@@ -1,7 +1,5 @@
 // Temporal curve models (constant / exponential / sigmoid / dust), their fits and the BIC choice
 // per pixel (relight/time/temporal_fit.h, step 3).
-#include <ceres/tiny_solver.h>
-#include <ceres/tiny_solver_autodiff_function.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -17,17 +15,17 @@
 #include <vector>
 
 #include "lightstage/errors.h"
+#include "relight/fit/pixel_solver.h"
 #include "relight/time/temporal_fit.h"
 #include "relight/time/temporal_fit_internal.h"
 
 namespace ls::relight {
 namespace {
 
+using pixel::SolverStatus;
 using temporal_internal::kMaxSigma;
 using temporal_internal::kMinRoughness;
 using temporal_internal::kNoInformationSigma;
-using temporal_internal::logit;
-using temporal_internal::sigmoid;
 
 // ---------------------------------------------------------------------------------------------
 // Temporal models. Each parameter j follows p_j(t) = dry_j + (wet_j - dry_j) s(t), s = 1 at the
@@ -137,8 +135,8 @@ struct TemporalCost {
   template <class T>
   void unpack(const T* x, T* rate, T* onset, T* wet, T* dry) const {
     using std::exp;
-    *rate = exp(T(bounds.log_rate_lo) + T(bounds.log_rate_hi - bounds.log_rate_lo) * sigmoid(x[0]));
-    *onset = T(bounds.onset_lo) + T(bounds.onset_hi - bounds.onset_lo) * sigmoid(x[1]);
+    *rate = exp(pixel::bounded(x[0], bounds.log_rate_lo, bounds.log_rate_hi));
+    *onset = pixel::bounded(x[1], bounds.onset_lo, bounds.onset_hi);
     int k = 2;
     for (int p = 0; p < kTemporalParamCount; ++p) {
       if (!param_moves(M, p)) {
@@ -169,6 +167,7 @@ struct TemporalCost {
 
 struct TemporalResult {
   bool ok = false;
+  SolverStatus status = SolverStatus::kConverged;  // Of the LM refinement (none: closed form).
   double chi2 = std::numeric_limits<double>::infinity();
   int k = 0;
   double rate = 0, onset = 0;
@@ -206,9 +205,9 @@ TemporalResult fit_process(const Series& s, const ShapeBounds& bounds, int itera
   solve_endpoints(M, s, grid_rate, grid_onset, wet, dry);
   Eigen::Matrix<double, K, 1> x;
   x(0) =
-      logit((std::log(grid_rate) - bounds.log_rate_lo) / (bounds.log_rate_hi - bounds.log_rate_lo));
+      pixel::clamped_bounded_inverse(std::log(grid_rate), bounds.log_rate_lo, bounds.log_rate_hi);
   x(1) = bounds.onset_hi > bounds.onset_lo
-             ? logit((grid_onset - bounds.onset_lo) / (bounds.onset_hi - bounds.onset_lo))
+             ? pixel::clamped_bounded_inverse(grid_onset, bounds.onset_lo, bounds.onset_hi)
              : 0.0;
   int k = 2;
   for (int p = 0; p < kTemporalParamCount; ++p) {
@@ -221,25 +220,14 @@ TemporalResult fit_process(const Series& s, const ShapeBounds& bounds, int itera
       x(k++) = dry[p];
     }
   }
-  using Function = ceres::TinySolverAutoDiffFunction<TemporalCost<M>, Eigen::Dynamic, K>;
   const TemporalCost<M> cost{&s, bounds};
-  const Function function(cost);
-  ceres::TinySolver<Function> solver;
-  solver.options.max_num_iterations = iterations;
-  const Eigen::Matrix<double, K, 1> x_grid = x;
-  solver.Solve(function, &x);
-  auto chi2_at = [&](const Eigen::Matrix<double, K, 1>& v) {
-    thread_local std::vector<double> residuals;
-    residuals.resize(size_t(cost.NumResiduals()));
-    cost(v.data(), residuals.data());
-    double chi2 = 0;
-    for (const double r : residuals) chi2 += r * r;
-    return chi2;
-  };
-  double chi2 = x.allFinite() ? chi2_at(x) : std::numeric_limits<double>::infinity();
-  if (!std::isfinite(chi2) || chi2 > chi2_at(x_grid)) {  // Never worse than the grid start.
-    x = x_grid;
-    chi2 = chi2_at(x);
+  const pixel::SolveResult<K> solved = pixel::solve(cost, x, iterations);
+  best.status = solved.status;
+  double chi2 = solved.chi2;
+  if (!std::isfinite(chi2) || chi2 > pixel::chi2_at(cost, x.data())) {
+    chi2 = pixel::chi2_at(cost, x.data());  // Never worse than the grid start.
+  } else {
+    x = solved.x;
   }
   if (!std::isfinite(chi2)) return best;
   cost.unpack(x.data(), &best.rate, &best.onset, best.wet, best.dry);
@@ -274,6 +262,91 @@ double clamp_param(int p, double v) {
     default:
       return std::max(v, 0.0);
   }
+}
+
+struct PixelContext {
+  const TemporalFitOptions& options;
+  const ShapeBounds& bounds;
+  const std::vector<double>& step_times;
+  double t_first, span;
+};
+
+// Fits the temporal models to one pixel's series, chooses by BIC and writes the chosen model into
+// m; flags: what the series gathering found. Counts in local.
+void fit_pixel_models(const Series& series, int flags, const PixelContext& c, float* m,
+                      TemporalSummary& local) {
+  std::array<TemporalResult, kTemporalModelCount> fits;
+  fits[1] = fit_constant(series);
+  // A model needs more usable steps than its parameters per series (4: wet, dry, rate, onset).
+  const bool enough = series.steps >= 5;
+  const bool wants_process =
+      c.options.fit_exponential || c.options.fit_sigmoid || c.options.fit_dust;
+  if (!enough && wants_process) flags |= kTooFewSteps;
+  if (enough && c.options.fit_exponential) {
+    fits[2] = fit_process<TemporalModel::kExponential>(series, c.bounds, c.options.max_iterations);
+  }
+  if (enough && c.options.fit_sigmoid) {
+    fits[3] = fit_process<TemporalModel::kSigmoid>(series, c.bounds, c.options.max_iterations);
+  }
+  if (enough && c.options.fit_dust) {
+    fits[4] = fit_process<TemporalModel::kDust>(series, c.bounds, c.options.max_iterations);
+  }
+  const double n = double(series.steps * kTemporalParamCount);
+  int best = 0;
+  std::array<double, kTemporalModelCount> bic;
+  bic.fill(std::numeric_limits<double>::infinity());
+  // Order of simplicity for ties: constant (6), dust (11), exponential, sigmoid (14).
+  for (const int k : {1, 4, 2, 3}) {
+    if (!fits[k].ok) continue;
+    bic[k] = fits[k].chi2 + fits[k].k * std::log(n);
+    if (best == 0 || bic[k] < bic[best]) best = k;
+  }
+  if (best == 0) {
+    m[kTFlags] = float(flags | kTemporalFitFailed);
+    ++local.flagged;
+    return;
+  }
+  const TemporalResult& f = fits[best];
+  if (f.status != SolverStatus::kConverged) flags |= kTemporalNotConverged;
+  double weight_sum = 0;
+  for (int k = 1; k < kTemporalModelCount; ++k) {
+    if (std::isfinite(bic[k])) weight_sum += std::exp(-0.5 * (bic[k] - bic[best]));
+  }
+  const TemporalModel model = TemporalModel(best);
+  if (model != TemporalModel::kConstant) {
+    // Faster than sampling: 90% or more of the change falls between two consecutive steps (or the
+    // rate sits at its bound): the curve there is a step whose rate and onset the data only bound.
+    double max_jump = 0;
+    for (size_t i = 1; i < c.step_times.size(); ++i) {
+      max_jump =
+          std::max(max_jump, std::abs(shape_weight(model, f.rate, f.onset, c.step_times[i]) -
+                                      shape_weight(model, f.rate, f.onset, c.step_times[i - 1])));
+    }
+    if (max_jump >= 0.9 || std::log(f.rate) >= c.bounds.log_rate_hi - 0.05) {
+      flags |= kFasterThanSampling;
+    }
+    if (f.onset <= c.t_first + 1e-6 * std::max(c.span, 1.0) && model != TemporalModel::kSigmoid) {
+      flags |= kOnsetAtCaptureStart;
+    }
+  }
+  m[kTModel] = float(best);
+  m[kTRate] = model == TemporalModel::kConstant ? 0.0f : float(f.rate);
+  m[kTOnset] = model == TemporalModel::kConstant ? float(c.t_first) : float(f.onset);
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    m[kTWet + p] = float(clamp_param(p, to_physical(p, f.wet[p])));
+    m[kTDry + p] = float(clamp_param(p, to_physical(p, f.dry[p])));
+  }
+  m[kTConfidence] = float(1 / weight_sum);
+  const double dof = n - f.k;
+  m[kTResidual] = float(dof > 0 ? f.chi2 / dof : f.chi2);
+  m[kTStepsUsed] = float(series.steps);
+  m[kTFlags] = float(flags);
+  ++local.fitted;
+  ++local.per_model[best];
+  if (flags & kFasterThanSampling) ++local.faster_than_sampling;
+  if (flags & kTooFewSteps) ++local.too_few_steps;
+  if (flags & kStepDropped) ++local.step_dropped;
+  if (flags & kTemporalNotConverged) ++local.not_converged;
 }
 
 }  // namespace
@@ -316,6 +389,7 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     bounds.onset_lo = t_first;
     bounds.onset_hi = t_last;
   }
+  const PixelContext context{options, bounds, out.step_times_s, t_first, span};
   TemporalSummary& summary = out.summary;
   summary.pixels = width * height;
   std::mutex mutex;
@@ -339,6 +413,7 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
             flags |= kStepDropped;
             continue;
           }
+          if (!s.flags.pixels.empty()) flags |= int(s.flags.at(x, y, 0)) & kTemporalNotConverged;
           const int i = series.steps++;
           series.t[i] = s.time_s;
           for (int p = 0; p < kTemporalParamCount; ++p) {
@@ -356,79 +431,7 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
           ++local.flagged;
           continue;
         }
-        std::array<TemporalResult, kTemporalModelCount> fits;
-        fits[1] = fit_constant(series);
-        // A model needs more usable steps than its parameters per series (4: wet, dry, rate,
-        // onset).
-        const bool enough = series.steps >= 5;
-        const bool wants_process =
-            options.fit_exponential || options.fit_sigmoid || options.fit_dust;
-        if (!enough && wants_process) flags |= kTooFewSteps;
-        if (enough && options.fit_exponential) {
-          fits[2] =
-              fit_process<TemporalModel::kExponential>(series, bounds, options.max_iterations);
-        }
-        if (enough && options.fit_sigmoid) {
-          fits[3] = fit_process<TemporalModel::kSigmoid>(series, bounds, options.max_iterations);
-        }
-        if (enough && options.fit_dust) {
-          fits[4] = fit_process<TemporalModel::kDust>(series, bounds, options.max_iterations);
-        }
-        const double n = double(series.steps * kTemporalParamCount);
-        int best = 0;
-        std::array<double, kTemporalModelCount> bic;
-        bic.fill(std::numeric_limits<double>::infinity());
-        // Order of simplicity for ties: constant (6), dust (11), exponential, sigmoid (14).
-        for (const int k : {1, 4, 2, 3}) {
-          if (!fits[k].ok) continue;
-          bic[k] = fits[k].chi2 + fits[k].k * std::log(n);
-          if (best == 0 || bic[k] < bic[best]) best = k;
-        }
-        if (best == 0) {
-          m[kTFlags] = float(flags | kTemporalFitFailed);
-          ++local.flagged;
-          continue;
-        }
-        const TemporalResult& f = fits[best];
-        double weight_sum = 0;
-        for (int k = 1; k < kTemporalModelCount; ++k) {
-          if (std::isfinite(bic[k])) weight_sum += std::exp(-0.5 * (bic[k] - bic[best]));
-        }
-        const TemporalModel model = TemporalModel(best);
-        if (model != TemporalModel::kConstant) {
-          // Faster than sampling: 90% or more of the change falls between two consecutive
-          // steps (or the rate sits at its bound): the curve there is a step whose rate and
-          // onset the data only bound.
-          double max_jump = 0;
-          for (size_t i = 1; i < out.step_times_s.size(); ++i) {
-            max_jump = std::max(
-                max_jump, std::abs(shape_weight(model, f.rate, f.onset, out.step_times_s[i]) -
-                                   shape_weight(model, f.rate, f.onset, out.step_times_s[i - 1])));
-          }
-          if (max_jump >= 0.9 || std::log(f.rate) >= bounds.log_rate_hi - 0.05) {
-            flags |= kFasterThanSampling;
-          }
-          if (f.onset <= t_first + 1e-6 * std::max(span, 1.0) && model != TemporalModel::kSigmoid) {
-            flags |= kOnsetAtCaptureStart;
-          }
-        }
-        m[kTModel] = float(best);
-        m[kTRate] = model == TemporalModel::kConstant ? 0.0f : float(f.rate);
-        m[kTOnset] = model == TemporalModel::kConstant ? float(t_first) : float(f.onset);
-        for (int p = 0; p < kTemporalParamCount; ++p) {
-          m[kTWet + p] = float(clamp_param(p, to_physical(p, f.wet[p])));
-          m[kTDry + p] = float(clamp_param(p, to_physical(p, f.dry[p])));
-        }
-        m[kTConfidence] = float(1 / weight_sum);
-        const double dof = n - f.k;
-        m[kTResidual] = float(dof > 0 ? f.chi2 / dof : f.chi2);
-        m[kTStepsUsed] = float(series.steps);
-        m[kTFlags] = float(flags);
-        ++local.fitted;
-        ++local.per_model[best];
-        if (flags & kFasterThanSampling) ++local.faster_than_sampling;
-        if (flags & kTooFewSteps) ++local.too_few_steps;
-        if (flags & kStepDropped) ++local.step_dropped;
+        fit_pixel_models(series, flags, context, m, local);
       }
       const long done = ++rows_done;
       if (options.progress) options.progress(done, height);
@@ -439,6 +442,7 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     summary.faster_than_sampling += local.faster_than_sampling;
     summary.too_few_steps += local.too_few_steps;
     summary.step_dropped += local.step_dropped;
+    summary.not_converged += local.not_converged;
     for (int k = 0; k < kTemporalModelCount; ++k) summary.per_model[k] += local.per_model[k];
   });
   summary.seconds_temporal =

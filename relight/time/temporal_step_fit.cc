@@ -1,6 +1,4 @@
 // Per-step BRDF fits with fixed normals (relight/time/temporal_fit.h, step 2).
-#include <ceres/tiny_solver.h>
-#include <ceres/tiny_solver_autodiff_function.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -13,6 +11,7 @@
 #include <vector>
 
 #include "lightstage/errors.h"
+#include "relight/fit/pixel_solver.h"
 #include "relight/lighting/brdf.h"
 #include "relight/time/temporal_fit.h"
 #include "relight/time/temporal_fit_internal.h"
@@ -20,23 +19,14 @@
 namespace ls::relight {
 namespace {
 
+using pixel::Sample;
+using pixel::SolverStatus;
 using temporal_internal::kMaxSigma;
 using temporal_internal::kMinRoughness;
 using temporal_internal::kNoInformationSigma;
-using temporal_internal::kPi;
-using temporal_internal::logit;
-using temporal_internal::sigmoid;
-
-constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};
 
 // ---------------------------------------------------------------------------------------------
 // Per-step BRDF fit with a fixed normal: Oren-Nayar diffuse + white Torrance-Sparrow lobe.
-
-struct Sample {
-  Eigen::Vector3d l;  // Unit, toward the LED.
-  double v[3];        // Measured R per channel.
-  double inv_sigma[3];
-};
 
 struct StepPixel {
   const Sample* samples = nullptr;
@@ -47,18 +37,12 @@ struct StepPixel {
 // Residuals of the physical parameters q = (albedo r, g, b, sigma, k_s, roughness).
 template <class T>
 void step_residuals(const StepPixel& d, const T* q, T* r) {
-  const brdf::Vec3<T> n = d.n.cast<T>();
-  const brdf::Vec3<T> wo = d.wo.cast<T>();
-  for (int i = 0; i < d.count; ++i) {
-    const Sample& s = d.samples[i];
-    const auto g = brdf::Geometry<T>::from_world(n, s.l.cast<T>(), wo);
-    const T diffuse = brdf::oren_nayar(g, q[3]);
-    const T specular = q[4] * brdf::torrance_sparrow(g, q[5]);
-    const T cos_i = g.cos_i > T(0) ? g.cos_i : T(0);
-    for (int c = 0; c < 3; ++c) {
-      r[3 * i + c] = ((q[c] * diffuse + specular) * cos_i - T(s.v[c])) * T(s.inv_sigma[c]);
-    }
-  }
+  const auto diffuse = [&](const brdf::Geometry<T>& g) { return brdf::oren_nayar(g, q[3]); };
+  const auto specular = [&](const brdf::Geometry<T>& g) {
+    return q[4] * brdf::torrance_sparrow(g, q[5]);
+  };
+  pixel::sample_residuals(d.samples, d.count, brdf::Vec3<T>(d.n.cast<T>()),
+                          brdf::Vec3<T>(d.wo.cast<T>()), q, diffuse, specular, r);
 }
 
 // Raw parameters with the bounds built in: albedo = u^2, then (Oren-Nayar) sigma = (pi/2)
@@ -71,17 +55,15 @@ struct StepCostRaw {
   int NumResiduals() const { return 3 * d->count; }
   template <class T>
   static void physical(const T* u, T* q) {
-    q[0] = u[0] * u[0];
-    q[1] = u[1] * u[1];
-    q[2] = u[2] * u[2];
+    for (int c = 0; c < 3; ++c) q[c] = pixel::non_negative(u[c]);
     q[3] = T(0);
     q[4] = T(0);
     q[5] = T(0.3);
     int k = 3;
-    if constexpr (kOrenNayar) q[3] = T(kMaxSigma) * sigmoid(u[k++]);
+    if constexpr (kOrenNayar) q[3] = pixel::bounded(u[k++], 0.0, kMaxSigma);
     if constexpr (kLobe) {
-      q[4] = u[k] * u[k];
-      q[5] = T(kMinRoughness) + T(1 - kMinRoughness) * sigmoid(u[k + 1]);
+      q[4] = pixel::non_negative(u[k]);
+      q[5] = pixel::bounded(u[k + 1], kMinRoughness, 1.0);
     }
   }
   template <class T>
@@ -105,6 +87,7 @@ struct StepCostPhysical {
 
 struct StepResult {
   bool ok = false;
+  SolverStatus status = SolverStatus::kFailed;
   double chi2 = std::numeric_limits<double>::infinity();
   std::array<double, 6> q{};
   std::array<bool, 6> used{};  // Parameters the model fitted (the others are fixed).
@@ -115,32 +98,25 @@ template <bool kOrenNayar, bool kLobe>
 StepResult solve_step(const StepPixel& d, const std::array<double, 6>& start, int iterations) {
   using Cost = StepCostRaw<kOrenNayar, kLobe>;
   constexpr int K = Cost::kParams;
-  using Function = ceres::TinySolverAutoDiffFunction<Cost, Eigen::Dynamic, K>;
-  const Cost cost{&d};
-  const Function function(cost);
-  ceres::TinySolver<Function> solver;
-  solver.options.max_num_iterations = iterations;
   Eigen::Matrix<double, K, 1> u;
-  for (int c = 0; c < 3; ++c) u(c) = std::sqrt(std::max(start[c], 1e-6));
+  for (int c = 0; c < 3; ++c) u(c) = pixel::non_negative_inverse(start[c], 1e-6);
   int k = 3;
-  if constexpr (kOrenNayar) u(k++) = logit(std::max(start[3], 0.05) / kMaxSigma);
-  if constexpr (kLobe) {
-    u(k) = std::sqrt(std::max(start[4], 1e-6));
-    u(k + 1) = logit((start[5] - kMinRoughness) / (1 - kMinRoughness));
+  if constexpr (kOrenNayar) {
+    u(k++) = pixel::clamped_bounded_inverse(std::max(start[3], 0.05), 0.0, kMaxSigma);
   }
-  solver.Solve(function, &u);
+  if constexpr (kLobe) {
+    u(k) = pixel::non_negative_inverse(start[4], 1e-6);
+    u(k + 1) = pixel::clamped_bounded_inverse(start[5], kMinRoughness, 1.0);
+  }
+  const pixel::SolveResult<K> solved = pixel::solve(Cost{&d}, u, iterations);
   StepResult out;
+  out.status = solved.status;
   out.k = K;
   out.used = {true, true, true, kOrenNayar, kLobe, kLobe};
-  if (!u.allFinite()) return out;
-  Cost::physical(u.data(), out.q.data());
-  thread_local std::vector<double> residuals;
-  residuals.resize(size_t(cost.NumResiduals()));
-  cost(u.data(), residuals.data());
-  double chi2 = 0;
-  for (const double r : residuals) chi2 += r * r;
-  out.chi2 = chi2;
-  out.ok = std::isfinite(chi2);
+  if (!solved.x.allFinite()) return out;
+  Cost::physical(solved.x.data(), out.q.data());
+  out.chi2 = solved.chi2;
+  out.ok = solved.usable();
   for (const double v : out.q) out.ok = out.ok && std::isfinite(v);
   return out;
 }
@@ -191,6 +167,55 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit) {
   return sigmas;
 }
 
+// The nested per-step models (Lambert, Oren-Nayar, each with or without the lobe), the lowest BIC
+// kept: a parameter the data do not support is fixed (sigma = 0, k_s = 0) rather than left free to
+// trade off against the albedo. Returns the kept fit (ok false: none).
+StepResult fit_step_pixel(const StepPixel& d, const FitOptions& fo) {
+  std::array<double, 6> start{};
+  const Eigen::Vector3d albedo = pixel::lambert_albedo(d.samples, d.count, d.n);
+  for (int c = 0; c < 3; ++c) start[c] = albedo(c);
+  start[kParamSigma] = 0.42;  // 24 degrees, as fit.cc starts Oren-Nayar.
+  std::array<StepResult, 4> fits;
+  fits[0] = solve_step<false, false>(d, start, fo.max_iterations);
+  if (fits[0].ok) std::copy(fits[0].q.begin(), fits[0].q.begin() + 3, start.begin());
+  if (fo.fit_oren_nayar) {
+    std::array<double, 6> s = start;
+    for (int c = 0; c < 3; ++c) s[c] *= 1.07;  // A(sigma) ~ 0.87 at the start sigma.
+    fits[1] = solve_step<true, false>(d, s, fo.max_iterations);
+  }
+  if (fo.fit_torrance_sparrow) {
+    for (const double m0 : fo.roughness_starts) {
+      std::array<double, 6> s = start;
+      s[kParamKs] = 0.05;
+      s[kParamRoughness] = m0;
+      const StepResult lambert_lobe = solve_step<false, true>(d, s, fo.max_iterations);
+      if (lambert_lobe.ok && lambert_lobe.q[kParamKs] <= fo.max_specular_albedo &&
+          lambert_lobe.chi2 < fits[2].chi2) {
+        fits[2] = lambert_lobe;
+      }
+    }
+    // Oren-Nayar + lobe once, from the better lobe fit (a second start doubles the cost for no
+    // measured gain).
+    if (fo.fit_oren_nayar && fits[2].ok) {
+      std::array<double, 6> s = fits[2].q;
+      for (int c = 0; c < 3; ++c) s[c] *= 1.07;
+      s[kParamSigma] = 0.42;
+      const StepResult full = solve_step<true, true>(d, s, fo.max_iterations);
+      if (full.ok && full.q[kParamKs] <= fo.max_specular_albedo) fits[3] = full;
+    }
+  }
+  const double log_n = std::log(3.0 * d.count);
+  int chosen = -1;
+  for (int m = 0; m < 4; ++m) {
+    if (!fits[m].ok) continue;
+    if (chosen < 0 ||
+        fits[m].chi2 + fits[m].k * log_n < fits[chosen].chi2 + fits[chosen].k * log_n) {
+      chosen = m;
+    }
+  }
+  return chosen < 0 ? StepResult{} : fits[chosen];
+}
+
 }  // namespace
 
 StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normals,
@@ -200,112 +225,36 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
   out.time_s = field.scene_time_s;
   out.value = Image(width, height, kTemporalParamCount);
   out.sigma = Image(width, height, kTemporalParamCount);
+  out.flags = Image(width, height, 1);
   const capture::ValidLights valid = capture::valid_lights(field);
   out.valid_lights = int(valid.index.size());
   const NormalOptions& no = options.brdf.normals;
   const FitOptions& fo = options.brdf;
-  if (!fo.view_dir_per_pixel.empty() && fo.view_dir_per_pixel.size() != size_t(width) * height) {
-    throw InputError("temporal fit options: view_dir_per_pixel: expected " +
-                     std::to_string(size_t(width) * height) + " directions, got " +
-                     std::to_string(fo.view_dir_per_pixel.size()));
+  if (const std::string error = pixel::check_view_dirs(fo.view_dir_per_pixel, width, height);
+      !error.empty()) {
+    throw InputError("temporal fit options: " + error);
   }
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
     std::vector<Sample> samples(valid.index.size());
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         if (int(normals.flags.at(x, y, 0)) != 0) continue;  // sigma 0: unusable.
-        const float* px = field.pixel(x, y);
-        double y_max = 0;
-        for (const int l : valid.index) {
-          const float* v = px + 3 * l;
-          y_max = std::max(y_max, kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2]);
-        }
-        const double threshold =
-            std::max(no.shadow_sigmas * std::sqrt(no.noise.a), no.shadow_fraction * y_max);
-        int count = 0;
-        for (size_t i = 0; i < valid.index.size(); ++i) {
-          const float* v = px + 3 * valid.index[i];
-          if (capture::is_saturated(field.lights()[valid.index[i]], v)) continue;
-          const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
-          if (!(lum > threshold) || !std::isfinite(lum)) continue;
-          Sample& s = samples[count++];
-          s.l = capture::light_dir_at(field, valid.index[i], x, y);  // Per pixel for near LEDs.
-          for (int c = 0; c < 3; ++c) {
-            s.v[c] = v[c];
-            s.inv_sigma[c] = 1 / std::sqrt(no.noise.variance(v[c]));
-          }
-        }
+        const int count = pixel::gather_samples(field, valid, no, x, y, samples.data()).count;
         // A lobe and Oren-Nayar need more than the normal's minimum: 6 parameters.
         if (count < std::max(no.min_lights, 7)) continue;
         StepPixel d;
         d.samples = samples.data();
         d.count = count;
-        d.n = Eigen::Vector3d(normals.normal.at(x, y, 0), normals.normal.at(x, y, 1),
-                              normals.normal.at(x, y, 2))
-                  .normalized();
-        d.wo = fo.view_dir_per_pixel.empty()
-                   ? Eigen::Vector3d(0, 0, 1)
-                   : fo.view_dir_per_pixel[size_t(y) * width + x].normalized();
-        std::array<double, 6> start{};
-        for (int c = 0; c < 3; ++c) {
-          double sxx = 0, sxy = 0;
-          for (int i = 0; i < count; ++i) {
-            const double shade = std::max(0.0, d.n.dot(samples[i].l)) / kPi;
-            const double w = samples[i].inv_sigma[c] * samples[i].inv_sigma[c];
-            sxx += w * shade * shade;
-            sxy += w * shade * samples[i].v[c];
-          }
-          start[c] = std::max(sxx > 0 ? sxy / sxx : 0.0, 1e-4);
-        }
-        start[kParamSigma] = 0.42;  // 24 degrees, as fit.cc starts Oren-Nayar.
-        // The nested per-step models (Lambert, Oren-Nayar, each with or without the lobe), the
-        // lowest BIC kept: a parameter the data do not support is fixed (sigma = 0, k_s = 0)
-        // rather than left free to trade off against the albedo.
-        std::array<StepResult, 4> fits;
-        fits[0] = solve_step<false, false>(d, start, fo.max_iterations);
-        if (fits[0].ok) std::copy(fits[0].q.begin(), fits[0].q.begin() + 3, start.begin());
-        if (fo.fit_oren_nayar) {
-          std::array<double, 6> s = start;
-          for (int c = 0; c < 3; ++c) s[c] *= 1.07;  // A(sigma) ~ 0.87 at the start sigma.
-          fits[1] = solve_step<true, false>(d, s, fo.max_iterations);
-        }
-        if (fo.fit_torrance_sparrow) {
-          for (const double m0 : fo.roughness_starts) {
-            std::array<double, 6> s = start;
-            s[kParamKs] = 0.05;
-            s[kParamRoughness] = m0;
-            const StepResult lambert_lobe = solve_step<false, true>(d, s, fo.max_iterations);
-            if (lambert_lobe.ok && lambert_lobe.q[kParamKs] <= fo.max_specular_albedo &&
-                lambert_lobe.chi2 < fits[2].chi2) {
-              fits[2] = lambert_lobe;
-            }
-          }
-          // Oren-Nayar + lobe once, from the better lobe fit (a second start doubles the cost
-          // for no measured gain).
-          if (fo.fit_oren_nayar && fits[2].ok) {
-            std::array<double, 6> s = fits[2].q;
-            for (int c = 0; c < 3; ++c) s[c] *= 1.07;
-            s[kParamSigma] = 0.42;
-            const StepResult full = solve_step<true, true>(d, s, fo.max_iterations);
-            if (full.ok && full.q[kParamKs] <= fo.max_specular_albedo) fits[3] = full;
-          }
-        }
-        const double log_n = std::log(3.0 * count);
-        int chosen = -1;
-        for (int m = 0; m < 4; ++m) {
-          if (!fits[m].ok) continue;
-          if (chosen < 0 ||
-              fits[m].chi2 + fits[m].k * log_n < fits[chosen].chi2 + fits[chosen].k * log_n) {
-            chosen = m;
-          }
-        }
-        if (chosen < 0) continue;
-        const StepResult& best = fits[chosen];
+        d.n = pixel::normal_at(normals, x, y);
+        d.wo = pixel::view_dir_at(fo.view_dir_per_pixel, size_t(y) * width + x);
+        const StepResult best = fit_step_pixel(d, fo);
+        if (!best.ok) continue;
         const std::array<double, 6> sig = step_sigmas(d, best);
         for (int p = 0; p < kTemporalParamCount; ++p) {
           out.value.at(x, y, p) = float(best.q[p]);
           out.sigma.at(x, y, p) = float(sig[p]);
         }
+        if (best.status != SolverStatus::kConverged) out.flags.at(x, y, 0) = kTemporalNotConverged;
       }
     }
   });

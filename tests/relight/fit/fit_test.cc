@@ -264,6 +264,49 @@ TEST(FitModels, PhongComparisonFitsAGlossyPlane) {
   for (const float v : maps.maps.pixels) ASSERT_TRUE(std::isfinite(v));
 }
 
+// The solver's status reaches the flags: a fit stopped on its iteration limit keeps its pixel
+// fitted but flags it kFitNotConverged (counted in the summary, kept through the maps file); at
+// the default limit a clean matte plane converges everywhere.
+TEST(FitModels, IterationLimitIsFlaggedNotConverged) {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(150, -11.5));
+  stage.camera.width = stage.camera.height = 8;
+  stage.camera.ortho_height_m = 0.5;
+  sim::Scene scene;
+  sim::SceneMaterial m;
+  m.base = region_material(kMatte);
+  scene.materials.push_back(m);
+  sim::Plane plane;
+  plane.normal = Eigen::Vector3d(0, 0.3, 1).normalized();
+  scene.planes.push_back(plane);
+  const SimField sim = render_field(stage, scene, NoiseModel{}, 9);
+  const auto count_not_converged = [](const ModelMaps& maps) {
+    int n = 0;
+    for (int y = 0; y < maps.maps.height; ++y) {
+      for (int x = 0; x < maps.maps.width; ++x) {
+        n += (int(maps.at(x, y, kMapFlags)) & kFitNotConverged) != 0;
+      }
+    }
+    return n;
+  };
+  const ModelMaps clean = fit_models(sim.field, FitOptions{});
+  EXPECT_EQ(clean.summary.fitted, 64);
+  EXPECT_EQ(clean.summary.not_converged, 0);
+  EXPECT_EQ(count_not_converged(clean), 0);
+
+  FitOptions options;
+  options.max_iterations = 1;
+  const ModelMaps stopped = fit_models(sim.field, options);
+  std::cout << stopped.summary.to_string() << "\n";
+  EXPECT_EQ(stopped.summary.fitted, 64);
+  EXPECT_EQ(stopped.summary.not_converged, 64);
+  EXPECT_EQ(count_not_converged(stopped), 64);
+  testing::TempDir dir;
+  write_model_maps(dir / "maps.exr", stopped);
+  const ModelMaps back = read_model_maps(dir / "maps.exr");
+  EXPECT_EQ(count_not_converged(back), 64);
+  EXPECT_EQ(back.summary.not_converged, 64);
+}
+
 TEST(FitModels, CapturedFieldThroughThePipeline) {
   // The whole simulated capture (sensor noise, 12-bit bracket, HDR merge, LED normalisation) rather
   // than the ideal R plus Gaussian noise, with the field's measured noise. 80 LEDs: the session's

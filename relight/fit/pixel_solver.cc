@@ -1,0 +1,69 @@
+#include "relight/fit/pixel_solver.h"
+
+#include <string>
+
+namespace ls::relight::pixel {
+
+GatheredSamples gather_samples(const capture::ReflectanceField& field,
+                               const capture::ValidLights& valid, const NormalOptions& options,
+                               int x, int y, Sample* samples) {
+  const float* px = field.pixel(x, y);
+  double y_max = 0;
+  for (const int l : valid.index) {
+    const float* v = px + 3 * l;
+    y_max = std::max(y_max, kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2]);
+  }
+  const double threshold =
+      std::max(options.shadow_sigmas * std::sqrt(options.noise.a), options.shadow_fraction * y_max);
+  GatheredSamples out;
+  for (const int light : valid.index) {
+    const float* v = px + 3 * light;
+    if (capture::is_saturated(field.lights()[light], v)) {
+      ++out.saturated;
+      continue;
+    }
+    const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
+    if (!(lum > threshold) || !std::isfinite(lum)) continue;
+    Sample& s = samples[out.count++];
+    s.l = capture::light_dir_at(field, light, x, y);  // Per pixel for near LEDs.
+    for (int c = 0; c < 3; ++c) {
+      s.v[c] = v[c];
+      s.inv_sigma[c] = 1 / std::sqrt(options.noise.variance(v[c]));
+    }
+  }
+  return out;
+}
+
+Eigen::Vector3d lambert_albedo(const Sample* samples, int count, const Eigen::Vector3d& n) {
+  Eigen::Vector3d albedo;
+  for (int c = 0; c < 3; ++c) {
+    double sxx = 0, sxy = 0;
+    for (int i = 0; i < count; ++i) {
+      const double shade = std::max(0.0, n.dot(samples[i].l)) / kPi;
+      const double w = samples[i].inv_sigma[c] * samples[i].inv_sigma[c];
+      sxx += w * shade * shade;
+      sxy += w * shade * samples[i].v[c];
+    }
+    albedo(c) = std::max(sxx > 0 ? sxy / sxx : 0.0, 1e-4);
+  }
+  return albedo;
+}
+
+Eigen::Vector3d normal_at(const NormalMap& normals, int x, int y) {
+  return Eigen::Vector3d(normals.normal.at(x, y, 0), normals.normal.at(x, y, 1),
+                         normals.normal.at(x, y, 2))
+      .normalized();
+}
+
+Eigen::Vector3d view_dir_at(const std::vector<Eigen::Vector3d>& per_pixel, size_t i) {
+  return per_pixel.empty() ? Eigen::Vector3d(0, 0, 1) : per_pixel[i].normalized();
+}
+
+std::string check_view_dirs(const std::vector<Eigen::Vector3d>& per_pixel, int width, int height) {
+  const size_t pixels = size_t(width) * height;
+  if (per_pixel.empty() || per_pixel.size() == pixels) return {};
+  return "view_dir_per_pixel: expected " + std::to_string(pixels) + " directions, got " +
+         std::to_string(per_pixel.size());
+}
+
+}  // namespace ls::relight::pixel
