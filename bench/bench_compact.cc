@@ -73,7 +73,7 @@ void BM_RawField(benchmark::State& state) {
   const auto& f = field();
   const std::vector<float> w = led_weights();
   ls::Image out;
-  for (auto _ : state) ls::relight::relight_into(f, w.data(), out);
+  for (auto _ : state) ls::relight::relight_into(f, w, out);
   state.counters["bytes_per_pixel"] = 12.0 * f.num_lights();
 }
 BENCHMARK(BM_RawField)->Unit(benchmark::kMillisecond)->UseRealTime();

@@ -200,7 +200,7 @@ void BM_RelightField(benchmark::State& state) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
   ls::Image out;
   for (auto _ : state) {
-    ls::relight::relight_into(*slot, e.data(), out);
+    ls::relight::relight_into(*slot, e, out);
     benchmark::DoNotOptimize(out.pixels.data());
   }
   state.counters["threads"] = threads;

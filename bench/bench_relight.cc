@@ -76,7 +76,7 @@ void BM_Relight(benchmark::State& state) {
   ls::Image out;
   const auto start = std::chrono::steady_clock::now();
   for (auto _ : state) {
-    ls::relight::relight_into(f, e.data(), out);
+    ls::relight::relight_into(f, e, out);
     benchmark::DoNotOptimize(out.pixels.data());
   }
   const double relight_s =

@@ -12,8 +12,8 @@
 #include <memory>
 #include <string>
 
-#include "lightstage/hardware/aravis_camera.h"
 #include "lightstage/controller/sequencer.h"
+#include "lightstage/hardware/aravis_camera.h"
 #include "lightstage/session.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"

@@ -15,9 +15,9 @@
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
+#include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
-#include "relight/compact/pca_field.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"

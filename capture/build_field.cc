@@ -161,19 +161,14 @@ FieldNoise estimate_field_noise(const ReflectanceField& field, const Stage& stag
   return fit_field_noise(sensor, model, median_irradiance, values, method);
 }
 
-}  // namespace
-
-ReflectanceField build_field(const Session& session, const BuildOptions& options,
-                             BuildSummary* summary) {
-  const auto start = std::chrono::steady_clock::now();
+void check_camera(const Session& session, const BuildOptions& options) {
   const Stage& stage = session.stage();
   const CameraSpec& camera = stage.camera;
-  const std::string where = session.dir().string();
-  const int num_exposures = int(camera.bracket.size());
-  if (num_exposures == 0)
+  if (camera.bracket.empty()) {
     throw InputError(stage.source + ": camera.bracket: expected at least one step");
+  }
   if (options.time_step < 0 || options.time_step >= std::max(1, stage.plan.time_steps)) {
-    throw InputError(where + ": time step " + std::to_string(options.time_step) +
+    throw InputError(session.dir().string() + ": time step " + std::to_string(options.time_step) +
                      " is outside the plan's " + std::to_string(stage.plan.time_steps) + " steps");
   }
   if (camera.channels != 1 && camera.channels != 3) {
@@ -184,287 +179,361 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
     throw InputError(stage.source + ": camera.radiometric_scale: expected a positive number, got " +
                      std::to_string(camera.radiometric_scale));
   }
-  BuildSummary local_summary;
-  BuildSummary& sum = summary ? *summary : local_summary;
-  sum = BuildSummary{};
+}
 
-  // Index this time step's frames: dark frames per exposure step, each LED's bracket.
-  const std::vector<int> order = stage.capture_order();
-  std::map<int, size_t> position_of_led;
-  std::vector<LedFrames> brackets(order.size());
-  for (size_t i = 0; i < order.size(); ++i) {
-    brackets[i].led_index = order[i];
-    brackets[i].records.assign(num_exposures, nullptr);
-    position_of_led[order[i]] = i;
-  }
-  std::vector<std::vector<FrameKey>> dark_keys(num_exposures);
-  for (const auto& [key, record] : session.frames()) {
-    if (key.time_step != options.time_step) continue;
-    if (key.exposure_index < 0 || key.exposure_index >= num_exposures) continue;
-    if (key.is_dark()) {
-      dark_keys[key.exposure_index].push_back(key);
-    } else if (key.repeat == 0) {
-      auto it = position_of_led.find(key.led_index);
-      if (it != position_of_led.end()) brackets[it->second].records[key.exposure_index] = &record;
-    }
-  }
+// One build, phase by phase: index the frames, choose the response and flat fields, average the
+// dark frames, then merge every LED's bracket into the field and estimate its noise.
+class FieldBuild {
+ public:
+  FieldBuild(const Session& session, const BuildOptions& options, BuildSummary& summary)
+      : session_(session),
+        stage_(session.stage()),
+        camera_(stage_.camera),
+        options_(options),
+        sum_(summary),
+        where_(session.dir().string()),
+        num_exposures_(int(camera_.bracket.size())),
+        order_(stage_.capture_order()) {}
 
-  std::vector<FieldLight> lights(order.size());
-  std::vector<bool> usable(order.size());
-  for (size_t i = 0; i < order.size(); ++i) {
-    const Led& led = stage.leds[order[i]];
-    usable[i] = brackets[i].complete() && session.dead_leds().count(order[i]) == 0;
-    lights[i] = FieldLight{led.id, led.dir_in_stage, usable[i]};
-    if (led.distance_m) {
-      lights[i].position_in_stage = *led.distance_m * led.dir_in_stage.normalized();
-      ++sum.near_lights;
-    }
-    if (!usable[i]) sum.lights_missing.push_back(order[i]);
-    if (usable[i]) {
-      const Eigen::Vector3d e = led.irradiance_rgb();
-      if (!(e.minCoeff() > 0) || !e.allFinite()) {
-        throw InputError(stage.source + ": LED " + std::to_string(led.id) +
-                         ": irradiance (intensity * color_gain) must be positive in every "
-                         "channel to normalise the field, got " +
-                         std::to_string(e.x()) + ", " + std::to_string(e.y()) + ", " +
-                         std::to_string(e.z()));
+  ReflectanceField run() {
+    index_frames();
+    std::vector<FieldLight> lights = field_lights();
+    choose_response();
+    read_flat_fields();
+    // Allocate the field first: it is the big allocation and refuses cleanly when it cannot fit.
+    ReflectanceField field(camera_.width, camera_.height, std::move(lights));
+    field.source = where_;
+    field.view = FieldView{camera_.fov_y_deg, camera_.distance_m, camera_.ortho_height_m,
+                           stage_.calibration.reference_z_m};
+    for (size_t i = 0; i < order_.size(); ++i) {
+      if (usable_[i]) {
+        field.scene_time_s = brackets_[i].records[0]->scene_time_s;
+        break;
       }
     }
+    average_darks();
+    scale_lights(field);
+    merge_brackets(field);
+    sum_.lights_used = int(std::count(usable_.begin(), usable_.end(), true));
+    const double samples = double(sum_.lights_used) * camera_.width * camera_.height;
+    sum_.saturated_fraction = samples > 0 ? double(saturated_pixels_.load()) / samples : 0.0;
+    field.noise = estimate_field_noise(field, stage_, usable_, order_, noise_steps_, options_.merge,
+                                       sensor_, transfer_, &sum_);
+    return field;
+  }
+
+ private:
+  // This time step's frames: dark frames per exposure step, each LED's bracket.
+  void index_frames() {
+    std::map<int, size_t> position_of_led;
+    brackets_.resize(order_.size());
+    for (size_t i = 0; i < order_.size(); ++i) {
+      brackets_[i].led_index = order_[i];
+      brackets_[i].records.assign(num_exposures_, nullptr);
+      position_of_led[order_[i]] = i;
+    }
+    dark_keys_.resize(num_exposures_);
+    for (const auto& [key, record] : session_.frames()) {
+      if (key.time_step != options_.time_step) continue;
+      if (key.exposure_index < 0 || key.exposure_index >= num_exposures_) continue;
+      if (key.is_dark()) {
+        dark_keys_[key.exposure_index].push_back(key);
+      } else if (key.repeat == 0) {
+        auto it = position_of_led.find(key.led_index);
+        if (it != position_of_led.end()) {
+          brackets_[it->second].records[key.exposure_index] = &record;
+        }
+      }
+    }
+  }
+
+  std::vector<FieldLight> field_lights() {
+    std::vector<FieldLight> lights(order_.size());
+    usable_.resize(order_.size());
+    for (size_t i = 0; i < order_.size(); ++i) {
+      const Led& led = stage_.leds[order_[i]];
+      usable_[i] = brackets_[i].complete() && session_.dead_leds().count(order_[i]) == 0;
+      lights[i] = FieldLight{led.id, led.dir_in_stage, usable_[i]};
+      if (led.distance_m) {
+        lights[i].position_in_stage = *led.distance_m * led.dir_in_stage.normalized();
+        ++sum_.near_lights;
+      }
+      if (!usable_[i]) sum_.lights_missing.push_back(order_[i]);
+      if (usable_[i]) {
+        const Eigen::Vector3d e = led.irradiance_rgb();
+        if (!(e.minCoeff() > 0) || !e.allFinite()) {
+          throw InputError(stage_.source + ": LED " + std::to_string(led.id) +
+                           ": irradiance (intensity * color_gain) must be positive in every "
+                           "channel to normalise the field, got " +
+                           std::to_string(e.x()) + ", " + std::to_string(e.y()) + ", " +
+                           std::to_string(e.z()));
+        }
+      }
+    }
+    return lights;
   }
 
   // The response: from the stage file, or recovered from the brightest brackets.
-  std::optional<ResponseCurve> response;
-  switch (camera.response.kind) {
-    case CameraResponse::Kind::kLinear:
-      sum.response_used = "linear";
-      break;
-    case CameraResponse::Kind::kGamma:
-      sum.response_used = format_gamma(camera.response.gamma);
-      break;
-    case CameraResponse::Kind::kTable:
-      sum.response_used = "table " + camera.response.table_file.string();
-      break;
-    case CameraResponse::Kind::kRecover:
-      sum.response_used = "recovered";
-      response = recover_from_session(session, brackets, usable);
-      break;
+  void choose_response() {
+    switch (camera_.response.kind) {
+      case CameraResponse::Kind::kLinear:
+        sum_.response_used = "linear";
+        break;
+      case CameraResponse::Kind::kGamma:
+        sum_.response_used = format_gamma(camera_.response.gamma);
+        break;
+      case CameraResponse::Kind::kTable:
+        sum_.response_used = "table " + camera_.response.table_file.string();
+        break;
+      case CameraResponse::Kind::kRecover:
+        sum_.response_used = "recovered";
+        response_ = recover_from_session(session_, brackets_, usable_);
+        break;
+    }
+    if (!response_) {
+      response_ = ResponseCurve::from_spec(camera_.response, camera_.bit_depth, camera_.channels);
+    }
   }
-  if (!response)
-    response = ResponseCurve::from_spec(camera.response, camera.bit_depth, camera.channels);
 
   // The flat fields, validated before any frame is merged.
-  std::optional<FlatFieldMaps> flat;
-  if (!stage.calibration.flat_field.empty()) {
-    flat = read_flat_field(stage.calibration.flat_field, stage);
-    sum.flat_field = stage.calibration.flat_field.string();
-    for (size_t i = 0; i < order.size(); ++i) {
-      if (flat->by_led_id.count(stage.leds[order[i]].id)) ++sum.flat_field_lights;
+  void read_flat_fields() {
+    if (stage_.calibration.flat_field.empty()) return;
+    flat_ = read_flat_field(stage_.calibration.flat_field, stage_);
+    sum_.flat_field = stage_.calibration.flat_field.string();
+    for (size_t i = 0; i < order_.size(); ++i) {
+      if (flat_->by_led_id.count(stage_.leds[order_[i]].id)) ++sum_.flat_field_lights;
     }
-    if (sum.flat_field_lights < int(order.size())) {
-      sum.warnings.push_back(
-          sum.flat_field + ": holds flat fields for " + std::to_string(sum.flat_field_lights) +
-          " of " + std::to_string(order.size()) + " LEDs; the others are taken as uniform");
+    if (sum_.flat_field_lights < int(order_.size())) {
+      sum_.warnings.push_back(
+          sum_.flat_field + ": holds flat fields for " + std::to_string(sum_.flat_field_lights) +
+          " of " + std::to_string(order_.size()) + " LEDs; the others are taken as uniform");
     }
   }
 
-  // Allocate the field first: it is the big allocation and refuses cleanly when it cannot fit.
-  ReflectanceField field(camera.width, camera.height, std::move(lights));
-  field.source = where;
-  field.view = FieldView{camera.fov_y_deg, camera.distance_m, camera.ortho_height_m,
-                         stage.calibration.reference_z_m};
   // Per-pixel factor of LED i: (|P - X| / |P|)^2 / flat(X) (build_field.h); empty when uniform.
-  auto pixel_gain = [&](int i, std::vector<float>* gain) {
-    const Led& led = stage.leds[order[i]];
+  void pixel_gain(const ReflectanceField& field, int i, std::vector<float>* gain) const {
+    const Led& led = stage_.leds[order_[i]];
     const auto& position = field.lights()[i].position_in_stage;
-    const bool flat_here = flat && flat->by_led_id.count(led.id);
+    const bool flat_here = flat_ && flat_->by_led_id.count(led.id);
     gain->clear();
     if (!position && !flat_here) return;
-    gain->resize(size_t(camera.width) * camera.height);
+    gain->resize(size_t(camera_.width) * camera_.height);
     const double d0_squared = position ? position->squaredNorm() : 1.0;
-    for (int y = 0; y < camera.height; ++y) {
-      for (int x = 0; x < camera.width; ++x) {
+    for (int y = 0; y < camera_.height; ++y) {
+      for (int x = 0; x < camera_.width; ++x) {
         double g = 1.0;
         if (position) {
           const Eigen::Vector3d to_led =
-              *position - reference_point(*field.view, camera.width, camera.height, x, y);
+              *position - reference_point(*field.view, camera_.width, camera_.height, x, y);
           g = to_led.squaredNorm() / d0_squared;
         }
-        if (flat_here) g /= flat->at(led.id, x, y, camera.width, camera.height);
-        (*gain)[size_t(y) * camera.width + x] = float(g);
+        if (flat_here) g /= flat_->at(led.id, x, y, camera_.width, camera_.height);
+        (*gain)[size_t(y) * camera_.width + x] = float(g);
       }
-    }
-  };
-  for (size_t i = 0; i < order.size(); ++i) {
-    if (usable[i]) {
-      field.scene_time_s = brackets[i].records[0]->scene_time_s;
-      break;
     }
   }
 
-  auto check_size = [&](const RawFrame& frame, const FrameKey& key) {
-    if (frame.width != camera.width || frame.height != camera.height ||
-        frame.channels != camera.channels) {
-      throw InputError(where + ": frame " + key.name(stage) + " is " + std::to_string(frame.width) +
-                       "x" + std::to_string(frame.height) + "x" + std::to_string(frame.channels) +
-                       " but the camera is " + std::to_string(camera.width) + "x" +
-                       std::to_string(camera.height) + "x" + std::to_string(camera.channels));
+  void check_size(const RawFrame& frame, const FrameKey& key) const {
+    if (frame.width != camera_.width || frame.height != camera_.height ||
+        frame.channels != camera_.channels) {
+      throw InputError(where_ + ": frame " + key.name(stage_) + " is " +
+                       std::to_string(frame.width) + "x" + std::to_string(frame.height) + "x" +
+                       std::to_string(frame.channels) + " but the camera is " +
+                       std::to_string(camera_.width) + "x" + std::to_string(camera_.height) + "x" +
+                       std::to_string(camera_.channels));
     }
-  };
+  }
 
   // Mean dark frame per exposure step (linearised), and the read noise from pairs of darks.
-  std::vector<std::optional<Image>> darks(num_exposures);
-  std::vector<NoiseStep> noise_steps(num_exposures);
-  SensorNoise sensor;
-  sensor.read_variance.assign(num_exposures, 0.0);
-  sensor.read_measured = true;
-  for (int e = 0; e < num_exposures; ++e) {
-    noise_steps[e].exposure_s = camera.bracket[e].exposure_s;
-    noise_steps[e].gain = camera.bracket[e].gain;
-  }
-  for (int e = 0; e < num_exposures; ++e) {
-    if (dark_keys[e].empty()) {
-      sensor.read_measured = false;
-      sum.warnings.push_back("no dark frames for exposure step " + std::to_string(e) +
-                             " at time step " + std::to_string(options.time_step) +
-                             ": that step is not dark-subtracted");
-      continue;
+  void average_darks() {
+    darks_.resize(num_exposures_);
+    noise_steps_.resize(num_exposures_);
+    sensor_.read_variance.assign(num_exposures_, 0.0);
+    sensor_.read_measured = true;
+    for (int e = 0; e < num_exposures_; ++e) {
+      noise_steps_[e].exposure_s = camera_.bracket[e].exposure_s;
+      noise_steps_[e].gain = camera_.bracket[e].gain;
     }
-    std::vector<RawFrame> raw;
-    for (const FrameKey& key : dark_keys[e]) {
-      raw.push_back(session.load_frame(key));
-      check_size(raw.back(), key);
-    }
-    std::vector<const RawFrame*> pointers;
-    for (const RawFrame& r : raw) pointers.push_back(&r);
-    darks[e] = mean_dark(pointers, *response);
-    noise_steps[e].dark_frames = int(raw.size());
-    noise_steps[e].dark_level = mean_value(*darks[e]);
-    if (raw.size() >= 2) {
-      long long samples = 0;
-      sensor.read_variance[e] = dark_read_variance(pointers, *response, &samples);
-      sensor.dark_samples += samples;
-    } else {
-      sensor.read_measured = false;
-    }
-  }
-
-  // Merge each LED's bracket. LEDs run in parallel (frame decoding is serial per file); the number
-  // in flight is bounded so that frames of large cameras do not exhaust memory.
-  const int width = camera.width;
-  const int height = camera.height;
-  const size_t frame_bytes = size_t(width) * height * camera.channels * sizeof(uint16_t);
-  const size_t per_led_bytes =
-      frame_bytes * num_exposures + size_t(width) * height * (camera.channels + 1) * sizeof(float);
-  const size_t spare = available_memory_bytes() / 2;
-  const int max_in_flight =
-      int(std::clamp<size_t>(spare / std::max<size_t>(per_led_bytes, 1), 1,
-                             std::max(1u, std::thread::hardware_concurrency())));
-  const int num_lights = int(order.size());
-  std::vector<Eigen::Array3f> scale(num_lights, Eigen::Array3f::Zero());
-  for (int i = 0; i < num_lights; ++i) {
-    if (!usable[i]) continue;
-    const Eigen::Vector3d e = stage.leds[order[i]].irradiance_rgb();
-    // Merged signal is "full scale per second at gain 1"; radiometric_scale turns it into radiance,
-    // and dividing by the LED's irradiance gives R(x, l) per unit irradiance (1/sr).
-    for (int c = 0; c < 3; ++c) scale[i][c] = float(camera.radiometric_scale / e[c]);
-    // Saturation ceiling: a sample clipped in every exposure keeps the shortest exposure's value,
-    // (linear - dark) / (exposure * gain) with linear >= saturation_level (hdr_merge.h), so no
-    // clipped sample lies below (saturation_level - dark level) / (exposure * gain) of that step.
-    int shortest = 0;
-    auto exposure_gain = [&](int e) {
-      return brackets[i].records[e]->exposure_s * brackets[i].records[e]->gain;
-    };
-    for (int e = 1; e < num_exposures; ++e) {
-      if (exposure_gain(e) < exposure_gain(shortest)) shortest = e;
-    }
-    const double ceiling = (options.merge.saturation_level - noise_steps[shortest].dark_level) /
-                           exposure_gain(shortest);
-    if (ceiling > 0 && std::isfinite(ceiling)) {
-      // With a per-pixel gain the ceiling varies over the image: the lowest one is kept, so that
-      // no clipped sample passes for a measurement (a few near-ceiling ones are censored too).
-      std::vector<float> gain;
-      pixel_gain(i, &gain);
-      const float lowest = gain.empty() ? 1.0f : *std::min_element(gain.begin(), gain.end());
-      for (int c = 0; c < 3; ++c) {
-        field.lights()[i].saturates_at[c] = float(ceiling) * scale[i][c] * lowest;
+    for (int e = 0; e < num_exposures_; ++e) {
+      if (dark_keys_[e].empty()) {
+        sensor_.read_measured = false;
+        sum_.warnings.push_back("no dark frames for exposure step " + std::to_string(e) +
+                                " at time step " + std::to_string(options_.time_step) +
+                                ": that step is not dark-subtracted");
+        continue;
+      }
+      std::vector<RawFrame> raw;
+      for (const FrameKey& key : dark_keys_[e]) {
+        raw.push_back(session_.load_frame(key));
+        check_size(raw.back(), key);
+      }
+      std::vector<const RawFrame*> pointers;
+      for (const RawFrame& r : raw) pointers.push_back(&r);
+      darks_[e] = mean_dark(pointers, *response_);
+      noise_steps_[e].dark_frames = int(raw.size());
+      noise_steps_[e].dark_level = mean_value(*darks_[e]);
+      if (raw.size() >= 2) {
+        long long samples = 0;
+        sensor_.read_variance[e] = dark_read_variance(pointers, *response_, &samples);
+        sensor_.dark_samples += samples;
+      } else {
+        sensor_.read_measured = false;
       }
     }
   }
-  // LEDs whose brackets feed photon transfer.
-  std::vector<bool> transfer_led(num_lights, false);
-  {
+
+  // Per LED: the factor from merged signal to field units, and its saturation ceiling.
+  void scale_lights(ReflectanceField& field) {
+    scale_.assign(order_.size(), Eigen::Array3f::Zero());
+    for (size_t i = 0; i < order_.size(); ++i) {
+      if (!usable_[i]) continue;
+      const Eigen::Vector3d e = stage_.leds[order_[i]].irradiance_rgb();
+      // Merged signal is "full scale per second at gain 1"; radiometric_scale turns it into
+      // radiance, and dividing by the LED's irradiance gives R(x, l) per unit irradiance (1/sr).
+      for (int c = 0; c < 3; ++c) scale_[i][c] = float(camera_.radiometric_scale / e[c]);
+      // Saturation ceiling: a sample clipped in every exposure keeps the shortest exposure's
+      // value, (linear - dark) / (exposure * gain) with linear >= saturation_level (hdr_merge.h),
+      // so no clipped sample lies below (saturation_level - dark level) / (exposure * gain) of
+      // that step.
+      int shortest = 0;
+      auto exposure_gain = [&](int e) {
+        return brackets_[i].records[e]->exposure_s * brackets_[i].records[e]->gain;
+      };
+      for (int e = 1; e < num_exposures_; ++e) {
+        if (exposure_gain(e) < exposure_gain(shortest)) shortest = e;
+      }
+      const double ceiling = (options_.merge.saturation_level - noise_steps_[shortest].dark_level) /
+                             exposure_gain(shortest);
+      if (ceiling > 0 && std::isfinite(ceiling)) {
+        // With a per-pixel gain the ceiling varies over the image: the lowest one is kept, so that
+        // no clipped sample passes for a measurement (a few near-ceiling ones are censored too).
+        std::vector<float> gain;
+        pixel_gain(field, int(i), &gain);
+        const float lowest = gain.empty() ? 1.0f : *std::min_element(gain.begin(), gain.end());
+        for (int c = 0; c < 3; ++c) {
+          field.lights()[i].saturates_at[c] = float(ceiling) * scale_[i][c] * lowest;
+        }
+      }
+    }
+  }
+
+  // LEDs whose brackets feed photon transfer: kTransferLeds spread over the capture order.
+  std::vector<bool> transfer_leds() const {
+    std::vector<bool> transfer_led(order_.size(), false);
     std::vector<int> candidates;
-    for (int i = 0; i < num_lights; ++i) {
-      if (usable[i]) candidates.push_back(i);
+    for (size_t i = 0; i < order_.size(); ++i) {
+      if (usable_[i]) candidates.push_back(int(i));
     }
     const size_t picks = std::min<size_t>(candidates.size(), kTransferLeds);
-    for (size_t p = 0; p < picks; ++p)
+    for (size_t p = 0; p < picks; ++p) {
       transfer_led[candidates[p * candidates.size() / picks]] = true;
+    }
+    return transfer_led;
   }
-  const int transfer_stride = std::max(1, width * height / kTransferPixelsPerLed);
-  std::vector<TransferSample> transfer;
-  std::mutex transfer_mutex;
-  std::atomic<long long> saturated_pixels{0};
-  std::mutex progress_mutex;
-  int done = 0;
-  auto report = [&] {
-    if (!options.on_progress) return;
-    std::lock_guard<std::mutex> lock(progress_mutex);
-    options.on_progress(++done, num_lights);
-  };
 
-  tbb::task_arena arena(max_in_flight);
-  arena.execute([&] {
-    tbb::parallel_for(0, num_lights, [&](int i) {
-      if (!usable[i]) {
+  // Merges LED i's bracket into its channels of the field (and its photon-transfer samples).
+  void merge_led(ReflectanceField& field, int i, bool with_transfer, int transfer_stride) {
+    const int width = camera_.width, height = camera_.height;
+    std::vector<RawFrame> raw(num_exposures_);
+    std::vector<BracketFrame> bracket(num_exposures_);
+    for (int e = 0; e < num_exposures_; ++e) {
+      const FrameRecord& record = *brackets_[i].records[e];
+      raw[e] = session_.load_frame(record.key);
+      check_size(raw[e], record.key);
+      bracket[e] =
+          BracketFrame{&raw[e], darks_[e] ? &*darks_[e] : nullptr, record.exposure_s, record.gain};
+    }
+    const Image merged = merge_bracket(bracket, *response_, options_.merge);
+    if (with_transfer) {
+      std::vector<const RawFrame*> frames;
+      std::vector<const Image*> step_darks;
+      for (int e = 0; e < num_exposures_; ++e) {
+        frames.push_back(&raw[e]);
+        step_darks.push_back(darks_[e] ? &*darks_[e] : nullptr);
+      }
+      std::vector<TransferSample> samples = transfer_samples(
+          frames, step_darks, *response_, noise_steps_, options_.merge, transfer_stride);
+      std::lock_guard<std::mutex> lock(transfer_mutex_);
+      transfer_.insert(transfer_.end(), samples.begin(), samples.end());
+    }
+    const int in_channels = camera_.channels + 1;
+    std::vector<float> gain;
+    pixel_gain(field, i, &gain);
+    long long saturated = 0;
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        const float* m = &merged.pixels[(size_t(y) * width + x) * in_channels];
+        float* out = field.pixel(x, y) + 3 * i;
+        const float g = gain.empty() ? 1.0f : gain[size_t(y) * width + x];
+        for (int c = 0; c < 3; ++c) out[c] = m[camera_.channels == 1 ? 0 : c] * scale_[i][c] * g;
+        saturated += m[in_channels - 1] == 0.0f;
+      }
+    }
+    saturated_pixels_ += saturated;
+  }
+
+  // LEDs run in parallel (frame decoding is serial per file); the number in flight is bounded so
+  // that frames of large cameras do not exhaust memory.
+  void merge_brackets(ReflectanceField& field) {
+    const int width = camera_.width, height = camera_.height;
+    const size_t frame_bytes = size_t(width) * height * camera_.channels * sizeof(uint16_t);
+    const size_t per_led_bytes = frame_bytes * num_exposures_ +
+                                 size_t(width) * height * (camera_.channels + 1) * sizeof(float);
+    const size_t spare = available_memory_bytes() / 2;
+    const int max_in_flight =
+        int(std::clamp<size_t>(spare / std::max<size_t>(per_led_bytes, 1), 1,
+                               std::max(1u, std::thread::hardware_concurrency())));
+    const int num_lights = int(order_.size());
+    const std::vector<bool> transfer_led = transfer_leds();
+    const int transfer_stride = std::max(1, width * height / kTransferPixelsPerLed);
+    std::mutex progress_mutex;
+    int done = 0;
+    auto report = [&] {
+      if (!options_.on_progress) return;
+      std::lock_guard<std::mutex> lock(progress_mutex);
+      options_.on_progress(++done, num_lights);
+    };
+    tbb::task_arena arena(max_in_flight);
+    arena.execute([&] {
+      tbb::parallel_for(0, num_lights, [&](int i) {
+        if (usable_[i]) merge_led(field, i, transfer_led[i], transfer_stride);
         report();
-        return;
-      }
-      std::vector<RawFrame> raw(num_exposures);
-      std::vector<BracketFrame> bracket(num_exposures);
-      for (int e = 0; e < num_exposures; ++e) {
-        const FrameRecord& record = *brackets[i].records[e];
-        raw[e] = session.load_frame(record.key);
-        check_size(raw[e], record.key);
-        bracket[e] =
-            BracketFrame{&raw[e], darks[e] ? &*darks[e] : nullptr, record.exposure_s, record.gain};
-      }
-      const Image merged = merge_bracket(bracket, *response, options.merge);
-      if (transfer_led[i]) {
-        std::vector<const RawFrame*> frames;
-        std::vector<const Image*> step_darks;
-        for (int e = 0; e < num_exposures; ++e) {
-          frames.push_back(&raw[e]);
-          step_darks.push_back(darks[e] ? &*darks[e] : nullptr);
-        }
-        std::vector<TransferSample> samples = transfer_samples(
-            frames, step_darks, *response, noise_steps, options.merge, transfer_stride);
-        std::lock_guard<std::mutex> lock(transfer_mutex);
-        transfer.insert(transfer.end(), samples.begin(), samples.end());
-      }
-      const int in_channels = camera.channels + 1;
-      std::vector<float> gain;
-      pixel_gain(i, &gain);
-      long long saturated = 0;
-      for (int y = 0; y < height; ++y) {
-        for (int x = 0; x < width; ++x) {
-          const float* m = &merged.pixels[(size_t(y) * width + x) * in_channels];
-          float* out = field.pixel(x, y) + 3 * i;
-          const float g = gain.empty() ? 1.0f : gain[size_t(y) * width + x];
-          for (int c = 0; c < 3; ++c) out[c] = m[camera.channels == 1 ? 0 : c] * scale[i][c] * g;
-          saturated += m[in_channels - 1] == 0.0f;
-        }
-      }
-      saturated_pixels += saturated;
-      report();
+      });
     });
-  });
+  }
 
-  sum.lights_used = int(std::count(usable.begin(), usable.end(), true));
-  const double samples = double(sum.lights_used) * width * height;
-  sum.saturated_fraction = samples > 0 ? double(saturated_pixels.load()) / samples : 0.0;
-  field.noise = estimate_field_noise(field, stage, usable, order, noise_steps, options.merge,
-                                     sensor, transfer, &sum);
+  const Session& session_;
+  const Stage& stage_;
+  const CameraSpec& camera_;
+  const BuildOptions& options_;
+  BuildSummary& sum_;
+  const std::string where_;
+  const int num_exposures_;
+  const std::vector<int> order_;  // Capture order: field light i is LED order_[i].
+  std::vector<LedFrames> brackets_;
+  std::vector<std::vector<FrameKey>> dark_keys_;
+  std::vector<bool> usable_;
+  std::optional<ResponseCurve> response_;
+  std::optional<FlatFieldMaps> flat_;
+  std::vector<std::optional<Image>> darks_;
+  std::vector<NoiseStep> noise_steps_;
+  SensorNoise sensor_;
+  std::vector<Eigen::Array3f> scale_;
+  std::vector<TransferSample> transfer_;
+  std::mutex transfer_mutex_;
+  std::atomic<long long> saturated_pixels_{0};
+};
+
+}  // namespace
+
+ReflectanceField build_field(const Session& session, const BuildOptions& options,
+                             BuildSummary* summary) {
+  const auto start = std::chrono::steady_clock::now();
+  check_camera(session, options);
+  BuildSummary local_summary;
+  BuildSummary& sum = summary ? *summary : local_summary;
+  sum = BuildSummary{};
+  ReflectanceField field = FieldBuild(session, options, sum).run();
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return field;
 }

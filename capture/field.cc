@@ -231,19 +231,12 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
   }
 }
 
-ReflectanceField read_field(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  auto in = OIIO::ImageInput::open(name);
-  if (!in) throw InputError(name + ": cannot read reflectance field: " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
-  const OIIO::ParamValue* lights_param = spec.find_attribute(kLightsAttribute);
-  if (lights_param == nullptr || lights_param->type() != OIIO::TypeDesc::STRING) {
-    throw InputError(name + ": not a reflectance field: missing string attribute '" +
-                     std::string(kLightsAttribute) + "'");
-  }
+namespace {
+
+std::vector<FieldLight> parse_lights(const std::string& name, const std::string& text) {
   std::vector<FieldLight> lights;
   try {
-    const nlohmann::json j = nlohmann::json::parse(lights_param->get_string());
+    const nlohmann::json j = nlohmann::json::parse(text);
     if (!j.is_array()) throw InputError("expected an array");
     for (size_t i = 0; i < j.size(); ++i) {
       const nlohmann::json& e = j[i];
@@ -280,6 +273,13 @@ ReflectanceField read_field(const std::filesystem::path& path) {
         "position?: [x, y, z]}: " +
         e.what());
   }
+  return lights;
+}
+
+// The EXR library may return channels in another order than written (it sorts them by name):
+// file channel i goes to layout index result[i] (light-major, RGB innermost).
+std::vector<int> channel_layout(const std::string& name, const OIIO::ImageSpec& spec,
+                                const std::vector<FieldLight>& lights) {
   const int num_lights = int(lights.size());
   const int num_channels = spec.nchannels;
   if (num_lights == 0 || num_channels != 3 * num_lights) {
@@ -287,8 +287,6 @@ ReflectanceField read_field(const std::filesystem::path& path) {
                      "LED for " + std::to_string(num_lights) + " LEDs), found " +
                      std::to_string(num_channels));
   }
-  // The EXR library may return channels in another order than written (it sorts them by name):
-  // find each by name and permute into the light-major, RGB-innermost layout.
   std::unordered_map<std::string, int> layout_index;
   for (int l = 0; l < num_lights; ++l) {
     for (int c = 0; c < 3; ++c) {
@@ -311,11 +309,12 @@ ReflectanceField read_field(const std::filesystem::path& path) {
     seen[it->second] = true;
     file_to_layout[i] = it->second;
   }
-  bool identity = true;
-  for (int i = 0; i < num_channels; ++i) identity = identity && file_to_layout[i] == i;
+  return file_to_layout;
+}
 
-  ReflectanceField field(spec.width, spec.height, std::move(lights));
-  field.source = name;
+// The optional attributes: scene time, measured noise, view.
+void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
+                           ReflectanceField& field) {
   double scene_time_s = 0;
   if (spec.getattribute(kSceneTimeAttribute, OIIO::TypeDesc::DOUBLE, &scene_time_s)) {
     field.scene_time_s = scene_time_s;
@@ -339,7 +338,6 @@ ReflectanceField read_field(const std::filesystem::path& path) {
                        "': expected {read_variance, shot_variance_per_unit, method}: " + e.what());
     }
   }
-
   if (const OIIO::ParamValue* view = spec.find_attribute(kViewAttribute)) {
     try {
       const nlohmann::json j = nlohmann::json::parse(view->get_string());
@@ -362,9 +360,15 @@ ReflectanceField read_field(const std::filesystem::path& path) {
                        e.what());
     }
   }
+}
 
+// The pixels into the field's layout; InputError on a read failure or a non-finite value.
+void read_field_pixels(const std::string& name, OIIO::ImageInput& in,
+                       const std::vector<int>& file_to_layout, ReflectanceField& field) {
+  const OIIO::ImageSpec& spec = in.spec();
   const int width = spec.width;
   const int height = spec.height;
+  const int num_channels = spec.nchannels;
   const size_t row_values = size_t(width) * num_channels;
   float* dst = field.pixel(0, 0);
   std::atomic<bool> non_finite{false};
@@ -373,9 +377,11 @@ ReflectanceField read_field(const std::filesystem::path& path) {
       if (!std::isfinite(values[i])) non_finite = true;
     }
   };
+  bool identity = true;
+  for (int i = 0; i < num_channels; ++i) identity = identity && file_to_layout[i] == i;
   if (identity) {
-    if (!in->read_image(0, 0, 0, num_channels, OIIO::TypeDesc::FLOAT, dst)) {
-      throw InputError(name + ": reading pixels failed: " + in->geterror());
+    if (!in.read_image(0, 0, 0, num_channels, OIIO::TypeDesc::FLOAT, dst)) {
+      throw InputError(name + ": reading pixels failed: " + in.geterror());
     }
     tbb::parallel_for(tbb::blocked_range<size_t>(0, size_t(height) * row_values),
                       [&](const auto& r) { check_finite(dst + r.begin(), r.size()); });
@@ -386,9 +392,9 @@ ReflectanceField read_field(const std::filesystem::path& path) {
     std::vector<float> band(size_t(std::min(band_rows, height)) * row_values);
     for (int y0 = 0; y0 < height; y0 += band_rows) {
       const int y1 = std::min(height, y0 + band_rows);
-      if (!in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, num_channels,
-                              OIIO::TypeDesc::FLOAT, band.data())) {
-        throw InputError(name + ": reading pixels failed: " + in->geterror());
+      if (!in.read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, num_channels,
+                             OIIO::TypeDesc::FLOAT, band.data())) {
+        throw InputError(name + ": reading pixels failed: " + in.geterror());
       }
       const size_t pixels = size_t(y1 - y0) * width;
       tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels), [&](const auto& r) {
@@ -401,8 +407,28 @@ ReflectanceField read_field(const std::filesystem::path& path) {
       });
     }
   }
-  in->close();
   if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
+}
+
+}  // namespace
+
+ReflectanceField read_field(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  auto in = OIIO::ImageInput::open(name);
+  if (!in) throw InputError(name + ": cannot read reflectance field: " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  const OIIO::ParamValue* lights_param = spec.find_attribute(kLightsAttribute);
+  if (lights_param == nullptr || lights_param->type() != OIIO::TypeDesc::STRING) {
+    throw InputError(name + ": not a reflectance field: missing string attribute '" +
+                     std::string(kLightsAttribute) + "'");
+  }
+  std::vector<FieldLight> lights = parse_lights(name, lights_param->get_string());
+  const std::vector<int> file_to_layout = channel_layout(name, spec, lights);
+  ReflectanceField field(spec.width, spec.height, std::move(lights));
+  field.source = name;
+  read_field_attributes(name, spec, field);
+  read_field_pixels(name, *in, file_to_layout, field);
+  in->close();
   return field;
 }
 

@@ -13,8 +13,8 @@
 //
 // Saturation: a pixel at the file's maximum code (255 or 65535) is only a lower bound. Integer
 // files give each light its ceiling (FieldLight::saturates_at: the maximum code after the transfer
-// curve and the intensity), so relight/fit/normals.h and fit.h leave such samples out as censored; they
-// are counted and reported (summary). With `zero_saturated` they become 0 instead, which the
+// curve and the intensity), so relight/fit/normals.h and fit.h leave such samples out as censored;
+// they are counted and reported (summary). With `zero_saturated` they become 0 instead, which the
 // normals and fits treat as shadowed (left out), at the cost of darkening relit highlights.
 #include <filesystem>
 #include <functional>

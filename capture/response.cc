@@ -197,8 +197,10 @@ ResponseCurve ResponseCurve::from_spec(const CameraResponse& spec, int bit_depth
       "camera response 'recover' needs bracketed frames: use recover_response (build_field does)");
 }
 
-ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
-                               const std::vector<double>& exposure_s, ResponseMethod method) {
+namespace {
+
+void check_bracket(const std::vector<const RawFrame*>& frames,
+                   const std::vector<double>& exposure_s) {
   if (frames.size() < 2) {
     throw InputError("response recovery needs at least 2 frames of a bracket, got " +
                      std::to_string(frames.size()));
@@ -226,16 +228,17 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
                        " must be positive, got " + std::to_string(exposure_s[i]));
     }
   }
+}
 
-  // OpenCV's Debevec solver works on 8-bit, 3-channel images: reduce DN to 8 bits (rounded) and
-  // replicate a single channel. Channels are solved independently, so RGB vs BGR does not matter.
-  const int max_dn = (1 << first.bit_depth) - 1;
+// OpenCV's Debevec solver works on 8-bit, 3-channel images: reduce DN to 8 bits (rounded) and
+// replicate a single channel. Channels are solved independently, so RGB vs BGR does not matter.
+std::vector<cv::Mat> to_8bit_bgr(const std::vector<const RawFrame*>& frames) {
+  const int max_dn = (1 << frames[0]->bit_depth) - 1;
   std::vector<uint8_t> to8(size_t(max_dn) + 1);
   for (int dn = 0; dn <= max_dn; ++dn) to8[dn] = uint8_t(std::lround(dn * 255.0 / max_dn));
   std::vector<cv::Mat> images;
-  std::vector<float> times;
-  for (size_t i = 0; i < frames.size(); ++i) {
-    const RawFrame& f = *frames[i];
+  for (const RawFrame* frame : frames) {
+    const RawFrame& f = *frame;
     cv::Mat m(f.height, f.width, CV_8UC3);
     for (int y = 0; y < f.height; ++y) {
       uint8_t* row = m.ptr<uint8_t>(y);
@@ -248,8 +251,79 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
       }
     }
     images.push_back(m);
-    times.push_back(float(exposure_s[i]));
   }
+  return images;
+}
+
+// Interpolate the 256-entry curve to the full bit depth. The curve is only known up to scale, so
+// it is normalised to read 1 at full scale. Its top end is the least constrained part of the
+// solve (clipped samples pile up at 255, where OpenCV's weights do not reach 0), and measured on
+// a gamma-2.2 camera it overshoots by ~60% at 255: so the values above kFitEnd are replaced by a
+// power law fitted in log-log over [kFitBegin, kFitEnd] (exact for linear and gamma cameras),
+// extrapolated to 255. A running max then enforces monotonicity. Writes lut[0, 2^bit_depth).
+void curve_to_lut(const cv::Mat& curve, int c, int max_dn, float* lut) {
+  constexpr int kFitBegin = 96;
+  constexpr int kFitEnd = 224;
+  const size_t n = size_t(max_dn) + 1;
+  std::vector<double> g(256);
+  for (int i = 0; i < 256; ++i) {
+    g[i] = double(curve.at<cv::Vec3f>(i, 0)[c]);
+    if (!std::isfinite(g[i])) {
+      throw InputError("response recovery failed: the recovered curve is not finite at value " +
+                       std::to_string(i) + " (is the bracket of a static, well-exposed scene?)");
+    }
+  }
+  // Least squares: log g(z) = a + b * log(z / 255).
+  double s_u = 0, s_v = 0, s_uu = 0, s_uv = 0;
+  int count = 0;
+  for (int z = kFitBegin; z <= kFitEnd; ++z) {
+    if (!(g[z] > 0)) continue;
+    const double u = std::log(z / 255.0);
+    const double v = std::log(g[z]);
+    s_u += u, s_v += v, s_uu += u * u, s_uv += u * v, ++count;
+  }
+  const double det = count * s_uu - s_u * s_u;
+  if (count < 8 || !(det > 0)) {
+    throw InputError(
+        "response recovery failed: the recovered curve is not positive over the mid range "
+        "(is the bracket of a static, well-exposed scene?)");
+  }
+  const double slope = (count * s_uv - s_u * s_v) / det;
+  const double intercept = (s_v - slope * s_u) / count;
+  for (int z = kFitEnd + 1; z < 256; ++z) g[z] = std::exp(intercept + slope * std::log(z / 255.0));
+  double running = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < 256; ++i) {
+    running = std::max(running, g[i]);
+    g[i] = running;
+  }
+  const double full_scale = g[255];
+  if (!(full_scale > 0) || !std::isfinite(full_scale)) {
+    throw InputError("response recovery failed: the recovered curve is not positive at full scale");
+  }
+  for (size_t dn = 0; dn < n; ++dn) {
+    const double p = double(dn) * 255.0 / max_dn;
+    const int i0 = std::min(int(p), 254);
+    const double t = p - i0;
+    const double v = (g[i0] * (1 - t) + g[i0 + 1] * t) / full_scale;
+    lut[dn] = float(v);
+  }
+  // Interpolation of a non-decreasing sequence stays non-decreasing, but float rounding may not:
+  // enforce it exactly.
+  for (size_t dn = 1; dn < n; ++dn) {
+    float& v = lut[dn];
+    v = std::max(v, lut[dn - 1]);
+  }
+}
+
+}  // namespace
+
+ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
+                               const std::vector<double>& exposure_s, ResponseMethod method) {
+  check_bracket(frames, exposure_s);
+  const RawFrame& first = *frames[0];
+  const int max_dn = (1 << first.bit_depth) - 1;
+  std::vector<cv::Mat> images = to_8bit_bgr(frames);
+  std::vector<float> times(exposure_s.begin(), exposure_s.end());
   // OpenCV solves the system by SVD, cubic in the sample count: 300 samples take ~0.6 s (1000 take
   // 7 s). With 12-bit noise reduced to 8 bits the default smoothness (10) lets the curve wiggle by
   // +-5%; lambda 100 keeps a gamma-2.2 curve within 2% above 10% of full scale (response_test).
@@ -257,7 +331,8 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
   if (method == ResponseMethod::kRobertson) {
     // Every pixel (no sampling), iterative maximum likelihood, no smoothness term: on a simulated
     // 12-bit gamma-2.2 bracket reduced to 8 bits it errs by up to 20% in the mid range where
-    // Debevec errs by 1% (tests/capture/calibration/robertson_test.cc), so Debevec stays the default.
+    // Debevec errs by 1% (tests/capture/calibration/robertson_test.cc), so Debevec stays the
+    // default.
     calibrate = cv::createCalibrateRobertson(/*max_iter=*/100, /*threshold=*/0.001f);
   } else {
     calibrate = cv::createCalibrateDebevec(/*samples=*/300, /*lambda=*/100.0f, /*random=*/false);
@@ -267,68 +342,10 @@ ResponseCurve recover_response(const std::vector<const RawFrame*>& frames,
   LS_CHECK(curve.rows == 256 && curve.type() == CV_32FC3,
            "unexpected response curve shape " + std::to_string(curve.rows));
 
-  // Interpolate the 256-entry curve to the full bit depth. The curve is only known up to scale, so
-  // it is normalised to read 1 at full scale. Its top end is the least constrained part of the
-  // solve (clipped samples pile up at 255, where OpenCV's weights do not reach 0), and measured on
-  // a gamma-2.2 camera it overshoots by ~60% at 255: so the values above kFitEnd are replaced by a
-  // power law fitted in log-log over [kFitBegin, kFitEnd] (exact for linear and gamma cameras),
-  // extrapolated to 255. A running max then enforces monotonicity.
-  constexpr int kFitBegin = 96;
-  constexpr int kFitEnd = 224;
   const size_t n = size_t(max_dn) + 1;
   std::vector<float> lut(n * size_t(first.channels));
-  for (int c = 0; c < first.channels; ++c) {
-    std::vector<double> g(256);
-    for (int i = 0; i < 256; ++i) {
-      g[i] = double(curve.at<cv::Vec3f>(i, 0)[c]);
-      if (!std::isfinite(g[i])) {
-        throw InputError("response recovery failed: the recovered curve is not finite at value " +
-                         std::to_string(i) + " (is the bracket of a static, well-exposed scene?)");
-      }
-    }
-    // Least squares: log g(z) = a + b * log(z / 255).
-    double s_u = 0, s_v = 0, s_uu = 0, s_uv = 0;
-    int count = 0;
-    for (int z = kFitBegin; z <= kFitEnd; ++z) {
-      if (!(g[z] > 0)) continue;
-      const double u = std::log(z / 255.0);
-      const double v = std::log(g[z]);
-      s_u += u, s_v += v, s_uu += u * u, s_uv += u * v, ++count;
-    }
-    const double det = count * s_uu - s_u * s_u;
-    if (count < 8 || !(det > 0)) {
-      throw InputError(
-          "response recovery failed: the recovered curve is not positive over the mid range "
-          "(is the bracket of a static, well-exposed scene?)");
-    }
-    const double slope = (count * s_uv - s_u * s_v) / det;
-    const double intercept = (s_v - slope * s_u) / count;
-    for (int z = kFitEnd + 1; z < 256; ++z)
-      g[z] = std::exp(intercept + slope * std::log(z / 255.0));
-    double running = -std::numeric_limits<double>::infinity();
-    for (int i = 0; i < 256; ++i) {
-      running = std::max(running, g[i]);
-      g[i] = running;
-    }
-    const double full_scale = g[255];
-    if (!(full_scale > 0) || !std::isfinite(full_scale)) {
-      throw InputError(
-          "response recovery failed: the recovered curve is not positive at full scale");
-    }
-    for (size_t dn = 0; dn < n; ++dn) {
-      const double p = double(dn) * 255.0 / max_dn;
-      const int i0 = std::min(int(p), 254);
-      const double t = p - i0;
-      const double v = (g[i0] * (1 - t) + g[i0 + 1] * t) / full_scale;
-      lut[size_t(c) * n + dn] = float(v);
-    }
-    // Interpolation of a non-decreasing sequence stays non-decreasing, but float rounding may not:
-    // enforce it exactly.
-    for (size_t dn = 1; dn < n; ++dn) {
-      float& v = lut[size_t(c) * n + dn];
-      v = std::max(v, lut[size_t(c) * n + dn - 1]);
-    }
-  }
+  for (int c = 0; c < first.channels; ++c)
+    curve_to_lut(curve, c, max_dn, lut.data() + size_t(c) * n);
   return ResponseCurve(first.bit_depth, first.channels, std::move(lut));
 }
 

@@ -30,8 +30,8 @@ const Backend& BackendRegistry::find(const std::string& name,
   std::string known;
   for (const Backend& b : backends_) known += (known.empty() ? "\"" : ", \"") + b.name + "\"";
   throw InputError(stage_source + ": camera.backend: expected one of " +
-                   (known.empty() ? std::string("(none registered)") : known) + ", got \"" +
-                   name + "\"");
+                   (known.empty() ? std::string("(none registered)") : known) + ", got \"" + name +
+                   "\"");
 }
 
 std::vector<std::string> BackendRegistry::names() const {

@@ -1,7 +1,7 @@
 #pragma once
-// Capture back-ends by name: a stage file's camera.backend ("sim", "aravis", "v4l2", ...) picks one.
-// Each back-end registers itself (sim/sim_backend.h, lightstage/hardware/backends.h) and the app
-// calls one function that registers them all, so nothing that captures includes a back-end.
+// Capture back-ends by name: a stage file's camera.backend ("sim", "aravis", "v4l2", ...) picks
+// one. Each back-end registers itself (sim/sim_backend.h, lightstage/hardware/backends.h) and the
+// app calls one function that registers them all, so nothing that captures includes a back-end.
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -18,7 +18,7 @@ namespace ls {
 struct BackendRequest {
   const Stage& stage;
   std::filesystem::path input_file;  // The back-end's own input (a scene); empty: its default.
-  uint64_t seed = 1;                  // Noise seed (simulated back-ends).
+  uint64_t seed = 1;                 // Noise seed (simulated back-ends).
 };
 
 // The opened devices. They may share one owner (the simulated stage owns both), hence shared_ptr.
@@ -54,7 +54,7 @@ class BackendRegistry {
   std::vector<Backend> backends_;
 };
 
-// The process's registry, filled by the app at start-up (app/jobs/register_backends.h).
+// The process's registry, filled by the app at start-up (app/cli/register_backends.h).
 BackendRegistry& backend_registry();
 
 }  // namespace ls

@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 BUILD_DIR=${BUILD_DIR:-build}
 
 PACKAGES=(
-  g++ cmake ninja-build pkg-config ccache clang-format git
+  g++ cmake ninja-build pkg-config ccache clang-format clang-tidy git
   libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
   libopencv-calib3d-dev libopencv-videoio-dev
   libopenexr-dev libimath-dev libopenimageio-dev openimageio-tools
@@ -32,6 +32,7 @@ fi
 
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
-cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release "${launcher[@]}" >/dev/null
+# Warnings are errors: this script builds with one known toolchain (Debian 12, GCC 12).
+cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release -DLIGHTSTAGE_WERROR=ON "${launcher[@]}" >/dev/null
 echo "setup: building in $BUILD_DIR"
 cmake --build "$BUILD_DIR" -j "$(nproc)"

@@ -1,11 +1,11 @@
 #pragma once
 // Sources for software OpenGL. Under llvmpipe the "GPU" is these same cores running an emulated
 // shader, and the shader loop over 150 LEDs at 512x512 takes 126-295 ms a frame
-// (bench_viewer), while the CPU relighting loop (relight/lighting/relight.h: each pixel's samples streamed
-// once against weights in cache, TBB over rows) takes ~11 ms. So on a software renderer the
-// viewer relights the field and the PCA with the CPU code and uploads the finished image into the
-// target: the same result (it is the reference the GPU sources are tested against), interactive.
-// On a hardware GPU the shader sources (gpu_relight.h) are used.
+// (bench_viewer), while the CPU relighting loop (relight/lighting/relight.h: each pixel's samples
+// streamed once against weights in cache, TBB over rows) takes ~11 ms. So on a software renderer
+// the viewer relights the field and the PCA with the CPU code and uploads the finished image into
+// the target: the same result (it is the reference the GPU sources are tested against),
+// interactive. On a hardware GPU the shader sources (gpu_relight.h) are used.
 #include <memory>
 
 #include "capture/field.h"

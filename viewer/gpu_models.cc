@@ -24,8 +24,8 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Models: the maps in a 5-layer RGBA32F array, the distant lights in a uniform buffer, up to
 // LIGHTS_PER_PASS per pass (more lights: further passes added by blending); the shader is
-// relight/fit/model_render.cc's shade() with relight/lighting/brdf.h's models, line for line. (Lights in a
-// texture, the first version, cost two fetches per light: 1.6x slower on llvmpipe.)
+// relight/fit/model_render.cc's shade() with relight/lighting/brdf.h's models, line for line.
+// (Lights in a texture, the first version, cost two fetches per light: 1.6x slower on llvmpipe.)
 
 // "#define LIGHTS_PER_PASS n" goes after the version line.
 // With "#define PREFILTERED" too, the prefiltered shading (ModelShading::kPrefiltered): no lights,

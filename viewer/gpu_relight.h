@@ -21,10 +21,10 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
-#include "relight/fit/fit.h"
-#include "relight/lighting/light_cells.h"
-#include "relight/fit/model_render.h"
 #include "relight/compact/pca_field.h"
+#include "relight/fit/fit.h"
+#include "relight/fit/model_render.h"
+#include "relight/lighting/light_cells.h"
 
 namespace ls::viewer {
 

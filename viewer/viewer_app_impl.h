@@ -14,9 +14,9 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
-#include "relight/lighting/envmap.h"
-#include "relight/fit/model_render.h"
 #include "relight/compact/pca_field.h"
+#include "relight/fit/model_render.h"
+#include "relight/lighting/envmap.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"
 #include "viewer/viewer_app.h"
@@ -163,6 +163,10 @@ struct ViewerApp::Impl {
   void image_rect(float* x0, float* y0, float* w, float* h) const;
   void handle_image_mouse();
   void source_radio(const char* label, Source s, Source* value);
+  void try_apply(const Action& action);
+  void open_section();
+  void source_section();
+  void lighting_section();
   void panel();
   void draw_legend();
   void edit_panel();

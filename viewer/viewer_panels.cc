@@ -23,118 +23,17 @@
 #include "capture/build_field.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
-#include "relight/lighting/envmap.h"
-#include "relight/lighting/light_cells.h"
+#include "relight/compact/pca_field.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
-#include "relight/compact/pca_field.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
 #include "viewer/gl_window.h"
 
 namespace ls::viewer {
 
 namespace fs = std::filesystem;
 using namespace app_detail;
-
-namespace {
-
-// A perceptually ordered colour ramp (viridis, 5 stops), t in [0, 1] -> sRGB-encoded RGB.
-Eigen::Vector3f ramp(float t) {
-  static const Eigen::Vector3f stops[] = {{0.267f, 0.005f, 0.329f},
-                                          {0.229f, 0.322f, 0.546f},
-                                          {0.128f, 0.567f, 0.551f},
-                                          {0.369f, 0.789f, 0.383f},
-                                          {0.993f, 0.906f, 0.144f}};
-  t = std::clamp(std::isfinite(t) ? t : 0.0f, 0.0f, 1.0f) * 4.0f;
-  const int i = std::min(3, int(t));
-  return stops[i] + (stops[i + 1] - stops[i]) * (t - float(i));
-}
-
-// Categorical colours of FitModel (sRGB-encoded): none, Lambert, Oren-Nayar, TS, Phong.
-const Eigen::Vector3f kModelColours[] = {{0.0f, 0.0f, 0.0f},
-                                         {0.55f, 0.6f, 0.7f},
-                                         {0.3f, 0.75f, 0.35f},
-                                         {0.95f, 0.55f, 0.15f},
-                                         {0.65f, 0.4f, 0.85f}};
-
-}  // namespace
-
-namespace app_detail {
-
-Image parameter_image(const relight::ModelMaps& maps, ParameterMap which, Legend* legend) {
-  const Image& m = maps.maps;
-  Image out(m.width, m.height, 3);
-  *legend = {};
-  switch (which) {
-    case ParameterMap::kRoughness:
-      *legend = {false, "m = 0", "m = 1"};
-      break;
-    case ParameterMap::kKs:
-      *legend = {false, "ks = 0", "ks = 1"};
-      break;
-    case ParameterMap::kSigma:
-      *legend = {false, "sigma = 0", "sigma = 90 deg"};
-      break;
-    case ParameterMap::kConfidence:
-      *legend = {false, "0", "1"};
-      break;
-    case ParameterMap::kResidual:
-      *legend = {false, "chi2/dof = 0", "chi2/dof = 99 (log)"};
-      break;
-    case ParameterMap::kModel:
-      legend->categorical = true;
-      break;
-    case ParameterMap::kNormal:
-      *legend = {false, "", ""};
-      break;
-    default:
-      break;
-  }
-  for (int y = 0; y < m.height; ++y) {
-    for (int x = 0; x < m.width; ++x) {
-      const float* p = &m.pixels[(size_t(y) * m.width + x) * m.channels];
-      Eigen::Vector3f c(0, 0, 0);
-      const bool fitted = p[relight::kMapModel] > 0.5f;
-      switch (which) {
-        case ParameterMap::kNormal:
-          if (fitted)
-            c = Eigen::Vector3f(p[relight::kMapNormalX], p[relight::kMapNormalY],
-                                p[relight::kMapNormalZ]) *
-                    0.5f +
-                Eigen::Vector3f::Constant(0.5f);
-          break;
-        case ParameterMap::kAlbedo:
-          c = Eigen::Vector3f(srgb_encode(p[relight::kMapAlbedoR]),
-                              srgb_encode(p[relight::kMapAlbedoG]),
-                              srgb_encode(p[relight::kMapAlbedoB]));
-          break;
-        case ParameterMap::kRoughness:
-          if (p[relight::kMapKs] > 0) c = ramp(p[relight::kMapRoughness]);
-          break;
-        case ParameterMap::kKs:
-          if (fitted) c = ramp(p[relight::kMapKs]);
-          break;
-        case ParameterMap::kSigma:
-          if (fitted) c = ramp(p[relight::kMapSigma] / float(M_PI / 2));
-          break;
-        case ParameterMap::kModel:
-          c = kModelColours[std::clamp(int(std::lround(p[relight::kMapModel])), 0, 4)];
-          break;
-        case ParameterMap::kConfidence:
-          if (fitted) c = ramp(p[relight::kMapConfidence]);
-          break;
-        case ParameterMap::kResidual:
-          if (fitted) c = ramp(std::log10(1.0f + p[relight::kMapResidual]) / 2.0f);
-          break;
-        case ParameterMap::kNone:
-          break;
-      }
-      for (int k = 0; k < 3; ++k) out.at(x, y, k) = std::clamp(c[k], 0.0f, 1.0f);
-    }
-  }
-  return out;
-}
-
-}  // namespace app_detail
 
 // --- Environment strip --------------------------------------------------------------------
 
@@ -268,6 +167,98 @@ void ViewerApp::Impl::source_radio(const char* label, Source s, Source* value) {
   ImGui::EndDisabled();
 }
 
+// Applies an action from a widget; a failure shows in the error banner instead of ending the app.
+void ViewerApp::Impl::try_apply(const Action& action) {
+  try {
+    apply(action);
+  } catch (const std::exception& e) {
+    error = e.what();
+  }
+}
+
+void ViewerApp::Impl::open_section() {
+  if (!ImGui::CollapsingHeader("Open", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  ImGui::InputText("##open", &open_path);
+  ImGui::SameLine();
+  if (ImGui::Button("Open")) open_dropped({open_path});
+  ImGui::TextWrapped("Or drop a field / maps / .lspca / session folder on the window.");
+  for (const auto* p : {&state.session_dir, &state.field_file, &state.models_file, &state.pca_file})
+    if (!p->empty()) ImGui::TextWrapped("%s", p->filename().c_str());
+  if (time_steps > 1) {
+    int step = state.time_step;
+    if (ImGui::SliderInt("time step", &step, 0, time_steps - 1) && step != state.time_step) {
+      Action a;
+      a.kind = Action::Kind::kTime;
+      a.value = step;
+      try_apply(a);
+    }
+  }
+}
+
+void ViewerApp::Impl::source_section() {
+  if (!ImGui::CollapsingHeader("Source", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  source_radio("field", Source::kField, &state.source);
+  ImGui::SameLine();
+  source_radio("pca", Source::kPca, &state.source);
+  ImGui::SameLine();
+  source_radio("models", Source::kModels, &state.source);
+  if (!pca_from_file && field) {
+    ImGui::SliderInt("rank", &state.rank, 1, std::min(64, field->num_lights()));
+  }
+  const char* split_names[] = {"none", "field", "pca", "models"};
+  int split_index = state.split ? int(*state.split) + 1 : 0;
+  if (ImGui::Combo("split", &split_index, split_names, 4)) {
+    const std::optional<Source> s =
+        split_index == 0 ? std::nullopt : std::optional<Source>(Source(split_index - 1));
+    if (!s || available(*s)) state.split = s;
+  }
+  if (state.split) {
+    float divider = float(state.divider);
+    if (ImGui::SliderFloat("divider", &divider, 0, 1)) state.divider = divider;
+    ImGui::Checkbox("difference", &state.difference);
+  }
+  if (GpuSource* s = gpu_field.get(); s && state.source == Source::kField)
+    ImGui::TextWrapped("%s", s->note().c_str());
+}
+
+void ViewerApp::Impl::lighting_section() {
+  if (!ImGui::CollapsingHeader("Lighting", ImGuiTreeNodeFlags_DefaultOpen)) return;
+  const auto names = builtin_environment_names();
+  if (ImGui::BeginCombo("environment", state.environment.c_str())) {
+    for (const std::string& name : names) {
+      if (ImGui::Selectable(name.c_str(), name == state.environment)) {
+        Action a;
+        a.kind = Action::Kind::kEnvironment;
+        a.text = name;
+        try_apply(a);
+      }
+    }
+    ImGui::EndCombo();
+  }
+  ImGui::InputText("##env", &env_path);
+  ImGui::SameLine();
+  if (ImGui::Button("Load map")) {
+    Action a;
+    a.kind = Action::Kind::kEnvironment;
+    a.text = env_path;
+    try_apply(a);
+  }
+  float rotation = float(state.rotation_deg);
+  if (ImGui::SliderFloat("rotation", &rotation, 0, 360, "%.1f deg")) state.rotation_deg = rotation;
+  float exposure = float(state.exposure_stops);
+  if (ImGui::SliderFloat("exposure", &exposure, -10, 10, "%.2f stops"))
+    state.exposure_stops = exposure;
+  ImGui::Checkbox("point light (drag on the strip)", &state.point_light);
+  if (state.point_light) {
+    ImGui::Text("light dir %.2f %.2f %.2f", state.light_dir.x(), state.light_dir.y(),
+                state.light_dir.z());
+  }
+  if (!led_luminance.empty()) {
+    ImGui::PlotHistogram("LED weights", led_luminance.data(), int(led_luminance.size()), 0, nullptr,
+                         0.0f, FLT_MAX, ImVec2(0, 50));
+  }
+}
+
 void ViewerApp::Impl::panel() {
   ImGui::SetNextWindowPos(ImVec2(0, 0));
   ImGui::SetNextWindowSize(ImVec2(kPanelWidth, ImGui::GetIO().DisplaySize.y));
@@ -275,97 +266,9 @@ void ViewerApp::Impl::panel() {
                ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
   ImGui::Text("%.1f fps; relight %.2f ms (last light weights %.2f ms)", ImGui::GetIO().Framerate,
               relight_ms, lighting_ms);
-  if (ImGui::CollapsingHeader("Open", ImGuiTreeNodeFlags_DefaultOpen)) {
-    ImGui::InputText("##open", &open_path);
-    ImGui::SameLine();
-    if (ImGui::Button("Open")) open_dropped({open_path});
-    ImGui::TextWrapped("Or drop a field / maps / .lspca / session folder on the window.");
-    for (const auto* p :
-         {&state.session_dir, &state.field_file, &state.models_file, &state.pca_file})
-      if (!p->empty()) ImGui::TextWrapped("%s", p->filename().c_str());
-    if (time_steps > 1) {
-      int step = state.time_step;
-      if (ImGui::SliderInt("time step", &step, 0, time_steps - 1) && step != state.time_step) {
-        Action a;
-        a.kind = Action::Kind::kTime;
-        a.value = step;
-        try {
-          apply(a);
-        } catch (const std::exception& e) {
-          error = e.what();
-        }
-      }
-    }
-  }
-  if (ImGui::CollapsingHeader("Source", ImGuiTreeNodeFlags_DefaultOpen)) {
-    source_radio("field", Source::kField, &state.source);
-    ImGui::SameLine();
-    source_radio("pca", Source::kPca, &state.source);
-    ImGui::SameLine();
-    source_radio("models", Source::kModels, &state.source);
-    if (!pca_from_file && field) {
-      ImGui::SliderInt("rank", &state.rank, 1, std::min(64, field->num_lights()));
-    }
-    const char* split_names[] = {"none", "field", "pca", "models"};
-    int split_index = state.split ? int(*state.split) + 1 : 0;
-    if (ImGui::Combo("split", &split_index, split_names, 4)) {
-      const std::optional<Source> s =
-          split_index == 0 ? std::nullopt : std::optional<Source>(Source(split_index - 1));
-      if (!s || available(*s)) state.split = s;
-    }
-    if (state.split) {
-      float divider = float(state.divider);
-      if (ImGui::SliderFloat("divider", &divider, 0, 1)) state.divider = divider;
-      ImGui::Checkbox("difference", &state.difference);
-    }
-    if (GpuSource* s = gpu_field.get(); s && state.source == Source::kField)
-      ImGui::TextWrapped("%s", s->note().c_str());
-  }
-  if (ImGui::CollapsingHeader("Lighting", ImGuiTreeNodeFlags_DefaultOpen)) {
-    const auto names = builtin_environment_names();
-    if (ImGui::BeginCombo("environment", state.environment.c_str())) {
-      for (const std::string& name : names) {
-        if (ImGui::Selectable(name.c_str(), name == state.environment)) {
-          Action a;
-          a.kind = Action::Kind::kEnvironment;
-          a.text = name;
-          try {
-            apply(a);
-          } catch (const std::exception& e) {
-            error = e.what();
-          }
-        }
-      }
-      ImGui::EndCombo();
-    }
-    ImGui::InputText("##env", &env_path);
-    ImGui::SameLine();
-    if (ImGui::Button("Load map")) {
-      Action a;
-      a.kind = Action::Kind::kEnvironment;
-      a.text = env_path;
-      try {
-        apply(a);
-      } catch (const std::exception& e) {
-        error = e.what();
-      }
-    }
-    float rotation = float(state.rotation_deg);
-    if (ImGui::SliderFloat("rotation", &rotation, 0, 360, "%.1f deg"))
-      state.rotation_deg = rotation;
-    float exposure = float(state.exposure_stops);
-    if (ImGui::SliderFloat("exposure", &exposure, -10, 10, "%.2f stops"))
-      state.exposure_stops = exposure;
-    ImGui::Checkbox("point light (drag on the strip)", &state.point_light);
-    if (state.point_light) {
-      ImGui::Text("light dir %.2f %.2f %.2f", state.light_dir.x(), state.light_dir.y(),
-                  state.light_dir.z());
-    }
-    if (!led_luminance.empty()) {
-      ImGui::PlotHistogram("LED weights", led_luminance.data(), int(led_luminance.size()), 0,
-                           nullptr, 0.0f, FLT_MAX, ImVec2(0, 50));
-    }
-  }
+  open_section();
+  source_section();
+  lighting_section();
   if (ImGui::CollapsingHeader("Parameter map")) {
     const char* map_names[] = {"none",  "normal", "albedo",     "roughness", "ks",
                                "sigma", "model",  "confidence", "residual"};
@@ -393,39 +296,6 @@ void ViewerApp::Impl::panel() {
   }
   hover_info();
   ImGui::End();
-}
-
-void ViewerApp::Impl::draw_legend() {
-  if (state.map == ParameterMap::kNone) return;
-  if (legend.categorical) {
-    const char* names[] = {"flagged", "Lambert", "Oren-Nayar", "Lambert + TS", "Lambert + Phong"};
-    for (int i = 0; i < 5; ++i) {
-      const Eigen::Vector3f& c = kModelColours[i];
-      ImGui::ColorButton(names[i], ImVec4(c.x(), c.y(), c.z(), 1), ImGuiColorEditFlags_NoTooltip,
-                         ImVec2(12, 12));
-      ImGui::SameLine();
-      ImGui::TextUnformatted(names[i]);
-    }
-    return;
-  }
-  if (legend.low.empty()) {
-    ImGui::TextWrapped(state.map == ParameterMap::kNormal ? "RGB = 0.5 + 0.5 (x, y, z)"
-                                                          : "albedo RGB (sRGB display)");
-    return;
-  }
-  ImDrawList* draw = ImGui::GetWindowDrawList();
-  const ImVec2 p = ImGui::GetCursorScreenPos();
-  const float w = ImGui::GetContentRegionAvail().x, h = 12;
-  for (int i = 0; i < 64; ++i) {
-    const Eigen::Vector3f c = ramp((i + 0.5f) / 64);
-    draw->AddRectFilled(ImVec2(p.x + w * i / 64, p.y), ImVec2(p.x + w * (i + 1) / 64, p.y + h),
-                        ImColor(c.x(), c.y(), c.z()));
-  }
-  ImGui::Dummy(ImVec2(w, h));
-  ImGui::TextUnformatted(legend.low.c_str());
-  ImGui::SameLine(std::max(0.0f, w - ImGui::CalcTextSize(legend.high.c_str()).x));
-  ImGui::TextUnformatted(legend.high.c_str());
-  ImGui::TextDisabled("black: no fit / no lobe");
 }
 
 void ViewerApp::Impl::edit_panel() {

@@ -56,9 +56,9 @@ void add_build_command(CLI::App& app) {
                   "Field file to write (.exr); with --all-time-steps, the directory to write "
                   "field_t000.exr, field_t001.exr, ... into.")
       ->required();
-  auto* step =
-      cmd->add_option("--time-step", options->time_step, "Time step to build (time-varying sessions).")
-          ->capture_default_str();
+  auto* step = cmd->add_option("--time-step", options->time_step,
+                               "Time step to build (time-varying sessions).")
+                   ->capture_default_str();
   cmd->add_flag("--all-time-steps", options->all_time_steps,
                 "Build one field per time step into the --out directory.")
       ->excludes(step);

@@ -9,9 +9,9 @@
 #include <memory>
 #include <regex>
 
+#include "app/cli/commands.h"
 #include "capture/camera_calibration.h"
 #include "capture/light_calibration.h"
-#include "app/cli/commands.h"
 #include "lightstage/errors.h"
 #include "lightstage/progress.h"
 

@@ -5,7 +5,6 @@
 #include <atomic>
 #include <csignal>
 #include <cstdio>
-
 #include <optional>
 
 #include "app/cli/commands.h"

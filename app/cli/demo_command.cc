@@ -5,9 +5,9 @@
 #include <cmath>
 #include <cstdio>
 
-#include "capture/field.h"
 #include "app/cli/commands.h"
 #include "app/jobs/contact_sheet.h"
+#include "capture/field.h"
 #include "lightstage/image_metrics.h"
 #include "lightstage/session.h"
 #include "relight/lighting/envmap.h"
@@ -37,7 +37,8 @@ void run_demo(const DemoArgs& args) {
     jobs::CaptureOptions resume;
     resume.session_dir = session_dir;
     resume.resume = true;
-    if (const int code = capture_session(resume, args.quiet); code != 0) throw CLI::RuntimeError(code);
+    if (const int code = capture_session(resume, args.quiet); code != 0)
+      throw CLI::RuntimeError(code);
   } else {
     // The built-in dome at the demo's resolution.
     Stage stage = default_stage();
@@ -48,7 +49,8 @@ void run_demo(const DemoArgs& args) {
     capture.stage_file = stage_file;
     capture.session_dir = session_dir;
     capture.seed = args.seed;
-    if (const int code = capture_session(capture, args.quiet); code != 0) throw CLI::RuntimeError(code);
+    if (const int code = capture_session(capture, args.quiet); code != 0)
+      throw CLI::RuntimeError(code);
   }
 
   const fs::path field_file = args.out / "field.exr";
@@ -100,8 +102,9 @@ void run_demo(const DemoArgs& args) {
     comparison.push_back({args.out / "truth" / (name + "_relit.png"), label});
     comparison.push_back({args.out / "truth" / (name + ".png"), name + " ground truth"});
   }
-  jobs::write_contact_sheet(args.out / "comparison.png", comparison,
-                      "relit from the captured field vs ground truth rendered from the scene");
+  jobs::write_contact_sheet(
+      args.out / "comparison.png", comparison,
+      "relit from the captured field vs ground truth rendered from the scene");
   std::fprintf(stderr, "done: see %s and %s\n", (args.out / "contact_sheet.png").c_str(),
                (args.out / "comparison.png").c_str());
 }

@@ -5,9 +5,9 @@
 #include <memory>
 #include <thread>
 
-#include "lightstage/hardware/backends.h"
 #include "app/cli/commands.h"
 #include "lightstage/errors.h"
+#include "lightstage/hardware/backends.h"
 
 namespace ls::cli {
 

@@ -16,8 +16,7 @@ namespace fs = std::filesystem;
 namespace {
 
 void print_noise(const std::string& source, const relight::NoiseModel& noise) {
-  std::fprintf(stderr, "noise: %s: variance = %.3g + %.3g * v\n", source.c_str(), noise.a,
-               noise.b);
+  std::fprintf(stderr, "noise: %s: variance = %.3g + %.3g * v\n", source.c_str(), noise.a, noise.b);
 }
 
 }  // namespace
@@ -49,8 +48,7 @@ namespace {
 
 int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
   const jobs::TemporalFitJobSummary summary = jobs::fit_over_time(
-      options, progress_printer(quiet),
-      [&](const std::string& source, const relight::NoiseModel&) {
+      options, progress_printer(quiet), [&](const std::string& source, const relight::NoiseModel&) {
         if (!quiet) std::fprintf(stderr, "time steps: noise: %s\n", source.c_str());
       });
   const relight::TemporalSummary& s = summary.fit;

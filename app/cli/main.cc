@@ -4,7 +4,7 @@
 #include <exception>
 
 #include "app/cli/commands.h"
-#include "app/jobs/register_backends.h"
+#include "app/cli/register_backends.h"
 #include "lightstage/errors.h"
 
 int main(int argc, char** argv) {
@@ -13,7 +13,7 @@ int main(int argc, char** argv) {
       "Typical use: lightstage capture --out S && lightstage build S --out F.exr && "
       "lightstage relight F.exr --env MAP.exr --out R\n"
       "or simply: lightstage demo"};
-  ls::jobs::register_backends();
+  ls::cli::register_backends();
   app.require_subcommand(1);
   ls::cli::add_capture_command(app);
   ls::cli::add_build_command(app);

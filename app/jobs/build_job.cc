@@ -63,7 +63,8 @@ BuildJobSummary build(const BuildJobOptions& options, const ProgressFn& progress
   BuildJobSummary summary;
   summary.reference_z_m = session.stage().calibration.reference_z_m;
   if (!options.all_time_steps) {
-    summary.fields.push_back(build_step(session, options, options.time_step, options.out, progress));
+    summary.fields.push_back(
+        build_step(session, options, options.time_step, options.out, progress));
     return summary;
   }
   // One field per time step: DIR/field_t000.exr, ... (each stores its scene time, capture/field.h).

@@ -33,7 +33,8 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
     const Backend& backend =
         backend_registry().find(session->info().backend, session->stage().source);
     fs::path input_file;
-    if (!backend.input_file_name.empty() && fs::exists(options.session_dir / backend.input_file_name)) {
+    if (!backend.input_file_name.empty() &&
+        fs::exists(options.session_dir / backend.input_file_name)) {
       input_file = options.session_dir / backend.input_file_name;
     }
     devices = backend.open({session->stage(), input_file, session->info().seed});

@@ -1,7 +1,8 @@
+#include "app/jobs/contact_sheet.h"
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "app/jobs/contact_sheet.h"
 #include "lightstage/errors.h"
 
 namespace ls::jobs {

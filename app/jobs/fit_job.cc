@@ -99,8 +99,8 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   report(progress, "normals", 1, 1);
   fit.progress = [&](long done, long total) { report(progress, "fit", done, total); };
   const relight::ModelMaps maps = relight::fit_models(field, normals, fit);
-  FitJobSummary summary{maps.summary, field.width(), field.height(), fit.noise_source,
-                        fit.normals.noise, seconds_since(start)};
+  FitJobSummary summary{maps.summary,     field.width(),     field.height(),
+                        fit.noise_source, fit.normals.noise, seconds_since(start)};
   relight::write_model_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
   return summary;
 }
@@ -119,8 +119,8 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   fit.brdf.normals.method = normal_method(options);
   // The noise of the first field that measured it (same camera for every step).
   fit.brdf.noise_source = "default NoiseModel (no field carries a measured noise)";
-  const auto measured = std::find_if(fields.begin(), fields.end(),
-                                     [](const auto& f) { return f.noise.measured; });
+  const auto measured =
+      std::find_if(fields.begin(), fields.end(), [](const auto& f) { return f.noise.measured; });
   if (measured != fields.end()) fit.brdf.use_noise_of(*measured);
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(files.front().string() + ": noise: " + error);
@@ -129,7 +129,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   const auto start = Clock::now();
   fit.progress = [&](long done, long total) { report(progress, "fit over time", done, total); };
   const relight::TemporalMaps maps = relight::fit_temporal(fields, fit);
-  TemporalFitJobSummary summary{maps.summary,       maps.maps.width,        maps.maps.height,
+  TemporalFitJobSummary summary{maps.summary,      maps.maps.width,       maps.maps.height,
                                 maps.step_times_s, fit.brdf.noise_source, seconds_since(start)};
   relight::write_temporal_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
   return summary;

@@ -16,8 +16,8 @@ struct FitJobOptions {
   // Time-varying fit: one field per time step, or directories of field_tNNN.exr (else *.exr).
   std::vector<std::filesystem::path> time_inputs;
   std::filesystem::path out;
-  bool phong = false;              // Also fit Lambert + Phong (comparison).
-  std::string method = "robust";   // Photometric-stereo normals: "robust" or "ls".
+  bool phong = false;             // Also fit Lambert + Phong (comparison).
+  std::string method = "robust";  // Photometric-stereo normals: "robust" or "ls".
   std::string validate() const;
   std::string to_json() const;  // Recorded in the maps (kOptionsAttribute).
 };

@@ -158,10 +158,10 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   const capture::ReflectanceField field = capture::read_field(options.field_file);
   const FieldLights lights = field_lights(field);
   RelitWriter writer(options, summary);
-  MapRotations jobs(options);
+  MapRotations map_rotations(options);
   Image relit;
   long done = 0;
-  jobs.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+  map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
     const auto t0 = Clock::now();
     const relight::LightWeights weights = relight::integrate_environment(
         map, lights.dirs, rotation, coverage_rad(options), lights.valid);
@@ -174,7 +174,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
                   "outside the dome's coverage and is not represented",
                   ms_between(t0, t1), ms_between(t1, t2), 100.0 * weights.uncovered_fraction());
     writer.write(name, relit, detail);
-    report(progress, "relight", ++done, jobs.count(), name);
+    report(progress, "relight", ++done, map_rotations.count(), name);
   });
 }
 
@@ -212,8 +212,8 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
   sampling.covered_by_leds = lights.dirs;
   sampling.coverage_radius_rad = coverage_rad(options);
   RelitWriter writer(options, summary);
-  MapRotations jobs(options);
-  const long total = jobs.count() + (options.light_dir ? 1 : 0);
+  MapRotations map_rotations(options);
+  const long total = map_rotations.count() + (options.light_dir ? 1 : 0);
   long done = 0;
   if (options.light_dir) {
     // The field cannot be lit from an arbitrary direction: flagged pixels stay black here.
@@ -224,7 +224,7 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
   }
   Image fallback;
   relight::ModelRenderOptions render;
-  jobs.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+  map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
     const auto t0 = Clock::now();
     const relight::LightingForModels lighting =
         relight::LightingForModels::environment(map, rotation, sampling);
@@ -270,7 +270,7 @@ void relight_temporal(const RelightOptions& options, RelightSummary& summary,
   char suffix[32];
   std::snprintf(suffix, sizeof suffix, "_t%.0fs", time_s);
   RelitWriter writer(options, summary);
-  MapRotations jobs(options);
+  MapRotations map_rotations(options);
   int extrapolated = 0;
   if (options.light_dir) {
     Image relit = relight::render_temporal(
@@ -280,12 +280,12 @@ void relight_temporal(const RelightOptions& options, RelightSummary& summary,
     writer.write(std::string("light") + suffix, relit);
   }
   long done = 0;
-  jobs.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+  map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
     Image relit = relight::render_temporal(
         maps, time_s, relight::LightingForModels::environment(map, rotation, sampling), {},
         &extrapolated);
     writer.write(name + suffix, relit);
-    report(progress, "relight at t", ++done, jobs.count(), name + suffix);
+    report(progress, "relight at t", ++done, map_rotations.count(), name + suffix);
   });
   summary.extrapolated_pixels = extrapolated;
 }

@@ -13,11 +13,11 @@
 namespace ls::jobs {
 
 struct RelightOptions {
-  std::filesystem::path field_file;  // Reflectance field; with models_file, fills flagged pixels.
-  std::filesystem::path models_file;     // Model maps of `lightstage fit`.
-  std::filesystem::path temporal_file;   // Temporal maps of `lightstage fit --time`.
-  std::optional<double> time_s;          // With temporal_file: the scene time to render.
-  std::filesystem::path edits_file;      // Model edits (models) or time edits (temporal).
+  std::filesystem::path field_file;   // Reflectance field; with models_file, fills flagged pixels.
+  std::filesystem::path models_file;  // Model maps of `lightstage fit`.
+  std::filesystem::path temporal_file;  // Temporal maps of `lightstage fit --time`.
+  std::optional<double> time_s;         // With temporal_file: the scene time to render.
+  std::filesystem::path edits_file;     // Model edits (models) or time edits (temporal).
   std::vector<std::filesystem::path> maps;
   std::vector<double> rotations_deg{0.0};
   std::optional<Eigen::Vector3d> light_dir;  // Models: one distant light of unit irradiance.

@@ -10,8 +10,8 @@
 #include <sstream>
 #include <thread>
 
-#include "lightstage/errors.h"
 #include "lightstage/controller/frame_writer.h"
+#include "lightstage/errors.h"
 
 namespace ls {
 
@@ -157,176 +157,220 @@ void flag_dead_leds(const Session& session, FrameWriter& writer, int time_step, 
   }
 }
 
-}  // namespace
+// The camera gave no frame after its retries: the capture stops, resumable.
+struct CameraGaveUp {
+  std::string message;
+};
 
-CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,
-                           const SequencerOptions& options) {
-  const auto started = std::chrono::steady_clock::now();
-  const Stage& stage = session.stage();
-  auto sleep = options.sleep ? options.sleep : [](double s) {
-    std::this_thread::sleep_for(std::chrono::duration<double>(s));
-  };
-  auto stop_requested = [&] {
-    return options.stop_requested && options.stop_requested->load(std::memory_order_relaxed);
-  };
-  auto clock_s = options.clock_s ? options.clock_s : [] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
-        .count();
-  };
+// One run of the sequencer over a session's missing frames.
+class CaptureRun {
+ public:
+  CaptureRun(Session& session, LightController& lights, Camera& camera,
+             const SequencerOptions& options)
+      : session_(session),
+        stage_(session.stage()),
+        lights_(lights),
+        camera_(camera),
+        options_(options),
+        started_(std::chrono::steady_clock::now()),
+        missing_(session.missing_frames()),
+        total_(int(plan_frames(stage_).size())) {
+    sleep_ = options.sleep ? options.sleep : [](double s) {
+      std::this_thread::sleep_for(std::chrono::duration<double>(s));
+    };
+    clock_s_ = options.clock_s ? options.clock_s : [] {
+      return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
+          .count();
+    };
+    summary_.frames_already_present = total_ - int(missing_.size());
+  }
 
-  CaptureSummary summary;
-  const std::vector<PlannedFrame> missing = session.missing_frames();
-  const int total = int(plan_frames(stage).size());
-  summary.frames_already_present = total - int(missing.size());
-  require_free_space(session, missing);  // Before any LED is switched on.
-
-  std::optional<FrameWriter> writer;
-  writer.emplace(session);
-  DarkCache darks(session, *writer);
-
-  // Every exit: LEDs off (by the caller and the guard), then whatever is queued saved before the
-  // manifest says how the capture ended.
-  auto finish = [&](CaptureSummary::Status status, std::string message) {
-    lights.all_off();
+  CaptureSummary run() {
+    require_free_space(session_, missing_);  // Before any LED is switched on.
+    writer_.emplace(session_);
+    DarkCache darks(session_, *writer_);
+    session_.write_manifest("capturing");
+    AllOffGuard guard(lights_);
     try {
-      writer->flush();
+      // Frames of one LED (or the dark frames of one time step) form a group: the LED goes on
+      // once, the whole bracket is exposed, and it goes off before the next group.
+      for (size_t i = 0; i < missing_.size();) {
+        const int t = missing_[i].key.time_step;
+        const int led = missing_[i].key.led_index;
+        size_t end = i;
+        while (end < missing_.size() && missing_[end].key.time_step == t &&
+               missing_[end].key.led_index == led) {
+          ++end;
+        }
+        if (t != current_step_) begin_step(t);
+        if (stop_requested()) {
+          return finish(CaptureSummary::Status::kInterrupted,
+                        "stopped on request; all LEDs are off and every frame taken is saved");
+        }
+        capture_group(i, end, darks);
+        // Once the last LED of a time step is in, judge that step's dark LEDs.
+        const bool step_done = end == missing_.size() || missing_[end].key.time_step != t;
+        if (step_done && led >= 0) {
+          flag_dead_leds(session_, *writer_, t, options_.dead_led_threshold);
+        }
+        i = end;
+      }
+      if (current_step_ >= 0) end_step(current_step_);
+    } catch (const CameraGaveUp& e) {
+      return finish(CaptureSummary::Status::kCameraFailed, e.message);
+    } catch (const InputError& e) {
+      // Only the frame writer throws InputError here: the disk is full or not writable.
+      return finish(CaptureSummary::Status::kWriteFailed, cannot_save(e.what()));
+    }
+    return finish(CaptureSummary::Status::kComplete, "capture complete");
+  }
+
+ private:
+  static std::string cannot_save(const std::string& why) {
+    return "cannot save frames: " + why +
+           "; all LEDs are off and every frame saved before that is kept; free space and resume "
+           "with --resume";
+  }
+
+  bool stop_requested() const {
+    return options_.stop_requested && options_.stop_requested->load(std::memory_order_relaxed);
+  }
+
+  // Every exit: LEDs off (here and by the guard), then whatever is queued saved before the
+  // manifest says how the capture ended.
+  CaptureSummary finish(CaptureSummary::Status status, std::string message) {
+    lights_.all_off();
+    try {
+      writer_->flush();
     } catch (const std::exception& e) {
       if (status != CaptureSummary::Status::kWriteFailed) {
         status = CaptureSummary::Status::kWriteFailed;
-        message = std::string("cannot save frames: ") + e.what() +
-                  "; all LEDs are off and every frame saved before that is kept; free space "
-                  "and resume with --resume";
+        message = cannot_save(e.what());
       }
     }
-    writer.reset();
-    summary.frames_captured = int(session.frames().size()) - summary.frames_already_present;
-    summary.status = status;
-    summary.message = message;
-    summary.seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
+    writer_.reset();
+    summary_.frames_captured = int(session_.frames().size()) - summary_.frames_already_present;
+    summary_.status = status;
+    summary_.message = message;
+    summary_.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
     const char* state = status == CaptureSummary::Status::kComplete       ? "complete"
                         : status == CaptureSummary::Status::kInterrupted  ? "interrupted"
                         : status == CaptureSummary::Status::kCameraFailed ? "camera-failed"
                                                                           : "write-failed";
     try {
-      session.write_manifest(state);
+      session_.write_manifest(state);
     } catch (const std::exception& e) {
       // The journal, not the manifest, says what was captured; a stale manifest costs nothing.
-      summary.message += std::string(" (manifest not updated: ") + e.what() + ")";
+      summary_.message += std::string(" (manifest not updated: ") + e.what() + ")";
     }
-    return summary;
-  };
+    return summary_;
+  }
 
-  session.write_manifest("capturing");
-  AllOffGuard guard(lights);
+  void begin_step(int t) {
+    if (current_step_ >= 0) end_step(current_step_);
+    if (current_step_ < 0) {
+      schedule_origin_s_ = clock_s_() - stage_.plan.step_time_s(t);
+    } else if (options_.wait_for_time_steps) {
+      // Wait in short sleeps so that a stop request is seen.
+      const double start_s = schedule_origin_s_ + stage_.plan.step_time_s(t);
+      // Within a microsecond is on time (and a sleep too short to move the clock ends).
+      for (double left = start_s - clock_s_(); left > 1e-6; left = start_s - clock_s_()) {
+        if (stop_requested()) break;
+        sleep_(std::min(left, 0.1));
+      }
+    }
+    current_step_ = t;
+    step_started_s_ = clock_s_();
+  }
 
-  // Frames of one LED (or the dark frames of one time step) form a group: the LED goes on once,
-  // the whole bracket is exposed, and it goes off before the next group.
-  int frames_taken = 0;
-  size_t i = 0;
-  // Time steps: the one being captured, when it began (clock_s) and the schedule's origin.
-  int current_step = -1;
-  double step_started_s = 0.0, schedule_origin_s = 0.0;
-  auto end_step = [&](int step) {
-    const double took_s = clock_s() - step_started_s;
-    const double interval_s = stage.plan.step_interval_s(step);
+  void end_step(int step) {
+    const double took_s = clock_s_() - step_started_s_;
+    const double interval_s = stage_.plan.step_interval_s(step);
     if (interval_s > 0 && took_s > interval_s) {
       const TimeStepOverrun overrun{step, took_s, interval_s};
-      writer->flush();  // The session is touched only when nothing is in flight.
-      session.record_time_step_overrun(overrun);
-      summary.overruns.push_back(overrun);
+      writer_->flush();  // The session is touched only when nothing is in flight.
+      session_.record_time_step_overrun(overrun);
+      summary_.overruns.push_back(overrun);
     }
-  };
-  try {
-    while (i < missing.size()) {
-      const int t = missing[i].key.time_step;
-      const int led = missing[i].key.led_index;
-      size_t end = i;
-      while (end < missing.size() && missing[end].key.time_step == t &&
-             missing[end].key.led_index == led) {
-        ++end;
-      }
-      if (t != current_step) {
-        if (current_step >= 0) end_step(current_step);
-        if (current_step < 0) {
-          schedule_origin_s = clock_s() - stage.plan.step_time_s(t);
-        } else if (options.wait_for_time_steps) {
-          // Wait in short sleeps so that a stop request is seen.
-          const double start_s = schedule_origin_s + stage.plan.step_time_s(t);
-          // Within a microsecond is on time (and a sleep too short to move the clock ends).
-          for (double left = start_s - clock_s(); left > 1e-6; left = start_s - clock_s()) {
-            if (stop_requested()) break;
-            sleep(std::min(left, 0.1));
-          }
-        }
-        current_step = t;
-        step_started_s = clock_s();
-      }
-      if (stop_requested()) {
-        return finish(CaptureSummary::Status::kInterrupted,
-                      "stopped on request; all LEDs are off and every frame taken is saved");
-      }
-      if (led >= 0) {
-        lights.set_light(led, true);
-        if (stage.plan.settle_s > 0) sleep(stage.plan.settle_s);
-      }
-      double brightest = 0.0;
-      for (size_t k = i; k < end; ++k) {
-        const PlannedFrame& planned = missing[k];
-        CapturedFrame frame;
-        for (int attempt = 0;; ++attempt) {
-          try {
-            frame = camera.capture(planned.request);
-            break;
-          } catch (const CameraTimeout& e) {
-            if (attempt >= stage.camera.retries) {
-              lights.all_off();
-              std::ostringstream msg;
-              msg << "camera gave no frame for " << planned.key.name(stage) << " after "
-                  << attempt + 1 << " attempts (" << e.what()
-                  << "); all LEDs are off, every frame taken is saved; resume with --resume";
-              return finish(CaptureSummary::Status::kCameraFailed, msg.str());
-            }
-            ++summary.camera_retries;
-          }
-        }
-        if (led >= 0) {
-          if (const auto* dark = darks.get(t, planned.key.exposure_index)) {
-            brightest = std::max(brightest, bright_signal_fraction(frame.raw, *dark));
-          } else {
-            brightest = 1.0;  // No dark reference: cannot judge.
-          }
-        } else {
-          darks.add(planned.key, frame.raw);
-        }
-        writer->write(planned, std::move(frame));
-        ++frames_taken;
-        if (options.on_progress) {
-          options.on_progress(
-              {summary.frames_already_present + frames_taken, total, planned.key.name(stage)});
-        }
-      }
-      if (led >= 0) {
-        lights.set_light(led, false);
-        // Only a whole bracket taken in this run tells how bright the LED is.
-        if (end - i == stage.camera.bracket.size()) writer->record_led_signal(t, led, brightest);
-      }
-      // Once the last LED of a time step is in, judge that step's dark LEDs.
-      const bool step_done = end == missing.size() || missing[end].key.time_step != t;
-      if (step_done && led >= 0) {
-        flag_dead_leds(session, *writer, t, options.dead_led_threshold);
-      }
-      i = end;
-    }
-    if (current_step >= 0) end_step(current_step);
-  } catch (const InputError& e) {
-    // Only the frame writer throws InputError here: the disk is full or not writable.
-    return finish(CaptureSummary::Status::kWriteFailed,
-                  std::string("cannot save frames: ") + e.what() +
-                      "; all LEDs are off and every frame saved before that is kept; free space "
-                      "and resume with --resume");
   }
-  return finish(CaptureSummary::Status::kComplete, "capture complete");
+
+  CapturedFrame capture_with_retries(const PlannedFrame& planned) {
+    for (int attempt = 0;; ++attempt) {
+      try {
+        return camera_.capture(planned.request);
+      } catch (const CameraTimeout& e) {
+        if (attempt >= stage_.camera.retries) {
+          lights_.all_off();
+          std::ostringstream msg;
+          msg << "camera gave no frame for " << planned.key.name(stage_) << " after " << attempt + 1
+              << " attempts (" << e.what()
+              << "); all LEDs are off, every frame taken is saved; resume with --resume";
+          throw CameraGaveUp{msg.str()};
+        }
+        ++summary_.camera_retries;
+      }
+    }
+  }
+
+  // The frames missing_[i, end) of one LED (or the darks of one time step).
+  void capture_group(size_t i, size_t end, DarkCache& darks) {
+    const int t = missing_[i].key.time_step;
+    const int led = missing_[i].key.led_index;
+    if (led >= 0) {
+      lights_.set_light(led, true);
+      if (stage_.plan.settle_s > 0) sleep_(stage_.plan.settle_s);
+    }
+    double brightest = 0.0;
+    for (size_t k = i; k < end; ++k) {
+      const PlannedFrame& planned = missing_[k];
+      CapturedFrame frame = capture_with_retries(planned);
+      if (led >= 0) {
+        if (const auto* dark = darks.get(t, planned.key.exposure_index)) {
+          brightest = std::max(brightest, bright_signal_fraction(frame.raw, *dark));
+        } else {
+          brightest = 1.0;  // No dark reference: cannot judge.
+        }
+      } else {
+        darks.add(planned.key, frame.raw);
+      }
+      writer_->write(planned, std::move(frame));
+      ++frames_taken_;
+      if (options_.on_progress) {
+        options_.on_progress(
+            {summary_.frames_already_present + frames_taken_, total_, planned.key.name(stage_)});
+      }
+    }
+    if (led >= 0) {
+      lights_.set_light(led, false);
+      // Only a whole bracket taken in this run tells how bright the LED is.
+      if (end - i == stage_.camera.bracket.size()) writer_->record_led_signal(t, led, brightest);
+    }
+  }
+
+  Session& session_;
+  const Stage& stage_;
+  LightController& lights_;
+  Camera& camera_;
+  const SequencerOptions& options_;
+  const std::chrono::steady_clock::time_point started_;
+  const std::vector<PlannedFrame> missing_;
+  const int total_;
+  std::function<void(double)> sleep_;
+  std::function<double()> clock_s_;
+  CaptureSummary summary_;
+  std::optional<FrameWriter> writer_;
+  int frames_taken_ = 0;
+  // Time steps: the one being captured, when it began (clock_s) and the schedule's origin.
+  int current_step_ = -1;
+  double step_started_s_ = 0.0, schedule_origin_s_ = 0.0;
+};
+
+}  // namespace
+
+CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,
+                           const SequencerOptions& options) {
+  return CaptureRun(session, lights, camera, options).run();
 }
 
 }  // namespace ls

@@ -3,8 +3,8 @@
 #include <algorithm>
 #include <filesystem>
 
-#include "lightstage/hardware/aravis_camera.h"
 #include "lightstage/errors.h"
+#include "lightstage/hardware/aravis_camera.h"
 #include "lightstage/hardware/gpiod_lights.h"
 #include "lightstage/hardware/v4l2_camera.h"
 

@@ -21,10 +21,6 @@ namespace ls::relight {
 
 namespace {
 
-double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
-}
-
 void ensure_rgb_image(Image& out, int width, int height) {
   if (out.width != width || out.height != height || out.channels != 3 ||
       out.pixels.size() != size_t(width) * height * 3) {
@@ -156,121 +152,6 @@ std::vector<double> held_out_errors(const capture::ReflectanceField& field,
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
-// LightInterpolator
-
-LightInterpolator::LightInterpolator(const std::vector<Eigen::Vector3d>& led_dirs,
-                                     const std::vector<bool>& valid, double sigma_rad) {
-  for (const auto& d : led_dirs) dirs_.push_back(d.normalized());
-  for (int l = 0; l < int(dirs_.size()); ++l) {
-    if (valid.empty() || valid[l]) active_.push_back(l);
-  }
-  const int n = int(active_.size());
-  if (n == 0) return;
-  if (!(sigma_rad > 0)) {
-    double sum = 0;
-    for (int i = 0; i < n; ++i) {
-      double nearest = M_PI;
-      for (int j = 0; j < n; ++j) {
-        if (i != j)
-          nearest = std::min(nearest, angle_between(dirs_[active_[i]], dirs_[active_[j]]));
-      }
-      sum += nearest;
-    }
-    sigma_rad = n > 1 ? sum / n : 1.0;
-  }
-  sigma_rad_ = sigma_rad;
-  cutoff_cos_ = 4 * sigma_rad < M_PI ? std::cos(4 * sigma_rad) : -1.0;
-  Eigen::MatrixXd psi(n, n);
-  std::vector<double> r;
-  for (int m = 0; m < n; ++m) {
-    double sum = 0;
-    for (int i = 0; i < n; ++i) {
-      // The same cut-off as weights_at, so that r(d_m) is exactly the unit vector e_m.
-      if (dirs_[active_[m]].dot(dirs_[active_[i]]) < cutoff_cos_) {
-        psi(m, i) = 0;
-        continue;
-      }
-      const double a = angle_between(dirs_[active_[m]], dirs_[active_[i]]);
-      psi(m, i) = std::exp(-a * a / (2 * sigma_rad * sigma_rad));
-      sum += psi(m, i);
-    }
-    psi.row(m) /= sum;
-  }
-  psi_inverse_ = psi.partialPivLu().inverse();
-}
-
-void LightInterpolator::weights_at(const Eigen::Vector3d& dir, std::vector<double>& r) const {
-  r.assign(dirs_.size(), 0.0);
-  const int n = int(active_.size());
-  if (n == 0) return;
-  const Eigen::Vector3d d = dir.normalized();
-  Eigen::VectorXd psi(n);
-  double sum = 0;
-  for (int i = 0; i < n; ++i) {
-    const double c = d.dot(dirs_[active_[i]]);
-    if (c < cutoff_cos_) {
-      psi(i) = 0;
-      continue;
-    }
-    const double a = angle_between(d, dirs_[active_[i]]);
-    psi(i) = std::exp(-a * a / (2 * sigma_rad_ * sigma_rad_));
-    sum += psi(i);
-  }
-  // Far from every LED: nothing stands for this direction (see the header). The normalisation
-  // would otherwise blow a vanishing tail up to full weight.
-  if (!(sum > 1e-12)) return;
-  // Fade out where the nearest Gaussian is weak (outside the dome), so the normalisation does not
-  // extend the outermost LEDs to the whole sphere.
-  const double max_g = psi.maxCoeff();
-  const double fade = std::min(1.0, max_g / std::exp(-0.5 * 4.0));  // Full weight within 2 sigma.
-  psi *= fade / sum;
-  const Eigen::VectorXd active_r = psi_inverse_.transpose() * psi;
-  for (int i = 0; i < n; ++i) r[active_[i]] = active_r(i);
-}
-
-std::vector<float> LightInterpolator::led_irradiance(const LightingForModels& lights) const {
-  std::vector<float> out(3 * dirs_.size(), 0.0f);
-  std::vector<double> r;
-  for (size_t k = 0; k < lights.dirs_in_stage.size(); ++k) {
-    weights_at(lights.dirs_in_stage[k].cast<double>(), r);
-    const Eigen::Vector3f& e = lights.irradiance_rgb[k];
-    for (size_t l = 0; l < r.size(); ++l) {
-      if (r[l] == 0) continue;
-      for (int c = 0; c < 3; ++c) out[3 * l + c] += float(r[l] * e[c]);
-    }
-  }
-  return out;
-}
-
-// ---------------------------------------------------------------------------------------------
-// RawCompactField
-
-RawCompactField::RawCompactField(const capture::ReflectanceField& field, double sigma_rad)
-    : field_(&field, [](const capture::ReflectanceField*) {}) {
-  init(sigma_rad);
-}
-
-RawCompactField::RawCompactField(capture::ReflectanceField&& field, double sigma_rad)
-    : field_(std::make_shared<const capture::ReflectanceField>(std::move(field))) {
-  init(sigma_rad);
-}
-
-void RawCompactField::init(double sigma_rad) {
-  std::vector<Eigen::Vector3d> dirs;
-  std::vector<bool> valid;
-  for (const auto& light : field_->lights()) {
-    dirs.push_back(light.dir_in_stage);
-    valid.push_back(light.valid);
-  }
-  interpolator_ = LightInterpolator(dirs, valid, sigma_rad);
-}
-
-void RawCompactField::relight_into(const LightingForModels& lights, Image& out) const {
-  const std::vector<float> e = interpolator_.led_irradiance(lights);
-  relight::relight_into(*field_, e, out);
-}
-
-// ---------------------------------------------------------------------------------------------
 // PcaField
 
 std::string PcaOptions::validate() const {
@@ -301,75 +182,35 @@ int PcaField::tile_of(int x, int y) const {
   return tile_size_ > 0 ? (y / tile_size_) * tiles_x() + x / tile_size_ : 0;
 }
 
-PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOptions& options,
-                         PcaSummary* summary) {
-  const auto t0 = std::chrono::steady_clock::now();
-  if (const std::string e = options.validate(); !e.empty()) {
-    throw InputError(field.source + ": PCA options: " + e);
-  }
+namespace {
+
+// Gram matrices per tile of tile_size pixels (0: one, summed over bands of rows).
+std::vector<Eigen::MatrixXd> tile_gram_matrices(const capture::ReflectanceField& field,
+                                                int tile_size, int tiles_x, int tiles_y) {
   const int width = field.width(), height = field.height(), num_lights = field.num_lights();
-  if (width == 0 || height == 0 || num_lights == 0) {
-    throw InputError(field.source + ": field: expected pixels and lights to compress, got " +
-                     std::to_string(width) + "x" + std::to_string(height) + " pixels and " +
-                     std::to_string(num_lights) + " lights");
-  }
-  PcaField out;
-  out.width_ = width;
-  out.height_ = height;
-  out.tile_size_ = options.tile_size >= std::max(width, height) ? 0 : options.tile_size;
-  for (const auto& light : field.lights()) {
-    out.led_dirs_.push_back(light.dir_in_stage);
-    out.led_valid_.push_back(light.valid);
-  }
-  int valid_lights = 0;
-  for (bool v : out.led_valid_) valid_lights += v ? 1 : 0;
-
-  // Gram matrices per tile (global: bands of rows, summed).
-  const int tx = out.tiles_x();
-  const int ty = out.tile_size_ > 0 ? (height + out.tile_size_ - 1) / out.tile_size_ : 1;
-  std::vector<Eigen::MatrixXd> tile_grams(size_t(tx) * ty);
-  if (out.tile_size_ > 0) {
-    tbb::parallel_for(0, tx * ty, [&](int t) {
-      const int x0 = (t % tx) * out.tile_size_, y0 = (t / tx) * out.tile_size_;
-      tile_grams[t] = gram_of_rect(field, x0, y0, std::min(width, x0 + out.tile_size_),
-                                   std::min(height, y0 + out.tile_size_));
+  std::vector<Eigen::MatrixXd> tile_grams(size_t(tiles_x) * tiles_y);
+  if (tile_size > 0) {
+    tbb::parallel_for(0, tiles_x * tiles_y, [&](int t) {
+      const int x0 = (t % tiles_x) * tile_size, y0 = (t / tiles_x) * tile_size;
+      tile_grams[t] = gram_of_rect(field, x0, y0, std::min(width, x0 + tile_size),
+                                   std::min(height, y0 + tile_size));
     });
-  } else {
-    const int band = std::max(1, 4096 / width);
-    const int bands = (height + band - 1) / band;
-    std::vector<Eigen::MatrixXd> band_grams(bands);
-    tbb::parallel_for(0, bands, [&](int b) {
-      band_grams[b] = gram_of_rect(field, 0, b * band, width, std::min(height, (b + 1) * band));
-    });
-    tile_grams[0] = Eigen::MatrixXd::Zero(num_lights, num_lights);
-    for (const auto& g : band_grams) tile_grams[0] += g;
+    return tile_grams;
   }
-  Eigen::MatrixXd global_gram = Eigen::MatrixXd::Zero(num_lights, num_lights);
-  for (const auto& g : tile_grams) global_gram += g;
-  const Spectrum global = eigen_descending(global_gram);
-  std::vector<Spectrum> spectra(tile_grams.size());
-  if (out.tile_size_ > 0) {
-    tbb::parallel_for(0, int(tile_grams.size()),
-                      [&](int t) { spectra[t] = eigen_descending(tile_grams[t]); });
-  } else {
-    spectra[0] = global;
-  }
+  const int band = std::max(1, 4096 / width);
+  const int bands = (height + band - 1) / band;
+  std::vector<Eigen::MatrixXd> band_grams(bands);
+  tbb::parallel_for(0, bands, [&](int b) {
+    band_grams[b] = gram_of_rect(field, 0, b * band, width, std::min(height, (b + 1) * band));
+  });
+  tile_grams[0] = Eigen::MatrixXd::Zero(num_lights, num_lights);
+  for (const auto& g : band_grams) tile_grams[0] += g;
+  return tile_grams;
+}
 
-  // Residual per value after k terms, for the bases actually used.
-  const double samples = 3.0 * double(width) * height;  // (pixel, channel) vectors.
-  const double values = samples * std::max(valid_lights, 1);
-  std::vector<double> residual(num_lights + 1, 0.0);
-  for (const Spectrum& s : spectra) {
-    double tail = 0;
-    for (int k = num_lights; k >= 0; --k) {
-      residual[k] += tail / values;
-      if (k > 0) tail += s.values(k - 1);
-    }
-  }
-
-  // Noise floor.
-  PcaSummary sum;
-  sum.mean_square = global.values.sum() / values;
+// The noise floor per value: from the field's measured noise, else from the spectrum's tail.
+void estimate_noise_floor(const capture::ReflectanceField& field, const Spectrum& global,
+                          int valid_lights, double samples, double values, PcaSummary& sum) {
   if (field.noise.measured) {
     double positive_sum = 0;
     for (float v : field.values()) positive_sum += v > 0 ? v : 0;
@@ -377,15 +218,22 @@ PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOption
         field.noise.read_variance + field.noise.shot_variance_per_unit * positive_sum / values;
     sum.noise_measured = true;
     sum.noise_method = field.noise.method.empty() ? "field noise" : field.noise.method;
-  } else {
-    std::vector<double> spectrum(global.values.data(),
-                                 global.values.data() + std::max(valid_lights, 1));
-    const size_t tenth = spectrum.size() - 1 - (spectrum.size() - 1) / 10;  // Descending order.
-    const double spread = std::pow(1 - std::sqrt(std::max(valid_lights, 1) / samples), 2);
-    sum.noise_variance = spectrum[tenth] / (samples * spread);
-    sum.noise_measured = false;
-    sum.noise_method = "10th percentile of the PCA eigenvalues (Marchenko-Pastur lower edge)";
+    return;
   }
+  std::vector<double> spectrum(global.values.data(),
+                               global.values.data() + std::max(valid_lights, 1));
+  const size_t tenth = spectrum.size() - 1 - (spectrum.size() - 1) / 10;  // Descending order.
+  const double spread = std::pow(1 - std::sqrt(std::max(valid_lights, 1) / samples), 2);
+  sum.noise_variance = spectrum[tenth] / (samples * spread);
+  sum.noise_measured = false;
+  sum.noise_method = "10th percentile of the PCA eigenvalues (Marchenko-Pastur lower edge)";
+}
+
+// The rank: options.rank, or (0) the first component at the noise floor, or the best on held-out
+// LEDs (PcaRankRule::kHeldOutLights).
+int choose_rank(const capture::ReflectanceField& field, const PcaOptions& options,
+                const Spectrum& global, const Eigen::MatrixXd& global_gram, int valid_lights,
+                double samples, PcaSummary& sum) {
   const int max_rank = std::min(options.max_rank, std::max(valid_lights, 1));
   int rank = options.rank;
   if (rank == 0) {
@@ -413,7 +261,65 @@ PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOption
       sum.noise_method += "; rank from held-out LEDs";
     }
   }
-  rank = std::min(rank, max_rank);
+  return std::min(rank, max_rank);
+}
+
+}  // namespace
+
+PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOptions& options,
+                         PcaSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (const std::string e = options.validate(); !e.empty()) {
+    throw InputError(field.source + ": PCA options: " + e);
+  }
+  const int width = field.width(), height = field.height(), num_lights = field.num_lights();
+  if (width == 0 || height == 0 || num_lights == 0) {
+    throw InputError(field.source + ": field: expected pixels and lights to compress, got " +
+                     std::to_string(width) + "x" + std::to_string(height) + " pixels and " +
+                     std::to_string(num_lights) + " lights");
+  }
+  PcaField out;
+  out.width_ = width;
+  out.height_ = height;
+  out.tile_size_ = options.tile_size >= std::max(width, height) ? 0 : options.tile_size;
+  for (const auto& light : field.lights()) {
+    out.led_dirs_.push_back(light.dir_in_stage);
+    out.led_valid_.push_back(light.valid);
+  }
+  int valid_lights = 0;
+  for (bool v : out.led_valid_) valid_lights += v ? 1 : 0;
+
+  // Gram matrices per tile (global: bands of rows, summed).
+  const int tx = out.tiles_x();
+  const int ty = out.tile_size_ > 0 ? (height + out.tile_size_ - 1) / out.tile_size_ : 1;
+  const std::vector<Eigen::MatrixXd> tile_grams = tile_gram_matrices(field, out.tile_size_, tx, ty);
+  Eigen::MatrixXd global_gram = Eigen::MatrixXd::Zero(num_lights, num_lights);
+  for (const auto& g : tile_grams) global_gram += g;
+  const Spectrum global = eigen_descending(global_gram);
+  std::vector<Spectrum> spectra(tile_grams.size());
+  if (out.tile_size_ > 0) {
+    tbb::parallel_for(0, int(tile_grams.size()),
+                      [&](int t) { spectra[t] = eigen_descending(tile_grams[t]); });
+  } else {
+    spectra[0] = global;
+  }
+
+  // Residual per value after k terms, for the bases actually used.
+  const double samples = 3.0 * double(width) * height;  // (pixel, channel) vectors.
+  const double values = samples * std::max(valid_lights, 1);
+  std::vector<double> residual(num_lights + 1, 0.0);
+  for (const Spectrum& s : spectra) {
+    double tail = 0;
+    for (int k = num_lights; k >= 0; --k) {
+      residual[k] += tail / values;
+      if (k > 0) tail += s.values(k - 1);
+    }
+  }
+
+  PcaSummary sum;
+  sum.mean_square = global.values.sum() / values;
+  estimate_noise_floor(field, global, valid_lights, samples, values, sum);
+  const int rank = choose_rank(field, options, global, global_gram, valid_lights, samples, sum);
   out.rank_ = rank;
   for (const Spectrum& s : spectra) out.bases_.push_back(s.vectors.leftCols(rank).cast<float>());
 

@@ -10,9 +10,10 @@
 // angles: PS is biased for non-Lambertian surfaces, e.g. Oren-Nayar flattens the shading toward
 // the viewer), so k = 5, 6, 7, 7 parameters.
 //
-// Each fit is bounded Levenberg-Marquardt (ceres::TinySolver, autodiff Jets through relight/lighting/brdf.h)
-// with the bounds built into the parametrisation: albedo = u^2, k_s = u^2, sigma = (pi/2)
-// sigmoid(u), roughness = 0.02 + 0.98 sigmoid(u), Phong exponent = 1 + (1e4 - 1) sigmoid(u).
+// Each fit is bounded Levenberg-Marquardt (ceres::TinySolver, autodiff Jets through
+// relight/lighting/brdf.h) with the bounds built into the parametrisation: albedo = u^2, k_s = u^2,
+// sigma = (pi/2) sigmoid(u), roughness = 0.02 + 0.98 sigmoid(u), Phong exponent = 1 + (1e4 - 1)
+// sigmoid(u).
 //
 // Samples: every valid light whose luminance is above the shadow threshold (NormalOptions), all
 // three channels, each residual divided by its noise sigma (NoiseModel, from the measured value),

@@ -11,7 +11,8 @@
 // can be lit from directions no LED covers (below the dome) and by sources smaller than an LED's
 // cell, and it can be edited (relight/fit/model_edit.h).
 //
-// Two ways to turn an environment map into lights, both measured in tests/relight/fit/model_render_test.cc:
+// Two ways to turn an environment map into lights, both measured in
+// tests/relight/fit/model_render_test.cc:
 //  * environment(): the map box-filtered onto a coarse lat-long grid (directions_width x /2), one
 //    light per texel at its centre with E = mean radiance x exact texel solid angle. Converges to
 //    the true integral as the grid gets finer; cost is linear in the number of non-black texels.
@@ -22,10 +23,10 @@
 #include <vector>
 
 #include "lightstage/image.h"
-#include "relight/lighting/envmap.h"
 #include "relight/fit/fit.h"
-#include "relight/lighting/light_cells.h"
 #include "relight/lighting/compact_field.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
 #include "relight/lighting/lighting.h"
 
 namespace ls::relight {
@@ -52,9 +53,10 @@ struct ModelRenderOptions {
 Image render_models(const ModelMaps& maps, const LightingForModels& lighting,
                     const ModelRenderOptions& options = {});
 
-// The fitted analytic models (relight/fit/fit.h) as the most compact point: a normal, an RGB albedo and
-// up to two lobe parameters per pixel, rendered by render_models (no shadows: see model_render.h).
-// Size: the 7 parameters as float32 plus one byte for the model id = 29 bytes per pixel.
+// The fitted analytic models (relight/fit/fit.h) as the most compact point: a normal, an RGB albedo
+// and up to two lobe parameters per pixel, rendered by render_models (no shadows: see
+// model_render.h). Size: the 7 parameters as float32 plus one byte for the model id = 29 bytes per
+// pixel.
 class ModelCompactField : public CompactField {
  public:
   explicit ModelCompactField(ModelMaps maps, ModelRenderOptions options = {})

@@ -91,6 +91,120 @@ std::string NormalOptions::validate() const {
   return {};
 }
 
+namespace {
+
+// Loads the pixel's luminance samples and their noise, leaves out shadowed and clipped ones, and
+// returns the flags that rule the pixel out before any solve (0: solve it).
+int gather_samples(const float* px, const std::vector<capture::FieldLight>& lights,
+                   const std::vector<int>& light_index, const NormalOptions& options, Scratch& s) {
+  const size_t n = light_index.size();
+  double y_max = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const float* v = px + 3 * light_index[i];
+    const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
+    s.y[i] = std::isfinite(lum) ? lum : 0.0;
+    s.sigma[i] = std::sqrt(options.noise.variance(s.y[i]));
+    y_max = std::max(y_max, s.y[i]);
+  }
+  const double threshold =
+      std::max(options.shadow_sigmas * std::sqrt(options.noise.a), options.shadow_fraction * y_max);
+  int lit = 0;
+  int saturated = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const bool censored = capture::is_saturated(lights[light_index[i]], px + 3 * light_index[i]);
+    const bool use = s.y[i] > threshold && !censored;
+    s.usable[i] = use;
+    s.weight[i] = use ? 1.0 / (s.sigma[i] * s.sigma[i]) : 0.0;
+    lit += use;
+    saturated += censored;
+  }
+  int flags = 0;
+  if (lit == 0 && saturated == 0) {
+    flags |= kAllShadowed;
+  } else if (lit < options.min_lights) {
+    flags |= kTooFewLights;
+    if (saturated > 0) flags |= kSaturated;
+  } else if (saturated > options.max_saturated_fraction * (lit + saturated)) {
+    flags |= kSaturated;
+  }
+  return flags;
+}
+
+// Trimmed start (the brightest lit samples left out: highlights live there), then Tukey IRLS over
+// all lit samples with residuals in noise units and the scale from their MAD.
+Solve robust_solve(const std::vector<Eigen::Vector3d>& dirs, const NormalOptions& options,
+                   Scratch& s) {
+  const size_t n = dirs.size();
+  Solve solve;
+  int m = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (s.weight[i] > 0) s.order[m++] = int(i);
+  }
+  const int drop = int(options.trim_bright_fraction * m);
+  if (m - drop >= options.min_lights && drop > 0) {
+    std::nth_element(s.order.begin(), s.order.begin() + (m - drop), s.order.begin() + m,
+                     [&](int a, int b) { return s.y[a] < s.y[b]; });
+    std::copy(s.weight.begin(), s.weight.end(), s.abs_u.begin());  // Keep full weights.
+    for (int k = m - drop; k < m; ++k) s.weight[s.order[k]] = 0;
+    solve = weighted_solve(dirs, s);
+    std::copy(s.abs_u.begin(), s.abs_u.end(), s.weight.begin());
+  } else {
+    solve = weighted_solve(dirs, s);
+  }
+  for (int it = 0; it < options.irls_iterations && solve.ok; ++it) {
+    int k = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (!s.usable[i]) continue;
+      s.abs_u[k++] = std::abs(s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
+    }
+    const double scale = std::max(1.4826 * median_of(s.abs_u, k), 1.0);
+    for (size_t i = 0; i < n; ++i) {
+      if (!s.usable[i]) continue;
+      const double u = (s.y[i] - dirs[i].dot(solve.g)) / (s.sigma[i] * options.tukey_c * scale);
+      const double t = 1 - u * u;
+      s.weight[i] = t > 0 ? t * t / (s.sigma[i] * s.sigma[i]) : 0.0;
+    }
+    const Solve next = weighted_solve(dirs, s);
+    if (!next.ok || next.used < options.min_lights) break;
+    solve = next;
+  }
+  return solve;
+}
+
+// The normal, the albedo per channel (weighted LS with the shading fixed) and the confidence of a
+// solved pixel.
+void store_solution(const Solve& solve, const std::vector<Eigen::Vector3d>& dirs,
+                    const std::vector<int>& light_index, const float* px, const Scratch& s, int x,
+                    int y, NormalMap& out) {
+  const Eigen::Vector3d nrm = solve.g / solve.g.norm();
+  double sxx = 0, sxy[3] = {0, 0, 0}, chi2 = 0;  // chi^2 of the luminance fit.
+  int used = 0;
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    if (!(s.weight[i] > 0)) continue;
+    const double shade = std::max(0.0, nrm.dot(dirs[i])) / kPi;
+    const double w = s.weight[i] * s.sigma[i] * s.sigma[i];  // Robust factor only.
+    const float* v = px + 3 * light_index[i];
+    sxx += w * shade * shade;
+    for (int c = 0; c < 3; ++c) sxy[c] += w * shade * v[c];
+    const double r = (s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
+    chi2 += r * r;
+    ++used;
+  }
+  float* normal = &out.normal.at(x, y, 0);
+  float* albedo = &out.albedo.at(x, y, 0);
+  for (int c = 0; c < 3; ++c) {
+    normal[c] = float(nrm(c));
+    albedo[c] = sxx > 0 ? float(std::max(0.0, sxy[c] / sxx)) : 0.0f;
+  }
+  // Confidence: how well the used lights pin down 3 unknowns (1 = isotropic cone), times how well
+  // the Lambertian model explains them (1 when residuals are at the noise level).
+  const double reduced_chi2 = used > 3 ? chi2 / (used - 3) : 1.0;
+  const double fit_quality = reduced_chi2 > 1 ? 1.0 / std::sqrt(reduced_chi2) : 1.0;
+  out.confidence.at(x, y, 0) = float(std::clamp(solve.condition * fit_quality, 0.0, 1.0));
+}
+
+}  // namespace
+
 NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalOptions& options) {
   if (const std::string error = options.validate(); !error.empty()) {
     throw InputError("normal options: " + error);
@@ -110,7 +224,6 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
   const std::vector<int>& light_index = valid.index;
   const std::vector<Eigen::Vector3d>& distant_dirs = valid.dirs_in_stage;
   const size_t n = distant_dirs.size();
-  const std::vector<capture::FieldLight>& lights = field.lights();
   // Near LEDs (positions in the field): each pixel sees them from its own reference point.
   const bool per_pixel_dirs = capture::has_near_lights(field);
   const bool robust = options.method == NormalMethod::kRobust;
@@ -128,79 +241,10 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
           }
         }
         const std::vector<Eigen::Vector3d>& dirs = per_pixel_dirs ? s.pixel_dirs : distant_dirs;
-        double y_max = 0;
-        for (size_t i = 0; i < n; ++i) {
-          const float* v = px + 3 * light_index[i];
-          const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
-          s.y[i] = std::isfinite(lum) ? lum : 0.0;
-          s.sigma[i] = std::sqrt(options.noise.variance(s.y[i]));
-          y_max = std::max(y_max, s.y[i]);
-        }
-        const double threshold = std::max(options.shadow_sigmas * std::sqrt(options.noise.a),
-                                          options.shadow_fraction * y_max);
-        int lit = 0;
-        int saturated = 0;
-        for (size_t i = 0; i < n; ++i) {
-          const bool censored =
-              capture::is_saturated(lights[light_index[i]], px + 3 * light_index[i]);
-          const bool use = s.y[i] > threshold && !censored;
-          s.usable[i] = use;
-          s.weight[i] = use ? 1.0 / (s.sigma[i] * s.sigma[i]) : 0.0;
-          lit += use;
-          saturated += censored;
-        }
-        int flags = 0;
-        if (lit == 0 && saturated == 0) {
-          flags |= kAllShadowed;
-        } else if (lit < options.min_lights) {
-          flags |= kTooFewLights;
-          if (saturated > 0) flags |= kSaturated;
-        } else if (saturated > options.max_saturated_fraction * (lit + saturated)) {
-          flags |= kSaturated;
-        }
-
+        int flags = gather_samples(px, field.lights(), light_index, options, s);
         Solve solve;
-        if (flags == 0 && robust) {
-          // Trimmed start: leave out the brightest lit samples (where highlights live).
-          int m = 0;
-          for (size_t i = 0; i < n; ++i) {
-            if (s.weight[i] > 0) s.order[m++] = int(i);
-          }
-          const int drop = int(options.trim_bright_fraction * m);
-          if (m - drop >= options.min_lights && drop > 0) {
-            std::nth_element(s.order.begin(), s.order.begin() + (m - drop), s.order.begin() + m,
-                             [&](int a, int b) { return s.y[a] < s.y[b]; });
-            std::copy(s.weight.begin(), s.weight.end(), s.abs_u.begin());  // Keep full weights.
-            for (int k = m - drop; k < m; ++k) s.weight[s.order[k]] = 0;
-            solve = weighted_solve(dirs, s);
-            std::copy(s.abs_u.begin(), s.abs_u.end(), s.weight.begin());
-          } else {
-            solve = weighted_solve(dirs, s);
-          }
-          // Tukey IRLS over all lit samples, residuals in noise units, scale from their MAD.
-          for (int it = 0; it < options.irls_iterations && solve.ok; ++it) {
-            int k = 0;
-            for (size_t i = 0; i < n; ++i) {
-              if (!s.usable[i]) continue;
-              s.abs_u[k++] = std::abs(s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
-            }
-            const double scale = std::max(1.4826 * median_of(s.abs_u, k), 1.0);
-            for (size_t i = 0; i < n; ++i) {
-              if (!s.usable[i]) continue;
-              const double u =
-                  (s.y[i] - dirs[i].dot(solve.g)) / (s.sigma[i] * options.tukey_c * scale);
-              const double t = 1 - u * u;
-              s.weight[i] = t > 0 ? t * t / (s.sigma[i] * s.sigma[i]) : 0.0;
-            }
-            const Solve next = weighted_solve(dirs, s);
-            if (!next.ok || next.used < options.min_lights) break;
-            solve = next;
-          }
-        } else if (flags == 0) {
-          solve = weighted_solve(dirs, s);
-        }
-
-        double norm = solve.g.norm();
+        if (flags == 0) solve = robust ? robust_solve(dirs, options, s) : weighted_solve(dirs, s);
+        const double norm = solve.g.norm();
         if (flags == 0) {
           if (!solve.ok || solve.used < options.min_lights) {
             flags |= kTooFewLights;
@@ -210,37 +254,12 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
             flags |= kFacingAway;
           }
         }
-        float* normal = &out.normal.at(x, y, 0);
-        float* albedo = &out.albedo.at(x, y, 0);
         out.flags.at(x, y, 0) = float(flags);
         if (flags != 0) {
           ++flagged_here;
           continue;  // Maps stay zero: never NaN.
         }
-        const Eigen::Vector3d nrm = solve.g / norm;
-        // Albedo per channel by weighted LS with the shading fixed; chi^2 of the luminance fit.
-        double sxx = 0, sxy[3] = {0, 0, 0}, chi2 = 0;
-        int used = 0;
-        for (size_t i = 0; i < n; ++i) {
-          if (!(s.weight[i] > 0)) continue;
-          const double shade = std::max(0.0, nrm.dot(dirs[i])) / kPi;
-          const double w = s.weight[i] * s.sigma[i] * s.sigma[i];  // Robust factor only.
-          const float* v = px + 3 * light_index[i];
-          sxx += w * shade * shade;
-          for (int c = 0; c < 3; ++c) sxy[c] += w * shade * v[c];
-          const double r = (s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
-          chi2 += r * r;
-          ++used;
-        }
-        for (int c = 0; c < 3; ++c) {
-          normal[c] = float(nrm(c));
-          albedo[c] = sxx > 0 ? float(std::max(0.0, sxy[c] / sxx)) : 0.0f;
-        }
-        // Confidence: how well the used lights pin down 3 unknowns (1 = isotropic cone), times
-        // how well the Lambertian model explains them (1 when residuals are at the noise level).
-        const double reduced_chi2 = used > 3 ? chi2 / (used - 3) : 1.0;
-        const double fit_quality = reduced_chi2 > 1 ? 1.0 / std::sqrt(reduced_chi2) : 1.0;
-        out.confidence.at(x, y, 0) = float(std::clamp(solve.condition * fit_quality, 0.0, 1.0));
+        store_solution(solve, dirs, light_index, px, s, x, y, out);
       }
     }
     flagged += flagged_here;

@@ -1,15 +1,15 @@
 #pragma once
 // Time-varying BRDFs (issue 6; Sun, Sunkavalli, Ramamoorthi, Belhumeur, Nayar 2007): from one
 // reflectance field per time step of the same scene, per pixel
-//   1. one normal for all steps (photometric stereo, relight/fit/normals.h, on the last, driest step
-//      by default: see NormalSource), held fixed: the geometry does not change;
+//   1. one normal for all steps (photometric stereo, relight/fit/normals.h, on the last,
+//      driest step by default: see NormalSource), held fixed: the geometry does not change;
 //   2. per step, the full BRDF with that normal: Oren-Nayar diffuse (albedo RGB, sigma) + white
 //      Torrance-Sparrow lobe (k_s, Beckmann roughness), samples and noise weighting as in
-//      relight/fit/fit.h. Always the full model, never a per-step model choice, so every step gives the
-//      same six parameters; what stays constant over time is decided by the temporal model choice.
-//      Each parameter's uncertainty comes from the fit's Jacobian: cov = (J^T J)^-1 (residuals are
-//      already divided by the measured noise) scaled by max(1, reduced chi^2) so a misfit widens
-//      it, with a floor (kParamSigmaFloor) standing for model error;
+//      relight/fit/fit.h. Always the full model, never a per-step model choice, so every step gives
+//      the same six parameters; what stays constant over time is decided by the temporal model
+//      choice. Each parameter's uncertainty comes from the fit's Jacobian: cov = (J^T J)^-1
+//      (residuals are already divided by the measured noise) scaled by max(1, reduced chi^2) so a
+//      misfit widens it, with a floor (kParamSigmaFloor) standing for model error;
 //   3. over time, one process per pixel shared by its six parameters (as in the paper: one rate,
 //      one onset), each parameter with its own wet (start) and dry (end) value:
 //        constant     p(t) = dry
@@ -22,8 +22,9 @@
 //      onset bounds are built into the parametrisation), started from a grid over (rate, onset)
 //      with the endpoints solved linearly at each grid point (they are linear given the shape).
 //      The simplest model by BIC = chi^2 + k ln(n) (n: residuals used; ties to the simpler) wins,
-//      the criterion of relight/fit/fit.h. A model with as many parameters per series as usable steps
-//      or more (constant 1, exponential/sigmoid/dust 4) is not considered (flag kTooFewSteps).
+//      the criterion of relight/fit/fit.h. A model with as many parameters per series as usable
+//      steps or more (constant 1, exponential/sigmoid/dust 4) is not considered (flag
+//      kTooFewSteps).
 //
 // Times are seconds of scene time (ReflectanceField::scene_time_s). Rates are 1/s. The rate is
 // bounded by max_rate_times_interval / (smallest step interval): a faster process is a step

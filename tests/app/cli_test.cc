@@ -136,12 +136,39 @@ TEST(Cli, MalformedStageSceneAndMapFilesGiveClearErrors) {
                  {"not a lightstage session"});
 }
 
+// Each subcommand's help names its own options and positionals (a few that only it has), and not
+// those of an unrelated command: a help wired to the wrong subcommand, or an option dropped, fails.
 TEST(Cli, HelpExplainsEverySubcommand) {
-  for (const char* cmd : {"capture", "build", "relight", "demo", "stage", "envmaps", "import",
-                          "fit", "calibrate", "compress", "bench", "devices", "check"}) {
+  const std::vector<std::pair<std::string, std::vector<std::string>>> expected = {
+      {"capture", {"--out", "--resume", "--stage", "--scene", "--seed"}},
+      {"build", {"session", "--out", "--all-time-steps", "--time-step"}},
+      {"relight", {"field", "--env", "--light", "--models", "--temporal", "--edits", "--rotate"}},
+      {"demo", {"--out", "--resolution", "--no-truth", "--no-shared-maps"}},
+      {"stage", {"file", "--write"}},
+      {"envmaps", {"--out", "--width"}},
+      {"import", {"source", "--gamma", "--srgb", "--linear", "--drop-saturated", "--max-size"}},
+      {"fit", {"field", "--method", "--phong", "--time"}},
+      {"calibrate", {"directions", "intensities", "camera"}},
+      {"compress", {"field", "--rank", "--tile", "--format"}},
+      {"bench", {"leds", "fit-sweeps", "fit", "compact", "temporal"}},
+      {"devices", {"--no-cameras"}},
+      {"check", {"stage", "--blink", "--blink-seconds", "--no-frame"}},
+      {"view", {"inputs", "--env", "--source", "--split", "--script", "--screenshot"}},
+  };
+  for (const auto& [cmd, words] : expected) {
     std::string out;
     EXPECT_EQ(run_command(cli_path().string() + " " + cmd + " --help", &out), 0) << cmd;
-    EXPECT_NE(out.find("Options"), std::string::npos) << cmd << ": " << out;
+    for (const std::string& word : words) {
+      EXPECT_NE(out.find(word), std::string::npos)
+          << cmd << " --help lacks " << word << ": " << out;
+    }
+    // Options of other commands are not listed: --resume is capture's, --blink check's.
+    if (cmd != "capture") {
+      EXPECT_EQ(out.find("--resume"), std::string::npos) << cmd << ": " << out;
+    }
+    if (cmd != "check") {
+      EXPECT_EQ(out.find("--blink"), std::string::npos) << cmd << ": " << out;
+    }
   }
   std::string out;
   EXPECT_EQ(run_command(cli_path().string(), &out), 1) << out;  // No subcommand: usage.

@@ -7,8 +7,8 @@
 #include <cmath>
 
 #include "capture/field.h"
-#include "lightstage/errors.h"
 #include "lightstage/controller/sequencer.h"
+#include "lightstage/errors.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
 #include "tests/support/test_support.h"

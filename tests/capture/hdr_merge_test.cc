@@ -182,20 +182,30 @@ TEST(HdrMerge, SaturatedLongExposureGetsZeroWeight) {
   }
 }
 
-TEST(HdrMerge, FullySaturatedPixelIsFlaggedAndALowerBound) {
+// Each channel sees a different radiance, so that a channel mix-up shows: red at 10x full scale in
+// the shortest exposure (every exposure saturated), green at half of full scale in the shortest
+// (usable in that one only), blue at 0.05 (usable in the two shortest). Noise-free, so the only
+// error is quantisation: half a DN in the frame and in the dark, i.e. at most 1 DN over the
+// shortest exposure = 1 / 4095 / 0.002 s = 0.12.
+TEST(HdrMerge, FullySaturatedChannelIsFlaggedAndALowerBoundOthersKeepTheirValues) {
   SyntheticCamera camera;
   camera.noise = false;
   const ResponseCurve response = ResponseCurve::linear(12, kChannels);
-  std::vector<double> radiance(size_t(kWidth) * kHeight * kChannels, 5000.0);  // 10x full scale.
+  const double truth[kChannels] = {5000.0, 250.0, 25.0};
+  std::vector<double> radiance(size_t(kWidth) * kHeight * kChannels);
+  for (size_t i = 0; i < radiance.size(); ++i) radiance[i] = truth[i % kChannels];
   const Bracket b = shoot_bracket(camera, response, radiance, kExposures, kUnitGain, 4);
   const Image merged = merge_bracket(b.view(), response);
   expect_all_finite(merged);
-  for (int c = 0; c < kChannels; ++c) {
-    EXPECT_EQ(merged.at(3, 3, kChannels), 0.0f);
-    // The shortest exposure's value: (1 - black) / 0.002 s, well below the truth.
-    EXPECT_NEAR(merged.at(3, 3, c), (1.0 - b.darks[0].at(3, 3, c)) / 0.002, 1.0);
-    EXPECT_LT(merged.at(3, 3, c), 5000.0f);
-  }
+  const double one_dn = 1.0 / 4095 / kExposures[0];
+  // The flag is the fewest usable samples of any channel: red has none.
+  EXPECT_EQ(merged.at(3, 3, kChannels), 0.0f);
+  // Red: the shortest exposure's value, (1 - dark) / 0.002 s, far below the truth.
+  EXPECT_NEAR(merged.at(3, 3, 0), (1.0 - b.darks[0].at(3, 3, 0)) / kExposures[0], one_dn);
+  EXPECT_LT(merged.at(3, 3, 0), 0.2 * truth[0]);
+  // Green and blue: their true radiance, from the exposures that did not saturate.
+  EXPECT_NEAR(merged.at(3, 3, 1), truth[1], one_dn);
+  EXPECT_NEAR(merged.at(3, 3, 2), truth[2], one_dn);
 }
 
 TEST(HdrMerge, NeverOutputsNaNAndKeepsNegativeSignal) {

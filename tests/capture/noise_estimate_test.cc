@@ -9,8 +9,8 @@
 #include <string>
 
 #include "capture/build_field.h"
-#include "lightstage/errors.h"
 #include "lightstage/controller/sequencer.h"
+#include "lightstage/errors.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
 #include "tests/support/test_support.h"

@@ -12,8 +12,8 @@
 #include <sstream>
 
 #include "capture/build_field.h"
-#include "lightstage/errors.h"
 #include "lightstage/controller/sequencer.h"
+#include "lightstage/errors.h"
 #include "sim/ground_truth.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"

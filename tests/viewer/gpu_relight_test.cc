@@ -35,6 +35,7 @@ namespace {
 struct ImageDifference {
   double max_relative = 0;   // max |gpu - cpu| / the CPU image's largest value.
   double mean_relative = 0;  // mean |gpu - cpu| / |cpu| over values above 1% of the largest.
+  double flux_ratio = 0;     // sum(gpu) / sum(cpu): 1 unless the lighting is mis-scaled.
 };
 
 ImageDifference difference(const Image& gpu, const Image& cpu) {
@@ -44,9 +45,11 @@ ImageDifference difference(const Image& gpu, const Image& cpu) {
   double peak = 0;
   for (float v : cpu.pixels) peak = std::max(peak, double(std::abs(v)));
   ImageDifference out;
-  double sum = 0;
+  double sum = 0, gpu_sum = 0, cpu_sum = 0;
   long count = 0;
   for (std::size_t i = 0; i < cpu.pixels.size() && i < gpu.pixels.size(); ++i) {
+    gpu_sum += gpu.pixels[i];
+    cpu_sum += cpu.pixels[i];
     const double d = std::abs(double(gpu.pixels[i]) - cpu.pixels[i]);
     EXPECT_TRUE(std::isfinite(gpu.pixels[i])) << "value " << i;
     out.max_relative = std::max(out.max_relative, d / std::max(peak, 1e-30));
@@ -56,6 +59,7 @@ ImageDifference difference(const Image& gpu, const Image& cpu) {
     }
   }
   out.mean_relative = count > 0 ? sum / count : 0;
+  out.flux_ratio = gpu_sum / std::max(cpu_sum, 1e-30);
   EXPECT_GT(peak, 0) << "the CPU image is black: nothing is compared";
   EXPECT_GT(count, long(cpu.pixels.size() / 10)) << "too few lit values to compare";
   return out;
@@ -126,7 +130,7 @@ std::vector<Eigen::Vector3d> GpuRelight::led_dirs_;
 
 Image cpu_field(const capture::ReflectanceField& field, const ViewLighting& lighting) {
   Image out;
-  relight::relight_into(field, lighting.led_irradiance_rgb.data(), out);
+  relight::relight_into(field, lighting.led_irradiance_rgb, out);
   return out;
 }
 
@@ -362,17 +366,22 @@ class PrefilteredModels : public GpuRelight {
                                                               rotation_deg, sampling);
     return lighting;
   }
-  // Prefiltered GPU against exact CPU at two rotations (the second rebuilds the prefiltering).
-  static std::vector<ImageDifference> compare(const relight::ModelMaps& maps) {
+  // Prefiltered GPU and exact CPU renders at two rotations (the second rebuilds the prefiltering).
+  static std::vector<std::pair<Image, Image>> renders(const relight::ModelMaps& maps) {
     const auto source = upload_models(maps, {}, ModelShading::kPrefiltered);
-    std::vector<ImageDifference> out;
+    std::vector<std::pair<Image, Image>> out;
     for (const double rotation : {0.0, 137.0}) {
       const ViewLighting lighting = studio(rotation);
-      out.push_back(
-          difference(gpu_render(*source, lighting), relight::render_models(maps, lighting.lights)));
+      out.emplace_back(gpu_render(*source, lighting),
+                       relight::render_models(maps, lighting.lights));
       std::cout << source->note() << "\n";
       EXPECT_NE(source->note().find("prefiltered"), std::string::npos) << source->note();
     }
+    return out;
+  }
+  static std::vector<ImageDifference> compare(const relight::ModelMaps& maps) {
+    std::vector<ImageDifference> out;
+    for (const auto& [gpu, cpu] : renders(maps)) out.push_back(difference(gpu, cpu));
     return out;
   }
   // The synthetic maps with every fitted pixel given `model`; lobes k_s 0.5 with m 0.1 .. 0.5 (the
@@ -392,16 +401,33 @@ class PrefilteredModels : public GpuRelight {
   }
 };
 
+// Bounds on the prefiltered render against the exact one: regression guards, the measured value
+// (in the comments) plus about 25%. The flux ratio is not a guard: SH9 keeps the irradiance's
+// constant and linear terms exactly and the split sum keeps the lobe's energy, so over the whole
+// image the prefiltered render carries the exact render's light to within a few percent, and any
+// mis-scaled prefiltering (a missing 1 / pi, a factor 2) is far outside.
+struct PrefilterBounds {
+  double max_relative, mean_relative, flux_ratio_error;
+};
+constexpr PrefilterBounds kDiffuseBounds{0.107, 0.145, 0.05};
+constexpr PrefilterBounds kGlossyBounds{0.166, 0.149, 0.05};
+
+bool within(const ImageDifference& d, const PrefilterBounds& b) {
+  return d.max_relative < b.max_relative && d.mean_relative < b.mean_relative &&
+         std::abs(d.flux_ratio - 1) < b.flux_ratio_error;
+}
+
 TEST_F(PrefilteredModels, DiffuseSceneMatchesTheExactRender) {
   // The matte scene fitted without lobes: Lambert and Oren-Nayar pixels only.
   const relight::ModelMaps maps = fitted_maps(sim::RtiScene::kMatte, false);
   for (const ImageDifference& d : compare(maps)) {
     std::cout << "prefiltered, diffuse scene: max " << d.max_relative << ", mean "
-              << d.mean_relative << "\n";
+              << d.mean_relative << ", flux ratio " << d.flux_ratio << "\n";
     // SH9 irradiance (its clamped-cosine truncation: a few % of the peak under a few bright
     // softboxes). Measured max 0.071 and 0.085 (rotations 0 and 137 deg), mean 0.069 and 0.115.
-    EXPECT_LT(d.max_relative, 0.13);
-    EXPECT_LT(d.mean_relative, 0.17);
+    EXPECT_LT(d.max_relative, kDiffuseBounds.max_relative);
+    EXPECT_LT(d.mean_relative, kDiffuseBounds.mean_relative);
+    EXPECT_NEAR(d.flux_ratio, 1.0, kDiffuseBounds.flux_ratio_error);
   }
 }
 
@@ -410,11 +436,32 @@ TEST_F(PrefilteredModels, GlossySceneMatchesTheExactRender) {
   const relight::ModelMaps maps = fitted_maps(sim::RtiScene::kGlossy, true);
   for (const ImageDifference& d : compare(maps)) {
     std::cout << "prefiltered, glossy scene: max " << d.max_relative << ", mean " << d.mean_relative
-              << "\n";
+              << ", flux ratio " << d.flux_ratio << "\n";
     // Split sum: the lobe's shape at oblique views (stretched, clipped by the horizon) is lost.
     // Measured max 0.133 and 0.117 (rotations 0 and 137 deg), mean 0.084 and 0.119.
-    EXPECT_LT(d.max_relative, 0.2);
-    EXPECT_LT(d.mean_relative, 0.18);
+    EXPECT_LT(d.max_relative, kGlossyBounds.max_relative);
+    EXPECT_LT(d.mean_relative, kGlossyBounds.mean_relative);
+    EXPECT_NEAR(d.flux_ratio, 1.0, kGlossyBounds.flux_ratio_error);
+  }
+}
+
+// The bounds above catch a mis-scaled prefiltering: the render is linear in the prefiltered
+// environment, so scaling the GPU image is scaling what the prefilter produced. Off by 2, 1/2, pi,
+// 1/pi, or even 10%, every comparison falls outside its bounds.
+TEST_F(PrefilteredModels, MisScaledPrefilteringWouldFailTheBounds) {
+  const std::pair<sim::RtiScene, PrefilterBounds> cases[] = {
+      {sim::RtiScene::kMatte, kDiffuseBounds}, {sim::RtiScene::kGlossy, kGlossyBounds}};
+  for (const auto& [scene, bounds] : cases) {
+    const relight::ModelMaps maps = fitted_maps(scene, scene == sim::RtiScene::kGlossy);
+    for (const auto& [gpu, cpu] : renders(maps)) {
+      EXPECT_TRUE(within(difference(gpu, cpu), bounds));
+      for (const double scale : {2.0, 0.5, M_PI, 1 / M_PI, 1.1, 1 / 1.1}) {
+        Image scaled = gpu;
+        for (float& v : scaled.pixels) v = float(v * scale);
+        EXPECT_FALSE(within(difference(scaled, cpu), bounds))
+            << sim::to_string(scene) << " scaled by " << scale;
+      }
+    }
   }
 }
 

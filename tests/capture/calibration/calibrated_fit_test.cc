@@ -1,16 +1,16 @@
 // Fitting with the calibrated stage beats fitting with the drawing, on the perturbed simulated
-// dome (tests/capture/calibration/perturbed_dome.h): per-pixel normals and the relighting of the fitted
-// models, each against the simulator's truth, with the stage as drawn, as calibrated from the
-// mirror-sphere and white-target photographs, and as truly built.
+// dome (tests/capture/calibration/perturbed_dome.h): per-pixel normals and the relighting of the
+// fitted models, each against the simulator's truth, with the stage as drawn, as calibrated from
+// the mirror-sphere and white-target photographs, and as truly built.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 
 #include "lightstage/image_metrics.h"
-#include "relight/lighting/envmap.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
+#include "relight/lighting/envmap.h"
 #include "sim/ground_truth.h"
 #include "sim/scene.h"
 #include "tests/capture/calibration/perturbed_dome.h"

@@ -8,8 +8,8 @@
 #include <set>
 #include <sstream>
 
-#include "lightstage/errors.h"
 #include "lightstage/controller/sequencer.h"
+#include "lightstage/errors.h"
 #include "tests/lightstage/controller/fake_hardware.h"
 #include "tests/support/test_support.h"
 

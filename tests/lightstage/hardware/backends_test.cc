@@ -1,7 +1,9 @@
 #include "lightstage/hardware/backends.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 
@@ -76,9 +78,75 @@ TEST(Backends, V4l2RefusesWhatAWebcamCannotDeliver) {
   }
 }
 
-TEST(Backends, ListingWithoutCamerasSendsNothingAndNeverThrows) {
+// The names under /dev that start with `prefix`, sorted: an independent listing to compare with.
+std::vector<std::string> DevEntries(const std::string& prefix) {
+  std::vector<std::string> out;
+  for (const auto& entry : std::filesystem::directory_iterator("/dev")) {
+    const std::string name = entry.path().filename().string();
+    if (name.rfind(prefix, 0) == 0) out.push_back(entry.path().string());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// `lightstage devices --no-cameras` lists what /dev holds: every /dev/video* node, and one line
+// per GPIO chip naming it ("gpiochipN [label] (L lines)"), in the order of /dev.
+TEST(Backends, ListingWithoutCamerasMatchesWhatDevHolds) {
   const DeviceList list = list_devices(/*list_aravis=*/false);
-  EXPECT_TRUE(list.aravis_cameras.empty());
+  EXPECT_TRUE(list.aravis_cameras.empty());  // No discovery unless asked: nothing broadcast.
+  EXPECT_EQ(list.video_devices, DevEntries("video"));
+  const std::vector<std::string> chips = DevEntries("gpiochip");
+  bool readable = true;
+  for (const std::string& c : chips) readable = readable && access(c.c_str(), R_OK) == 0;
+  if (!readable) GTEST_SKIP() << "a GPIO chip under /dev is not readable: libgpiod lists none";
+  ASSERT_EQ(list.gpio_chips.size(), chips.size());
+  for (size_t i = 0; i < chips.size(); ++i) {
+    const std::string name = std::filesystem::path(chips[i]).filename().string();
+    EXPECT_EQ(list.gpio_chips[i].rfind(name + " [", 0), 0u) << list.gpio_chips[i];
+    EXPECT_NE(list.gpio_chips[i].find(" lines)"), std::string::npos) << list.gpio_chips[i];
+  }
+}
+
+// Stage mistakes are input errors naming the stage file and the field, raised before any device is
+// opened (the chip in FakeAravisStage does not exist, so getting that far would be a
+// HardwareError).
+TEST(Backends, OpenHardwareInputErrorsNameTheStageField) {
+  const auto input_error = [](const Stage& stage) {
+    try {
+      (void)open_hardware(stage);
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "expected InputError, got: " << e.what();
+      return std::string();
+    }
+    ADD_FAILURE() << "expected InputError";
+    return std::string();
+  };
+  Stage no_chip = testing::FakeAravisStage();
+  no_chip.leds[2].gpio_chip.clear();
+  EXPECT_NE(input_error(no_chip).find("fake_stage.json: leds[2] (id " +
+                                      std::to_string(no_chip.leds[2].id) + "): gpio_chip"),
+            std::string::npos)
+      << input_error(no_chip);
+  Stage negative = testing::FakeAravisStage();
+  negative.leds[1].gpio_line = -3;
+  EXPECT_NE(input_error(negative).find("leds[1] (id " + std::to_string(negative.leds[1].id) +
+                                       "): gpio_line: expected a line offset >= 0, got -3"),
+            std::string::npos)
+      << input_error(negative);
+  Stage shared = testing::FakeAravisStage();
+  shared.leds[3].gpio_line = shared.leds[0].gpio_line;
+  EXPECT_NE(input_error(shared).find("leds[3] (id " + std::to_string(shared.leds[3].id) +
+                                     "): gpio_line: gpiochip-lightstage-absent line 0 is already "
+                                     "used by LED " +
+                                     std::to_string(shared.leds[0].id)),
+            std::string::npos)
+      << input_error(shared);
+  Stage unknown = testing::FakeAravisStage();
+  unknown.camera.backend = "usb";
+  EXPECT_NE(input_error(unknown).find("fake_stage.json: camera.backend"), std::string::npos)
+      << input_error(unknown);
 }
 
 // The CLI refuses to start on hardware it cannot open, before any frame.

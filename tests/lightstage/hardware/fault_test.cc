@@ -3,11 +3,11 @@
 // camera completes only what is missing.
 #include <gtest/gtest.h>
 
-#include "lightstage/hardware/aravis_camera.h"
-#include "lightstage/errors.h"
 #include "lightstage/controller/sequencer.h"
-#include "tests/lightstage/hardware/hardware_stage.h"
+#include "lightstage/errors.h"
+#include "lightstage/hardware/aravis_camera.h"
 #include "tests/lightstage/controller/fake_hardware.h"
+#include "tests/lightstage/hardware/hardware_stage.h"
 #include "tests/support/test_support.h"
 
 namespace ls {

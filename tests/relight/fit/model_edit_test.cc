@@ -1,5 +1,5 @@
-// Edits of fitted model maps (relight/fit/model_edit.h), the edit file's validation, and the CLI path
-// `lightstage fit` -> `lightstage relight --models --edits`.
+// Edits of fitted model maps (relight/fit/model_edit.h), the edit file's validation, and the CLI
+// path `lightstage fit` -> `lightstage relight --models --edits`.
 #include "relight/fit/model_edit.h"
 
 #include <gtest/gtest.h>

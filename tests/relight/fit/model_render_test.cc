@@ -1,5 +1,5 @@
-// Model-based relighting (relight/fit/model_render.h) and model map I/O, against the simulator's ground
-// truth and against field relighting, on three spheres of known materials.
+// Model-based relighting (relight/fit/model_render.h) and model map I/O, against the simulator's
+// ground truth and against field relighting, on three spheres of known materials.
 #include "relight/fit/model_render.h"
 
 #include <gtest/gtest.h>

@@ -3,7 +3,6 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <numbers>
@@ -51,34 +50,38 @@ int nearest_brute_force(const std::vector<Eigen::Vector3d>& dirs, const Eigen::V
   return best;
 }
 
-TEST(LightCellsTest, DefaultDomeSumsTo4PiAndReportsSpread) {
+// (Compute and integrate times are measured in bench/bench_relight.cc, not asserted here.)
+TEST(LightCellsTest, DefaultDomeSumsTo4PiAndEveryCellLiesInItsCoverageCap) {
   const std::vector<Eigen::Vector3d> dirs = ls::default_stage().led_directions();
   ASSERT_GT(dirs.size(), 100u);
-  const auto start = std::chrono::steady_clock::now();
   const LightCells cells = LightCells::compute(dirs, 0.0, /*resolution=*/1024);
-  const double seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   EXPECT_NEAR(total_sr(cells), 4 * kPi, 1e-6 * 4 * kPi);
   EXPECT_NEAR(cells.coverage_radius_rad, ls::relight::max_nearest_neighbour_angle(dirs), 0.0);
   // The dome stops about 11.5 degrees below the horizon: most of the lower hemisphere is open.
   EXPECT_GT(cells.uncovered_sr, 0.5 * 2 * kPi);
   EXPECT_LT(cells.uncovered_sr, 2 * kPi);
+  // A cell holds directions within the coverage radius of its own LED (the nearest one), so it
+  // lies inside that spherical cap: at most 2 pi (1 - cos r) sr, up to the grid's quadrature error
+  // (1%).
+  const double cap_sr = 2 * kPi * (1 - std::cos(cells.coverage_radius_rad));
+  for (size_t l = 0; l < dirs.size(); ++l) {
+    EXPECT_GT(cells.solid_angle_sr[l], 0.0) << "LED " << l;  // Every LED stands for something.
+    EXPECT_LT(cells.solid_angle_sr[l], 1.01 * cap_sr) << "LED " << l;
+  }
+  // The covered sphere is at least what the caps of the LEDs reach minus their overlaps, and at
+  // most the sum of the caps.
+  EXPECT_LT(4 * kPi - cells.uncovered_sr, dirs.size() * cap_sr);
 
   std::vector<double> sorted = cells.solid_angle_sr;
   std::sort(sorted.begin(), sorted.end());
-  EXPECT_GT(sorted.front(), 0.0);  // Every LED stands for some directions.
   std::cout << "default dome: " << dirs.size()
             << " LEDs, cell solid angle min/median/max = " << sorted.front() << " / "
-            << sorted[sorted.size() / 2] << " / " << sorted.back() << " sr, uncovered "
-            << cells.uncovered_sr << " sr, coverage radius "
-            << cells.coverage_radius_rad * 180 / kPi << " deg, compute(1024) " << seconds * 1e3
-            << " ms\n";
+            << sorted[sorted.size() / 2] << " / " << sorted.back() << " sr (cap " << cap_sr
+            << " sr), uncovered " << cells.uncovered_sr << " sr, coverage radius "
+            << cells.coverage_radius_rad * 180 / kPi << " deg\n";
   ::testing::Test::RecordProperty("cell_sr_min", std::to_string(sorted.front()));
   ::testing::Test::RecordProperty("cell_sr_median", std::to_string(sorted[sorted.size() / 2]));
   ::testing::Test::RecordProperty("cell_sr_max", std::to_string(sorted.back()));
-  ::testing::Test::RecordProperty("compute_1024_ms", std::to_string(seconds * 1e3));
-  // Generous: the target is well under a second on an idle machine; this one is shared.
-  EXPECT_LT(seconds, 5.0);
 }
 
 TEST(LightCellsTest, RandomPointSetsSumTo4Pi) {
@@ -260,20 +263,55 @@ TEST(LightCellsTest, DeadLedsCellsGoToNearestValidLed) {
   EXPECT_NEAR(none.uncovered_fraction(), 1.0, 1e-12);
 }
 
-TEST(LightCellsTest, IntegrateIsFastEnoughForRotationSequences) {
+// A rotation sequence under L(w) = a + b w.x, per channel: the linear term integrates to zero over
+// the sphere, so the map's total is 4 pi a at every rotation; and rotating by 180 degrees about +Y
+// flips w.x, so the irradiance at 0 and at 180 degrees adds up to 2 a times the cell's solid angle,
+// LED by LED. A full turn gives back the unrotated weights.
+TEST(LightCellsTest, RotationSequenceConservesTheMapAndOppositeRotationsCancelTheGradient) {
   const std::vector<Eigen::Vector3d> dirs = ls::default_stage().led_directions();
-  const EnvironmentMap map = constant_map(512, Eigen::Vector3f(1, 2, 3));
-  integrate_environment(map, dirs, 10.0);  // Warm up the thread pool.
-  const int frames = 10;
-  const auto start = std::chrono::steady_clock::now();
-  for (int i = 0; i < frames; ++i) integrate_environment(map, dirs, 36.0 * i);
-  const double ms_per_frame =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count() /
-      frames;
-  std::cout << "integrate_environment 512x256, " << dirs.size() << " LEDs: " << ms_per_frame
-            << " ms per frame\n";
-  ::testing::Test::RecordProperty("integrate_512_ms", std::to_string(ms_per_frame));
-  EXPECT_LT(ms_per_frame, 1000.0);  // Target < 100 ms; generous on a shared machine.
+  const Eigen::Vector3d a(1, 2, 3), b(0.9, -1.5, 2.5);
+  const int width = 512;
+  Image image(width, width / 2, 3);
+  const EnvironmentMap probe(Image(width, width / 2, 3));
+  for (int y = 0; y < width / 2; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const double wx = probe.pixel_direction(x, y).x();
+      for (int c = 0; c < 3; ++c) image.at(x, y, c) = float(a[c] + b[c] * wx);
+    }
+  }
+  const EnvironmentMap map(image);
+  const LightCells cells = LightCells::compute(dirs, 0.0, width);
+  std::vector<LightWeights> turns;
+  for (int i = 0; i <= 10; ++i) turns.push_back(integrate_environment(map, dirs, 36.0 * i));
+  double worst_total = 0, worst_sum = 0, worst_pair = 0, worst_turn = 0;
+  for (const LightWeights& w : turns) {
+    for (int c = 0; c < 3; ++c) {
+      worst_total =
+          std::max(worst_total, std::abs(w.total_irradiance_rgb[c] / (4 * kPi * a[c]) - 1));
+      double sum = w.uncovered_irradiance_rgb[c];
+      for (size_t l = 0; l < dirs.size(); ++l) sum += w.irradiance_rgb[3 * l + c];
+      worst_sum = std::max(worst_sum, std::abs(sum / w.total_irradiance_rgb[c] - 1));
+    }
+  }
+  for (size_t l = 0; l < dirs.size(); ++l) {
+    for (int c = 0; c < 3; ++c) {
+      const double expected = 2 * a[c] * cells.solid_angle_sr[l];
+      const double pair = turns[0].irradiance_rgb[3 * l + c] + turns[5].irradiance_rgb[3 * l + c];
+      worst_pair = std::max(worst_pair, std::abs(pair / expected - 1));
+      worst_turn = std::max(worst_turn, double(std::abs(turns[10].irradiance_rgb[3 * l + c] -
+                                                        turns[0].irradiance_rgb[3 * l + c])) /
+                                            turns[0].irradiance_rgb[3 * l + c]);
+    }
+  }
+  std::cout << "rotation sequence: total vs 4 pi a " << worst_total
+            << ", cells + uncovered vs total " << worst_sum << ", E(0) + E(180) vs 2 a Omega "
+            << worst_pair << ", full turn " << worst_turn << " (worst relative)\n";
+  // Measured 4.6e-10, 2.5e-9, 8.5e-8 and 0: the lat-long quadrature is exact for w.x (its
+  // azimuthal sum cancels), so only rounding is left; the bounds allow float accumulation.
+  EXPECT_LT(worst_total, 1e-6);
+  EXPECT_LT(worst_sum, 1e-6);  // Every sample goes to one LED or to "uncovered".
+  EXPECT_LT(worst_pair, 1e-6);
+  EXPECT_LT(worst_turn, 1e-6);
 }
 
 TEST(LightCellsTest, MaxNearestNeighbourAngle) {

@@ -79,7 +79,7 @@ TEST(RelightTest, OneHotIrradianceReturnsThatLightsImageExactly) {
   for (int target : {0, 5, 10}) {
     std::fill(e.begin(), e.end(), 0.0f);
     e[3 * target] = e[3 * target + 1] = e[3 * target + 2] = 1.0f;
-    ls::relight::relight_into(field, e.data(), out);
+    ls::relight::relight_into(field, e, out);
     for (int y = 0; y < field.height(); ++y) {
       for (int x = 0; x < field.width(); ++x) {
         for (int c = 0; c < 3; ++c) {
@@ -91,7 +91,7 @@ TEST(RelightTest, OneHotIrradianceReturnsThatLightsImageExactly) {
   // One channel of one light: only that channel lights up.
   std::fill(e.begin(), e.end(), 0.0f);
   e[3 * 4 + 1] = 1.0f;
-  ls::relight::relight_into(field, e.data(), out);
+  ls::relight::relight_into(field, e, out);
   EXPECT_EQ(out.at(3, 2, 0), 0.0f);
   EXPECT_EQ(out.at(3, 2, 1), field.at(3, 2, 4, 1));
   EXPECT_EQ(out.at(3, 2, 2), 0.0f);
@@ -101,11 +101,11 @@ TEST(RelightTest, RelightIntoReusesTheCallersImage) {
   const ReflectanceField field = random_field(40, 30, 20, 9);
   std::vector<float> e(60, 0.25f);
   Image out;
-  ls::relight::relight_into(field, e.data(), out);
+  ls::relight::relight_into(field, e, out);
   const float* storage = out.pixels.data();
   const float first = out.at(7, 8, 2);
   e.assign(60, 0.5f);
-  ls::relight::relight_into(field, e.data(), out);
+  ls::relight::relight_into(field, e, out);
   EXPECT_EQ(out.pixels.data(), storage);  // No reallocation across frames.
   EXPECT_FLOAT_EQ(out.at(7, 8, 2), 2 * first);
 }

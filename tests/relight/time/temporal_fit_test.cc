@@ -125,15 +125,17 @@ void print_stats(const std::map<Region, RegionStats>& stats) {
   const char* names[] = {"paint", "dust", "wet", "static"};
   for (const auto& [r, st] : stats) {
     std::printf(
-        "%-6s pixels %3d right model %3d varying %3d | median |rate/true - 1| %.3f, |onset err| "
-        "%.1f s, wet albedo %.3f, dry albedo %.3f, wet ks %.3f\n",
+        "%-6s pixels %3d right model %3d varying %3d | median |rate/true - 1| %.4f, |onset err| "
+        "%.3f s, wet albedo %.4f, dry albedo %.4f, wet ks %.4f\n",
         names[r], st.pixels, st.right_model, st.varying_model, median(st.rate_error),
         median(st.onset_error), median(st.wet_error), median(st.dry_error),
         median(st.ks_wet_error));
   }
 }
 
-// At realistic noise (NoiseModel defaults: 2% at diffuse white) with 10 steps over 600 s.
+// At realistic noise (NoiseModel defaults: 2% at diffuse white) with 10 steps over 600 s. The scene
+// and its noise are seeded, so every value below is reproducible: the bounds are regression guards,
+// the measured value (in the comments) with a margin of about 25% of it (a few pixels for counts).
 TEST(TemporalFit, RecoversEachProcessAndKeepsStaticPixelsConstant) {
   const Fitted& f = fitted_scene();
   std::printf("%s\n", f.maps.summary.to_string().c_str());
@@ -145,35 +147,35 @@ TEST(TemporalFit, RecoversEachProcessAndKeepsStaticPixelsConstant) {
   const RegionStats& still = stats.at(kStatic);
   // Nearly every varying pixel is given a varying model (measured with 40 LEDs, 32x24, normals
   // from the driest step: paint 36/37, dust 36/37, wet 114/114).
-  EXPECT_GE(paint.varying_model, 0.85 * paint.pixels);
-  EXPECT_GE(dust.varying_model, 0.9 * dust.pixels);
-  EXPECT_GE(wet.varying_model, 0.9 * wet.pixels);
+  EXPECT_GE(paint.varying_model, paint.pixels - 3);
+  EXPECT_GE(dust.varying_model, dust.pixels - 3);
+  EXPECT_GE(wet.varying_model, wet.pixels - 3);
   // The right process for most (measured: paint 25/37 exponential, the rest sigmoid/dust-shaped
   // near the silhouette; dust 35/37; wet 114/114 sigmoid).
-  EXPECT_GE(paint.right_model, 0.5 * paint.pixels);
-  EXPECT_GE(dust.right_model, 0.75 * dust.pixels);
-  EXPECT_GE(wet.right_model, 0.6 * wet.pixels);
+  EXPECT_GE(paint.right_model, 0.55 * paint.pixels);
+  EXPECT_GE(dust.right_model, dust.pixels - 4);
+  EXPECT_GE(wet.right_model, wet.pixels - 4);
   // Rates (measured medians: paint 0.133, dust 0.011, wet 0.019 relative).
-  EXPECT_LT(median(paint.rate_error), 0.3);
-  EXPECT_LT(median(dust.rate_error), 0.1);
-  EXPECT_LT(median(wet.rate_error), 0.1);
+  EXPECT_LT(median(paint.rate_error), 0.17);
+  EXPECT_LT(median(dust.rate_error), 0.015);
+  EXPECT_LT(median(wet.rate_error), 0.025);
   // Onsets (measured: paint 12.4 s: it starts at 0 = the first step; dust 1.0 s; wet 0.6 s).
-  EXPECT_LT(median(paint.onset_error), 30.0);
-  EXPECT_LT(median(dust.onset_error), 10.0);
-  EXPECT_LT(median(wet.onset_error), 10.0);
+  EXPECT_LT(median(paint.onset_error), 16.0);
+  EXPECT_LT(median(dust.onset_error), 1.3);
+  EXPECT_LT(median(wet.onset_error), 0.8);
   // Albedo endpoints, worst channel (measured: paint wet 0.020 dry 0.030; dust 0.005/0.004; wet
   // 0.002/0.003). The paint's wet k_s is NOT recovered with 40 LEDs (error 0.375 of 0.5: its m =
   // 0.08 lobe is too sharp for the LED spacing) and not asserted; the dust's is (0.064).
-  EXPECT_LT(median(paint.wet_error), 0.08);
-  EXPECT_LT(median(paint.dry_error), 0.06);
-  EXPECT_LT(median(dust.wet_error), 0.03);
-  EXPECT_LT(median(dust.dry_error), 0.03);
-  EXPECT_LT(median(wet.wet_error), 0.03);
-  EXPECT_LT(median(wet.dry_error), 0.04);
+  EXPECT_LT(median(paint.wet_error), 0.026);
+  EXPECT_LT(median(paint.dry_error), 0.038);
+  EXPECT_LT(median(dust.wet_error), 0.0065);
+  EXPECT_LT(median(dust.dry_error), 0.0052);
+  EXPECT_LT(median(wet.wet_error), 0.0028);
+  EXPECT_LT(median(wet.dry_error), 0.004);
   // Static pixels (matte sphere, backdrop, the plane outside the patch) get the constant model
   // (measured: 559 of 580).
-  EXPECT_GE(still.right_model, 0.93 * still.pixels);
-  EXPECT_LT(median(dust.ks_wet_error), 0.15);
+  EXPECT_GE(still.right_model, 0.95 * still.pixels);
+  EXPECT_LT(median(dust.ks_wet_error), 0.08);
 }
 
 // Which field the fixed normals come from: every step pooled, the first (wettest) or the last
@@ -209,7 +211,7 @@ TEST(TemporalFit, DriestStepNormalsAreTheMostAccurate) {
   EXPECT_GT(count, 500);
   EXPECT_LT(sum[2], 0.95 * sum[0]);
   EXPECT_LT(sum[2], 0.95 * sum[1]);
-  EXPECT_LT(sum[2] / count, 1.0);
+  EXPECT_LT(sum[2] / count, 0.73);  // Regression guard: measured 0.584 deg.
 }
 
 // Rendering at an uncaptured time (150 s, between steps) and beyond the last step (1200 s)
@@ -247,7 +249,7 @@ TEST(TemporalRender, UncapturedTimeMatchesTruthAndExtrapolationIsFlagged) {
   std::printf("relative RMS error at t = 150 s (between steps): %.4f\n", between);
   // Measured 0.076 (0.076 at the captured step 120 s too: the error is the BRDF fit's, not the
   // temporal model's; sharp lobes between 40 LEDs are the most of it).
-  EXPECT_LT(between, 0.12);
+  EXPECT_LT(between, 0.095);
   EXPECT_EQ(extrapolated, 0);
   const double captured = render_error(f, 120, &extrapolated);
   std::printf("relative RMS error at t = 120 s (a captured step): %.4f\n", captured);
@@ -257,7 +259,7 @@ TEST(TemporalRender, UncapturedTimeMatchesTruthAndExtrapolationIsFlagged) {
   // Every varying pixel is flagged, none of the constant ones; the error stays bounded (measured
   // 0.076) because the fitted processes have settled by the last step.
   EXPECT_EQ(extrapolated, f.maps.summary.fitted - f.maps.summary.per_model[1]);
-  EXPECT_LT(beyond, 0.15);
+  EXPECT_LT(beyond, 0.095);
   const TemporalState state = models_at_time(f.maps, 1200);
   int flagged = 0;
   for (size_t i = 0; i < state.maps.maps.num_pixels(); ++i) {
@@ -295,8 +297,8 @@ TEST(TemporalFit, StepWithDeadLedsIsDroppedAndFlagged) {
   const auto stats = region_stats(w, maps);
   print_stats(stats);
   // Measured: dust rate 0.014, wet rate 0.024 relative.
-  EXPECT_LT(median(stats.at(kDust).rate_error), 0.15);
-  EXPECT_LT(median(stats.at(kWet).rate_error), 0.15);
+  EXPECT_LT(median(stats.at(kDust).rate_error), 0.018);  // Regression guards (+25%).
+  EXPECT_LT(median(stats.at(kWet).rate_error), 0.03);
   for (const float v : maps.maps.pixels) EXPECT_TRUE(std::isfinite(v));
 }
 

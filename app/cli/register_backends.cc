@@ -1,14 +1,14 @@
-#include "app/jobs/register_backends.h"
+#include "app/cli/register_backends.h"
 
 #include "lightstage/backend_registry.h"
 #include "lightstage/hardware/backends.h"
 #include "sim/sim_backend.h"
 
-namespace ls::jobs {
+namespace ls::cli {
 
 void register_backends() {
   sim::register_backend(backend_registry());
   register_hardware_backends(backend_registry());
 }
 
-}  // namespace ls::jobs
+}  // namespace ls::cli

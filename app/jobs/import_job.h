@@ -1,0 +1,25 @@
+#pragma once
+// Import an existing one-light-at-a-time set (an RTI .lp file or a DiLiGenT folder) as a
+// reflectance field, with a preview of its most frontal light beside it.
+#include <filesystem>
+#include <string>
+
+#include "app/jobs/job.h"
+#include "capture/olat_import.h"
+
+namespace ls::jobs {
+
+struct ImportJobSummary {
+  capture::OlatFormat format = capture::OlatFormat::kRtiLp;
+  capture::OlatImportSummary import;
+  int lights = 0;
+  double mebibytes = 0.0;
+  std::filesystem::path preview;  // FIELD.preview.png
+  int preview_light = 0;          // Index of the light it shows.
+};
+
+// `options` as capture::import_olat takes them (validated there); progress: "import".
+ImportJobSummary import_set(const std::filesystem::path& source, const std::filesystem::path& out,
+                            capture::OlatImportOptions options, const ProgressFn& progress = {});
+
+}  // namespace ls::jobs

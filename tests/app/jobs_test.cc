@@ -1,0 +1,187 @@
+// The library entry points the CLI binds (app/jobs): capture through the back-end registry,
+// build, relight, fit; options validated with messages that name the option; options recorded in
+// the files they write.
+#include <OpenImageIO/imageio.h>
+#include <gtest/gtest.h>
+
+#include "app/jobs/build_job.h"
+#include "app/jobs/capture_job.h"
+#include "app/jobs/fit_job.h"
+#include "app/jobs/relight_job.h"
+#include "capture/field.h"
+#include "lightstage/backend_registry.h"
+#include "lightstage/errors.h"
+#include "relight/lighting/envmap.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/lighting/relight.h"
+#include "sim/sim_backend.h"
+#include "tests/support/test_support.h"
+
+namespace ls {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string exr_string_attribute(const fs::path& file, const std::string& name) {
+  auto in = OIIO::ImageInput::open(file.string());
+  if (!in) return {};
+  const OIIO::ParamValue* p = in->spec().find_attribute(name);
+  return p ? std::string(p->get_string()) : std::string();
+}
+
+std::string input_error(const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no InputError)";
+}
+
+// A small capture of the demo scene on the built-in dome: every frame of the plan, through the
+// registry's "sim" back-end, then built and relit by the jobs.
+class Jobs : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    sim::register_backend(backend_registry());
+    dir_ = new testing::TempDir();
+    Stage stage = default_stage();
+    stage.camera.width = stage.camera.height = 24;
+    write_file_atomic(*dir_ / "stage.json", stage_to_json(stage));
+    jobs::CaptureOptions capture;
+    capture.stage_file = *dir_ / "stage.json";
+    capture.session_dir = *dir_ / "session";
+    summary_ = new jobs::CaptureJobSummary(jobs::capture(capture));
+    planned_frames_ = int(plan_frames(stage).size());
+  }
+  static void TearDownTestSuite() {
+    delete summary_;
+    delete dir_;
+  }
+  static testing::TempDir* dir_;
+  static jobs::CaptureJobSummary* summary_;
+  static int planned_frames_;
+};
+testing::TempDir* Jobs::dir_ = nullptr;
+jobs::CaptureJobSummary* Jobs::summary_ = nullptr;
+int Jobs::planned_frames_ = 0;
+
+TEST_F(Jobs, CaptureTakesEveryPlannedFrameThroughTheRegistryAndResumesToNothing) {
+  EXPECT_EQ(summary_->capture.status, CaptureSummary::Status::kComplete)
+      << summary_->capture.message;
+  EXPECT_EQ(summary_->capture.frames_captured, planned_frames_);
+  jobs::CaptureOptions resume;
+  resume.session_dir = *dir_ / "session";
+  resume.resume = true;
+  const jobs::CaptureJobSummary again = jobs::capture(resume);
+  EXPECT_TRUE(again.already_complete);
+  EXPECT_EQ(again.frames_present_before, planned_frames_);
+}
+
+TEST_F(Jobs, CaptureRefusesABackendNoOneRegisteredNamingTheStageField) {
+  Stage stage = default_stage();
+  stage.camera.backend = "aravis";  // Only "sim" is registered in this test.
+  write_file_atomic(*dir_ / "aravis.json", stage_to_json(stage));
+  jobs::CaptureOptions options;
+  options.stage_file = *dir_ / "aravis.json";
+  options.session_dir = *dir_ / "never";
+  const std::string what = input_error([&] { (void)jobs::capture(options); });
+  EXPECT_NE(what.find("aravis.json: camera.backend"), std::string::npos) << what;
+  EXPECT_NE(what.find("got \"aravis\""), std::string::npos) << what;
+  EXPECT_FALSE(fs::exists(*dir_ / "never")) << "nothing is created before the devices open";
+}
+
+TEST_F(Jobs, OptionsSayWhatIsWrongByOption) {
+  jobs::CaptureOptions capture;
+  EXPECT_NE(capture.validate().find("--out"), std::string::npos);
+  capture.session_dir = "s";
+  capture.resume = true;
+  capture.stage_file = "x.json";
+  EXPECT_NE(capture.validate().find("--stage"), std::string::npos);
+
+  jobs::RelightOptions relight;
+  relight.field_file = "f.exr";
+  relight.out_dir = "out";
+  EXPECT_NE(relight.validate().find("--env"), std::string::npos);
+  relight.maps = {"m.exr"};
+  EXPECT_EQ(relight.validate(), "");
+  relight.light_dir = Eigen::Vector3d(0, 0, 1);
+  EXPECT_NE(relight.validate().find("--light"), std::string::npos);
+  relight.light_dir.reset();
+  relight.time_s = 3.0;
+  EXPECT_NE(relight.validate().find("--temporal"), std::string::npos);
+  relight.temporal_file = "t.exr";
+  relight.time_s = std::nan("");
+  EXPECT_NE(relight.validate().find("--time"), std::string::npos);
+
+  jobs::FitJobOptions fit;
+  fit.field_file = "f.exr";
+  fit.out = "m.exr";
+  fit.method = "svd";
+  EXPECT_NE(fit.validate().find("--method"), std::string::npos);
+  fit.method = "ls";
+  fit.time_inputs = {"t0.exr"};
+  EXPECT_NE(fit.validate().find("not both"), std::string::npos);
+
+  jobs::BuildJobOptions build;
+  build.session_dir = "s";
+  EXPECT_NE(build.validate().find("--out"), std::string::npos);
+}
+
+TEST_F(Jobs, BuildAndRelightWriteWhatTheLibraryComputesAndRecordTheirOptions) {
+  jobs::BuildJobOptions build;
+  build.session_dir = *dir_ / "session";
+  build.out = *dir_ / "field.exr";
+  const jobs::BuildJobSummary built = jobs::build(build);
+  ASSERT_EQ(built.fields.size(), 1u);
+  EXPECT_EQ(built.fields[0].lights, int(default_stage().leds.size()));
+  EXPECT_NE(exr_string_attribute(build.out, jobs::kOptionsAttribute).find("\"time_step\":0"),
+            std::string::npos);
+
+  const capture::ReflectanceField field = capture::read_field(build.out);
+  const fs::path map_file = *dir_ / "sky.exr";
+  Image sky(64, 32, 3, 0.0f);
+  for (int y = 0; y < 16; ++y) {
+    for (int x = 0; x < 64; ++x) sky.at(x, y, 2) = sky.at(x, y, 0) = 1.0f + 0.05f * x;
+  }
+  write_exr(map_file, sky);
+
+  jobs::RelightOptions relight;
+  relight.field_file = build.out;
+  relight.maps = {map_file};
+  relight.rotations_deg = {0.0, 90.0};
+  relight.out_dir = *dir_ / "relit";
+  const jobs::RelightSummary summary = jobs::relight(relight);
+  ASSERT_EQ(summary.images.size(), 2u);
+  EXPECT_TRUE(fs::exists(summary.contact_sheet));
+  std::vector<Eigen::Vector3d> dirs;
+  std::vector<bool> valid;
+  for (const auto& light : field.lights()) {
+    dirs.push_back(light.dir_in_stage);
+    valid.push_back(light.valid);
+  }
+  const relight::EnvironmentMap map = relight::EnvironmentMap::load(map_file);
+  for (size_t k = 0; k < 2; ++k) {
+    const Image expected = relight::relight(
+        field, relight::integrate_environment(map, dirs, relight.rotations_deg[k], 0.0, valid));
+    const Image written = read_image(summary.images[k].exr);
+    ASSERT_EQ(written.pixels.size(), expected.pixels.size());
+    for (size_t i = 0; i < written.pixels.size(); ++i) {
+      ASSERT_EQ(written.pixels[i], expected.pixels[i]) << summary.images[k].label << " value " << i;
+    }
+    EXPECT_NE(exr_string_attribute(summary.images[k].exr, jobs::kOptionsAttribute).find("sky.exr"),
+              std::string::npos);
+  }
+}
+
+TEST_F(Jobs, RelightRefusesBadOptionsBeforeWritingAnything) {
+  jobs::RelightOptions relight;
+  relight.field_file = *dir_ / "missing.exr";
+  relight.out_dir = *dir_ / "not-created";
+  const std::string what = input_error([&] { (void)jobs::relight(relight); });
+  EXPECT_NE(what.find("--env"), std::string::npos) << what;
+  EXPECT_FALSE(fs::exists(relight.out_dir));
+}
+
+}  // namespace
+}  // namespace ls
