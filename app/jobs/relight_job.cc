@@ -161,21 +161,22 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   MapRotations map_rotations(options);
   Image relit;
   long done = 0;
-  map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
-    const auto t0 = Clock::now();
-    const relight::LightWeights weights = relight::integrate_environment(
-        map, lights.dirs, rotation, coverage_rad(options), lights.valid);
-    const auto t1 = Clock::now();
-    relight::relight_into(field, weights.irradiance_rgb, relit);
-    const auto t2 = Clock::now();
-    char detail[160];
-    std::snprintf(detail, sizeof detail,
-                  "light weights %.1f ms, relight %.1f ms; %.2f%% of the map's light falls "
-                  "outside the dome's coverage and is not represented",
-                  ms_between(t0, t1), ms_between(t1, t2), 100.0 * weights.uncovered_fraction());
-    writer.write(name, relit, detail);
-    report(progress, "relight", ++done, map_rotations.count(), name);
-  });
+  map_rotations.for_each(
+      [&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+        const auto t0 = Clock::now();
+        const relight::LightWeights weights = relight::integrate_environment(
+            map, lights.dirs, rotation, coverage_rad(options), lights.valid);
+        const auto t1 = Clock::now();
+        relight::relight_into(field, weights.irradiance_rgb, relit);
+        const auto t2 = Clock::now();
+        char detail[160];
+        std::snprintf(detail, sizeof detail,
+                      "light weights %.1f ms, relight %.1f ms; %.2f%% of the map's light falls "
+                      "outside the dome's coverage and is not represented",
+                      ms_between(t0, t1), ms_between(t1, t2), 100.0 * weights.uncovered_fraction());
+        writer.write(name, relit, detail);
+        report(progress, "relight", ++done, map_rotations.count(), name);
+      });
 }
 
 // The fitted maps (edited when asked) rendered under each map; a field, when given too, fills the
@@ -224,7 +225,8 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
   }
   Image fallback;
   relight::ModelRenderOptions render;
-  map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+  map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation,
+                             const std::string& name) {
     const auto t0 = Clock::now();
     const relight::LightingForModels lighting =
         relight::LightingForModels::environment(map, rotation, sampling);
@@ -280,13 +282,14 @@ void relight_temporal(const RelightOptions& options, RelightSummary& summary,
     writer.write(std::string("light") + suffix, relit);
   }
   long done = 0;
-  map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
-    Image relit = relight::render_temporal(
-        maps, time_s, relight::LightingForModels::environment(map, rotation, sampling), {},
-        &extrapolated);
-    writer.write(name + suffix, relit);
-    report(progress, "relight at t", ++done, map_rotations.count(), name + suffix);
-  });
+  map_rotations.for_each(
+      [&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+        Image relit = relight::render_temporal(
+            maps, time_s, relight::LightingForModels::environment(map, rotation, sampling), {},
+            &extrapolated);
+        writer.write(name + suffix, relit);
+        report(progress, "relight at t", ++done, map_rotations.count(), name + suffix);
+      });
   summary.extrapolated_pixels = extrapolated;
 }
 
