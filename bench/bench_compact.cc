@@ -7,13 +7,13 @@
 #include <cmath>
 #include <map>
 #include <memory>
-#include <random>
 
 #include "capture/field.h"
-#include "evaluation/leave_lights_out.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/lighting/relight.h"
+#include "sim/noisy_field.h"
+#include "sim/rti_scenes.h"
 
 namespace {
 
@@ -32,8 +32,6 @@ const ls::capture::ReflectanceField& field() {
     std::vector<ls::capture::FieldLight> lights;
     for (const auto& led : dome().leds) lights.push_back({led.id, led.dir_in_stage, true});
     f = std::make_unique<ls::capture::ReflectanceField>(kSize, kSize, lights);
-    std::mt19937 rng(1);
-    std::normal_distribution<float> noise(0.0f, 0.002f);
     for (int y = 0; y < kSize; ++y) {
       for (int x = 0; x < kSize; ++x) {
         const Eigen::Vector3d n =
@@ -41,10 +39,13 @@ const ls::capture::ReflectanceField& field() {
         float* p = f->pixel(x, y);
         for (size_t l = 0; l < lights.size(); ++l) {
           const float shade = float(std::max(0.0, n.dot(lights[l].dir_in_stage)));
-          for (int c = 0; c < 3; ++c) p[3 * l + c] = shade * (0.3f + 0.2f * c) + noise(rng);
+          for (int c = 0; c < 3; ++c) p[3 * l + c] = shade * (0.3f + 0.2f * c);
         }
       }
     }
+    ls::capture::FieldNoise noise;  // Read noise only, sigma 0.002.
+    noise.read_variance = 4e-6;
+    ls::sim::add_sensor_noise(*f, noise, /*seed=*/1);
   }
   return *f;
 }

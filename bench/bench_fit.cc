@@ -18,8 +18,8 @@
 #include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
+#include "sim/noisy_field.h"
 #include "sim/scene.h"
-#include "sim/sim_stage.h"
 
 namespace {
 
@@ -35,27 +35,10 @@ ls::Stage bench_stage(int size) {
   return stage;
 }
 
-// The ideal field of `scene` plus Gaussian noise from the fit's default noise model.
+// The ideal field of `scene` plus the sensor noise of the fit's default noise model.
 ls::capture::ReflectanceField sim_field(const ls::Stage& stage, const ls::sim::Scene& scene) {
-  ls::sim::SimStage sim_stage(stage, scene, 1);
-  std::vector<ls::capture::FieldLight> lights;
-  for (const ls::Led& led : stage.leds) lights.push_back({led.id, led.dir_in_stage, true});
-  ls::capture::ReflectanceField field(stage.camera.width, stage.camera.height, lights);
-  const ls::relight::NoiseModel noise;
-  std::mt19937_64 rng(1);
-  std::normal_distribution<double> gauss;
-  for (int l = 0; l < int(stage.leds.size()); ++l) {
-    const ls::Image& image = sim_stage.one_light_image(l);
-    for (int y = 0; y < image.height; ++y) {
-      for (int x = 0; x < image.width; ++x) {
-        for (int c = 0; c < 3; ++c) {
-          const double v = image.at(x, y, c);
-          field.at(x, y, l, c) = float(v + std::sqrt(noise.variance(v)) * gauss(rng));
-        }
-      }
-    }
-  }
-  return field;
+  return ls::sim::render_noisy_field(stage, scene, ls::relight::NoiseModel{}.as_field_noise(),
+                                     /*seed=*/1);
 }
 
 // One sphere filling the view, of the material the model describes (kNone: the demo scene).

@@ -14,10 +14,15 @@
 #include "lightstage/stage.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/normals.h"
-#include "sim/sim_stage.h"
+#include "sim/noisy_field.h"
 
-namespace ls::sim {
+namespace ls::evaluation {
 namespace {
+
+using sim::Plane;
+using sim::Scene;
+using sim::SceneMaterial;
+using sim::SurfaceHit;
 
 constexpr double kPi = brdf::kPi;
 constexpr double kRadToDeg = 180.0 / kPi;
@@ -117,33 +122,9 @@ struct IdealField {
 };
 
 IdealField render_ideal(const Stage& stage, const Scene& scene) {
-  SimStage sim_stage(stage, scene, /*seed=*/1);
-  std::vector<capture::FieldLight> lights;
-  for (const Led& led : stage.leds) lights.push_back({led.id, led.dir_in_stage, true});
-  IdealField out{capture::ReflectanceField(stage.camera.width, stage.camera.height, lights),
-                 sim_stage.hits()};
-  for (int l = 0; l < int(stage.leds.size()); ++l) {
-    const Image& image = sim_stage.one_light_image(l);
-    for (int y = 0; y < image.height; ++y) {
-      for (int x = 0; x < image.width; ++x) {
-        for (int c = 0; c < 3; ++c) out.field.at(x, y, l, c) = image.at(x, y, c);
-      }
-    }
-  }
+  IdealField out;
+  out.field = sim::render_ideal_field(stage, scene, {}, &out.hits);
   return out;
-}
-
-void add_noise(capture::ReflectanceField& field, const relight::NoiseModel& noise, uint64_t seed) {
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> gauss;
-  for (int y = 0; y < field.height(); ++y) {
-    for (int x = 0; x < field.width(); ++x) {
-      float* px = field.pixel(x, y);
-      for (int i = 0; i < 3 * field.num_lights(); ++i) {
-        px[i] = float(px[i] + std::sqrt(noise.variance(px[i])) * gauss(rng));
-      }
-    }
-  }
 }
 
 // Rotates every light direction by exactly `degrees` about a random axis perpendicular to it.
@@ -517,7 +498,7 @@ std::vector<SweepPoint> run_fit_sweeps(const FitSweepOptions& options) {
             sweep_stage(axis == SweepAxis::kLedCount ? int(value) : options.leds, options);
         IdealField ideal = render_ideal(
             stage, axis == SweepAxis::kLedCount ? three_spheres() : tilted_strips(value));
-        add_noise(ideal.field, noise, point_seed);
+        sim::add_sensor_noise(ideal.field, noise.as_field_noise(), point_seed);
         point = evaluate(ideal.field, ideal.hits, noise);
       } else {
         const IdealField& ideal = base_field();
@@ -531,7 +512,7 @@ std::vector<SweepPoint> run_fit_sweeps(const FitSweepOptions& options) {
         // measured).
         if (axis == SweepAxis::kShadowedFraction)
           shadow_wedges(field, ideal.hits, value, point_seed);
-        add_noise(field, noise, point_seed);
+        sim::add_sensor_noise(field, noise.as_field_noise(), point_seed);
         if (axis == SweepAxis::kDeadLeds) kill_leds(field, value, point_seed);
         if (axis == SweepAxis::kSaturation) saturate(field, value);
         if (axis == SweepAxis::kLightDirectionError) perturb_directions(field, value, point_seed);
@@ -578,4 +559,4 @@ void write_fit_sweeps_csv(const std::filesystem::path& csv, const std::vector<Sw
   if (!out) throw InputError(csv.string() + ": write failed");
 }
 
-}  // namespace ls::sim
+}  // namespace ls::evaluation

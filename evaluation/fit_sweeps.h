@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-namespace ls::sim {
+namespace ls::evaluation {
 
 enum class SweepAxis {
   kNoise,                // Noise sigma as a multiple of the default NoiseModel's (fits told it).
@@ -82,4 +82,4 @@ std::vector<SweepPoint> run_fit_sweeps(const FitSweepOptions& options);
 // One row per point; empty cells where a score is empty.
 void write_fit_sweeps_csv(const std::filesystem::path& csv, const std::vector<SweepPoint>& points);
 
-}  // namespace ls::sim
+}  // namespace ls::evaluation

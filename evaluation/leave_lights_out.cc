@@ -3,12 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <random>
 
 #include "lightstage/errors.h"
-#include "sim/sim_stage.h"
 
-namespace ls::sim {
+namespace ls::evaluation {
 
 namespace {
 
@@ -156,85 +154,4 @@ LeaveLightsOutResult leave_lights_out(const capture::ReflectanceField& field,
   return result;
 }
 
-const char* to_string(RtiScene scene) {
-  switch (scene) {
-    case RtiScene::kMatte:
-      return "matte";
-    case RtiScene::kGlossy:
-      return "glossy";
-    case RtiScene::kShadowed:
-      return "shadowed";
-  }
-  return "?";
-}
-
-Scene rti_scene(RtiScene which) {
-  Scene scene;
-  scene.source = std::string("<rti scene ") + to_string(which) + ">";
-  SceneMaterial backdrop;
-  backdrop.name = "backdrop";
-  backdrop.base.albedo = {0.45, 0.45, 0.4};
-  SceneMaterial ball;
-  ball.name = "ball";
-  ball.base.albedo = {0.7, 0.45, 0.3};
-  if (which == RtiScene::kGlossy) {
-    ball.base.specular = brdf::SpecularModel::kTorranceSparrow;
-    ball.base.ks = {0.5, 0.5, 0.5};
-    ball.base.roughness = 0.2;
-  }
-  scene.materials = {backdrop, ball};
-  Plane plane;
-  plane.center = {0, 0, which == RtiScene::kShadowed ? -0.55 : -1.2};
-  plane.normal = {0, 0, 1};
-  plane.half_width = plane.half_height = 2.0;
-  plane.material = 0;
-  scene.planes.push_back(plane);
-  Sphere sphere;
-  sphere.radius = which == RtiScene::kShadowed ? 0.5 : 0.9;
-  sphere.material = 1;
-  scene.spheres.push_back(sphere);
-  return scene;
-}
-
-Stage rti_dome_stage(int count, double min_elevation_deg, int resolution) {
-  // fibonacci_dome_directions spreads LEDs over the hemisphere about +Y; rotate +Y onto +Z
-  // (x, y, z) -> (x, -z, y), a proper rotation about +X.
-  std::vector<Eigen::Vector3d> dirs;
-  for (const auto& d : fibonacci_dome_directions(count, min_elevation_deg)) {
-    dirs.push_back({d.x(), -d.z(), d.y()});
-  }
-  Stage stage = stage_with_directions(dirs);
-  stage.name = "rti-dome-" + std::to_string(count);
-  stage.camera.width = stage.camera.height = resolution;
-  return stage;
-}
-
-capture::ReflectanceField render_noisy_field(const Stage& stage, const Scene& scene,
-                                             const capture::FieldNoise& noise, uint64_t seed) {
-  SimStage sim_stage(stage, scene, seed);
-  std::vector<capture::FieldLight> lights;
-  for (const Led& led : stage.leds) lights.push_back({led.id, led.dir_in_stage, true});
-  capture::ReflectanceField field(stage.camera.width, stage.camera.height, lights);
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> gauss;
-  for (int l = 0; l < int(stage.leds.size()); ++l) {
-    const Image& image = sim_stage.one_light_image(l);
-    for (int y = 0; y < image.height; ++y) {
-      for (int x = 0; x < image.width; ++x) {
-        for (int c = 0; c < 3; ++c) {
-          const double v = image.at(x, y, c);
-          const double variance =
-              noise.read_variance + noise.shot_variance_per_unit * std::max(v, 0.0);
-          field.at(x, y, l, c) = float(v + std::sqrt(variance) * gauss(rng));
-        }
-      }
-    }
-  }
-  field.noise = noise;
-  field.noise.measured = true;
-  if (field.noise.method.empty()) field.noise.method = "simulated";
-  field.source = scene.source;
-  return field;
-}
-
-}  // namespace ls::sim
+}  // namespace ls::evaluation

@@ -1,6 +1,6 @@
 #pragma once
-// Leave-lights-out evaluation of compact fields (issue 7), and the small simulated RTI scenes it
-// runs on in tests and in `lightstage bench compact`.
+// Leave-lights-out evaluation of compact fields (issue 7); the simulated RTI scenes it runs on in
+// tests and in `lightstage bench compact` are in sim/rti_scenes.h.
 //
 // Protocol: hold out every `every`-th valid LED (those with index % every == offset), build the
 // representation from the others, relight it under a unit point light at each held-out LED's
@@ -19,9 +19,8 @@
 #include "lightstage/image.h"
 #include "lightstage/stage.h"
 #include "relight/lighting/compact_field.h"
-#include "sim/scene.h"
 
-namespace ls::sim {
+namespace ls::evaluation {
 
 // Mean SSIM over the channels of two same-size images, with `peak` as the dynamic range.
 double ssim(const Image& actual, const Image& reference, double peak);
@@ -56,21 +55,4 @@ LeaveLightsOutResult leave_lights_out(const capture::ReflectanceField& field,
                                       const CompactBuilder& build,
                                       const LeaveLightsOutOptions& options = {});
 
-// Simulated RTI scenes, 64 x 64 by default, seen by an orthographic camera:
-//   matte    - a Lambertian sphere in front of a Lambertian backdrop;
-//   glossy   - the same sphere with a Torrance-Sparrow lobe (k_s 0.5, m 0.2);
-//   shadowed - a smaller sphere close to the backdrop, casting shadows on it.
-enum class RtiScene { kMatte, kGlossy, kShadowed };
-const char* to_string(RtiScene scene);
-Scene rti_scene(RtiScene scene);
-
-// An RTI dome: `count` LEDs on a Fibonacci spiral over the camera's hemisphere (+Z), at least
-// min_elevation_deg above the image plane; camera width = height = resolution.
-Stage rti_dome_stage(int count = 150, double min_elevation_deg = 10.0, int resolution = 64);
-
-// The ideal field R(x, l) (render_one_light) plus Gaussian noise of variance
-// read_variance + shot_variance_per_unit * max(v, 0), recorded in field.noise as measured.
-capture::ReflectanceField render_noisy_field(const Stage& stage, const Scene& scene,
-                                             const capture::FieldNoise& noise, uint64_t seed);
-
-}  // namespace ls::sim
+}  // namespace ls::evaluation

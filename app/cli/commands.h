@@ -30,8 +30,7 @@ void add_demo_command(CLI::App& app);
 void add_stage_command(CLI::App& app);
 void add_envmaps_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
-// `bench compact` (needs add_bench_command first) and `compress` (compact_command.cc).
-void add_compact_commands(CLI::App& app);
+void add_compress_command(CLI::App& app);  // compact_command.cc
 void add_devices_command(CLI::App& app);
 void add_check_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);

@@ -22,7 +22,7 @@ int main(int argc, char** argv) {
   ls::cli::add_stage_command(app);
   ls::cli::add_envmaps_command(app);
   ls::cli::add_bench_command(app);
-  ls::cli::add_compact_commands(app);  // `bench compact` (after bench) and `compress`.
+  ls::cli::add_compress_command(app);
   ls::cli::add_devices_command(app);
   ls::cli::add_check_command(app);
   ls::cli::add_calibrate_command(app);

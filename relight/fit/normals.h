@@ -22,6 +22,14 @@ struct NoiseModel {
   double a = 1e-6;
   double b = 1e-4;
   double variance(double v) const { return a + b * (v > 0 ? v : 0.0); }
+  // The same model as a field records it (read_variance = a, shot_variance_per_unit = b), for
+  // simulated fields (sim/noisy_field.h); not marked measured.
+  capture::FieldNoise as_field_noise() const {
+    capture::FieldNoise noise;
+    noise.read_variance = a;
+    noise.shot_variance_per_unit = b;
+    return noise;
+  }
 };
 
 enum class NormalMethod {

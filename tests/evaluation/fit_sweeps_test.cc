@@ -12,7 +12,7 @@
 #include "lightstage/errors.h"
 #include "tests/support/test_support.h"
 
-namespace ls::sim {
+namespace ls::evaluation {
 namespace {
 
 // The quick sweeps at 30 x 10 pixels and a 60-LED base dome (about 110 surface pixels).
@@ -176,4 +176,4 @@ TEST(FitSweepCsv, WritesOneRowPerPointWithEmptyCellsForMissingScores) {
 }
 
 }  // namespace
-}  // namespace ls::sim
+}  // namespace ls::evaluation

@@ -19,8 +19,15 @@
 #include "sim/ground_truth.h"
 #include "tests/relight/compact/compact_fixtures.h"
 
-namespace ls::sim {
+namespace ls::evaluation {
 namespace {
+
+using sim::GroundTruthOptions;
+using sim::render_ground_truth;
+using sim::render_noisy_field;
+using sim::rti_dome_stage;
+using sim::rti_scene;
+using sim::RtiScene;
 
 using namespace compact_testing;
 using relight::RtiBasis;
@@ -186,4 +193,4 @@ TEST(EnvironmentRelighting, EveryRepresentationAgainstGroundTruth) {
 }
 
 }  // namespace
-}  // namespace ls::sim
+}  // namespace ls::evaluation

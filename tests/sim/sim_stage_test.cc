@@ -7,6 +7,7 @@
 #include <iostream>
 
 #include "lightstage/errors.h"
+#include "sim/noisy_field.h"
 #include "tests/support/test_support.h"
 
 namespace ls::sim {
@@ -293,6 +294,59 @@ TEST(SimSensor, SaturatesAtFullScale) {
   const Stats st = stats(sim.camera().capture({10.0, 1.0, 3}).raw);
   EXPECT_EQ(st.min, 4095);
   EXPECT_EQ(st.max, 4095);
+}
+
+// The two levels of the sensor model agree: the camera's frame noise, in radiance units, is what
+// field_noise_of says a field carries (dark current adds < 0.2% here).
+TEST(SimSensor, FieldNoiseIsTheCameraNoiseInRadianceUnits) {
+  const UniformRig rig = uniform_rig();
+  SimStage sim(rig.stage, plane_scene(), /*seed=*/11);
+  sim.lights().set_light(0, true);
+  const SimulatedSensor& s = rig.stage.camera.simulated;
+  const double exposure_s = 5000.0 / (rig.radiance * s.full_well_e);
+  const Stats st = stats(sim.camera().capture({exposure_s, 1.0, 4}).raw);
+  const double max_dn = 4095;
+  const double radiance_per_dn = rig.stage.camera.radiometric_scale / exposure_s / max_dn;
+  const double variance = (st.variance - 1.0 / 12.0) * radiance_per_dn * radiance_per_dn;
+  const capture::FieldNoise noise = field_noise_of(rig.stage.camera, exposure_s);
+  const double expected = noise.read_variance + noise.shot_variance_per_unit * rig.radiance;
+  EXPECT_NEAR(variance, expected, 0.1 * expected);
+}
+
+// The field-level model: residuals against the ideal field have the FieldNoise's variance, the
+// noise is recorded as measured, and dead LEDs stay invalid and zero.
+TEST(NoisyField, ResidualsHaveTheFieldNoiseVariance) {
+  UniformRig rig = uniform_rig();
+  rig.stage = stage_with_directions({Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0.6, 0, 0.8)});
+  rig.stage.camera = ortho_camera(64, 1.0);
+  capture::FieldNoise noise;
+  noise.read_variance = 1e-5;
+  noise.shot_variance_per_unit = 2e-4;
+  SimFieldOptions options;
+  options.dead_leds = {1};
+  const capture::ReflectanceField ideal = render_ideal_field(rig.stage, plane_scene(), options);
+  const capture::ReflectanceField noisy =
+      render_noisy_field(rig.stage, plane_scene(), noise, /*seed=*/5, options);
+  EXPECT_FALSE(ideal.noise.measured);
+  EXPECT_TRUE(noisy.noise.measured);
+  EXPECT_EQ(noisy.noise.read_variance, noise.read_variance);
+  EXPECT_FALSE(noisy.lights()[1].valid);
+  double sum = 0, sum2 = 0, expected = 0;
+  const double n = 64.0 * 64.0 * 3.0;
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 64; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        const double d = double(noisy.at(x, y, 0, c)) - ideal.at(x, y, 0, c);
+        sum += d;
+        sum2 += d * d;
+        expected += noise.read_variance + noise.shot_variance_per_unit * ideal.at(x, y, 0, c);
+        EXPECT_EQ(noisy.at(x, y, 1, c), 0.0f);
+      }
+    }
+  }
+  expected /= n;
+  EXPECT_NEAR(sum / n, 0.0, 4 * std::sqrt(expected / n));
+  EXPECT_NEAR(sum2 / n, expected, 0.05 * expected);  // Sampling error ~1.3%.
 }
 
 TEST(SimSensor, DarkFrameIsBlackLevelPlusDarkCurrent) {

@@ -16,7 +16,6 @@
 #include <random>
 #include <string>
 
-#include "evaluation/leave_lights_out.h"
 #include "lightstage/errors.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
@@ -24,6 +23,8 @@
 #include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
+#include "sim/noisy_field.h"
+#include "sim/rti_scenes.h"
 #include "tests/support/test_support.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"

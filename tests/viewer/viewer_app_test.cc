@@ -12,7 +12,6 @@
 #include <iostream>
 
 #include "capture/build_field.h"
-#include "evaluation/leave_lights_out.h"
 #include "lightstage/controller/sequencer.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
@@ -23,6 +22,8 @@
 #include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
+#include "sim/noisy_field.h"
+#include "sim/rti_scenes.h"
 #include "sim/sim_stage.h"
 #include "tests/support/test_support.h"
 #include "viewer/viewer_state.h"

@@ -13,6 +13,8 @@
 #include "relight/compact/rti_fits.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
+#include "sim/noisy_field.h"
+#include "sim/rti_scenes.h"
 #include "tests/support/test_support.h"
 
 namespace ls::compact_testing {
@@ -49,7 +51,7 @@ inline const capture::ReflectanceField& real_field() {
   return field;
 }
 
-inline sim::CompactBuilder pca_builder(
+inline evaluation::CompactBuilder pca_builder(
     int rank, int tile_size = 0, relight::PcaRankRule rule = relight::PcaRankRule::kNoiseFloor) {
   return [=](const capture::ReflectanceField& f) -> std::unique_ptr<relight::CompactField> {
     relight::PcaOptions options;
@@ -60,7 +62,7 @@ inline sim::CompactBuilder pca_builder(
   };
 }
 
-inline sim::CompactBuilder rti_builder(relight::RtiBasis basis, bool lrgb = false) {
+inline evaluation::CompactBuilder rti_builder(relight::RtiBasis basis, bool lrgb = false) {
   return [=](const capture::ReflectanceField& f) -> std::unique_ptr<relight::CompactField> {
     relight::RtiFitOptions options;
     options.basis = basis;
@@ -69,13 +71,13 @@ inline sim::CompactBuilder rti_builder(relight::RtiBasis basis, bool lrgb = fals
   };
 }
 
-inline sim::CompactBuilder raw_builder() {
+inline evaluation::CompactBuilder raw_builder() {
   return [](const capture::ReflectanceField& f) -> std::unique_ptr<relight::CompactField> {
     return std::make_unique<relight::RawCompactField>(capture::ReflectanceField(f));
   };
 }
 
-inline sim::CompactBuilder model_builder() {
+inline evaluation::CompactBuilder model_builder() {
   return [](const capture::ReflectanceField& f) -> std::unique_ptr<relight::CompactField> {
     relight::FitOptions options;
     options.use_noise_of(f);

@@ -143,8 +143,8 @@ TEST(PcaField, AutomaticRankIsWithinFactorOfBestByHindsight) {
 // (measured PSNR, glossy scene, k = 8: global 27.3 dB, tiled 34.8 dB).
 TEST(PcaField, TiledBasisBeatsGlobalBasisOnHeldOutLights) {
   const auto& field = sim_field(sim::RtiScene::kGlossy);
-  const auto global = sim::leave_lights_out(field, compact_testing::pca_builder(8, 0));
-  const auto tiled = sim::leave_lights_out(field, compact_testing::pca_builder(8, 16));
+  const auto global = evaluation::leave_lights_out(field, compact_testing::pca_builder(8, 0));
+  const auto tiled = evaluation::leave_lights_out(field, compact_testing::pca_builder(8, 16));
   EXPECT_GT(tiled.psnr_db, global.psnr_db + 3.0) << global.psnr_db << " vs " << tiled.psnr_db;
   EXPECT_LT(tiled.bytes_per_pixel, 1.2 * global.bytes_per_pixel);
 }
@@ -158,9 +158,10 @@ TEST(PcaField, HeldOutRankRuleIsNearTheBestRankBetweenLeds) {
     const auto& field = sim_field(scene);
     double best = -HUGE_VAL;
     for (int k : {2, 4, 8, 16, 32, 64}) {
-      best = std::max(best, sim::leave_lights_out(field, compact_testing::pca_builder(k)).psnr_db);
+      best = std::max(best,
+                      evaluation::leave_lights_out(field, compact_testing::pca_builder(k)).psnr_db);
     }
-    const auto chosen = sim::leave_lights_out(
+    const auto chosen = evaluation::leave_lights_out(
         field, compact_testing::pca_builder(0, 0, PcaRankRule::kHeldOutLights));
     std::printf("%s: held-out rule %s %.2f dB, best of sweep %.2f dB\n", sim::to_string(scene),
                 chosen.name.c_str(), chosen.psnr_db, best);

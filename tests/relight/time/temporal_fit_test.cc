@@ -12,6 +12,7 @@
 
 #include "lightstage/errors.h"
 #include "relight/time/temporal_render.h"
+#include "sim/sim_stage.h"
 #include "tests/relight/time/time_fixtures.h"
 
 namespace ls::relight {
@@ -51,7 +52,7 @@ std::vector<capture::ReflectanceField> capture_steps(const World& w,
                                                      uint64_t seed = 1) {
   std::vector<capture::ReflectanceField> steps;
   for (size_t i = 0; i < times.size(); ++i) {
-    steps.push_back(field_at(w.stage, w.scene, w.hits, times[i], NoiseModel{}, seed + i));
+    steps.push_back(field_at(w.stage, w.scene, times[i], NoiseModel{}, seed + i));
   }
   return steps;
 }
@@ -356,7 +357,7 @@ TEST(TemporalFit, StepWithDeadLedsIsDroppedAndFlagged) {
   std::vector<int> dead;
   for (int l = 5; l < 40; ++l) dead.push_back(l);
   for (size_t i = 0; i < times.size(); ++i) {
-    steps.push_back(field_at(w.stage, w.scene, w.hits, times[i], NoiseModel{}, 7 + i,
+    steps.push_back(field_at(w.stage, w.scene, times[i], NoiseModel{}, 7 + i,
                              times[i] == 120 ? dead : std::vector<int>{}));
   }
   const TemporalMaps maps = fit_temporal(steps, TemporalFitOptions{});

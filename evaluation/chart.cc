@@ -1,4 +1,4 @@
-#include "app/cli/chart.h"
+#include "evaluation/chart.h"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,7 @@
 
 #include "lightstage/errors.h"
 
-namespace ls::cli {
+namespace ls::evaluation {
 
 namespace {
 
@@ -87,4 +87,4 @@ void write_chart(const std::filesystem::path& png, const ChartAxes& axes,
   if (!cv::imwrite(png.string(), img)) throw InputError(png.string() + ": cannot write chart");
 }
 
-}  // namespace ls::cli
+}  // namespace ls::evaluation

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-namespace ls::cli {
+namespace ls::evaluation {
 
 struct ChartSeries {
   std::string name;
@@ -21,4 +21,4 @@ struct ChartAxes {
 void write_chart(const std::filesystem::path& png, const ChartAxes& axes,
                  const std::vector<ChartSeries>& series);
 
-}  // namespace ls::cli
+}  // namespace ls::evaluation

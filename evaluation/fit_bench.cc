@@ -1,0 +1,203 @@
+#include "evaluation/fit_bench.h"
+
+#include <fstream>
+
+#include "evaluation/chart.h"
+#include "lightstage/errors.h"
+#include "lightstage/image_metrics.h"
+#include "relight/fit/fit.h"
+#include "relight/fit/model_render.h"
+#include "relight/fit/normals.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/lighting/relight.h"
+#include "sim/ground_truth.h"
+
+namespace ls::evaluation {
+
+namespace fs = std::filesystem;
+
+std::string FitBenchOptions::validate() const {
+  if (leds < 8 || leds > 2000)
+    return "bench fit: leds: expected 8..2000, got " + std::to_string(leds);
+  if (resolution < 8 || resolution > 1024) {
+    return "bench fit: resolution: expected 8..1024 pixels, got " + std::to_string(resolution);
+  }
+  if (repeats < 1 || repeats > 1000) {
+    return "bench fit: repeats: expected 1..1000, got " + std::to_string(repeats);
+  }
+  if (maps.empty()) return "bench fit: maps: expected at least one environment map";
+  return {};
+}
+
+namespace {
+
+// One fit configuration: which candidate models the BIC choice may pick from. Lambert is always a
+// candidate (FitOptions has no switch for it), so "Oren-Nayar" is Lambert-or-Oren-Nayar etc.
+struct FitConfig {
+  std::string name;
+  bool oren_nayar, torrance_sparrow, phong;
+};
+
+const std::vector<FitConfig>& fit_configs() {
+  static const std::vector<FitConfig> configs{{"Lambert", false, false, false},
+                                              {"Oren-Nayar", true, false, false},
+                                              {"Lambert+TS", false, true, false},
+                                              {"Lambert+Phong", false, false, true},
+                                              {"BIC (L, ON, L+TS)", true, true, false}};
+  return configs;
+}
+
+// The normals and every configuration's fit of one field, with their times.
+struct Fits {
+  double normals_s = 0;
+  std::vector<relight::ModelMaps> maps;  // One per fit_configs() entry.
+  std::vector<double> fit_s;
+};
+
+Fits fit_all(const capture::ReflectanceField& field, const relight::FitOptions& base,
+             const ProgressFn& progress) {
+  Fits fits;
+  const auto t0 = std::chrono::steady_clock::now();
+  const relight::NormalMap normals = relight::estimate_normals(field, base.normals);
+  fits.normals_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  for (const FitConfig& config : fit_configs()) {
+    relight::FitOptions options = base;
+    options.fit_oren_nayar = config.oren_nayar;
+    options.fit_torrance_sparrow = config.torrance_sparrow;
+    options.fit_phong = config.phong;
+    const std::string phase = "fit " + config.name;
+    options.progress = [&](long done, long total) {
+      if (done < total) report(progress, phase, done, total);
+    };
+    const auto start = std::chrono::steady_clock::now();
+    fits.maps.push_back(relight::fit_models(field, normals, options));
+    fits.fit_s.push_back(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    report(progress, phase, field.height(), field.height());
+  }
+  return fits;
+}
+
+// The field's row and every fit's under one map, against the scene's ground truth.
+std::vector<FitBenchRow> rows_for_map(const capture::ReflectanceField& field, const Fits& fits,
+                                      const Stage& stage, const sim::Scene& scene,
+                                      const relight::EnvironmentMap& map, int repeats) {
+  const std::string map_name = fs::path(map.source()).stem().string();
+  const auto dirs = stage.led_directions();
+  const double coverage = relight::max_nearest_neighbour_angle(dirs);
+  const relight::LightWeights weights = relight::integrate_environment(map, dirs, 0.0, coverage);
+  sim::GroundTruthOptions gt;
+  gt.covered_by_leds = dirs;
+  gt.coverage_radius_rad = coverage;
+  const Image truth = sim::render_ground_truth(scene, stage.camera, map, gt);
+  Image field_relit;
+  const double relight_ms = median_ms(
+      repeats, [&] { relight::relight_into(field, weights.irradiance_rgb, field_relit); });
+  const ImageError field_error = compare_images(field_relit, truth);
+  std::vector<FitBenchRow> rows;
+  FitBenchRow row;
+  row.method = "field";
+  row.map = map_name;
+  row.render_ms = relight_ms;
+  row.time_to_frame_s = relight_ms / 1e3;
+  row.relative_rmse = field_error.relative_rmse;
+  row.psnr_db = field_error.psnr_db;
+  rows.push_back(row);
+  // Models lit by the same per-LED irradiances as the field: the difference is what the models
+  // get wrong (no shadows, misfit), not how the map was sampled. Flagged pixels take the field's
+  // value, as a viewer would show them.
+  const relight::LightingForModels lighting = relight::LightingForModels::led_cells(dirs, weights);
+  relight::ModelRenderOptions render_options;
+  render_options.flagged_fallback = &field_relit;
+  const double pixels = double(field.width()) * field.height();
+  for (size_t k = 0; k < fit_configs().size(); ++k) {
+    Image relit;
+    row = {};
+    row.method = fit_configs()[k].name;
+    row.map = map_name;
+    row.render_ms = median_ms(
+        repeats, [&] { relit = relight::render_models(fits.maps[k], lighting, render_options); });
+    const ImageError error = compare_images(relit, truth);
+    row.fit_s = fits.fit_s[k];
+    row.normals_s = fits.normals_s;
+    row.fit_pixels_per_s = row.fit_s > 0 ? pixels / row.fit_s : 0.0;
+    row.flagged_fraction = double(fits.maps[k].summary.flagged) / pixels;
+    row.time_to_frame_s = fits.normals_s + row.fit_s + row.render_ms / 1e3;
+    row.relative_rmse = error.relative_rmse;
+    row.psnr_db = error.psnr_db;
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+void write_csv(const fs::path& path, const std::vector<FitBenchRow>& rows) {
+  std::ofstream csv(path);
+  if (!csv) throw InputError(path.string() + ": cannot write");
+  csv << "method,map,fit_s,normals_s,fit_pixels_per_s,render_ms,time_to_frame_s,relative_rmse,"
+         "psnr_db,flagged_fraction\n";
+  for (const FitBenchRow& r : rows) {
+    csv << r.method << ',' << r.map << ',' << r.fit_s << ',' << r.normals_s << ','
+        << r.fit_pixels_per_s << ',' << r.render_ms << ',' << r.time_to_frame_s << ','
+        << r.relative_rmse << ',' << r.psnr_db << ',' << r.flagged_fraction << '\n';
+  }
+}
+
+void write_charts(const FitBenchOptions& options, const std::vector<FitBenchRow>& rows) {
+  std::vector<ChartSeries> by_time, by_rate;
+  for (const FitBenchRow& r : rows) {  // One series per map; methods, not a sequence.
+    if (by_time.empty() || by_time.back().name != r.map) {
+      by_time.push_back({r.map, {}, {}, {}, false});
+      by_rate.push_back({r.map, {}, {}, {}, false});
+    }
+    by_time.back().x.push_back(r.time_to_frame_s);
+    by_time.back().y.push_back(r.relative_rmse);
+    by_time.back().point_labels.push_back(r.method);
+    if (r.method == "field") continue;  // The field has no fit throughput.
+    by_rate.back().x.push_back(r.fit_pixels_per_s);
+    by_rate.back().y.push_back(r.relative_rmse);
+    by_rate.back().point_labels.push_back(r.method);
+  }
+  const std::string size = std::to_string(options.resolution) + "x" +
+                           std::to_string(options.resolution) + " px, " +
+                           std::to_string(options.leds) + " LEDs";
+  write_chart(
+      options.out / "fit_error_vs_time.png",
+      {"Relighting error vs time to a frame (" + size + ")",
+       "s: field relight | normals + fit + model render", "relative RMSE vs ground truth", true},
+      by_time);
+  write_chart(options.out / "fit_error_vs_throughput.png",
+              {"Model relighting error vs fit throughput (" + size + ")",
+               "fit throughput, pixels/s (all cores)", "relative RMSE vs ground truth", true},
+              by_rate);
+}
+
+}  // namespace
+
+FitBenchSummary run_fit_bench(const FitBenchOptions& options, const ProgressFn& progress) {
+  throw_if_invalid(options.validate());
+  fs::create_directories(options.out);
+  const sim::Scene scene = sim::default_scene();
+  Stage stage = stage_with_directions(fibonacci_dome_directions(options.leds, -11.5));
+  stage.camera.width = stage.camera.height = options.resolution;
+  const capture::ReflectanceField field =
+      capture_sim_field(stage, scene, options.out / "session_fit", "capture", progress);
+
+  relight::FitOptions base;
+  base.use_noise_of(field);
+  FitBenchSummary summary;
+  summary.noise_source = base.noise_source;
+  summary.noise_read_variance = base.normals.noise.a;
+  summary.noise_shot_variance_per_unit = base.normals.noise.b;
+  const Fits fits = fit_all(field, base, progress);
+  for (const relight::EnvironmentMap& map : load_maps(options.maps)) {
+    for (FitBenchRow& row : rows_for_map(field, fits, stage, scene, map, options.repeats)) {
+      summary.rows.push_back(std::move(row));
+    }
+  }
+  summary.csv = options.out / "fit.csv";
+  write_csv(summary.csv, summary.rows);
+  write_charts(options, summary.rows);
+  return summary;
+}
+
+}  // namespace ls::evaluation

@@ -1,0 +1,38 @@
+#pragma once
+// `lightstage bench leds`: relighting accuracy and speed as the number of LEDs grows. For each dome
+// size, a simulated capture of the demo scene built into a field, relit under each map (median
+// time over repeats) and compared with ground truth rendered directly from the scene. Writes
+// leds.csv and two charts (PSNR against relight time; error against LEDs).
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "evaluation/bench_support.h"
+
+namespace ls::evaluation {
+
+struct LedBenchOptions {
+  std::filesystem::path out = "bench-out";
+  std::vector<int> counts{20, 40, 80, 150, 300};  // LEDs of the Fibonacci domes.
+  int resolution = 128;                           // Camera width and height.
+  int repeats = 21;                               // Timed relights (median reported).
+  std::vector<std::filesystem::path> maps;        // Environment maps (the CLI: the shipped ones).
+  std::string validate() const;                   // Empty when valid.
+};
+
+struct LedBenchRow {
+  int leds = 0;
+  std::string map;  // The map file's stem.
+  double relative_rmse = 0, psnr_db = 0;
+  double relight_ms = 0, relight_gb_per_s = 0, light_weights_ms = 0;
+  double uncovered_fraction = 0;
+};
+
+struct LedBenchSummary {
+  std::vector<LedBenchRow> rows;
+  std::filesystem::path csv;  // leds.csv; the charts beside it.
+};
+
+LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& progress = {});
+
+}  // namespace ls::evaluation

@@ -1,0 +1,195 @@
+#include "evaluation/temporal_bench.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+
+#include "evaluation/chart.h"
+#include "lightstage/errors.h"
+#include "relight/fit/normals.h"
+#include "relight/time/temporal_fit.h"
+#include "relight/time/temporal_render.h"
+#include "sim/noisy_field.h"
+#include "sim/sim_stage.h"
+#include "sim/time_varying.h"
+
+namespace ls::evaluation {
+
+namespace fs = std::filesystem;
+
+std::string TemporalBenchOptions::validate() const {
+  if (steps.empty()) return "bench temporal: steps: expected at least one number of time steps";
+  for (const int n : steps) {
+    if (n < 1 || n > 64) return "bench temporal: steps: expected 1..64, got " + std::to_string(n);
+  }
+  if (leds < 8 || leds > 2000) {
+    return "bench temporal: leds: expected 8..2000, got " + std::to_string(leds);
+  }
+  if (width < 4 || width > 1024 || height < 4 || height > 1024) {
+    return "bench temporal: width and height: expected 4..1024 pixels, got " +
+           std::to_string(width) + " x " + std::to_string(height);
+  }
+  if (!(duration_s > 0)) return "bench temporal: duration: expected a positive number of seconds";
+  return {};
+}
+
+namespace {
+
+// The scene, its stage and its surface hits at time 0 (the ground truth).
+struct World {
+  Stage stage;
+  sim::Scene scene;
+  std::vector<sim::SurfaceHit> hits;
+};
+
+World make_world(const TemporalBenchOptions& options) {
+  World w;
+  w.stage = stage_with_directions(fibonacci_dome_directions(options.leds, -11.5));
+  w.stage.camera.width = options.width;
+  w.stage.camera.height = options.height;
+  w.scene = sim::time_varying_scene();
+  for (sim::SceneMaterial& m : w.scene.materials) {
+    // A wet surface dries to its own base colour.
+    if (m.process && m.process->kind == sim::ProcessKind::kWetDrying) m.process->dry = m.base;
+  }
+  w.hits = sim::trace_camera(w.scene, w.stage.camera);
+  return w;
+}
+
+// Relative RMS error of the models rendered at uncaptured times against the ideal one-light truth,
+// over lit surface pixels with a model.
+double render_error(const World& w, const relight::TemporalMaps& maps, double duration_s) {
+  double err2 = 0, ref2 = 0;
+  const Eigen::Vector3d light = Eigen::Vector3d(0.25, 0.3, 0.92).normalized();
+  for (const double t : {0.25 * duration_s, 0.55 * duration_s, 0.85 * duration_s}) {
+    const Image truth = sim::render_one_light(w.scene, sim::at_time(w.scene, w.hits, t), light);
+    const Image model = relight::render_temporal(
+        maps, t, relight::LightingForModels::directional(light, Eigen::Vector3d(1, 1, 1)));
+    for (const sim::SurfaceHit& h : w.hits) {
+      if (!h.hit || maps.model(h.pixel_x, h.pixel_y) == relight::TemporalModel::kNone) continue;
+      if (!sim::visible(w.scene, h.position + 1e-3 * h.normal, light)) continue;
+      for (int c = 0; c < 3; ++c) {
+        const double d = model.at(h.pixel_x, h.pixel_y, c) - truth.at(h.pixel_x, h.pixel_y, c);
+        err2 += d * d;
+        ref2 += double(truth.at(h.pixel_x, h.pixel_y, c)) * truth.at(h.pixel_x, h.pixel_y, c);
+      }
+    }
+  }
+  return ref2 > 0 ? std::sqrt(err2 / ref2) : 0;
+}
+
+// The recovered processes against the true ones: rate error, recall and static pixels kept.
+void score_processes(const World& w, const relight::TemporalMaps& maps, TemporalBenchRow& row) {
+  std::vector<double> rate_errors;
+  int varying = 0, varying_found = 0, still = 0, still_constant = 0;
+  for (const sim::SurfaceHit& h : w.hits) {
+    if (!h.hit || h.material_index < 0) continue;
+    const sim::ProcessTruth truth =
+        sim::truth_at(w.scene.materials[h.material_index], h.st.x(), h.st.y());
+    const relight::TemporalModel m = maps.model(h.pixel_x, h.pixel_y);
+    if (m == relight::TemporalModel::kNone) continue;
+    if (!truth.varying) {
+      ++still;
+      still_constant += m == relight::TemporalModel::kConstant;
+      continue;
+    }
+    ++varying;
+    if (m == relight::TemporalModel::kConstant) continue;
+    ++varying_found;
+    rate_errors.push_back(
+        std::abs(maps.at(h.pixel_x, h.pixel_y, relight::kTRate) / truth.rate_per_s - 1));
+  }
+  if (!rate_errors.empty()) {
+    std::nth_element(rate_errors.begin(), rate_errors.begin() + rate_errors.size() / 2,
+                     rate_errors.end());
+    row.median_rate_error = rate_errors[rate_errors.size() / 2];
+  }
+  row.varying_recall = varying > 0 ? double(varying_found) / varying : 0;
+  row.static_constant = still > 0 ? double(still_constant) / still : 0;
+}
+
+TemporalBenchRow run_steps(const World& w, int n, double duration_s) {
+  std::vector<capture::ReflectanceField> fields;
+  for (int i = 0; i < n; ++i) {
+    sim::SimFieldOptions at;
+    at.scene_time_s = n == 1 ? 0 : duration_s * i / (n - 1);
+    fields.push_back(sim::render_noisy_field(w.stage, w.scene,
+                                             relight::NoiseModel{}.as_field_noise(), 100 + i, at));
+  }
+  const relight::TemporalMaps maps = relight::fit_temporal(fields, {});
+  TemporalBenchRow row;
+  row.steps = n;
+  const double pixels = maps.summary.pixels;
+  row.step_fit_us_per_pixel_step = 1e6 * maps.summary.seconds_steps / (pixels * n);
+  row.temporal_fit_us_per_pixel = 1e6 * maps.summary.seconds_temporal / pixels;
+  row.render_error = render_error(w, maps, duration_s);
+  score_processes(w, maps, row);
+  return row;
+}
+
+void write_csv(const fs::path& path, const std::vector<TemporalBenchRow>& rows) {
+  std::ofstream csv(path);
+  if (!csv) throw InputError(path.string() + ": cannot write");
+  csv << "steps,step_fit_us_per_pixel_step,temporal_fit_us_per_pixel,render_rel_rms_error,"
+         "median_rate_rel_error,varying_recall,static_constant\n";
+  for (const TemporalBenchRow& r : rows) {
+    csv << r.steps << ',' << r.step_fit_us_per_pixel_step << ',' << r.temporal_fit_us_per_pixel
+        << ',' << r.render_error << ',';
+    // Too few steps for any process: no rate was recovered, so there is no rate error to show.
+    if (r.varying_recall > 0) csv << r.median_rate_error;
+    csv << ',' << r.varying_recall << ',' << r.static_constant << '\n';
+  }
+}
+
+void write_charts(const TemporalBenchOptions& options, const std::vector<TemporalBenchRow>& rows) {
+  ChartSeries error{"relit error", {}, {}, {}, true};
+  ChartSeries rate{"median rate error", {}, {}, {}, true};
+  ChartSeries step_time{"per-step BRDF fits, us / pixel / step", {}, {}, {}, true};
+  ChartSeries temporal_time{"temporal model fits, us / pixel", {}, {}, {}, true};
+  for (const TemporalBenchRow& r : rows) {
+    error.x.push_back(r.steps);
+    error.y.push_back(r.render_error);
+    if (r.varying_recall > 0) {
+      rate.x.push_back(r.steps);
+      rate.y.push_back(r.median_rate_error);
+    }
+    step_time.x.push_back(r.steps);
+    step_time.y.push_back(r.step_fit_us_per_pixel_step);
+    temporal_time.x.push_back(r.steps);
+    temporal_time.y.push_back(r.temporal_fit_us_per_pixel);
+    char label[48];
+    std::snprintf(label, sizeof label, "%.0f us/px", r.temporal_fit_us_per_pixel);
+    error.point_labels.push_back(label);
+  }
+  write_chart(options.out / "temporal_error_vs_steps.png",
+              {"Temporal fit: error against ground truth vs time steps (labels: temporal fit "
+               "time per pixel)",
+               "time steps over " + std::to_string(int(options.duration_s)) + " s", "error", false},
+              {error, rate});
+  write_chart(options.out / "temporal_time_vs_steps.png",
+              {"Temporal fit: time per pixel vs time steps", "time steps", "microseconds", false},
+              {step_time, temporal_time});
+}
+
+}  // namespace
+
+TemporalBenchSummary run_temporal_bench(const TemporalBenchOptions& options,
+                                        const ProgressFn& progress) {
+  throw_if_invalid(options.validate());
+  fs::create_directories(options.out);
+  const World w = make_world(options);
+  TemporalBenchSummary summary;
+  const long total = long(options.steps.size());
+  for (const int n : options.steps) {
+    summary.rows.push_back(run_steps(w, n, options.duration_s));
+    report(progress, "temporal bench", long(summary.rows.size()), total,
+           std::to_string(n) + " steps");
+  }
+  summary.csv = options.out / "temporal.csv";
+  write_csv(summary.csv, summary.rows);
+  write_charts(options, summary.rows);
+  return summary;
+}
+
+}  // namespace ls::evaluation
