@@ -368,6 +368,7 @@ class FieldBuild {
         check_size(raw.back(), key);
       }
       std::vector<const RawFrame*> pointers;
+      pointers.reserve(raw.size());
       for (const RawFrame& r : raw) pointers.push_back(&r);
       darks_[e] = mean_dark(pointers, *response_);
       noise_steps_[e].dark_frames = int(raw.size());
@@ -463,7 +464,7 @@ class FieldBuild {
     for (int y = 0; y < height; ++y) {
       for (int x = 0; x < width; ++x) {
         const float* m = &merged.pixels[(size_t(y) * width + x) * in_channels];
-        float* out = field.pixel(x, y) + 3 * i;
+        float* out = field.pixel(x, y) + 3 * size_t(i);
         const float g = gain.empty() ? 1.0f : gain[size_t(y) * width + x];
         for (int c = 0; c < 3; ++c) out[c] = m[camera_.channels == 1 ? 0 : c] * scale_[i][c] * g;
         saturated += m[in_channels - 1] == 0.0f;

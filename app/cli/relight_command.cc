@@ -12,7 +12,7 @@ namespace ls::cli {
 namespace fs = std::filesystem;
 
 jobs::RelightSummary relight_and_report(const jobs::RelightOptions& options, bool quiet) {
-  const jobs::RelightSummary summary = jobs::relight(options, progress_printer(quiet));
+  jobs::RelightSummary summary = jobs::relight(options, progress_printer(quiet));
   if (!quiet) {
     for (const std::string& line : summary.edit_reports)
       std::fprintf(stderr, "  %s\n", line.c_str());

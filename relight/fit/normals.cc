@@ -100,7 +100,7 @@ int gather_samples(const float* px, const std::vector<capture::FieldLight>& ligh
   const size_t n = light_index.size();
   double y_max = 0;
   for (size_t i = 0; i < n; ++i) {
-    const float* v = px + 3 * light_index[i];
+    const float* v = px + 3 * size_t(light_index[i]);
     const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
     s.y[i] = std::isfinite(lum) ? lum : 0.0;
     s.sigma[i] = std::sqrt(options.noise.variance(s.y[i]));
@@ -111,7 +111,8 @@ int gather_samples(const float* px, const std::vector<capture::FieldLight>& ligh
   int lit = 0;
   int saturated = 0;
   for (size_t i = 0; i < n; ++i) {
-    const bool censored = capture::is_saturated(lights[light_index[i]], px + 3 * light_index[i]);
+    const bool censored =
+        capture::is_saturated(lights[light_index[i]], px + 3 * size_t(light_index[i]));
     const bool use = s.y[i] > threshold && !censored;
     s.usable[i] = use;
     s.weight[i] = use ? 1.0 / (s.sigma[i] * s.sigma[i]) : 0.0;
@@ -183,7 +184,7 @@ void store_solution(const Solve& solve, const std::vector<Eigen::Vector3d>& dirs
     if (!(s.weight[i] > 0)) continue;
     const double shade = std::max(0.0, nrm.dot(dirs[i])) / kPi;
     const double w = s.weight[i] * s.sigma[i] * s.sigma[i];  // Robust factor only.
-    const float* v = px + 3 * light_index[i];
+    const float* v = px + 3 * size_t(light_index[i]);
     sxx += w * shade * shade;
     for (int c = 0; c < 3; ++c) sxy[c] += w * shade * v[c];
     const double r = (s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];

@@ -59,16 +59,17 @@ void relight_into(const capture::ReflectanceField& field, std::span<const float>
   const int rows_per_tile =
       std::max<int>(1, int((size_t(256) << 10) / std::max<size_t>(row_bytes, 1)));
   float* out_pixels = out.pixels.data();
-  tbb::parallel_for(
-      tbb::blocked_range<int>(0, height, rows_per_tile), [&](const tbb::blocked_range<int>& rows) {
-        for (int y = rows.begin(); y < rows.end(); ++y) {
-          const float* values = field.pixel(0, y);
-          float* out_row = out_pixels + size_t(y) * width * 3;
-          for (int x = 0; x < width; ++x) {
-            shade_pixel(values + size_t(x) * count, irradiance_rgb.data(), count, out_row + 3 * x);
-          }
-        }
-      });
+  tbb::parallel_for(tbb::blocked_range<int>(0, height, rows_per_tile),
+                    [&](const tbb::blocked_range<int>& rows) {
+                      for (int y = rows.begin(); y < rows.end(); ++y) {
+                        const float* values = field.pixel(0, y);
+                        float* out_row = out_pixels + size_t(y) * width * 3;
+                        for (int x = 0; x < width; ++x) {
+                          shade_pixel(values + size_t(x) * count, irradiance_rgb.data(), count,
+                                      out_row + 3 * size_t(x));
+                        }
+                      }
+                    });
 }
 
 Image relight(const capture::ReflectanceField& field, const LightWeights& weights) {
