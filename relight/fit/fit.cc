@@ -1,6 +1,5 @@
 #include "relight/fit/fit.h"
 
-#include <OpenImageIO/imageio.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -16,6 +15,7 @@
 #include <sstream>
 
 #include "lightstage/errors.h"
+#include "lightstage/exr_channels.h"
 #include "relight/fit/pixel_solver.h"
 #include "relight/lighting/brdf.h"
 
@@ -402,36 +402,14 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
 
 ModelMaps read_model_maps(const std::filesystem::path& path) {
   const std::string name = path.string();
-  if (!std::filesystem::exists(path)) throw InputError(name + ": file not found");
-  auto in = OIIO::ImageInput::open(name);
-  if (!in) throw InputError(name + ": cannot read model maps: " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
   const std::vector<std::string>& names = model_map_channel_names();
-  // File channel of each MapChannel (EXR stores channels sorted by name).
-  std::vector<int> file_channel(kMapChannelCount, -1);
-  for (int c = 0; c < kMapChannelCount; ++c) {
-    for (int f = 0; f < spec.nchannels; ++f) {
-      if (spec.channelnames[f] == names[c]) file_channel[c] = f;
-    }
-    if (file_channel[c] < 0) {
-      throw InputError(name + ": channel '" + names[c] +
-                       "': missing (not model maps from 'lightstage fit'?)");
-    }
-  }
-  if (spec.nchannels != kMapChannelCount) {
-    throw InputError(name + ": channels: expected " + std::to_string(int(kMapChannelCount)) +
-                     " (model maps), got " + std::to_string(spec.nchannels));
-  }
-  if (spec.width <= 0 || spec.height <= 0) throw InputError(name + ": image has no pixels");
-  Image raw(spec.width, spec.height, spec.nchannels);
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())) {
-    throw InputError(name + ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
-  }
+  NamedChannelFile file =
+      read_named_channels(path, names, "model maps", "'lightstage fit'", /*exact=*/true);
   ModelMaps out;
   out.noise_source = "unknown (no '" + std::string(kFitNoiseAttribute) + "' attribute)";
-  if (const OIIO::ParamValue* noise = spec.find_attribute(kFitNoiseAttribute)) {
+  if (const std::string* noise = file.attribute(kFitNoiseAttribute)) {
     try {
-      const nlohmann::json j = nlohmann::json::parse(noise->get_string());
+      const nlohmann::json j = nlohmann::json::parse(*noise);
       out.noise.a = j.at("read_variance").get<double>();
       out.noise.b = j.at("shot_variance_per_unit").get<double>();
       out.noise_source = j.value("source", std::string());
@@ -445,17 +423,10 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
                        "': expected finite non-negative variances");
     }
   }
-  in->close();
-
-  out.maps = Image(spec.width, spec.height, kMapChannelCount);
-  out.maps.channel_names = names;
-  for (size_t i = 0; i < raw.num_pixels(); ++i) {
-    for (int c = 0; c < kMapChannelCount; ++c) {
-      out.maps.pixels[i * kMapChannelCount + c] = raw.pixels[i * spec.nchannels + file_channel[c]];
-    }
-  }
+  out.maps = std::move(file.image);
+  const int width = out.maps.width, height = out.maps.height;
   FitSummary& summary = out.summary;
-  summary.pixels = spec.width * spec.height;
+  summary.pixels = width * height;
   auto fail = [&](int channel, int x, int y, const std::string& expected) {
     char where[96];
     std::snprintf(where, sizeof where, " at (%d, %d), got %.9g", x, y,
@@ -463,8 +434,8 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
     throw InputError(name + ": channel '" + names[channel] + "': expected " + expected + where);
   };
   const double max_sigma = 0.5 * kPi + 1e-6;
-  for (int y = 0; y < spec.height; ++y) {
-    for (int x = 0; x < spec.width; ++x) {
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
       for (int c = 0; c < kMapChannelCount; ++c) {
         if (!std::isfinite(out.maps.at(x, y, c))) fail(c, x, y, "a finite value");
       }

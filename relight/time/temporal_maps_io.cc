@@ -1,5 +1,4 @@
 // Temporal maps file I/O: one EXR with named channels and the step times, PNG previews beside it.
-#include <OpenImageIO/imageio.h>
 
 #include <algorithm>
 #include <cmath>
@@ -9,6 +8,7 @@
 #include <vector>
 
 #include "lightstage/errors.h"
+#include "lightstage/exr_channels.h"
 #include "relight/time/temporal_fit.h"
 
 namespace ls::relight {
@@ -64,33 +64,16 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
 
 TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
   const std::string name = path.string();
-  if (!std::filesystem::exists(path)) throw InputError(name + ": file not found");
-  auto in = OIIO::ImageInput::open(name);
-  if (!in) throw InputError(name + ": cannot read temporal maps: " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
   const std::vector<std::string>& names = temporal_channel_names();
-  std::vector<int> file_channel(kTemporalChannelCount, -1);
-  for (int c = 0; c < kTemporalChannelCount; ++c) {
-    for (int f = 0; f < spec.nchannels; ++f) {
-      if (spec.channelnames[f] == names[c]) file_channel[c] = f;
-    }
-    if (file_channel[c] < 0) {
-      throw InputError(name + ": channel '" + names[c] +
-                       "': missing (not temporal maps from 'lightstage fit --time'?)");
-    }
-  }
-  if (spec.width <= 0 || spec.height <= 0) throw InputError(name + ": image has no pixels");
-  Image raw(spec.width, spec.height, spec.nchannels);
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())) {
-    throw InputError(name + ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
-  }
+  NamedChannelFile file =
+      read_named_channels(path, names, "temporal maps", "'lightstage fit --time'", /*exact=*/false);
   TemporalMaps out;
-  const OIIO::ParamValue* meta = spec.find_attribute(kTemporalAttribute);
+  const std::string* meta = file.attribute(kTemporalAttribute);
   if (!meta) {
     throw InputError(name + ": attribute '" + kTemporalAttribute + "': missing (step times)");
   }
   try {
-    const nlohmann::json j = nlohmann::json::parse(meta->get_string());
+    const nlohmann::json j = nlohmann::json::parse(*meta);
     out.step_times_s = j.at("step_times_s").get<std::vector<double>>();
     out.noise.a = j.at("read_variance").get<double>();
     out.noise.b = j.at("shot_variance_per_unit").get<double>();
@@ -105,19 +88,12 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
     throw InputError(name + ": attribute '" + kTemporalAttribute +
                      "': step_times_s: expected a non-empty increasing list");
   }
-  in->close();
-  out.maps = Image(spec.width, spec.height, kTemporalChannelCount);
-  out.maps.channel_names = names;
-  for (size_t i = 0; i < raw.num_pixels(); ++i) {
-    for (int c = 0; c < kTemporalChannelCount; ++c) {
-      out.maps.pixels[i * kTemporalChannelCount + c] =
-          raw.pixels[i * spec.nchannels + file_channel[c]];
-    }
-  }
+  out.maps = std::move(file.image);
+  const int width = out.maps.width, height = out.maps.height;
   TemporalSummary& summary = out.summary;
-  summary.pixels = spec.width * spec.height;
-  for (int y = 0; y < spec.height; ++y) {
-    for (int x = 0; x < spec.width; ++x) {
+  summary.pixels = width * height;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
       for (int c = 0; c < kTemporalChannelCount; ++c) {
         const float v = out.maps.at(x, y, c);
         if (!std::isfinite(v)) {

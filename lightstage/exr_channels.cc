@@ -1,0 +1,62 @@
+#include "lightstage/exr_channels.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include "lightstage/errors.h"
+
+namespace ls {
+
+namespace fs = std::filesystem;
+
+const std::string* NamedChannelFile::attribute(const std::string& name) const {
+  for (const auto& [key, value] : attributes) {
+    if (key == name) return &value;
+  }
+  return nullptr;
+}
+
+NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std::string>& names,
+                                     const std::string& kind, const std::string& origin,
+                                     bool exact) {
+  const std::string name = path.string();
+  if (!fs::exists(path)) throw InputError(name + ": file not found");
+  auto in = OIIO::ImageInput::open(name);
+  if (!in) throw InputError(name + ": cannot read " + kind + ": " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = in->spec();
+  const int count = int(names.size());
+  std::vector<int> file_channel(count, -1);
+  for (int c = 0; c < count; ++c) {
+    for (int f = 0; f < spec.nchannels; ++f) {
+      if (spec.channelnames[f] == names[c]) file_channel[c] = f;
+    }
+    if (file_channel[c] < 0) {
+      throw InputError(name + ": channel '" + names[c] + "': missing (not " + kind + " from " +
+                       origin + "?)");
+    }
+  }
+  if (exact && spec.nchannels != count) {
+    throw InputError(name + ": channels: expected " + std::to_string(count) + " (" + kind +
+                     "), got " + std::to_string(spec.nchannels));
+  }
+  if (spec.width <= 0 || spec.height <= 0) throw InputError(name + ": image has no pixels");
+  Image raw(spec.width, spec.height, spec.nchannels);
+  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())) {
+    throw InputError(name + ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
+  }
+  NamedChannelFile out;
+  for (const OIIO::ParamValue& p : spec.extra_attribs) {
+    if (p.type() == OIIO::TypeDesc::STRING)
+      out.attributes.emplace_back(p.name().string(), p.get_string());
+  }
+  in->close();
+  out.image = Image(spec.width, spec.height, count);
+  out.image.channel_names = names;
+  for (size_t i = 0; i < raw.num_pixels(); ++i) {
+    for (int c = 0; c < count; ++c) {
+      out.image.pixels[i * count + c] = raw.pixels[i * spec.nchannels + file_channel[c]];
+    }
+  }
+  return out;
+}
+
+}  // namespace ls

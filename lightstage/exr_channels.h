@@ -1,0 +1,24 @@
+#pragma once
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "lightstage/image.h"
+
+namespace ls {
+
+// An EXR of named channels (maps written by lightstage): the pixels in the order of `names` (EXR
+// files store channels sorted by name, not as written), bit-exact, with the header's string
+// attributes. InputErrors name the file and the channel, e.g. "maps.exr: channel 'model':
+// missing (not model maps from 'lightstage fit'?)" for kind "model maps", origin
+// "'lightstage fit'". With exact, a file holding other channels too is refused.
+struct NamedChannelFile {
+  Image image;
+  ExrAttributes attributes;
+  const std::string* attribute(const std::string& name) const;  // Null when absent.
+};
+NamedChannelFile read_named_channels(const std::filesystem::path& path,
+                                     const std::vector<std::string>& names, const std::string& kind,
+                                     const std::string& origin, bool exact);
+
+}  // namespace ls
