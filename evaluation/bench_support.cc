@@ -34,6 +34,7 @@ capture::ReflectanceField capture_sim_field(const Stage& stage, const sim::Scene
 
 std::vector<relight::EnvironmentMap> load_maps(const std::vector<fs::path>& paths) {
   std::vector<relight::EnvironmentMap> maps;
+  maps.reserve(paths.size());
   for (const fs::path& path : paths) maps.push_back(relight::EnvironmentMap::load(path));
   return maps;
 }

@@ -185,6 +185,7 @@ void write_scene_charts(const fs::path& out, const std::string& scene_name,
   const std::string stem = scene_name.substr(0, scene_name.find(' '));
   auto values = [](const std::map<std::string, ChartSeries>& m) {
     std::vector<ChartSeries> v;
+    v.reserve(m.size());
     for (const auto& [_, s] : m) v.push_back(s);
     return v;
   };

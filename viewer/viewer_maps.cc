@@ -96,11 +96,12 @@ Image parameter_image(const relight::ModelMaps& maps, ParameterMap which, Legend
       const bool fitted = p[relight::kMapModel] > 0.5f;
       switch (which) {
         case ParameterMap::kNormal:
-          if (fitted)
+          if (fitted) {
             c = Eigen::Vector3f(p[relight::kMapNormalX], p[relight::kMapNormalY],
                                 p[relight::kMapNormalZ]) *
                     0.5f +
                 Eigen::Vector3f::Constant(0.5f);
+          }
           break;
         case ParameterMap::kAlbedo:
           c = Eigen::Vector3f(srgb_encode(p[relight::kMapAlbedoR]),

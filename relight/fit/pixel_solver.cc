@@ -10,14 +10,14 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
   const float* px = field.pixel(x, y);
   double y_max = 0;
   for (const int l : valid.index) {
-    const float* v = px + 3 * l;
+    const float* v = px + 3 * size_t(l);
     y_max = std::max(y_max, kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2]);
   }
   const double threshold =
       std::max(options.shadow_sigmas * std::sqrt(options.noise.a), options.shadow_fraction * y_max);
   GatheredSamples out;
   for (const int light : valid.index) {
-    const float* v = px + 3 * light;
+    const float* v = px + 3 * size_t(light);
     if (capture::is_saturated(field.lights()[light], v)) {
       ++out.saturated;
       continue;
