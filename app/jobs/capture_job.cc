@@ -1,5 +1,7 @@
 #include "app/jobs/capture_job.h"
 
+#include <optional>
+
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
