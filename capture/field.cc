@@ -16,46 +16,21 @@
 #include <unordered_map>
 
 #include "lightstage/errors.h"
+#include "lightstage/memory.h"
 
 namespace ls::capture {
 namespace {
 
-constexpr double kGiB = 1024.0 * 1024.0 * 1024.0;
-// Share of the available memory one allocation may take: the rest is for frames, the OS and others.
-constexpr double kMemoryShare = 0.8;
 constexpr const char* kLightsAttribute = "lightstage:lights";
 constexpr const char* kSceneTimeAttribute = "lightstage:scene_time_s";
 constexpr const char* kNoiseAttribute = "lightstage:noise";
 constexpr const char* kViewAttribute = "lightstage:view";
 const char kChannelSuffix[3] = {'R', 'G', 'B'};
 
-std::string gib(double bytes) {
-  char text[32];
-  std::snprintf(text, sizeof(text), "%.1f", bytes / kGiB);
-  return text;
-}
-
 std::string channel_name(int led_id, int c) {
   char text[32];
   std::snprintf(text, sizeof(text), "led%03d.%c", led_id, kChannelSuffix[c]);
   return text;
-}
-
-// A cgroup (v2) memory limit, if we run inside one that is tighter than the machine.
-std::optional<std::size_t> cgroup_available_bytes() {
-  std::ifstream max_file("/sys/fs/cgroup/memory.max");
-  std::ifstream current_file("/sys/fs/cgroup/memory.current");
-  std::string max_text;
-  std::size_t current = 0;
-  if (!(max_file >> max_text) || !(current_file >> current) || max_text == "max") {
-    return std::nullopt;
-  }
-  try {
-    const std::size_t limit = std::stoull(max_text);
-    return limit > current ? limit - current : 0;
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
 }
 
 }  // namespace
@@ -75,7 +50,7 @@ ReflectanceField::ReflectanceField(int width, int height, std::vector<FieldLight
   } catch (const std::bad_alloc&) {
     throw InputError("reflectance field " + std::to_string(width) + "x" + std::to_string(height) +
                      " with " + std::to_string(num_lights()) + " LEDs: allocating " +
-                     gib(double(bytes)) + " GiB failed; use a smaller crop or fewer LEDs");
+                     std::to_string(bytes >> 20) + " MiB failed; use a smaller crop or fewer LEDs");
   }
 }
 
@@ -123,36 +98,10 @@ Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, in
   return l.dir_in_stage.normalized();
 }
 
-size_t available_memory_bytes() {
-  std::optional<std::size_t> available;
-  std::ifstream meminfo("/proc/meminfo");
-  std::string key;
-  std::size_t value_kib = 0;
-  std::string unit;
-  while (meminfo >> key >> value_kib) {
-    std::getline(meminfo, unit);
-    if (key == "MemAvailable:") {
-      available = value_kib * std::size_t(1024);
-      break;
-    }
-  }
-  if (!available) {
-    const long pages = sysconf(_SC_AVPHYS_PAGES);
-    const long page_size = sysconf(_SC_PAGESIZE);
-    available = pages > 0 && page_size > 0 ? std::size_t(pages) * std::size_t(page_size) : 0;
-  }
-  if (const auto cgroup = cgroup_available_bytes()) available = std::min(*available, *cgroup);
-  return *available;
-}
+size_t available_memory_bytes() { return ls::available_memory_bytes(); }
 
 void require_memory(std::size_t bytes, const std::string& what) {
-  const std::size_t available = available_memory_bytes();
-  if (double(bytes) > kMemoryShare * double(available)) {
-    throw InputError(what + " needs " + gib(double(bytes)) + " GiB but only " +
-                     gib(double(available)) +
-                     " GiB of memory are available (at most 80% may be used); use a smaller crop "
-                     "or fewer LEDs");
-  }
+  ls::require_memory(bytes, what, "use a smaller crop or fewer LEDs");
 }
 
 void write_field(const std::filesystem::path& path, const ReflectanceField& field,
@@ -246,7 +195,9 @@ std::vector<FieldLight> parse_lights(const std::string& name, const std::string&
       light.led_id = e.at("id").get<int>();
       light.dir_in_stage = {dir[0].get<double>(), dir[1].get<double>(), dir[2].get<double>()};
       light.valid = e.at("valid").get<bool>();
-      if (!light.dir_in_stage.allFinite()) throw InputError("dir must be finite");
+      if (!light.dir_in_stage.allFinite() || !(light.dir_in_stage.norm() > 0)) {
+        throw InputError("dir must be a finite, non-zero direction");
+      }
       if (e.contains("saturates_at")) {
         const auto& sat = e.at("saturates_at");
         if (!sat.is_array() || sat.size() != 3) throw InputError("saturates_at must be [r, g, b]");

@@ -2,6 +2,7 @@
 // flat fields as the build reads them; the mirror-sphere directions are in light_calibration.cc.
 #include <Eigen/Dense>
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <regex>
@@ -244,7 +245,11 @@ FlatFieldMaps read_flat_field(const std::filesystem::path& file, const Stage& st
           name + ": channel '" + channel +
           "': expected a flat field named ledNNN.Y (lightstage calibrate intensities)");
     }
-    const int id = std::stoi(m[1]);
+    int id = 0;
+    const std::string digits = m[1].str();
+    if (std::from_chars(digits.data(), digits.data() + digits.size(), id).ec != std::errc()) {
+      throw InputError(name + ": channel '" + channel + "': LED id out of range");
+    }
     if (stage.led_index(id) < 0) {
       throw InputError(name + ": channel '" + channel + "': expected an LED of " + stage.source +
                        ", got LED id " + std::to_string(id) + " which it does not have");

@@ -13,6 +13,7 @@
 #include <random>
 
 #include "lightstage/errors.h"
+#include "lightstage/memory.h"
 
 namespace ls {
 
@@ -122,6 +123,13 @@ Image read_image(const fs::path& path) {
   if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) {
     throw InputError(path.string() + ": image has no pixels");
   }
+  // The header's size is checked before it is allocated: a damaged or hostile header can claim
+  // gigabytes in a few bytes.
+  require_memory(std::size_t(spec.width) * spec.height * spec.nchannels * sizeof(float),
+                 path.string() + ": the image's " + std::to_string(spec.width) + "x" +
+                     std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) +
+                     " float pixels",
+                 "is its header damaged?");
   Image image(spec.width, spec.height, spec.nchannels);
   image.channel_names = spec.channelnames;
   if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {

@@ -1,5 +1,6 @@
 #include "lightstage/json_reader.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -7,7 +8,43 @@
 
 namespace ls {
 
+namespace {
+
+// Deeper nesting than any lightstage file holds; much deeper would overflow the stack wherever
+// the value is walked recursively (printing it into an error message, destroying it).
+constexpr int kMaxNesting = 256;
+
+// The deepest nesting of [ and { outside strings.
+int nesting_depth(std::string_view text) {
+  int depth = 0, deepest = 0;
+  bool in_string = false, escaped = false;
+  for (const char c : text) {
+    if (in_string) {
+      if (escaped) {
+        escaped = false;
+      } else if (c == '\\') {
+        escaped = true;
+      } else if (c == '"') {
+        in_string = false;
+      }
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      deepest = std::max(deepest, ++depth);
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return deepest;
+}
+
+}  // namespace
+
 nlohmann::json JsonReader::parse(std::string_view text, const std::string& source) {
+  if (nesting_depth(text) > kMaxNesting) {
+    throw InputError(source + ": not valid here: arrays and objects nested deeper than " +
+                     std::to_string(kMaxNesting) + " levels");
+  }
   try {
     return nlohmann::json::parse(text.begin(), text.end(), nullptr, /*allow_exceptions=*/true,
                                  /*ignore_comments=*/true);
@@ -26,6 +63,10 @@ nlohmann::json JsonReader::parse(std::string_view text, const std::string& sourc
     const auto pos = what.find("syntax error");
     throw InputError(source + ":" + std::to_string(line) + ":" + std::to_string(col) +
                      ": not valid JSON: " + (pos == std::string::npos ? what : what.substr(pos)));
+  } catch (const nlohmann::json::out_of_range& e) {
+    // A number beyond a double (1e400): nlohmann refuses it while parsing.
+    throw InputError(source + ": not valid here: a number out of the range of a double (" +
+                     e.what() + ")");
   }
 }
 

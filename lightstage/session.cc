@@ -174,33 +174,46 @@ Session Session::open(const fs::path& dir) {
                 << ": incomplete journal line ignored (interrupted write); that frame will be "
                    "captured again\n";
       continue;
+    } catch (const json::exception& e) {  // E.g. a number beyond a double.
+      throw InputError(journal_path.string() + ":" + std::to_string(line_no) +
+                       ": not a journal line: " + e.what());
     }
-    if (j.contains("led_signal")) {
-      s.led_signals_[{j["t"].get<int>(), j["led_signal"].get<int>()}] = j["fraction"].get<double>();
-      continue;
+    // Valid JSON of the wrong shape is a damaged journal: say where, never abort.
+    try {
+      if (j.contains("led_signal")) {
+        s.led_signals_[{j["t"].get<int>(), j["led_signal"].get<int>()}] =
+            j["fraction"].get<double>();
+        continue;
+      }
+      if (j.contains("overrun")) {
+        s.overruns_[j["overrun"].get<int>()] = {
+            j["overrun"].get<int>(), j["capture_s"].get<double>(), j["interval_s"].get<double>()};
+        continue;
+      }
+      if (j.contains("dead_led")) {
+        s.dead_leds_[j["dead_led"].get<int>()] = j.value("reason", "");
+        continue;
+      }
+      FrameRecord rec;
+      rec.key = {j["t"].get<int>(), j["led"].get<int>(), j["e"].get<int>(), j["r"].get<int>()};
+      rec.file = j["file"].get<std::string>();
+      rec.exposure_s = j["exposure_s"].get<double>();
+      rec.gain = j["gain"].get<double>();
+      rec.scene_time_s = j["scene_time_s"].get<double>();
+      rec.captured_at = j["at"].get<std::string>();
+      std::error_code missing;  // A symlink loop or an unreadable entry is a missing frame too.
+      if (!fs::exists(dir / rec.file, missing) || missing) {
+        std::cerr << "warning: " << (dir / rec.file).string()
+                  << ": journaled frame is missing on disk; it will be captured again\n";
+        continue;
+      }
+      s.frames_[rec.key] = rec;
+    } catch (const json::exception& e) {
+      throw InputError(journal_path.string() + ":" + std::to_string(line_no) +
+                       ": expected a frame {t, led, e, r, file, exposure_s, gain, scene_time_s, "
+                       "at}, an led_signal, an overrun or a dead_led: " +
+                       e.what());
     }
-    if (j.contains("overrun")) {
-      s.overruns_[j["overrun"].get<int>()] = {j["overrun"].get<int>(), j["capture_s"].get<double>(),
-                                              j["interval_s"].get<double>()};
-      continue;
-    }
-    if (j.contains("dead_led")) {
-      s.dead_leds_[j["dead_led"].get<int>()] = j.value("reason", "");
-      continue;
-    }
-    FrameRecord rec;
-    rec.key = {j["t"].get<int>(), j["led"].get<int>(), j["e"].get<int>(), j["r"].get<int>()};
-    rec.file = j["file"].get<std::string>();
-    rec.exposure_s = j["exposure_s"].get<double>();
-    rec.gain = j["gain"].get<double>();
-    rec.scene_time_s = j["scene_time_s"].get<double>();
-    rec.captured_at = j["at"].get<std::string>();
-    if (!fs::exists(dir / rec.file)) {
-      std::cerr << "warning: " << (dir / rec.file).string()
-                << ": journaled frame is missing on disk; it will be captured again\n";
-      continue;
-    }
-    s.frames_[rec.key] = rec;
   }
   return s;
 }

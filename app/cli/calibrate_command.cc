@@ -5,6 +5,7 @@
 //   lightstage calibrate camera --images DIR --board 9x6 --square 30 [--stage S --out CAL.json]
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <charconv>
 #include <cstdio>
 #include <memory>
 #include <regex>
@@ -41,6 +42,16 @@ struct CalibrateArgs {
   bool square_pixels = false;
 };
 
+// An LED id from a photo's name (ledNNN): InputError naming the file when it is out of range.
+int parse_led_id(const std::string& digits, const fs::path& file) {
+  int id = 0;
+  const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), id);
+  if (error != std::errc() || end != digits.data() + digits.size()) {
+    throw InputError(file.string() + ": LED id " + digits + " is out of range");
+  }
+  return id;
+}
+
 bool is_image(const fs::path& p) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
@@ -73,7 +84,7 @@ std::vector<std::pair<fs::path, int>> list_photos(const fs::path& dir, const Sta
       all_named = false;
       break;
     }
-    const int index = stage.led_index(std::stoi(m[1]));
+    const int index = stage.led_index(parse_led_id(m[1].str(), f));
     if (index < 0) {
       throw InputError(f.string() + ": the stage " + stage.source + " has no LED with id " +
                        m[1].str());
@@ -263,8 +274,16 @@ capture::ChessboardSpec parse_board(const std::string& text, double square_mm) {
     throw InputError("--board: expected WxH inner corners (e.g. 9x6), got \"" + text + "\"");
   }
   capture::ChessboardSpec spec;
-  spec.inner_cols = std::stoi(m[1]);
-  spec.inner_rows = std::stoi(m[2]);
+  auto corners = [&](const std::string& digits) {
+    int count = 0;
+    const auto [end, error] = std::from_chars(digits.data(), digits.data() + digits.size(), count);
+    if (error != std::errc() || end != digits.data() + digits.size() || count > 1000) {
+      throw InputError("--board: expected at most 1000 inner corners a side, got \"" + text + "\"");
+    }
+    return count;
+  };
+  spec.inner_cols = corners(m[1].str());
+  spec.inner_rows = corners(m[2].str());
   spec.square_m = square_mm * 1e-3;
   spec.check();
   return spec;

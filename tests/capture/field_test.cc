@@ -182,6 +182,12 @@ TEST(Field, ReadValidatesAndNamesTheFile) {
                   R"([{"id": 4, "dir": [0, 1, 0], "valid": true, "saturates_at": [1, 0, 1]}])");
   EXPECT_THAT(read_error(f5), HasSubstr(f5));
   EXPECT_THAT(read_error(f5), HasSubstr("saturates_at must be finite and positive"));
+  // A light with no direction cannot be given a cell (relighting) or a shading term (fits).
+  const std::string f6 = (dir / "zerodir.exr").string();
+  write_plain_exr(f6, {"led004.R", "led004.G", "led004.B"},
+                  R"([{"id": 4, "dir": [0, 0, 0], "valid": true}])");
+  EXPECT_THAT(read_error(f6), HasSubstr(f6));
+  EXPECT_THAT(read_error(f6), HasSubstr("non-zero direction"));
   EXPECT_THAT(read_error(dir / "absent.exr"), HasSubstr("absent.exr"));
   // A valid minimal file reads.
   const std::string ok = (dir / "ok.exr").string();

@@ -128,6 +128,18 @@ TEST(CalibrateCli, DirectionsThenIntensitiesRecoverThePerturbedDome) {
       2)
       << output;
   EXPECT_NE(output.find("reference.exr: no sphere found"), std::string::npos) << output;
+
+  // A photo named for an LED id beyond an int: exit code 2 naming the file, no crash.
+  std::filesystem::copy_file(dir / "spheres" / "reference.exr",
+                             dir / "spheres" / "led99999999999999999999.exr");
+  EXPECT_EQ(
+      testing::run_command(cli + " calibrate directions --quiet --stage " +
+                               (dir / "stage.json").string() + " --images " +
+                               (dir / "spheres").string() + " --out " + (dir / "x.json").string(),
+                           &output),
+      2)
+      << output;
+  EXPECT_NE(output.find("led99999999999999999999.exr: LED id"), std::string::npos) << output;
 }
 
 TEST(CalibrateCli, CameraFromChessboardPhotographsWritesTheFieldOfView) {
@@ -175,6 +187,13 @@ TEST(CalibrateCli, CameraFromChessboardPhotographsWritesTheFieldOfView) {
             2)
       << output;
   EXPECT_NE(output.find("--board: expected WxH"), std::string::npos) << output;
+  // A count beyond an int (std::stoi threw out_of_range here once): exit code 2 naming the flag.
+  EXPECT_EQ(testing::run_command(cli + " calibrate camera --quiet --images " +
+                                     (dir / "boards").string() + " --board 99999999999x6",
+                                 &output),
+            2)
+      << output;
+  EXPECT_NE(output.find("--board: expected at most 1000"), std::string::npos) << output;
 }
 
 }  // namespace

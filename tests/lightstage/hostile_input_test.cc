@@ -1,0 +1,98 @@
+// Hostile JSON and damaged journals: clear InputErrors naming the file (and line), never a crash.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "lightstage/errors.h"
+#include "lightstage/image.h"
+#include "lightstage/json_reader.h"
+#include "lightstage/session.h"
+#include "lightstage/stage.h"
+#include "tests/support/test_support.h"
+
+namespace ls {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string input_error(const std::function<void()>& fn) {
+  try {
+    fn();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "(no InputError)";
+}
+
+TEST(HostileInput, DeepNestingIsRefusedBeforeAnythingWalksIt) {
+  const std::string deep(200000, '[');
+  const std::string what = input_error([&] { (void)JsonReader::parse(deep, "deep.json"); });
+  EXPECT_NE(what.find("deep.json: "), std::string::npos) << what;
+  EXPECT_NE(what.find("nested deeper"), std::string::npos) << what;
+  // Brackets inside strings do not count.
+  EXPECT_NO_THROW((void)JsonReader::parse("{\"note\": \"" + std::string(1000, '[') + "\"}", "s"));
+}
+
+TEST(HostileInput, NumberBeyondADoubleNamesTheFile) {
+  const std::string what = input_error(
+      [&] { (void)parse_stage(R"({"camera": {"distance_m": 1e400}})", "lab_dome.json"); });
+  EXPECT_NE(what.find("lab_dome.json: "), std::string::npos) << what;
+  EXPECT_NE(what.find("range of a double"), std::string::npos) << what;
+}
+
+TEST(HostileInput, ImageHeaderClaimingTooMuchIsRefusedBeforeAllocating) {
+  testing::TempDir dir;
+  // A Radiance header of a 100000 x 50000 map (60 GB of float pixels) over a few bytes of data.
+  const fs::path file = dir / "huge.hdr";
+  std::ofstream(file, std::ios::binary)
+      << "#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 50000 +X 100000\n"
+      << std::string(64, '\x80');
+  const std::string what = input_error([&] { (void)read_image(file); });
+  EXPECT_NE(what.find("huge.hdr: the image's 100000x50000x3 float pixels needs"), std::string::npos)
+      << what;
+}
+
+class DamagedJournal : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    Stage stage = stage_with_directions(fibonacci_dome_directions(4, 0));
+    stage.camera.width = 8;
+    stage.camera.height = 4;
+    const auto plan = plan_frames(stage);
+    Session s = Session::create(dir_ / "s", stage, {});
+    CapturedFrame frame;
+    frame.raw = {8, 4, 3, 12, std::vector<uint16_t>(8 * 4 * 3, 100)};
+    frame.exposure_s = 0.01;
+    for (int i = 0; i < 3; ++i) s.record_frame(plan[i], frame);
+    first_frame_file_ = dir_ / "s" / "frames" / (plan[0].key.name(stage) + ".png");
+  }
+  void append(const std::string& line) {
+    std::ofstream(dir_ / "s" / "frames.jsonl", std::ios::app) << line << "\n";
+  }
+  testing::TempDir dir_;
+  fs::path first_frame_file_;
+};
+
+TEST_F(DamagedJournal, ValidJsonOfTheWrongShapeNamesTheJournalLine) {
+  append(R"({"t": [1, 2], "led": 0})");
+  const std::string what = input_error([&] { (void)Session::open(dir_ / "s"); });
+  EXPECT_NE(what.find("frames.jsonl:4: expected a frame"), std::string::npos) << what;
+}
+
+TEST_F(DamagedJournal, NumberBeyondADoubleNamesTheJournalLine) {
+  append(R"({"t": 0, "led": 0, "e": 0, "r": 0, "exposure_s": 1e400})");
+  const std::string what = input_error([&] { (void)Session::open(dir_ / "s"); });
+  EXPECT_NE(what.find("frames.jsonl:4: "), std::string::npos) << what;
+}
+
+TEST_F(DamagedJournal, FrameFileThatIsASymlinkLoopIsMissingNotACrash) {
+  fs::remove(first_frame_file_);
+  fs::create_symlink(first_frame_file_.filename(), first_frame_file_);  // Points at itself.
+  const Session s = Session::open(dir_ / "s");
+  EXPECT_EQ(s.frames().size(), 2u);  // That frame will be captured again.
+}
+
+}  // namespace
+}  // namespace ls
