@@ -2,6 +2,8 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <cmath>
+
 #include "lightstage/errors.h"
 
 namespace ls {
@@ -57,6 +59,20 @@ NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std
     }
   }
   return out;
+}
+
+void write_channel_preview(const fs::path& path, const std::string& name, const Image& maps,
+                           int first, int channels, const std::function<float(float)>& transform) {
+  Image image(maps.width, maps.height, channels);
+  for (size_t i = 0; i < maps.num_pixels(); ++i) {
+    for (int c = 0; c < channels; ++c) {
+      const float v = maps.pixels[i * maps.channels + first + c];
+      image.pixels[i * channels + c] = std::isfinite(v) ? transform(v) : 0.0f;
+    }
+  }
+  fs::path out = path;
+  out.replace_extension(name + ".png");
+  write_png_preview(out, image);
 }
 
 }  // namespace ls

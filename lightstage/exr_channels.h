@@ -1,5 +1,6 @@
 #pragma once
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -20,5 +21,12 @@ struct NamedChannelFile {
 NamedChannelFile read_named_channels(const std::filesystem::path& path,
                                      const std::vector<std::string>& names, const std::string& kind,
                                      const std::string& origin, bool exact);
+
+// A PNG preview of channels [first, first + channels) of `maps` (the channels written to `path`),
+// each value through `transform` (non-finite values black), written beside `path` as
+// STEM.NAME.png.
+void write_channel_preview(const std::filesystem::path& path, const std::string& name,
+                           const Image& maps, int first, int channels,
+                           const std::function<float(float)>& transform);
 
 }  // namespace ls

@@ -374,18 +374,9 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
   ExrAttributes header = attributes;
   header.emplace_back(kFitNoiseAttribute, noise.dump());
   write_exr(path, named, ExrPixelType::kFloat, header);
-  const Image& src = maps.maps;
-  auto preview = [&](const std::string& name, int first, int channels, auto transform) {
-    Image image(src.width, src.height, channels);
-    for (size_t i = 0; i < src.num_pixels(); ++i) {
-      for (int c = 0; c < channels; ++c) {
-        const float v = src.pixels[i * src.channels + first + c];
-        image.pixels[i * channels + c] = std::isfinite(v) ? float(transform(v)) : 0.0f;
-      }
-    }
-    std::filesystem::path out = path;
-    out.replace_extension(name + ".png");
-    write_png_preview(out, image);
+  auto preview = [&](const std::string& name, int first, int channels,
+                     const std::function<float(float)>& transform) {
+    write_channel_preview(path, name, maps.maps, first, channels, transform);
   };
   auto identity = [](float v) { return v; };
   preview("normal", kMapNormalX, 3, [](float v) { return 0.5f + 0.5f * v; });

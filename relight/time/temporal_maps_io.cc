@@ -38,17 +38,9 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
   for (size_t i = 0; i < image.num_pixels(); ++i) {
     max_rate = std::max(max_rate, double(image.pixels[i * image.channels + kTRate]));
   }
-  auto preview = [&](const std::string& name, int first, int channels, auto transform) {
-    Image p(image.width, image.height, channels);
-    for (size_t i = 0; i < image.num_pixels(); ++i) {
-      for (int c = 0; c < channels; ++c) {
-        const float v = image.pixels[i * image.channels + first + c];
-        p.pixels[i * channels + c] = std::isfinite(v) ? float(transform(v)) : 0.0f;
-      }
-    }
-    std::filesystem::path file = path;
-    file.replace_extension(name + ".png");
-    write_png_preview(file, p);
+  auto preview = [&](const std::string& name, int first, int channels,
+                     const std::function<float(float)>& transform) {
+    write_channel_preview(path, name, image, first, channels, transform);
   };
   auto identity = [](float v) { return v; };
   preview("model", kTModel, 1, [](float v) { return v / 4; });
