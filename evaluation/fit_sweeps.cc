@@ -15,10 +15,14 @@
 #include "relight/fit/fit.h"
 #include "relight/fit/normals.h"
 #include "sim/noisy_field.h"
+#include "sim/region_materials.h"
 
 namespace ls::evaluation {
 namespace {
 
+using sim::kGlossy;
+using sim::kMatte;
+using sim::kRough;
 using sim::Plane;
 using sim::Scene;
 using sim::SceneMaterial;
@@ -40,42 +44,10 @@ constexpr double kMaxRoughness = 1.0 + 1e-6;
 constexpr double kUnbounded = std::numeric_limits<double>::max();
 constexpr double kMaxPlausibleAlbedo = 1.0;
 
-enum Region { kMatte = 0, kRough = 1, kGlossy = 2 };
-
-brdf::Material region_material(int region) {
-  brdf::Material m;
-  switch (region) {
-    case kMatte:
-      m.albedo = {0.75, 0.6, 0.45};
-      break;
-    case kRough:
-      m.diffuse = brdf::DiffuseModel::kOrenNayar;
-      m.albedo = {0.6, 0.45, 0.3};
-      m.sigma_rad = 30.0 / kRadToDeg;
-      break;
-    default:
-      m.albedo = {0.55, 0.15, 0.1};
-      m.specular = brdf::SpecularModel::kTorranceSparrow;
-      m.ks = {0.35, 0.35, 0.35};
-      m.roughness = 0.2;
-      break;
-  }
-  return m;
-}
-
 relight::FitModel region_model(int region) {
   return region == kMatte   ? relight::FitModel::kLambert
          : region == kRough ? relight::FitModel::kOrenNayar
                             : relight::FitModel::kLambertTorranceSparrow;
-}
-
-void add_region_materials(Scene& scene) {
-  for (int r = 0; r < 3; ++r) {
-    SceneMaterial m;
-    m.name = "region" + std::to_string(r);
-    m.base = region_material(r);
-    scene.materials.push_back(m);
-  }
 }
 
 // Three spheres in a row; object index = region.

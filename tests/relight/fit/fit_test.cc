@@ -10,6 +10,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
+#include "sim/region_materials.h"
 #include "sim/sim_stage.h"
 #include "tests/app/e2e_fixtures.h"
 #include "tests/relight/fit/fit_fixtures.h"
@@ -26,28 +27,10 @@ constexpr double kRadToDeg = 180.0 / kPi;
 
 // Three spheres in a row: matte (Lambert), rough matte (Oren-Nayar, sigma 30 deg), glossy
 // (Lambert + Torrance-Sparrow). Object index = sphere index = region.
-enum Region { kMatte = 0, kRough = 1, kGlossy = 2 };
-
-brdf::Material region_material(int region) {
-  brdf::Material m;
-  switch (region) {
-    case kMatte:
-      m.albedo = {0.75, 0.6, 0.45};
-      break;
-    case kRough:
-      m.diffuse = brdf::DiffuseModel::kOrenNayar;
-      m.albedo = {0.6, 0.45, 0.3};
-      m.sigma_rad = 30.0 / kRadToDeg;
-      break;
-    case kGlossy:
-      m.albedo = {0.55, 0.15, 0.1};
-      m.specular = brdf::SpecularModel::kTorranceSparrow;
-      m.ks = {0.35, 0.35, 0.35};
-      m.roughness = 0.2;
-      break;
-  }
-  return m;
-}
+using sim::kGlossy;
+using sim::kMatte;
+using sim::kRough;
+using sim::region_material;
 
 FitModel region_model(int region) {
   return region == kMatte   ? FitModel::kLambert
@@ -57,11 +40,8 @@ FitModel region_model(int region) {
 
 sim::Scene three_spheres() {
   sim::Scene scene;
-  for (int r = 0; r < 3; ++r) {
-    sim::SceneMaterial m;
-    m.name = "region" + std::to_string(r);
-    m.base = region_material(r);
-    scene.materials.push_back(m);
+  sim::add_region_materials(scene);
+  for (int r = kMatte; r <= kGlossy; ++r) {
     scene.spheres.push_back({Eigen::Vector3d(-0.9 + 0.9 * r, 0, 0), 0.4, r});
   }
   return scene;
