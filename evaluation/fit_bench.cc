@@ -31,19 +31,34 @@ std::string FitBenchOptions::validate() const {
 
 namespace {
 
-// One fit configuration: which candidate models the BIC choice may pick from. Lambert is always a
-// candidate (FitOptions has no switch for it), so "Oren-Nayar" is Lambert-or-Oren-Nayar etc.
+// One fit configuration: which candidate models the BIC choice may pick from, and the solver
+// (relight::FitSolver: the profiled solver of issue 15, or LM on every candidate as before it).
+// Lambert is always a candidate (FitOptions has no switch for it), so "Oren-Nayar" is
+// Lambert-or-Oren-Nayar etc.
 struct FitConfig {
   std::string name;
   bool oren_nayar, torrance_sparrow, phong;
+  relight::FitSolver solver;
 };
 
 const std::vector<FitConfig>& fit_configs() {
-  static const std::vector<FitConfig> configs{{"Lambert", false, false, false},
-                                              {"Oren-Nayar", true, false, false},
-                                              {"Lambert+TS", false, true, false},
-                                              {"Lambert+Phong", false, false, true},
-                                              {"BIC (L, ON, L+TS)", true, true, false}};
+  static const std::vector<FitConfig> configs = [] {
+    const std::vector<FitConfig> models{{"Lambert", false, false, false, {}},
+                                        {"Oren-Nayar", true, false, false, {}},
+                                        {"Lambert+TS", false, true, false, {}},
+                                        {"Lambert+Phong", false, false, true, {}},
+                                        {"BIC (L, ON, L+TS)", true, true, false, {}}};
+    std::vector<FitConfig> out;
+    for (const relight::FitSolver solver :
+         {relight::FitSolver::kProfiled, relight::FitSolver::kEveryCandidateByLm}) {
+      for (FitConfig config : models) {
+        config.solver = solver;
+        config.name += solver == relight::FitSolver::kProfiled ? " [profiled]" : " [LM]";
+        out.push_back(config);
+      }
+    }
+    return out;
+  }();
   return configs;
 }
 
@@ -65,6 +80,7 @@ Fits fit_all(const capture::ReflectanceField& field, const relight::FitOptions& 
     options.fit_oren_nayar = config.oren_nayar;
     options.fit_torrance_sparrow = config.torrance_sparrow;
     options.fit_phong = config.phong;
+    options.solver = config.solver;
     const std::string phase = "fit " + config.name;
     options.progress = [&](long done, long total) {
       if (done < total) report(progress, phase, done, total);

@@ -1,7 +1,8 @@
 #pragma once
 // `lightstage bench fit`: per-pixel model fits against field relighting on the demo scene. Fit
 // throughput of each model (Lambert, Oren-Nayar, Lambert + Torrance-Sparrow, Lambert + Phong, and
-// the BIC choice) and the error of relighting from it under every map against ground truth, with
+// the BIC choice), each by both solvers (relight::FitSolver: profiled, and LM on every candidate),
+// and the error of relighting from it under every map against ground truth, with
 // the field's relighting on the same chart. Writes fit.csv, fit_error_vs_time.png and
 // fit_error_vs_throughput.png.
 #include <filesystem>

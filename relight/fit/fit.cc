@@ -17,6 +17,7 @@
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
 #include "relight/fit/pixel_solver.h"
+#include "relight/fit/profiled_fit.h"
 #include "relight/lighting/brdf.h"
 
 namespace ls::relight {
@@ -132,10 +133,23 @@ ModelFit run_fit(const PixelData& d, const std::array<double, 7>& start, int max
   return fit;
 }
 
+// Lambert + Phong (a comparison only) by LM from the Lambert fit's raw parameters.
+ModelFit fit_phong(const PixelData& d, std::array<double, 7> start, const FitOptions& options,
+                   std::array<bool, 5>* implausible) {
+  start[5] = std::sqrt(0.05);
+  start[6] = pixel::bounded_inverse(50.0, 1.0, kMaxPhongExponent);  // Exponent 50.
+  ModelFit fit = run_fit<FitModel::kLambertPhong>(d, start, options.max_iterations);
+  if (fit.ok && fit.ks > options.max_specular_albedo) {
+    (*implausible)[4] = true;
+    return {};
+  }
+  return fit;
+}
+
 // Every candidate model's fit, indexed by FitModel (not ok: not tried or discarded);
 // implausible[k]: a lobe fit of model k was thrown away for k_s > max_specular_albedo.
-std::array<ModelFit, 5> fit_candidates(const PixelData& d, const FitOptions& options,
-                                       std::array<bool, 5>* implausible) {
+std::array<ModelFit, 5> fit_candidates_by_lm(const PixelData& d, const FitOptions& options,
+                                             std::array<bool, 5>* implausible) {
   // Lambert start: closed-form albedo per channel with the PS normal.
   std::array<double, 7> start{};
   const Eigen::Vector3d albedo = pixel::lambert_albedo(d.samples, d.count, d.n0);
@@ -162,23 +176,104 @@ std::array<ModelFit, 5> fit_candidates(const PixelData& d, const FitOptions& opt
       if (f.ok && f.bic < fits[3].bic) fits[3] = f;
     }
   }
-  if (options.fit_phong) {
-    std::array<double, 7> s = start;
-    s[5] = std::sqrt(0.05);
-    s[6] = pixel::bounded_inverse(50.0, 1.0, kMaxPhongExponent);  // Exponent 50.
-    fits[4] = run_fit<FitModel::kLambertPhong>(d, s, options.max_iterations);
-    if (fits[4].ok && fits[4].ks > options.max_specular_albedo) {
-      (*implausible)[4] = true;
-      fits[4] = ModelFit{};
-    }
+  if (options.fit_phong) fits[4] = fit_phong(d, start, options, implausible);
+  return fits;
+}
+
+int num_params(FitModel model, bool refine_normal) {
+  const int k = model == FitModel::kLambert ? 5 : model == FitModel::kOrenNayar ? 6 : 7;
+  return refine_normal ? k : k - 2;
+}
+
+// A closed-form candidate (relight/fit/profiled_fit.h) as a ModelFit at the given normal.
+ModelFit to_model_fit(const profiled::Candidate& c, FitModel model, const Eigen::Vector3d& normal,
+                      const PixelData& d) {
+  ModelFit fit;
+  if (!c.ok) return fit;
+  fit.ok = true;
+  fit.status = SolverStatus::kConverged;
+  fit.k = num_params(model, d.refine_normal);
+  fit.chi2 = c.chi2;
+  fit.bic = c.chi2 + fit.k * std::log(double(3 * d.count));
+  fit.normal = normal;
+  fit.albedo = c.albedo;
+  fit.sigma = c.sigma;
+  fit.ks = c.ks;
+  fit.roughness = c.roughness;
+  for (int i = 0; i < 3; ++i) fit.x[2 + i] = pixel::non_negative_inverse(c.albedo(i), 1e-4);
+  return fit;
+}
+
+// Candidates whose closed-form BIC is within this of the polished best's, after crediting them
+// with the best's gain from polishing, are polished too: refining the normal could still make one
+// of them best. 2 = a BIC weight of e^-1 (37%); wider margins polish nearly every candidate of
+// every pixel (a nested model is always within its penalty of the simpler one) for no change
+// in the choice on the fit tests.
+constexpr double kPolishMargin = 2;
+
+// A pixel whose best candidate leaves residuals of 10 sigma rms (reduced chi^2 100) is explained
+// by none of the models (an occluding edge, an interreflection, a cast shadow's penumbra): LM
+// crawls there for tens of iterations refining the wrong model. Its polish gets at most this
+// many iterations and, when it runs out, the pixel is flagged kFitNotConverged as usual.
+constexpr double kUnexplainedReducedChi2 = 100;
+constexpr int kUnexplainedPolishIterations = 10;
+
+// The closed-form candidates (relight/fit/profiled_fit.h) at the photometric-stereo normal; the
+// best by BIC, and every other still within reach of it, polished by LM.
+std::array<ModelFit, 5> fit_candidates_profiled(const PixelData& d, const FitOptions& options,
+                                                std::array<bool, 5>* implausible) {
+  thread_local profiled::PixelTerms terms;
+  terms.reset(d.samples, d.count, d.n0, d.wo);
+  std::array<profiled::Candidate, 4> candidates;
+  candidates[1] = terms.lambert();
+  if (options.fit_oren_nayar) candidates[2] = terms.oren_nayar();
+  if (options.fit_torrance_sparrow) {
+    candidates[3] = terms.torrance_sparrow(options.max_specular_albedo);
+    (*implausible)[3] = candidates[3].implausible_lobe;
   }
+  std::array<ModelFit, 5> fits;
+  for (int k = 1; k < 4; ++k) fits[k] = to_model_fit(candidates[k], FitModel(k), d.n0, d);
+  const profiled::PixelProblem problem{
+      d.samples, d.count, d.n0, d.t1, d.t2, d.wo, d.refine_normal, terms.min_roughness()};
+  int iterations = options.max_iterations;
+  // The LM polish of candidate k, normal included. The candidate is kept when the polish ends no
+  // lower (it already was the minimum), and flagged not converged when the polish failed or left
+  // the k_s bound.
+  auto polish = [&](int k) {
+    const profiled::Polished p = profiled::polish(FitModel(k), candidates[k], problem, iterations);
+    if (p.status == SolverStatus::kFailed || p.fit.ks > options.max_specular_albedo) {
+      fits[k].status = SolverStatus::kHitIterationLimit;
+      return;
+    }
+    if (p.fit.chi2 < candidates[k].chi2) fits[k] = to_model_fit(p.fit, FitModel(k), p.normal, d);
+    fits[k].status = p.status;
+  };
+  int best = 0;
+  for (int k = 1; k < 4; ++k) {
+    if (fits[k].ok && (best == 0 || fits[k].bic < fits[best].bic)) best = k;
+  }
+  if (best == 0) return fits;
+  const int dof = std::max(1, 3 * d.count - fits[best].k);
+  if (fits[best].chi2 > kUnexplainedReducedChi2 * dof) {
+    iterations = std::min(iterations, kUnexplainedPolishIterations);
+  }
+  const double coarse_chi2 = fits[best].chi2;
+  polish(best);
+  const double gain = coarse_chi2 - fits[best].chi2;
+  const double reach = fits[best].bic + gain + kPolishMargin;
+  for (int k = 1; k < 4; ++k) {
+    if (k != best && fits[k].ok && fits[k].bic < reach) polish(k);
+  }
+  if (options.fit_phong) fits[4] = fit_phong(d, fits[1].x, options, implausible);
   return fits;
 }
 
 // Fits one pixel with usable samples: chooses the model, writes the map values m, counts in local.
 void fit_pixel(const PixelData& d, const FitOptions& options, float* m, FitSummary& local) {
   std::array<bool, 5> implausible{};
-  const std::array<ModelFit, 5> fits = fit_candidates(d, options, &implausible);
+  const std::array<ModelFit, 5> fits = options.solver == FitSolver::kProfiled
+                                           ? fit_candidates_profiled(d, options, &implausible)
+                                           : fit_candidates_by_lm(d, options, &implausible);
   int best = 0;
   for (int k = 1; k < 5; ++k) {
     const bool tried = k == 1 || (k == 2 && options.fit_oren_nayar) ||
@@ -238,6 +333,10 @@ const char* to_string(FitModel model) {
       return "lambert+phong";
   }
   return "?";
+}
+
+const char* to_string(FitSolver solver) {
+  return solver == FitSolver::kProfiled ? "profiled" : "every-candidate-by-lm";
 }
 
 std::string FitOptions::validate() const {

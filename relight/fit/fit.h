@@ -10,7 +10,13 @@
 // angles: PS is biased for non-Lambertian surfaces, e.g. Oren-Nayar flattens the shading toward
 // the viewer), so k = 5, 6, 7, 7 parameters.
 //
-// Each fit is bounded Levenberg-Marquardt (ceres::TinySolver through relight/fit/pixel_solver.h,
+// Solvers (FitSolver): by default (issue 15) each candidate is first fitted at the photometric-
+// stereo normal with its albedos and k_s in closed form and its nonlinear parameter searched
+// (relight/fit/profiled_fit.h); the best candidate by BIC, and any other that normal refinement
+// could still make best, is then polished, normal included, by the bounded LM below. The older
+// solver runs the LM on every candidate from the Lambert start (kEveryCandidateByLm).
+//
+// Each LM fit is bounded Levenberg-Marquardt (ceres::TinySolver through relight/fit/pixel_solver.h,
 // autodiff Jets through relight/lighting/brdf.h) with the bounds built into the parametrisation:
 // albedo = u^2, k_s = u^2, sigma = (pi/2) sigmoid(u), roughness = 0.02 + 0.98 sigmoid(u), Phong
 // exponent = 1 + (1e4 - 1) sigmoid(u). A chosen fit whose solver stopped on max_iterations is
@@ -53,7 +59,14 @@ const char* to_string(FitModel model);
 // Default bound on a lobe's k_s, shared with ModelRenderOptions (relight/fit/model_render.h).
 inline constexpr double kDefaultMaxSpecularAlbedo = 2.0;
 
+enum class FitSolver {
+  kProfiled,            // Closed-form candidates, LM polish of the contenders (the default).
+  kEveryCandidateByLm,  // LM on every candidate (before issue 15; kept as the comparison).
+};
+const char* to_string(FitSolver solver);
+
 struct FitOptions {
+  FitSolver solver = FitSolver::kProfiled;
   // Normals (used when fit_models estimates them) and the shadow threshold and noise model of the
   // fits: one NoiseModel for both.
   NormalOptions normals;

@@ -53,8 +53,9 @@ Solve weighted_solve(const std::vector<Eigen::Vector3d>& dirs, const Scratch& s)
     ++out.used;
   }
   if (out.used < 3) return out;
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(geometry, Eigen::EigenvaluesOnly);
-  const Eigen::Vector3d ev = eig.eigenvalues();  // Ascending.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(geometry, Eigen::EigenvaluesOnly);  // Closed form for 3x3.
+  const Eigen::Vector3d ev = eig.eigenvalues();         // Ascending.
   out.condition = ev(2) > 0 ? std::sqrt(std::max(ev(0), 0.0) / ev(2)) : 0.0;
   const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
   if (ldlt.info() != Eigen::Success) return out;

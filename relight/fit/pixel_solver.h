@@ -140,15 +140,19 @@ double chi2_at(const Cost& cost, const double* x) {
   return chi2;
 }
 
-// Levenberg-Marquardt (ceres::TinySolver, autodiff Jets) on cost from start, at most
-// max_iterations iterations.
-template <class Cost, int K>
-SolveResult<K> solve(const Cost& cost, const Eigen::Matrix<double, K, 1>& start,
-                     int max_iterations) {
-  using Function = ceres::TinySolverAutoDiffFunction<Cost, Eigen::Dynamic, K>;
-  const Function function(cost);
+// TinySolver's default: it stops once an accepted step lowers chi^2 by less than this (absolute,
+// in chi^2 units).
+inline constexpr double kDefaultChi2Tolerance = 1e-6;
+
+// Levenberg-Marquardt (ceres::TinySolver) on a TinySolver function (residuals and Jacobian) from
+// start, at most max_iterations iterations; chi^2 re-evaluated by cost.
+template <class Function, class Cost, int K>
+SolveResult<K> solve_function(const Function& function, const Cost& cost,
+                              const Eigen::Matrix<double, K, 1>& start, int max_iterations,
+                              double chi2_tolerance = kDefaultChi2Tolerance) {
   ceres::TinySolver<Function> solver;
   solver.options.max_num_iterations = max_iterations;
+  solver.options.function_tolerance = chi2_tolerance;
   SolveResult<K> out;
   out.x = start;
   const auto& summary = solver.Solve(function, &out.x);
@@ -161,6 +165,14 @@ SolveResult<K> solve(const Cost& cost, const Eigen::Matrix<double, K, 1>& start,
     out.status = SolverStatus::kConverged;
   }
   return out;
+}
+
+// The same with the Jacobian by autodiff Jets of a cost functor.
+template <class Cost, int K>
+SolveResult<K> solve(const Cost& cost, const Eigen::Matrix<double, K, 1>& start, int max_iterations,
+                     double chi2_tolerance = kDefaultChi2Tolerance) {
+  using Function = ceres::TinySolverAutoDiffFunction<Cost, Eigen::Dynamic, K>;
+  return solve_function(Function(cost), cost, start, max_iterations, chi2_tolerance);
 }
 
 }  // namespace ls::relight::pixel

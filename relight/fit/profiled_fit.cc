@@ -1,0 +1,406 @@
+#include "relight/fit/profiled_fit.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "relight/lighting/brdf.h"
+
+namespace ls::relight::profiled {
+namespace {
+
+using pixel::kPi;
+
+constexpr double kMaxSigma = 0.5 * kPi;
+constexpr double kMaxLobeExponent = 40;  // exp(-40) ~ 4e-18 of the lobe's peak: skipped.
+constexpr int kSigmaGrid = 33;           // 2.8 degree steps over [0, pi/2].
+constexpr int kRoughnessGrid = 10;       // Log-spaced over [min_roughness, 1].
+constexpr int kResolvingSamples = 3;     // A lobe needs this many samples above 10% of its peak.
+// Golden-section steps inside the best grid bracket (two steps wide): 6 narrow it to 0.04 of a
+// step for sigma and to +-4% for the roughness; the polish takes it from there.
+constexpr int kRefineSteps = 6;
+// The polish stops once a step lowers chi^2 by less than this: a thousandth of the change that
+// matters to a BIC comparison (1 unit), where TinySolver's default is 1e-6.
+constexpr double kPolishChi2Tolerance = 1e-3;
+
+// Oren-Nayar's A and B of sigma (relight/lighting/brdf.h).
+void oren_nayar_ab(double sigma, double* a, double* b) {
+  const double s2 = sigma * sigma;
+  *a = 1 - 0.5 * s2 / (s2 + 0.33);
+  *b = 0.45 * s2 / (s2 + 0.09);
+}
+
+// Minimises f over [lo, hi] by golden section, starting from the bracket of a grid minimum;
+// returns the best argument seen (x_best, f_best updated in place).
+template <class F>
+void golden_refine(const F& f, double lo, double hi, double* x_best, double* f_best) {
+  constexpr double kInvPhi = 0.6180339887498949;
+  double x1 = hi - kInvPhi * (hi - lo), x2 = lo + kInvPhi * (hi - lo);
+  double f1 = f(x1), f2 = f(x2);
+  for (int i = 0; i < kRefineSteps; ++i) {
+    if (f1 < f2) {
+      hi = x2;
+      x2 = x1;
+      f2 = f1;
+      x1 = hi - kInvPhi * (hi - lo);
+      f1 = f(x1);
+    } else {
+      lo = x1;
+      x1 = x2;
+      f1 = f2;
+      x2 = lo + kInvPhi * (hi - lo);
+      f2 = f(x2);
+    }
+  }
+  if (f1 < *f_best) *x_best = x1, *f_best = f1;
+  if (f2 < *f_best) *x_best = x2, *f_best = f2;
+}
+
+}  // namespace
+
+void PixelTerms::reset(const pixel::Sample* samples, int count, const Eigen::Vector3d& normal,
+                       const Eigen::Vector3d& view) {
+  count_ = count;
+  for (int c = 0; c < 3; ++c) {
+    w_[c].resize(size_t(count));
+    v_[c].resize(size_t(count));
+    ov_[c] = lo_[c] = oo_[c] = 0;
+  }
+  lambert_sums_ = LinearSums<double>{};
+  lambert_.resize(size_t(count));
+  oren_nayar_.resize(size_t(count));
+  tan2_h_.resize(size_t(count));
+  lobe_scale_.resize(size_t(count));
+  min_tan2_h_ = HUGE_VAL;
+  const double cos_o = normal.dot(view);
+  for (int i = 0; i < count; ++i) {
+    const pixel::Sample& s = samples[i];
+    const double cos_i = normal.dot(s.l), cos_io = s.l.dot(view);
+    double lambert = 0, oren_nayar = 0, tan2_h = HUGE_VAL, lobe_scale = 0;
+    if (cos_i > 0 && cos_o > 0) {  // Every model is 0 with either direction below the surface.
+      lambert = cos_i / kPi;
+      oren_nayar = lambert * std::max(0.0, cos_io - cos_i * cos_o) / std::max(cos_i, cos_o);
+      const double len2 = 2 + 2 * cos_io;  // |wi + wo|^2
+      if (len2 > 1e-12) {
+        const double inv_len = 1 / std::sqrt(len2);
+        const double cos_h = (cos_i + cos_o) * inv_len, cos_oh = (1 + cos_io) * inv_len;
+        const double cos_h2 = cos_h * cos_h;
+        const double shadowing =
+            std::min({1.0, 2 * cos_h * cos_o / cos_oh, 2 * cos_h * cos_i / cos_oh});
+        tan2_h = (1 - cos_h2) / cos_h2;
+        lobe_scale = shadowing / (4 * kPi * cos_h2 * cos_h2 * cos_o);
+      }
+    }
+    lambert_[i] = lambert;
+    oren_nayar_[i] = oren_nayar;
+    tan2_h_[i] = tan2_h;
+    min_tan2_h_ = std::min(min_tan2_h_, tan2_h);
+    lobe_scale_[i] = lobe_scale;
+    for (int c = 0; c < 3; ++c) {
+      const double w = s.inv_sigma[c] * s.inv_sigma[c], v = s.v[c];
+      w_[c][i] = w;
+      v_[c][i] = v;
+      lambert_sums_.vv[c] += w * v * v;
+      lambert_sums_.av[c] += w * lambert * v;
+      lambert_sums_.aa[c] += w * lambert * lambert;
+      ov_[c] += w * oren_nayar * v;
+      lo_[c] += w * lambert * oren_nayar;
+      oo_[c] += w * oren_nayar * oren_nayar;
+    }
+  }
+  // The third-nearest sample to the mirror direction sets the narrowest resolvable lobe:
+  // exp(-tan^2 / m^2) = 0.1 there.
+  min_roughness_ = pixel::kMinRoughness;
+  if (count >= kResolvingSamples) {
+    nearest_.assign(tan2_h_.begin(), tan2_h_.end());
+    std::nth_element(nearest_.begin(), nearest_.begin() + (kResolvingSamples - 1), nearest_.end());
+    const double tan2 = nearest_[kResolvingSamples - 1];
+    if (std::isfinite(tan2)) {
+      min_roughness_ = std::clamp(std::sqrt(tan2 / std::log(10.0)), pixel::kMinRoughness, 0.5);
+    }
+  }
+}
+
+Candidate PixelTerms::lambert() const {
+  Candidate out;
+  const LinearSums<double>& s = lambert_sums_;
+  out.ok = s.aa[0] > 0 || s.aa[1] > 0 || s.aa[2] > 0;
+  double ks;
+  solve_linear(s, /*has_lobe=*/false, out.albedo.data(), &ks);
+  out.chi2 = chi2_of(s, out.albedo.data(), 0.0);
+  return out;
+}
+
+Candidate PixelTerms::oren_nayar() const {
+  if (!lambert().ok) return {};
+  // chi^2 at sigma from the sums of the A and B terms: a = A lambert + B oren_nayar.
+  auto chi2_at = [&](double sigma, Eigen::Vector3d* albedo) {
+    double a, b;
+    oren_nayar_ab(sigma, &a, &b);
+    LinearSums<double> s = lambert_sums_;
+    for (int c = 0; c < 3; ++c) {
+      s.aa[c] = a * a * lambert_sums_.aa[c] + 2 * a * b * lo_[c] + b * b * oo_[c];
+      s.av[c] = a * lambert_sums_.av[c] + b * ov_[c];
+    }
+    Eigen::Vector3d x;
+    double ks;
+    solve_linear(s, /*has_lobe=*/false, x.data(), &ks);
+    if (albedo) *albedo = x;
+    return chi2_of(s, x.data(), 0.0);
+  };
+  auto chi2_of_sigma = [&](double sigma) { return chi2_at(sigma, nullptr); };
+  const double step = kMaxSigma / (kSigmaGrid - 1);
+  int best = 0;
+  double best_chi2 = HUGE_VAL;
+  for (int k = 0; k < kSigmaGrid; ++k) {
+    const double chi2 = chi2_of_sigma(k * step);
+    if (chi2 < best_chi2) best = k, best_chi2 = chi2;
+  }
+  Candidate out;
+  out.sigma = best * step;
+  golden_refine(chi2_of_sigma, std::max(0, best - 1) * step,
+                std::min(kSigmaGrid - 1, best + 1) * step, &out.sigma, &best_chi2);
+  out.chi2 = chi2_at(out.sigma, &out.albedo);
+  out.ok = true;
+  return out;
+}
+
+LinearSums<double> PixelTerms::lobe_sums(double roughness) const {
+  LinearSums<double> sums = lambert_sums_;
+  const double inv_m2 = 1 / (roughness * roughness);
+  if (min_tan2_h_ * inv_m2 > kMaxLobeExponent) return sums;  // No sample sees this lobe.
+  for (int i = 0; i < count_; ++i) {
+    const double exponent = tan2_h_[i] * inv_m2;
+    if (exponent > kMaxLobeExponent) continue;
+    const double b = lobe_scale_[i] * inv_m2 * std::exp(-exponent);
+    for (int c = 0; c < 3; ++c) {
+      const double wb = w_[c][i] * b;
+      sums.ab[c] += wb * lambert_[i];
+      sums.bb[c] += wb * b;
+      sums.bv[c] += wb * v_[c][i];
+    }
+  }
+  return sums;
+}
+
+Candidate PixelTerms::torrance_sparrow(double max_specular_albedo) const {
+  if (!lambert().ok) return {};
+  // chi^2 at log(roughness); a lobe with k_s above the bound counts as no fit.
+  bool any_plausible = false;
+  auto fit_at = [&](double roughness) {
+    const LinearSums<double> sums = lobe_sums(roughness);
+    Candidate c;
+    solve_linear(sums, /*has_lobe=*/true, c.albedo.data(), &c.ks);
+    c.chi2 = chi2_of(sums, c.albedo.data(), c.ks);
+    c.roughness = roughness;
+    c.ok = true;
+    return c;
+  };
+  auto chi2_of_log_m = [&](double log_m) {
+    const Candidate c = fit_at(std::exp(log_m));
+    if (c.ks > max_specular_albedo) return HUGE_VAL;
+    any_plausible = true;
+    return c.chi2;
+  };
+  const double lo = std::log(min_roughness_), step = -lo / (kRoughnessGrid - 1);
+  int best = 0;
+  double best_chi2 = HUGE_VAL;
+  for (int k = 0; k < kRoughnessGrid; ++k) {
+    const double chi2 = chi2_of_log_m(lo + k * step);
+    if (chi2 < best_chi2) best = k, best_chi2 = chi2;
+  }
+  if (!any_plausible) {
+    Candidate out;
+    out.implausible_lobe = true;
+    return out;
+  }
+  double log_m = lo + best * step;
+  golden_refine(chi2_of_log_m, lo + std::max(0, best - 1) * step,
+                lo + std::min(kRoughnessGrid - 1, best + 1) * step, &log_m, &best_chi2);
+  return fit_at(std::exp(log_m));
+}
+
+namespace {
+
+// The polish's parameters: two normal angles (held at 0 without refine_normal) and sigma or the
+// roughness through their bounded maps.
+
+template <FitModel M, class T>
+T shape_of(const T* x, double min_m) {
+  if constexpr (M == FitModel::kOrenNayar) return pixel::bounded(x[2], 0.0, kMaxSigma);
+  if constexpr (M == FitModel::kLambertTorranceSparrow) return pixel::bounded(x[2], min_m, 1.0);
+  return T(0);
+}
+
+template <class T>
+brdf::Vec3<T> normal_of(const PixelProblem& p, const T* x) {
+  using std::sqrt;
+  if (!p.refine_normal) return p.n0.cast<T>();
+  const brdf::Vec3<T> n = p.n0.cast<T>() + p.t1.cast<T>() * x[0] + p.t2.cast<T>() * x[1];
+  return n / sqrt(n.dot(n));
+}
+
+// The model's terms a (multiplying the albedo) and b (multiplying k_s) per sample at x, and
+// their sums.
+template <FitModel M, class T>
+LinearSums<T> terms_at(const PixelProblem& p, const T* x, std::vector<T>* a, std::vector<T>* b) {
+  const brdf::Vec3<T> n = normal_of(p, x), wo = p.wo.cast<T>();
+  const T shape = shape_of<M>(x, p.min_roughness);
+  LinearSums<T> s;
+  for (int c = 0; c < 3; ++c) s.aa[c] = s.av[c] = s.ab[c] = s.bb[c] = s.bv[c] = s.vv[c] = T(0);
+  a->resize(size_t(p.count));
+  b->resize(size_t(p.count));
+  for (int i = 0; i < p.count; ++i) {
+    const pixel::Sample& sample = p.samples[i];
+    const auto g = brdf::Geometry<T>::from_world(n, sample.l.cast<T>(), wo);
+    const T cos_i = g.cos_i > T(0) ? g.cos_i : T(0);
+    T ai, bi(0);
+    if constexpr (M == FitModel::kOrenNayar) {
+      ai = brdf::oren_nayar(g, shape) * cos_i;
+    } else {
+      ai = brdf::lambert(g) * cos_i;
+    }
+    if constexpr (M == FitModel::kLambertTorranceSparrow)
+      bi = brdf::torrance_sparrow(g, shape) * cos_i;
+    (*a)[i] = ai;
+    (*b)[i] = bi;
+    for (int c = 0; c < 3; ++c) {
+      const double w = sample.inv_sigma[c] * sample.inv_sigma[c], v = sample.v[c];
+      s.aa[c] += w * ai * ai;
+      s.av[c] += w * v * ai;
+      s.ab[c] += w * ai * bi;
+      s.bb[c] += w * bi * bi;
+      s.bv[c] += w * v * bi;
+      s.vv[c] += T(w * v * v);
+    }
+  }
+  return s;
+}
+
+// Residuals at x with the albedos and k_s in closed form (variable projection).
+template <FitModel M>
+struct ProfiledCost {
+  const PixelProblem* p;
+  int NumResiduals() const { return 3 * p->count; }
+
+  template <class T>
+  bool operator()(const T* x, T* r) const {
+    thread_local std::vector<T> a, b;
+    const LinearSums<T> s = terms_at<M>(*p, x, &a, &b);
+    T albedo[3], ks;
+    solve_linear(s, M == FitModel::kLambertTorranceSparrow, albedo, &ks);
+    for (int i = 0; i < p->count; ++i) {
+      const pixel::Sample& sample = p->samples[i];
+      for (int c = 0; c < 3; ++c) {
+        r[3 * i + c] = (albedo[c] * a[i] + ks * b[i] - T(sample.v[c])) * T(sample.inv_sigma[c]);
+      }
+    }
+    return true;
+  }
+};
+
+// Lambert over its five parameters (two normal angles, sqrt(albedo) r g b) with the Jacobian in
+// closed form: the polish that most pixels get, three times cheaper than Jets.
+struct LambertCost {
+  using Scalar = double;
+  enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 5 };
+  const PixelProblem* p;
+  int NumResiduals() const { return 3 * p->count; }
+
+  bool operator()(const double* x, double* r, double* jacobian = nullptr) const {
+    const Eigen::Vector3d m = p->n0 + p->t1 * x[0] + p->t2 * x[1];
+    const double inv_len = 1 / m.norm();
+    const Eigen::Vector3d n = m * inv_len;
+    // dn/dx0 and dn/dx1 of n = m / |m|.
+    const Eigen::Vector3d dn0 = (p->t1 - n * n.dot(p->t1)) * inv_len;
+    const Eigen::Vector3d dn1 = (p->t2 - n * n.dot(p->t2)) * inv_len;
+    const bool viewed = n.dot(p->wo) > 0;
+    const int rows = NumResiduals();
+    for (int i = 0; i < p->count; ++i) {
+      const pixel::Sample& s = p->samples[i];
+      const double cos_i = n.dot(s.l);
+      const bool lit = viewed && cos_i > 0;
+      const double shade = lit ? cos_i / kPi : 0.0;
+      for (int c = 0; c < 3; ++c) {
+        const double u = x[2 + c], albedo = u * u, weight = s.inv_sigma[c];
+        const int row = 3 * i + c;
+        r[row] = (albedo * shade - s.v[c]) * weight;
+        if (!jacobian) continue;
+        const double d_shade = lit ? albedo * weight / kPi : 0.0;
+        jacobian[row] = d_shade * dn0.dot(s.l);
+        jacobian[rows + row] = d_shade * dn1.dot(s.l);
+        for (int k = 0; k < 3; ++k) jacobian[(2 + k) * rows + row] = 0;
+        jacobian[(2 + c) * rows + row] = 2 * u * shade * weight;
+      }
+    }
+    return true;
+  }
+};
+
+Polished polish_lambert(const Candidate& start, const PixelProblem& problem, int max_iterations) {
+  Eigen::Matrix<double, 5, 1> x0;
+  x0 << 0, 0, pixel::non_negative_inverse(start.albedo(0), 1e-8),
+      pixel::non_negative_inverse(start.albedo(1), 1e-8),
+      pixel::non_negative_inverse(start.albedo(2), 1e-8);
+  const LambertCost cost{&problem};
+  const pixel::SolveResult<5> solved =
+      pixel::solve_function(cost, cost, x0, max_iterations, kPolishChi2Tolerance);
+  Polished out;
+  out.status = solved.status;
+  if (!solved.usable()) return out;
+  const Eigen::Matrix<double, 5, 1>& x = solved.x;
+  out.normal = (problem.n0 + problem.t1 * x(0) + problem.t2 * x(1)).normalized();
+  out.fit.albedo = Eigen::Vector3d(x(2) * x(2), x(3) * x(3), x(4) * x(4));
+  out.fit.chi2 = solved.chi2;
+  out.fit.ok = out.normal.allFinite() && out.fit.albedo.allFinite();
+  if (!out.fit.ok) out.status = pixel::SolverStatus::kFailed;
+  return out;
+}
+
+template <FitModel M>
+Polished polish_model(const Candidate& start, const PixelProblem& problem, int max_iterations) {
+  constexpr int K = 3;
+  Eigen::Matrix<double, K, 1> x0 = Eigen::Matrix<double, K, 1>::Zero();
+  if constexpr (M == FitModel::kOrenNayar) {
+    x0(2) = pixel::clamped_bounded_inverse(start.sigma, 0.0, kMaxSigma);
+  }
+  if constexpr (M == FitModel::kLambertTorranceSparrow) {
+    x0(2) = pixel::clamped_bounded_inverse(start.roughness, problem.min_roughness, 1.0);
+  }
+  Polished out;
+  const pixel::SolveResult<K> solved =
+      pixel::solve(ProfiledCost<M>{&problem}, x0, max_iterations, kPolishChi2Tolerance);
+  out.status = solved.status;
+  if (!solved.usable()) return out;
+  std::vector<double> a, b;
+  const LinearSums<double> s = terms_at<M>(problem, solved.x.data(), &a, &b);
+  Candidate& fit = out.fit;
+  solve_linear(s, M == FitModel::kLambertTorranceSparrow, fit.albedo.data(), &fit.ks);
+  fit.chi2 = solved.chi2;
+  const double shape = shape_of<M>(solved.x.data(), problem.min_roughness);
+  if constexpr (M == FitModel::kOrenNayar) fit.sigma = shape;
+  if constexpr (M == FitModel::kLambertTorranceSparrow) fit.roughness = shape;
+  out.normal = normal_of(problem, solved.x.data());
+  fit.ok = out.normal.allFinite() && fit.albedo.allFinite() && std::isfinite(fit.ks) &&
+           std::isfinite(fit.sigma) && std::isfinite(fit.roughness);
+  if (!fit.ok) out.status = pixel::SolverStatus::kFailed;
+  return out;
+}
+
+}  // namespace
+
+Polished polish(FitModel model, const Candidate& start, const PixelProblem& problem,
+                int max_iterations) {
+  switch (model) {
+    case FitModel::kLambert:
+      if (!problem.refine_normal) return {pixel::SolverStatus::kConverged, start, problem.n0};
+      return polish_lambert(start, problem, max_iterations);
+    case FitModel::kOrenNayar:
+      return polish_model<FitModel::kOrenNayar>(start, problem, max_iterations);
+    case FitModel::kLambertTorranceSparrow:
+      return polish_model<FitModel::kLambertTorranceSparrow>(start, problem, max_iterations);
+    default:
+      return {};
+  }
+}
+
+}  // namespace ls::relight::profiled
