@@ -73,7 +73,8 @@ struct FitOptions {
   bool fit_oren_nayar = true;
   bool fit_torrance_sparrow = true;
   bool fit_phong = false;  // Comparison only: off by default.
-  // Torrance-Sparrow is multimodal in roughness: one LM start per entry, the best kept.
+  // Torrance-Sparrow is multimodal in roughness: one LM start per entry, the best kept
+  // (kEveryCandidateByLm; the profiled solver searches the roughness on a grid instead).
   std::vector<double> roughness_starts{0.08, 0.3};
   // Per LM fit; a chosen fit that stops on it is flagged kFitNotConverged.
   int max_iterations = 50;
