@@ -34,4 +34,13 @@ void add_region_materials(Scene& scene) {
   }
 }
 
+Scene three_region_spheres() {
+  Scene scene;
+  add_region_materials(scene);
+  for (int r = kMatte; r <= kGlossy; ++r) {
+    scene.spheres.push_back({Eigen::Vector3d(-0.9 + 0.9 * r, 0, 0), 0.4, r});
+  }
+  return scene;
+}
+
 }  // namespace ls::sim

@@ -11,5 +11,8 @@ enum Region { kMatte = 0, kRough = 1, kGlossy = 2 };
 
 brdf::Material region_material(int region);  // kMatte, kRough or kGlossy.
 void add_region_materials(Scene& scene);     // Appends region0..region2.
+// The fit tests' scene: the three materials on three spheres of radius 0.4 in a row along x
+// (centres -0.9, 0, 0.9); sphere r uses material r, so object index = region.
+Scene three_region_spheres();
 
 }  // namespace ls::sim

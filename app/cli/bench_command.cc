@@ -149,7 +149,8 @@ void add_fit(CLI::App& bench) {
       "fit",
       "Per-pixel model fits against field relighting on the demo scene: fit throughput of each "
       "model (Lambert, Oren-Nayar, Lambert + Torrance-Sparrow, Lambert + Phong, and the BIC "
-      "choice) and the error of relighting from it under every shipped map against ground "
+      "choice), each by the profiled solver and by LM on every candidate, and the error of "
+      "relighting from it under every shipped map against ground "
       "truth, with the field's relighting on the same chart. Writes fit.csv and two charts.");
   cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
   cmd->add_option("--leds", args->leds, "LEDs on the Fibonacci dome.")

@@ -25,33 +25,29 @@ namespace {
 
 using pixel::kMinRoughness;
 using pixel::kPi;
+using pixel::PixelData;
 using pixel::Sample;
 using pixel::SolverStatus;
 
 constexpr double kMaxPhongExponent = 1e4;
 constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
 
-struct PixelData {
-  const Sample* samples = nullptr;
-  int count = 0;
-  Eigen::Vector3d n0, t1, t2, wo;  // PS normal, its tangents, the view direction.
-  bool refine_normal = true;       // Off: the two normal angles stay 0 (zero Jacobian columns).
-};
-
 template <FitModel M>
 constexpr int kNumParams = M == FitModel::kLambert     ? 5
                            : M == FitModel::kOrenNayar ? 6
                                                        : 7;
 
-// Parameter vector: [normal angle a, normal angle b, sqrt(albedo) r g b, model-specific...].
-template <class T>
-brdf::Vec3<T> normal_from(const PixelData& d, const T* p) {
-  using std::sqrt;
-  if (!d.refine_normal) return d.n0.cast<T>();
-  brdf::Vec3<T> n = d.n0.cast<T>() + d.t1.cast<T>() * p[0] + d.t2.cast<T>() * p[1];
-  const T inv_len = T(1) / sqrt(n.dot(n));
-  return n * inv_len;
+// The number of parameters BIC charges a model with: its kNumParams less the two normal angles
+// when the normal is held.
+int num_params(FitModel model, bool refine_normal) {
+  const int k = model == FitModel::kLambert     ? kNumParams<FitModel::kLambert>
+                : model == FitModel::kOrenNayar ? kNumParams<FitModel::kOrenNayar>
+                                                : kNumParams<FitModel::kLambertTorranceSparrow>;
+  return refine_normal ? k : k - 2;
 }
+
+// Parameter vector: [normal angle a, normal angle b (pixel::refined_normal), sqrt(albedo) r g b,
+// model-specific...].
 
 // The model's physical parameters from the raw ones (bounds as in fit.h): sigma, k_s and the lobe
 // shape (Beckmann m, or the Phong exponent).
@@ -91,7 +87,7 @@ struct Cost {
       if constexpr (M == FitModel::kLambertPhong) return ks * brdf::phong(g, shape);
       return T(0);
     };
-    pixel::sample_residuals(d->samples, d->count, normal_from(*d, p),
+    pixel::sample_residuals(d->samples, d->count, pixel::refined_normal(*d, p),
                             brdf::Vec3<T>(d->wo.cast<T>()), albedo, diffuse, specular, r);
     return true;
   }
@@ -117,12 +113,12 @@ ModelFit run_fit(const PixelData& d, const std::array<double, 7>& start, int max
   const Eigen::Matrix<double, K, 1>& x = solved.x;
   ModelFit fit;
   fit.status = solved.status;
-  fit.k = d.refine_normal ? K : K - 2;
+  fit.k = num_params(M, d.refine_normal);
   if (!solved.usable()) return fit;
   fit.chi2 = solved.chi2;
   fit.bic = fit.chi2 + fit.k * std::log(double(3 * d.count));
   for (int i = 0; i < K; ++i) fit.x[i] = x(i);
-  fit.normal = normal_from(d, x.data());
+  fit.normal = pixel::refined_normal(d, x.data());
   fit.albedo = Eigen::Vector3d(x(2) * x(2), x(3) * x(3), x(4) * x(4));
   double shape;
   lobe_params<M>(x.data(), &fit.sigma, &fit.ks, &shape);
@@ -180,11 +176,6 @@ std::array<ModelFit, 5> fit_candidates_by_lm(const PixelData& d, const FitOption
   return fits;
 }
 
-int num_params(FitModel model, bool refine_normal) {
-  const int k = model == FitModel::kLambert ? 5 : model == FitModel::kOrenNayar ? 6 : 7;
-  return refine_normal ? k : k - 2;
-}
-
 // A closed-form candidate (relight/fit/profiled_fit.h) as a ModelFit at the given normal.
 ModelFit to_model_fit(const profiled::Candidate& c, FitModel model, const Eigen::Vector3d& normal,
                       const PixelData& d) {
@@ -233,14 +224,13 @@ std::array<ModelFit, 5> fit_candidates_profiled(const PixelData& d, const FitOpt
   }
   std::array<ModelFit, 5> fits;
   for (int k = 1; k < 4; ++k) fits[k] = to_model_fit(candidates[k], FitModel(k), d.n0, d);
-  const profiled::PixelProblem problem{
-      d.samples, d.count, d.n0, d.t1, d.t2, d.wo, d.refine_normal, terms.min_roughness()};
   int iterations = options.max_iterations;
   // The LM polish of candidate k, normal included. The candidate is kept when the polish ends no
   // lower (it already was the minimum), and flagged not converged when the polish failed or left
   // the k_s bound.
   auto polish = [&](int k) {
-    const profiled::Polished p = profiled::polish(FitModel(k), candidates[k], problem, iterations);
+    const profiled::Polished p =
+        profiled::polish(FitModel(k), candidates[k], d, terms.min_roughness(), iterations);
     if (p.status == SolverStatus::kFailed || p.fit.ks > options.max_specular_albedo) {
       fits[k].status = SolverStatus::kHitIterationLimit;
       return;

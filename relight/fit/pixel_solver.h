@@ -51,6 +51,25 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
                                const capture::ValidLights& valid, const NormalOptions& options,
                                int x, int y, Sample* samples);
 
+// One pixel's fit problem: its usable samples, its photometric-stereo normal n0 with two tangents,
+// and the view direction (unit, toward the camera).
+struct PixelData {
+  const Sample* samples = nullptr;
+  int count = 0;
+  Eigen::Vector3d n0, t1, t2, wo;
+  bool refine_normal = true;  // Off: the two normal angles stay 0 (zero Jacobian columns).
+};
+
+// The fitted normal: n0 tilted by two small angles (angles[0], angles[1]) along the tangents,
+// renormalised; n0 itself without refine_normal.
+template <class T>
+brdf::Vec3<T> refined_normal(const PixelData& d, const T* angles) {
+  using std::sqrt;
+  if (!d.refine_normal) return d.n0.cast<T>();
+  const brdf::Vec3<T> n = d.n0.cast<T>() + d.t1.cast<T>() * angles[0] + d.t2.cast<T>() * angles[1];
+  return n / sqrt(n.dot(n));
+}
+
 // Weighted least-squares albedo per channel of R = albedo/pi * max(0, n.l), at least 1e-4 (a
 // strictly positive start keeps the u^2 parametrisation's gradient non-zero).
 Eigen::Vector3d lambert_albedo(const Sample* samples, int count, const Eigen::Vector3d& n);

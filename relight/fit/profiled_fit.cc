@@ -123,7 +123,7 @@ void PixelTerms::reset(const pixel::Sample* samples, int count, const Eigen::Vec
 Candidate PixelTerms::lambert() const {
   Candidate out;
   const LinearSums<double>& s = lambert_sums_;
-  out.ok = s.aa[0] > 0 || s.aa[1] > 0 || s.aa[2] > 0;
+  out.ok = lit();
   double ks;
   solve_linear(s, /*has_lobe=*/false, out.albedo.data(), &ks);
   out.chi2 = chi2_of(s, out.albedo.data(), 0.0);
@@ -131,7 +131,7 @@ Candidate PixelTerms::lambert() const {
 }
 
 Candidate PixelTerms::oren_nayar() const {
-  if (!lambert().ok) return {};
+  if (!lit()) return {};
   // chi^2 at sigma from the sums of the A and B terms: a = A lambert + B oren_nayar.
   auto chi2_at = [&](double sigma, Eigen::Vector3d* albedo) {
     double a, b;
@@ -183,7 +183,7 @@ LinearSums<double> PixelTerms::lobe_sums(double roughness) const {
 }
 
 Candidate PixelTerms::torrance_sparrow(double max_specular_albedo) const {
-  if (!lambert().ok) return {};
+  if (!lit()) return {};
   // chi^2 at log(roughness); a lobe with k_s above the bound counts as no fit.
   bool any_plausible = false;
   auto fit_at = [&](double roughness) {
@@ -231,20 +231,13 @@ T shape_of(const T* x, double min_m) {
   return T(0);
 }
 
-template <class T>
-brdf::Vec3<T> normal_of(const PixelProblem& p, const T* x) {
-  using std::sqrt;
-  if (!p.refine_normal) return p.n0.cast<T>();
-  const brdf::Vec3<T> n = p.n0.cast<T>() + p.t1.cast<T>() * x[0] + p.t2.cast<T>() * x[1];
-  return n / sqrt(n.dot(n));
-}
-
 // The model's terms a (multiplying the albedo) and b (multiplying k_s) per sample at x, and
 // their sums.
 template <FitModel M, class T>
-LinearSums<T> terms_at(const PixelProblem& p, const T* x, std::vector<T>* a, std::vector<T>* b) {
-  const brdf::Vec3<T> n = normal_of(p, x), wo = p.wo.cast<T>();
-  const T shape = shape_of<M>(x, p.min_roughness);
+LinearSums<T> terms_at(const pixel::PixelData& p, double min_roughness, const T* x,
+                       std::vector<T>* a, std::vector<T>* b) {
+  const brdf::Vec3<T> n = pixel::refined_normal(p, x), wo = p.wo.cast<T>();
+  const T shape = shape_of<M>(x, min_roughness);
   LinearSums<T> s;
   for (int c = 0; c < 3; ++c) s.aa[c] = s.av[c] = s.ab[c] = s.bb[c] = s.bv[c] = s.vv[c] = T(0);
   a->resize(size_t(p.count));
@@ -279,13 +272,14 @@ LinearSums<T> terms_at(const PixelProblem& p, const T* x, std::vector<T>* a, std
 // Residuals at x with the albedos and k_s in closed form (variable projection).
 template <FitModel M>
 struct ProfiledCost {
-  const PixelProblem* p;
+  const pixel::PixelData* p;
+  double min_roughness;
   int NumResiduals() const { return 3 * p->count; }
 
   template <class T>
   bool operator()(const T* x, T* r) const {
     thread_local std::vector<T> a, b;
-    const LinearSums<T> s = terms_at<M>(*p, x, &a, &b);
+    const LinearSums<T> s = terms_at<M>(*p, min_roughness, x, &a, &b);
     T albedo[3], ks;
     solve_linear(s, M == FitModel::kLambertTorranceSparrow, albedo, &ks);
     for (int i = 0; i < p->count; ++i) {
@@ -303,7 +297,7 @@ struct ProfiledCost {
 struct LambertCost {
   using Scalar = double;
   enum { NUM_RESIDUALS = Eigen::Dynamic, NUM_PARAMETERS = 5 };
-  const PixelProblem* p;
+  const pixel::PixelData* p;
   int NumResiduals() const { return 3 * p->count; }
 
   bool operator()(const double* x, double* r, double* jacobian = nullptr) const {
@@ -336,7 +330,8 @@ struct LambertCost {
   }
 };
 
-Polished polish_lambert(const Candidate& start, const PixelProblem& problem, int max_iterations) {
+Polished polish_lambert(const Candidate& start, const pixel::PixelData& problem,
+                        int max_iterations) {
   Eigen::Matrix<double, 5, 1> x0;
   x0 << 0, 0, pixel::non_negative_inverse(start.albedo(0), 1e-8),
       pixel::non_negative_inverse(start.albedo(1), 1e-8),
@@ -348,7 +343,7 @@ Polished polish_lambert(const Candidate& start, const PixelProblem& problem, int
   out.status = solved.status;
   if (!solved.usable()) return out;
   const Eigen::Matrix<double, 5, 1>& x = solved.x;
-  out.normal = (problem.n0 + problem.t1 * x(0) + problem.t2 * x(1)).normalized();
+  out.normal = pixel::refined_normal(problem, x.data());
   out.fit.albedo = Eigen::Vector3d(x(2) * x(2), x(3) * x(3), x(4) * x(4));
   out.fit.chi2 = solved.chi2;
   out.fit.ok = out.normal.allFinite() && out.fit.albedo.allFinite();
@@ -357,29 +352,30 @@ Polished polish_lambert(const Candidate& start, const PixelProblem& problem, int
 }
 
 template <FitModel M>
-Polished polish_model(const Candidate& start, const PixelProblem& problem, int max_iterations) {
+Polished polish_model(const Candidate& start, const pixel::PixelData& problem, double min_roughness,
+                      int max_iterations) {
   constexpr int K = 3;
   Eigen::Matrix<double, K, 1> x0 = Eigen::Matrix<double, K, 1>::Zero();
   if constexpr (M == FitModel::kOrenNayar) {
     x0(2) = pixel::clamped_bounded_inverse(start.sigma, 0.0, kMaxSigma);
   }
   if constexpr (M == FitModel::kLambertTorranceSparrow) {
-    x0(2) = pixel::clamped_bounded_inverse(start.roughness, problem.min_roughness, 1.0);
+    x0(2) = pixel::clamped_bounded_inverse(start.roughness, min_roughness, 1.0);
   }
   Polished out;
-  const pixel::SolveResult<K> solved =
-      pixel::solve(ProfiledCost<M>{&problem}, x0, max_iterations, kPolishChi2Tolerance);
+  const pixel::SolveResult<K> solved = pixel::solve(ProfiledCost<M>{&problem, min_roughness}, x0,
+                                                    max_iterations, kPolishChi2Tolerance);
   out.status = solved.status;
   if (!solved.usable()) return out;
   std::vector<double> a, b;
-  const LinearSums<double> s = terms_at<M>(problem, solved.x.data(), &a, &b);
+  const LinearSums<double> s = terms_at<M>(problem, min_roughness, solved.x.data(), &a, &b);
   Candidate& fit = out.fit;
   solve_linear(s, M == FitModel::kLambertTorranceSparrow, fit.albedo.data(), &fit.ks);
   fit.chi2 = solved.chi2;
-  const double shape = shape_of<M>(solved.x.data(), problem.min_roughness);
+  const double shape = shape_of<M>(solved.x.data(), min_roughness);
   if constexpr (M == FitModel::kOrenNayar) fit.sigma = shape;
   if constexpr (M == FitModel::kLambertTorranceSparrow) fit.roughness = shape;
-  out.normal = normal_of(problem, solved.x.data());
+  out.normal = pixel::refined_normal(problem, solved.x.data());
   fit.ok = out.normal.allFinite() && fit.albedo.allFinite() && std::isfinite(fit.ks) &&
            std::isfinite(fit.sigma) && std::isfinite(fit.roughness);
   if (!fit.ok) out.status = pixel::SolverStatus::kFailed;
@@ -388,16 +384,17 @@ Polished polish_model(const Candidate& start, const PixelProblem& problem, int m
 
 }  // namespace
 
-Polished polish(FitModel model, const Candidate& start, const PixelProblem& problem,
-                int max_iterations) {
+Polished polish(FitModel model, const Candidate& start, const pixel::PixelData& problem,
+                double min_roughness, int max_iterations) {
   switch (model) {
     case FitModel::kLambert:
       if (!problem.refine_normal) return {pixel::SolverStatus::kConverged, start, problem.n0};
       return polish_lambert(start, problem, max_iterations);
     case FitModel::kOrenNayar:
-      return polish_model<FitModel::kOrenNayar>(start, problem, max_iterations);
+      return polish_model<FitModel::kOrenNayar>(start, problem, min_roughness, max_iterations);
     case FitModel::kLambertTorranceSparrow:
-      return polish_model<FitModel::kLambertTorranceSparrow>(start, problem, max_iterations);
+      return polish_model<FitModel::kLambertTorranceSparrow>(start, problem, min_roughness,
+                                                             max_iterations);
     default:
       return {};
   }

@@ -102,6 +102,10 @@ class PixelTerms {
   Candidate lambert() const;
   Candidate oren_nayar() const;
   Candidate torrance_sparrow(double max_specular_albedo) const;
+  // Whether any sample is lit at the normal (every candidate needs one).
+  bool lit() const {
+    return lambert_sums_.aa[0] > 0 || lambert_sums_.aa[1] > 0 || lambert_sums_.aa[2] > 0;
+  }
   // The lowest roughness the samples resolve (see above), at least pixel::kMinRoughness.
   double min_roughness() const { return min_roughness_; }
 
@@ -123,16 +127,6 @@ class PixelTerms {
   double ov_[3] = {0, 0, 0}, lo_[3] = {0, 0, 0}, oo_[3] = {0, 0, 0};
 };
 
-// What a polish starts from and works on: the pixel's samples, its photometric-stereo normal n0
-// with two tangents, and the view direction.
-struct PixelProblem {
-  const pixel::Sample* samples = nullptr;
-  int count = 0;
-  Eigen::Vector3d n0, t1, t2, wo;
-  bool refine_normal = true;                    // Off: only sigma or the roughness is refined.
-  double min_roughness = pixel::kMinRoughness;  // PixelTerms::min_roughness().
-};
-
 struct Polished {
   pixel::SolverStatus status = pixel::SolverStatus::kFailed;
   Candidate fit;
@@ -140,8 +134,9 @@ struct Polished {
 };
 
 // The LM polish of a candidate of model (Lambert, Oren-Nayar or Lambert + Torrance-Sparrow),
-// normal included, from the candidate's parameters at n0.
-Polished polish(FitModel model, const Candidate& start, const PixelProblem& problem,
-                int max_iterations);
+// normal included, from the candidate's parameters at the pixel's n0; the roughness is kept at or
+// above min_roughness (PixelTerms::min_roughness()).
+Polished polish(FitModel model, const Candidate& start, const pixel::PixelData& pixel,
+                double min_roughness, int max_iterations);
 
 }  // namespace ls::relight::profiled

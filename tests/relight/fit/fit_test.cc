@@ -25,8 +25,9 @@ using fit_testing::SimField;
 constexpr double kPi = brdf::kPi;
 constexpr double kRadToDeg = 180.0 / kPi;
 
-// Three spheres in a row: matte (Lambert), rough matte (Oren-Nayar, sigma 30 deg), glossy
-// (Lambert + Torrance-Sparrow). Object index = sphere index = region.
+// The scene of most tests here, sim::three_region_spheres(): matte (Lambert), rough matte
+// (Oren-Nayar, sigma 30 deg) and glossy (Lambert + Torrance-Sparrow) spheres in a row. Object
+// index = sphere index = region.
 using sim::kGlossy;
 using sim::kMatte;
 using sim::kRough;
@@ -36,15 +37,6 @@ FitModel region_model(int region) {
   return region == kMatte   ? FitModel::kLambert
          : region == kRough ? FitModel::kOrenNayar
                             : FitModel::kLambertTorranceSparrow;
-}
-
-sim::Scene three_spheres() {
-  sim::Scene scene;
-  sim::add_region_materials(scene);
-  for (int r = kMatte; r <= kGlossy; ++r) {
-    scene.spheres.push_back({Eigen::Vector3d(-0.9 + 0.9 * r, 0, 0), 0.4, r});
-  }
-  return scene;
 }
 
 // Pixels where the data can tell the models apart: the surface faces the camera (n.v > 0.3, away
@@ -65,6 +57,22 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+// A plane of one region material, tilted 17 degrees toward +y, filling an 8 x 8 orthographic view
+// under a 150-LED dome (NoiseModel defaults, seed 9).
+SimField tilted_plane(int region) {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(150, -11.5));
+  stage.camera.width = stage.camera.height = 8;
+  stage.camera.ortho_height_m = 0.5;
+  sim::Scene scene;
+  sim::SceneMaterial m;
+  m.base = region_material(region);
+  scene.materials.push_back(m);
+  sim::Plane plane;
+  plane.normal = Eigen::Vector3d(0, 0.3, 1).normalized();
+  scene.planes.push_back(plane);
+  return render_field(stage, scene, NoiseModel{}, 9);
+}
+
 class ThreeSpheres : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -74,7 +82,8 @@ class ThreeSpheres : public ::testing::Test {
     stage.camera.fov_y_deg = 0.0;
     stage.camera.ortho_height_m = 0.9;
     FitOptions options;
-    sim_ = new SimField(render_field(stage, three_spheres(), options.normals.noise, 21));
+    sim_ =
+        new SimField(render_field(stage, sim::three_region_spheres(), options.normals.noise, 21));
     dirs_ = new std::vector<Eigen::Vector3d>(stage.led_directions());
     maps_ = new ModelMaps(fit_models(sim_->field, options));
     std::cout << maps_->summary.to_string() << "\n";
@@ -223,17 +232,7 @@ TEST(FitModels, TwoValidLightsFlagEveryPixelNeverNaN) {
 
 TEST(FitModels, PhongComparisonFitsAGlossyPlane) {
   // A tilted glossy plane: the Phong lobe is a candidate only when asked for, and then competes.
-  Stage stage = stage_with_directions(fibonacci_dome_directions(150, -11.5));
-  stage.camera.width = stage.camera.height = 8;
-  stage.camera.ortho_height_m = 0.5;
-  sim::Scene scene;
-  sim::SceneMaterial m;
-  m.base = region_material(kGlossy);
-  scene.materials.push_back(m);
-  sim::Plane plane;
-  plane.normal = Eigen::Vector3d(0, 0.3, 1).normalized();
-  scene.planes.push_back(plane);
-  const SimField sim = render_field(stage, scene, NoiseModel{}, 9);
+  const SimField sim = tilted_plane(kGlossy);
   FitOptions options;
   options.fit_phong = true;
   const ModelMaps maps = fit_models(sim.field, options);
@@ -248,17 +247,7 @@ TEST(FitModels, PhongComparisonFitsAGlossyPlane) {
 // fit where the data identify it: a glossy plane under 150 LEDs, every pixel Lambert +
 // Torrance-Sparrow by both, parameters within 1% and normals within 0.05 degrees of each other.
 TEST(FitModels, ProfiledSolverAgreesWithLmOnEveryCandidate) {
-  Stage stage = stage_with_directions(fibonacci_dome_directions(150, -11.5));
-  stage.camera.width = stage.camera.height = 8;
-  stage.camera.ortho_height_m = 0.5;
-  sim::Scene scene;
-  sim::SceneMaterial m;
-  m.base = region_material(kGlossy);
-  scene.materials.push_back(m);
-  sim::Plane plane;
-  plane.normal = Eigen::Vector3d(0, 0.3, 1).normalized();
-  scene.planes.push_back(plane);
-  const SimField sim = render_field(stage, scene, NoiseModel{}, 9);
+  const SimField sim = tilted_plane(kGlossy);
   FitOptions options;
   const ModelMaps profiled = fit_models(sim.field, options);
   options.solver = FitSolver::kEveryCandidateByLm;
@@ -284,17 +273,7 @@ TEST(FitModels, ProfiledSolverAgreesWithLmOnEveryCandidate) {
 // fitted but flags it kFitNotConverged (counted in the summary, kept through the maps file); at
 // the default limit a clean matte plane converges everywhere.
 TEST(FitModels, IterationLimitIsFlaggedNotConverged) {
-  Stage stage = stage_with_directions(fibonacci_dome_directions(150, -11.5));
-  stage.camera.width = stage.camera.height = 8;
-  stage.camera.ortho_height_m = 0.5;
-  sim::Scene scene;
-  sim::SceneMaterial m;
-  m.base = region_material(kMatte);
-  scene.materials.push_back(m);
-  sim::Plane plane;
-  plane.normal = Eigen::Vector3d(0, 0.3, 1).normalized();
-  scene.planes.push_back(plane);
-  const SimField sim = render_field(stage, scene, NoiseModel{}, 9);
+  const SimField sim = tilted_plane(kMatte);
   const auto count_not_converged = [](const ModelMaps& maps) {
     int n = 0;
     for (int y = 0; y < maps.maps.height; ++y) {
@@ -331,7 +310,7 @@ TEST(FitModels, CapturedFieldThroughThePipeline) {
   stage.camera.width = 48;
   stage.camera.height = 16;
   stage.camera.ortho_height_m = 0.9;
-  const sim::Scene scene = three_spheres();
+  const sim::Scene scene = sim::three_region_spheres();
   testing::TempDir dir;
   const capture::ReflectanceField field =
       testing::CaptureAndBuild(dir / "session", stage, scene, 5);

@@ -12,6 +12,7 @@
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 #include "relight/fit/model_render.h"
+#include "sim/region_materials.h"
 #include "sim/sim_stage.h"
 #include "tests/app/e2e_fixtures.h"
 #include "tests/relight/fit/fit_fixtures.h"
@@ -24,31 +25,10 @@ namespace fs = std::filesystem;
 using fit_testing::render_field;
 using fit_testing::SimField;
 
-enum Region { kMatte = 0, kRough = 1, kGlossy = 2 };
-
-// Matte, rough and glossy spheres in a row (the materials of fit_test.cc).
-sim::Scene three_spheres() {
-  sim::Scene scene;
-  for (int r = 0; r < 3; ++r) {
-    sim::SceneMaterial m;
-    m.name = "region" + std::to_string(r);
-    if (r == kMatte) m.base.albedo = {0.75, 0.6, 0.45};
-    if (r == kRough) {
-      m.base.diffuse = brdf::DiffuseModel::kOrenNayar;
-      m.base.albedo = {0.6, 0.45, 0.3};
-      m.base.sigma_rad = 30.0 * brdf::kPi / 180.0;
-    }
-    if (r == kGlossy) {
-      m.base.albedo = {0.55, 0.15, 0.1};
-      m.base.specular = brdf::SpecularModel::kTorranceSparrow;
-      m.base.ks = {0.35, 0.35, 0.35};
-      m.base.roughness = 0.2;
-    }
-    scene.materials.push_back(m);
-    scene.spheres.push_back({Eigen::Vector3d(-0.9 + 0.9 * r, 0, 0), 0.4, r});
-  }
-  return scene;
-}
+// The matte, rough and glossy spheres of sim::three_region_spheres(); object index = region.
+using sim::kGlossy;
+using sim::kMatte;
+using sim::kRough;
 
 Stage small_stage(int leds, int width, int height) {
   Stage stage = stage_with_directions(fibonacci_dome_directions(leds, -11.5));
@@ -79,7 +59,7 @@ class EditedModels : public ::testing::Test {
   static void SetUpTestSuite() {
     const Stage stage = small_stage(150, 48, 16);
     const FitOptions options;
-    sim_ = new SimField(render_field(stage, three_spheres(), options.normals.noise, 7));
+    sim_ = new SimField(render_field(stage, sim::three_region_spheres(), options.normals.noise, 7));
     maps_ = new ModelMaps(fit_models(sim_->field, options));
     std::cout << maps_->summary.to_string() << "\n";
   }
@@ -288,7 +268,7 @@ TEST(ModelEditCli, FitThenRelightModelsWithEditsAndABadEditFile) {
   testing::TempDir dir;
   const Stage stage = small_stage(30, 32, 12);
   const capture::ReflectanceField field =
-      testing::CaptureAndBuild(dir / "session", stage, three_spheres(), 3);
+      testing::CaptureAndBuild(dir / "session", stage, sim::three_region_spheres(), 3);
   capture::write_field(dir / "field.exr", field);
   const std::string cli = testing::cli_path().string();
   std::string out;

@@ -14,6 +14,7 @@
 #include "lightstage/stage.h"
 #include "relight/lighting/relight.h"
 #include "sim/ground_truth.h"
+#include "sim/region_materials.h"
 #include "sim/sim_stage.h"
 #include "tests/relight/fit/fit_fixtures.h"
 #include "tests/support/test_support.h"
@@ -26,32 +27,11 @@ using fit_testing::SimField;
 
 constexpr double kPi = brdf::kPi;
 
-// Matte (Lambert), rough (Oren-Nayar, sigma 30 deg), glossy (Lambert + Torrance-Sparrow) spheres in
-// a row, as in fit_test.cc. Object index = sphere index.
-enum Region { kMatte = 0, kRough = 1, kGlossy = 2 };
-
-sim::Scene three_spheres() {
-  sim::Scene scene;
-  for (int r = 0; r < 3; ++r) {
-    sim::SceneMaterial m;
-    m.name = "region" + std::to_string(r);
-    if (r == kMatte) m.base.albedo = {0.75, 0.6, 0.45};
-    if (r == kRough) {
-      m.base.diffuse = brdf::DiffuseModel::kOrenNayar;
-      m.base.albedo = {0.6, 0.45, 0.3};
-      m.base.sigma_rad = 30.0 * kPi / 180.0;
-    }
-    if (r == kGlossy) {
-      m.base.albedo = {0.55, 0.15, 0.1};
-      m.base.specular = brdf::SpecularModel::kTorranceSparrow;
-      m.base.ks = {0.35, 0.35, 0.35};
-      m.base.roughness = 0.2;
-    }
-    scene.materials.push_back(m);
-    scene.spheres.push_back({Eigen::Vector3d(-0.9 + 0.9 * r, 0, 0), 0.4, r});
-  }
-  return scene;
-}
+// sim::three_region_spheres(): matte (Lambert), rough (Oren-Nayar, sigma 30 deg), glossy (Lambert +
+// Torrance-Sparrow) spheres in a row. Object index = sphere index.
+using sim::kGlossy;
+using sim::kMatte;
+using sim::kRough;
 
 // 1 where the camera sees `object` (any object when -1) with n.v above min_cos_view.
 Image region_mask(const std::vector<sim::SurfaceHit>& hits, int width, int height, int object,
@@ -78,7 +58,8 @@ class ModelRender : public ::testing::Test {
     stage_->camera.fov_y_deg = 0.0;
     stage_->camera.ortho_height_m = 0.9;
     const FitOptions options;
-    sim_ = new SimField(render_field(*stage_, three_spheres(), options.normals.noise, 21));
+    sim_ =
+        new SimField(render_field(*stage_, sim::three_region_spheres(), options.normals.noise, 21));
     maps_ = new ModelMaps(fit_models(sim_->field, options));
     std::cout << maps_->summary.to_string() << "\n";
   }
@@ -111,7 +92,7 @@ class SmallFit : public ::testing::Test {
     stage.camera.fov_y_deg = 0.0;
     stage.camera.ortho_height_m = 0.9;
     const FitOptions options;
-    const SimField sim = render_field(stage, three_spheres(), options.normals.noise, 5);
+    const SimField sim = render_field(stage, sim::three_region_spheres(), options.normals.noise, 5);
     maps_ = new ModelMaps(fit_models(sim.field, options));
   }
   static void TearDownTestSuite() { delete maps_; }
@@ -124,11 +105,11 @@ TEST_F(ModelRender, LambertRegionMatchesGroundTruthAndTheGridConverges) {
   sim::GroundTruthOptions truth_options;
   truth_options.directions_width = 128;
   // The matte sphere alone: the same pixels, with no neighbours to cast shadows the models cannot.
-  sim::Scene matte_alone = three_spheres();
+  sim::Scene matte_alone = sim::three_region_spheres();
   matte_alone.spheres.resize(1);
   const Image truth = sim::render_ground_truth(matte_alone, stage_->camera, map, truth_options);
   const Image truth_with_neighbours =
-      sim::render_ground_truth(three_spheres(), stage_->camera, map, truth_options);
+      sim::render_ground_truth(sim::three_region_spheres(), stage_->camera, map, truth_options);
   const Image matte = mask(kMatte);
   double error_at[4] = {};
   const int widths[4] = {16, 32, 64, 128};
@@ -165,9 +146,10 @@ TEST_F(ModelRender, AgainstFieldRelightingAndGroundTruth) {
     full.directions_width = 128;
     sim::GroundTruthOptions covered = full;
     covered.covered_by_leds = dirs;
-    const Image truth = sim::render_ground_truth(three_spheres(), stage_->camera, map, full);
+    const Image truth =
+        sim::render_ground_truth(sim::three_region_spheres(), stage_->camera, map, full);
     const Image truth_covered =
-        sim::render_ground_truth(three_spheres(), stage_->camera, map, covered);
+        sim::render_ground_truth(sim::three_region_spheres(), stage_->camera, map, covered);
     const LightWeights weights = integrate_environment(map, dirs);
     const Image field_relit = relight(sim_->field, weights);
     EnvironmentSampling dome;
@@ -211,7 +193,7 @@ TEST_F(ModelRender, AgainstFieldRelightingAndGroundTruth) {
 TEST_F(ModelRender, DirectionalLightMatchesTheOneLightTruthPerRegion) {
   // A direction between LEDs, up and to the right of the camera: every sphere has a highlight.
   const Eigen::Vector3d dir = Eigen::Vector3d(0.35, 0.45, 0.82).normalized();
-  const Image truth = sim::render_one_light(three_spheres(), sim_->hits, dir);
+  const Image truth = sim::render_one_light(sim::three_region_spheres(), sim_->hits, dir);
   const Image rendered =
       render_models(*maps_, LightingForModels::directional(dir, Eigen::Vector3d(1, 1, 1)));
   const char* names[3] = {"matte", "rough", "glossy"};
