@@ -23,11 +23,12 @@ struct Scratch {
   std::vector<double> sigma;                // Noise sigma of y.
   std::vector<double> weight;               // Current LS weight (0 = not used).
   std::vector<double> abs_u;                // |normalised residual|, for the MAD.
+  std::vector<double> residual;             // y - l.g of the current solve (IRLS).
   std::vector<int> order;                   // For trimming.
   std::vector<char> usable;                 // Lit (above the shadow threshold) and not saturated.
   std::vector<Eigen::Vector3d> pixel_dirs;  // Near lights: this pixel's direction to each light.
   explicit Scratch(size_t n)
-      : y(n), sigma(n), weight(n), abs_u(n), order(n), usable(n), pixel_dirs(n) {}
+      : y(n), sigma(n), weight(n), abs_u(n), residual(n), order(n), usable(n), pixel_dirs(n) {}
 };
 
 struct Solve {
@@ -47,11 +48,18 @@ Solve weighted_solve(const std::vector<Eigen::Vector3d>& dirs, const Scratch& s)
     const double w = s.weight[i];
     if (!(w > 0)) continue;
     const Eigen::Vector3d& l = dirs[i];
-    ata.noalias() += w * l * l.transpose();
-    geometry.noalias() += l * l.transpose();
+    const Eigen::Vector3d wl = w * l;
+    for (int r = 0; r < 3; ++r) {  // Lower triangles only: both are symmetric.
+      for (int c = 0; c <= r; ++c) {
+        ata(r, c) += wl(r) * l(c);
+        geometry(r, c) += l(r) * l(c);
+      }
+    }
     atb += w * s.y[i] * l;
     ++out.used;
   }
+  ata = ata.selfadjointView<Eigen::Lower>();
+  geometry = geometry.selfadjointView<Eigen::Lower>();
   if (out.used < 3) return out;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
   eig.computeDirect(geometry, Eigen::EigenvaluesOnly);  // Closed form for 3x3.
@@ -157,12 +165,13 @@ Solve robust_solve(const std::vector<Eigen::Vector3d>& dirs, const NormalOptions
     int k = 0;
     for (size_t i = 0; i < n; ++i) {
       if (!s.usable[i]) continue;
-      s.abs_u[k++] = std::abs(s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
+      s.residual[i] = s.y[i] - dirs[i].dot(solve.g);
+      s.abs_u[k++] = std::abs(s.residual[i]) / s.sigma[i];
     }
     const double scale = std::max(1.4826 * median_of(s.abs_u, k), 1.0);
     for (size_t i = 0; i < n; ++i) {
       if (!s.usable[i]) continue;
-      const double u = (s.y[i] - dirs[i].dot(solve.g)) / (s.sigma[i] * options.tukey_c * scale);
+      const double u = s.residual[i] / (s.sigma[i] * options.tukey_c * scale);
       const double t = 1 - u * u;
       s.weight[i] = t > 0 ? t * t / (s.sigma[i] * s.sigma[i]) : 0.0;
     }

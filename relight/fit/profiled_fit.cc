@@ -184,39 +184,41 @@ LinearSums<double> PixelTerms::lobe_sums(double roughness) const {
 
 Candidate PixelTerms::torrance_sparrow(double max_specular_albedo) const {
   if (!lit()) return {};
-  // chi^2 at log(roughness); a lobe with k_s above the bound counts as no fit.
-  bool any_plausible = false;
+  // The fit at a roughness; a lobe with k_s above the bound counts as no fit (chi^2 infinite).
   auto fit_at = [&](double roughness) {
     const LinearSums<double> sums = lobe_sums(roughness);
     Candidate c;
     solve_linear(sums, /*has_lobe=*/true, c.albedo.data(), &c.ks);
-    c.chi2 = chi2_of(sums, c.albedo.data(), c.ks);
+    c.chi2 = c.ks > max_specular_albedo ? HUGE_VAL : chi2_of(sums, c.albedo.data(), c.ks);
     c.roughness = roughness;
-    c.ok = true;
+    c.ok = std::isfinite(c.chi2);
     return c;
   };
-  auto chi2_of_log_m = [&](double log_m) {
-    const Candidate c = fit_at(std::exp(log_m));
-    if (c.ks > max_specular_albedo) return HUGE_VAL;
-    any_plausible = true;
-    return c.chi2;
-  };
+  // The grid over log(roughness), then one parabolic step through the best point and its two
+  // neighbours: each pass costs an exp per sample, and the polish refines m anyway.
   const double lo = std::log(min_roughness_), step = -lo / (kRoughnessGrid - 1);
+  double chi2[kRoughnessGrid];
   int best = 0;
-  double best_chi2 = HUGE_VAL;
+  Candidate out;
   for (int k = 0; k < kRoughnessGrid; ++k) {
-    const double chi2 = chi2_of_log_m(lo + k * step);
-    if (chi2 < best_chi2) best = k, best_chi2 = chi2;
+    const Candidate c = fit_at(std::exp(lo + k * step));
+    chi2[k] = c.chi2;
+    if (c.chi2 < out.chi2) best = k, out = c;
   }
-  if (!any_plausible) {
-    Candidate out;
+  if (!out.ok) {
     out.implausible_lobe = true;
     return out;
   }
-  double log_m = lo + best * step;
-  golden_refine(chi2_of_log_m, lo + std::max(0, best - 1) * step,
-                lo + std::min(kRoughnessGrid - 1, best + 1) * step, &log_m, &best_chi2);
-  return fit_at(std::exp(log_m));
+  if (best > 0 && best < kRoughnessGrid - 1 && std::isfinite(chi2[best - 1]) &&
+      std::isfinite(chi2[best + 1])) {
+    const double curvature = chi2[best - 1] - 2 * chi2[best] + chi2[best + 1];
+    if (curvature > 0) {
+      const double offset = 0.5 * (chi2[best - 1] - chi2[best + 1]) / curvature;  // In steps.
+      const Candidate c = fit_at(std::exp(lo + (best + std::clamp(offset, -1.0, 1.0)) * step));
+      if (c.chi2 < out.chi2) out = c;
+    }
+  }
+  return out;
 }
 
 namespace {
