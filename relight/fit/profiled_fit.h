@@ -8,7 +8,8 @@
 // (albedo r g b, k_s) is a 4-unknown problem solved from a handful of sums over the samples, and
 // chi^2 follows from the same sums. What depends only on the lights (cosines, the half vector,
 // the shadowing term) is computed once per pixel; the nonlinear parameter is searched on a grid
-// and refined by parabolic steps:
+// and refined (sigma by golden section, which costs nothing per sample; the roughness by one
+// parabolic step, each pass over the samples costing an exp per sample):
 //   Lambert:           a = cos_i / pi, nothing to search.
 //   Oren-Nayar:        a = (A(sigma) cos_i + B(sigma) s cos_i) / pi with s = max(0, cos_io -
 //                      cos_i cos_o) / max(cos_i, cos_o) independent of sigma, so the sums of the
