@@ -98,7 +98,7 @@ ls::relight::ModelMaps model_maps() {
       const Eigen::Vector3d n = normal_at(x, y);
       const float values[] = {float(n.x()), float(n.y()), float(n.z()), 0.5f, 0.4f, 0.3f, 0.0f,
                               0.3f,         0.2f,         3.0f,         1.0f, 1.0f, 0.0f};
-      for (int c = 0; c < ls::relight::kMapChannelCount; ++c) maps.maps.at(x, y, c) = values[c];
+      for (int c = 0; c <= ls::relight::kMapFlags; ++c) maps.maps.at(x, y, c) = values[c];
     }
   }
   return maps;

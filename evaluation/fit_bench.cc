@@ -3,6 +3,7 @@
 #include <fstream>
 
 #include "evaluation/chart.h"
+#include "evaluation/model_metrics.h"
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
 #include "relight/fit/fit.h"
@@ -11,6 +12,7 @@
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/ground_truth.h"
+#include "sim/sim_stage.h"
 
 namespace ls::evaluation {
 
@@ -39,6 +41,8 @@ struct FitConfig {
   std::string name;
   bool oren_nayar, torrance_sparrow, phong;
   relight::FitSolver solver;
+  relight::FitMaterials materials = relight::FitMaterials::kPerPixel;
+  bool fine_render = false;  // Also rendered under the map's finely sampled directions.
 };
 
 const std::vector<FitConfig>& fit_configs() {
@@ -54,9 +58,12 @@ const std::vector<FitConfig>& fit_configs() {
       for (FitConfig config : models) {
         config.solver = solver;
         config.name += solver == relight::FitSolver::kProfiled ? " [profiled]" : " [LM]";
+        config.fine_render = config.oren_nayar && config.torrance_sparrow;
         out.push_back(config);
       }
     }
+    out.push_back({"basis materials", true, true, false, relight::FitSolver::kProfiled,
+                   relight::FitMaterials::kBasis, true});
     return out;
   }();
   return configs;
@@ -81,6 +88,7 @@ Fits fit_all(const capture::ReflectanceField& field, const relight::FitOptions& 
     options.fit_torrance_sparrow = config.torrance_sparrow;
     options.fit_phong = config.phong;
     options.solver = config.solver;
+    options.materials = config.materials;
     const std::string phase = "fit " + config.name;
     options.progress = [&](long done, long total) {
       if (done < total) report(progress, phase, done, total);
@@ -97,6 +105,7 @@ Fits fit_all(const capture::ReflectanceField& field, const relight::FitOptions& 
 // The field's row and every fit's under one map, against the scene's ground truth.
 std::vector<FitBenchRow> rows_for_map(const capture::ReflectanceField& field, const Fits& fits,
                                       const Stage& stage, const sim::Scene& scene,
+                                      const std::vector<sim::SurfaceHit>& hits,
                                       const relight::EnvironmentMap& map, int repeats) {
   const std::string map_name = fs::path(map.source()).stem().string();
   const auto dirs = stage.led_directions();
@@ -123,6 +132,15 @@ std::vector<FitBenchRow> rows_for_map(const capture::ReflectanceField& field, co
   // get wrong (no shadows, misfit), not how the map was sampled. Flagged pixels take the field's
   // value, as a viewer would show them.
   const relight::LightingForModels lighting = relight::LightingForModels::led_cells(dirs, weights);
+  // The map sampled finely over what the dome covers (the truth's directions): a lobe lit by
+  // one light per LED cell is sampled as coarsely as the dome; here only the models' own error
+  // remains (no shadows, misfit).
+  relight::EnvironmentSampling fine;
+  fine.directions_width = 128;
+  fine.covered_by_leds = dirs;
+  fine.coverage_radius_rad = coverage;
+  const relight::LightingForModels fine_lighting =
+      relight::LightingForModels::environment(map, 0.0, fine);
   relight::ModelRenderOptions render_options;
   render_options.flagged_fallback = &field_relit;
   const double pixels = double(field.width()) * field.height();
@@ -141,6 +159,15 @@ std::vector<FitBenchRow> rows_for_map(const capture::ReflectanceField& field, co
     row.time_to_frame_s = fits.normals_s + row.fit_s + row.render_ms / 1e3;
     row.relative_rmse = error.relative_rmse;
     row.psnr_db = error.psnr_db;
+    if (fit_configs()[k].fine_render) {
+      row.fine_relative_rmse =
+          compare_images(relight::render_models(fits.maps[k], fine_lighting, render_options), truth)
+              .relative_rmse;
+    }
+    row.speckle = model_speckle(fits.maps[k]);
+    row.wrong_on_lambertian =
+        models_on(fits.maps[k], hits, relight::FitModel::kLambert).wrong_fraction();
+    row.materials = int(fits.maps[k].materials.size());
     rows.push_back(row);
   }
   return rows;
@@ -150,11 +177,13 @@ void write_csv(const fs::path& path, const std::vector<FitBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "method,map,fit_s,normals_s,fit_pixels_per_s,render_ms,time_to_frame_s,relative_rmse,"
-         "psnr_db,flagged_fraction\n";
+         "psnr_db,flagged_fraction,speckle,wrong_on_lambertian,materials,fine_relative_rmse\n";
   for (const FitBenchRow& r : rows) {
     csv << r.method << ',' << r.map << ',' << r.fit_s << ',' << r.normals_s << ','
         << r.fit_pixels_per_s << ',' << r.render_ms << ',' << r.time_to_frame_s << ','
-        << r.relative_rmse << ',' << r.psnr_db << ',' << r.flagged_fraction << '\n';
+        << r.relative_rmse << ',' << r.psnr_db << ',' << r.flagged_fraction << ',' << r.speckle
+        << ',' << r.wrong_on_lambertian << ',' << r.materials << ',' << r.fine_relative_rmse
+        << '\n';
   }
 }
 
@@ -205,8 +234,9 @@ FitBenchSummary run_fit_bench(const FitBenchOptions& options, const ProgressFn& 
   summary.noise_read_variance = base.normals.noise.a;
   summary.noise_shot_variance_per_unit = base.normals.noise.b;
   const Fits fits = fit_all(field, base, progress);
+  const std::vector<sim::SurfaceHit> hits = sim::trace_camera(scene, stage.camera);
   for (const relight::EnvironmentMap& map : load_maps(options.maps)) {
-    for (FitBenchRow& row : rows_for_map(field, fits, stage, scene, map, options.repeats)) {
+    for (FitBenchRow& row : rows_for_map(field, fits, stage, scene, hits, map, options.repeats)) {
       summary.rows.push_back(std::move(row));
     }
   }

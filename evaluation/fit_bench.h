@@ -2,6 +2,7 @@
 // `lightstage bench fit`: per-pixel model fits against field relighting on the demo scene. Fit
 // throughput of each model (Lambert, Oren-Nayar, Lambert + Torrance-Sparrow, Lambert + Phong, and
 // the BIC choice), each by both solvers (relight::FitSolver: profiled, and LM on every candidate),
+// and the BIC choice with basis materials (relight::FitMaterials),
 // and the error of relighting from it under every map against ground truth, with
 // the field's relighting on the same chart. Writes fit.csv, fit_error_vs_time.png and
 // fit_error_vs_throughput.png.
@@ -30,6 +31,14 @@ struct FitBenchRow {
   double time_to_frame_s = 0;  // Field: its relight; models: normals + fit + render.
   double relative_rmse = 0, psnr_db = 0;
   double flagged_fraction = 0;
+  // Models only (evaluation/model_metrics.h): the fraction of pixels whose model differs from
+  // their 3x3 neighbours' majority, the fraction of truly Lambertian pixels fitted with another
+  // model, and the basis materials found (0: per-pixel).
+  double speckle = 0, wrong_on_lambertian = 0;
+  int materials = 0;
+  // The BIC choices only: the relative RMSE of the model render under the map sampled on a
+  // 128 x 64 grid within the dome's coverage, not one light per LED (0 when not rendered).
+  double fine_relative_rmse = 0;
 };
 
 struct FitBenchSummary {

@@ -263,7 +263,12 @@ int invalid_fit_outputs(const relight::ModelMaps& maps, std::string* first) {
       }
       ok = ok && finite_in(at(kMapSigma), 0, kMaxSigma) && finite_in(at(kMapKs), 0, kUnbounded) &&
            finite_in(at(kMapRoughness), 0, kMaxRoughness) && finite_in(at(kMapConfidence), 0, 1) &&
-           finite_in(at(kMapResidual), 0, kUnbounded) && finite_in(at(kMapFlags), 0, 255);
+           finite_in(at(kMapResidual), 0, kUnbounded) && finite_in(at(kMapFlags), 0, 1023);
+      for (int j = 0; j < 2; ++j) {  // Flags up to kLobeShadowed (512); materials 1-based.
+        ok = ok &&
+             finite_in(at(MapChannel(kMapMaterial + 2 * j)), 0, double(maps.materials.size())) &&
+             finite_in(at(MapChannel(kMapMaterialWeight + 2 * j)), 0, kUnbounded);
+      }
       // A pixel without a model must say why.
       ok = ok && (!none || at(kMapFlags) != 0);
       if (!ok) {

@@ -2,6 +2,7 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "lightstage/errors.h"
@@ -18,8 +19,8 @@ const std::string* NamedChannelFile::attribute(const std::string& name) const {
 }
 
 NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std::string>& names,
-                                     const std::string& kind, const std::string& origin,
-                                     bool exact) {
+                                     const std::string& kind, const std::string& origin, bool exact,
+                                     size_t required) {
   const std::string name = path.string();
   if (!fs::exists(path)) throw InputError(name + ": file not found");
   auto in = OIIO::ImageInput::open(name);
@@ -31,13 +32,15 @@ NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std
     for (int f = 0; f < spec.nchannels; ++f) {
       if (spec.channelnames[f] == names[c]) file_channel[c] = f;
     }
-    if (file_channel[c] < 0) {
+    if (file_channel[c] < 0 && size_t(c) < required) {
       throw InputError(name + ": channel '" + names[c] + "': missing (not " + kind + " from " +
                        origin + "?)");
     }
   }
-  if (exact && spec.nchannels != count) {
-    throw InputError(name + ": channels: expected " + std::to_string(count) + " (" + kind +
+  const int found =
+      int(std::count_if(file_channel.begin(), file_channel.end(), [](int f) { return f >= 0; }));
+  if (exact && spec.nchannels != found) {
+    throw InputError(name + ": channels: expected " + std::to_string(found) + " (" + kind +
                      "), got " + std::to_string(spec.nchannels));
   }
   if (spec.width <= 0 || spec.height <= 0) throw InputError(name + ": image has no pixels");
@@ -55,7 +58,8 @@ NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std
   out.image.channel_names = names;
   for (size_t i = 0; i < raw.num_pixels(); ++i) {
     for (int c = 0; c < count; ++c) {
-      out.image.pixels[i * count + c] = raw.pixels[i * spec.nchannels + file_channel[c]];
+      out.image.pixels[i * count + c] =
+          file_channel[c] < 0 ? 0.0f : raw.pixels[i * spec.nchannels + file_channel[c]];
     }
   }
   return out;

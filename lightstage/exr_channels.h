@@ -1,4 +1,5 @@
 #pragma once
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <string>
@@ -12,7 +13,9 @@ namespace ls {
 // files store channels sorted by name, not as written), bit-exact, with the header's string
 // attributes. InputErrors name the file and the channel, e.g. "maps.exr: channel 'model':
 // missing (not model maps from 'lightstage fit'?)" for kind "model maps", origin
-// "'lightstage fit'". With exact, a file holding other channels too is refused.
+// "'lightstage fit'". With exact, a file holding other channels too is refused. Names from
+// `required` on are optional: read as 0 where the file lacks them (maps written before they were
+// added).
 struct NamedChannelFile {
   Image image;
   ExrAttributes attributes;
@@ -20,7 +23,8 @@ struct NamedChannelFile {
 };
 NamedChannelFile read_named_channels(const std::filesystem::path& path,
                                      const std::vector<std::string>& names, const std::string& kind,
-                                     const std::string& origin, bool exact);
+                                     const std::string& origin, bool exact,
+                                     size_t required = SIZE_MAX);
 
 // A PNG preview of channels [first, first + channels) of `maps` (the channels written to `path`),
 // each value through `transform` (non-finite values black), written beside `path` as

@@ -102,6 +102,10 @@ struct ViewerApp::Impl {
   // UI inputs.
   std::string open_path, env_path, edit_file = "edits.json", screenshot_path = "view.png";
   int edit_model_choice = 0;  // 0 = any class.
+  // "Make this material rougher": with picking on, a click on the image selects the basis
+  // material of the pixel under it (relight/fit/fit.h kMapMaterial; 0 = none).
+  bool pick_material = false;
+  int edit_material = 0;
   bool brush_mode = false;
   float brush_radius = 8.0f;
   float tint[3] = {1, 1, 1};

@@ -126,10 +126,18 @@ void ViewerApp::Impl::handle_image_mouse() {
   if (inside && ImGui::IsMouseClicked(ImGuiMouseButton_Left)) {
     const float divider_x = ix + float(state.divider) * iw;
     dragging_divider = state.split && std::abs(m.x - divider_x) < 6;
+    if (!dragging_divider && pick_material && base_maps) {
+      int px, py;
+      pixel_under_mouse(&px, &py);
+      if (px >= 0) edit_material = int(base_maps->at(px, py, relight::kMapMaterial));
+      pick_material = false;
+      return;
+    }
     painting = !dragging_divider && brush_mode && base_maps;
     if (painting) {
       ViewEdit edit;
       if (edit_model_choice > 0) edit.model_class = relight::FitModel(edit_model_choice);
+      edit.material = edit_material;
       edit.albedo_tint = Eigen::Vector3d(tint[0], tint[1], tint[2]);
       edit.roughness_scale = roughness_scale;
       edit.specular_scale = specular_scale;
@@ -302,13 +310,27 @@ void ViewerApp::Impl::edit_panel() {
   ImGui::BeginDisabled(!base_maps);
   const char* classes[] = {"any model", "lambert", "oren_nayar", "torrance_sparrow", "phong"};
   ImGui::Combo("select", &edit_model_choice, classes, 5);
+  ImGui::BeginDisabled(!base_maps || base_maps->materials.empty());
+  ImGui::Checkbox("pick material (click a pixel)", &pick_material);
+  ImGui::EndDisabled();
+  if (edit_material > 0 && base_maps && size_t(edit_material) <= base_maps->materials.size()) {
+    const relight::Material& picked = base_maps->materials[size_t(edit_material - 1)];
+    ImGui::Text("material %d: %s, albedo %.2f %.2f %.2f", edit_material,
+                relight::to_string(picked.model), picked.albedo(0), picked.albedo(1),
+                picked.albedo(2));
+    ImGui::SameLine();
+    if (ImGui::Button("any material")) edit_material = 0;
+  } else {
+    ImGui::TextDisabled("any material");
+  }
   ImGui::ColorEdit3("albedo tint", tint, ImGuiColorEditFlags_Float);
   ImGui::SliderFloat("roughness x", &roughness_scale, 0.1f, 5.0f, "%.2f",
                      ImGuiSliderFlags_Logarithmic);
   ImGui::SliderFloat("specular x", &specular_scale, 0.0f, 5.0f, "%.2f");
-  if (ImGui::Button("Apply to the class")) {
+  if (ImGui::Button(edit_material > 0 ? "Apply to the material" : "Apply to the class")) {
     ViewEdit edit;
     if (edit_model_choice > 0) edit.model_class = relight::FitModel(edit_model_choice);
+    edit.material = edit_material;
     edit.albedo_tint = Eigen::Vector3d(tint[0], tint[1], tint[2]);
     edit.roughness_scale = roughness_scale;
     edit.specular_scale = specular_scale;
@@ -363,6 +385,10 @@ void ViewerApp::Impl::hover_info() {
               maps.at(px, py, relight::kMapRoughness), maps.at(px, py, relight::kMapSigma));
   ImGui::Text("confidence %.3f  chi2/dof %.3g", maps.at(px, py, relight::kMapConfidence),
               maps.at(px, py, relight::kMapResidual));
+  if (const int material = int(maps.at(px, py, relight::kMapMaterial)); material > 0) {
+    ImGui::Text("material %d (weight %.3f)", material,
+                maps.at(px, py, relight::kMapMaterialWeight));
+  }
   polar_plot(maps, px, py, n);
 }
 

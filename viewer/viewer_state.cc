@@ -146,6 +146,7 @@ InputKind classify_input(const fs::path& path) {
 std::string ViewEdit::to_spec() const {
   std::vector<std::string> parts;
   if (model_class) parts.push_back(std::string("model=") + relight::edit_model_name(*model_class));
+  if (material > 0) parts.push_back("material=" + std::to_string(material));
   if (!brush.empty()) {
     std::string dabs = "brush=";
     for (size_t i = 0; i < brush.size(); ++i) {
@@ -182,6 +183,13 @@ ViewEdit ViewEdit::parse_spec(std::string_view spec, const std::string& source) 
                          ": expected lambert, oren_nayar, torrance_sparrow or phong, got \"" +
                          std::string(value) + "\"");
       }
+    } else if (key == "material") {
+      const double id = parse_number(value, what);
+      if (!(id >= 1 && id == std::floor(id) && id < 1 << 20)) {
+        throw InputError(what + ": expected a material number >= 1, got \"" + std::string(value) +
+                         "\"");
+      }
+      edit.material = int(id);
     } else if (key == "brush") {
       for (std::string_view dab : split(value, '/')) {
         const auto xyr = split(dab, ',');
@@ -204,7 +212,8 @@ ViewEdit ViewEdit::parse_spec(std::string_view spec, const std::string& source) 
         throw InputError(what + ": expected a positive scale, got " + std::string(value));
       (key == "roughness" ? edit.roughness_scale : edit.specular_scale) = scale;
     } else {
-      throw InputError(what + ": unknown key (expected model, brush, tint, roughness, specular)");
+      throw InputError(
+          what + ": unknown key (expected model, material, brush, tint, roughness, specular)");
     }
   }
   return edit;
@@ -213,6 +222,7 @@ ViewEdit ViewEdit::parse_spec(std::string_view spec, const std::string& source) 
 relight::ModelEdit ViewEdit::to_model_edit(int width, int height) const {
   relight::ModelEdit edit;
   edit.select.model = model_class;
+  edit.select.material = material;
   if (!brush.empty()) {
     edit.select.mask.assign(size_t(width) * height, 0);
     for (const BrushDab& dab : brush) {
@@ -242,6 +252,7 @@ void write_edit_file(const fs::path& path, const std::vector<ViewEdit>& edits, i
     const ViewEdit& edit = edits[i];
     nlohmann::json select = nlohmann::json::object();
     if (edit.model_class) select["model"] = relight::edit_model_name(*edit.model_class);
+    if (edit.material > 0) select["material"] = edit.material;
     if (!edit.brush.empty()) {
       const relight::ModelEdit rasterised = edit.to_model_edit(width, height);
       Image mask(width, height, 3);
@@ -335,14 +346,15 @@ std::vector<Action> parse_script(std::string_view json_text, const std::string& 
       a.on = r.has("on") ? r["on"].boolean() : true;
       if (r.has("dir")) a.dir = r["dir"].unit_vec3();
     } else if (name == "edit") {
-      r.expect_object(
-          {"action", "clear", "model", "brush", "tint", "roughness_scale", "specular_scale"});
+      r.expect_object({"action", "clear", "model", "material", "brush", "tint", "roughness_scale",
+                       "specular_scale"});
       a.kind = Action::Kind::kEdit;
       if (r.has("clear")) a.clear = r["clear"].boolean();
       if (r.has("model")) {
         a.edit.model_class =
             parse_model(r["model"].one_of({"lambert", "oren_nayar", "torrance_sparrow", "phong"}));
       }
+      if (r.has("material")) a.edit.material = r["material"].integer_in(1, 1 << 20);
       if (r.has("brush")) {
         const JsonReader dabs = r["brush"];
         dabs.expect_array();

@@ -52,16 +52,19 @@ struct BrushDab {
   bool operator==(const BrushDab&) const = default;
 };
 
-// An edit of the fitted models: the selection (a model class and/or the brush, both: AND) and what
-// it does. Becomes one entry of the edit file relight/fit/model_edit.h reads.
+// An edit of the fitted models: the selection (a model class, a basis material and/or the brush;
+// more than one: AND) and what it does. Becomes one entry of the edit file relight/fit/model_edit.h
+// reads.
 struct ViewEdit {
   std::optional<relight::FitModel> model_class;
+  int material = 0;             // 1-based basis material (relight/fit/fit.h); 0: any.
   std::vector<BrushDab> brush;  // Empty: no brush (the model class alone selects).
   Eigen::Vector3d albedo_tint{1, 1, 1};
   double roughness_scale = 1;
   double specular_scale = 1;
 
-  // "model=torrance_sparrow;brush=10,20,5/30,40,5;tint=1,0.6,0.6;roughness=2;specular=0.5"
+  // "model=torrance_sparrow;material=3;brush=10,20,5/30,40,5;tint=1,0.6,0.6;roughness=2;
+  // specular=0.5"
   // (every part optional, numbers round-trip exactly). parse throws InputError naming `source`.
   std::string to_spec() const;
   static ViewEdit parse_spec(std::string_view spec, const std::string& source);

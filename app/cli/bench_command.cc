@@ -62,16 +62,20 @@ void print_fit_sweeps(const evaluation::FitSweepsBenchSummary& summary) {
 void print_fit(const evaluation::FitBenchSummary& summary) {
   std::fprintf(stderr, "noise: %s: variance = %.3g + %.3g * v\n", summary.noise_source.c_str(),
                summary.noise_read_variance, summary.noise_shot_variance_per_unit);
-  std::printf("%-18s %-14s %9s %11s %10s %9s %8s %8s\n", "method", "map", "fit s", "fit px/s",
-              "render ms", "rel.RMSE", "PSNR", "flagged");
+  std::printf("%-26s %-14s %9s %11s %10s %9s %8s %8s %8s %8s %5s %7s\n", "method", "map", "fit s",
+              "fit px/s", "render ms", "rel.RMSE", "PSNR", "flagged", "speckle", "L wrong", "mats",
+              "fine");
   for (const evaluation::FitBenchRow& r : summary.rows) {
     if (r.method == "field") {
-      std::printf("%-18s %-14s %9s %11s %10.3f %9.4f %8.2f %8s\n", "field", r.map.c_str(), "-", "-",
+      std::printf("%-26s %-14s %9s %11s %10.3f %9.4f %8.2f %8s\n", "field", r.map.c_str(), "-", "-",
                   r.render_ms, r.relative_rmse, r.psnr_db, "-");
     } else {
-      std::printf("%-18s %-14s %9.2f %11.0f %10.3f %9.4f %8.2f %7.1f%%\n", r.method.c_str(),
-                  r.map.c_str(), r.fit_s, r.fit_pixels_per_s, r.render_ms, r.relative_rmse,
-                  r.psnr_db, 100 * r.flagged_fraction);
+      char fine[16] = "-";
+      if (r.fine_relative_rmse > 0) std::snprintf(fine, sizeof fine, "%.4f", r.fine_relative_rmse);
+      std::printf("%-26s %-14s %9.2f %11.0f %10.3f %9.4f %8.2f %7.1f%% %7.2f%% %7.2f%% %5d %7s\n",
+                  r.method.c_str(), r.map.c_str(), r.fit_s, r.fit_pixels_per_s, r.render_ms,
+                  r.relative_rmse, r.psnr_db, 100 * r.flagged_fraction, 100 * r.speckle,
+                  100 * r.wrong_on_lambertian, r.materials, fine);
     }
   }
   std::fprintf(stderr, "wrote %s, fit_error_vs_time.png, fit_error_vs_throughput.png\n",

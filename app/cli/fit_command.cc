@@ -32,6 +32,23 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
     std::printf("  %-26s %8d pixels (%.1f%% of fitted)\n", relight::to_string(relight::FitModel(m)),
                 s.per_model[m], s.fitted > 0 ? 100.0 * s.per_model[m] / s.fitted : 0.0);
   }
+  if (!summary.materials.empty()) {
+    std::printf(
+        "  %zu basis materials explain %d pixels (%.1f%% of fitted; the rest keep their "
+        "own fit):\n",
+        summary.materials.size(), s.material_pixels,
+        s.fitted > 0 ? 100.0 * s.material_pixels / s.fitted : 0.0);
+    for (size_t k = 0; k < summary.materials.size(); ++k) {
+      const relight::Material& m = summary.materials[k];
+      std::printf("    %2zu %-26s albedo %.3f %.3f %.3f", k + 1, relight::to_string(m.model),
+                  m.albedo(0), m.albedo(1), m.albedo(2));
+      if (m.model == relight::FitModel::kOrenNayar) std::printf(", sigma %.3f rad", m.sigma);
+      if (m.model == relight::FitModel::kLambertTorranceSparrow) {
+        std::printf(", ks %.3f, roughness %.3f", m.ks, m.roughness);
+      }
+      std::printf(" (%d pixels)\n", m.pixels);
+    }
+  }
   if (s.discarded_nonfinite_fits > 0) {
     std::printf("  %d individual model fits were not finite and were discarded\n",
                 s.discarded_nonfinite_fits);
@@ -78,7 +95,8 @@ void add_fit_command(CLI::App& app) {
       "Fit a BRDF model per pixel of a reflectance field: photometric-stereo normals, then "
       "Lambert, Oren-Nayar and Lambert + Torrance-Sparrow (and Lambert + Phong with --phong), "
       "the model chosen by BIC. Writes MAPS.exr (normal, albedo, sigma, ks, roughness, model, "
-      "confidence, residual, flags) and a PNG preview per map beside it; 'lightstage relight "
+      "confidence, residual, flags, material ids and weights) and a PNG preview per map beside it "
+      "(MAPS.materials.png: the basis materials); 'lightstage relight "
       "--models MAPS.exr' renders them.");
   cmd->add_option("field", options->field_file, "Reflectance field (.exr from 'lightstage build').")
       ->check(CLI::ExistingFile);
@@ -94,6 +112,13 @@ void add_fit_command(CLI::App& app) {
                   "Photometric-stereo normals: robust (trimmed start + Tukey IRLS, ignores "
                   "highlights) or ls (weighted least squares).")
       ->check(CLI::IsMember({"robust", "ls"}))
+      ->capture_default_str();
+  cmd->add_option("--materials", options->materials,
+                  "basis: cluster the per-pixel fits into the scene's few materials, fit each "
+                  "material on all of its pixels, and give each pixel the weights of one or two "
+                  "materials (its own fit kept where no material explains it); per-pixel: each "
+                  "pixel chooses its model alone.")
+      ->check(CLI::IsMember({"basis", "per-pixel"}))
       ->capture_default_str();
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {

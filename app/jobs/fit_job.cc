@@ -21,6 +21,9 @@ std::string FitJobOptions::validate() const {
   if (method != "robust" && method != "ls") {
     return "--method: expected robust or ls, got \"" + method + "\"";
   }
+  if (materials != "basis" && materials != "per-pixel") {
+    return "--materials: expected basis or per-pixel, got \"" + materials + "\"";
+  }
   return {};
 }
 
@@ -30,6 +33,7 @@ std::string FitJobOptions::to_json() const {
   for (const fs::path& t : time_inputs) j["time"].push_back(t.string());
   j["phong"] = phong;
   j["method"] = method;
+  j["materials"] = materials;
   return j.dump();
 }
 
@@ -83,6 +87,8 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   const capture::ReflectanceField field = capture::read_field(options.field_file);
   relight::FitOptions fit;
   fit.fit_phong = options.phong;
+  fit.materials = options.materials == "per-pixel" ? relight::FitMaterials::kPerPixel
+                                                   : relight::FitMaterials::kBasis;
   fit.normals.method = normal_method(options);
   // The noise model weights every residual and sets the shadow threshold: the field's own
   // measurement when it carries one; otherwise NoiseModel's defaults, which describe the simulated
@@ -99,7 +105,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   report(progress, "normals", 1, 1);
   fit.progress = [&](long done, long total) { report(progress, "fit", done, total); };
   const relight::ModelMaps maps = relight::fit_models(field, normals, fit);
-  FitJobSummary summary{maps.summary,     field.width(),     field.height(),
+  FitJobSummary summary{maps.summary,     maps.materials,    field.width(),       field.height(),
                         fit.noise_source, fit.normals.noise, seconds_since(start)};
   relight::write_model_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
   return summary;

@@ -16,14 +16,16 @@ struct FitJobOptions {
   // Time-varying fit: one field per time step, or directories of field_tNNN.exr (else *.exr).
   std::vector<std::filesystem::path> time_inputs;
   std::filesystem::path out;
-  bool phong = false;             // Also fit Lambert + Phong (comparison).
-  std::string method = "robust";  // Photometric-stereo normals: "robust" or "ls".
+  bool phong = false;               // Also fit Lambert + Phong (comparison).
+  std::string method = "robust";    // Photometric-stereo normals: "robust" or "ls".
+  std::string materials = "basis";  // "basis" or "per-pixel" (relight::FitMaterials).
   std::string validate() const;
   std::string to_json() const;  // Recorded in the maps (kOptionsAttribute).
 };
 
 struct FitJobSummary {
   relight::FitSummary fit;
+  std::vector<relight::Material> materials;  // Basis materials found (none: per-pixel).
   int width = 0, height = 0;
   std::string noise_source;
   relight::NoiseModel noise;

@@ -16,6 +16,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
+#include "relight/fit/basis_materials.h"
 #include "relight/fit/pixel_solver.h"
 #include "relight/fit/profiled_fit.h"
 #include "relight/lighting/brdf.h"
@@ -30,21 +31,11 @@ using pixel::Sample;
 using pixel::SolverStatus;
 
 constexpr double kMaxPhongExponent = 1e4;
-constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
 
 template <FitModel M>
 constexpr int kNumParams = M == FitModel::kLambert     ? 5
                            : M == FitModel::kOrenNayar ? 6
                                                        : 7;
-
-// The number of parameters BIC charges a model with: its kNumParams less the two normal angles
-// when the normal is held.
-int num_params(FitModel model, bool refine_normal) {
-  const int k = model == FitModel::kLambert     ? kNumParams<FitModel::kLambert>
-                : model == FitModel::kOrenNayar ? kNumParams<FitModel::kOrenNayar>
-                                                : kNumParams<FitModel::kLambertTorranceSparrow>;
-  return refine_normal ? k : k - 2;
-}
 
 // Parameter vector: [normal angle a, normal angle b (pixel::refined_normal), sqrt(albedo) r g b,
 // model-specific...].
@@ -113,7 +104,7 @@ ModelFit run_fit(const PixelData& d, const std::array<double, 7>& start, int max
   const Eigen::Matrix<double, K, 1>& x = solved.x;
   ModelFit fit;
   fit.status = solved.status;
-  fit.k = num_params(M, d.refine_normal);
+  fit.k = model_parameters(M, d.refine_normal);
   if (!solved.usable()) return fit;
   fit.chi2 = solved.chi2;
   fit.bic = fit.chi2 + fit.k * std::log(double(3 * d.count));
@@ -183,7 +174,7 @@ ModelFit to_model_fit(const profiled::Candidate& c, FitModel model, const Eigen:
   if (!c.ok) return fit;
   fit.ok = true;
   fit.status = SolverStatus::kConverged;
-  fit.k = num_params(model, d.refine_normal);
+  fit.k = model_parameters(model, d.refine_normal);
   fit.chi2 = c.chi2;
   fit.bic = c.chi2 + fit.k * std::log(double(3 * d.count));
   fit.normal = normal;
@@ -325,6 +316,17 @@ const char* to_string(FitModel model) {
   return "?";
 }
 
+int model_parameters(FitModel model, bool refine_normal) {
+  const int k = model == FitModel::kLambert     ? kNumParams<FitModel::kLambert>
+                : model == FitModel::kOrenNayar ? kNumParams<FitModel::kOrenNayar>
+                                                : kNumParams<FitModel::kLambertTorranceSparrow>;
+  return refine_normal ? k : k - 2;
+}
+
+const char* to_string(FitMaterials materials) {
+  return materials == FitMaterials::kBasis ? "basis" : "per-pixel";
+}
+
 const char* to_string(FitSolver solver) {
   return solver == FitSolver::kProfiled ? "profiled" : "every-candidate-by-lm";
 }
@@ -332,6 +334,7 @@ const char* to_string(FitSolver solver) {
 std::string FitOptions::validate() const {
   if (std::string e = normals.validate(); !e.empty()) return "normals: " + e;
   if (max_iterations < 1) return "max_iterations: expected >= 1";
+  if (max_materials < 1) return "max_materials: expected >= 1";
   if (!(max_specular_albedo > 0)) return "max_specular_albedo: expected > 0";
   for (const double m : roughness_starts) {
     if (!(m > kMinRoughness && m < 1)) return "roughness_starts: expected values in (0.02, 1)";
@@ -348,7 +351,11 @@ std::string FitSummary::to_string() const {
   for (int m = 1; m < 5; ++m) s << ' ' << relight::to_string(FitModel(m)) << '=' << per_model[m];
   s << "; " << discarded_nonfinite_fits << " non-finite fits discarded, "
     << discarded_implausible_lobes << " lobes with implausible k_s discarded; " << not_converged
-    << " fitted pixels not converged (iteration limit); " << seconds << " s";
+    << " fitted pixels not converged (iteration limit); ";
+  if (materials > 0) {
+    s << materials << " basis materials explain " << material_pixels << " fitted pixels; ";
+  }
+  s << seconds << " s";
   return s.str();
 }
 
@@ -427,16 +434,10 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
     summary.not_converged += local.not_converged;
     for (int k = 0; k < 5; ++k) summary.per_model[k] += local.per_model[k];
   });
+  if (options.materials == FitMaterials::kBasis) fit_basis_materials(field, normals, options, out);
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
   return out;
-}
-
-const std::vector<std::string>& model_map_channel_names() {
-  static const std::vector<std::string> names = {
-      "normal.x", "normal.y",  "normal.z", "albedo.r",   "albedo.g", "albedo.b", "sigma",
-      "ks",       "roughness", "model",    "confidence", "residual", "flags"};
-  return names;
 }
 
 void FitOptions::use_noise_of(const capture::ReflectanceField& field) {
@@ -447,111 +448,6 @@ void FitOptions::use_noise_of(const capture::ReflectanceField& field) {
   normals.noise.a = field.noise.read_variance;
   normals.noise.b = field.noise.shot_variance_per_unit;
   noise_source = "measured" + (field.noise.method.empty() ? "" : " (" + field.noise.method + ")");
-}
-
-void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
-                      const ExrAttributes& attributes) {
-  const Image& image = maps.maps;
-  LS_CHECK(image.channels == kMapChannelCount &&
-               image.pixels.size() == image.num_pixels() * kMapChannelCount,
-           "model maps have " + std::to_string(image.channels) + " channels");
-  const nlohmann::json noise = {{"read_variance", maps.noise.a},
-                                {"shot_variance_per_unit", maps.noise.b},
-                                {"source", maps.noise_source}};
-  Image named = image;
-  named.channel_names = model_map_channel_names();
-  ExrAttributes header = attributes;
-  header.emplace_back(kFitNoiseAttribute, noise.dump());
-  write_exr(path, named, ExrPixelType::kFloat, header);
-  auto preview = [&](const std::string& name, int first, int channels,
-                     const std::function<float(float)>& transform) {
-    write_channel_preview(path, name, maps.maps, first, channels, transform);
-  };
-  auto identity = [](float v) { return v; };
-  preview("normal", kMapNormalX, 3, [](float v) { return 0.5f + 0.5f * v; });
-  preview("albedo", kMapAlbedoR, 3, identity);
-  preview("sigma", kMapSigma, 1, [](float v) { return v / (0.5 * kPi); });
-  preview("ks", kMapKs, 1, identity);
-  preview("roughness", kMapRoughness, 1, identity);
-  preview("model", kMapModel, 1, [](float v) { return v / 4; });
-  preview("confidence", kMapConfidence, 1, identity);
-  preview("residual", kMapResidual, 1,
-          [](float v) { return std::log10(1 + std::max(v, 0.f)) / 2; });
-  preview("flags", kMapFlags, 1, [](float v) { return v / 255; });  // Bits up to 128.
-}
-
-ModelMaps read_model_maps(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  const std::vector<std::string>& names = model_map_channel_names();
-  NamedChannelFile file =
-      read_named_channels(path, names, "model maps", "'lightstage fit'", /*exact=*/true);
-  ModelMaps out;
-  out.noise_source = "unknown (no '" + std::string(kFitNoiseAttribute) + "' attribute)";
-  if (const std::string* noise = file.attribute(kFitNoiseAttribute)) {
-    try {
-      const nlohmann::json j = nlohmann::json::parse(*noise);
-      out.noise.a = j.at("read_variance").get<double>();
-      out.noise.b = j.at("shot_variance_per_unit").get<double>();
-      out.noise_source = j.value("source", std::string());
-    } catch (const nlohmann::json::exception& e) {
-      throw InputError(name + ": attribute '" + kFitNoiseAttribute +
-                       "': expected {read_variance, shot_variance_per_unit, source}: " + e.what());
-    }
-    if (!(std::isfinite(out.noise.a) && out.noise.a >= 0 && std::isfinite(out.noise.b) &&
-          out.noise.b >= 0)) {
-      throw InputError(name + ": attribute '" + kFitNoiseAttribute +
-                       "': expected finite non-negative variances");
-    }
-  }
-  out.maps = std::move(file.image);
-  const int width = out.maps.width, height = out.maps.height;
-  FitSummary& summary = out.summary;
-  summary.pixels = width * height;
-  auto fail = [&](int channel, int x, int y, const std::string& expected) {
-    char where[96];
-    std::snprintf(where, sizeof where, " at (%d, %d), got %.9g", x, y,
-                  double(out.maps.at(x, y, channel)));
-    throw InputError(name + ": channel '" + names[channel] + "': expected " + expected + where);
-  };
-  const double max_sigma = 0.5 * kPi + 1e-6;
-  for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) {
-      for (int c = 0; c < kMapChannelCount; ++c) {
-        if (!std::isfinite(out.maps.at(x, y, c))) fail(c, x, y, "a finite value");
-      }
-      const float model = out.maps.at(x, y, kMapModel);
-      if (!(model == std::floor(model) && model >= 0 && model <= 4)) {
-        fail(kMapModel, x, y, "an integer in 0..4 (FitModel)");
-      }
-      const float flags = out.maps.at(x, y, kMapFlags);
-      if (!(flags == std::floor(flags) && flags >= 0)) {
-        fail(kMapFlags, x, y, "a non-negative integer");
-      }
-      if (model == 0) {
-        ++summary.flagged;
-        continue;
-      }
-      ++summary.fitted;
-      ++summary.per_model[int(model)];
-      summary.not_converged += (int(flags) & kFitNotConverged) != 0;
-      const Eigen::Vector3d n(out.maps.at(x, y, kMapNormalX), out.maps.at(x, y, kMapNormalY),
-                              out.maps.at(x, y, kMapNormalZ));
-      if (std::abs(n.norm() - 1) > 1e-3) fail(kMapNormalX, x, y, "a unit normal (x, y, z)");
-      for (int c = kMapAlbedoR; c <= kMapAlbedoB; ++c) {
-        if (out.maps.at(x, y, c) < 0) fail(c, x, y, "an albedo >= 0");
-      }
-      const float sigma = out.maps.at(x, y, kMapSigma);
-      if (!(sigma >= 0 && sigma <= max_sigma)) fail(kMapSigma, x, y, "sigma in [0, pi/2] rad");
-      if (!(out.maps.at(x, y, kMapKs) >= 0)) fail(kMapKs, x, y, "k_s >= 0");
-      const float roughness = out.maps.at(x, y, kMapRoughness);
-      const bool has_lobe = model == float(FitModel::kLambertTorranceSparrow) ||
-                            model == float(FitModel::kLambertPhong);
-      if (has_lobe && !(roughness > 0 && roughness <= 1)) {
-        fail(kMapRoughness, x, y, "a roughness in (0, 1] on a pixel with a specular lobe");
-      }
-    }
-  }
-  return out;
 }
 
 }  // namespace ls::relight

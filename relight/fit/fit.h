@@ -55,6 +55,10 @@ enum class FitModel : int {
   kLambertPhong = 4,
 };
 const char* to_string(FitModel model);
+// The number of parameters BIC charges a model with: two normal angles (none when the normal is
+// held), albedo r g b, and sigma (Oren-Nayar) or k_s and the lobe's shape (Torrance-Sparrow,
+// Phong).
+int model_parameters(FitModel model, bool refine_normal);
 
 // Default bound on a lobe's k_s, shared with ModelRenderOptions (relight/fit/model_render.h).
 inline constexpr double kDefaultMaxSpecularAlbedo = 2.0;
@@ -65,8 +69,23 @@ enum class FitSolver {
 };
 const char* to_string(FitSolver solver);
 
+// How the scene's materials are modelled (issue 15).
+enum class FitMaterials {
+  // Basis materials (relight/fit/basis_materials.h): the per-pixel fits are clustered into the
+  // scene's few materials, each material fitted on all of its pixels' samples together, and each
+  // pixel given the weights of at most two materials, unless its own per-pixel fit explains it
+  // better by BIC (the per-pixel fit is then kept: material 0).
+  kBasis,
+  kPerPixel,  // Each pixel chooses its model alone (before issue 15; kept as the comparison).
+};
+const char* to_string(FitMaterials materials);
+
 struct FitOptions {
   FitSolver solver = FitSolver::kProfiled;
+  FitMaterials materials = FitMaterials::kBasis;
+  // The most materials a scene is split into before materials that the data do not tell apart
+  // (by the scene's BIC) are merged.
+  int max_materials = 16;
   // Normals (used when fit_models estimates them) and the shadow threshold and noise model of the
   // fits: one NoiseModel for both.
   NormalOptions normals;
@@ -115,6 +134,14 @@ enum MapChannel : int {
   kMapConfidence,  // BIC weight of the chosen model, exp(-BIC/2) normalised over the candidates.
   kMapResidual,    // Reduced chi^2 of the chosen model (about 1 when it explains the data).
   kMapFlags,       // NormalFlag bits | kFitFailed | kFitNotConverged.
+  // Basis materials (FitMaterials::kBasis): the pixel's main material, 1-based into
+  // ModelMaps::materials (0 = none: a per-pixel fit or no fit), its weight, and a second material
+  // and weight (0 when the pixel is one material). The pixel's reflectance is
+  // weight * material + weight2 * material2; the channels above hold its parameters.
+  kMapMaterial,
+  kMapMaterialWeight,
+  kMapMaterial2,
+  kMapMaterial2Weight,
   kMapChannelCount,
 };
 // Flag bits of kMapFlags beside the NormalFlag bits (relight/fit/normals.h); the codes are stored
@@ -124,6 +151,24 @@ inline constexpr int kFitFailed = 16;  // No model could be fitted (the pixel is
 // where LM stopped, not at a minimum. 128, not 64: models_at_time (relight/time/temporal_render.h)
 // carries kExtrapolated (64) in kMapFlags, and kTemporalNotConverged is this same bit.
 inline constexpr int kFitNotConverged = 128;
+// Basis materials: the pixel belongs to its material (kMapMaterial) but keeps its own fit's
+// parameters, of the material's model, which explain its data better by BIC.
+inline constexpr int kOwnParameters = 256;
+// Basis materials: part of the pixel's lobe points where its samples show cast shadows (an
+// occluder between it and some LEDs within the lobe): k_s is scaled by the lobe's lit fraction,
+// since the models have no visibility and would otherwise show a highlight from behind the
+// occluder.
+inline constexpr int kLobeShadowed = 512;
+
+// One basis material: a model and its parameters, the reflectance a pixel of weight 1 has.
+struct Material {
+  FitModel model = FitModel::kLambert;
+  Eigen::Vector3d albedo{0, 0, 0};
+  double sigma = 0;      // Oren-Nayar, radians.
+  double ks = 0;         // Torrance-Sparrow, white.
+  double roughness = 0;  // Torrance-Sparrow Beckmann m.
+  int pixels = 0;        // Pixels whose main material it is.
+};
 
 struct FitSummary {
   int pixels = 0;
@@ -133,6 +178,8 @@ struct FitSummary {
   int discarded_nonfinite_fits = 0;     // Individual model fits thrown away (not pixels).
   int discarded_implausible_lobes = 0;  // Lobe fits with k_s > max_specular_albedo (per model).
   int not_converged = 0;                // Fitted pixels flagged kFitNotConverged.
+  int materials = 0;                    // Basis materials found (0: per-pixel fitting).
+  int material_pixels = 0;              // Fitted pixels explained by basis materials.
   double seconds = 0;
   std::string to_string() const;
 };
@@ -145,6 +192,9 @@ struct ModelMaps {
   // came from; stored in the "lightstage:fit_noise" attribute.
   NoiseModel noise;
   std::string noise_source;
+  // The basis materials kMapMaterial indexes (1-based); stored in the "lightstage:materials"
+  // attribute. Empty for per-pixel fits.
+  std::vector<Material> materials;
   float at(int x, int y, MapChannel c) const { return maps.at(x, y, c); }
   FitModel model(int x, int y) const { return FitModel(int(maps.at(x, y, kMapModel))); }
 };

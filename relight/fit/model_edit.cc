@@ -28,10 +28,13 @@ FitModel read_model_name(const JsonReader& r) {
 
 ModelSelection read_selection(const JsonReader& r, const std::filesystem::path& base_dir, int width,
                               int height) {
-  r.expect_object({"model", "mask"});
-  if (!r.has("model") && !r.has("mask")) r.fail(R"(an object with "model" and/or "mask")");
+  r.expect_object({"model", "material", "mask"});
+  if (!r.has("model") && !r.has("material") && !r.has("mask")) {
+    r.fail(R"(an object with "model", "material" and/or "mask")");
+  }
   ModelSelection s;
   if (r.has("model")) s.model = read_model_name(r["model"]);
+  if (r.has("material")) s.material = r["material"].integer_in(1, 1 << 20);
   if (r.has("mask")) s.mask = read_selection_mask(r["mask"], base_dir, width, height, &s.mask_file);
   return s;
 }
@@ -75,6 +78,7 @@ bool selected(const ModelSelection& s, const ModelMaps& maps, int x, int y) {
   const FitModel model = maps.model(x, y);
   if (model == FitModel::kNone) return false;
   if (s.model && model != *s.model) return false;
+  if (s.material > 0 && int(maps.at(x, y, kMapMaterial)) != s.material) return false;
   if (!s.mask.empty() && !s.mask[size_t(y) * maps.maps.width + x]) return false;
   return true;
 }
@@ -170,7 +174,17 @@ std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps) {
   const int width = maps.maps.width, height = maps.maps.height;
   LS_CHECK(maps.maps.channels == kMapChannelCount, "model maps expected");
   std::vector<int> counts;
-  for (const ModelEdit& e : edits.edits) {
+  for (size_t i = 0; i < edits.edits.size(); ++i) {
+    const ModelEdit& e = edits.edits[i];
+    if (e.select.material > int(maps.materials.size())) {
+      const std::string expected =
+          maps.materials.empty()
+              ? "no material: the maps have none (fitted with --materials per-pixel?)"
+              : "1.." + std::to_string(maps.materials.size()) + " (the maps' basis materials)";
+      throw InputError(edits.source + ": edits[" + std::to_string(i) +
+                       "].select.material: expected " + expected + ", got " +
+                       std::to_string(e.select.material));
+    }
     LS_CHECK(e.select.mask.empty() || e.select.mask.size() == maps.maps.num_pixels(),
              "mask of " + std::to_string(e.select.mask.size()) + " pixels for maps of " +
                  std::to_string(maps.maps.num_pixels()));

@@ -6,9 +6,12 @@
 //   {
 //     "edits": [                                  // Applied in order, each to the maps as the
 //       {                                         // edits before it left them.
-//         "select": {                             // Required; "model" and/or "mask" (both: AND).
+//         "select": {                             // Required; "model", "material" and/or "mask"
+//                                                 // (more than one: AND).
 //           "model": "torrance_sparrow",          // "lambert", "oren_nayar", "torrance_sparrow"
 //                                                 // (Lambert + TS lobe), "phong" (Lambert + Phong)
+//           "material": 3,                        // A basis material (relight/fit/fit.h), 1-based:
+//                                                 // the pixels whose main material it is.
 //           "mask": "masks/sphere.png"            // Relative to the edit file; white (mean of RGB
 //         },                                      // >= 0.5) = selected; the maps' size exactly.
 //         "set_model": {                          // Applied first: replaces the model.
@@ -48,6 +51,7 @@ namespace ls::relight {
 
 struct ModelSelection {
   std::optional<FitModel> model;
+  int material = 0;                 // 1-based into ModelMaps::materials; 0: any.
   std::filesystem::path mask_file;  // As written in the edit file (empty: no mask).
   std::vector<uint8_t> mask;        // width x height, row-major, 1 = selected; empty: no mask.
 };
@@ -92,7 +96,8 @@ std::vector<uint8_t> read_selection_mask(const JsonReader& mask_field,
                                          const std::filesystem::path& base_dir, int width,
                                          int height, std::filesystem::path* mask_file);
 
-// Applies the edits in order; returns the number of pixels each edit selected.
+// Applies the edits in order; returns the number of pixels each edit selected. An edit that selects
+// a material the maps do not have is an InputError naming the edit file and the field.
 std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps);
 
 }  // namespace ls::relight

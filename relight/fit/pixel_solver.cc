@@ -6,7 +6,8 @@ namespace ls::relight::pixel {
 
 GatheredSamples gather_samples(const capture::ReflectanceField& field,
                                const capture::ValidLights& valid, const NormalOptions& options,
-                               int x, int y, Sample* samples) {
+                               int x, int y, Sample* samples,
+                               std::vector<Eigen::Vector3d>* shadowed) {
   const float* px = field.pixel(x, y);
   double y_max = 0;
   for (const int l : valid.index) {
@@ -16,6 +17,7 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
   const double threshold =
       std::max(options.shadow_sigmas * std::sqrt(options.noise.a), options.shadow_fraction * y_max);
   GatheredSamples out;
+  if (shadowed) shadowed->clear();
   for (const int light : valid.index) {
     const float* v = px + 3 * size_t(light);
     if (capture::is_saturated(field.lights()[light], v)) {
@@ -23,7 +25,11 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
       continue;
     }
     const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
-    if (!(lum > threshold) || !std::isfinite(lum)) continue;
+    if (!(lum > threshold) || !std::isfinite(lum)) {
+      if (shadowed && std::isfinite(lum))
+        shadowed->push_back(capture::light_dir_at(field, light, x, y));
+      continue;
+    }
     Sample& s = samples[out.count++];
     s.l = capture::light_dir_at(field, light, x, y);  // Per pixel for near LEDs.
     for (int c = 0; c < 3; ++c) {

@@ -47,9 +47,11 @@ struct GatheredSamples {
 // lights, not at their saturation ceiling (a lower bound, not a measurement), luminance above
 // max(shadow_sigmas * sqrt(noise.a), shadow_fraction * brightest luminance) (below: almost always
 // a cast shadow, which no model here has). `samples` holds room for valid.index.size().
+// With `shadowed`, the directions of the lights left out as shadowed are written there too.
 GatheredSamples gather_samples(const capture::ReflectanceField& field,
                                const capture::ValidLights& valid, const NormalOptions& options,
-                               int x, int y, Sample* samples);
+                               int x, int y, Sample* samples,
+                               std::vector<Eigen::Vector3d>* shadowed = nullptr);
 
 // One pixel's fit problem: its usable samples, its photometric-stereo normal n0 with two tangents,
 // and the view direction (unit, toward the camera).

@@ -29,32 +29,6 @@ void oren_nayar_ab(double sigma, double* a, double* b) {
   *b = 0.45 * s2 / (s2 + 0.09);
 }
 
-// Minimises f over [lo, hi] by golden section, starting from the bracket of a grid minimum;
-// returns the best argument seen (x_best, f_best updated in place).
-template <class F>
-void golden_refine(const F& f, double lo, double hi, double* x_best, double* f_best) {
-  constexpr double kInvPhi = 0.6180339887498949;
-  double x1 = hi - kInvPhi * (hi - lo), x2 = lo + kInvPhi * (hi - lo);
-  double f1 = f(x1), f2 = f(x2);
-  for (int i = 0; i < kRefineSteps; ++i) {
-    if (f1 < f2) {
-      hi = x2;
-      x2 = x1;
-      f2 = f1;
-      x1 = hi - kInvPhi * (hi - lo);
-      f1 = f(x1);
-    } else {
-      lo = x1;
-      x1 = x2;
-      f1 = f2;
-      x2 = lo + kInvPhi * (hi - lo);
-      f2 = f(x2);
-    }
-  }
-  if (f1 < *f_best) *x_best = x1, *f_best = f1;
-  if (f2 < *f_best) *x_best = x2, *f_best = f2;
-}
-
 }  // namespace
 
 void PixelTerms::reset(const pixel::Sample* samples, int count, const Eigen::Vector3d& normal,
@@ -132,15 +106,8 @@ Candidate PixelTerms::lambert() const {
 
 Candidate PixelTerms::oren_nayar() const {
   if (!lit()) return {};
-  // chi^2 at sigma from the sums of the A and B terms: a = A lambert + B oren_nayar.
   auto chi2_at = [&](double sigma, Eigen::Vector3d* albedo) {
-    double a, b;
-    oren_nayar_ab(sigma, &a, &b);
-    LinearSums<double> s = lambert_sums_;
-    for (int c = 0; c < 3; ++c) {
-      s.aa[c] = a * a * lambert_sums_.aa[c] + 2 * a * b * lo_[c] + b * b * oo_[c];
-      s.av[c] = a * lambert_sums_.av[c] + b * ov_[c];
-    }
+    const LinearSums<double> s = sums(FitModel::kOrenNayar, sigma);
     Eigen::Vector3d x;
     double ks;
     solve_linear(s, /*has_lobe=*/false, x.data(), &ks);
@@ -158,10 +125,48 @@ Candidate PixelTerms::oren_nayar() const {
   Candidate out;
   out.sigma = best * step;
   golden_refine(chi2_of_sigma, std::max(0, best - 1) * step,
-                std::min(kSigmaGrid - 1, best + 1) * step, &out.sigma, &best_chi2);
+                std::min(kSigmaGrid - 1, best + 1) * step, kRefineSteps, &out.sigma, &best_chi2);
   out.chi2 = chi2_at(out.sigma, &out.albedo);
   out.ok = true;
   return out;
+}
+
+LinearSums<double> PixelTerms::sums(FitModel model, double shape) const {
+  if (model == FitModel::kLambertTorranceSparrow) return lobe_sums(shape);
+  if (model != FitModel::kOrenNayar) return lambert_sums_;
+  // a = A lambert + B oren_nayar: the sums of the two terms give any sigma's at no cost.
+  double a, b;
+  oren_nayar_ab(shape, &a, &b);
+  LinearSums<double> s = lambert_sums_;
+  for (int c = 0; c < 3; ++c) {
+    s.aa[c] = a * a * lambert_sums_.aa[c] + 2 * a * b * lo_[c] + b * b * oo_[c];
+    s.av[c] = a * lambert_sums_.av[c] + b * ov_[c];
+  }
+  return s;
+}
+
+void PixelTerms::predict(FitModel model, double shape, const Eigen::Vector3d& albedo, double ks,
+                         double* out) const {
+  double a_scale = 1, b_scale = 0;
+  if (model == FitModel::kOrenNayar) oren_nayar_ab(shape, &a_scale, &b_scale);
+  const double inv_m2 = model == FitModel::kLambertTorranceSparrow ? 1 / (shape * shape) : 0;
+  for (int i = 0; i < count_; ++i) {
+    const double a = a_scale * lambert_[i] + b_scale * oren_nayar_[i];
+    const double exponent = tan2_h_[i] * inv_m2;
+    const double b = inv_m2 > 0 && exponent <= kMaxLobeExponent
+                         ? lobe_scale_[i] * inv_m2 * std::exp(-exponent)
+                         : 0.0;
+    for (int c = 0; c < 3; ++c) out[3 * i + c] = albedo(c) * a + ks * b;
+  }
+}
+
+double PixelTerms::lobe_weight(double roughness) const {
+  const double inv_m2 = 1 / (roughness * roughness);
+  double sum = 0;
+  for (int i = 0; i < count_; ++i) {
+    if (tan2_h_[i] * inv_m2 <= kMaxLobeExponent) sum += std::exp(-tan2_h_[i] * inv_m2);
+  }
+  return sum;
 }
 
 LinearSums<double> PixelTerms::lobe_sums(double roughness) const {

@@ -93,6 +93,32 @@ T chi2_of(const LinearSums<T>& s, const T* albedo, const T& ks) {
   return chi2 > T(0) ? chi2 : T(0);
 }
 
+// Minimises f over [lo, hi] by `steps` golden-section steps, starting from the bracket of a grid
+// minimum; x_best and f_best are updated in place where a better argument is seen.
+template <class F>
+void golden_refine(const F& f, double lo, double hi, int steps, double* x_best, double* f_best) {
+  constexpr double kInvPhi = 0.6180339887498949;
+  double x1 = hi - kInvPhi * (hi - lo), x2 = lo + kInvPhi * (hi - lo);
+  double f1 = f(x1), f2 = f(x2);
+  for (int i = 0; i < steps; ++i) {
+    if (f1 < f2) {
+      hi = x2;
+      x2 = x1;
+      f2 = f1;
+      x1 = hi - kInvPhi * (hi - lo);
+      f1 = f(x1);
+    } else {
+      lo = x1;
+      x1 = x2;
+      f1 = f2;
+      x2 = lo + kInvPhi * (hi - lo);
+      f2 = f(x2);
+    }
+  }
+  if (f1 < *f_best) *x_best = x1, *f_best = f1;
+  if (f2 < *f_best) *x_best = x2, *f_best = f2;
+}
+
 // A pixel's samples reduced to what the candidates need at one normal, structure of arrays.
 // Reused across pixels (the vectors keep their capacity).
 class PixelTerms {
@@ -103,6 +129,20 @@ class PixelTerms {
   Candidate lambert() const;
   Candidate oren_nayar() const;
   Candidate torrance_sparrow(double max_specular_albedo) const;
+  // The sums of a model (Lambert, Oren-Nayar or Lambert + Torrance-Sparrow) at its nonlinear
+  // parameter `shape` (sigma, the roughness; ignored for Lambert): what the candidates solve, and
+  // what basis materials pool over pixels (relight/fit/basis_materials.h).
+  LinearSums<double> sums(FitModel model, double shape) const;
+  // The prediction albedo_c a(l) + k_s b(l) of a model at its shape, per sample and channel
+  // (out[3 i + c]), and the samples' weights 1/sigma^2 and values in the same order.
+  void predict(FitModel model, double shape, const Eigen::Vector3d& albedo, double ks,
+               double* out) const;
+  int count() const { return count_; }
+  // The sum over the samples of the lobe of this roughness relative to its peak,
+  // exp(-tan^2(theta_h) / m^2).
+  double lobe_weight(double roughness) const;
+  double weight(int i, int c) const { return w_[c][size_t(i)]; }
+  double value(int i, int c) const { return v_[c][size_t(i)]; }
   // Whether any sample is lit at the normal (every candidate needs one).
   bool lit() const {
     return lambert_sums_.aa[0] > 0 || lambert_sums_.aa[1] > 0 || lambert_sums_.aa[2] > 0;

@@ -270,7 +270,7 @@ relight::ModelMaps synthetic_maps(int width, int height, uint64_t seed) {
                               1.0f,
                               1.0f,
                               model == 0 ? float(relight::kFitFailed) : 0.0f};
-      for (int c = 0; c < relight::kMapChannelCount; ++c) maps.maps.at(x, y, c) = values[c];
+      for (int c = 0; c <= relight::kMapFlags; ++c) maps.maps.at(x, y, c) = values[c];
     }
   }
   maps.maps.channel_names = relight::model_map_channel_names();
@@ -360,6 +360,7 @@ class PrefilteredModels : public GpuRelight {
     // the maps stay put when the default solver changes (the profiled solver's maps differ on a
     // handful of grazing rim pixels of the 40-LED dome, where one bright lobe sets the maximum).
     options.solver = relight::FitSolver::kEveryCandidateByLm;
+    options.materials = relight::FitMaterials::kPerPixel;  // Likewise per-pixel, as measured.
     return relight::fit_models(field, options);
   }
   static ViewLighting studio(double rotation_deg) {

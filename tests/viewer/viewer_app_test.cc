@@ -156,6 +156,7 @@ TEST(ViewState, CommandLineRoundTripsEveryField) {
   by_class.model_class = relight::FitModel::kLambertTorranceSparrow;
   by_class.albedo_tint = Eigen::Vector3d(1, 0.6, 0.1);
   by_class.roughness_scale = 2.5;
+  by_class.material = 3;
   ViewEdit by_brush;
   by_brush.brush = {{10.5, 20.25, 5}, {12, 22, 3.5}};
   by_brush.specular_scale = 0.125;
@@ -263,14 +264,21 @@ TEST_F(ViewerApp_, ScriptedSequenceMatchesTheCpuRelighting) {
   app.apply(parse_one(R"({"action": "edit", "model": "torrance_sparrow", "tint": [1, 0.4, 0.2],
                           "roughness_scale": 1.5})"));
   app.apply(parse_one(R"({"action": "edit", "brush": [[32, 24, 10]], "specular_scale": 2})"));
+  // "Make this material rougher": the basis material of the pixel at the sphere's centre.
+  const int material = int(maps_->at(32, 24, relight::kMapMaterial));
+  ASSERT_GT(material, 0) << "the fit found no basis material under (32, 24)";
+  app.apply(parse_one(R"({"action": "edit", "material": )" + std::to_string(material) +
+                      R"(, "roughness_scale": 3})"));
   app.frame();
   relight::ModelMaps edited = *maps_;
   relight::ModelEdits edits;
   for (const ViewEdit& e : app.state().edits) edits.edits.push_back(e.to_model_edit(64, 48));
   const std::vector<int> counts = relight::apply_model_edits(edits, edited);
-  std::cout << "edits selected " << counts[0] << " and " << counts[1] << " pixels\n";
+  std::cout << "edits selected " << counts[0] << ", " << counts[1] << " and " << counts[2]
+            << " pixels\n";
   EXPECT_GT(counts[0], 100);  // The glossy sphere's fitted lobes.
   EXPECT_GT(counts[1], 100);  // pi 10^2 = 314 pixels under the dab.
+  EXPECT_EQ(counts[2], maps_->materials[size_t(material - 1)].pixels);
   const Image cpu_edited = relight::render_models(edited, model_lights(137));
   const double edited_error = max_relative_difference(app.relit_image(), cpu_edited);
   std::cout << "edited models vs CPU: max " << edited_error << " of the peak\n";

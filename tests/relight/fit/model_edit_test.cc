@@ -230,6 +230,38 @@ TEST_F(EditedModels, ParametersAreClampedToTheirBounds) {
   }
 }
 
+// "Make this material rougher": the edit reaches every pixel of the glossy sphere's material, the
+// ones whose own fit was Lambert included (lower half), and no other pixel.
+TEST_F(EditedModels, RougherByMaterialChangesExactlyThatMaterialsPixels) {
+  int glossy = 0;
+  for (size_t k = 0; k < maps_->materials.size(); ++k) {
+    if (maps_->materials[k].model == FitModel::kLambertTorranceSparrow) glossy = int(k) + 1;
+  }
+  ASSERT_GT(glossy, 0) << "no glossy basis material";
+  const ModelMaps rougher = edited(R"({"edits": [{"select": {"material": )" +
+                                   std::to_string(glossy) + R"(}, "roughness_scale": 2}]})");
+  int members = 0;
+  for (int y = 0; y < height(); ++y) {
+    for (int x = 0; x < width(); ++x) {
+      const bool member = int(maps_->at(x, y, kMapMaterial)) == glossy;
+      members += member;
+      const float before = maps_->at(x, y, kMapRoughness);
+      const float expected = member ? std::min(1.0f, 2 * before) : before;
+      ASSERT_FLOAT_EQ(rougher.at(x, y, kMapRoughness), expected) << x << ", " << y;
+    }
+  }
+  EXPECT_EQ(members, maps_->materials[size_t(glossy - 1)].pixels);
+  // A material the maps do not have names the edit file and the field.
+  ModelMaps maps = *maps_;
+  const std::string message = input_error_of([&] {
+    apply_model_edits(edits_from(R"({"edits": [{"select": {"material": 40}, "sigma_scale": 2}]})",
+                                 ".", width(), height()),
+                      maps);
+  });
+  EXPECT_NE(message.find("edits.json: edits[0].select.material: expected 1.."), std::string::npos)
+      << message;
+}
+
 TEST_F(EditedModels, BadEditFilesNameTheFileAndTheField) {
   testing::TempDir dir;
   write_png_preview(dir / "small.png", Image(4, 4, 1, 1.0f));

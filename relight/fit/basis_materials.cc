@@ -1,0 +1,595 @@
+#include "relight/fit/basis_materials.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <mutex>
+#include <opencv2/core.hpp>
+#include <utility>
+#include <vector>
+
+#include "relight/fit/pixel_solver.h"
+#include "relight/fit/profiled_fit.h"
+
+namespace ls::relight {
+namespace {
+
+using profiled::LinearSums;
+using profiled::PixelTerms;
+
+constexpr int kPoolPixels = 96;       // Per over-segmented cluster, spread over its pixels.
+constexpr int kMinClusterPixels = 8;  // Smaller clusters are left to step 4.
+constexpr int kAlternations = 3;      // Weights, then material, three times.
+constexpr int kSigmaGrid = 33;        // As the per-pixel candidates (profiled_fit.cc).
+constexpr int kRoughnessGrid = 16;    // Log-spaced over [0.02, 1]: no resolvable bound pooled.
+constexpr int kRefineSteps = 6;
+// Pixels whose own fit leaves a reduced chi^2 above this many times the median are not clustered
+// (edges, cast shadows' penumbrae): they would make materials of their own.
+constexpr double kClusteredResidualFactor = 4;
+
+double shape_of(const Material& m) {
+  if (m.model == FitModel::kOrenNayar) return m.sigma;
+  if (m.model == FitModel::kLambertTorranceSparrow) return m.roughness;
+  return 0;
+}
+
+// A material's parameters: albedo r g b, plus sigma, or plus k_s and the roughness.
+int material_parameters(FitModel model) {
+  return model == FitModel::kLambert ? 3 : model == FitModel::kOrenNayar ? 4 : 5;
+}
+
+// The weight w >= 0 that best scales a material to a pixel, and chi^2 there, from the pixel's sums
+// at the material's shape.
+struct Scaled {
+  double weight = 0, chi2 = 0;
+};
+Scaled scale_to(const LinearSums<double>& s, const Material& m) {
+  double num = 0, den = 0, vv = 0;
+  for (int c = 0; c < 3; ++c) {
+    const double a = m.albedo(c);
+    num += a * s.av[c] + m.ks * s.bv[c];
+    den += a * a * s.aa[c] + 2 * a * m.ks * s.ab[c] + m.ks * m.ks * s.bb[c];
+    vv += s.vv[c];
+  }
+  const double w = den > 0 && num > 0 ? num / den : 0;
+  return {w, std::max(0.0, vv - 2 * w * num + w * w * den)};
+}
+
+// A pixel of a material's pool: its terms at its fitted normal, and how many of the scene's
+// pixels it stands for.
+struct PoolPixel {
+  PixelTerms terms;
+  double scale = 1;
+  FitModel own = FitModel::kNone;  // The model its own fit chose (whose normal it has).
+};
+
+// Every choice about materials (a material's model, whether two materials are one) is made by
+// the BIC of the material's typical pixel: its mean chi^2 per pixel plus the material's
+// parameters times ln of a pixel's residual count. The scene's BIC over all residuals would let
+// millions of residuals buy any parameter that absorbs an error common to the material's pixels
+// (an LED's calibration, the normals' bias): a material is kept apart, or given a lobe or sigma,
+// only where its typical pixel's own evidence supports it.
+struct MaterialFit {
+  Material material;
+  double chi2 = HUGE_VAL;  // Scaled to the scene.
+  double pixels = 0;       // Scene pixels (sum of the pool pixels' scales).
+  double bic = HUGE_VAL;   // chi2 / pixels + parameters * ln(residuals per pixel).
+};
+
+struct Cluster {
+  std::vector<int> members;  // Into the pool.
+  MaterialFit fit;
+};
+
+class MaterialFitter {
+ public:
+  // log_n: ln of a pixel's residual count.
+  MaterialFitter(const std::vector<PoolPixel>& pool, const FitOptions& options, double log_n)
+      : pool_(pool), options_(options), log_n_(log_n) {}
+
+  // The best material by BIC over Lambert and `models` (the union of those merged).
+  MaterialFit fit(const std::vector<int>& members, std::initializer_list<FitModel> models) const {
+    MaterialFit best = fit_model(members, FitModel::kLambert);
+    for (const FitModel model : models) {
+      if (model == FitModel::kLambert) continue;
+      if (model == FitModel::kOrenNayar && !options_.fit_oren_nayar) continue;
+      if (model == FitModel::kLambertTorranceSparrow && !options_.fit_torrance_sparrow) continue;
+      const MaterialFit f = fit_model(members, model);
+      if (f.bic < best.bic) best = f;
+    }
+    return best;
+  }
+
+ private:
+  // Alternates the pixels' weights (closed form) and the material (albedo and k_s in closed form
+  // over the pooled sums, the shape searched); the mean weight is kept at 1.
+  MaterialFit fit_model(const std::vector<int>& members, FitModel model) const {
+    // The shape is fitted on the pixels whose own fit chose this model, when there are enough:
+    // their normals were refined under it. A Lambert fit's normal on an Oren-Nayar surface is
+    // tilted to mimic the flatter shading, and would bias sigma low.
+    std::vector<int> shaping;
+    if (model != FitModel::kLambert) {
+      for (const int j : members) {
+        if (pool_[size_t(j)].own == model) shaping.push_back(j);
+      }
+    }
+    if (shaping.size() < size_t(kMinClusterPixels)) shaping = members;
+    std::vector<double> w(shaping.size(), 1.0);
+    Material m;
+    m.model = model;
+    for (int round = 0; round < kAlternations; ++round) {
+      search_shape(shaping, w, &m);
+      if (!(m.albedo.allFinite() && std::isfinite(m.ks))) return {};
+      double weighted = 0, scales = 0;
+      for (size_t j = 0; j < shaping.size(); ++j) {
+        const PoolPixel& p = pool_[size_t(shaping[j])];
+        w[j] = scale_to(p.terms.sums(model, shape_of(m)), m).weight;
+        weighted += p.scale * w[j];
+        scales += p.scale;
+      }
+      if (!(weighted > 0)) return {};
+      const double mean = weighted / scales;
+      m.albedo *= mean;
+      m.ks *= mean;
+      for (double& wj : w) wj /= mean;
+    }
+    if (m.ks > options_.max_specular_albedo) return {};
+    double chi2 = 0, pixels = 0;
+    for (const int j : members) {
+      const PoolPixel& p = pool_[size_t(j)];
+      chi2 += p.scale * scale_to(p.terms.sums(model, shape_of(m)), m).chi2;
+      pixels += p.scale;
+    }
+    return {m, chi2, pixels, chi2 / pixels + material_parameters(model) * log_n_};
+  }
+
+  // The pooled least squares at a shape (each pixel's sums scaled by its weight): fills m's
+  // albedo and k_s, returns chi^2 (infinite for a lobe above the k_s bound).
+  double pooled_chi2(const std::vector<int>& members, const std::vector<double>& w, double shape,
+                     Material* m) const {
+    LinearSums<double> total{};
+    for (size_t j = 0; j < members.size(); ++j) {
+      const PoolPixel& p = pool_[size_t(members[j])];
+      const LinearSums<double> s = p.terms.sums(m->model, shape);
+      const double a = p.scale * w[j], a2 = a * w[j];
+      for (int c = 0; c < 3; ++c) {
+        total.aa[c] += a2 * s.aa[c];
+        total.ab[c] += a2 * s.ab[c];
+        total.bb[c] += a2 * s.bb[c];
+        total.av[c] += a * s.av[c];
+        total.bv[c] += a * s.bv[c];
+        total.vv[c] += p.scale * s.vv[c];
+      }
+    }
+    const bool lobe = m->model == FitModel::kLambertTorranceSparrow;
+    profiled::solve_linear(total, lobe, m->albedo.data(), &m->ks);
+    if (m->ks > options_.max_specular_albedo) return HUGE_VAL;
+    return profiled::chi2_of(total, m->albedo.data(), m->ks);
+  }
+
+  void search_shape(const std::vector<int>& members, const std::vector<double>& w,
+                    Material* m) const {
+    if (m->model == FitModel::kLambert) {
+      pooled_chi2(members, w, 0, m);
+      return;
+    }
+    // Oren-Nayar: sigma in [0, pi/2]; Torrance-Sparrow: log roughness in [ln 0.02, 0].
+    const bool on = m->model == FitModel::kOrenNayar;
+    const int grid = on ? kSigmaGrid : kRoughnessGrid;
+    const double lo = on ? 0 : std::log(pixel::kMinRoughness), hi = on ? 0.5 * pixel::kPi : 0;
+    const double step = (hi - lo) / (grid - 1);
+    auto to_shape = [&](double t) { return on ? t : std::exp(t); };
+    Material scratch = *m;
+    auto chi2_at = [&](double t) { return pooled_chi2(members, w, to_shape(t), &scratch); };
+    int best = 0;
+    double best_chi2 = HUGE_VAL;
+    for (int k = 0; k < grid; ++k) {
+      const double chi2 = chi2_at(lo + k * step);
+      if (chi2 < best_chi2) best = k, best_chi2 = chi2;
+    }
+    double t = lo + best * step;
+    profiled::golden_refine(chi2_at, lo + std::max(0, best - 1) * step,
+                            lo + std::min(grid - 1, best + 1) * step, kRefineSteps, &t, &best_chi2);
+    (on ? m->sigma : m->roughness) = to_shape(t);
+    pooled_chi2(members, w, to_shape(t), m);
+  }
+
+  const std::vector<PoolPixel>& pool_;
+  const FitOptions& options_;
+  double log_n_;
+};
+
+// The clustering features of a fitted pixel: log albedo, sigma over its range, sqrt(k_s).
+std::array<float, 5> features_of(const float* m) {
+  std::array<float, 5> f;
+  for (int c = 0; c < 3; ++c) f[size_t(c)] = std::log(m[kMapAlbedoR + c] + 0.01f);
+  f[3] = 2 * m[kMapSigma] / float(0.5 * pixel::kPi);
+  f[4] = 2 * std::sqrt(std::max(0.0f, m[kMapKs]));
+  return f;
+}
+
+// Step 1: the pixels to cluster, and their cluster labels.
+std::vector<std::vector<int>> over_segment(const ModelMaps& maps, int max_clusters) {
+  const Image& image = maps.maps;
+  std::vector<float> residuals;
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    const float* m = &image.pixels[i * image.channels];
+    if (m[kMapModel] != 0 && m[kMapFlags] == 0) residuals.push_back(m[kMapResidual]);
+  }
+  if (residuals.empty()) return {};
+  std::nth_element(residuals.begin(), residuals.begin() + residuals.size() / 2, residuals.end());
+  const float cutoff =
+      std::max(2.0f, float(kClusteredResidualFactor) * residuals[residuals.size() / 2]);
+  std::vector<int> pixels;
+  cv::Mat features(0, 5, CV_32F);
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    const float* m = &image.pixels[i * image.channels];
+    if (m[kMapModel] == 0 || m[kMapFlags] != 0 || m[kMapResidual] > cutoff) continue;
+    const std::array<float, 5> f = features_of(m);
+    features.push_back(cv::Mat(1, 5, CV_32F, const_cast<float*>(f.data())));
+    pixels.push_back(int(i));
+  }
+  const int k = std::min(max_clusters, int(pixels.size()) / (4 * kMinClusterPixels));
+  if (k < 1) return {};
+  cv::Mat labels;
+  cv::theRNG().state = 0x6c696768747374;  // k-means++ seeds: the same clusters every run.
+  cv::kmeans(features, k, labels,
+             cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-4), 3,
+             cv::KMEANS_PP_CENTERS);
+  std::vector<std::vector<int>> clusters(static_cast<size_t>(k));
+  for (size_t j = 0; j < pixels.size(); ++j) {
+    clusters[size_t(labels.at<int>(int(j)))].push_back(pixels[j]);
+  }
+  std::erase_if(clusters, [](const std::vector<int>& c) { return c.size() < kMinClusterPixels; });
+  return clusters;
+}
+
+// What fit_models gathers for a pixel, at a given normal.
+class PixelGatherer {
+ public:
+  PixelGatherer(const capture::ReflectanceField& field, const FitOptions& options)
+      : field_(field), options_(options), valid_(capture::valid_lights(field)) {}
+  // False when the pixel has no usable samples. With `shadowed`: the directions of the lights
+  // left out as shadowed.
+  bool reset(int x, int y, const Eigen::Vector3d& normal, PixelTerms* terms,
+             std::vector<Eigen::Vector3d>* shadowed = nullptr) const {
+    thread_local std::vector<pixel::Sample> samples;
+    samples.resize(valid_.index.size());
+    const int count =
+        pixel::gather_samples(field_, valid_, options_.normals, x, y, samples.data(), shadowed)
+            .count;
+    if (count == 0) return false;
+    terms->reset(samples.data(), count, normal, view(x, y));
+    return true;
+  }
+  Eigen::Vector3d view(int x, int y) const {
+    return pixel::view_dir_at(options_.view_dir_per_pixel, size_t(y) * field_.width() + x);
+  }
+
+ private:
+  const capture::ReflectanceField& field_;
+  const FitOptions& options_;
+  capture::ValidLights valid_;
+};
+
+Eigen::Vector3d fitted_normal(const float* m) {
+  return Eigen::Vector3d(m[kMapNormalX], m[kMapNormalY], m[kMapNormalZ]).normalized();
+}
+
+// Steps 2 and 3: the scene's materials from its clusters, largest first.
+std::vector<Material> merge_materials(const std::vector<PoolPixel>& pool,
+                                      std::vector<Cluster> clusters, const FitOptions& options,
+                                      double log_n) {
+  const MaterialFitter fitter(pool, options, log_n);
+  tbb::parallel_for(size_t(0), clusters.size(), [&](size_t i) {
+    clusters[i].fit =
+        fitter.fit(clusters[i].members, {FitModel::kOrenNayar, FitModel::kLambertTorranceSparrow});
+  });
+  std::erase_if(clusters, [](const Cluster& c) { return !std::isfinite(c.fit.bic); });
+  // Merged fits by pair of cluster positions, recomputed only for pairs with a new cluster.
+  std::map<std::pair<size_t, size_t>, MaterialFit> merged;
+  while (clusters.size() > 1) {
+    std::vector<std::pair<size_t, size_t>> missing;
+    for (size_t i = 0; i < clusters.size(); ++i) {
+      for (size_t j = i + 1; j < clusters.size(); ++j) {
+        if (!merged.count({i, j})) missing.emplace_back(i, j);
+      }
+    }
+    std::vector<MaterialFit> fits(missing.size());
+    tbb::parallel_for(size_t(0), missing.size(), [&](size_t p) {
+      const Cluster& a = clusters[missing[p].first];
+      const Cluster& b = clusters[missing[p].second];
+      std::vector<int> members = a.members;
+      members.insert(members.end(), b.members.begin(), b.members.end());
+      fits[p] = fitter.fit(members, {a.fit.material.model, b.fit.material.model});
+    });
+    for (size_t p = 0; p < missing.size(); ++p) merged[missing[p]] = fits[p];
+    // The typical pixel's BIC gain: the merge's chi^2 per pixel against the parameters saved.
+    double best_gain = 0;
+    std::pair<size_t, size_t> best{0, 0};
+    for (const auto& [pair, fit] : merged) {
+      const MaterialFit& a = clusters[pair.first].fit;
+      const MaterialFit& b = clusters[pair.second].fit;
+      const double gain =
+          (a.chi2 + b.chi2 - fit.chi2) / fit.pixels +
+          (material_parameters(a.material.model) + material_parameters(b.material.model) -
+           material_parameters(fit.material.model)) *
+              log_n;
+      if (gain > best_gain) best_gain = gain, best = pair;
+    }
+    if (best_gain <= 0) break;
+    Cluster& into = clusters[best.first];
+    const Cluster& from = clusters[best.second];
+    into.members.insert(into.members.end(), from.members.begin(), from.members.end());
+    into.fit = merged[best];
+    clusters.erase(clusters.begin() + std::ptrdiff_t(best.second));
+    // Positions after the removed cluster shift down; every pair with the merged one is stale.
+    std::map<std::pair<size_t, size_t>, MaterialFit> kept;
+    for (auto& [pair, fit] : merged) {
+      auto [i, j] = pair;
+      if (i == best.first || j == best.first || i == best.second || j == best.second) continue;
+      kept[{i > best.second ? i - 1 : i, j > best.second ? j - 1 : j}] = std::move(fit);
+    }
+    merged = std::move(kept);
+  }
+  std::sort(clusters.begin(), clusters.end(), [&](const Cluster& a, const Cluster& b) {
+    double sa = 0, sb = 0;
+    for (const int p : a.members) sa += pool[size_t(p)].scale;
+    for (const int p : b.members) sb += pool[size_t(p)].scale;
+    return sa > sb;
+  });
+  std::vector<Material> materials;
+  for (const Cluster& c : clusters) materials.push_back(c.fit.material);
+  return materials;
+}
+
+// A pixel's reflectance as one or two materials (step 4).
+struct Blend {
+  int material[2] = {-1, -1};  // 0-based; -1 = none.
+  double weight[2] = {0, 0};
+  double chi2 = HUGE_VAL;
+  int weights() const { return (material[0] >= 0) + (material[1] >= 0); }
+};
+
+Blend blend_of(const PixelTerms& terms, const std::vector<Material>& materials, double log_n) {
+  Blend best;
+  std::vector<double> chi2(materials.size(), HUGE_VAL);
+  for (size_t k = 0; k < materials.size(); ++k) {
+    const Scaled s = scale_to(terms.sums(materials[k].model, shape_of(materials[k])), materials[k]);
+    chi2[k] = s.chi2;
+    if (s.weight > 0 && s.chi2 < best.chi2) {
+      best = Blend{};
+      best.material[0] = int(k);
+      best.weight[0] = s.weight;
+      best.chi2 = s.chi2;
+    }
+  }
+  if (best.material[0] < 0) return best;
+  // The best second material of the same model, by its chi^2 alone.
+  const Material& first = materials[size_t(best.material[0])];
+  int second = -1;
+  for (size_t k = 0; k < materials.size(); ++k) {
+    if (int(k) != best.material[0] && materials[k].model == first.model &&
+        (second < 0 || chi2[k] < chi2[size_t(second)])) {
+      second = int(k);
+    }
+  }
+  if (second < 0) return best;
+  // Two non-negative weights: the 2x2 normal equations, kept only when both come out positive.
+  thread_local std::vector<double> p1, p2;
+  const int n = terms.count();
+  p1.resize(size_t(3 * n));
+  p2.resize(size_t(3 * n));
+  const Material& other = materials[size_t(second)];
+  terms.predict(first.model, shape_of(first), first.albedo, first.ks, p1.data());
+  terms.predict(other.model, shape_of(other), other.albedo, other.ks, p2.data());
+  double g11 = 0, g12 = 0, g22 = 0, r1 = 0, r2 = 0, vv = 0;
+  for (int i = 0; i < n; ++i) {
+    for (int c = 0; c < 3; ++c) {
+      const double w = terms.weight(i, c), v = terms.value(i, c);
+      const double a = p1[size_t(3 * i + c)], b = p2[size_t(3 * i + c)];
+      g11 += w * a * a, g12 += w * a * b, g22 += w * b * b;
+      r1 += w * a * v, r2 += w * b * v, vv += w * v * v;
+    }
+  }
+  const double det = g11 * g22 - g12 * g12;
+  if (!(det > 0)) return best;
+  const double w1 = (g22 * r1 - g12 * r2) / det, w2 = (g11 * r2 - g12 * r1) / det;
+  if (!(w1 > 0 && w2 > 0)) return best;
+  const double pair_chi2 = std::max(
+      0.0, vv - 2 * (w1 * r1 + w2 * r2) + w1 * w1 * g11 + 2 * w1 * w2 * g12 + w2 * w2 * g22);
+  if (pair_chi2 + log_n >= best.chi2) return best;  // BIC: one more weight.
+  Blend pair;
+  pair.material[0] = w1 >= w2 ? best.material[0] : second;
+  pair.material[1] = w1 >= w2 ? second : best.material[0];
+  pair.weight[0] = std::max(w1, w2);
+  pair.weight[1] = std::min(w1, w2);
+  pair.chi2 = pair_chi2;
+  return pair;
+}
+
+// The fraction of a lobe of this roughness at normal n that the pixel's samples saw lit: the sum
+// of exp(-tan^2(theta_h) / m^2) over the samples, over its sum over the samples and the lights
+// left out as shadowed. 1 where no light falls within the lobe (nothing says it is shadowed).
+double lobe_visibility(const PixelTerms& terms, const std::vector<Eigen::Vector3d>& shadowed,
+                       const Eigen::Vector3d& n, const Eigen::Vector3d& view, double roughness) {
+  const double lit = terms.lobe_weight(roughness), inv_m2 = 1 / (roughness * roughness);
+  double dark = 0;
+  for (const Eigen::Vector3d& l : shadowed) {
+    if (n.dot(l) <= 0) continue;  // Below the surface: no lobe there.
+    const double cos_h = n.dot((l + view).normalized());
+    if (cos_h <= 0) continue;
+    const double cos_h2 = cos_h * cos_h;
+    dark += std::exp(-std::min(40.0, (1 - cos_h2) / cos_h2 * inv_m2));
+  }
+  return lit + dark > 1e-6 ? lit / (lit + dark) : 1.0;
+}
+
+// A material explains a pixel unless it leaves more than this many times the residual variance
+// (reduced chi^2) of the pixel's own fit: a texture the weights cannot follow, a material the
+// clustering missed. Not the BIC: the pixel's own fit wins the BIC wherever a lobe or sigma absorbs
+// an error common to its neighbours (a penumbra, light from a neighbouring object), the speckle
+// the materials are there to remove.
+constexpr double kUnexplainedResidualRatio = 3;
+
+// Two albedos have the same colour when their chromaticities (the albedo over its sum) lie within
+// this of each other: a pixel's own fit is of its material when it has the material's model and
+// colour, and a blend explains a pixel only in the colour the pixel's own fit found (a scalar
+// weight cannot change a material's colour; a blend of two can, along the line between them).
+// 0.03 is 9% of a grey's chromaticity (1/3), several times its noise on well-exposed pixels.
+constexpr double kSameColour = 0.03;
+
+bool same_colour(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return a.sum() > 0 && b.sum() > 0 && (a / a.sum() - b / b.sum()).norm() <= kSameColour;
+}
+
+// Writes a blend into the map values m (normal n) unless the blend leaves the pixel unexplained
+// (kUnexplainedResidualRatio) or in another colour; returns whether the pixel now belongs to the
+// blend's materials. A pixel whose own fit is of its
+// main material (same_colour) and explains it better by BIC keeps its own parameters, flagged
+// kOwnParameters, whatever the blend leaves: a highlight seen across a silhouette pixel's
+// footprint is wider than the material's. The model is the material's all the same (no speckle),
+// and the material stands in only where the pixel's own data are silent.
+bool write_blend(const Blend& blend, const Eigen::Vector3d& n, int residuals,
+                 const std::vector<Material>& materials, bool refine_normal, float* m) {
+  // The blend's parameters: weighted sums; the two materials share a model, and their shapes
+  // are averaged by weight.
+  const Material& main = materials[size_t(blend.material[0])];
+  Material mix;
+  double total = 0;
+  for (int j = 0; j < blend.weights(); ++j) {
+    const Material& mat = materials[size_t(blend.material[j])];
+    const double w = blend.weight[j];
+    mix.albedo += w * mat.albedo;
+    mix.ks += w * mat.ks;
+    mix.sigma += w * mat.sigma;
+    mix.roughness += w * mat.roughness;
+    total += w;
+  }
+  const FitModel own = FitModel(int(m[kMapModel]));
+  const Eigen::Vector3d own_albedo(m[kMapAlbedoR], m[kMapAlbedoG], m[kMapAlbedoB]);
+  const bool own_is_main = own == main.model && same_colour(own_albedo, main.albedo);
+  const int k_own = model_parameters(own, refine_normal);
+  const int k_blend = blend.weights() + (refine_normal ? 2 : 0);
+  const double reduced_chi2 = blend.chi2 / std::max(1, residuals - k_blend);
+  const bool explained = reduced_chi2 <= kUnexplainedResidualRatio * m[kMapResidual] &&
+                         same_colour(mix.albedo, own_albedo);
+  if (!explained && !own_is_main) return false;
+  const double log_n = std::log(double(residuals));
+  const double own_bic = double(m[kMapResidual]) * std::max(1, residuals - k_own) + k_own * log_n;
+  const double blend_bic = blend.chi2 + k_blend * log_n;
+  for (int j = 0; j < 2; ++j) {
+    m[kMapMaterial + 2 * j] = float(blend.material[j] + 1);
+    m[kMapMaterialWeight + 2 * j] = float(blend.weight[j]);
+  }
+  if (own_is_main && own_bic < blend_bic) {
+    m[kMapFlags] = float(int(m[kMapFlags]) | kOwnParameters);
+    return true;
+  }
+  for (int c = 0; c < 3; ++c) {
+    m[kMapNormalX + c] = float(n(c));
+    m[kMapAlbedoR + c] = float(mix.albedo(c));
+  }
+  m[kMapSigma] = float(mix.sigma / total);
+  m[kMapKs] = float(mix.ks);
+  m[kMapRoughness] = float(mix.roughness / total);
+  m[kMapModel] = float(int(main.model));
+  // The BIC weight of the blend against the pixel's own fit.
+  m[kMapConfidence] = float(1 / (1 + std::exp(-0.5 * (own_bic - blend_bic))));
+  m[kMapResidual] = float(reduced_chi2);
+  m[kMapFlags] = float(int(m[kMapFlags]) & ~kFitNotConverged);  // Closed form: converged.
+  return true;
+}
+
+}  // namespace
+
+void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap& normals,
+                         const FitOptions& options, ModelMaps& maps) {
+  Image& image = maps.maps;
+  const int width = image.width;
+  const std::vector<std::vector<int>> clusters = over_segment(maps, options.max_materials);
+  if (clusters.empty()) return;
+  const PixelGatherer gather(field, options);
+  // Each cluster's pool: up to kPoolPixels of its pixels, evenly spread.
+  std::vector<PoolPixel> pool;
+  std::vector<Cluster> pooled(clusters.size());
+  for (size_t k = 0; k < clusters.size(); ++k) {
+    const size_t stride = (clusters[k].size() + kPoolPixels - 1) / kPoolPixels;
+    for (size_t j = 0; j < clusters[k].size(); j += stride) {
+      pooled[k].members.push_back(int(pool.size()));
+      pool.emplace_back().scale = double(stride);
+    }
+  }
+  tbb::parallel_for(size_t(0), clusters.size(), [&](size_t k) {
+    const size_t stride = (clusters[k].size() + kPoolPixels - 1) / kPoolPixels;
+    for (size_t j = 0, p = 0; j < clusters[k].size(); j += stride, ++p) {
+      const int i = clusters[k][j], x = i % width, y = i / width;
+      PoolPixel& pixel = pool[size_t(pooled[k].members[p])];
+      const float* m = &image.pixels[size_t(i) * image.channels];
+      pixel.own = FitModel(int(m[kMapModel]));
+      if (!gather.reset(x, y, fitted_normal(m), &pixel.terms)) pixel.scale = 0;
+    }
+  });
+  double residuals = 0, pixels = 0;
+  for (const PoolPixel& p : pool) residuals += p.scale * 3 * p.terms.count(), pixels += p.scale;
+  const std::vector<Material> materials = merge_materials(
+      pool, std::move(pooled), options, std::log(std::max(residuals / pixels, 2.0)));
+  pool.clear();
+  maps.materials = materials;
+
+  std::mutex mutex;
+  FitSummary& summary = maps.summary;
+  summary.materials = int(materials.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
+    thread_local PixelTerms terms;
+    thread_local std::vector<Eigen::Vector3d> shadowed;
+    FitSummary local;
+    std::vector<int> main_of(materials.size(), 0);
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < width; ++x) {
+        float* m = &image.at(x, y, 0);
+        const FitModel own = FitModel(int(m[kMapModel]));
+        if (own == FitModel::kNone) continue;
+        Eigen::Vector3d n = fitted_normal(m);
+        if (!gather.reset(x, y, n, &terms, &shadowed)) continue;
+        const double log_n = std::log(double(3 * terms.count()));
+        Blend blend = blend_of(terms, materials, log_n);
+        if (blend.material[0] >= 0 && materials[size_t(blend.material[0])].model != own) {
+          // The own fit's normal is biased toward its own model: try the photometric-stereo one.
+          const Eigen::Vector3d n0 = pixel::normal_at(normals, x, y);
+          gather.reset(x, y, n0, &terms);
+          const Blend at_n0 = blend_of(terms, materials, log_n);
+          if (at_n0.chi2 < blend.chi2) blend = at_n0, n = n0;
+        }
+        if (blend.material[0] < 0) continue;
+        const bool was_not_converged = (int(m[kMapFlags]) & kFitNotConverged) != 0;
+        if (!write_blend(blend, n, 3 * terms.count(), materials, options.refine_normal, m)) {
+          continue;
+        }
+        if (m[kMapKs] > 0) {
+          const double visible =
+              lobe_visibility(terms, shadowed, n, gather.view(x, y), m[kMapRoughness]);
+          if (visible < 1) {
+            m[kMapKs] = float(m[kMapKs] * visible);
+            m[kMapFlags] = float(int(m[kMapFlags]) | kLobeShadowed);
+          }
+        }
+        --local.per_model[int(own)];
+        ++local.per_model[int(m[kMapModel])];
+        local.not_converged -= was_not_converged && (int(m[kMapFlags]) & kFitNotConverged) == 0;
+        ++local.material_pixels;
+        ++main_of[size_t(blend.material[0])];
+      }
+    }
+    const std::lock_guard lock(mutex);
+    for (int k = 0; k < 5; ++k) summary.per_model[k] += local.per_model[k];
+    summary.not_converged += local.not_converged;
+    summary.material_pixels += local.material_pixels;
+    for (size_t k = 0; k < materials.size(); ++k) maps.materials[k].pixels += main_of[k];
+  });
+}
+
+}  // namespace ls::relight

@@ -1,0 +1,231 @@
+#include <cmath>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "lightstage/errors.h"
+#include "lightstage/exr_channels.h"
+#include "relight/fit/fit.h"
+
+// Model maps on disk (relight/fit/fit.h): one EXR of named channels, with the fit's noise model
+// and the basis materials as attributes, and PNG previews beside it.
+namespace ls::relight {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
+constexpr const char* kMaterialsAttribute = "lightstage:materials";
+
+nlohmann::json to_json(const std::vector<Material>& materials) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const Material& m : materials) {
+    out.push_back({{"model", to_string(m.model)},
+                   {"albedo", {m.albedo(0), m.albedo(1), m.albedo(2)}},
+                   {"sigma", m.sigma},
+                   {"ks", m.ks},
+                   {"roughness", m.roughness},
+                   {"pixels", m.pixels}});
+  }
+  return out;
+}
+
+// The materials attribute; InputErrors name the file, the attribute and the material.
+std::vector<Material> materials_from(const std::string& text, const std::string& file) {
+  std::vector<Material> out;
+  const std::string where = file + ": attribute '" + kMaterialsAttribute + "'";
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where + ": not JSON: " + e.what());
+  }
+  if (!j.is_array()) throw InputError(where + ": expected an array of materials");
+  for (size_t k = 0; k < j.size(); ++k) {
+    const std::string at = where + ": material " + std::to_string(k + 1);
+    Material m;
+    try {
+      const std::string model = j[k].at("model").get<std::string>();
+      m.model = FitModel::kNone;
+      for (const FitModel f :
+           {FitModel::kLambert, FitModel::kOrenNayar, FitModel::kLambertTorranceSparrow}) {
+        if (model == to_string(f)) m.model = f;
+      }
+      if (m.model == FitModel::kNone) throw InputError(at + ": unknown model '" + model + "'");
+      for (int c = 0; c < 3; ++c) m.albedo(c) = j[k].at("albedo").at(size_t(c)).get<double>();
+      m.sigma = j[k].at("sigma").get<double>();
+      m.ks = j[k].at("ks").get<double>();
+      m.roughness = j[k].at("roughness").get<double>();
+      m.pixels = j[k].at("pixels").get<int>();
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(
+          at + ": expected {model, albedo [r, g, b], sigma, ks, roughness, pixels}: " + e.what());
+    }
+    const bool ok = (m.albedo.array() >= 0).all() && m.sigma >= 0 && m.sigma <= 0.5 * kPi + 1e-6 &&
+                    m.ks >= 0 && m.roughness >= 0 && m.roughness <= 1 && m.pixels >= 0;
+    if (!ok) throw InputError(at + ": parameters out of their bounds (relight/fit/fit.h)");
+    out.push_back(m);
+  }
+  return out;
+}
+
+// STEM.materials.png: each pixel in its main material's colour (hues a golden angle apart), a
+// per-pixel fit dark grey, no fit black.
+void write_material_preview(const std::filesystem::path& path, const Image& maps) {
+  Image image(maps.width, maps.height, 3);
+  for (size_t i = 0; i < maps.num_pixels(); ++i) {
+    const float* m = &maps.pixels[i * maps.channels];
+    const int material = int(m[kMapMaterial]);
+    float rgb[3] = {0, 0, 0};
+    if (material > 0) {
+      const double hue = std::fmod(0.618033988749895 * (material - 1), 1.0) * 6;
+      for (int c = 0; c < 3; ++c) {
+        // A fully saturated hue: 1 within 1 of its centre, falling to 0 by 2.
+        const double d = std::abs(std::fmod(hue - 2 * c + 6, 6.0) - 3);
+        rgb[c] = float(std::clamp(d - 1, 0.0, 1.0) * 0.8 + 0.05);
+      }
+    } else if (m[kMapModel] != 0) {
+      rgb[0] = rgb[1] = rgb[2] = 0.03f;
+    }
+    for (int c = 0; c < 3; ++c) image.pixels[i * 3 + c] = rgb[c];
+  }
+  std::filesystem::path out = path;
+  out.replace_extension("materials.png");
+  write_png_preview(out, image);
+}
+
+}  // namespace
+
+const std::vector<std::string>& model_map_channel_names() {
+  static const std::vector<std::string> names = {
+      "normal.x", "normal.y", "normal.z",        "albedo.r",  "albedo.g",        "albedo.b",
+      "sigma",    "ks",       "roughness",       "model",     "confidence",      "residual",
+      "flags",    "material", "material.weight", "material2", "material2.weight"};
+  return names;
+}
+
+void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
+                      const ExrAttributes& attributes) {
+  const Image& image = maps.maps;
+  LS_CHECK(image.channels == kMapChannelCount &&
+               image.pixels.size() == image.num_pixels() * kMapChannelCount,
+           "model maps have " + std::to_string(image.channels) + " channels");
+  const nlohmann::json noise = {{"read_variance", maps.noise.a},
+                                {"shot_variance_per_unit", maps.noise.b},
+                                {"source", maps.noise_source}};
+  Image named = image;
+  named.channel_names = model_map_channel_names();
+  ExrAttributes header = attributes;
+  header.emplace_back(kFitNoiseAttribute, noise.dump());
+  if (!maps.materials.empty())
+    header.emplace_back(kMaterialsAttribute, to_json(maps.materials).dump());
+  write_exr(path, named, ExrPixelType::kFloat, header);
+  auto preview = [&](const std::string& name, int first, int channels,
+                     const std::function<float(float)>& transform) {
+    write_channel_preview(path, name, maps.maps, first, channels, transform);
+  };
+  auto identity = [](float v) { return v; };
+  preview("normal", kMapNormalX, 3, [](float v) { return 0.5f + 0.5f * v; });
+  preview("albedo", kMapAlbedoR, 3, identity);
+  preview("sigma", kMapSigma, 1, [](float v) { return v / (0.5 * kPi); });
+  preview("ks", kMapKs, 1, identity);
+  preview("roughness", kMapRoughness, 1, identity);
+  preview("model", kMapModel, 1, [](float v) { return v / 4; });
+  preview("confidence", kMapConfidence, 1, identity);
+  preview("residual", kMapResidual, 1,
+          [](float v) { return std::log10(1 + std::max(v, 0.f)) / 2; });
+  preview("flags", kMapFlags, 1, [](float v) { return v / 511; });  // Bits up to 256.
+  if (!maps.materials.empty()) write_material_preview(path, image);
+}
+
+ModelMaps read_model_maps(const std::filesystem::path& path) {
+  const std::string name = path.string();
+  const std::vector<std::string>& names = model_map_channel_names();
+  NamedChannelFile file =
+      read_named_channels(path, names, "model maps", "'lightstage fit'", /*exact=*/true,
+                          /*required=*/kMapMaterial);  // Maps from before basis materials.
+  ModelMaps out;
+  out.noise_source = "unknown (no '" + std::string(kFitNoiseAttribute) + "' attribute)";
+  if (const std::string* noise = file.attribute(kFitNoiseAttribute)) {
+    try {
+      const nlohmann::json j = nlohmann::json::parse(*noise);
+      out.noise.a = j.at("read_variance").get<double>();
+      out.noise.b = j.at("shot_variance_per_unit").get<double>();
+      out.noise_source = j.value("source", std::string());
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(name + ": attribute '" + kFitNoiseAttribute +
+                       "': expected {read_variance, shot_variance_per_unit, source}: " + e.what());
+    }
+    if (!(std::isfinite(out.noise.a) && out.noise.a >= 0 && std::isfinite(out.noise.b) &&
+          out.noise.b >= 0)) {
+      throw InputError(name + ": attribute '" + kFitNoiseAttribute +
+                       "': expected finite non-negative variances");
+    }
+  }
+  if (const std::string* materials = file.attribute(kMaterialsAttribute)) {
+    out.materials = materials_from(*materials, name);
+    out.summary.materials = int(out.materials.size());
+  }
+  out.maps = std::move(file.image);
+  const int width = out.maps.width, height = out.maps.height;
+  FitSummary& summary = out.summary;
+  summary.pixels = width * height;
+  auto fail = [&](int channel, int x, int y, const std::string& expected) {
+    char where[96];
+    std::snprintf(where, sizeof where, " at (%d, %d), got %.9g", x, y,
+                  double(out.maps.at(x, y, channel)));
+    throw InputError(name + ": channel '" + names[channel] + "': expected " + expected + where);
+  };
+  const double max_sigma = 0.5 * kPi + 1e-6;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      for (int c = 0; c < kMapChannelCount; ++c) {
+        if (!std::isfinite(out.maps.at(x, y, c))) fail(c, x, y, "a finite value");
+      }
+      const float model = out.maps.at(x, y, kMapModel);
+      if (!(model == std::floor(model) && model >= 0 && model <= 4)) {
+        fail(kMapModel, x, y, "an integer in 0..4 (FitModel)");
+      }
+      const float flags = out.maps.at(x, y, kMapFlags);
+      if (!(flags == std::floor(flags) && flags >= 0)) {
+        fail(kMapFlags, x, y, "a non-negative integer");
+      }
+      for (int j = 0; j < 2; ++j) {
+        const float material = out.maps.at(x, y, kMapMaterial + 2 * j);
+        if (!(material == std::floor(material) && material >= 0 &&
+              material <= float(out.materials.size()))) {
+          fail(kMapMaterial + 2 * j, x, y,
+               "an integer in 0.." + std::to_string(out.materials.size()) +
+                   " (the materials in attribute '" + kMaterialsAttribute + "')");
+        }
+        if (!(out.maps.at(x, y, kMapMaterialWeight + 2 * j) >= 0)) {
+          fail(kMapMaterialWeight + 2 * j, x, y, "a weight >= 0");
+        }
+      }
+      summary.material_pixels += out.maps.at(x, y, kMapMaterial) > 0;
+      if (model == 0) {
+        ++summary.flagged;
+        continue;
+      }
+      ++summary.fitted;
+      ++summary.per_model[int(model)];
+      summary.not_converged += (int(flags) & kFitNotConverged) != 0;
+      const Eigen::Vector3d n(out.maps.at(x, y, kMapNormalX), out.maps.at(x, y, kMapNormalY),
+                              out.maps.at(x, y, kMapNormalZ));
+      if (std::abs(n.norm() - 1) > 1e-3) fail(kMapNormalX, x, y, "a unit normal (x, y, z)");
+      for (int c = kMapAlbedoR; c <= kMapAlbedoB; ++c) {
+        if (out.maps.at(x, y, c) < 0) fail(c, x, y, "an albedo >= 0");
+      }
+      const float sigma = out.maps.at(x, y, kMapSigma);
+      if (!(sigma >= 0 && sigma <= max_sigma)) fail(kMapSigma, x, y, "sigma in [0, pi/2] rad");
+      if (!(out.maps.at(x, y, kMapKs) >= 0)) fail(kMapKs, x, y, "k_s >= 0");
+      const float roughness = out.maps.at(x, y, kMapRoughness);
+      const bool has_lobe = model == float(FitModel::kLambertTorranceSparrow) ||
+                            model == float(FitModel::kLambertPhong);
+      if (has_lobe && !(roughness > 0 && roughness <= 1)) {
+        fail(kMapRoughness, x, y, "a roughness in (0, 1] on a pixel with a specular lobe");
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace ls::relight
