@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -20,15 +21,29 @@ namespace {
 using profiled::LinearSums;
 using profiled::PixelTerms;
 
-constexpr int kPoolPixels = 96;       // Per over-segmented cluster, spread over its pixels.
-constexpr int kMinClusterPixels = 8;  // Smaller clusters are left to step 4.
-constexpr int kAlternations = 3;      // Weights, then material, three times.
-constexpr int kSigmaGrid = 33;        // As the per-pixel candidates (profiled_fit.cc).
-constexpr int kRoughnessGrid = 16;    // Log-spaced over [0.02, 1]: no resolvable bound pooled.
+constexpr int kPoolPixels = 96;             // Per over-segmented cluster, spread over its pixels.
+constexpr int kMinClusterPixels = 8;        // Smaller clusters are left to step 4.
+constexpr size_t kClusteredPixels = 16384;  // At most about this many pixels are clustered.
+constexpr int kAlternations = 3;            // Weights, then material, three times.
+constexpr int kSigmaGrid = 33;              // As the per-pixel candidates (profiled_fit.cc).
+constexpr int kRoughnessGrid = 32;  // Log-spaced over [0.02, 1]: no resolvable bound pooled.
 constexpr int kRefineSteps = 6;
+// Two albedos have the same colour when their chromaticities (the albedo over its sum) lie within
+// this of each other: a pixel's own fit is of its material when it has the material's model and
+// colour, and a blend explains a pixel only in the colour the pixel's own fit found (a scalar
+// weight cannot change a material's colour; a blend of two can, along the line between them).
+// 0.03 is 9% of a grey's chromaticity (1/3), several times its noise on well-exposed pixels.
+constexpr double kSameColour = 0.03;
+
 // Pixels whose own fit leaves a reduced chi^2 above this many times the median are not clustered
 // (edges, cast shadows' penumbrae): they would make materials of their own.
 constexpr double kClusteredResidualFactor = 4;
+
+// The distance between two albedos' chromaticities (each albedo over its sum).
+double colour_distance(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  if (!(a.sum() > 0 && b.sum() > 0)) return HUGE_VAL;
+  return (a / a.sum() - b / b.sum()).norm();
+}
 
 double shape_of(const Material& m) {
   if (m.model == FitModel::kOrenNayar) return m.sigma;
@@ -58,10 +73,18 @@ Scaled scale_to(const LinearSums<double>& s, const Material& m) {
   return {w, std::max(0.0, vv - 2 * w * num + w * w * den)};
 }
 
-// A pixel of a material's pool: its terms at its fitted normal, and how many of the scene's
-// pixels it stands for.
+// The roughness grid of the pooled Torrance-Sparrow search: log-spaced over [0.02, 1], 12% steps.
+double grid_roughness(int k) {
+  const double lo = std::log(pixel::kMinRoughness);
+  return std::exp(lo - lo * k / (kRoughnessGrid - 1));
+}
+
+// A pixel of a material's pool: its terms at its fitted normal, its Lambert + Torrance-Sparrow
+// sums at every grid roughness (computed once: a merge tries every pair of materials), and how
+// many of the scene's pixels it stands for.
 struct PoolPixel {
   PixelTerms terms;
+  std::array<LinearSums<double>, kRoughnessGrid> lobe_grid;
   double scale = 1;
   FitModel own = FitModel::kNone;  // The model its own fit chose (whose normal it has).
 };
@@ -71,10 +94,13 @@ struct PoolPixel {
 // parameters times ln of a pixel's residual count. The scene's BIC over all residuals would let
 // millions of residuals buy any parameter that absorbs an error common to the material's pixels
 // (an LED's calibration, the normals' bias): a material is kept apart, or given a lobe or sigma,
-// only where its typical pixel's own evidence supports it.
+// only where its typical pixel's own evidence supports it. chi^2 is divided by the scene's
+// dispersion, the median reduced chi^2 of the pixels' own fits when above 1 (quasi-likelihood):
+// where the noise model is too optimistic (an 8-bit JPEG set with no measured noise) or no model
+// is exact, chi^2 differences are that many times larger than the BIC's penalties assume.
 struct MaterialFit {
   Material material;
-  double chi2 = HUGE_VAL;  // Scaled to the scene.
+  double chi2 = HUGE_VAL;  // Scaled to the scene, divided by the dispersion.
   double pixels = 0;       // Scene pixels (sum of the pool pixels' scales).
   double bic = HUGE_VAL;   // chi2 / pixels + parameters * ln(residuals per pixel).
 };
@@ -86,18 +112,22 @@ struct Cluster {
 
 class MaterialFitter {
  public:
-  // log_n: ln of a pixel's residual count.
-  MaterialFitter(const std::vector<PoolPixel>& pool, const FitOptions& options, double log_n)
-      : pool_(pool), options_(options), log_n_(log_n) {}
+  // log_n: ln of a pixel's residual count; dispersion: as above.
+  MaterialFitter(const std::vector<PoolPixel>& pool, const FitOptions& options, double log_n,
+                 double dispersion)
+      : pool_(pool), options_(options), log_n_(log_n), dispersion_(dispersion) {}
 
-  // The best material by BIC over Lambert and `models` (the union of those merged).
-  MaterialFit fit(const std::vector<int>& members, std::initializer_list<FitModel> models) const {
-    MaterialFit best = fit_model(members, FitModel::kLambert);
+  // The best material by BIC over Lambert and `models` (the union of those merged). Not precise:
+  // the roughness from the grid and one parabolic step (merges try every pair); precise: refined
+  // by golden section too.
+  MaterialFit fit(const std::vector<int>& members, std::initializer_list<FitModel> models,
+                  bool precise = false) const {
+    MaterialFit best = fit_model(members, FitModel::kLambert, precise);
     for (const FitModel model : models) {
       if (model == FitModel::kLambert) continue;
       if (model == FitModel::kOrenNayar && !options_.fit_oren_nayar) continue;
       if (model == FitModel::kLambertTorranceSparrow && !options_.fit_torrance_sparrow) continue;
-      const MaterialFit f = fit_model(members, model);
+      const MaterialFit f = fit_model(members, model, precise);
       if (f.bic < best.bic) best = f;
     }
     return best;
@@ -106,7 +136,7 @@ class MaterialFitter {
  private:
   // Alternates the pixels' weights (closed form) and the material (albedo and k_s in closed form
   // over the pooled sums, the shape searched); the mean weight is kept at 1.
-  MaterialFit fit_model(const std::vector<int>& members, FitModel model) const {
+  MaterialFit fit_model(const std::vector<int>& members, FitModel model, bool precise) const {
     // The shape is fitted on the pixels whose own fit chose this model, when there are enough:
     // their normals were refined under it. A Lambert fit's normal on an Oren-Nayar surface is
     // tilted to mimic the flatter shading, and would bias sigma low.
@@ -121,7 +151,7 @@ class MaterialFitter {
     Material m;
     m.model = model;
     for (int round = 0; round < kAlternations; ++round) {
-      search_shape(shaping, w, &m);
+      search_shape(shaping, w, precise && round == kAlternations - 1, &m);
       if (!(m.albedo.allFinite() && std::isfinite(m.ks))) return {};
       double weighted = 0, scales = 0;
       for (size_t j = 0; j < shaping.size(); ++j) {
@@ -143,17 +173,20 @@ class MaterialFitter {
       chi2 += p.scale * scale_to(p.terms.sums(model, shape_of(m)), m).chi2;
       pixels += p.scale;
     }
+    chi2 /= dispersion_;
     return {m, chi2, pixels, chi2 / pixels + material_parameters(model) * log_n_};
   }
 
-  // The pooled least squares at a shape (each pixel's sums scaled by its weight): fills m's
-  // albedo and k_s, returns chi^2 (infinite for a lobe above the k_s bound).
-  double pooled_chi2(const std::vector<int>& members, const std::vector<double>& w, double shape,
-                     Material* m) const {
+  // The pooled least squares of the members' sums (sums_of(pool pixel), each scaled by the
+  // pixel's weight): fills m's albedo and k_s, returns chi^2 (infinite for a lobe above the k_s
+  // bound).
+  template <class SumsOf>
+  double pooled_chi2(const std::vector<int>& members, const std::vector<double>& w,
+                     const SumsOf& sums_of, Material* m) const {
     LinearSums<double> total{};
     for (size_t j = 0; j < members.size(); ++j) {
       const PoolPixel& p = pool_[size_t(members[j])];
-      const LinearSums<double> s = p.terms.sums(m->model, shape);
+      const LinearSums<double>& s = sums_of(p);
       const double a = p.scale * w[j], a2 = a * w[j];
       for (int c = 0; c < 3; ++c) {
         total.aa[c] += a2 * s.aa[c];
@@ -169,37 +202,59 @@ class MaterialFitter {
     if (m->ks > options_.max_specular_albedo) return HUGE_VAL;
     return profiled::chi2_of(total, m->albedo.data(), m->ks);
   }
+  double pooled_chi2_at(const std::vector<int>& members, const std::vector<double>& w, double shape,
+                        Material* m) const {
+    return pooled_chi2(
+        members, w, [&](const PoolPixel& p) { return p.terms.sums(m->model, shape); }, m);
+  }
 
-  void search_shape(const std::vector<int>& members, const std::vector<double>& w,
+  // Sets m's shape (sigma or roughness), albedo and k_s.
+  void search_shape(const std::vector<int>& members, const std::vector<double>& w, bool precise,
                     Material* m) const {
     if (m->model == FitModel::kLambert) {
-      pooled_chi2(members, w, 0, m);
+      pooled_chi2_at(members, w, 0, m);
       return;
     }
-    // Oren-Nayar: sigma in [0, pi/2]; Torrance-Sparrow: log roughness in [ln 0.02, 0].
+    Material scratch = *m;
+    // Over t: sigma in [0, pi/2] (any sigma costs nothing per sample), or log roughness in
+    // [ln 0.02, 0] (from the grid's sums, then a parabolic step).
     const bool on = m->model == FitModel::kOrenNayar;
     const int grid = on ? kSigmaGrid : kRoughnessGrid;
     const double lo = on ? 0 : std::log(pixel::kMinRoughness), hi = on ? 0.5 * pixel::kPi : 0;
     const double step = (hi - lo) / (grid - 1);
     auto to_shape = [&](double t) { return on ? t : std::exp(t); };
-    Material scratch = *m;
-    auto chi2_at = [&](double t) { return pooled_chi2(members, w, to_shape(t), &scratch); };
+    auto chi2_at = [&](double t) { return pooled_chi2_at(members, w, to_shape(t), &scratch); };
+    std::array<double, std::max(kSigmaGrid, kRoughnessGrid)> chi2;
     int best = 0;
-    double best_chi2 = HUGE_VAL;
     for (int k = 0; k < grid; ++k) {
-      const double chi2 = chi2_at(lo + k * step);
-      if (chi2 < best_chi2) best = k, best_chi2 = chi2;
+      chi2[size_t(k)] =
+          on ? chi2_at(lo + k * step)
+             : pooled_chi2(
+                   members, w, [&](const PoolPixel& p) { return p.lobe_grid[size_t(k)]; },
+                   &scratch);
+      if (chi2[size_t(k)] < chi2[size_t(best)]) best = k;
     }
-    double t = lo + best * step;
-    profiled::golden_refine(chi2_at, lo + std::max(0, best - 1) * step,
-                            lo + std::min(grid - 1, best + 1) * step, kRefineSteps, &t, &best_chi2);
+    double t = lo + best * step, best_chi2 = chi2[size_t(best)];
+    if (!on && best > 0 && best < grid - 1) {
+      const double below = chi2[size_t(best - 1)], above = chi2[size_t(best + 1)];
+      const double curvature = below - 2 * best_chi2 + above;
+      if (std::isfinite(curvature) && curvature > 0) {
+        const double vertex = t + 0.5 * step * (below - above) / curvature;
+        if (const double c = chi2_at(vertex); c < best_chi2) t = vertex, best_chi2 = c;
+      }
+    }
+    if (on || precise) {
+      profiled::golden_refine(chi2_at, lo + std::max(0, best - 1) * step,
+                              lo + std::min(grid - 1, best + 1) * step, kRefineSteps, &t,
+                              &best_chi2);
+    }
     (on ? m->sigma : m->roughness) = to_shape(t);
-    pooled_chi2(members, w, to_shape(t), m);
+    pooled_chi2_at(members, w, to_shape(t), m);
   }
 
   const std::vector<PoolPixel>& pool_;
   const FitOptions& options_;
-  double log_n_;
+  double log_n_, dispersion_;
 };
 
 // The clustering features of a fitted pixel: log albedo, sigma over its range, sqrt(k_s).
@@ -211,8 +266,12 @@ std::array<float, 5> features_of(const float* m) {
   return f;
 }
 
-// Step 1: the pixels to cluster, and their cluster labels.
-std::vector<std::vector<int>> over_segment(const ModelMaps& maps, int max_clusters) {
+// Step 1: the pixels to cluster, by cluster, and the scene's dispersion (MaterialFit).
+struct Segments {
+  std::vector<std::vector<int>> clusters;
+  double dispersion = 1;
+};
+Segments over_segment(const ModelMaps& maps, int max_clusters) {
   const Image& image = maps.maps;
   std::vector<float> residuals;
   for (size_t i = 0; i < image.num_pixels(); ++i) {
@@ -221,11 +280,14 @@ std::vector<std::vector<int>> over_segment(const ModelMaps& maps, int max_cluste
   }
   if (residuals.empty()) return {};
   std::nth_element(residuals.begin(), residuals.begin() + residuals.size() / 2, residuals.end());
-  const float cutoff =
-      std::max(2.0f, float(kClusteredResidualFactor) * residuals[residuals.size() / 2]);
+  Segments out;
+  out.dispersion = std::max(1.0, double(residuals[residuals.size() / 2]));
+  const float cutoff = std::max(2.0f, float(kClusteredResidualFactor * out.dispersion));
   std::vector<int> pixels;
   cv::Mat features(0, 5, CV_32F);
-  for (size_t i = 0; i < image.num_pixels(); ++i) {
+  // Every stride-th pixel: the clusters only seed the materials (step 4 assigns every pixel).
+  const size_t stride = std::max<size_t>(1, residuals.size() / kClusteredPixels);
+  for (size_t i = 0; i < image.num_pixels(); i += stride) {
     const float* m = &image.pixels[i * image.channels];
     if (m[kMapModel] == 0 || m[kMapFlags] != 0 || m[kMapResidual] > cutoff) continue;
     const std::array<float, 5> f = features_of(m);
@@ -244,7 +306,8 @@ std::vector<std::vector<int>> over_segment(const ModelMaps& maps, int max_cluste
     clusters[size_t(labels.at<int>(int(j)))].push_back(pixels[j]);
   }
   std::erase_if(clusters, [](const std::vector<int>& c) { return c.size() < kMinClusterPixels; });
-  return clusters;
+  out.clusters = std::move(clusters);
+  return out;
 }
 
 // What fit_models gathers for a pixel, at a given normal.
@@ -282,8 +345,8 @@ Eigen::Vector3d fitted_normal(const float* m) {
 // Steps 2 and 3: the scene's materials from its clusters, largest first.
 std::vector<Material> merge_materials(const std::vector<PoolPixel>& pool,
                                       std::vector<Cluster> clusters, const FitOptions& options,
-                                      double log_n) {
-  const MaterialFitter fitter(pool, options, log_n);
+                                      double log_n, double dispersion) {
+  const MaterialFitter fitter(pool, options, log_n, dispersion);
   tbb::parallel_for(size_t(0), clusters.size(), [&](size_t i) {
     clusters[i].fit =
         fitter.fit(clusters[i].members, {FitModel::kOrenNayar, FitModel::kLambertTorranceSparrow});
@@ -295,7 +358,11 @@ std::vector<Material> merge_materials(const std::vector<PoolPixel>& pool,
     std::vector<std::pair<size_t, size_t>> missing;
     for (size_t i = 0; i < clusters.size(); ++i) {
       for (size_t j = i + 1; j < clusters.size(); ++j) {
-        if (!merged.count({i, j})) missing.emplace_back(i, j);
+        // A weight scales a material, it cannot change its colour: materials further apart in
+        // colour than a blend may be from a pixel's own (three times kSameColour) stay apart.
+        const bool close = colour_distance(clusters[i].fit.material.albedo,
+                                           clusters[j].fit.material.albedo) <= 3 * kSameColour;
+        if (close && !merged.count({i, j})) missing.emplace_back(i, j);
       }
     }
     std::vector<MaterialFit> fits(missing.size());
@@ -341,8 +408,13 @@ std::vector<Material> merge_materials(const std::vector<PoolPixel>& pool,
     for (const int p : b.members) sb += pool[size_t(p)].scale;
     return sa > sb;
   });
-  std::vector<Material> materials;
-  for (const Cluster& c : clusters) materials.push_back(c.fit.material);
+  std::vector<Material> materials(clusters.size());
+  tbb::parallel_for(size_t(0), clusters.size(), [&](size_t k) {
+    materials[k] = fitter
+                       .fit(clusters[k].members, {clusters[k].fit.material.model},
+                            /*precise=*/true)
+                       .material;
+  });
   return materials;
 }
 
@@ -434,16 +506,12 @@ double lobe_visibility(const PixelTerms& terms, const std::vector<Eigen::Vector3
 // an error common to its neighbours (a penumbra, light from a neighbouring object), the speckle
 // the materials are there to remove.
 constexpr double kUnexplainedResidualRatio = 3;
-
-// Two albedos have the same colour when their chromaticities (the albedo over its sum) lie within
-// this of each other: a pixel's own fit is of its material when it has the material's model and
-// colour, and a blend explains a pixel only in the colour the pixel's own fit found (a scalar
-// weight cannot change a material's colour; a blend of two can, along the line between them).
-// 0.03 is 9% of a grey's chromaticity (1/3), several times its noise on well-exposed pixels.
-constexpr double kSameColour = 0.03;
+// A pixel's own fit leaving residuals of 10 sigma rms explains it no better than any material
+// (fit.cc's kUnexplainedReducedChi2).
+constexpr double kUnexplainedOwnReducedChi2 = 100;
 
 bool same_colour(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return a.sum() > 0 && b.sum() > 0 && (a / a.sum() - b / b.sum()).norm() <= kSameColour;
+  return colour_distance(a, b) <= kSameColour;
 }
 
 // Writes a blend into the map values m (normal n) unless the blend leaves the pixel unexplained
@@ -475,12 +543,16 @@ bool write_blend(const Blend& blend, const Eigen::Vector3d& n, int residuals,
   const int k_own = model_parameters(own, refine_normal);
   const int k_blend = blend.weights() + (refine_normal ? 2 : 0);
   const double reduced_chi2 = blend.chi2 / std::max(1, residuals - k_blend);
-  const bool explained = reduced_chi2 <= kUnexplainedResidualRatio * m[kMapResidual] &&
-                         same_colour(mix.albedo, own_albedo);
-  if (!explained && !own_is_main) return false;
   const double log_n = std::log(double(residuals));
   const double own_bic = double(m[kMapResidual]) * std::max(1, residuals - k_own) + k_own * log_n;
   const double blend_bic = blend.chi2 + k_blend * log_n;
+  // Another colour counts against the blend only where the data tell it apart (the blend loses
+  // by BIC: a dark pixel's own colour is mostly its noise) and the pixel's own fit explains it (a
+  // pixel whose own fit leaves residuals of 10 sigma has no colour to keep: a penumbra).
+  const bool own_colour = m[kMapResidual] <= kUnexplainedOwnReducedChi2 && blend_bic > own_bic;
+  const bool explained = reduced_chi2 <= kUnexplainedResidualRatio * m[kMapResidual] &&
+                         (!own_colour || same_colour(mix.albedo, own_albedo));
+  if (!explained && !own_is_main) return false;
   for (int j = 0; j < 2; ++j) {
     m[kMapMaterial + 2 * j] = float(blend.material[j] + 1);
     m[kMapMaterialWeight + 2 * j] = float(blend.weight[j]);
@@ -510,7 +582,8 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
                          const FitOptions& options, ModelMaps& maps) {
   Image& image = maps.maps;
   const int width = image.width;
-  const std::vector<std::vector<int>> clusters = over_segment(maps, options.max_materials);
+  const Segments segments = over_segment(maps, options.max_materials);
+  const std::vector<std::vector<int>>& clusters = segments.clusters;
   if (clusters.empty()) return;
   const PixelGatherer gather(field, options);
   // Each cluster's pool: up to kPoolPixels of its pixels, evenly spread.
@@ -531,12 +604,17 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
       const float* m = &image.pixels[size_t(i) * image.channels];
       pixel.own = FitModel(int(m[kMapModel]));
       if (!gather.reset(x, y, fitted_normal(m), &pixel.terms)) pixel.scale = 0;
+      for (int g = 0; g < kRoughnessGrid; ++g) {
+        pixel.lobe_grid[size_t(g)] =
+            pixel.terms.sums(FitModel::kLambertTorranceSparrow, grid_roughness(g));
+      }
     }
   });
   double residuals = 0, pixels = 0;
   for (const PoolPixel& p : pool) residuals += p.scale * 3 * p.terms.count(), pixels += p.scale;
-  const std::vector<Material> materials = merge_materials(
-      pool, std::move(pooled), options, std::log(std::max(residuals / pixels, 2.0)));
+  const std::vector<Material> materials =
+      merge_materials(pool, std::move(pooled), options, std::log(std::max(residuals / pixels, 2.0)),
+                      segments.dispersion);
   pool.clear();
   maps.materials = materials;
 

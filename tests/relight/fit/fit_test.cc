@@ -181,6 +181,31 @@ TEST_F(ThreeSpheres, RecoversParametersWithinTolerance) {
   }
 }
 
+// Basis materials (the default): one material per sphere, each with its parameters within 2%.
+TEST_F(ThreeSpheres, FindsOneMaterialPerSphereWithinTwoPercent) {
+  ASSERT_EQ(maps_->materials.size(), 3u);
+  for (int region = 0; region < 3; ++region) {
+    const brdf::Material truth = region_material(region);
+    const Material* found = nullptr;
+    for (const Material& m : maps_->materials) {
+      if (m.model == region_model(region)) found = &m;
+    }
+    ASSERT_NE(found, nullptr) << to_string(region_model(region));
+    std::cout << to_string(found->model) << ": albedo " << found->albedo.transpose() << ", sigma "
+              << found->sigma << ", ks " << found->ks << ", roughness " << found->roughness << "\n";
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_LT(std::abs(found->albedo(c) / truth.albedo(c) - 1), 0.02) << region;
+    }
+    if (region == kRough) {
+      EXPECT_LT(std::abs(found->sigma / truth.sigma_rad - 1), 0.02);
+    }
+    if (region == kGlossy) {
+      EXPECT_LT(std::abs(found->ks / truth.ks(0) - 1), 0.02);
+      EXPECT_LT(std::abs(found->roughness / truth.roughness - 1), 0.02);
+    }
+  }
+}
+
 TEST_F(ThreeSpheres, MapsAreFiniteFlaggedWhereEmptyAndWritten) {
   const Image& maps = maps_->maps;
   ASSERT_EQ(maps.channels, int(kMapChannelCount));
