@@ -42,9 +42,22 @@ relight::FitModel true_model(const brdf::Material& material) {
 
 RegionModels models_on(const relight::ModelMaps& maps, const std::vector<sim::SurfaceHit>& hits,
                        relight::FitModel model) {
+  const int width = maps.maps.width, height = maps.maps.height;
+  // hits is row-major, one per pixel (sim::trace_camera).
+  auto material_at = [&](int x, int y) {
+    return x < 0 || y < 0 || x >= width || y >= height ? -2
+                                                       : hits[size_t(y) * width + x].material_index;
+  };
   RegionModels out;
   for (const sim::SurfaceHit& h : hits) {
     if (!h.hit || true_model(h.material) != model) continue;
+    bool interior = true;
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        interior = interior && material_at(h.pixel_x + dx, h.pixel_y + dy) == h.material_index;
+      }
+    }
+    if (!interior) continue;
     const relight::FitModel fitted = maps.model(h.pixel_x, h.pixel_y);
     if (fitted == relight::FitModel::kNone) continue;
     ++out.pixels;

@@ -22,7 +22,9 @@ struct RegionModels {
   int wrong = 0;   // Of them, fitted with a model other than the true one.
   double wrong_fraction() const { return pixels > 0 ? double(wrong) / pixels : 0.0; }
 };
-// Over the hits (sim::trace_camera) whose true model is `model`: how many got another model.
+// Over the hits (sim::trace_camera, one per pixel) whose true model is `model`, inside their
+// material's region (the 3x3 neighbours hit the same material: an edge pixel's footprint mixes
+// two materials): how many got another model.
 RegionModels models_on(const relight::ModelMaps& maps, const std::vector<sim::SurfaceHit>& hits,
                        relight::FitModel model);
 

@@ -12,22 +12,30 @@
 #include <utility>
 #include <vector>
 
+#include "relight/fit/material_pool.h"
 #include "relight/fit/pixel_solver.h"
 #include "relight/fit/profiled_fit.h"
 
 namespace ls::relight {
 namespace {
 
+using materials::Cluster;
+using materials::colour_distance;
+using materials::grid_roughness;
+using materials::kRoughnessGrid;
+using materials::material_parameters;
+using materials::MaterialFit;
+using materials::MaterialFitter;
+using materials::PoolPixel;
+using materials::scale_to;
+using materials::Scaled;
+using materials::shape_of;
 using profiled::LinearSums;
 using profiled::PixelTerms;
 
 constexpr int kPoolPixels = 96;             // Per over-segmented cluster, spread over its pixels.
 constexpr int kMinClusterPixels = 8;        // Smaller clusters are left to step 4.
 constexpr size_t kClusteredPixels = 16384;  // At most about this many pixels are clustered.
-constexpr int kAlternations = 3;            // Weights, then material, three times.
-constexpr int kSigmaGrid = 33;              // As the per-pixel candidates (profiled_fit.cc).
-constexpr int kRoughnessGrid = 32;  // Log-spaced over [0.02, 1]: no resolvable bound pooled.
-constexpr int kRefineSteps = 6;
 // Two albedos have the same colour when their chromaticities (the albedo over its sum) lie within
 // this of each other: a pixel's own fit is of its material when it has the material's model and
 // colour, and a blend explains a pixel only in the colour the pixel's own fit found (a scalar
@@ -38,224 +46,6 @@ constexpr double kSameColour = 0.03;
 // Pixels whose own fit leaves a reduced chi^2 above this many times the median are not clustered
 // (edges, cast shadows' penumbrae): they would make materials of their own.
 constexpr double kClusteredResidualFactor = 4;
-
-// The distance between two albedos' chromaticities (each albedo over its sum).
-double colour_distance(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  if (!(a.sum() > 0 && b.sum() > 0)) return HUGE_VAL;
-  return (a / a.sum() - b / b.sum()).norm();
-}
-
-double shape_of(const Material& m) {
-  if (m.model == FitModel::kOrenNayar) return m.sigma;
-  if (m.model == FitModel::kLambertTorranceSparrow) return m.roughness;
-  return 0;
-}
-
-// A material's parameters: albedo r g b, plus sigma, or plus k_s and the roughness.
-int material_parameters(FitModel model) {
-  return model == FitModel::kLambert ? 3 : model == FitModel::kOrenNayar ? 4 : 5;
-}
-
-// The weight w >= 0 that best scales a material to a pixel, and chi^2 there, from the pixel's sums
-// at the material's shape.
-struct Scaled {
-  double weight = 0, chi2 = 0;
-};
-Scaled scale_to(const LinearSums<double>& s, const Material& m) {
-  double num = 0, den = 0, vv = 0;
-  for (int c = 0; c < 3; ++c) {
-    const double a = m.albedo(c);
-    num += a * s.av[c] + m.ks * s.bv[c];
-    den += a * a * s.aa[c] + 2 * a * m.ks * s.ab[c] + m.ks * m.ks * s.bb[c];
-    vv += s.vv[c];
-  }
-  const double w = den > 0 && num > 0 ? num / den : 0;
-  return {w, std::max(0.0, vv - 2 * w * num + w * w * den)};
-}
-
-// The roughness grid of the pooled Torrance-Sparrow search: log-spaced over [0.02, 1], 12% steps.
-double grid_roughness(int k) {
-  const double lo = std::log(pixel::kMinRoughness);
-  return std::exp(lo - lo * k / (kRoughnessGrid - 1));
-}
-
-// A pixel of a material's pool: its terms at its fitted normal, its Lambert + Torrance-Sparrow
-// sums at every grid roughness (computed once: a merge tries every pair of materials), and how
-// many of the scene's pixels it stands for.
-struct PoolPixel {
-  PixelTerms terms;
-  std::array<LinearSums<double>, kRoughnessGrid> lobe_grid;
-  double scale = 1;
-  FitModel own = FitModel::kNone;  // The model its own fit chose (whose normal it has).
-};
-
-// Every choice about materials (a material's model, whether two materials are one) is made by
-// the BIC of the material's typical pixel: its mean chi^2 per pixel plus the material's
-// parameters times ln of a pixel's residual count. The scene's BIC over all residuals would let
-// millions of residuals buy any parameter that absorbs an error common to the material's pixels
-// (an LED's calibration, the normals' bias): a material is kept apart, or given a lobe or sigma,
-// only where its typical pixel's own evidence supports it. chi^2 is divided by the scene's
-// dispersion, the median reduced chi^2 of the pixels' own fits when above 1 (quasi-likelihood):
-// where the noise model is too optimistic (an 8-bit JPEG set with no measured noise) or no model
-// is exact, chi^2 differences are that many times larger than the BIC's penalties assume.
-struct MaterialFit {
-  Material material;
-  double chi2 = HUGE_VAL;  // Scaled to the scene, divided by the dispersion.
-  double pixels = 0;       // Scene pixels (sum of the pool pixels' scales).
-  double bic = HUGE_VAL;   // chi2 / pixels + parameters * ln(residuals per pixel).
-};
-
-struct Cluster {
-  std::vector<int> members;  // Into the pool.
-  MaterialFit fit;
-};
-
-class MaterialFitter {
- public:
-  // log_n: ln of a pixel's residual count; dispersion: as above.
-  MaterialFitter(const std::vector<PoolPixel>& pool, const FitOptions& options, double log_n,
-                 double dispersion)
-      : pool_(pool), options_(options), log_n_(log_n), dispersion_(dispersion) {}
-
-  // The best material by BIC over Lambert and `models` (the union of those merged). Not precise:
-  // the roughness from the grid and one parabolic step (merges try every pair); precise: refined
-  // by golden section too.
-  MaterialFit fit(const std::vector<int>& members, std::initializer_list<FitModel> models,
-                  bool precise = false) const {
-    MaterialFit best = fit_model(members, FitModel::kLambert, precise);
-    for (const FitModel model : models) {
-      if (model == FitModel::kLambert) continue;
-      if (model == FitModel::kOrenNayar && !options_.fit_oren_nayar) continue;
-      if (model == FitModel::kLambertTorranceSparrow && !options_.fit_torrance_sparrow) continue;
-      const MaterialFit f = fit_model(members, model, precise);
-      if (f.bic < best.bic) best = f;
-    }
-    return best;
-  }
-
- private:
-  // Alternates the pixels' weights (closed form) and the material (albedo and k_s in closed form
-  // over the pooled sums, the shape searched); the mean weight is kept at 1.
-  MaterialFit fit_model(const std::vector<int>& members, FitModel model, bool precise) const {
-    // The shape is fitted on the pixels whose own fit chose this model, when there are enough:
-    // their normals were refined under it. A Lambert fit's normal on an Oren-Nayar surface is
-    // tilted to mimic the flatter shading, and would bias sigma low.
-    std::vector<int> shaping;
-    if (model != FitModel::kLambert) {
-      for (const int j : members) {
-        if (pool_[size_t(j)].own == model) shaping.push_back(j);
-      }
-    }
-    if (shaping.size() < size_t(kMinClusterPixels)) shaping = members;
-    std::vector<double> w(shaping.size(), 1.0);
-    Material m;
-    m.model = model;
-    for (int round = 0; round < kAlternations; ++round) {
-      search_shape(shaping, w, precise && round == kAlternations - 1, &m);
-      if (!(m.albedo.allFinite() && std::isfinite(m.ks))) return {};
-      double weighted = 0, scales = 0;
-      for (size_t j = 0; j < shaping.size(); ++j) {
-        const PoolPixel& p = pool_[size_t(shaping[j])];
-        w[j] = scale_to(p.terms.sums(model, shape_of(m)), m).weight;
-        weighted += p.scale * w[j];
-        scales += p.scale;
-      }
-      if (!(weighted > 0)) return {};
-      const double mean = weighted / scales;
-      m.albedo *= mean;
-      m.ks *= mean;
-      for (double& wj : w) wj /= mean;
-    }
-    if (m.ks > options_.max_specular_albedo) return {};
-    double chi2 = 0, pixels = 0;
-    for (const int j : members) {
-      const PoolPixel& p = pool_[size_t(j)];
-      chi2 += p.scale * scale_to(p.terms.sums(model, shape_of(m)), m).chi2;
-      pixels += p.scale;
-    }
-    chi2 /= dispersion_;
-    return {m, chi2, pixels, chi2 / pixels + material_parameters(model) * log_n_};
-  }
-
-  // The pooled least squares of the members' sums (sums_of(pool pixel), each scaled by the
-  // pixel's weight): fills m's albedo and k_s, returns chi^2 (infinite for a lobe above the k_s
-  // bound).
-  template <class SumsOf>
-  double pooled_chi2(const std::vector<int>& members, const std::vector<double>& w,
-                     const SumsOf& sums_of, Material* m) const {
-    LinearSums<double> total{};
-    for (size_t j = 0; j < members.size(); ++j) {
-      const PoolPixel& p = pool_[size_t(members[j])];
-      const LinearSums<double>& s = sums_of(p);
-      const double a = p.scale * w[j], a2 = a * w[j];
-      for (int c = 0; c < 3; ++c) {
-        total.aa[c] += a2 * s.aa[c];
-        total.ab[c] += a2 * s.ab[c];
-        total.bb[c] += a2 * s.bb[c];
-        total.av[c] += a * s.av[c];
-        total.bv[c] += a * s.bv[c];
-        total.vv[c] += p.scale * s.vv[c];
-      }
-    }
-    const bool lobe = m->model == FitModel::kLambertTorranceSparrow;
-    profiled::solve_linear(total, lobe, m->albedo.data(), &m->ks);
-    if (m->ks > options_.max_specular_albedo) return HUGE_VAL;
-    return profiled::chi2_of(total, m->albedo.data(), m->ks);
-  }
-  double pooled_chi2_at(const std::vector<int>& members, const std::vector<double>& w, double shape,
-                        Material* m) const {
-    return pooled_chi2(
-        members, w, [&](const PoolPixel& p) { return p.terms.sums(m->model, shape); }, m);
-  }
-
-  // Sets m's shape (sigma or roughness), albedo and k_s.
-  void search_shape(const std::vector<int>& members, const std::vector<double>& w, bool precise,
-                    Material* m) const {
-    if (m->model == FitModel::kLambert) {
-      pooled_chi2_at(members, w, 0, m);
-      return;
-    }
-    Material scratch = *m;
-    // Over t: sigma in [0, pi/2] (any sigma costs nothing per sample), or log roughness in
-    // [ln 0.02, 0] (from the grid's sums, then a parabolic step).
-    const bool on = m->model == FitModel::kOrenNayar;
-    const int grid = on ? kSigmaGrid : kRoughnessGrid;
-    const double lo = on ? 0 : std::log(pixel::kMinRoughness), hi = on ? 0.5 * pixel::kPi : 0;
-    const double step = (hi - lo) / (grid - 1);
-    auto to_shape = [&](double t) { return on ? t : std::exp(t); };
-    auto chi2_at = [&](double t) { return pooled_chi2_at(members, w, to_shape(t), &scratch); };
-    std::array<double, std::max(kSigmaGrid, kRoughnessGrid)> chi2;
-    int best = 0;
-    for (int k = 0; k < grid; ++k) {
-      chi2[size_t(k)] =
-          on ? chi2_at(lo + k * step)
-             : pooled_chi2(
-                   members, w, [&](const PoolPixel& p) { return p.lobe_grid[size_t(k)]; },
-                   &scratch);
-      if (chi2[size_t(k)] < chi2[size_t(best)]) best = k;
-    }
-    double t = lo + best * step, best_chi2 = chi2[size_t(best)];
-    if (!on && best > 0 && best < grid - 1) {
-      const double below = chi2[size_t(best - 1)], above = chi2[size_t(best + 1)];
-      const double curvature = below - 2 * best_chi2 + above;
-      if (std::isfinite(curvature) && curvature > 0) {
-        const double vertex = t + 0.5 * step * (below - above) / curvature;
-        if (const double c = chi2_at(vertex); c < best_chi2) t = vertex, best_chi2 = c;
-      }
-    }
-    if (on || precise) {
-      profiled::golden_refine(chi2_at, lo + std::max(0, best - 1) * step,
-                              lo + std::min(grid - 1, best + 1) * step, kRefineSteps, &t,
-                              &best_chi2);
-    }
-    (on ? m->sigma : m->roughness) = to_shape(t);
-    pooled_chi2_at(members, w, to_shape(t), m);
-  }
-
-  const std::vector<PoolPixel>& pool_;
-  const FitOptions& options_;
-  double log_n_, dispersion_;
-};
 
 // The clustering features of a fitted pixel: log albedo, sigma over its range, sqrt(k_s).
 std::array<float, 5> features_of(const float* m) {
@@ -506,23 +296,25 @@ double lobe_visibility(const PixelTerms& terms, const std::vector<Eigen::Vector3
 // an error common to its neighbours (a penumbra, light from a neighbouring object), the speckle
 // the materials are there to remove.
 constexpr double kUnexplainedResidualRatio = 3;
-// A pixel's own fit leaving residuals of 10 sigma rms explains it no better than any material
-// (fit.cc's kUnexplainedReducedChi2).
-constexpr double kUnexplainedOwnReducedChi2 = 100;
+// A pixel's own fit that leaves ten times the scene's typical residual variance (its dispersion)
+// explains the pixel no better than its material (a penumbra, a pixel straddling an occluding
+// edge): its extra parameters fit the misfit, and its colour is not the surface's.
+constexpr double kUnexplainedOwnDispersions = 10;
 
 bool same_colour(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return colour_distance(a, b) <= kSameColour;
 }
 
 // Writes a blend into the map values m (normal n) unless the blend leaves the pixel unexplained
-// (kUnexplainedResidualRatio) or in another colour; returns whether the pixel now belongs to the
-// blend's materials. A pixel whose own fit is of its
-// main material (same_colour) and explains it better by BIC keeps its own parameters, flagged
+// (kUnexplainedResidualRatio) or in another colour while its own fit explains it; returns whether
+// the pixel now belongs to the blend's materials. A pixel whose own fit is of its main material
+// (same_colour) and explains it better by BIC keeps its own parameters, flagged
 // kOwnParameters, whatever the blend leaves: a highlight seen across a silhouette pixel's
 // footprint is wider than the material's. The model is the material's all the same (no speckle),
 // and the material stands in only where the pixel's own data are silent.
 bool write_blend(const Blend& blend, const Eigen::Vector3d& n, int residuals,
-                 const std::vector<Material>& materials, bool refine_normal, float* m) {
+                 const std::vector<Material>& materials, bool refine_normal, double dispersion,
+                 float* m) {
   // The blend's parameters: weighted sums; the two materials share a model, and their shapes
   // are averaged by weight.
   const Material& main = materials[size_t(blend.material[0])];
@@ -547,11 +339,12 @@ bool write_blend(const Blend& blend, const Eigen::Vector3d& n, int residuals,
   const double own_bic = double(m[kMapResidual]) * std::max(1, residuals - k_own) + k_own * log_n;
   const double blend_bic = blend.chi2 + k_blend * log_n;
   // Another colour counts against the blend only where the data tell it apart (the blend loses
-  // by BIC: a dark pixel's own colour is mostly its noise) and the pixel's own fit explains it (a
-  // pixel whose own fit leaves residuals of 10 sigma has no colour to keep: a penumbra).
-  const bool own_colour = m[kMapResidual] <= kUnexplainedOwnReducedChi2 && blend_bic > own_bic;
-  const bool explained = reduced_chi2 <= kUnexplainedResidualRatio * m[kMapResidual] &&
-                         (!own_colour || same_colour(mix.albedo, own_albedo));
+  // by BIC: a dark pixel's own colour is mostly its noise).
+  const bool own_explains = m[kMapResidual] <= kUnexplainedOwnDispersions * dispersion;
+  const bool other_colour = blend_bic > own_bic && !same_colour(mix.albedo, own_albedo);
+  const bool explained =
+      !own_explains ||
+      (reduced_chi2 <= kUnexplainedResidualRatio * m[kMapResidual] && !other_colour);
   if (!explained && !own_is_main) return false;
   for (int j = 0; j < 2; ++j) {
     m[kMapMaterial + 2 * j] = float(blend.material[j] + 1);
@@ -644,7 +437,8 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
         }
         if (blend.material[0] < 0) continue;
         const bool was_not_converged = (int(m[kMapFlags]) & kFitNotConverged) != 0;
-        if (!write_blend(blend, n, 3 * terms.count(), materials, options.refine_normal, m)) {
+        if (!write_blend(blend, n, 3 * terms.count(), materials, options.refine_normal,
+                         segments.dispersion, m)) {
           continue;
         }
         if (m[kMapKs] > 0) {
