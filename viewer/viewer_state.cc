@@ -185,10 +185,8 @@ ViewEdit ViewEdit::parse_spec(std::string_view spec, const std::string& source) 
       }
     } else if (key == "material") {
       const double id = parse_number(value, what);
-      if (!(id >= 1 && id == std::floor(id) && id < 1 << 20)) {
-        throw InputError(what + ": expected a material number >= 1, got \"" + std::string(value) +
-                         "\"");
-      }
+      if (!(id >= 1 && id == std::floor(id) && id < 1 << 20))
+        throw InputError(what + ": expected a material number >= 1");
       edit.material = int(id);
     } else if (key == "brush") {
       for (std::string_view dab : split(value, '/')) {
@@ -262,22 +260,17 @@ void write_edit_file(const fs::path& path, const std::vector<ViewEdit>& edits, i
       write_png_preview(path.parent_path() / name, mask);
       select["mask"] = name;
     }
-    if (select.empty()) {
-      // The edit file needs a selection: every fitted model class is "all".
-      for (const auto& [model, name] : kModelNames) {
-        nlohmann::json entry = {{"select", {{"model", name}}}};
-        entry["albedo_tint"] = {edit.albedo_tint.x(), edit.albedo_tint.y(), edit.albedo_tint.z()};
-        entry["roughness_scale"] = edit.roughness_scale;
-        entry["specular_scale"] = edit.specular_scale;
-        list.push_back(entry);
-      }
-      continue;
-    }
-    nlohmann::json entry = {{"select", select}};
-    entry["albedo_tint"] = {edit.albedo_tint.x(), edit.albedo_tint.y(), edit.albedo_tint.z()};
-    entry["roughness_scale"] = edit.roughness_scale;
-    entry["specular_scale"] = edit.specular_scale;
-    list.push_back(entry);
+    auto add = [&](const nlohmann::json& selection) {
+      list.push_back(
+          {{"select", selection},
+           {"albedo_tint", {edit.albedo_tint.x(), edit.albedo_tint.y(), edit.albedo_tint.z()}},
+           {"roughness_scale", edit.roughness_scale},
+           {"specular_scale", edit.specular_scale}});
+    };
+    // The edit file needs a selection: "all" is every fitted model class.
+    if (!select.empty()) add(select);
+    for (const auto& [model, name] : kModelNames)
+      if (select.empty()) add({{"model", name}});
   }
   write_file_atomic(path, nlohmann::json{{"edits", list}}.dump(2) + "\n");
 }
