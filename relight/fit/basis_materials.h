@@ -4,22 +4,28 @@
 // from photometric stereo"): a scene has a few materials, not one per pixel.
 //
 // From the per-pixel fits (relight/fit/fit.h):
-//  1. Over-segment: the pixels that their own fit explains are clustered (k-means) on their log
-//     albedo, Oren-Nayar sigma and k_s into at most FitOptions::max_materials clusters.
-//  2. Fit each cluster's material on its pixels' samples together: every pixel p reflects
-//     w_p * material, with its own scalar weight w_p >= 0 (shading, texture in brightness), at its
-//     fitted normal. Alternating: the weights in closed form, then the material's albedo and k_s
-//     in closed form (non-negative) with its sigma or roughness searched, as the per-pixel
-//     candidates do (relight/fit/profiled_fit.h), over the pooled sums. A lobe no single pixel
-//     constrains (a pixel that no LED lights near its mirror direction) is constrained by the
-//     material's other pixels.
-//  3. Merge: while merging two materials lowers the scene's BIC (chi^2 over every pixel, from up
-//     to kPoolPixels pixels per material scaled to the material's size, plus the materials'
-//     parameters times ln of the scene's residual count), merge the pair that lowers it most.
+//  1. Over-segment: the pixels that their own fit explains (reduced chi^2 within 4x the scene's
+//     median) are clustered (k-means, at most 16k of them) on their log albedo, Oren-Nayar sigma
+//     and k_s into at most FitOptions::max_materials clusters.
+//  2. Fit each cluster's material on up to 96 of its pixels' samples together
+//     (relight/fit/material_pool.h): every pixel p reflects w_p * material, with its own scalar
+//     weight w_p >= 0 (shading, brightness texture), at its fitted normal. Alternating: the
+//     weights in closed form, then the material's albedo and k_s in closed form (non-negative)
+//     with its sigma or roughness searched over the pooled sums, as the per-pixel candidates do
+//     (relight/fit/profiled_fit.h). A lobe that no single pixel constrains (a pixel that no LED
+//     lights near its mirror direction) is constrained by the material's other pixels.
+//  3. Merge: while merging two materials of near colour lowers the BIC of their typical pixel
+//     (chi^2 per pixel, divided by the scene's dispersion, plus the materials' parameters times
+//     ln of a pixel's residual count; material_pool.h says why), merge the pair that lowers it
+//     most. The number of materials is the scene's, chosen by that BIC.
 //  4. Every pixel gets the weights of one material, or two of the same model (Goldman et al.: a
 //     pixel is a blend of at most two), at its fitted normal (or its photometric-stereo normal,
-//     when its own fit chose another model and that normal explains it better); its per-pixel
-//     fit is kept (material 0) where that fit's BIC is lower: no material explains the pixel.
+//     when its own fit chose another model and that normal explains it better). Its per-pixel
+//     fit is kept (material 0) where the blend leaves 3x its residual variance, or the blend's
+//     colour is another and the data tell them apart: no material explains the pixel. A pixel
+//     whose own fit is of its material's model and colour keeps its own parameters where they
+//     explain it better by BIC (kOwnParameters). A lobe whose directions the pixel's samples saw
+//     shadowed is scaled by its lit part (kLobeShadowed): the models have no shadows.
 // Samples, weights and conventions as in relight/fit/fit.h.
 #include "capture/field.h"
 #include "relight/fit/fit.h"
