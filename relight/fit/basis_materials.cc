@@ -243,8 +243,8 @@ Blend blend_of(const PixelTerms& terms, const std::vector<Material>& materials, 
   // Two non-negative weights: the 2x2 normal equations, kept only when both come out positive.
   thread_local std::vector<double> p1, p2;
   const int n = terms.count();
-  p1.resize(size_t(3 * n));
-  p2.resize(size_t(3 * n));
+  p1.resize(3 * size_t(n));
+  p2.resize(3 * size_t(n));
   const Material& other = materials[size_t(second)];
   terms.predict(first.model, shape_of(first), first.albedo, first.ks, p1.data());
   terms.predict(other.model, shape_of(other), other.albedo, other.ks, p2.data());
@@ -252,7 +252,8 @@ Blend blend_of(const PixelTerms& terms, const std::vector<Material>& materials, 
   for (int i = 0; i < n; ++i) {
     for (int c = 0; c < 3; ++c) {
       const double w = terms.weight(i, c), v = terms.value(i, c);
-      const double a = p1[size_t(3 * i + c)], b = p2[size_t(3 * i + c)];
+      const size_t k = 3 * size_t(i) + size_t(c);
+      const double a = p1[k], b = p2[k];
       g11 += w * a * a, g12 += w * a * b, g22 += w * b * b;
       r1 += w * a * v, r2 += w * b * v, vv += w * v * v;
     }

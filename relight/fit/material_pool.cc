@@ -127,7 +127,7 @@ void MaterialFitter::search_shape(const std::vector<int>& members, const std::ve
   }
   double t = lo + best * step, best_chi2 = chi2[size_t(best)];
   if (!on && best > 0 && best < grid - 1) {
-    const double below = chi2[size_t(best - 1)], above = chi2[size_t(best + 1)];
+    const double below = chi2[size_t(best) - 1], above = chi2[size_t(best) + 1];
     const double curvature = below - 2 * best_chi2 + above;
     if (std::isfinite(curvature) && curvature > 0) {
       const double vertex = t + 0.5 * step * (below - above) / curvature;
