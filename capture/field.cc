@@ -54,6 +54,15 @@ ReflectanceField::ReflectanceField(int width, int height, std::vector<FieldLight
   }
 }
 
+ReflectanceField ReflectanceField::without_values(int width, int height,
+                                                  std::vector<FieldLight> lights) {
+  ReflectanceField field;
+  field.width_ = width;
+  field.height_ = height;
+  field.lights_ = std::move(lights);
+  return field;
+}
+
 ValidLights valid_lights(const ReflectanceField& field) {
   ValidLights out;
   for (int l = 0; l < field.num_lights(); ++l) {
@@ -105,7 +114,7 @@ void require_memory(std::size_t bytes, const std::string& what) {
 }
 
 void write_field(const std::filesystem::path& path, const ReflectanceField& field,
-                 const ExrAttributes& attributes) {
+                 const ExrAttributes& attributes, int tile_size) {
   const std::string name = path.string();
   if (field.width() <= 0 || field.height() <= 0 || field.num_lights() <= 0) {
     throw InputError(name + ": cannot write an empty reflectance field");
@@ -155,6 +164,10 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
   // zip 81 / 166 / 74 MB. Fields are read far more often than written (relighting, fitting,
   // viewer); RLE keeps most of the saving (zeros of invalid LEDs and background) at near raw speed.
   spec.attribute("compression", "rle");
+  if (tile_size > 0) {
+    spec.tile_width = spec.tile_height = tile_size;
+    spec.tile_depth = 1;
+  }
 
   // Atomic: write beside the target under a temporary name, then rename over it.
   std::filesystem::path temp = path;
@@ -313,73 +326,106 @@ void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
   }
 }
 
-// The pixels into the field's layout; InputError on a read failure or a non-finite value.
-void read_field_pixels(const std::string& name, OIIO::ImageInput& in,
-                       const std::vector<int>& file_to_layout, ReflectanceField& field) {
-  const OIIO::ImageSpec& spec = in.spec();
-  const int width = spec.width;
-  const int height = spec.height;
-  const int num_channels = spec.nchannels;
-  const size_t row_values = size_t(width) * num_channels;
-  float* dst = field.pixel(0, 0);
-  std::atomic<bool> non_finite{false};
-  auto check_finite = [&](const float* values, size_t count) {
-    for (size_t i = 0; i < count; ++i) {
-      if (!std::isfinite(values[i])) non_finite = true;
-    }
-  };
-  bool identity = true;
-  for (int i = 0; i < num_channels; ++i) identity = identity && file_to_layout[i] == i;
-  if (identity) {
-    if (!in.read_image(0, 0, 0, num_channels, OIIO::TypeDesc::FLOAT, dst)) {
-      throw InputError(name + ": reading pixels failed: " + in.geterror());
-    }
-    tbb::parallel_for(tbb::blocked_range<size_t>(0, size_t(height) * row_values),
-                      [&](const auto& r) { check_finite(dst + r.begin(), r.size()); });
-  } else {
-    // Read in bands of rows (a whole demo field is one band) so that a large field's permutation
-    // needs a bounded buffer, not a second field.
-    const int band_rows = std::max(1, int((256u << 20) / (row_values * sizeof(float))));
-    std::vector<float> band(size_t(std::min(band_rows, height)) * row_values);
-    for (int y0 = 0; y0 < height; y0 += band_rows) {
-      const int y1 = std::min(height, y0 + band_rows);
-      if (!in.read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, num_channels,
-                             OIIO::TypeDesc::FLOAT, band.data())) {
-        throw InputError(name + ": reading pixels failed: " + in.geterror());
-      }
-      const size_t pixels = size_t(y1 - y0) * width;
-      tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels), [&](const auto& r) {
-        for (size_t p = r.begin(); p < r.end(); ++p) {
-          const float* src = band.data() + p * num_channels;
-          float* out = dst + (size_t(y0) * width + p) * num_channels;
-          for (int i = 0; i < num_channels; ++i) out[file_to_layout[i]] = src[i];
-        }
-        check_finite(band.data() + r.begin() * num_channels, r.size() * num_channels);
-      });
-    }
-  }
-  if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
-}
-
 }  // namespace
 
-ReflectanceField read_field(const std::filesystem::path& path) {
-  const std::string name = path.string();
-  auto in = OIIO::ImageInput::open(name);
-  if (!in) throw InputError(name + ": cannot read reflectance field: " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
+struct FieldStream::File {
+  std::string name;
+  std::unique_ptr<OIIO::ImageInput> in;
+  std::vector<int> file_to_layout;
+  bool identity = true;     // The file's channels are in the field's order.
+  std::vector<float> band;  // The file's order, permuted into the field's.
+};
+
+FieldStream::FieldStream(const std::filesystem::path& path) : file_(std::make_unique<File>()) {
+  File& f = *file_;
+  f.name = path.string();
+  f.in = OIIO::ImageInput::open(f.name);
+  if (!f.in) throw InputError(f.name + ": cannot read reflectance field: " + OIIO::geterror());
+  const OIIO::ImageSpec& spec = f.in->spec();
   const OIIO::ParamValue* lights_param = spec.find_attribute(kLightsAttribute);
   if (lights_param == nullptr || lights_param->type() != OIIO::TypeDesc::STRING) {
-    throw InputError(name + ": not a reflectance field: missing string attribute '" +
+    throw InputError(f.name + ": not a reflectance field: missing string attribute '" +
                      std::string(kLightsAttribute) + "'");
   }
-  std::vector<FieldLight> lights = parse_lights(name, lights_param->get_string());
-  const std::vector<int> file_to_layout = channel_layout(name, spec, lights);
-  ReflectanceField field(spec.width, spec.height, std::move(lights));
-  field.source = name;
-  read_field_attributes(name, spec, field);
-  read_field_pixels(name, *in, file_to_layout, field);
-  in->close();
+  std::vector<FieldLight> lights = parse_lights(f.name, lights_param->get_string());
+  f.file_to_layout = channel_layout(f.name, spec, lights);
+  for (size_t i = 0; i < f.file_to_layout.size(); ++i) {
+    f.identity = f.identity && f.file_to_layout[i] == int(i);
+  }
+  header_ = ReflectanceField::without_values(spec.width, spec.height, std::move(lights));
+  header_.source = f.name;
+  read_field_attributes(f.name, spec, header_);
+}
+
+FieldStream::~FieldStream() = default;
+
+int FieldStream::rows_within(std::size_t bytes) const {
+  const OIIO::ImageSpec& spec = file_->in->spec();
+  const std::size_t row_bytes = std::size_t(width()) * spec.nchannels * sizeof(float);
+  const std::size_t per_row = row_bytes * (file_->identity ? 1 : 2);
+  int rows =
+      int(std::min<std::size_t>(std::size_t(height()), std::max<std::size_t>(1, bytes / per_row)));
+  if (spec.tile_height > 0)
+    rows = std::max(spec.tile_height, rows / spec.tile_height * spec.tile_height);
+  return std::min(rows, height());
+}
+
+void FieldStream::read_rows_into(int y0, int y1, float* dst) {
+  File& f = *file_;
+  const OIIO::ImageSpec& spec = f.in->spec();
+  const int num_channels = spec.nchannels;
+  const std::size_t values = std::size_t(y1 - y0) * width() * num_channels;
+  float* read_to = dst;
+  if (!f.identity) {
+    f.band.resize(values);
+    read_to = f.band.data();
+  }
+  if (!f.in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, num_channels,
+                            OIIO::TypeDesc::FLOAT, read_to)) {
+    throw InputError(f.name + ": reading pixels failed (rows " + std::to_string(y0) + ".." +
+                     std::to_string(y1 - 1) + "): " + f.in->geterror());
+  }
+  std::atomic<bool> non_finite{false};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values / num_channels), [&](const auto& r) {
+    for (std::size_t p = r.begin(); p < r.end(); ++p) {
+      const float* src = read_to + p * num_channels;
+      for (int i = 0; i < num_channels; ++i) {
+        if (!std::isfinite(src[i])) non_finite = true;
+      }
+      if (f.identity) continue;
+      float* out = dst + p * num_channels;
+      for (int i = 0; i < num_channels; ++i) out[f.file_to_layout[i]] = src[i];
+    }
+  });
+  if (non_finite) throw InputError(f.name + ": the reflectance field holds non-finite values");
+}
+
+void FieldStream::read_rows(int y0, int y1, ReflectanceField& band) {
+  LS_CHECK(0 <= y0 && y0 < y1 && y1 <= height(), "rows out of the field");
+  if (band.width() != width() || band.height() != y1 - y0 ||
+      band.num_lights() != header_.num_lights()) {
+    band = ReflectanceField(width(), y1 - y0, header_.lights());
+  }
+  band.lights() = header_.lights();
+  band.scene_time_s = header_.scene_time_s;
+  band.source = header_.source;
+  band.noise = header_.noise;
+  band.view = header_.view;
+  read_rows_into(y0, y1, band.pixel(0, 0));
+}
+
+ReflectanceField read_field(const std::filesystem::path& path) {
+  FieldStream stream(path);
+  ReflectanceField field(stream.width(), stream.height(), stream.header().lights());
+  field.source = stream.header().source;
+  field.scene_time_s = stream.header().scene_time_s;
+  field.noise = stream.header().noise;
+  field.view = stream.header().view;
+  // In bands, so that a large field's permutation needs a bounded buffer, not a second field.
+  const int rows = stream.rows_within(std::size_t(512) << 20);
+  for (int y0 = 0; y0 < field.height(); y0 += rows) {
+    stream.read_rows_into(y0, std::min(field.height(), y0 + rows), field.pixel(0, y0));
+  }
   return field;
 }
 

@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -75,6 +76,8 @@ class ReflectanceField {
   ReflectanceField() = default;
   // Allocates after checking that it fits in available memory (InputError otherwise).
   ReflectanceField(int width, int height, std::vector<FieldLight> lights);
+  // Its size, lights and attributes without the values (FieldStream::header): no pixel().
+  static ReflectanceField without_values(int width, int height, std::vector<FieldLight> lights);
 
   int width() const { return width_; }
   int height() const { return height_; }
@@ -141,8 +144,40 @@ void require_memory(std::size_t bytes, const std::string& what);
 // [r, g, b], position: [x, y, z]}; saturates_at and position are optional on read, absent = never
 // saturates, distant); the view in "lightstage:view" (optional); `attributes` as given (e.g. the
 // options the field was built with).
+// tile_size > 0: a tiled EXR of tile_size^2 tiles, each holding every LED of its pixels, so a
+// region is read without the rest of its rows (issue 14); 0: scanlines.
 void write_field(const std::filesystem::path& path, const ReflectanceField& field,
-                 const ExrAttributes& attributes = {});
+                 const ExrAttributes& attributes = {}, int tile_size = 0);
 ReflectanceField read_field(const std::filesystem::path& path);
+
+// A field on disk read in bands of rows, every LED of a band's pixels at once, so that a field
+// larger than memory can be streamed (issue 14); scanline or tiled files alike. A band is a
+// ReflectanceField of the band's rows (its lights, noise and time the file's); it knows nothing
+// of its place in the image, so per-pixel light directions (near LEDs) need y offset by the band's
+// first row. Errors as read_field's.
+class FieldStream {
+ public:
+  explicit FieldStream(const std::filesystem::path& path);
+  ~FieldStream();
+  FieldStream(const FieldStream&) = delete;
+  FieldStream& operator=(const FieldStream&) = delete;
+
+  int width() const { return header_.width(); }
+  int height() const { return header_.height(); }
+  // The file's lights, noise, time and view, with no pixels.
+  const ReflectanceField& header() const { return header_; }
+  // The rows of a band that fits in `bytes` (the band and the read buffer), at least one tile
+  // row (tiled files) or one row, whole tiles where the file is tiled.
+  int rows_within(std::size_t bytes) const;
+  // Rows [y0, y1) into band (reallocated only when its size changes).
+  void read_rows(int y0, int y1, ReflectanceField& band);
+  // Rows [y0, y1) into dst: (y1 - y0) * width() pixels in the field's layout.
+  void read_rows_into(int y0, int y1, float* dst);
+
+ private:
+  struct File;
+  std::unique_ptr<File> file_;
+  ReflectanceField header_;
+};
 
 }  // namespace ls::capture
