@@ -380,8 +380,15 @@ void FieldStream::read_rows_into(int y0, int y1, float* dst) {
     f.band.resize(values);
     read_to = f.band.data();
   }
-  if (!f.in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, num_channels,
-                            OIIO::TypeDesc::FLOAT, read_to)) {
+  // Tiled files by whole tiles (the band's rows start on a tile row: rows_within), which OIIO's
+  // read_scanlines does not do for them.
+  const bool read =
+      spec.tile_width > 0
+          ? f.in->read_tiles(0, 0, spec.x, spec.x + spec.width, y0 + spec.y, y1 + spec.y, 0, 1, 0,
+                             num_channels, OIIO::TypeDesc::FLOAT, read_to)
+          : f.in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, num_channels,
+                                 OIIO::TypeDesc::FLOAT, read_to);
+  if (!read) {
     throw InputError(f.name + ": reading pixels failed (rows " + std::to_string(y0) + ".." +
                      std::to_string(y1 - 1) + "): " + f.in->geterror());
   }

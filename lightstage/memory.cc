@@ -41,6 +41,16 @@ std::optional<std::size_t> cgroup_available_bytes() {
 
 }  // namespace
 
+std::size_t peak_resident_bytes() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    std::size_t kib = 0;
+    if (std::sscanf(line.c_str(), "VmHWM: %zu kB", &kib) == 1) return kib * 1024;
+  }
+  return 0;
+}
+
 std::size_t available_memory_bytes() {
   std::optional<std::size_t> available;
   std::ifstream meminfo("/proc/meminfo");

@@ -5,6 +5,7 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/relight_job.h"
+#include "lightstage/memory.h"
 #include "relight/time/temporal_fit.h"
 
 namespace ls::cli {
@@ -22,6 +23,8 @@ jobs::RelightSummary relight_and_report(const jobs::RelightOptions& options, boo
       }
     }
   }
+  std::printf("%zu images in %s; peak memory %.1f MiB\n", summary.images.size(),
+              options.out_dir.c_str(), double(peak_resident_bytes()) / (1 << 20));
   if (!options.temporal_file.empty()) {
     const int extrapolated = summary.extrapolated_pixels;
     std::printf("t = %.1f s (captured %.1f .. %.1f s)%s\n", *options.time_s, summary.first_time_s,
@@ -77,6 +80,10 @@ void add_relight_command(CLI::App& app) {
       ->capture_default_str();
   auto* exp_opt = cmd->add_option("--exposure", *exposure,
                                   "Preview exposure in stops (default: automatic per image).");
+  cmd->add_option("--memory", options->memory_bytes,
+                  "Bytes of memory for the field: it is read in bands of rows within them "
+                  "(default: the whole field when it takes at most half of what is available, "
+                  "else bands within that half).");
   cmd->add_option("--coverage-deg", options->coverage_deg,
                   "Dome coverage radius around each LED, degrees (0: automatic).")
       ->capture_default_str();

@@ -69,6 +69,7 @@ std::string RelightOptions::to_json() const {
   if (exposure_stops) j["exposure_stops"] = *exposure_stops;
   j["coverage_deg"] = coverage_deg;
   j["directions"] = directions_width;
+  j["memory_bytes"] = memory_bytes;
   return j.dump();
 }
 
@@ -153,30 +154,64 @@ FieldLights field_lights(const capture::ReflectanceField& field) {
 
 double coverage_rad(const RelightOptions& options) { return options.coverage_deg * M_PI / 180.0; }
 
+// The field relit under every map and rotation, read once in bands of rows (FieldStream) so that
+// its memory stays within options.memory_bytes whatever its size: each band is relit under every
+// map before the next is read, into full-size outputs (3 floats per pixel each).
 void relight_field(const RelightOptions& options, RelightSummary& summary,
                    const ProgressFn& progress) {
-  const capture::ReflectanceField field = capture::read_field(options.field_file);
-  const FieldLights lights = field_lights(field);
-  RelitWriter writer(options, summary);
+  capture::FieldStream stream(options.field_file);
+  const capture::ReflectanceField& header = stream.header();
+  const FieldLights lights = field_lights(header);
+  struct Output {
+    std::string name;
+    relight::LightWeights weights;
+    double weights_ms = 0, relight_ms = 0;
+    Image relit;
+  };
+  std::vector<Output> outputs;
   MapRotations map_rotations(options);
-  Image relit;
-  long done = 0;
   map_rotations.for_each(
       [&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
         const auto t0 = Clock::now();
-        const relight::LightWeights weights = relight::integrate_environment(
-            map, lights.dirs, rotation, coverage_rad(options), lights.valid);
-        const auto t1 = Clock::now();
-        relight::relight_into(field, weights.irradiance_rgb, relit);
-        const auto t2 = Clock::now();
-        char detail[160];
-        std::snprintf(detail, sizeof detail,
-                      "light weights %.1f ms, relight %.1f ms; %.2f%% of the map's light falls "
-                      "outside the dome's coverage and is not represented",
-                      ms_between(t0, t1), ms_between(t1, t2), 100.0 * weights.uncovered_fraction());
-        writer.write(name, relit, detail);
-        report(progress, "relight", ++done, map_rotations.count(), name);
+        Output out{name, relight::integrate_environment(map, lights.dirs, rotation,
+                                                        coverage_rad(options), lights.valid)};
+        out.weights_ms = ms_between(t0, Clock::now());
+        out.relit = Image(header.width(), header.height(), 3);
+        outputs.push_back(std::move(out));
       });
+  const std::size_t field_bytes =
+      capture::ReflectanceField::bytes_for(header.width(), header.height(), header.num_lights());
+  // The whole field (and its read buffer) when that takes at most half of what is available.
+  const std::size_t half_available = capture::available_memory_bytes() / 2;
+  const std::size_t budget = options.memory_bytes > 0            ? options.memory_bytes
+                             : 2 * field_bytes <= half_available ? 2 * field_bytes
+                                                                 : half_available;
+  const int rows = stream.rows_within(budget);
+  capture::ReflectanceField band;
+  Image band_relit;
+  for (int y0 = 0; y0 < header.height(); y0 += rows) {
+    const int y1 = std::min(header.height(), y0 + rows);
+    stream.read_rows(y0, y1, band);
+    for (Output& out : outputs) {
+      const auto t0 = Clock::now();
+      relight::relight_into(band, out.weights.irradiance_rgb, band_relit);
+      std::copy(band_relit.pixels.begin(), band_relit.pixels.end(),
+                out.relit.pixels.begin() + std::ptrdiff_t(y0) * header.width() * 3);
+      out.relight_ms += ms_between(t0, Clock::now());
+    }
+    if (y1 < header.height()) report(progress, "relight (rows)", y1, header.height());
+  }
+  RelitWriter writer(options, summary);
+  long done = 0;
+  for (Output& out : outputs) {
+    char detail[200];
+    std::snprintf(detail, sizeof detail,
+                  "light weights %.1f ms, relight %.1f ms (%d rows a band); %.2f%% of the map's "
+                  "light falls outside the dome's coverage and is not represented",
+                  out.weights_ms, out.relight_ms, rows, 100.0 * out.weights.uncovered_fraction());
+    writer.write(out.name, out.relit, detail);
+    report(progress, "relight", ++done, long(outputs.size()), out.name);
+  }
 }
 
 // The fitted maps (edited when asked) rendered under each map; a field, when given too, fills the

@@ -1,0 +1,133 @@
+// Fields read in bands of rows (issue 14): `lightstage relight --memory` on scanline and tiled
+// fields gives the bytes of the in-memory relighting, and its peak memory follows the budget, not
+// the field.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+#include "lightstage/image.h"
+#include "lightstage/stage.h"
+#include "tests/support/test_support.h"
+
+namespace ls {
+namespace {
+
+namespace fs = std::filesystem;
+
+// A field of smooth values with a little hash noise: no run-length compression to speak of.
+capture::ReflectanceField synthetic_field(int width, int height, int leds) {
+  std::vector<capture::FieldLight> lights;
+  const std::vector<Eigen::Vector3d> dirs = fibonacci_dome_directions(leds, -11.5);
+  for (int l = 0; l < leds; ++l) {
+    capture::FieldLight light;
+    light.led_id = l;
+    light.dir_in_stage = dirs[size_t(l)];
+    lights.push_back(light);
+  }
+  capture::ReflectanceField field(width, height, lights);
+  uint32_t state = 12345;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      float* p = field.pixel(x, y);
+      for (int i = 0; i < 3 * leds; ++i) {
+        state = state * 1664525u + 1013904223u;
+        p[i] = 0.1f + 0.5f * float(x + y) / float(width + height) + float(state >> 8) * 1e-8f;
+      }
+    }
+  }
+  return field;
+}
+
+// Runs the CLI; its exit code and the peak resident memory it reports (its own, VmHWM), in KiB.
+struct Measured {
+  int code = -1;
+  long peak_kib = 0;
+};
+Measured run_measured(const std::vector<std::string>& args) {
+  std::string command = testing::cli_path().string();
+  for (const std::string& a : args) command += " '" + a + "'";
+  Measured m;
+  std::string out;
+  m.code = testing::run_command(command, &out);
+  if (m.code != 0) std::cout << command << "\n" << out << "\n";  // Why it failed.
+  const size_t at = out.find("peak memory ");
+  if (at != std::string::npos) m.peak_kib = long(std::stod(out.substr(at + 12)) * 1024);
+  return m;
+}
+
+fs::path write_map(const fs::path& dir) {
+  Image sky(64, 32, 3, 0.2f);
+  for (int y = 0; y < 16; ++y) {
+    for (int x = 0; x < 64; ++x) sky.at(x, y, 0) = 1.0f + 0.05f * x;
+  }
+  write_exr(dir / "sky.exr", sky);
+  return dir / "sky.exr";
+}
+
+TEST(StreamedField, TiledAndScanlineBandsRelightBitIdentically) {
+  const testing::TempDir dir;
+  const capture::ReflectanceField field = synthetic_field(96, 80, 24);
+  capture::write_field(dir / "scanline.exr", field);
+  capture::write_field(dir / "tiled.exr", field, {}, 16);
+  const fs::path map = write_map(dir.path());
+  // In memory, then in bands of 5 rows (scanline) and 16 rows (one tile row).
+  const std::string budget = std::to_string(5 * 96 * 72 * sizeof(float) * 2);
+  for (const std::string name : {"scanline", "tiled"}) {
+    const std::string field_file = (dir / (name + ".exr")).string();
+    ASSERT_EQ(run_measured({"relight", field_file, "--env", map.string(), "--out",
+                            (dir / (name + "_whole")).string()})
+                  .code,
+              0);
+    ASSERT_EQ(run_measured({"relight", field_file, "--env", map.string(), "--memory", budget,
+                            "--out", (dir / (name + "_bands")).string()})
+                  .code,
+              0);
+    const Image whole = read_image(dir / (name + "_whole") / "sky.exr");
+    const Image bands = read_image(dir / (name + "_bands") / "sky.exr");
+    EXPECT_EQ(whole.pixels, bands.pixels) << name;
+  }
+  EXPECT_EQ(read_image(dir / "scanline_whole" / "sky.exr").pixels,
+            read_image(dir / "tiled_bands" / "sky.exr").pixels);
+  // The tiled file reads back as the same field.
+  EXPECT_EQ(capture::read_field(dir / "tiled.exr").values(), field.values());
+}
+
+TEST(StreamedField, PeakMemoryFollowsTheBudgetNotTheField) {
+  const testing::TempDir dir;
+  // 48 MiB of field values, four times the 12 MiB budget.
+  const capture::ReflectanceField field = synthetic_field(512, 256, 32);
+  ASSERT_EQ(field.bytes(), std::size_t(48) << 20);
+  capture::write_field(dir / "big.exr", field, {}, 32);
+  capture::write_field(dir / "small.exr", synthetic_field(16, 16, 32));
+  const fs::path map = write_map(dir.path());
+  auto relight = [&](const std::string& file, const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"relight", (dir / file).string(),
+                                     "--env",   map.string(),
+                                     "--out",   (dir / ("out_" + file)).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const Measured m = run_measured(args);
+    EXPECT_EQ(m.code, 0) << file;
+    return m.peak_kib;
+  };
+  const std::size_t budget = std::size_t(12) << 20;
+  // The fixed overhead: the same command on a 16 x 16 field (libraries, the map, the writers).
+  const long overhead_kib = relight("small.exr", {});
+  const long whole_kib = relight("big.exr", {});
+  const long banded_kib = relight("big.exr", {"--memory", std::to_string(budget)});
+  // Beside the budget, the banded run holds its output (3 floats per pixel, 1.5 MiB) and its
+  // 8-bit preview: 4 MiB of margin for those and the allocator.
+  const long allowed_kib = overhead_kib + long(budget >> 10) + (4 << 10);
+  std::cout << "peak RSS: 16x16 field " << overhead_kib << " KiB, 48 MiB field whole " << whole_kib
+            << " KiB, in bands within 12 MiB " << banded_kib << " KiB (allowed " << allowed_kib
+            << ")\n";
+  EXPECT_LT(banded_kib, allowed_kib);
+  // The measurement sees the field: read whole, it takes (at least) half of it more.
+  EXPECT_GT(whole_kib, banded_kib + (24 << 10));
+}
+
+}  // namespace
+}  // namespace ls
