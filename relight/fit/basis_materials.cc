@@ -192,18 +192,14 @@ std::vector<Material> merge_materials(const std::vector<PoolPixel>& pool,
     }
     merged = std::move(kept);
   }
-  std::sort(clusters.begin(), clusters.end(), [&](const Cluster& a, const Cluster& b) {
-    double sa = 0, sb = 0;
-    for (const int p : a.members) sa += pool[size_t(p)].scale;
-    for (const int p : b.members) sb += pool[size_t(p)].scale;
-    return sa > sb;
-  });
+  std::sort(clusters.begin(), clusters.end(),
+            [](const Cluster& a, const Cluster& b) { return a.fit.pixels > b.fit.pixels; });
+  // The roughness refined; a refit that fails keeps the merge's material.
   std::vector<Material> materials(clusters.size());
   tbb::parallel_for(size_t(0), clusters.size(), [&](size_t k) {
-    materials[k] = fitter
-                       .fit(clusters[k].members, {clusters[k].fit.material.model},
-                            /*precise=*/true)
-                       .material;
+    const MaterialFit precise =
+        fitter.fit(clusters[k].members, {clusters[k].fit.material.model}, /*precise=*/true);
+    materials[k] = std::isfinite(precise.bic) ? precise.material : clusters[k].fit.material;
   });
   return materials;
 }
