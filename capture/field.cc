@@ -328,6 +328,18 @@ void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
 
 }  // namespace
 
+namespace {
+
+// What a field carries beside its values and lights.
+void copy_attributes(const ReflectanceField& from, ReflectanceField& to) {
+  to.scene_time_s = from.scene_time_s;
+  to.source = from.source;
+  to.noise = from.noise;
+  to.view = from.view;
+}
+
+}  // namespace
+
 struct FieldStream::File {
   std::string name;
   std::unique_ptr<OIIO::ImageInput> in;
@@ -414,20 +426,14 @@ void FieldStream::read_rows(int y0, int y1, ReflectanceField& band) {
     band = ReflectanceField(width(), y1 - y0, header_.lights());
   }
   band.lights() = header_.lights();
-  band.scene_time_s = header_.scene_time_s;
-  band.source = header_.source;
-  band.noise = header_.noise;
-  band.view = header_.view;
+  copy_attributes(header_, band);
   read_rows_into(y0, y1, band.pixel(0, 0));
 }
 
 ReflectanceField read_field(const std::filesystem::path& path) {
   FieldStream stream(path);
   ReflectanceField field(stream.width(), stream.height(), stream.header().lights());
-  field.source = stream.header().source;
-  field.scene_time_s = stream.header().scene_time_s;
-  field.noise = stream.header().noise;
-  field.view = stream.header().view;
+  copy_attributes(stream.header(), field);
   // In bands, so that a large field's permutation needs a bounded buffer, not a second field.
   const int rows = stream.rows_within(std::size_t(512) << 20);
   for (int y0 = 0; y0 < field.height(); y0 += rows) {

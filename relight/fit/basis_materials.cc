@@ -9,6 +9,7 @@
 #include <map>
 #include <mutex>
 #include <opencv2/core.hpp>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -100,23 +101,21 @@ Segments over_segment(const ModelMaps& maps, int max_clusters) {
   return out;
 }
 
-// What fit_models gathers for a pixel, at a given normal.
+// A pixel's samples as fit_models gathers them, and its view direction.
 class PixelGatherer {
  public:
   PixelGatherer(const capture::ReflectanceField& field, const FitOptions& options)
       : field_(field), options_(options), valid_(capture::valid_lights(field)) {}
-  // False when the pixel has no usable samples. With `shadowed`: the directions of the lights
-  // left out as shadowed.
-  bool reset(int x, int y, const Eigen::Vector3d& normal, PixelTerms* terms,
-             std::vector<Eigen::Vector3d>* shadowed = nullptr) const {
+  // The usable samples (thread-local storage, valid until this thread's next call); with
+  // `shadowed`: the directions of the lights left out as shadowed.
+  std::span<const pixel::Sample> gather(int x, int y,
+                                        std::vector<Eigen::Vector3d>* shadowed = nullptr) const {
     thread_local std::vector<pixel::Sample> samples;
     samples.resize(valid_.index.size());
     const int count =
         pixel::gather_samples(field_, valid_, options_.normals, x, y, samples.data(), shadowed)
             .count;
-    if (count == 0) return false;
-    terms->reset(samples.data(), count, normal, view(x, y));
-    return true;
+    return {samples.data(), size_t(count)};
   }
   Eigen::Vector3d view(int x, int y) const {
     return pixel::view_dir_at(options_.view_dir_per_pixel, size_t(y) * field_.width() + x);
@@ -376,28 +375,30 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
   const std::vector<std::vector<int>>& clusters = segments.clusters;
   if (clusters.empty()) return;
   const PixelGatherer gather(field, options);
-  // Each cluster's pool: up to kPoolPixels of its pixels, evenly spread.
+  // Each cluster's pool: up to kPoolPixels of its pixels, evenly spread; each pool pixel stands
+  // for `stride` of them.
   std::vector<PoolPixel> pool;
+  std::vector<int> pool_image_pixel;
   std::vector<Cluster> pooled(clusters.size());
   for (size_t k = 0; k < clusters.size(); ++k) {
     const size_t stride = (clusters[k].size() + kPoolPixels - 1) / kPoolPixels;
     for (size_t j = 0; j < clusters[k].size(); j += stride) {
       pooled[k].members.push_back(int(pool.size()));
       pool.emplace_back().scale = double(stride);
+      pool_image_pixel.push_back(clusters[k][j]);
     }
   }
-  tbb::parallel_for(size_t(0), clusters.size(), [&](size_t k) {
-    const size_t stride = (clusters[k].size() + kPoolPixels - 1) / kPoolPixels;
-    for (size_t j = 0, p = 0; j < clusters[k].size(); j += stride, ++p) {
-      const int i = clusters[k][j], x = i % width, y = i / width;
-      PoolPixel& pixel = pool[size_t(pooled[k].members[p])];
-      const float* m = &image.pixels[size_t(i) * image.channels];
-      pixel.own = FitModel(int(m[kMapModel]));
-      if (!gather.reset(x, y, fitted_normal(m), &pixel.terms)) pixel.scale = 0;
-      for (int g = 0; g < kRoughnessGrid; ++g) {
-        pixel.lobe_grid[size_t(g)] =
-            pixel.terms.sums(FitModel::kLambertTorranceSparrow, grid_roughness(g));
-      }
+  tbb::parallel_for(size_t(0), pool.size(), [&](size_t p) {
+    const int i = pool_image_pixel[p], x = i % width, y = i / width;
+    PoolPixel& pixel = pool[p];
+    const float* m = &image.pixels[size_t(i) * image.channels];
+    pixel.own = FitModel(int(m[kMapModel]));
+    const std::span<const pixel::Sample> samples = gather.gather(x, y);
+    if (samples.empty()) pixel.scale = 0;
+    pixel.terms.reset(samples.data(), int(samples.size()), fitted_normal(m), gather.view(x, y));
+    for (int g = 0; g < kRoughnessGrid; ++g) {
+      pixel.lobe_grid[size_t(g)] =
+          pixel.terms.sums(FitModel::kLambertTorranceSparrow, grid_roughness(g));
     }
   });
   double residuals = 0, pixels = 0;
@@ -412,7 +413,7 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
   FitSummary& summary = maps.summary;
   summary.materials = int(materials.size());
   tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
-    thread_local PixelTerms terms;
+    thread_local PixelTerms at_fitted, at_n0;
     thread_local std::vector<Eigen::Vector3d> shadowed;
     FitSummary local;
     std::vector<int> main_of(materials.size(), 0);
@@ -421,26 +422,29 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
         float* m = &image.at(x, y, 0);
         const FitModel own = FitModel(int(m[kMapModel]));
         if (own == FitModel::kNone) continue;
+        const std::span<const pixel::Sample> samples = gather.gather(x, y, &shadowed);
+        if (samples.empty()) continue;
+        const Eigen::Vector3d view = gather.view(x, y);
         Eigen::Vector3d n = fitted_normal(m);
-        if (!gather.reset(x, y, n, &terms, &shadowed)) continue;
-        const double log_n = std::log(double(3 * terms.count()));
-        Blend blend = blend_of(terms, materials, log_n);
+        at_fitted.reset(samples.data(), int(samples.size()), n, view);
+        const PixelTerms* terms = &at_fitted;
+        const double log_n = std::log(double(3 * samples.size()));
+        Blend blend = blend_of(at_fitted, materials, log_n);
         if (blend.material[0] >= 0 && materials[size_t(blend.material[0])].model != own) {
           // The own fit's normal is biased toward its own model: try the photometric-stereo one.
           const Eigen::Vector3d n0 = pixel::normal_at(normals, x, y);
-          gather.reset(x, y, n0, &terms);
-          const Blend at_n0 = blend_of(terms, materials, log_n);
-          if (at_n0.chi2 < blend.chi2) blend = at_n0, n = n0;
+          at_n0.reset(samples.data(), int(samples.size()), n0, view);
+          const Blend blend_n0 = blend_of(at_n0, materials, log_n);
+          if (blend_n0.chi2 < blend.chi2) blend = blend_n0, n = n0, terms = &at_n0;
         }
         if (blend.material[0] < 0) continue;
         const bool was_not_converged = (int(m[kMapFlags]) & kFitNotConverged) != 0;
-        if (!write_blend(blend, n, 3 * terms.count(), materials, options.refine_normal,
+        if (!write_blend(blend, n, 3 * int(samples.size()), materials, options.refine_normal,
                          segments.dispersion, m)) {
           continue;
         }
         if (m[kMapKs] > 0) {
-          const double visible =
-              lobe_visibility(terms, shadowed, n, gather.view(x, y), m[kMapRoughness]);
+          const double visible = lobe_visibility(*terms, shadowed, n, view, m[kMapRoughness]);
           if (visible < 1) {
             m[kMapKs] = float(m[kMapKs] * visible);
             m[kMapFlags] = float(int(m[kMapFlags]) | kLobeShadowed);
