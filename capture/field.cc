@@ -70,6 +70,7 @@ ValidLights valid_lights(const ReflectanceField& field) {
     out.index.push_back(l);
     out.dirs_in_stage.push_back(field.lights()[l].dir_in_stage.normalized());
   }
+  out.near = has_near_lights(field);
   return out;
 }
 
@@ -96,15 +97,22 @@ bool has_near_lights(const ReflectanceField& field) {
   return false;
 }
 
-Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, int y) {
-  const FieldLight& l = field.lights()[light];
-  if (l.position_in_stage && field.view) {
-    const Eigen::Vector3d to_led =
-        *l.position_in_stage - reference_point(*field.view, field.width(), field.height(), x, y);
+PixelLightDirs::PixelLightDirs(const ReflectanceField& field, int x, int y) : field_(field) {
+  if (field.view) reference_ = reference_point(*field.view, field.width(), field.height(), x, y);
+}
+
+Eigen::Vector3d PixelLightDirs::operator()(int light) const {
+  const FieldLight& l = field_.lights()[light];
+  if (l.position_in_stage && reference_) {
+    const Eigen::Vector3d to_led = *l.position_in_stage - *reference_;
     const double distance = to_led.norm();
     if (distance > 1e-9) return to_led / distance;
   }
   return l.dir_in_stage.normalized();
+}
+
+Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, int y) {
+  return PixelLightDirs(field, x, y)(light);
 }
 
 size_t available_memory_bytes() { return ls::available_memory_bytes(); }

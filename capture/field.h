@@ -118,7 +118,8 @@ class ReflectanceField {
 // The lights of a field that hold data (valid), as indices into lights() and unit directions.
 struct ValidLights {
   std::vector<int> index;
-  std::vector<Eigen::Vector3d> dirs_in_stage;
+  std::vector<Eigen::Vector3d> dirs_in_stage;  // Unit.
+  bool near = false;  // has_near_lights: each pixel sees them along its own directions.
 };
 ValidLights valid_lights(const ReflectanceField& field);
 
@@ -132,6 +133,16 @@ bool has_near_lights(const ReflectanceField& field);
 // pixel's reference point toward the LED for near lights (when the field has a view), otherwise
 // the light's dir_in_stage.
 Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, int y);
+// The same for one pixel and many lights: the reference point is computed once.
+class PixelLightDirs {
+ public:
+  PixelLightDirs(const ReflectanceField& field, int x, int y);
+  Eigen::Vector3d operator()(int light) const;
+
+ private:
+  const ReflectanceField& field_;
+  std::optional<Eigen::Vector3d> reference_;  // Set when the field has a view.
+};
 
 // Memory the system can give us now (MemAvailable). Used to refuse what would not fit.
 std::size_t available_memory_bytes();

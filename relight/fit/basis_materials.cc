@@ -90,7 +90,7 @@ Segments over_segment(const ModelMaps& maps, int max_clusters) {
   cv::Mat labels;
   cv::theRNG().state = 0x6c696768747374;  // k-means++ seeds: the same clusters every run.
   cv::kmeans(features, k, labels,
-             cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-4), 3,
+             cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-4), 1,
              cv::KMEANS_PP_CENTERS);
   std::vector<std::vector<int>> clusters(static_cast<size_t>(k));
   for (size_t j = 0; j < pixels.size(); ++j) {

@@ -16,19 +16,31 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};
+// IRLS stops once a pass moves g by less than this fraction of |g|: the normal by under 1e-4 rad
+// (0.006 degrees, far below any normal's error), which most pixels reach in two or three passes.
+constexpr double kIrlsTolerance = 1e-4;
 
 // Per-thread scratch, sized once per row range: the per-pixel loop does not allocate.
 struct Scratch {
   std::vector<double> y;                    // Luminance per valid light.
   std::vector<double> sigma;                // Noise sigma of y.
   std::vector<double> weight;               // Current LS weight (0 = not used).
+  std::vector<double> kept_weight;          // IRLS: the previous pass's weights.
   std::vector<double> abs_u;                // |normalised residual|, for the MAD.
   std::vector<double> residual;             // y - l.g of the current solve (IRLS).
   std::vector<int> order;                   // For trimming.
   std::vector<char> usable;                 // Lit (above the shadow threshold) and not saturated.
   std::vector<Eigen::Vector3d> pixel_dirs;  // Near lights: this pixel's direction to each light.
   explicit Scratch(size_t n)
-      : y(n), sigma(n), weight(n), abs_u(n), residual(n), order(n), usable(n), pixel_dirs(n) {}
+      : y(n),
+        sigma(n),
+        weight(n),
+        kept_weight(n),
+        abs_u(n),
+        residual(n),
+        order(n),
+        usable(n),
+        pixel_dirs(n) {}
 };
 
 struct Solve {
@@ -38,38 +50,43 @@ struct Solve {
   bool ok = false;
 };
 
-// Weighted LS for g over the lights with weight > 0.
+// Weighted LS for g over the lights with weight > 0; the condition is left for the caller
+// (condition_of), which needs it once per pixel, not once per IRLS pass.
 Solve weighted_solve(const std::vector<Eigen::Vector3d>& dirs, const Scratch& s) {
-  Eigen::Matrix3d ata = Eigen::Matrix3d::Zero();
-  Eigen::Matrix3d geometry = Eigen::Matrix3d::Zero();
+  double xx = 0, xy = 0, xz = 0, yy = 0, yz = 0, zz = 0;  // Lower triangle of L^T W L.
   Eigen::Vector3d atb = Eigen::Vector3d::Zero();
   Solve out;
   for (size_t i = 0; i < dirs.size(); ++i) {
     const double w = s.weight[i];
     if (!(w > 0)) continue;
     const Eigen::Vector3d& l = dirs[i];
-    const Eigen::Vector3d wl = w * l;
-    for (int r = 0; r < 3; ++r) {  // Lower triangles only: both are symmetric.
-      for (int c = 0; c <= r; ++c) {
-        ata(r, c) += wl(r) * l(c);
-        geometry(r, c) += l(r) * l(c);
-      }
-    }
-    atb += w * s.y[i] * l;
+    const double wx = w * l.x(), wy = w * l.y(), wz = w * l.z();
+    xx += wx * l.x(), xy += wy * l.x(), xz += wz * l.x();
+    yy += wy * l.y(), yz += wz * l.y(), zz += wz * l.z();
+    atb += (w * s.y[i]) * l;
     ++out.used;
   }
-  ata = ata.selfadjointView<Eigen::Lower>();
-  geometry = geometry.selfadjointView<Eigen::Lower>();
   if (out.used < 3) return out;
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-  eig.computeDirect(geometry, Eigen::EigenvaluesOnly);  // Closed form for 3x3.
-  const Eigen::Vector3d ev = eig.eigenvalues();         // Ascending.
-  out.condition = ev(2) > 0 ? std::sqrt(std::max(ev(0), 0.0) / ev(2)) : 0.0;
+  Eigen::Matrix3d ata;
+  ata << xx, xy, xz, xy, yy, yz, xz, yz, zz;
   const Eigen::LDLT<Eigen::Matrix3d> ldlt(ata);
   if (ldlt.info() != Eigen::Success) return out;
   out.g = ldlt.solve(atb);
   out.ok = out.g.allFinite();
   return out;
+}
+
+// sqrt(lambda_min / lambda_max) of the scatter of the used directions (weight > 0), unweighted:
+// how well their geometry alone pins down three unknowns.
+double condition_of(const std::vector<Eigen::Vector3d>& dirs, const Scratch& s) {
+  Eigen::Matrix3d geometry = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    if (s.weight[i] > 0) geometry.noalias() += dirs[i] * dirs[i].transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(geometry, Eigen::EigenvaluesOnly);  // Closed form for 3x3.
+  const Eigen::Vector3d ev = eig.eigenvalues();         // Ascending.
+  return ev(2) > 0 ? std::sqrt(std::max(ev(0), 0.0) / ev(2)) : 0.0;
 }
 
 double median_of(std::vector<double>& v, int n) {
@@ -169,15 +186,24 @@ Solve robust_solve(const std::vector<Eigen::Vector3d>& dirs, const NormalOptions
       s.abs_u[k++] = std::abs(s.residual[i]) / s.sigma[i];
     }
     const double scale = std::max(1.4826 * median_of(s.abs_u, k), 1.0);
+    s.kept_weight.swap(s.weight);
     for (size_t i = 0; i < n; ++i) {
-      if (!s.usable[i]) continue;
+      if (!s.usable[i]) {
+        s.weight[i] = 0;
+        continue;
+      }
       const double u = s.residual[i] / (s.sigma[i] * options.tukey_c * scale);
       const double t = 1 - u * u;
       s.weight[i] = t > 0 ? t * t / (s.sigma[i] * s.sigma[i]) : 0.0;
     }
     const Solve next = weighted_solve(dirs, s);
-    if (!next.ok || next.used < options.min_lights) break;
+    if (!next.ok || next.used < options.min_lights) {
+      s.weight.swap(s.kept_weight);  // The weights of the solve that is kept.
+      break;
+    }
+    const double change = (next.g - solve.g).norm();
     solve = next;
+    if (change <= kIrlsTolerance * solve.g.norm()) break;  // Converged: the weights are fixed.
   }
   return solve;
 }
@@ -236,7 +262,7 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
   const std::vector<Eigen::Vector3d>& distant_dirs = valid.dirs_in_stage;
   const size_t n = distant_dirs.size();
   // Near LEDs (positions in the field): each pixel sees them from its own reference point.
-  const bool per_pixel_dirs = capture::has_near_lights(field);
+  const bool per_pixel_dirs = valid.near;
   const bool robust = options.method == NormalMethod::kRobust;
   std::atomic<int> flagged{0};
 
@@ -247,14 +273,16 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
       for (int x = 0; x < width; ++x) {
         const float* px = field.pixel(x, y);
         if (per_pixel_dirs) {
-          for (size_t i = 0; i < n; ++i) {
-            s.pixel_dirs[i] = capture::light_dir_at(field, light_index[i], x, y);
-          }
+          const capture::PixelLightDirs dir_to(field, x, y);
+          for (size_t i = 0; i < n; ++i) s.pixel_dirs[i] = dir_to(light_index[i]);
         }
         const std::vector<Eigen::Vector3d>& dirs = per_pixel_dirs ? s.pixel_dirs : distant_dirs;
         int flags = gather_samples(px, field.lights(), light_index, options, s);
         Solve solve;
-        if (flags == 0) solve = robust ? robust_solve(dirs, options, s) : weighted_solve(dirs, s);
+        if (flags == 0) {
+          solve = robust ? robust_solve(dirs, options, s) : weighted_solve(dirs, s);
+          if (solve.ok) solve.condition = condition_of(dirs, s);
+        }
         const double norm = solve.g.norm();
         if (flags == 0) {
           if (!solve.ok || solve.used < options.min_lights) {

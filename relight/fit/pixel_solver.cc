@@ -17,8 +17,13 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
   const double threshold =
       std::max(options.shadow_sigmas * std::sqrt(options.noise.a), options.shadow_fraction * y_max);
   GatheredSamples out;
+  const capture::PixelLightDirs dir_to(field, x, y);
+  const auto dir = [&](size_t i) {
+    return valid.near ? dir_to(valid.index[i]) : valid.dirs_in_stage[i];
+  };
   if (shadowed) shadowed->clear();
-  for (const int light : valid.index) {
+  for (size_t i = 0; i < valid.index.size(); ++i) {
+    const int light = valid.index[i];
     const float* v = px + 3 * size_t(light);
     if (capture::is_saturated(field.lights()[light], v)) {
       ++out.saturated;
@@ -26,12 +31,11 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
     }
     const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
     if (!(lum > threshold) || !std::isfinite(lum)) {
-      if (shadowed && std::isfinite(lum))
-        shadowed->push_back(capture::light_dir_at(field, light, x, y));
+      if (shadowed && std::isfinite(lum)) shadowed->push_back(dir(i));
       continue;
     }
     Sample& s = samples[out.count++];
-    s.l = capture::light_dir_at(field, light, x, y);  // Per pixel for near LEDs.
+    s.l = dir(i);
     for (int c = 0; c < 3; ++c) {
       s.v[c] = v[c];
       s.inv_sigma[c] = 1 / std::sqrt(options.noise.variance(v[c]));

@@ -176,7 +176,9 @@ LinearSums<double> PixelTerms::lobe_sums(double roughness) const {
   for (int i = 0; i < count_; ++i) {
     const double exponent = tan2_h_[i] * inv_m2;
     if (exponent > kMaxLobeExponent) continue;
-    const double b = lobe_scale_[i] * inv_m2 * std::exp(-exponent);
+    // A float exp: a sixth of the grid's cost; its 1e-7 relative error changes a lobe's chi^2 by
+    // far less than the tolerance of any comparison made with it.
+    const double b = lobe_scale_[i] * inv_m2 * std::exp(-float(exponent));
     for (int c = 0; c < 3; ++c) {
       const double wb = w_[c][i] * b;
       sums.ab[c] += wb * lambert_[i];
@@ -238,12 +240,33 @@ T shape_of(const T* x, double min_m) {
   return T(0);
 }
 
+// A sample's geometry that the polish does not change: wi.wo and the half vector's length and
+// angle to the view (brdf::torrance_sparrow_half), computed once per polish, not once per step.
+struct SampleConstants {
+  double cos_io = 0, inv_len = 0, cos_oh = 0;
+};
+
+const std::vector<SampleConstants>& sample_constants(const pixel::PixelData& p) {
+  thread_local std::vector<SampleConstants> out;
+  out.resize(size_t(p.count));
+  for (int i = 0; i < p.count; ++i) {
+    SampleConstants& k = out[size_t(i)];
+    k.cos_io = p.samples[i].l.dot(p.wo);
+    const double len2 = 2 + 2 * k.cos_io;                  // |wi + wo|^2
+    k.inv_len = len2 > 1e-12 ? 1 / std::sqrt(len2) : 0.0;  // 0: no half vector, no lobe.
+    k.cos_oh = (1 + k.cos_io) * k.inv_len;
+  }
+  return out;
+}
+
 // The model's terms a (multiplying the albedo) and b (multiplying k_s) per sample at x, and
-// their sums.
+// their sums. The cosines are the only per-sample Jets: everything else is a double.
 template <FitModel M, class T>
-LinearSums<T> terms_at(const pixel::PixelData& p, double min_roughness, const T* x,
-                       std::vector<T>* a, std::vector<T>* b) {
-  const brdf::Vec3<T> n = pixel::refined_normal(p, x), wo = p.wo.cast<T>();
+LinearSums<T> terms_at(const pixel::PixelData& p, const std::vector<SampleConstants>& constants,
+                       double min_roughness, const T* x, std::vector<T>* a, std::vector<T>* b) {
+  constexpr bool kLobe = M == FitModel::kLambertTorranceSparrow;
+  const brdf::Vec3<T> n = pixel::refined_normal(p, x);
+  const T cos_o = n.x() * p.wo.x() + n.y() * p.wo.y() + n.z() * p.wo.z();
   const T shape = shape_of<M>(x, min_roughness);
   LinearSums<T> s;
   for (int c = 0; c < 3; ++c) s.aa[c] = s.av[c] = s.ab[c] = s.bb[c] = s.bv[c] = s.vv[c] = T(0);
@@ -251,26 +274,36 @@ LinearSums<T> terms_at(const pixel::PixelData& p, double min_roughness, const T*
   b->resize(size_t(p.count));
   for (int i = 0; i < p.count; ++i) {
     const pixel::Sample& sample = p.samples[i];
-    const auto g = brdf::Geometry<T>::from_world(n, sample.l.cast<T>(), wo);
-    const T cos_i = g.cos_i > T(0) ? g.cos_i : T(0);
-    T ai, bi(0);
-    if constexpr (M == FitModel::kOrenNayar) {
-      ai = brdf::oren_nayar(g, shape) * cos_i;
-    } else {
-      ai = brdf::lambert(g) * cos_i;
+    const SampleConstants& k = constants[size_t(i)];
+    const T cos_i = n.x() * sample.l.x() + n.y() * sample.l.y() + n.z() * sample.l.z();
+    T ai(0), bi(0);
+    if (cos_i > T(0) && cos_o > T(0)) {  // Every model is 0 with either direction below.
+      if constexpr (M == FitModel::kOrenNayar) {
+        ai = brdf::oren_nayar(brdf::Geometry<T>{cos_i, cos_o, T(k.cos_io)}, shape) * cos_i;
+      } else {
+        ai = cos_i * (1 / kPi);
+      }
+      if constexpr (kLobe) {
+        bi = brdf::torrance_sparrow_half(cos_i, cos_o, k.inv_len, k.cos_oh, shape) * cos_i;
+      }
     }
-    if constexpr (M == FitModel::kLambertTorranceSparrow)
-      bi = brdf::torrance_sparrow(g, shape) * cos_i;
     (*a)[i] = ai;
     (*b)[i] = bi;
+    const T aa = ai * ai;
     for (int c = 0; c < 3; ++c) {
-      const double w = sample.inv_sigma[c] * sample.inv_sigma[c], v = sample.v[c];
-      s.aa[c] += w * ai * ai;
-      s.av[c] += w * v * ai;
-      s.ab[c] += w * ai * bi;
-      s.bb[c] += w * bi * bi;
-      s.bv[c] += w * v * bi;
-      s.vv[c] += T(w * v * v);
+      const double w = sample.inv_sigma[c] * sample.inv_sigma[c], wv = w * sample.v[c];
+      s.aa[c] += aa * w;
+      s.av[c] += ai * wv;
+      s.vv[c] += T(wv * sample.v[c]);
+    }
+    if constexpr (kLobe) {
+      const T ab = ai * bi, bb = bi * bi;
+      for (int c = 0; c < 3; ++c) {
+        const double w = sample.inv_sigma[c] * sample.inv_sigma[c];
+        s.ab[c] += ab * w;
+        s.bb[c] += bb * w;
+        s.bv[c] += bi * (w * sample.v[c]);
+      }
     }
   }
   return s;
@@ -280,19 +313,22 @@ LinearSums<T> terms_at(const pixel::PixelData& p, double min_roughness, const T*
 template <FitModel M>
 struct ProfiledCost {
   const pixel::PixelData* p;
+  const std::vector<SampleConstants>* constants;
   double min_roughness;
   int NumResiduals() const { return 3 * p->count; }
 
   template <class T>
   bool operator()(const T* x, T* r) const {
     thread_local std::vector<T> a, b;
-    const LinearSums<T> s = terms_at<M>(*p, min_roughness, x, &a, &b);
+    const LinearSums<T> s = terms_at<M>(*p, *constants, min_roughness, x, &a, &b);
     T albedo[3], ks;
     solve_linear(s, M == FitModel::kLambertTorranceSparrow, albedo, &ks);
     for (int i = 0; i < p->count; ++i) {
       const pixel::Sample& sample = p->samples[i];
       for (int c = 0; c < 3; ++c) {
-        r[3 * i + c] = (albedo[c] * a[i] + ks * b[i] - T(sample.v[c])) * T(sample.inv_sigma[c]);
+        T predicted = albedo[c] * a[i];
+        if constexpr (M == FitModel::kLambertTorranceSparrow) predicted += ks * b[i];
+        r[3 * i + c] = (predicted - sample.v[c]) * sample.inv_sigma[c];
       }
     }
     return true;
@@ -337,6 +373,64 @@ struct LambertCost {
   }
 };
 
+// Over the samples lit at n0, Lambert's chi^2 per channel is a quadratic form in g_c = albedo_c
+// n / pi: sum_i w_ic (g_c . l_i - v_ic)^2 = |U_c g_c - z_c|^2 + const, with U_c^T U_c = S_c =
+// sum_i w_ic l_i l_i^T and U_c^T z_c = sum_i w_ic v_ic l_i. The polish then runs on 9 residuals
+// instead of 3 per sample; it holds while no sample crosses the terminator (the polish tilts the
+// normal by a small angle), and chi^2 is evaluated over every sample after it.
+struct LambertQuadratic {
+  enum { NUM_RESIDUALS = 9, NUM_PARAMETERS = 5 };  // Two normal angles, sqrt(albedo) r g b.
+  Eigen::Matrix3d u[3];
+  Eigen::Vector3d z[3];
+  const pixel::PixelData* p = nullptr;
+
+  // False when the lit samples do not span three directions in some channel.
+  bool build(const pixel::PixelData& problem) {
+    p = &problem;
+    Eigen::Matrix3d s[3] = {Eigen::Matrix3d::Zero(), Eigen::Matrix3d::Zero(),
+                            Eigen::Matrix3d::Zero()};
+    Eigen::Vector3d b[3] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
+                            Eigen::Vector3d::Zero()};
+    const bool viewed = problem.n0.dot(problem.wo) > 0;
+    for (int i = 0; i < problem.count && viewed; ++i) {
+      const pixel::Sample& sample = problem.samples[i];
+      if (!(problem.n0.dot(sample.l) > 0)) continue;
+      const Eigen::Matrix3d ll = sample.l * sample.l.transpose();
+      for (int c = 0; c < 3; ++c) {
+        const double w = sample.inv_sigma[c] * sample.inv_sigma[c];
+        s[c].noalias() += w * ll;
+        b[c].noalias() += (w * sample.v[c]) * sample.l;
+      }
+    }
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::LLT<Eigen::Matrix3d> llt(s[c]);
+      if (llt.info() != Eigen::Success) return false;
+      u[c] = llt.matrixU();
+      z[c] = llt.matrixL().solve(b[c]);
+    }
+    return true;
+  }
+
+  // Whether every sample is lit at normal n as it is at n0.
+  bool holds_at(const Eigen::Vector3d& n) const {
+    if ((n.dot(p->wo) > 0) != (p->n0.dot(p->wo) > 0)) return false;
+    for (int i = 0; i < p->count; ++i) {
+      if ((n.dot(p->samples[i].l) > 0) != (p->n0.dot(p->samples[i].l) > 0)) return false;
+    }
+    return true;
+  }
+
+  template <class T>
+  bool operator()(const T* x, T* r) const {
+    const brdf::Vec3<T> n = pixel::refined_normal(*p, x);
+    for (int c = 0; c < 3; ++c) {
+      const brdf::Vec3<T> g = n * (x[2 + c] * x[2 + c] / kPi);
+      for (int k = 0; k < 3; ++k) r[3 * c + k] = u[c].row(k).cast<T>().dot(g) - T(z[c](k));
+    }
+    return true;
+  }
+};
+
 Polished polish_lambert(const Candidate& start, const pixel::PixelData& problem,
                         int max_iterations) {
   Eigen::Matrix<double, 5, 1> x0;
@@ -344,8 +438,18 @@ Polished polish_lambert(const Candidate& start, const pixel::PixelData& problem,
       pixel::non_negative_inverse(start.albedo(1), 1e-8),
       pixel::non_negative_inverse(start.albedo(2), 1e-8);
   const LambertCost cost{&problem};
-  const pixel::SolveResult<5> solved =
-      pixel::solve_function(cost, cost, x0, max_iterations, kPolishChi2Tolerance);
+  thread_local LambertQuadratic quadratic;
+  pixel::SolveResult<5> solved;
+  if (quadratic.build(problem)) {
+    solved =
+        pixel::solve_function(ceres::TinySolverAutoDiffFunction<LambertQuadratic, 9, 5>(quadratic),
+                              cost, x0, max_iterations, kPolishChi2Tolerance);
+  }
+  // Where the normal moved far enough to light or shadow a sample, the quadratic no longer is
+  // chi^2: the polish runs over every sample.
+  if (!solved.usable() || !quadratic.holds_at(pixel::refined_normal(problem, solved.x.data()))) {
+    solved = pixel::solve_function(cost, cost, x0, max_iterations, kPolishChi2Tolerance);
+  }
   Polished out;
   out.status = solved.status;
   if (!solved.usable()) return out;
@@ -370,12 +474,15 @@ Polished polish_model(const Candidate& start, const pixel::PixelData& problem, d
     x0(2) = pixel::clamped_bounded_inverse(start.roughness, min_roughness, 1.0);
   }
   Polished out;
-  const pixel::SolveResult<K> solved = pixel::solve(ProfiledCost<M>{&problem, min_roughness}, x0,
-                                                    max_iterations, kPolishChi2Tolerance);
+  const std::vector<SampleConstants>& constants = sample_constants(problem);
+  const pixel::SolveResult<K> solved =
+      pixel::solve(ProfiledCost<M>{&problem, &constants, min_roughness}, x0, max_iterations,
+                   kPolishChi2Tolerance);
   out.status = solved.status;
   if (!solved.usable()) return out;
   std::vector<double> a, b;
-  const LinearSums<double> s = terms_at<M>(problem, min_roughness, solved.x.data(), &a, &b);
+  const LinearSums<double> s =
+      terms_at<M>(problem, constants, min_roughness, solved.x.data(), &a, &b);
   Candidate& fit = out.fit;
   solve_linear(s, M == FitModel::kLambertTorranceSparrow, fit.albedo.data(), &fit.ks);
   fit.chi2 = solved.chi2;

@@ -57,28 +57,37 @@ T oren_nayar(const Geometry<T>& g, const T& sigma) {
 // Torrance-Sparrow specular lobe with a Beckmann facet distribution (roughness m = RMS facet slope,
 // valid (0, 1]) and the V-cavity shadowing term G. Fresnel is folded into k_s (constant).
 // f = D(h) G / (4 cos_i cos_o). Returns the factor multiplying k_s.
-template <class T>
-T torrance_sparrow(const Geometry<T>& g, const T& roughness) {
+//
+// torrance_sparrow_half takes the half vector's normal-independent parts (cos_i, cos_o above 0):
+// inv_len = 1 / |wi + wo| and cos_oh = wo.h = (1 + cos_io) inv_len. A fit that moves the normal
+// computes them once per sample (as doubles, C) and only the cosines to the normal per step (T).
+template <class T, class C>
+T torrance_sparrow_half(const T& cos_i, const T& cos_o, const C& inv_len, const C& cos_oh,
+                        const T& roughness) {
   using std::exp;
-  using std::sqrt;
-  if (!g.above()) return T(0);
-  // |wi + wo|^2 = 2 + 2 cos_io; h = (wi + wo)/|wi + wo|.
-  const T len2 = T(2) + T(2) * g.cos_io;
-  if (!(len2 > T(1e-12))) return T(0);
-  const T inv_len = T(1) / sqrt(len2);
-  const T cos_h = (g.cos_i + g.cos_o) * inv_len;  // n.h
-  const T cos_oh = (T(1) + g.cos_io) * inv_len;   // wo.h = wi.h
+  const T cos_h = (cos_i + cos_o) * inv_len;  // n.h
   if (!(cos_h > T(0))) return T(0);
   const T cos_h2 = cos_h * cos_h;
   const T m2 = roughness * roughness;
   const T tan_h2 = (T(1) - cos_h2) / cos_h2;
   const T d = exp(-tan_h2 / m2) / (T(kPi) * m2 * cos_h2 * cos_h2);
   T gterm = T(1);
-  const T g_o = T(2) * cos_h * g.cos_o / cos_oh;
-  const T g_i = T(2) * cos_h * g.cos_i / cos_oh;
+  const T g_o = T(2) * cos_h * cos_o / cos_oh;
+  const T g_i = T(2) * cos_h * cos_i / cos_oh;
   if (g_o < gterm) gterm = g_o;
   if (g_i < gterm) gterm = g_i;
-  return d * gterm / (T(4) * g.cos_i * g.cos_o);
+  return d * gterm / (T(4) * cos_i * cos_o);
+}
+
+template <class T>
+T torrance_sparrow(const Geometry<T>& g, const T& roughness) {
+  using std::sqrt;
+  if (!g.above()) return T(0);
+  // |wi + wo|^2 = 2 + 2 cos_io; h = (wi + wo)/|wi + wo|.
+  const T len2 = T(2) + T(2) * g.cos_io;
+  if (!(len2 > T(1e-12))) return T(0);
+  const T inv_len = T(1) / sqrt(len2);
+  return torrance_sparrow_half(g.cos_i, g.cos_o, inv_len, (T(1) + g.cos_io) * inv_len, roughness);
 }
 
 // Energy-normalised modified Phong (Lafortune & Willems 1994): f = (n+2)/(2 pi) cos^n(alpha),
