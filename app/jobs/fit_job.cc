@@ -18,6 +18,12 @@ std::string FitJobOptions::validate() const {
   }
   if (time_inputs.empty() && field_file.empty()) return "a field (or --time FIELDS...) is required";
   if (out.empty()) return "--out: give the maps file to write (.exr)";
+  // Checked before fitting: a wrong name must not cost the fit.
+  if (out.extension() != ".exr") {
+    return "--out: the maps are an OpenEXR file (named channels): give a path ending in .exr, got "
+           "\"" +
+           out.string() + "\"";
+  }
   if (method != "robust" && method != "ls") {
     return "--method: expected robust or ls, got \"" + method + "\"";
   }

@@ -120,6 +120,9 @@ TEST_F(Jobs, OptionsSayWhatIsWrongByOption) {
   fit.method = "svd";
   EXPECT_NE(fit.validate().find("--method"), std::string::npos);
   fit.method = "ls";
+  fit.out = "maps";  // Refused before any fitting, not after.
+  EXPECT_NE(fit.validate().find(".exr"), std::string::npos);
+  fit.out = "m.exr";
   fit.time_inputs = {"t0.exr"};
   EXPECT_NE(fit.validate().find("not both"), std::string::npos);
 
