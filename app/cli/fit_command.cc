@@ -33,10 +33,12 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
                 s.per_model[m], s.fitted > 0 ? 100.0 * s.per_model[m] / s.fitted : 0.0);
   }
   if (!summary.materials.empty()) {
+    const bool textured = s.scene_materials < int(summary.materials.size());
     std::printf(
-        "  %zu basis materials explain %d pixels (%.1f%% of fitted; the rest keep their "
-        "own fit):\n",
-        summary.materials.size(), s.material_pixels,
+        "  %zu basis materials (%d scene materials%s) explain %d pixels (%.1f%% of fitted; the "
+        "rest keep their own fit):\n",
+        summary.materials.size(), s.scene_materials,
+        textured ? ", those of one with an albedo texture tile one region" : "", s.material_pixels,
         s.fitted > 0 ? 100.0 * s.material_pixels / s.fitted : 0.0);
     for (size_t k = 0; k < summary.materials.size(); ++k) {
       const relight::Material& m = summary.materials[k];
@@ -46,7 +48,9 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
       if (m.model == relight::FitModel::kLambertTorranceSparrow) {
         std::printf(", ks %.3f, roughness %.3f", m.ks, m.roughness);
       }
-      std::printf(" (%d pixels)\n", m.pixels);
+      std::printf(" (%d pixels)", m.pixels);
+      if (textured) std::printf(", scene material %d", m.scene_material);
+      std::printf("\n");
     }
   }
   if (s.discarded_nonfinite_fits > 0) {

@@ -26,6 +26,9 @@
 //     whose own fit is of its material's model and colour keeps its own parameters where they
 //     explain it better by BIC (kOwnParameters). A lobe whose directions the pixel's samples saw
 //     shadowed is scaled by its lit part (kLobeShadowed): the models have no shadows.
+//  5. Scene materials: two basis materials of one model and shape whose pixels tile one region
+//     (each shares most of its boundary with the other: a checker, a print) are one material with
+//     an albedo texture (Material::scene_material); edits by material select all of it.
 // Samples, weights and conventions as in relight/fit/fit.h.
 #include "capture/field.h"
 #include "relight/fit/fit.h"

@@ -353,7 +353,8 @@ std::string FitSummary::to_string() const {
     << discarded_implausible_lobes << " lobes with implausible k_s discarded; " << not_converged
     << " fitted pixels not converged (iteration limit); ";
   if (materials > 0) {
-    s << materials << " basis materials explain " << material_pixels << " fitted pixels; ";
+    s << materials << " basis materials (" << scene_materials << " scene materials) explain "
+      << material_pixels << " fitted pixels; ";
   }
   s << seconds << " s";
   return s.str();

@@ -168,6 +168,10 @@ struct Material {
   double ks = 0;         // Torrance-Sparrow, white.
   double roughness = 0;  // Torrance-Sparrow Beckmann m.
   int pixels = 0;        // Pixels whose main material it is.
+  // The scene material it is part of (1-based): basis materials of one model and shape whose
+  // pixels tile one region (a checker, a print) are one material with an albedo texture. Edits by
+  // material select the whole scene material.
+  int scene_material = 0;
 };
 
 struct FitSummary {
@@ -179,6 +183,7 @@ struct FitSummary {
   int discarded_implausible_lobes = 0;  // Lobe fits with k_s > max_specular_albedo (per model).
   int not_converged = 0;                // Fitted pixels flagged kFitNotConverged.
   int materials = 0;                    // Basis materials found (0: per-pixel fitting).
+  int scene_materials = 0;              // Their scene materials (Material::scene_material).
   int material_pixels = 0;              // Fitted pixels explained by basis materials.
   double seconds = 0;
   std::string to_string() const;

@@ -74,11 +74,23 @@ ModelSwap read_swap(const JsonReader& r) {
   return s;
 }
 
+// Whether basis materials a and b (1-based; 0 = none) are parts of one scene material.
+bool same_scene_material(const ModelMaps& maps, int a, int b) {
+  if (a == b) return true;
+  const auto scene = [&](int k) {
+    return k > 0 && k <= int(maps.materials.size()) ? maps.materials[size_t(k - 1)].scene_material
+                                                    : -k;
+  };
+  return a > 0 && scene(a) > 0 && scene(a) == scene(b);
+}
+
 bool selected(const ModelSelection& s, const ModelMaps& maps, int x, int y) {
   const FitModel model = maps.model(x, y);
   if (model == FitModel::kNone) return false;
   if (s.model && model != *s.model) return false;
-  if (s.material > 0 && int(maps.at(x, y, kMapMaterial)) != s.material) return false;
+  if (s.material > 0 && !same_scene_material(maps, int(maps.at(x, y, kMapMaterial)), s.material)) {
+    return false;
+  }
   if (!s.mask.empty() && !s.mask[size_t(y) * maps.maps.width + x]) return false;
   return true;
 }

@@ -23,7 +23,8 @@ nlohmann::json to_json(const std::vector<Material>& materials) {
                    {"sigma", m.sigma},
                    {"ks", m.ks},
                    {"roughness", m.roughness},
-                   {"pixels", m.pixels}});
+                   {"pixels", m.pixels},
+                   {"scene_material", m.scene_material}});
   }
   return out;
 }
@@ -55,6 +56,12 @@ std::vector<Material> materials_from(const std::string& text, const std::string&
       m.ks = j[k].at("ks").get<double>();
       m.roughness = j[k].at("roughness").get<double>();
       m.pixels = j[k].at("pixels").get<int>();
+      // Maps written before scene materials: each basis material is its own.
+      m.scene_material = j[k].value("scene_material", int(k) + 1);
+      if (m.scene_material < 1 || m.scene_material > int(j.size())) {
+        throw InputError(at + ": scene_material " + std::to_string(m.scene_material) +
+                         " is not one of 1.." + std::to_string(j.size()));
+      }
     } catch (const nlohmann::json::exception& e) {
       throw InputError(
           at + ": expected {model, albedo [r, g, b], sigma, ks, roughness, pixels}: " + e.what());

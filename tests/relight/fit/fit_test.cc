@@ -184,6 +184,7 @@ TEST_F(ThreeSpheres, RecoversParametersWithinTolerance) {
 // Basis materials (the default): one material per sphere, each with its parameters within 2%.
 TEST_F(ThreeSpheres, FindsOneMaterialPerSphereWithinTwoPercent) {
   ASSERT_EQ(maps_->materials.size(), 3u);
+  EXPECT_EQ(maps_->summary.scene_materials, 3);
   for (int region = 0; region < 3; ++region) {
     const brdf::Material truth = region_material(region);
     const Material* found = nullptr;
