@@ -98,7 +98,10 @@ bool has_near_lights(const ReflectanceField& field) {
 }
 
 PixelLightDirs::PixelLightDirs(const ReflectanceField& field, int x, int y) : field_(field) {
-  if (field.view) reference_ = reference_point(*field.view, field.width(), field.height(), x, y);
+  if (field.view) {
+    reference_ =
+        reference_point(*field.view, field.width(), field.frame_height(), x, field.first_row() + y);
+  }
 }
 
 Eigen::Vector3d PixelLightDirs::operator()(int light) const {
@@ -390,6 +393,14 @@ int FieldStream::rows_within(std::size_t bytes) const {
   return std::min(rows, height());
 }
 
+int FieldStream::band_rows(std::size_t memory_bytes) const {
+  if (memory_bytes > 0) return rows_within(memory_bytes);
+  const std::size_t field_bytes =
+      ReflectanceField::bytes_for(width(), height(), header_.num_lights());
+  const std::size_t half_available = available_memory_bytes() / 2;
+  return rows_within(2 * field_bytes <= half_available ? 2 * field_bytes : half_available);
+}
+
 void FieldStream::read_rows_into(int y0, int y1, float* dst) {
   File& f = *file_;
   const OIIO::ImageSpec& spec = f.in->spec();
@@ -435,6 +446,7 @@ void FieldStream::read_rows(int y0, int y1, ReflectanceField& band) {
   }
   band.lights() = header_.lights();
   copy_attributes(header_, band);
+  band.set_band(y0, height());
   read_rows_into(y0, y1, band.pixel(0, 0));
 }
 

@@ -91,6 +91,15 @@ class ReflectanceField {
   float at(int x, int y, int light, int c) const { return pixel(x, y)[light * 3 + c]; }
   float& at(int x, int y, int light, int c) { return pixel(x, y)[light * 3 + c]; }
 
+  // A band of rows of a larger field (FieldStream::read_rows): its first row there and that
+  // field's height, for what depends on where a pixel is in the frame (near-LED directions).
+  int first_row() const { return first_row_; }
+  int frame_height() const { return frame_height_ > 0 ? frame_height_ : height_; }
+  void set_band(int first_row, int frame_height) {
+    first_row_ = first_row;
+    frame_height_ = frame_height;
+  }
+
   const std::vector<float>& values() const { return values_; }
   std::size_t bytes() const { return values_.size() * sizeof(float); }
   static std::size_t bytes_for(int width, int height, int num_lights) {
@@ -111,6 +120,8 @@ class ReflectanceField {
   }
   int width_ = 0;
   int height_ = 0;
+  int first_row_ = 0;
+  int frame_height_ = 0;  // 0: the field is the whole frame.
   std::vector<FieldLight> lights_;
   std::vector<float> values_;
 };
@@ -129,9 +140,9 @@ ValidLights valid_lights(const ReflectanceField& field);
 Eigen::Vector3d reference_point(const FieldView& view, int width, int height, int x, int y);
 // Whether any light of the field has a position and the field knows its view (per-pixel lights).
 bool has_near_lights(const ReflectanceField& field);
-// Unit direction toward light `light` (index into lights()) seen from pixel (x, y): from the
-// pixel's reference point toward the LED for near lights (when the field has a view), otherwise
-// the light's dir_in_stage.
+// Unit direction toward light `light` (index into lights()) seen from pixel (x, y) of the field
+// (of the band: its row first_row() + y of the frame): from the pixel's reference point toward
+// the LED for near lights (when the field has a view), otherwise the light's dir_in_stage.
 Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, int y);
 // The same for one pixel and many lights: the reference point is computed once.
 class PixelLightDirs {
@@ -180,6 +191,10 @@ class FieldStream {
   // The rows of a band that fits in `bytes` (the band and the read buffer), at least one tile
   // row (tiled files) or one row, whole tiles where the file is tiled.
   int rows_within(std::size_t bytes) const;
+  // The rows of a band for a memory budget: rows_within(memory_bytes), or with 0 (the default)
+  // the whole field when it and its read buffer take at most half of the memory available, else
+  // bands within that half.
+  int band_rows(std::size_t memory_bytes) const;
   // Rows [y0, y1) into band (reallocated only when its size changes).
   void read_rows(int y0, int y1, ReflectanceField& band);
   // Rows [y0, y1) into dst: (y1 - y0) * width() pixels in the field's layout.

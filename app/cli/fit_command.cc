@@ -8,6 +8,7 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/fit_job.h"
+#include "lightstage/memory.h"
 
 namespace ls::cli {
 
@@ -62,6 +63,12 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
               seconds > 0 ? s.pixels / seconds : 0.0, seconds > 0 ? s.fitted / seconds : 0.0);
   std::printf("  noise: %s, variance = %.3g + %.3g * v\n", summary.noise_source.c_str(),
               summary.noise.a, summary.noise.b);
+  if (summary.band_rows < summary.height) {
+    std::printf("  read in bands of %d rows; ", summary.band_rows);
+  } else {
+    std::printf("  ");
+  }
+  std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   return 0;
 }
 
@@ -124,6 +131,10 @@ void add_fit_command(CLI::App& app) {
                   "pixel chooses its model alone.")
       ->check(CLI::IsMember({"basis", "per-pixel"}))
       ->capture_default_str();
+  cmd->add_option("--memory", options->memory_bytes,
+                  "Bytes of memory for the field: a larger one is fitted in bands of rows within "
+                  "them, read three times with basis materials (default: the whole field when it "
+                  "takes at most half of what is available, else bands within that half).");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {

@@ -6,6 +6,7 @@
 
 #include "capture/field.h"
 #include "lightstage/errors.h"
+#include "relight/fit/basis_materials.h"
 #include "relight/fit/normals.h"
 
 namespace ls::jobs {
@@ -40,6 +41,7 @@ std::string FitJobOptions::to_json() const {
   j["phong"] = phong;
   j["method"] = method;
   j["materials"] = materials;
+  j["memory_bytes"] = memory_bytes;
   return j.dump();
 }
 
@@ -49,6 +51,66 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// Rows [y0, y0 + band.height) of `frame` (sized and named after the first band when empty).
+void paste_rows(const Image& band, int y0, int frame_height, Image& frame) {
+  if (frame.pixels.empty()) {
+    frame = Image(band.width, frame_height, band.channels);
+    frame.channel_names = band.channel_names;
+  }
+  std::copy(band.pixels.begin(), band.pixels.end(),
+            frame.pixels.begin() + std::ptrdiff_t(y0) * band.width * band.channels);
+}
+
+// Normals and per-pixel fits band by band, then basis materials over two more passes of the
+// file: the field is never whole in memory, the maps and normals are (~25 floats a pixel).
+relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
+                                const relight::FitOptions& fit, const ProgressFn& progress,
+                                double* read_seconds) {
+  const capture::ReflectanceField& header = stream.header();
+  const int width = header.width(), height = header.height();
+  relight::FitOptions per_band = fit;
+  per_band.materials = relight::FitMaterials::kPerPixel;
+  per_band.progress = {};
+  relight::NormalMap normals;
+  relight::ModelMaps maps;
+  capture::ReflectanceField band;
+  const auto read = [&](int y0, int y1) {
+    const auto t0 = Clock::now();
+    stream.read_rows(y0, y1, band);
+    *read_seconds += seconds_since(t0);
+  };
+  for (int y0 = 0; y0 < height; y0 += rows) {
+    const int y1 = std::min(height, y0 + rows);
+    read(y0, y1);
+    const relight::NormalMap band_normals = relight::estimate_normals(band, fit.normals);
+    paste_rows(band_normals.normal, y0, height, normals.normal);
+    paste_rows(band_normals.albedo, y0, height, normals.albedo);
+    paste_rows(band_normals.confidence, y0, height, normals.confidence);
+    paste_rows(band_normals.flags, y0, height, normals.flags);
+    normals.flagged_pixels += band_normals.flagged_pixels;
+    if (!fit.view_dir_per_pixel.empty()) {
+      per_band.view_dir_per_pixel.assign(
+          fit.view_dir_per_pixel.begin() + std::ptrdiff_t(y0) * width,
+          fit.view_dir_per_pixel.begin() + std::ptrdiff_t(y1) * width);
+    }
+    const relight::ModelMaps band_maps = relight::fit_models(band, band_normals, per_band);
+    if (y0 == 0) maps.noise = band_maps.noise, maps.noise_source = band_maps.noise_source;
+    paste_rows(band_maps.maps, y0, height, maps.maps);
+    maps.summary.add(band_maps.summary);
+    report(progress, "fit (rows)", y1, height);
+  }
+  if (fit.materials == relight::FitMaterials::kBasis) {
+    const auto bands = [&](const relight::BandVisitor& visit) {
+      for (int y0 = 0; y0 < height; y0 += rows) {
+        read(y0, std::min(height, y0 + rows));
+        visit(band);
+      }
+    };
+    relight::fit_basis_materials(header, bands, normals, fit, maps);
+  }
+  return maps;
 }
 
 relight::NormalMethod normal_method(const FitJobOptions& options) {
@@ -90,7 +152,8 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
                   const NoiseNoticeFn& noise_notice) {
   check(options);
   if (!options.time_inputs.empty()) throw InputError("fit: --time fields: use fit_over_time");
-  const capture::ReflectanceField field = capture::read_field(options.field_file);
+  capture::FieldStream stream(options.field_file);
+  const capture::ReflectanceField& field = stream.header();
   relight::FitOptions fit;
   fit.fit_phong = options.phong;
   fit.materials = options.materials == "per-pixel" ? relight::FitMaterials::kPerPixel
@@ -105,14 +168,30 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(options.field_file.string() + ": noise: " + error);
   }
-  const auto start = Clock::now();
-  report(progress, "normals", 0, 1, "photometric stereo");
-  const relight::NormalMap normals = relight::estimate_normals(field, fit.normals);
-  report(progress, "normals", 1, 1);
-  fit.progress = [&](long done, long total) { report(progress, "fit", done, total); };
-  const relight::ModelMaps maps = relight::fit_models(field, normals, fit);
-  FitJobSummary summary{maps.summary,     maps.materials,    field.width(),       field.height(),
-                        fit.noise_source, fit.normals.noise, seconds_since(start)};
+  const int rows = stream.band_rows(options.memory_bytes);
+  double read_seconds = 0;  // Not counted in the fit's time.
+  auto start = Clock::now();
+  relight::ModelMaps maps;
+  if (rows < field.height()) {
+    maps = fit_in_bands(stream, rows, fit, progress, &read_seconds);
+  } else {
+    capture::ReflectanceField whole;
+    stream.read_rows(0, field.height(), whole);
+    start = Clock::now();
+    report(progress, "normals", 0, 1, "photometric stereo");
+    const relight::NormalMap normals = relight::estimate_normals(whole, fit.normals);
+    report(progress, "normals", 1, 1);
+    fit.progress = [&](long done, long total) { report(progress, "fit", done, total); };
+    maps = relight::fit_models(whole, normals, fit);
+  }
+  FitJobSummary summary{maps.summary,
+                        maps.materials,
+                        field.width(),
+                        field.height(),
+                        fit.noise_source,
+                        fit.normals.noise,
+                        seconds_since(start) - read_seconds,
+                        rows};
   relight::write_model_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
   return summary;
 }

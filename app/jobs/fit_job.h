@@ -19,6 +19,9 @@ struct FitJobOptions {
   bool phong = false;               // Also fit Lambert + Phong (comparison).
   std::string method = "robust";    // Photometric-stereo normals: "robust" or "ls".
   std::string materials = "basis";  // "basis" or "per-pixel" (relight::FitMaterials).
+  // Bytes for the field (capture::FieldStream::band_rows; 0: the default there). A field larger
+  // is fitted in bands of rows, read three times with basis materials (fits, pool, blends).
+  std::size_t memory_bytes = 0;
   std::string validate() const;
   std::string to_json() const;  // Recorded in the maps (kOptionsAttribute).
 };
@@ -30,6 +33,7 @@ struct FitJobSummary {
   std::string noise_source;
   relight::NoiseModel noise;
   double seconds = 0.0;  // Normals and fits.
+  int band_rows = 0;     // Rows of a band (the height: the whole field at once).
 };
 
 struct TemporalFitJobSummary {

@@ -179,14 +179,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
         out.relit = Image(header.width(), header.height(), 3);
         outputs.push_back(std::move(out));
       });
-  const std::size_t field_bytes =
-      capture::ReflectanceField::bytes_for(header.width(), header.height(), header.num_lights());
-  // The whole field (and its read buffer) when that takes at most half of what is available.
-  const std::size_t half_available = capture::available_memory_bytes() / 2;
-  const std::size_t budget = options.memory_bytes > 0            ? options.memory_bytes
-                             : 2 * field_bytes <= half_available ? 2 * field_bytes
-                                                                 : half_available;
-  const int rows = stream.rows_within(budget);
+  const int rows = stream.band_rows(options.memory_bytes);
   capture::ReflectanceField band;
   Image band_relit;
   for (int y0 = 0; y0 < header.height(); y0 += rows) {

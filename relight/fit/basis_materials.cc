@@ -105,25 +105,27 @@ Segments over_segment(const ModelMaps& maps, int max_clusters) {
 // A pixel's samples as fit_models gathers them, and its view direction.
 class PixelGatherer {
  public:
-  PixelGatherer(const capture::ReflectanceField& field, const FitOptions& options)
-      : field_(field), options_(options), valid_(capture::valid_lights(field)) {}
-  // The usable samples (thread-local storage, valid until this thread's next call); with
-  // `shadowed`: the directions of the lights left out as shadowed.
-  std::span<const pixel::Sample> gather(int x, int y,
+  // header: the field's (or its bands') lights and view.
+  PixelGatherer(const capture::ReflectanceField& header, const FitOptions& options)
+      : width_(header.width()), options_(options), valid_(capture::valid_lights(header)) {}
+  // The usable samples of pixel (x, y) of a band (y counted in the band) (thread-local storage,
+  // valid until this thread's next call); with `shadowed`: the directions of the lights left out
+  // as shadowed.
+  std::span<const pixel::Sample> gather(const capture::ReflectanceField& band, int x, int y,
                                         std::vector<Eigen::Vector3d>* shadowed = nullptr) const {
     thread_local std::vector<pixel::Sample> samples;
     samples.resize(valid_.index.size());
     const int count =
-        pixel::gather_samples(field_, valid_, options_.normals, x, y, samples.data(), shadowed)
-            .count;
+        pixel::gather_samples(band, valid_, options_.normals, x, y, samples.data(), shadowed).count;
     return {samples.data(), size_t(count)};
   }
+  // The view direction at pixel (x, y) of the frame.
   Eigen::Vector3d view(int x, int y) const {
-    return pixel::view_dir_at(options_.view_dir_per_pixel, size_t(y) * field_.width() + x);
+    return pixel::view_dir_at(options_.view_dir_per_pixel, size_t(y) * width_ + x);
   }
 
  private:
-  const capture::ReflectanceField& field_;
+  int width_;
   const FitOptions& options_;
   capture::ValidLights valid_;
 };
@@ -366,8 +368,6 @@ bool write_blend(const Blend& blend, const Eigen::Vector3d& n, int residuals,
   return true;
 }
 
-}  // namespace
-
 // Step 5: basis materials of one model and shape whose pixels tile one region are one scene
 // material with an albedo texture (a checker, a print): each shares more of its boundary with the
 // other than with any other material, and at least this part of it. An object on a backdrop
@@ -432,62 +432,25 @@ int group_scene_materials(const Image& image, std::vector<Material>& materials) 
   return scene_materials;
 }
 
-void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap& normals,
-                         const FitOptions& options, ModelMaps& maps) {
+// Step 4 over one band: each pixel's blend of materials written into maps (rows of the frame),
+// the summary's counts and the materials' pixels updated under `mutex`.
+void assign_band(const capture::ReflectanceField& band, const PixelGatherer& gather,
+                 const NormalMap& normals, const std::vector<Material>& materials,
+                 double dispersion, const FitOptions& options, ModelMaps& maps, std::mutex& mutex) {
   Image& image = maps.maps;
-  const int width = image.width;
-  const Segments segments = over_segment(maps, options.max_materials);
-  const std::vector<std::vector<int>>& clusters = segments.clusters;
-  if (clusters.empty()) return;
-  const PixelGatherer gather(field, options);
-  // Each cluster's pool: up to kPoolPixels of its pixels, evenly spread; each pool pixel stands
-  // for `stride` of them.
-  std::vector<PoolPixel> pool;
-  std::vector<int> pool_image_pixel;
-  std::vector<Cluster> pooled(clusters.size());
-  for (size_t k = 0; k < clusters.size(); ++k) {
-    const size_t stride = (clusters[k].size() + kPoolPixels - 1) / kPoolPixels;
-    for (size_t j = 0; j < clusters[k].size(); j += stride) {
-      pooled[k].members.push_back(int(pool.size()));
-      pool.emplace_back().scale = double(stride);
-      pool_image_pixel.push_back(clusters[k][j]);
-    }
-  }
-  tbb::parallel_for(size_t(0), pool.size(), [&](size_t p) {
-    const int i = pool_image_pixel[p], x = i % width, y = i / width;
-    PoolPixel& pixel = pool[p];
-    const float* m = &image.pixels[size_t(i) * image.channels];
-    pixel.own = FitModel(int(m[kMapModel]));
-    const std::span<const pixel::Sample> samples = gather.gather(x, y);
-    if (samples.empty()) pixel.scale = 0;
-    pixel.terms.reset(samples.data(), int(samples.size()), fitted_normal(m), gather.view(x, y));
-    for (int g = 0; g < kRoughnessGrid; ++g) {
-      pixel.lobe_grid[size_t(g)] =
-          pixel.terms.sums(FitModel::kLambertTorranceSparrow, grid_roughness(g));
-    }
-  });
-  double residuals = 0, pixels = 0;
-  for (const PoolPixel& p : pool) residuals += p.scale * 3 * p.terms.count(), pixels += p.scale;
-  const std::vector<Material> materials =
-      merge_materials(pool, std::move(pooled), options, std::log(std::max(residuals / pixels, 2.0)),
-                      segments.dispersion);
-  pool.clear();
-  maps.materials = materials;
-
-  std::mutex mutex;
-  FitSummary& summary = maps.summary;
-  summary.materials = int(materials.size());
-  tbb::parallel_for(tbb::blocked_range<int>(0, image.height), [&](const auto& rows) {
+  const int y0 = band.first_row();
+  tbb::parallel_for(tbb::blocked_range<int>(0, band.height()), [&](const auto& rows) {
     thread_local PixelTerms at_fitted, at_n0;
     thread_local std::vector<Eigen::Vector3d> shadowed;
     FitSummary local;
     std::vector<int> main_of(materials.size(), 0);
-    for (int y = rows.begin(); y < rows.end(); ++y) {
-      for (int x = 0; x < width; ++x) {
+    for (int band_y = rows.begin(); band_y < rows.end(); ++band_y) {
+      const int y = y0 + band_y;
+      for (int x = 0; x < image.width; ++x) {
         float* m = &image.at(x, y, 0);
         const FitModel own = FitModel(int(m[kMapModel]));
         if (own == FitModel::kNone) continue;
-        const std::span<const pixel::Sample> samples = gather.gather(x, y, &shadowed);
+        const std::span<const pixel::Sample> samples = gather.gather(band, x, band_y, &shadowed);
         if (samples.empty()) continue;
         const Eigen::Vector3d view = gather.view(x, y);
         Eigen::Vector3d n = fitted_normal(m);
@@ -505,7 +468,7 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
         if (blend.material[0] < 0) continue;
         const bool was_not_converged = (int(m[kMapFlags]) & kFitNotConverged) != 0;
         if (!write_blend(blend, n, 3 * int(samples.size()), materials, options.refine_normal,
-                         segments.dispersion, m)) {
+                         dispersion, m)) {
           continue;
         }
         if (m[kMapKs] > 0) {
@@ -523,12 +486,80 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
       }
     }
     const std::lock_guard lock(mutex);
+    FitSummary& summary = maps.summary;
     for (int k = 0; k < 5; ++k) summary.per_model[k] += local.per_model[k];
     summary.not_converged += local.not_converged;
     summary.material_pixels += local.material_pixels;
     for (size_t k = 0; k < materials.size(); ++k) maps.materials[k].pixels += main_of[k];
   });
-  summary.scene_materials = group_scene_materials(image, maps.materials);
+}
+
+}  // namespace
+
+void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,
+                         const NormalMap& normals, const FitOptions& options, ModelMaps& maps) {
+  Image& image = maps.maps;
+  const int width = image.width;
+  const Segments segments = over_segment(maps, options.max_materials);
+  const std::vector<std::vector<int>>& clusters = segments.clusters;
+  if (clusters.empty()) return;
+  const PixelGatherer gather(header, options);
+  // Each cluster's pool: up to kPoolPixels of its pixels, evenly spread; each pool pixel stands
+  // for `stride` of them.
+  std::vector<PoolPixel> pool;
+  std::vector<int> pool_image_pixel;
+  std::vector<Cluster> pooled(clusters.size());
+  for (size_t k = 0; k < clusters.size(); ++k) {
+    const size_t stride = (clusters[k].size() + kPoolPixels - 1) / kPoolPixels;
+    for (size_t j = 0; j < clusters[k].size(); j += stride) {
+      pooled[k].members.push_back(int(pool.size()));
+      pool.emplace_back().scale = double(stride);
+      pool_image_pixel.push_back(clusters[k][j]);
+    }
+  }
+  // Band by band, the pool pixels in it.
+  bands([&](const capture::ReflectanceField& band) {
+    const int y0 = band.first_row(), y1 = y0 + band.height();
+    std::vector<size_t> here;
+    for (size_t p = 0; p < pool.size(); ++p) {
+      const int y = pool_image_pixel[p] / width;
+      if (y >= y0 && y < y1) here.push_back(p);
+    }
+    tbb::parallel_for(size_t(0), here.size(), [&](size_t j) {
+      const size_t p = here[j];
+      const int i = pool_image_pixel[p], x = i % width, y = i / width;
+      PoolPixel& pixel = pool[p];
+      const float* m = &image.pixels[size_t(i) * image.channels];
+      pixel.own = FitModel(int(m[kMapModel]));
+      const std::span<const pixel::Sample> samples = gather.gather(band, x, y - y0);
+      if (samples.empty()) pixel.scale = 0;
+      pixel.terms.reset(samples.data(), int(samples.size()), fitted_normal(m), gather.view(x, y));
+      for (int g = 0; g < kRoughnessGrid; ++g) {
+        pixel.lobe_grid[size_t(g)] =
+            pixel.terms.sums(FitModel::kLambertTorranceSparrow, grid_roughness(g));
+      }
+    });
+  });
+  double residuals = 0, pixels = 0;
+  for (const PoolPixel& p : pool) residuals += p.scale * 3 * p.terms.count(), pixels += p.scale;
+  const std::vector<Material> materials =
+      merge_materials(pool, std::move(pooled), options, std::log(std::max(residuals / pixels, 2.0)),
+                      segments.dispersion);
+  pool.clear();
+  maps.materials = materials;
+
+  std::mutex mutex;
+  maps.summary.materials = int(materials.size());
+  bands([&](const capture::ReflectanceField& band) {
+    assign_band(band, gather, normals, materials, segments.dispersion, options, maps, mutex);
+  });
+  maps.summary.scene_materials = group_scene_materials(image, maps.materials);
+}
+
+void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap& normals,
+                         const FitOptions& options, ModelMaps& maps) {
+  fit_basis_materials(
+      field, [&](const BandVisitor& visit) { visit(field); }, normals, options, maps);
 }
 
 }  // namespace ls::relight

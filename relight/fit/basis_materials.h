@@ -30,6 +30,8 @@
 //     (each shares most of its boundary with the other: a checker, a print) are one material with
 //     an albedo texture (Material::scene_material); edits by material select all of it.
 // Samples, weights and conventions as in relight/fit/fit.h.
+#include <functional>
+
 #include "capture/field.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/normals.h"
@@ -41,5 +43,13 @@ namespace ls::relight {
 // material channels and the summary's counts.
 void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap& normals,
                          const FitOptions& options, ModelMaps& maps);
+
+// The same for a field read in bands of rows (capture::FieldStream), in two passes: `bands`
+// calls its visitor with each band in turn (each knows its first_row()); `header` has the
+// field's lights and view.
+using BandVisitor = std::function<void(const capture::ReflectanceField& band)>;
+using FieldBands = std::function<void(const BandVisitor& visit)>;
+void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,
+                         const NormalMap& normals, const FitOptions& options, ModelMaps& maps);
 
 }  // namespace ls::relight

@@ -345,6 +345,17 @@ std::string FitOptions::validate() const {
   return {};
 }
 
+void FitSummary::add(const FitSummary& part) {
+  pixels += part.pixels;
+  fitted += part.fitted;
+  flagged += part.flagged;
+  for (int k = 0; k < 5; ++k) per_model[k] += part.per_model[k];
+  discarded_nonfinite_fits += part.discarded_nonfinite_fits;
+  discarded_implausible_lobes += part.discarded_implausible_lobes;
+  not_converged += part.not_converged;
+  material_pixels += part.material_pixels;
+}
+
 std::string FitSummary::to_string() const {
   std::ostringstream s;
   s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged; models:";

@@ -187,6 +187,8 @@ struct FitSummary {
   int material_pixels = 0;              // Fitted pixels explained by basis materials.
   double seconds = 0;
   std::string to_string() const;
+  // Adds the pixel counts of another part of the image (a band fitted on its own).
+  void add(const FitSummary& part);
 };
 
 struct ModelMaps {

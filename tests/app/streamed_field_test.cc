@@ -1,6 +1,6 @@
 // Fields read in bands of rows (issue 14): `lightstage relight --memory` on scanline and tiled
 // fields gives the bytes of the in-memory relighting, and its peak memory follows the budget, not
-// the field.
+// the field; `lightstage fit --memory` gives the maps of the whole field.
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -11,6 +11,8 @@
 #include "capture/field.h"
 #include "lightstage/image.h"
 #include "lightstage/stage.h"
+#include "sim/noisy_field.h"
+#include "sim/scene.h"
 #include "tests/support/test_support.h"
 
 namespace ls {
@@ -96,6 +98,42 @@ TEST(StreamedField, TiledAndScanlineBandsRelightBitIdentically) {
   EXPECT_EQ(capture::read_field(dir / "tiled.exr").values(), field.values());
 }
 
+// Fitted in bands of 7 rows, with basis materials (two more passes over the file: the materials'
+// pools, then every pixel's blend) and per pixel, the maps are the whole field's, byte for byte.
+// The LEDs are near (positions and a view): a pixel sees them from where it is in the frame, not
+// in its band.
+TEST(StreamedField, FitsInBandsGiveTheMapsOfTheWholeField) {
+  const testing::TempDir dir;
+  Stage stage = stage_with_directions(fibonacci_dome_directions(60, -11.5));
+  stage.camera.width = 48;
+  stage.camera.height = 40;
+  capture::FieldNoise noise;
+  noise.read_variance = 1e-6;
+  noise.shot_variance_per_unit = 1e-4;
+  capture::ReflectanceField field = sim::render_noisy_field(stage, sim::default_scene(), noise, 5);
+  field.view = capture::FieldView{};
+  for (capture::FieldLight& light : field.lights()) {
+    light.position_in_stage = 2.0 * light.dir_in_stage.normalized();
+  }
+  capture::write_field(dir / "field.exr", field);
+  const std::size_t row_bytes = 48 * 3 * field.lights().size() * sizeof(float);
+  const std::string budget = std::to_string(7 * 2 * row_bytes);  // The band and its read buffer.
+  for (const std::string materials : {"basis", "per-pixel"}) {
+    const auto fit = [&](const std::string& name, const std::vector<std::string>& extra) {
+      std::vector<std::string> args = {"fit",         (dir / "field.exr").string(),
+                                       "--materials", materials,
+                                       "--out",       (dir / name).string()};
+      args.insert(args.end(), extra.begin(), extra.end());
+      ASSERT_EQ(run_measured(args).code, 0) << materials;
+    };
+    fit("whole.exr", {});
+    fit("bands.exr", {"--memory", budget});
+    const Image whole = read_image(dir / "whole.exr");
+    EXPECT_EQ(whole.pixels, read_image(dir / "bands.exr").pixels) << materials;
+    EXPECT_EQ(whole.width, 48);
+  }
+}
+
 TEST(StreamedField, PeakMemoryFollowsTheBudgetNotTheField) {
   const testing::TempDir dir;
   // 48 MiB of field values, four times the 12 MiB budget.
@@ -127,6 +165,25 @@ TEST(StreamedField, PeakMemoryFollowsTheBudgetNotTheField) {
   EXPECT_LT(banded_kib, allowed_kib);
   // The measurement sees the field: read whole, it takes (at least) half of it more.
   EXPECT_GT(whole_kib, banded_kib + (24 << 10));
+
+  // Fitted per pixel within the same budget: beside it, the fit holds its maps and normals whole
+  // (25 floats a pixel, 12.5 MiB here), and the maps' writer a copy of the maps (17 floats).
+  auto fit = [&](const std::string& file, const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"fit",         (dir / file).string(),
+                                     "--materials", "per-pixel",
+                                     "--out",       (dir / ("maps_" + file)).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const Measured m = run_measured(args);
+    EXPECT_EQ(m.code, 0) << file;
+    return m.peak_kib;
+  };
+  const long fit_overhead_kib = fit("small.exr", {});
+  const long fit_banded_kib = fit("big.exr", {"--memory", std::to_string(budget)});
+  const long fit_allowed_kib = fit_overhead_kib + long(budget >> 10) +
+                               long(512 * 256 * 42 * sizeof(float) >> 10) + (4 << 10);
+  std::cout << "fit peak RSS: 16x16 field " << fit_overhead_kib << " KiB, 48 MiB field in bands "
+            << fit_banded_kib << " KiB (allowed " << fit_allowed_kib << ")\n";
+  EXPECT_LT(fit_banded_kib, fit_allowed_kib);
 }
 
 }  // namespace
