@@ -64,7 +64,11 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
   std::printf("  noise: %s, variance = %.3g + %.3g * v\n", summary.noise_source.c_str(),
               summary.noise.a, summary.noise.b);
   if (summary.band_rows < summary.height) {
-    std::printf("  read in bands of %d rows; ", summary.band_rows);
+    std::printf("  read in bands of %d rows", summary.band_rows);
+    if (summary.resumed_rows > 0) {
+      std::printf(" (%d rows' fits taken from an interrupted run)", summary.resumed_rows);
+    }
+    std::printf("; ");
   } else {
     std::printf("  ");
   }

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <nlohmann/json.hpp>
 
+#include "app/jobs/fit_checkpoint.h"
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "relight/fit/basis_materials.h"
@@ -63,11 +64,13 @@ void paste_rows(const Image& band, int y0, int frame_height, Image& frame) {
             frame.pixels.begin() + std::ptrdiff_t(y0) * band.width * band.channels);
 }
 
-// Normals and per-pixel fits band by band, then basis materials over two more passes of the
+// Normals and per-pixel fits band by band (each kept in `checkpoints`, or taken from there when
+// an earlier run of the same fit finished it), then basis materials over two more passes of the
 // file: the field is never whole in memory, the maps and normals are (~25 floats a pixel).
 relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
-                                const relight::FitOptions& fit, const ProgressFn& progress,
-                                double* read_seconds) {
+                                const relight::FitOptions& fit, const BandCheckpoints& checkpoints,
+                                const ProgressFn& progress, double* read_seconds,
+                                int* resumed_rows) {
   const capture::ReflectanceField& header = stream.header();
   const int width = header.width(), height = header.height();
   relight::FitOptions per_band = fit;
@@ -75,6 +78,8 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
   per_band.progress = {};
   relight::NormalMap normals;
   relight::ModelMaps maps;
+  maps.noise = fit.normals.noise;  // As fit_models records them.
+  maps.noise_source = fit.noise_source;
   capture::ReflectanceField band;
   const auto read = [&](int y0, int y1) {
     const auto t0 = Clock::now();
@@ -83,20 +88,26 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
   };
   for (int y0 = 0; y0 < height; y0 += rows) {
     const int y1 = std::min(height, y0 + rows);
-    read(y0, y1);
-    const relight::NormalMap band_normals = relight::estimate_normals(band, fit.normals);
+    relight::NormalMap band_normals;
+    relight::ModelMaps band_maps;
+    if (checkpoints.load(y0, band_normals, band_maps)) {
+      *resumed_rows += y1 - y0;
+    } else {
+      read(y0, y1);
+      band_normals = relight::estimate_normals(band, fit.normals);
+      if (!fit.view_dir_per_pixel.empty()) {
+        per_band.view_dir_per_pixel.assign(
+            fit.view_dir_per_pixel.begin() + std::ptrdiff_t(y0) * width,
+            fit.view_dir_per_pixel.begin() + std::ptrdiff_t(y1) * width);
+      }
+      band_maps = relight::fit_models(band, band_normals, per_band);
+      checkpoints.save(y0, band_normals, band_maps);
+    }
     paste_rows(band_normals.normal, y0, height, normals.normal);
     paste_rows(band_normals.albedo, y0, height, normals.albedo);
     paste_rows(band_normals.confidence, y0, height, normals.confidence);
     paste_rows(band_normals.flags, y0, height, normals.flags);
     normals.flagged_pixels += band_normals.flagged_pixels;
-    if (!fit.view_dir_per_pixel.empty()) {
-      per_band.view_dir_per_pixel.assign(
-          fit.view_dir_per_pixel.begin() + std::ptrdiff_t(y0) * width,
-          fit.view_dir_per_pixel.begin() + std::ptrdiff_t(y1) * width);
-    }
-    const relight::ModelMaps band_maps = relight::fit_models(band, band_normals, per_band);
-    if (y0 == 0) maps.noise = band_maps.noise, maps.noise_source = band_maps.noise_source;
     paste_rows(band_maps.maps, y0, height, maps.maps);
     maps.summary.add(band_maps.summary);
     report(progress, "fit (rows)", y1, height);
@@ -172,8 +183,11 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   double read_seconds = 0;  // Not counted in the fit's time.
   auto start = Clock::now();
   relight::ModelMaps maps;
+  int resumed_rows = 0;
+  const BandCheckpoints checkpoints(options.out,
+                                    fit_identity(options.field_file, options.to_json(), rows));
   if (rows < field.height()) {
-    maps = fit_in_bands(stream, rows, fit, progress, &read_seconds);
+    maps = fit_in_bands(stream, rows, fit, checkpoints, progress, &read_seconds, &resumed_rows);
   } else {
     capture::ReflectanceField whole;
     stream.read_rows(0, field.height(), whole);
@@ -192,7 +206,9 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
                         fit.normals.noise,
                         seconds_since(start) - read_seconds,
                         rows};
+  summary.resumed_rows = resumed_rows;
   relight::write_model_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
+  checkpoints.remove();
   return summary;
 }
 

@@ -34,6 +34,7 @@ struct FitJobSummary {
   relight::NoiseModel noise;
   double seconds = 0.0;  // Normals and fits.
   int band_rows = 0;     // Rows of a band (the height: the whole field at once).
+  int resumed_rows = 0;  // Rows whose fits an earlier, killed run had finished (BandCheckpoints).
 };
 
 struct TemporalFitJobSummary {

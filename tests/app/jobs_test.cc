@@ -177,6 +177,40 @@ TEST_F(Jobs, BuildAndRelightWriteWhatTheLibraryComputesAndRecordTheirOptions) {
   }
 }
 
+// A fit in bands of rows that is stopped halfway (as by a kill) resumes from the bands it
+// finished: it fits only the rest, and its maps are those of an uninterrupted fit of the whole
+// field; the finished bands are removed once the maps are written.
+TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
+  const testing::TempDir dir;
+  jobs::BuildJobOptions build;
+  build.session_dir = *dir_ / "session";
+  build.out = dir / "field.exr";
+  (void)jobs::build(build);
+  jobs::FitJobOptions fit;
+  fit.field_file = build.out;
+  fit.out = dir / "whole.exr";
+  (void)jobs::fit(fit);
+  const capture::ReflectanceField field = capture::read_field(build.out);
+  fit.out = dir / "maps.exr";
+  fit.memory_bytes = 3 * 2 * std::size_t(field.width()) * field.num_lights() * 3 * sizeof(float);
+  struct Killed {};
+  EXPECT_THROW(
+      (void)jobs::fit(fit,
+                      [](const std::string& phase, long done, long total, const std::string&) {
+                        if (phase == "fit (rows)" && 2 * done >= total) throw Killed{};
+                      }),
+      Killed);
+  EXPECT_FALSE(fs::exists(fit.out));
+  EXPECT_TRUE(fs::exists(dir / "maps.exr.partial"));
+  const jobs::FitJobSummary resumed = jobs::fit(fit);
+  ASSERT_LT(resumed.band_rows, field.height());
+  EXPECT_GE(2 * resumed.resumed_rows, field.height());
+  EXPECT_LT(resumed.resumed_rows, field.height());
+  EXPECT_EQ(resumed.resumed_rows % resumed.band_rows, 0);
+  EXPECT_EQ(read_image(fit.out).pixels, read_image(dir / "whole.exr").pixels);
+  EXPECT_FALSE(fs::exists(dir / "maps.exr.partial"));
+}
+
 TEST_F(Jobs, RelightRefusesBadOptionsBeforeWritingAnything) {
   jobs::RelightOptions relight;
   relight.field_file = *dir_ / "missing.exr";
