@@ -104,12 +104,12 @@ bool BandCheckpoints::load(int y0, relight::NormalMap& normals, relight::ModelMa
   for (auto [part, first, channels] : normal_parts(normals)) {
     *part = Image(image.width, image.height, channels);
     for (int c = 0; c < channels; ++c) {  // Their names without "ps.".
-      part->channel_names.push_back(band_channel_names()[size_t(first + c)].substr(3));
+      part->channel_names.push_back(band_channel_names()[(size_t(first) + size_t(c))].substr(3));
     }
     for (size_t i = 0; i < image.num_pixels(); ++i) {
       for (int c = 0; c < channels; ++c) {
-        part->pixels[i * channels + size_t(c)] =
-            image.pixels[i * image.channels + size_t(first + c)];
+        part->pixels[i * size_t(channels) + size_t(c)] =
+            image.pixels[i * image.channels + (size_t(first) + size_t(c))];
       }
     }
   }
@@ -118,7 +118,7 @@ bool BandCheckpoints::load(int y0, relight::NormalMap& normals, relight::ModelMa
   for (size_t i = 0; i < image.num_pixels(); ++i) {
     for (int c = 0; c < relight::kMapChannelCount; ++c) {
       maps.maps.pixels[i * relight::kMapChannelCount + size_t(c)] =
-          image.pixels[i * image.channels + size_t(kMapsFirst + c)];
+          image.pixels[i * image.channels + (size_t(kMapsFirst) + size_t(c))];
     }
   }
   return true;
@@ -132,13 +132,14 @@ void BandCheckpoints::save(int y0, const relight::NormalMap& normals,
   for (auto [part, first, channels] : normal_parts(normals)) {
     for (size_t i = 0; i < band.num_pixels(); ++i) {
       for (int c = 0; c < channels; ++c) {
-        band.pixels[i * band.channels + size_t(first + c)] = part->pixels[i * channels + size_t(c)];
+        band.pixels[i * band.channels + (size_t(first) + size_t(c))] =
+            part->pixels[i * size_t(channels) + size_t(c)];
       }
     }
   }
   for (size_t i = 0; i < band.num_pixels(); ++i) {
     for (int c = 0; c < m.channels; ++c) {
-      band.pixels[i * band.channels + size_t(kMapsFirst + c)] =
+      band.pixels[i * band.channels + (size_t(kMapsFirst) + size_t(c))] =
           m.pixels[i * m.channels + size_t(c)];
     }
   }
