@@ -114,10 +114,6 @@ Eigen::Vector3d PixelLightDirs::operator()(int light) const {
   return l.dir_in_stage.normalized();
 }
 
-Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, int y) {
-  return PixelLightDirs(field, x, y)(light);
-}
-
 size_t available_memory_bytes() { return ls::available_memory_bytes(); }
 
 void require_memory(std::size_t bytes, const std::string& what) {
@@ -398,7 +394,7 @@ int FieldStream::band_rows(std::size_t memory_bytes) const {
   const std::size_t field_bytes =
       ReflectanceField::bytes_for(width(), height(), header_.num_lights());
   const std::size_t half_available = available_memory_bytes() / 2;
-  return rows_within(2 * field_bytes <= half_available ? 2 * field_bytes : half_available);
+  return rows_within(std::min(2 * field_bytes, half_available));
 }
 
 void FieldStream::read_rows_into(int y0, int y1, float* dst) {

@@ -6,7 +6,7 @@
 // Near LEDs (FieldLight::position_in_stage set): R(x, l) is per unit of the LED's irradiance at the
 // pixel's reference point X(x) (FieldView: where the pixel's camera ray meets the plane z =
 // reference_z_m), i.e. the build multiplied by (|P - X| / |P|)^2, and the light arrives along
-// light_dir_at() = (P - X) / |P - X| rather than along dir_in_stage. A flat field, when the stage
+// PixelLightDirs = (P - X) / |P - X| rather than along dir_in_stage. A flat field, when the stage
 // has one, is divided out too: R is per unit of the LED's irradiance as calibrated at that pixel.
 //
 // Layout: pixel-major, values[((y * width + x) * num_lights + l) * 3 + c], float32.
@@ -140,11 +140,10 @@ ValidLights valid_lights(const ReflectanceField& field);
 Eigen::Vector3d reference_point(const FieldView& view, int width, int height, int x, int y);
 // Whether any light of the field has a position and the field knows its view (per-pixel lights).
 bool has_near_lights(const ReflectanceField& field);
-// Unit direction toward light `light` (index into lights()) seen from pixel (x, y) of the field
-// (of the band: its row first_row() + y of the frame): from the pixel's reference point toward
-// the LED for near lights (when the field has a view), otherwise the light's dir_in_stage.
-Eigen::Vector3d light_dir_at(const ReflectanceField& field, int light, int x, int y);
-// The same for one pixel and many lights: the reference point is computed once.
+// Unit directions toward the lights seen from pixel (x, y) of a field (of a band: its row
+// first_row() + y of the frame), the pixel's reference point computed once: toward light `light`
+// (index into lights()) from that point for near lights (when the field has a view), otherwise
+// along the light's dir_in_stage.
 class PixelLightDirs {
  public:
   PixelLightDirs(const ReflectanceField& field, int x, int y);

@@ -1,12 +1,14 @@
 #include "app/jobs/fit_checkpoint.h"
 
 #include <array>
+#include <fstream>
 #include <nlohmann/json.hpp>
-#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
+#include "lightstage/image.h"
 
 namespace ls::jobs {
 
@@ -16,12 +18,36 @@ namespace {
 
 constexpr const char* kBandAttribute = "lightstage:fit_band";
 
-// The normal map's channels, prefixed (the maps have an albedo and a normal of their own), then
-// the maps'.
+// A band file's parts: the normal map's images (channels prefixed: the maps have an albedo and a
+// normal of their own), then the maps, with their channel names.
+struct Part {
+  const char* prefix;
+  int channels;
+};
+constexpr std::array<Part, 5> kParts = {{{"ps.normal", 3},
+                                         {"ps.albedo", 3},
+                                         {"ps.confidence", 1},
+                                         {"ps.flags", 1},
+                                         {nullptr, relight::kMapChannelCount}}};
+
+// The band file's images in kParts order (Map: NormalMap or const NormalMap; Maps likewise).
+template <class Map, class Maps>
+std::array<decltype(&std::declval<Map&>().normal), 5> images_of(Map& n, Maps& maps) {
+  return {&n.normal, &n.albedo, &n.confidence, &n.flags, &maps.maps};
+}
+
 const std::vector<std::string>& band_channel_names() {
   static const std::vector<std::string> names = [] {
-    std::vector<std::string> out = {"ps.normal.x", "ps.normal.y", "ps.normal.z",   "ps.albedo.r",
-                                    "ps.albedo.g", "ps.albedo.b", "ps.confidence", "ps.flags"};
+    std::vector<std::string> out;
+    for (const Part& part : kParts) {
+      if (!part.prefix) continue;
+      static const char* const kXyz[] = {".x", ".y", ".z"};
+      static const char* const kRgb[] = {".r", ".g", ".b"};
+      const std::string p = part.prefix;
+      for (int c = 0; c < part.channels; ++c) {
+        out.push_back(part.channels == 1 ? p : p + (p == "ps.normal" ? kXyz[c] : kRgb[c]));
+      }
+    }
     const std::vector<std::string>& maps = relight::model_map_channel_names();
     out.insert(out.end(), maps.begin(), maps.end());
     return out;
@@ -29,15 +55,13 @@ const std::vector<std::string>& band_channel_names() {
   return names;
 }
 
-// The normal map's images with their first band channel and channel count (Map: NormalMap or
-// const NormalMap).
-template <class Map>
-auto normal_parts(Map& n) {
-  using Part = std::tuple<decltype(&n.normal), int, int>;
-  return std::array<Part, 4>{Part{&n.normal, 0, 3}, Part{&n.albedo, 3, 3},
-                             Part{&n.confidence, 6, 1}, Part{&n.flags, 7, 1}};
+// Channels [from_first, from_first + count) of every pixel of `from` into [to_first, ...) of `to`.
+void copy_channels(const Image& from, int from_first, Image& to, int to_first, int count) {
+  for (size_t i = 0; i < from.num_pixels(); ++i) {
+    const float* src = &from.pixels[i * size_t(from.channels) + size_t(from_first)];
+    std::copy(src, src + count, &to.pixels[i * size_t(to.channels) + size_t(to_first)]);
+  }
 }
-constexpr int kMapsFirst = 8;  // The band channel of the maps' first.
 
 nlohmann::json summary_json(const relight::FitSummary& s) {
   return {{"pixels", s.pixels},
@@ -54,7 +78,9 @@ relight::FitSummary summary_from(const nlohmann::json& j) {
   s.pixels = j.at("pixels").get<int>();
   s.fitted = j.at("fitted").get<int>();
   s.flagged = j.at("flagged").get<int>();
-  for (int k = 0; k < 5; ++k) s.per_model[k] = j.at("per_model").at(size_t(k)).get<int>();
+  for (size_t k = 0; k < std::size(s.per_model); ++k) {
+    s.per_model[k] = j.at("per_model").at(k).get<int>();
+  }
   s.discarded_nonfinite_fits = j.at("discarded_nonfinite_fits").get<int>();
   s.discarded_implausible_lobes = j.at("discarded_implausible_lobes").get<int>();
   s.not_converged = j.at("not_converged").get<int>();
@@ -63,15 +89,16 @@ relight::FitSummary summary_from(const nlohmann::json& j) {
 
 }  // namespace
 
-std::string fit_identity(const fs::path& field_file, const std::string& options_json, int rows) {
-  std::error_code error;
-  const auto size = fs::file_size(field_file, error);
-  const auto time = fs::last_write_time(field_file, error).time_since_epoch().count();
+std::string fit_identity(const fs::path& field_file, const std::string& options_json) {
+  std::error_code size_error, time_error;
+  const auto size = fs::file_size(field_file, size_error);
+  const auto time = fs::last_write_time(field_file, time_error).time_since_epoch().count();
+  nlohmann::json options = nlohmann::json::parse(options_json);
+  options.erase("memory_bytes");
   return nlohmann::json{{"field", fs::absolute(field_file).string()},
-                        {"bytes", error ? 0 : size},
-                        {"time", error ? 0 : time},
-                        {"options", options_json},
-                        {"rows", rows}}
+                        {"bytes", size_error ? 0 : size},
+                        {"time", time_error ? 0 : time},
+                        {"options", options}}
       .dump();
 }
 
@@ -82,17 +109,29 @@ fs::path BandCheckpoints::file(int y0) const {
   return dir_ / ("rows_" + std::to_string(y0) + ".exr");
 }
 
+int BandCheckpoints::band_rows(int proposed) const {
+  const fs::path run = dir_ / "run.json";
+  try {
+    std::ifstream in(run);
+    const nlohmann::json j = nlohmann::json::parse(in);
+    if (j.at("identity").get<std::string>() == identity_) return j.at("rows").get<int>();
+  } catch (const std::exception&) {  // None, unreadable or another run's: start afresh.
+  }
+  remove();
+  fs::create_directories(dir_);
+  write_file_atomic(run, nlohmann::json{{"identity", identity_}, {"rows", proposed}}.dump());
+  return proposed;
+}
+
 bool BandCheckpoints::load(int y0, relight::NormalMap& normals, relight::ModelMaps& maps) const {
   if (!fs::exists(file(y0))) return false;
   NamedChannelFile band;
-  nlohmann::json info;
   try {
     band = read_named_channels(file(y0), band_channel_names(), "fit checkpoint",
                                "'lightstage fit --memory'", /*exact=*/true);
     const std::string* text = band.attribute(kBandAttribute);
     if (!text) return false;
-    info = nlohmann::json::parse(*text);
-    if (info.at("identity").get<std::string>() != identity_) return false;
+    const nlohmann::json info = nlohmann::json::parse(*text);
     maps.summary = summary_from(info.at("summary"));
     normals.flagged_pixels = info.at("normals_flagged").get<int>();
   } catch (const InputError&) {
@@ -101,52 +140,28 @@ bool BandCheckpoints::load(int y0, relight::NormalMap& normals, relight::ModelMa
     return false;
   }
   const Image& image = band.image;
-  for (auto [part, first, channels] : normal_parts(normals)) {
-    *part = Image(image.width, image.height, channels);
-    for (int c = 0; c < channels; ++c) {  // Their names without "ps.".
-      part->channel_names.push_back(band_channel_names()[(size_t(first) + size_t(c))].substr(3));
-    }
-    for (size_t i = 0; i < image.num_pixels(); ++i) {
-      for (int c = 0; c < channels; ++c) {
-        part->pixels[i * size_t(channels) + size_t(c)] =
-            image.pixels[i * image.channels + (size_t(first) + size_t(c))];
-      }
-    }
+  int first = 0;
+  for (size_t k = 0; k < kParts.size(); ++k) {
+    Image& part = *images_of(normals, maps)[k];
+    part = Image(image.width, image.height, kParts[k].channels);
+    copy_channels(image, first, part, 0, kParts[k].channels);
+    first += kParts[k].channels;
   }
-  maps.maps = Image(image.width, image.height, relight::kMapChannelCount);
   maps.maps.channel_names = relight::model_map_channel_names();
-  for (size_t i = 0; i < image.num_pixels(); ++i) {
-    for (int c = 0; c < relight::kMapChannelCount; ++c) {
-      maps.maps.pixels[i * relight::kMapChannelCount + size_t(c)] =
-          image.pixels[i * image.channels + (size_t(kMapsFirst) + size_t(c))];
-    }
-  }
   return true;
 }
 
 void BandCheckpoints::save(int y0, const relight::NormalMap& normals,
                            const relight::ModelMaps& maps) const {
-  const Image& m = maps.maps;
-  Image band(m.width, m.height, int(band_channel_names().size()));
+  Image band(maps.maps.width, maps.maps.height, int(band_channel_names().size()));
   band.channel_names = band_channel_names();
-  for (auto [part, first, channels] : normal_parts(normals)) {
-    for (size_t i = 0; i < band.num_pixels(); ++i) {
-      for (int c = 0; c < channels; ++c) {
-        band.pixels[i * band.channels + (size_t(first) + size_t(c))] =
-            part->pixels[i * size_t(channels) + size_t(c)];
-      }
-    }
+  int first = 0;
+  for (size_t k = 0; k < kParts.size(); ++k) {
+    copy_channels(*images_of(normals, maps)[k], 0, band, first, kParts[k].channels);
+    first += kParts[k].channels;
   }
-  for (size_t i = 0; i < band.num_pixels(); ++i) {
-    for (int c = 0; c < m.channels; ++c) {
-      band.pixels[i * band.channels + (size_t(kMapsFirst) + size_t(c))] =
-          m.pixels[i * m.channels + size_t(c)];
-    }
-  }
-  const nlohmann::json info = {{"identity", identity_},
-                               {"summary", summary_json(maps.summary)},
+  const nlohmann::json info = {{"summary", summary_json(maps.summary)},
                                {"normals_flagged", normals.flagged_pixels}};
-  fs::create_directories(dir_);
   write_exr(file(y0), band, ExrPixelType::kFloat, {{kBandAttribute, info.dump()}});
 }
 

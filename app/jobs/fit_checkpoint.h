@@ -1,9 +1,9 @@
 #pragma once
 // The finished bands of a fit in bands of rows (lightstage fit --memory), kept beside the maps
 // (OUT.partial/) until the maps are written, so that a fit that is killed resumes from the bands it
-// finished. One EXR per band, its normals and per-pixel maps as float (exact), with the band's
-// summary counts and the run's identity (field file, its size and time, options, band height) in
-// an attribute; written atomically, so a band is there whole or not at all.
+// finished. run.json holds the run's identity (field file, its size and time, options) and band
+// height; one EXR per band holds its normals and per-pixel maps as float (exact) and its summary
+// counts in an attribute, written atomically: a band is there whole or not at all.
 #include <filesystem>
 #include <string>
 
@@ -14,10 +14,13 @@ namespace ls::jobs {
 
 class BandCheckpoints {
  public:
-  // identity: what must match for a band to be taken from an earlier run.
+  // identity: what must match for bands to be taken from an earlier run (fit_identity).
   BandCheckpoints(const std::filesystem::path& out, std::string identity);
-  // The band of rows [y0, ...) from an earlier run with the same identity, or false (none, another
-  // run's, or unreadable: the band is fitted again).
+  // The band height to fit with: an earlier run's with the same identity, so that its bands are
+  // reused; otherwise `proposed`, recorded for a later run (an earlier run's bands are dropped).
+  int band_rows(int proposed) const;
+  // The band of rows [y0, ...) when an earlier run finished it, or false (none, or unreadable:
+  // the band is fitted again).
   bool load(int y0, relight::NormalMap& normals, relight::ModelMaps& maps) const;
   void save(int y0, const relight::NormalMap& normals, const relight::ModelMaps& maps) const;
   // Once the maps are written.
@@ -29,8 +32,8 @@ class BandCheckpoints {
   std::string identity_;
 };
 
-// The identity of a fit of field_file with these options (their JSON) in bands of `rows`.
-std::string fit_identity(const std::filesystem::path& field_file, const std::string& options_json,
-                         int rows);
+// The identity of a fit of field_file with these options (FitJobOptions::to_json; the memory
+// budget left out: it only sets the band height, which the checkpoints record).
+std::string fit_identity(const std::filesystem::path& field_file, const std::string& options_json);
 
 }  // namespace ls::jobs

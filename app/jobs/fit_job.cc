@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <nlohmann/json.hpp>
+#include <optional>
 
 #include "app/jobs/fit_checkpoint.h"
 #include "capture/field.h"
@@ -72,7 +73,7 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
                                 const ProgressFn& progress, double* read_seconds,
                                 int* resumed_rows) {
   const capture::ReflectanceField& header = stream.header();
-  const int width = header.width(), height = header.height();
+  const int height = header.height();
   relight::FitOptions per_band = fit;
   per_band.materials = relight::FitMaterials::kPerPixel;
   per_band.progress = {};
@@ -95,11 +96,6 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
     } else {
       read(y0, y1);
       band_normals = relight::estimate_normals(band, fit.normals);
-      if (!fit.view_dir_per_pixel.empty()) {
-        per_band.view_dir_per_pixel.assign(
-            fit.view_dir_per_pixel.begin() + std::ptrdiff_t(y0) * width,
-            fit.view_dir_per_pixel.begin() + std::ptrdiff_t(y1) * width);
-      }
       band_maps = relight::fit_models(band, band_normals, per_band);
       checkpoints.save(y0, band_normals, band_maps);
     }
@@ -179,15 +175,16 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(options.field_file.string() + ": noise: " + error);
   }
-  const int rows = stream.band_rows(options.memory_bytes);
+  int rows = stream.band_rows(options.memory_bytes);
   double read_seconds = 0;  // Not counted in the fit's time.
   auto start = Clock::now();
   relight::ModelMaps maps;
   int resumed_rows = 0;
-  const BandCheckpoints checkpoints(options.out,
-                                    fit_identity(options.field_file, options.to_json(), rows));
+  std::optional<BandCheckpoints> checkpoints;  // Fits in bands only.
   if (rows < field.height()) {
-    maps = fit_in_bands(stream, rows, fit, checkpoints, progress, &read_seconds, &resumed_rows);
+    checkpoints.emplace(options.out, fit_identity(options.field_file, options.to_json()));
+    rows = checkpoints->band_rows(rows);
+    maps = fit_in_bands(stream, rows, fit, *checkpoints, progress, &read_seconds, &resumed_rows);
   } else {
     capture::ReflectanceField whole;
     stream.read_rows(0, field.height(), whole);
@@ -208,7 +205,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
                         rows};
   summary.resumed_rows = resumed_rows;
   relight::write_model_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
-  checkpoints.remove();
+  if (checkpoints) checkpoints->remove();
   return summary;
 }
 

@@ -216,7 +216,8 @@ struct Blend {
 
 Blend blend_of(const PixelTerms& terms, const std::vector<Material>& materials, double log_n) {
   Blend best;
-  std::vector<double> chi2(materials.size(), HUGE_VAL);
+  thread_local std::vector<double> chi2;
+  chi2.assign(materials.size(), HUGE_VAL);
   for (size_t k = 0; k < materials.size(); ++k) {
     const Scaled s = scale_to(terms.sums(materials[k].model, shape_of(materials[k])), materials[k]);
     chi2[k] = s.chi2;
@@ -486,10 +487,7 @@ void assign_band(const capture::ReflectanceField& band, const PixelGatherer& gat
       }
     }
     const std::lock_guard lock(mutex);
-    FitSummary& summary = maps.summary;
-    for (int k = 0; k < 5; ++k) summary.per_model[k] += local.per_model[k];
-    summary.not_converged += local.not_converged;
-    summary.material_pixels += local.material_pixels;
+    maps.summary.add(local);
     for (size_t k = 0; k < materials.size(); ++k) maps.materials[k].pixels += main_of[k];
   });
 }

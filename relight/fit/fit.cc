@@ -11,11 +11,9 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "lightstage/errors.h"
-#include "lightstage/exr_channels.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/pixel_solver.h"
 #include "relight/fit/profiled_fit.h"
@@ -388,7 +386,9 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
            "normal map is " + std::to_string(normals.normal.width) + "x" +
                std::to_string(normals.normal.height) + ", field is " + std::to_string(width) + "x" +
                std::to_string(height));
-  if (const std::string error = pixel::check_view_dirs(options.view_dir_per_pixel, width, height);
+  // view_dir_per_pixel covers the frame: a band (field.first_row()) looks its rows up there.
+  if (const std::string error =
+          pixel::check_view_dirs(options.view_dir_per_pixel, width, field.frame_height());
       !error.empty()) {
     throw InputError("fit options: " + error);
   }
@@ -432,19 +432,15 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
         d.t1 = d.n0.unitOrthogonal();
         d.t2 = d.n0.cross(d.t1);
         d.refine_normal = options.refine_normal;
-        d.wo = pixel::view_dir_at(options.view_dir_per_pixel, size_t(y) * width + x);
+        d.wo = pixel::view_dir_at(options.view_dir_per_pixel,
+                                  size_t(field.first_row() + y) * width + x);
         fit_pixel(d, options, m, local);
       }
       const long done = ++rows_done;
       if (options.progress) options.progress(done, height);
     }
     const std::lock_guard lock(summary_mutex);
-    summary.fitted += local.fitted;
-    summary.flagged += local.flagged;
-    summary.discarded_nonfinite_fits += local.discarded_nonfinite_fits;
-    summary.discarded_implausible_lobes += local.discarded_implausible_lobes;
-    summary.not_converged += local.not_converged;
-    for (int k = 0; k < 5; ++k) summary.per_model[k] += local.per_model[k];
+    summary.add(local);
   });
   if (options.materials == FitMaterials::kBasis) fit_basis_materials(field, normals, options, out);
   summary.seconds =

@@ -4,8 +4,8 @@ namespace ls::relight::materials {
 namespace {
 
 constexpr int kAlternations = 3;  // Weights, then material, three times.
-constexpr int kSigmaGrid = 33;    // As the per-pixel candidates (profiled_fit.cc).
-constexpr int kRefineSteps = 6;   // Golden-section steps within the best grid bracket.
+using profiled::kRefineSteps;
+using profiled::kSigmaGrid;
 
 }  // namespace
 

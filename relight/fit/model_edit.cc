@@ -74,14 +74,13 @@ ModelSwap read_swap(const JsonReader& r) {
   return s;
 }
 
-// Whether basis materials a and b (1-based; 0 = none) are parts of one scene material.
+// Whether basis materials a and b (1-based, within maps.materials: read_model_maps and
+// apply_model_edits check both; 0 = none) are parts of one scene material.
 bool same_scene_material(const ModelMaps& maps, int a, int b) {
   if (a == b) return true;
-  const auto scene = [&](int k) {
-    return k > 0 && k <= int(maps.materials.size()) ? maps.materials[size_t(k - 1)].scene_material
-                                                    : -k;
-  };
-  return a > 0 && scene(a) > 0 && scene(a) == scene(b);
+  if (a <= 0 || b <= 0) return false;
+  const int scene = maps.materials[size_t(a - 1)].scene_material;
+  return scene > 0 && scene == maps.materials[size_t(b - 1)].scene_material;
 }
 
 bool selected(const ModelSelection& s, const ModelMaps& maps, int x, int y) {

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <nlohmann/json.hpp>
@@ -5,13 +6,15 @@
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
 #include "relight/fit/fit.h"
+#include "relight/lighting/brdf.h"
 
 // Model maps on disk (relight/fit/fit.h): one EXR of named channels, with the fit's noise model
 // and the basis materials as attributes, and PNG previews beside it.
 namespace ls::relight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+using brdf::kPi;
+constexpr double kMaxSigma = 0.5 * kPi + 1e-6;  // Oren-Nayar's range, and rounding.
 constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
 constexpr const char* kMaterialsAttribute = "lightstage:materials";
 
@@ -66,7 +69,7 @@ std::vector<Material> materials_from(const std::string& text, const std::string&
       throw InputError(
           at + ": expected {model, albedo [r, g, b], sigma, ks, roughness, pixels}: " + e.what());
     }
-    const bool ok = (m.albedo.array() >= 0).all() && m.sigma >= 0 && m.sigma <= 0.5 * kPi + 1e-6 &&
+    const bool ok = (m.albedo.array() >= 0).all() && m.sigma >= 0 && m.sigma <= kMaxSigma &&
                     m.ks >= 0 && m.roughness >= 0 && m.roughness <= 1 && m.pixels >= 0;
     if (!ok) throw InputError(at + ": parameters out of their bounds (relight/fit/fit.h)");
     out.push_back(m);
@@ -170,6 +173,9 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
   if (const std::string* materials = file.attribute(kMaterialsAttribute)) {
     out.materials = materials_from(*materials, name);
     out.summary.materials = int(out.materials.size());
+    for (const Material& m : out.materials) {
+      out.summary.scene_materials = std::max(out.summary.scene_materials, m.scene_material);
+    }
   }
   out.maps = std::move(file.image);
   const int width = out.maps.width, height = out.maps.height;
@@ -181,7 +187,6 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
                   double(out.maps.at(x, y, channel)));
     throw InputError(name + ": channel '" + names[channel] + "': expected " + expected + where);
   };
-  const double max_sigma = 0.5 * kPi + 1e-6;
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       for (int c = 0; c < kMapChannelCount; ++c) {
@@ -222,7 +227,7 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
         if (out.maps.at(x, y, c) < 0) fail(c, x, y, "an albedo >= 0");
       }
       const float sigma = out.maps.at(x, y, kMapSigma);
-      if (!(sigma >= 0 && sigma <= max_sigma)) fail(kMapSigma, x, y, "sigma in [0, pi/2] rad");
+      if (!(sigma >= 0 && sigma <= kMaxSigma)) fail(kMapSigma, x, y, "sigma in [0, pi/2] rad");
       if (!(out.maps.at(x, y, kMapKs) >= 0)) fail(kMapKs, x, y, "k_s >= 0");
       const float roughness = out.maps.at(x, y, kMapRoughness);
       const bool has_lobe = model == float(FitModel::kLambertTorranceSparrow) ||

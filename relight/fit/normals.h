@@ -5,7 +5,7 @@
 // R = (albedo / pi) * max(0, n . l), so on the luminance Y the unknowns g = (albedo_Y / pi) * n
 // solve the linear system L g = Y over the lit samples (L: one light direction per row). Everything
 // is weighted by the measurement noise model below. With near LEDs (positions in the field), each
-// pixel's rows of L are its own directions toward the LEDs (capture::light_dir_at).
+// pixel's rows of L are its own directions toward the LEDs (capture::PixelLightDirs).
 #include <string>
 
 #include "capture/field.h"

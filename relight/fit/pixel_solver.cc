@@ -1,5 +1,6 @@
 #include "relight/fit/pixel_solver.h"
 
+#include <optional>
 #include <string>
 
 namespace ls::relight::pixel {
@@ -17,9 +18,10 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
   const double threshold =
       std::max(options.shadow_sigmas * std::sqrt(options.noise.a), options.shadow_fraction * y_max);
   GatheredSamples out;
-  const capture::PixelLightDirs dir_to(field, x, y);
+  std::optional<capture::PixelLightDirs> dir_to;  // Near LEDs only: from this pixel.
+  if (valid.near) dir_to.emplace(field, x, y);
   const auto dir = [&](size_t i) {
-    return valid.near ? dir_to(valid.index[i]) : valid.dirs_in_stage[i];
+    return dir_to ? (*dir_to)(valid.index[i]) : valid.dirs_in_stage[i];
   };
   if (shadowed) shadowed->clear();
   for (size_t i = 0; i < valid.index.size(); ++i) {

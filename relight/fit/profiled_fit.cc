@@ -12,12 +12,8 @@ using pixel::kPi;
 
 constexpr double kMaxSigma = 0.5 * kPi;
 constexpr double kMaxLobeExponent = 40;  // exp(-40) ~ 4e-18 of the lobe's peak: skipped.
-constexpr int kSigmaGrid = 33;           // 2.8 degree steps over [0, pi/2].
 constexpr int kRoughnessGrid = 10;       // Log-spaced over [min_roughness, 1].
 constexpr int kResolvingSamples = 3;     // A lobe needs this many samples above 10% of its peak.
-// Golden-section steps for sigma inside the best grid bracket (two steps wide): 6 narrow it to
-// 0.04 of a step; the polish takes it from there.
-constexpr int kRefineSteps = 6;
 // The polish stops once a step lowers chi^2 by less than this: a thousandth of the change that
 // matters to a BIC comparison (1 unit), where TinySolver's default is 1e-6.
 constexpr double kPolishChi2Tolerance = 1e-3;

@@ -93,6 +93,12 @@ T chi2_of(const LinearSums<T>& s, const T* albedo, const T& ks) {
   return chi2 > T(0) ? chi2 : T(0);
 }
 
+// Oren-Nayar's sigma is searched on this grid over [0, pi/2] (2.8 degree steps), then refined
+// by this many golden-section steps inside the best grid bracket (two steps wide: 6 narrow it to
+// 0.04 of a step); per pixel (PixelTerms) and per material (material_pool.h) alike.
+constexpr int kSigmaGrid = 33;
+constexpr int kRefineSteps = 6;
+
 // Minimises f over [lo, hi] by `steps` golden-section steps, starting from the bracket of a grid
 // minimum; x_best and f_best are updated in place where a better argument is seen.
 template <class F>

@@ -122,12 +122,13 @@ TEST(NearField, PerPixelDirectionsAndDistancesGiveTheNormals) {
   EXPECT_NEAR(corner.x(), -0.35 + 0.35 / kSize, 1e-12);
   EXPECT_NEAR(corner.y(), 0.35 - 0.35 / kSize, 1e-12);
   EXPECT_NEAR(corner.z(), 0.0, 1e-12);
-  EXPECT_LT((capture::light_dir_at(reread, 7, 0, 0) -
+  EXPECT_LT((capture::PixelLightDirs(reread, 0, 0)(7) -
              (*reread.lights()[7].position_in_stage - corner).normalized())
                 .norm(),
             1e-12);
-  EXPECT_LT((capture::light_dir_at(far_field, 7, 0, 0) - far_field.lights()[7].dir_in_stage).norm(),
-            1e-12);
+  EXPECT_LT(
+      (capture::PixelLightDirs(far_field, 0, 0)(7) - far_field.lights()[7].dir_in_stage).norm(),
+      1e-12);
 
   relight::NormalOptions options;
   options.noise = noise_of(near_field);
