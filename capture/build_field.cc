@@ -8,12 +8,16 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <random>
 #include <thread>
 
+#include "capture/band_spill.h"
+#include "capture/led_frames.h"
 #include "capture/light_calibration.h"
 #include "capture/noise_estimate.h"
 #include "capture/response.h"
@@ -22,9 +26,6 @@
 namespace ls::capture {
 namespace {
 
-// LEDs whose brackets feed the response recovery (kRecover): a few views of the scene give the
-// solver a wider spread of radiances than one.
-constexpr int kRecoveryLeds = 3;
 // Photon transfer (noise_estimate.h) uses the brackets of this many LEDs, spread over the capture
 // order, and about this many pixels of each: plenty for a few dozen level bins.
 constexpr int kTransferLeds = 12;
@@ -36,129 +37,6 @@ std::string format_gamma(double gamma) {
   char text[32];
   std::snprintf(text, sizeof(text), "gamma %g", gamma);
   return text;
-}
-
-// One LED's bracket in this time step: a record per exposure step, null where the frame is absent.
-struct LedFrames {
-  int led_index = -1;
-  std::vector<const FrameRecord*> records;
-  bool complete() const {
-    return std::all_of(records.begin(), records.end(), [](auto* r) { return r != nullptr; });
-  }
-};
-
-ResponseCurve recover_from_session(const Session& session, const std::vector<LedFrames>& brackets,
-                                   const std::vector<bool>& usable) {
-  const Stage& stage = session.stage();
-  // "Brightest" without reading every frame: the LEDs nearest the camera axis (front light reaches
-  // what the camera sees) with the highest calibrated irradiance.
-  std::vector<std::pair<double, size_t>> scored;
-  for (size_t i = 0; i < brackets.size(); ++i) {
-    if (!usable[i]) continue;
-    const Led& led = stage.leds[brackets[i].led_index];
-    const double facing = std::max(0.05, led.dir_in_stage.z());
-    scored.push_back({-led.irradiance_rgb().mean() * facing, i});
-  }
-  if (scored.empty()) {
-    throw InputError(session.dir().string() +
-                     ": camera response 'recover' needs at least one LED with a complete bracket");
-  }
-  std::sort(scored.begin(), scored.end());
-  scored.resize(std::min<size_t>(scored.size(), kRecoveryLeds));
-
-  // The solver wants one static scene per exposure: put the chosen LEDs' frames side by side, so
-  // each exposure step becomes one wide image of several lighting conditions.
-  const size_t num_exposures = brackets[scored[0].second].records.size();
-  std::vector<RawFrame> tiled(num_exposures);
-  std::vector<double> exposure_gain(num_exposures);
-  for (size_t e = 0; e < num_exposures; ++e) {
-    std::vector<RawFrame> parts;
-    for (const auto& [score, i] : scored) {
-      parts.push_back(session.load_frame(brackets[i].records[e]->key));
-    }
-    const RawFrame& first = parts[0];
-    for (const RawFrame& p : parts) {
-      if (p.width != first.width || p.height != first.height || p.channels != first.channels ||
-          p.bit_depth != first.bit_depth) {
-        throw InputError(session.dir().string() + ": frames differ in size or format");
-      }
-    }
-    RawFrame& t = tiled[e];
-    t.width = first.width * int(parts.size());
-    t.height = first.height;
-    t.channels = first.channels;
-    t.bit_depth = first.bit_depth;
-    t.pixels.resize(size_t(t.width) * t.height * t.channels);
-    const size_t part_row = size_t(first.width) * first.channels;
-    for (int y = 0; y < t.height; ++y) {
-      for (size_t p = 0; p < parts.size(); ++p) {
-        std::copy_n(parts[p].pixels.data() + y * part_row, part_row,
-                    t.pixels.data() + y * part_row * parts.size() + p * part_row);
-      }
-    }
-    const FrameRecord* record = brackets[scored[0].second].records[e];
-    exposure_gain[e] = record->exposure_s * record->gain;
-  }
-  std::vector<const RawFrame*> frames;
-  for (const RawFrame& t : tiled) frames.push_back(&t);
-  return recover_response(frames, exposure_gain);
-}
-
-double mean_value(const Image& image) {
-  if (image.pixels.empty()) return 0.0;
-  double sum = 0;
-  for (const float v : image.pixels) sum += v;
-  return sum / double(image.pixels.size());
-}
-
-// FieldNoise from the dark-frame read noise and photon transfer (noise_estimate.h), propagated
-// through the merge at the median LED irradiance (the field stores one model for all LEDs).
-FieldNoise estimate_field_noise(const ReflectanceField& field, const Stage& stage,
-                                const std::vector<bool>& usable, const std::vector<int>& order,
-                                const std::vector<NoiseStep>& steps, const MergeOptions& merge,
-                                SensorNoise& sensor, const std::vector<TransferSample>& transfer,
-                                BuildSummary* summary) {
-  summary->sensor_noise = sensor;
-  if (!sensor.read_measured) {
-    summary->warnings.push_back(
-        "noise not measured: needs at least 2 dark frames in every exposure step (plan.dark_frames)"
-        "; the fits will use their default noise model");
-    return {};
-  }
-  std::string method = "read: dark-frame pairs";
-  sensor.shot_measured = solve_shot_per_level(transfer, steps, sensor.read_variance,
-                                              &sensor.shot_per_level, &sensor.transfer_samples);
-  if (sensor.shot_measured) {
-    method += "; shot: photon transfer over bracket pairs";
-  } else if (stage.camera.backend == "sim" && stage.camera.simulated.full_well_e > 0) {
-    sensor.shot_per_level = 1.0 / stage.camera.simulated.full_well_e;
-    method += "; shot: simulated sensor's full well (no usable bracket pair)";
-  } else {
-    summary->warnings.push_back(
-        "noise not measured: no pair of exposure steps left enough well-exposed samples for "
-        "photon transfer; the fits will use their default noise model");
-    return {};
-  }
-  std::vector<double> irradiance;
-  for (size_t i = 0; i < order.size(); ++i) {
-    if (!usable[i]) continue;
-    const Eigen::Vector3d e = stage.leds[order[i]].irradiance_rgb();
-    irradiance.insert(irradiance.end(), {e.x(), e.y(), e.z()});
-  }
-  if (irradiance.empty()) return {};
-  std::nth_element(irradiance.begin(), irradiance.begin() + irradiance.size() / 2,
-                   irradiance.end());
-  const double median_irradiance = irradiance[irradiance.size() / 2];
-  const std::vector<float>& all = field.values();
-  // Random rather than strided indices: a stride could fall in step with the 3 * lights layout.
-  std::mt19937_64 rng(1);
-  std::uniform_int_distribution<size_t> pick(0, all.empty() ? 0 : all.size() - 1);
-  std::vector<float> values;
-  for (size_t i = 0; i < std::min(all.size(), kNoiseFitValues); ++i)
-    values.push_back(all[pick(rng)]);
-  summary->sensor_noise = sensor;
-  MergeNoiseModel model{steps, merge, stage.camera.radiometric_scale};
-  return fit_field_noise(sensor, model, median_irradiance, values, method);
 }
 
 void check_camera(const Session& session, const BuildOptions& options) {
@@ -185,6 +63,9 @@ void check_camera(const Session& session, const BuildOptions& options) {
 // dark frames, then merge every LED's bracket into the field and estimate its noise.
 class FieldBuild {
  public:
+  // Where each merged LED image goes (field light i, rgb as SpillFile::put's).
+  using LedSink = std::function<void(int i, const std::vector<float>& rgb)>;
+
   FieldBuild(const Session& session, const BuildOptions& options, BuildSummary& summary)
       : session_(session),
         stage_(session.stage()),
@@ -195,34 +76,124 @@ class FieldBuild {
         num_exposures_(int(camera_.bracket.size())),
         order_(stage_.capture_order()) {}
 
+  // The field in memory.
   ReflectanceField run() {
+    prepare();
+    // The field is the big allocation and refuses cleanly when it cannot fit.
+    ReflectanceField field(camera_.width, camera_.height, header_.lights());
+    merge_brackets([&](int i, const std::vector<float>& rgb) {
+      tbb::parallel_for(0, camera_.height, [&](int y) {
+        for (int x = 0; x < camera_.width; ++x) {
+          const float* v = &rgb[(size_t(y) * camera_.width + x) * 3];
+          std::copy_n(v, 3, field.pixel(x, y) + 3 * size_t(i));
+        }
+      });
+    });
+    finish();
+    copy_attributes(header_, field);
+    return field;
+  }
+
+  // The field written to `out` in bands of band_rows rows, through a spill file beside it.
+  void run_to_file(const std::filesystem::path& out, const ExrAttributes& attributes,
+                   int band_rows) {
+    prepare();
+    std::filesystem::path spill_path = out;
+    spill_path += ".spill-" + std::to_string(::getpid());
+    SpillFile spill(spill_path, camera_.width, camera_.height, int(order_.size()), band_rows);
+    merge_brackets([&](int i, const std::vector<float>& rgb) { spill.put(i, rgb); });
+    finish();
+    FieldWriter writer(out, header_, attributes);
+    std::vector<float> scratch;
+    ReflectanceField band = ReflectanceField::without_values(0, 0, header_.lights());
+    for (int b = 0; b < spill.bands(); ++b) {
+      spill.read_band(b, scratch, band);
+      writer.write_rows(spill.band_first_row(b), band);
+      if (options_.on_band_written) options_.on_band_written(b + 1, spill.bands());
+    }
+    writer.finish();
+  }
+
+ private:
+  // Everything before the merge: the frames, lights, response, flat fields, darks and scales.
+  void prepare() {
     index_frames();
-    std::vector<FieldLight> lights = field_lights();
+    header_ = ReflectanceField::without_values(camera_.width, camera_.height, field_lights());
     choose_response();
     read_flat_fields();
-    // Allocate the field first: it is the big allocation and refuses cleanly when it cannot fit.
-    ReflectanceField field(camera_.width, camera_.height, std::move(lights));
-    field.source = where_;
-    field.view = FieldView{camera_.fov_y_deg, camera_.distance_m, camera_.ortho_height_m,
-                           stage_.calibration.reference_z_m};
+    header_.source = where_;
+    header_.view = FieldView{camera_.fov_y_deg, camera_.distance_m, camera_.ortho_height_m,
+                             stage_.calibration.reference_z_m};
     for (size_t i = 0; i < order_.size(); ++i) {
       if (usable_[i]) {
-        field.scene_time_s = brackets_[i].records[0]->scene_time_s;
+        header_.scene_time_s = brackets_[i].records[0]->scene_time_s;
         break;
       }
     }
     average_darks();
-    scale_lights(field);
-    merge_brackets(field);
+    scale_lights(header_);
+    noise_samples_.emplace(camera_.width, camera_.height, int(order_.size()), kNoiseFitValues);
+    transfer_.assign(order_.size(), {});
+  }
+
+  // After the merge: the summary's counts and the field's noise.
+  void finish() {
     sum_.lights_used = int(std::count(usable_.begin(), usable_.end(), true));
     const double samples = double(sum_.lights_used) * camera_.width * camera_.height;
     sum_.saturated_fraction = samples > 0 ? double(saturated_pixels_.load()) / samples : 0.0;
-    field.noise = estimate_field_noise(field, stage_, usable_, order_, noise_steps_, options_.merge,
-                                       sensor_, transfer_, &sum_);
-    return field;
+    std::vector<TransferSample> transfer;  // In capture order: the same noise every build.
+    size_t total = 0;
+    for (const std::vector<TransferSample>& samples : transfer_) total += samples.size();
+    transfer.reserve(total);
+    for (std::vector<TransferSample>& samples : transfer_) {
+      transfer.insert(transfer.end(), samples.begin(), samples.end());
+      std::vector<TransferSample>().swap(samples);  // Not held twice.
+    }
+    header_.noise = estimate_noise(transfer);
   }
 
- private:
+  // FieldNoise from the dark-frame read noise and photon transfer (noise_estimate.h), propagated
+  // through the merge at the median LED irradiance (the field stores one model for all LEDs).
+  FieldNoise estimate_noise(const std::vector<TransferSample>& transfer) {
+    SensorNoise& sensor = sensor_;
+    BuildSummary* summary = &sum_;
+    summary->sensor_noise = sensor;
+    if (!sensor.read_measured) {
+      summary->warnings.push_back(
+          "noise not measured: needs at least 2 dark frames in every exposure step "
+          "(plan.dark_frames)"
+          "; the fits will use their default noise model");
+      return {};
+    }
+    std::string method = "read: dark-frame pairs";
+    sensor.shot_measured = solve_shot_per_level(transfer, noise_steps_, sensor.read_variance,
+                                                &sensor.shot_per_level, &sensor.transfer_samples);
+    if (sensor.shot_measured) {
+      method += "; shot: photon transfer over bracket pairs";
+    } else if (camera_.backend == "sim" && camera_.simulated.full_well_e > 0) {
+      sensor.shot_per_level = 1.0 / camera_.simulated.full_well_e;
+      method += "; shot: simulated sensor's full well (no usable bracket pair)";
+    } else {
+      summary->warnings.push_back(
+          "noise not measured: no pair of exposure steps left enough well-exposed samples for "
+          "photon transfer; the fits will use their default noise model");
+      return {};
+    }
+    std::vector<double> irradiance;
+    for (size_t i = 0; i < order_.size(); ++i) {
+      if (!usable_[i]) continue;
+      const Eigen::Vector3d e = stage_.leds[order_[i]].irradiance_rgb();
+      irradiance.insert(irradiance.end(), {e.x(), e.y(), e.z()});
+    }
+    if (irradiance.empty()) return {};
+    std::nth_element(irradiance.begin(), irradiance.begin() + irradiance.size() / 2,
+                     irradiance.end());
+    const double median_irradiance = irradiance[irradiance.size() / 2];
+    summary->sensor_noise = sensor;
+    MergeNoiseModel model{noise_steps_, options_.merge, camera_.radiometric_scale};
+    return fit_field_noise(sensor, model, median_irradiance, noise_samples_->values(), method);
+  }
+
   // This time step's frames: dark frames per exposure step, each LED's bracket.
   void index_frames() {
     std::map<int, size_t> position_of_led;
@@ -372,7 +343,9 @@ class FieldBuild {
       for (const RawFrame& r : raw) pointers.push_back(&r);
       darks_[e] = mean_dark(pointers, *response_);
       noise_steps_[e].dark_frames = int(raw.size());
-      noise_steps_[e].dark_level = mean_value(*darks_[e]);
+      const std::vector<float>& dark = darks_[e]->pixels;
+      noise_steps_[e].dark_level =
+          std::accumulate(dark.begin(), dark.end(), 0.0) / double(std::max<size_t>(1, dark.size()));
       if (raw.size() >= 2) {
         long long samples = 0;
         sensor_.read_variance[e] = dark_read_variance(pointers, *response_, &samples);
@@ -433,7 +406,7 @@ class FieldBuild {
   }
 
   // Merges LED i's bracket into its channels of the field (and its photon-transfer samples).
-  void merge_led(ReflectanceField& field, int i, bool with_transfer, int transfer_stride) {
+  void merge_led(int i, bool with_transfer, int transfer_stride, const LedSink& sink) {
     const int width = camera_.width, height = camera_.height;
     std::vector<RawFrame> raw(num_exposures_);
     std::vector<BracketFrame> bracket(num_exposures_);
@@ -452,35 +425,37 @@ class FieldBuild {
         frames.push_back(&raw[e]);
         step_darks.push_back(darks_[e] ? &*darks_[e] : nullptr);
       }
-      std::vector<TransferSample> samples = transfer_samples(
-          frames, step_darks, *response_, noise_steps_, options_.merge, transfer_stride);
-      std::lock_guard<std::mutex> lock(transfer_mutex_);
-      transfer_.insert(transfer_.end(), samples.begin(), samples.end());
+      transfer_[size_t(i)] = transfer_samples(frames, step_darks, *response_, noise_steps_,
+                                              options_.merge, transfer_stride);
     }
     const int in_channels = camera_.channels + 1;
     std::vector<float> gain;
-    pixel_gain(field, i, &gain);
+    pixel_gain(header_, i, &gain);
+    std::vector<float> rgb(size_t(width) * height * 3);  // In field units.
     long long saturated = 0;
-    for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x) {
-        const float* m = &merged.pixels[(size_t(y) * width + x) * in_channels];
-        float* out = field.pixel(x, y) + 3 * size_t(i);
-        const float g = gain.empty() ? 1.0f : gain[size_t(y) * width + x];
-        for (int c = 0; c < 3; ++c) out[c] = m[camera_.channels == 1 ? 0 : c] * scale_[i][c] * g;
-        saturated += m[in_channels - 1] == 0.0f;
-      }
+    for (size_t p = 0; p < size_t(width) * height; ++p) {
+      const float* m = &merged.pixels[p * in_channels];
+      const float g = gain.empty() ? 1.0f : gain[p];
+      for (int c = 0; c < 3; ++c)
+        rgb[3 * p + c] = m[camera_.channels == 1 ? 0 : c] * scale_[i][c] * g;
+      saturated += m[in_channels - 1] == 0.0f;
     }
     saturated_pixels_ += saturated;
+    noise_samples_->take(i, rgb);
+    sink(i, rgb);
   }
 
   // LEDs run in parallel (frame decoding is serial per file); the number in flight is bounded so
   // that frames of large cameras do not exhaust memory.
-  void merge_brackets(ReflectanceField& field) {
+  void merge_brackets(const LedSink& sink) {
     const int width = camera_.width, height = camera_.height;
     const size_t frame_bytes = size_t(width) * height * camera_.channels * sizeof(uint16_t);
-    const size_t per_led_bytes = frame_bytes * num_exposures_ +
-                                 size_t(width) * height * (camera_.channels + 1) * sizeof(float);
-    const size_t spare = available_memory_bytes() / 2;
+    // The bracket's frames, the merge, the LED's image in field units and its per-pixel gain.
+    const size_t per_led_bytes = frame_bytes * num_exposures_ + size_t(width) * height *
+                                                                    (camera_.channels + 1 + 3 + 1) *
+                                                                    sizeof(float);
+    size_t spare = available_memory_bytes() / 2;
+    if (options_.memory_bytes > 0) spare = std::min(spare, options_.memory_bytes);
     const int max_in_flight =
         int(std::clamp<size_t>(spare / std::max<size_t>(per_led_bytes, 1), 1,
                                std::max(1u, std::thread::hardware_concurrency())));
@@ -497,7 +472,7 @@ class FieldBuild {
     tbb::task_arena arena(max_in_flight);
     arena.execute([&] {
       tbb::parallel_for(0, num_lights, [&](int i) {
-        if (usable_[i]) merge_led(field, i, transfer_led[i], transfer_stride);
+        if (usable_[i]) merge_led(i, transfer_led[i], transfer_stride, sink);
         report();
       });
     });
@@ -520,23 +495,52 @@ class FieldBuild {
   std::vector<NoiseStep> noise_steps_;
   SensorNoise sensor_;
   std::vector<Eigen::Array3f> scale_;
-  std::vector<TransferSample> transfer_;
-  std::mutex transfer_mutex_;
+  std::vector<std::vector<TransferSample>> transfer_;  // Per field light.
   std::atomic<long long> saturated_pixels_{0};
+  ReflectanceField header_;  // Lights, view, time and noise; no values.
+  std::optional<FieldValueSamples> noise_samples_;
 };
 
-}  // namespace
-
-ReflectanceField build_field(const Session& session, const BuildOptions& options,
-                             BuildSummary* summary) {
+// Runs a build with the summary (the caller's or a local one) cleared, and times it.
+template <class Build>
+auto timed(const Session& session, const BuildOptions& options, BuildSummary* summary,
+           Build build) {
   const auto start = std::chrono::steady_clock::now();
   check_camera(session, options);
   BuildSummary local_summary;
   BuildSummary& sum = summary ? *summary : local_summary;
   sum = BuildSummary{};
-  ReflectanceField field = FieldBuild(session, options, sum).run();
+  auto result = build(FieldBuild(session, options, sum));
   sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return field;
+  return result;
+}
+
+}  // namespace
+
+ReflectanceField build_field(const Session& session, const BuildOptions& options,
+                             BuildSummary* summary) {
+  return timed(session, options, summary, [](FieldBuild build) { return build.run(); });
+}
+
+int build_field_file(const Session& session, const BuildOptions& options,
+                     const std::filesystem::path& out, const ExrAttributes& attributes,
+                     BuildSummary* summary) {
+  const CameraSpec& camera = session.stage().camera;
+  const size_t row_bytes =
+      ReflectanceField::bytes_for(camera.width, 1, int(session.stage().leds.size()));
+  const size_t budget = options.memory_bytes > 0 ? options.memory_bytes
+                                                 : std::min(2 * row_bytes * size_t(camera.height),
+                                                            available_memory_bytes() / 2);
+  // A band is held twice while it is written (as spilled, then pixel-major).
+  const int rows = int(std::clamp<size_t>(budget / (2 * row_bytes), 1, size_t(camera.height)));
+  if (rows >= camera.height) {
+    write_field(out, build_field(session, options, summary), attributes);
+    return camera.height;
+  }
+  return timed(session, options, summary, [&](FieldBuild build) {
+    build.run_to_file(out, attributes, rows);
+    return rows;
+  });
 }
 
 }  // namespace ls::capture

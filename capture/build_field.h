@@ -6,6 +6,8 @@
 //    from the side car's grid), so R is per unit of the irradiance the LED really gives there;
 //  * near LEDs (Led::distance_m): each value is multiplied by (|P - X| / |P|)^2, X the pixel's
 //    reference point (capture/field.h), and the field stores the LEDs' positions and the view.
+#include <cstddef>
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <vector>
@@ -20,7 +22,12 @@ namespace ls::capture {
 struct BuildOptions {
   int time_step = 0;
   MergeOptions merge;
-  std::function<void(int done, int total)> on_progress;
+  std::function<void(int done, int total)> on_progress;  // LEDs merged.
+  // build_field_file: the most memory the field's values take at once (bands of rows; 0: the
+  // whole field when it takes at most half of the memory available, else bands within that half),
+  // and the bands written so far.
+  std::size_t memory_bytes = 0;
+  std::function<void(int done, int total)> on_band_written;
 };
 
 struct BuildSummary {
@@ -38,5 +45,15 @@ struct BuildSummary {
 
 ReflectanceField build_field(const Session& session, const BuildOptions& options,
                              BuildSummary* summary = nullptr);
+
+// The field built straight into the file `out` (write_field's format, scanlines), holding no more
+// of it than options.memory_bytes at once (issue 14): with less than the whole field, each LED's
+// image is spilled in bands of rows to a file beside `out` (it needs the field's size free there,
+// and is removed), then each band is read back, turned pixel-major and written. The same values
+// and attributes as write_field(build_field(...)), byte for byte. Returns the band height used
+// (the field's height: built in memory).
+int build_field_file(const Session& session, const BuildOptions& options,
+                     const std::filesystem::path& out, const ExrAttributes& attributes = {},
+                     BuildSummary* summary = nullptr);
 
 }  // namespace ls::capture

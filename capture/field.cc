@@ -120,9 +120,10 @@ void require_memory(std::size_t bytes, const std::string& what) {
   ls::require_memory(bytes, what, "use a smaller crop or fewer LEDs");
 }
 
-void write_field(const std::filesystem::path& path, const ReflectanceField& field,
-                 const ExrAttributes& attributes, int tile_size) {
-  const std::string name = path.string();
+namespace {
+
+OIIO::ImageSpec field_spec(const std::string& name, const ReflectanceField& field,
+                           const ExrAttributes& attributes, int tile_size) {
   if (field.width() <= 0 || field.height() <= 0 || field.num_lights() <= 0) {
     throw InputError(name + ": cannot write an empty reflectance field");
   }
@@ -164,7 +165,7 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
                                  {"reference_z_m", v.reference_z_m}};
     spec.attribute(kViewAttribute, view.dump());
   }
-  for (const auto& [name, value] : attributes) spec.attribute(name, value);
+  for (const auto& [key, value] : attributes) spec.attribute(key, value);
   // RLE: lossless, and the fastest to write and read of the compressed modes. Measured on the demo
   // field (256x256, 151 LEDs, 119 MB; best of 3 on a shared 2-core machine), write / read MB/s and
   // file size: none 1000 / 377 / 119 MB, rle 651 / 340 / 92 MB, piz 191 / 142 / 77 MB,
@@ -175,29 +176,88 @@ void write_field(const std::filesystem::path& path, const ReflectanceField& fiel
     spec.tile_width = spec.tile_height = tile_size;
     spec.tile_depth = 1;
   }
+  return spec;
+}
 
-  // Atomic: write beside the target under a temporary name, then rename over it.
-  std::filesystem::path temp = path;
-  temp += ".tmp-" + std::to_string(::getpid()) + ".exr";
-  auto out = OIIO::ImageOutput::create("openexr");
-  if (!out) throw InputError(name + ": OpenEXR writer unavailable: " + OIIO::geterror());
-  if (!out->open(temp.string(), spec)) {
-    throw InputError(name + ": cannot open for writing: " + out->geterror());
+}  // namespace
+
+struct FieldWriter::File {
+  std::string name;
+  std::filesystem::path path, temp;
+  std::unique_ptr<OIIO::ImageOutput> out;
+  int tile_size = 0;
+  bool finished = false;
+};
+
+FieldWriter::FieldWriter(const std::filesystem::path& path, const ReflectanceField& header,
+                         const ExrAttributes& attributes, int tile_size)
+    : file_(std::make_unique<File>()), width_(header.width()), height_(header.height()) {
+  File& f = *file_;
+  f.name = path.string();
+  f.path = path;
+  f.tile_size = tile_size;
+  const OIIO::ImageSpec spec = field_spec(f.name, header, attributes, tile_size);
+  // Atomic: written beside the target under a temporary name, renamed over it by finish().
+  f.temp = path;
+  f.temp += ".tmp-" + std::to_string(::getpid()) + ".exr";
+  f.out = OIIO::ImageOutput::create("openexr");
+  if (!f.out) throw InputError(f.name + ": OpenEXR writer unavailable: " + OIIO::geterror());
+  if (!f.out->open(f.temp.string(), spec)) {
+    throw InputError(f.name + ": cannot open for writing: " + f.out->geterror());
   }
-  const bool ok = out->write_image(OIIO::TypeDesc::FLOAT, field.values().data());
-  const bool closed = out->close();
-  if (!ok || !closed) {
-    const std::string error = out->geterror();
-    std::error_code ignored;
-    std::filesystem::remove(temp, ignored);
-    throw InputError(name + ": writing the reflectance field failed: " + error);
+}
+
+FieldWriter::~FieldWriter() {
+  if (file_->finished) return;
+  file_->out->close();
+  std::error_code ignored;
+  std::filesystem::remove(file_->temp, ignored);
+}
+
+void FieldWriter::write_rows(int y0, const ReflectanceField& band) {
+  File& f = *file_;
+  const int y1 = y0 + band.height();
+  if (band.width() != width_ || y0 != next_row_ || y1 > height_ ||
+      (f.tile_size > 0 && y1 < height_ && band.height() % f.tile_size != 0)) {
+    throw std::logic_error(f.name +
+                           ": FieldWriter::write_rows: rows out of order or not whole tiles");
   }
+  const bool ok =
+      f.tile_size > 0
+          ? f.out->write_tiles(0, width_, y0, y1, 0, 1, OIIO::TypeDesc::FLOAT, band.values().data())
+          : f.out->write_scanlines(y0, y1, 0, OIIO::TypeDesc::FLOAT, band.values().data());
+  if (!ok) {
+    throw InputError(f.name + ": writing the reflectance field failed (rows " + std::to_string(y0) +
+                     ".." + std::to_string(y1 - 1) + "): " + f.out->geterror());
+  }
+  next_row_ = y1;
+}
+
+void FieldWriter::finish() {
+  File& f = *file_;
+  if (next_row_ != height_) {
+    throw std::logic_error(f.name + ": FieldWriter::finish before every row was written");
+  }
+  const bool closed = f.out->close();
   std::error_code ec;
-  std::filesystem::rename(temp, path, ec);
-  if (ec) {
-    std::filesystem::remove(temp, ec);
-    throw InputError(name + ": cannot rename the temporary file into place: " + ec.message());
+  if (!closed) {
+    const std::string error = f.out->geterror();
+    std::filesystem::remove(f.temp, ec);
+    throw InputError(f.name + ": writing the reflectance field failed: " + error);
   }
+  f.finished = true;
+  std::filesystem::rename(f.temp, f.path, ec);
+  if (ec) {
+    std::filesystem::remove(f.temp, ec);
+    throw InputError(f.name + ": cannot rename the temporary file into place: " + ec.message());
+  }
+}
+
+void write_field(const std::filesystem::path& path, const ReflectanceField& field,
+                 const ExrAttributes& attributes, int tile_size) {
+  FieldWriter writer(path, field, attributes, tile_size);
+  writer.write_rows(0, field);
+  writer.finish();
 }
 
 namespace {
@@ -335,17 +395,12 @@ void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
 
 }  // namespace
 
-namespace {
-
-// What a field carries beside its values and lights.
 void copy_attributes(const ReflectanceField& from, ReflectanceField& to) {
   to.scene_time_s = from.scene_time_s;
   to.source = from.source;
   to.noise = from.noise;
   to.view = from.view;
 }
-
-}  // namespace
 
 struct FieldStream::File {
   std::string name;

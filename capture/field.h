@@ -126,6 +126,9 @@ class ReflectanceField {
   std::vector<float> values_;
 };
 
+// What a field carries beside its values and lights (scene time, source, noise, view).
+void copy_attributes(const ReflectanceField& from, ReflectanceField& to);
+
 // The lights of a field that hold data (valid), as indices into lights() and unit directions.
 struct ValidLights {
   std::vector<int> index;
@@ -170,6 +173,27 @@ void require_memory(std::size_t bytes, const std::string& what);
 void write_field(const std::filesystem::path& path, const ReflectanceField& field,
                  const ExrAttributes& attributes = {}, int tile_size = 0);
 ReflectanceField read_field(const std::filesystem::path& path);
+
+// A field file written band by band, top to bottom (a field built or imported without holding it,
+// issue 14): the header (lights, noise, view, time) from `header` (its values unused), the file as
+// write_field's. Written under a temporary name; finish() renames it into place once every row is
+// written, and a writer destroyed before that removes it: no partial field is ever left.
+class FieldWriter {
+ public:
+  FieldWriter(const std::filesystem::path& path, const ReflectanceField& header,
+              const ExrAttributes& attributes = {}, int tile_size = 0);
+  ~FieldWriter();
+  FieldWriter(const FieldWriter&) = delete;
+  FieldWriter& operator=(const FieldWriter&) = delete;
+  // Rows [y0, y0 + band.height()): the next rows, whole tile rows where tiled.
+  void write_rows(int y0, const ReflectanceField& band);
+  void finish();
+
+ private:
+  struct File;
+  std::unique_ptr<File> file_;
+  int width_, height_, next_row_ = 0;
+};
 
 // A field on disk read in bands of rows, every LED of a band's pixels at once, so that a field
 // larger than memory can be streamed (issue 14); scanline or tiled files alike. A band is a

@@ -291,4 +291,21 @@ FieldNoise fit_field_noise(const SensorNoise& sensor, const MergeNoiseModel& mod
   return noise;
 }
 
+FieldValueSamples::FieldValueSamples(int width, int height, int num_lights, size_t count)
+    : by_light_(size_t(num_lights)) {
+  const size_t per_pixel = 3 * size_t(num_lights);
+  const size_t total = size_t(width) * size_t(height) * per_pixel;
+  std::mt19937_64 rng(1);
+  std::uniform_int_distribution<size_t> pick(0, total == 0 ? 0 : total - 1);
+  values_.assign(std::min(total, count), 0.0f);  // 0: an LED never merged.
+  for (size_t slot = 0; slot < values_.size(); ++slot) {
+    const size_t at = pick(rng);
+    by_light_[at % per_pixel / 3].push_back({at / per_pixel * 3 + at % 3, slot});
+  }
+}
+
+void FieldValueSamples::take(int light, const std::vector<float>& rgb) {
+  for (const Pick& p : by_light_[size_t(light)]) values_[p.slot] = rgb[p.offset];
+}
+
 }  // namespace ls::capture

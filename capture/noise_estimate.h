@@ -100,4 +100,22 @@ FieldNoise fit_field_noise(const SensorNoise& sensor, const MergeNoiseModel& mod
                            double irradiance, const std::vector<float>& values,
                            const std::string& method);
 
+// The field values the noise fit samples: `count` at random positions of the field's
+// layout (random rather than strided: a stride could fall in step with the 3 * lights layout),
+// taken as each LED is merged, so that no pass over the whole field is needed.
+class FieldValueSamples {
+ public:
+  FieldValueSamples(int width, int height, int num_lights, size_t count);
+  // LED `light`'s values (rgb[3 * pixel + c]).
+  void take(int light, const std::vector<float>& rgb);
+  const std::vector<float>& values() const { return values_; }
+
+ private:
+  struct Pick {
+    size_t offset, slot;  // Into an LED's rgb, into values_.
+  };
+  std::vector<std::vector<Pick>> by_light_;
+  std::vector<float> values_;
+};
+
 }  // namespace ls::capture

@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include "app/cli/commands.h"
+#include "lightstage/memory.h"
 
 namespace ls::cli {
 
@@ -21,6 +22,10 @@ int build_field_file(const jobs::BuildJobOptions& options, bool quiet) {
                  "in every exposure, %.1f s\n",
                  built.file.c_str(), built.width, built.height, built.lights, built.mebibytes,
                  s.response_used.c_str(), 100.0 * s.saturated_fraction, s.seconds);
+    if (built.band_rows < built.height) {
+      std::fprintf(stderr, "built in bands of %d rows through a spill file beside it\n",
+                   built.band_rows);
+    }
     if (!s.flat_field.empty()) {
       std::fprintf(stderr, "flat field applied to %d LEDs: %s\n", s.flat_field_lights,
                    s.flat_field.c_str());
@@ -62,12 +67,18 @@ void add_build_command(CLI::App& app) {
   cmd->add_flag("--all-time-steps", options->all_time_steps,
                 "Build one field per time step into the --out directory.")
       ->excludes(step);
+  cmd->add_option("--memory", options->memory_bytes,
+                  "Bytes of memory for the field: a larger one is built in bands of rows, each "
+                  "LED's image spilled to a file beside --out that needs the field's size free "
+                  "(default: in memory when the field takes at most half of what is available, "
+                  "else bands within that half).");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {
       throw CLI::ValidationError("build", problem);
     }
     build_field_file(*options, *quiet);
+    std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   });
 }
 

@@ -38,17 +38,20 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   }
   capture::BuildOptions build;
   build.time_step = time_step;
+  build.memory_bytes = options.memory_bytes;
   build.on_progress = [&](int done, int total) { report(progress, "build", done, total); };
+  build.on_band_written = [&](int done, int total) { report(progress, "write", done, total); };
   BuiltField result;
-  const capture::ReflectanceField field = capture::build_field(session, build, &result.build);
-  capture::write_field(out, field, {{kOptionsAttribute, options.to_json()}});
+  result.band_rows = capture::build_field_file(
+      session, build, out, {{kOptionsAttribute, options.to_json()}}, &result.build);
   result.file = out;
   result.time_step = time_step;
   result.scene_time_s = stage.plan.step_time_s(time_step);
-  result.width = field.width();
-  result.height = field.height();
-  result.lights = field.num_lights();
-  result.mebibytes = field.bytes() / 1048576.0;
+  result.width = stage.camera.width;
+  result.height = stage.camera.height;
+  result.lights = int(stage.leds.size());
+  result.mebibytes =
+      capture::ReflectanceField::bytes_for(result.width, result.height, result.lights) / 1048576.0;
   for (int i : result.build.lights_missing) result.missing_led_ids.push_back(stage.leds[i].id);
   return result;
 }

@@ -1,5 +1,6 @@
 #pragma once
 // Build a session's reflectance field (one time step, or one field per time step).
+#include <cstddef>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -14,6 +15,8 @@ struct BuildJobOptions {
   std::filesystem::path out;  // Field file; with all_time_steps, the directory of field_tNNN.exr.
   int time_step = 0;
   bool all_time_steps = false;
+  // Bytes of memory for the field's values (capture::BuildOptions::memory_bytes; 0: default).
+  std::size_t memory_bytes = 0;
   std::string validate() const;
   std::string to_json() const;  // Recorded in every field written (kOptionsAttribute).
 };
@@ -24,6 +27,7 @@ struct BuiltField {
   double scene_time_s = 0.0;
   int width = 0, height = 0, lights = 0;
   double mebibytes = 0.0;
+  int band_rows = 0;                 // Rows built at once: the height when built in memory.
   std::vector<int> missing_led_ids;  // Missing or dead LEDs, excluded from relighting.
   capture::BuildSummary build;
 };

@@ -9,10 +9,13 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "lightstage/controller/sequencer.h"
 #include "lightstage/image.h"
+#include "lightstage/session.h"
 #include "lightstage/stage.h"
 #include "sim/noisy_field.h"
 #include "sim/scene.h"
+#include "sim/sim_stage.h"
 #include "tests/support/test_support.h"
 
 namespace ls {
@@ -132,6 +135,53 @@ TEST(StreamedField, FitsInBandsGiveTheMapsOfTheWholeField) {
     EXPECT_EQ(whole.pixels, read_image(dir / "bands.exr").pixels) << materials;
     EXPECT_EQ(whole.width, 48);
   }
+}
+
+// A session captured on the simulated stage (no waits between frames).
+fs::path capture_session(const fs::path& dir, int width, int height, int leds) {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(leds, -11.5));
+  stage.camera.width = width;
+  stage.camera.height = height;
+  sim::SimStage sim(stage, sim::default_scene(), /*seed=*/3);
+  Session session = Session::create(dir, stage, {});
+  SequencerOptions instant;
+  instant.sleep = [](double) {};
+  run_capture(session, sim.lights(), sim.camera(), instant);
+  return dir;
+}
+
+TEST(StreamedField, BuildInBandsKeepsWithinTheBudget) {
+  const testing::TempDir dir;
+  // A 24 MiB field (256 x 192 x 42 LEDs), four times the 6 MiB budget.
+  const fs::path big = capture_session(dir / "big", 256, 192, 42);
+  const fs::path small = capture_session(dir / "small", 16, 16, 42);
+  auto build = [&](const fs::path& session, const std::string& out,
+                   const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"build", session.string(), "--out", (dir / out).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const Measured m = run_measured(args);
+    EXPECT_EQ(m.code, 0) << out;
+    return m.peak_kib;
+  };
+  const std::size_t budget = std::size_t(6) << 20;
+  // The fixed overhead: the same build of a 16 x 16 session (libraries, the session, the writer).
+  const long overhead_kib = build(small, "small.exr", {});
+  const long whole_kib = build(big, "whole.exr", {});
+  const long banded_kib = build(big, "bands.exr", {"--memory", std::to_string(budget)});
+  // Beside the budget, what scales with the frame, not the field: the darks' means and up to two
+  // LEDs merged at once (the bracket's 16-bit frames, the merge, the LED's image and gains: about
+  // 130 bytes a pixel, 6 MiB here), the photon-transfer samples of the noise estimate (at most
+  // 12 LEDs x 10,000 pixels x 2 exposure pairs x 3 channels x 16 bytes, 11 MiB), and 4 MiB for
+  // the allocator.
+  const long frame_kib = 130L * 256 * 192 / 1024;
+  const long allowed_kib = overhead_kib + long(budget >> 10) + frame_kib + (15 << 10);
+  std::cout << "peak RSS of build: 16x16 session " << overhead_kib << " KiB, 24 MiB field whole "
+            << whole_kib << " KiB, in bands within 6 MiB " << banded_kib << " KiB (allowed "
+            << allowed_kib << ")\n";
+  EXPECT_LT(banded_kib, allowed_kib);
+  EXPECT_GT(whole_kib, banded_kib + (12 << 10));  // The measurement sees the field.
+  EXPECT_EQ(capture::read_field(dir / "whole.exr").values(),
+            capture::read_field(dir / "bands.exr").values());
 }
 
 TEST(StreamedField, PeakMemoryFollowsTheBudgetNotTheField) {

@@ -280,5 +280,57 @@ TEST(BuildField, RejectsBadTimeStep) {
   EXPECT_THROW(build_field(session, options), InputError);
 }
 
+// Issue 14: built in bands through a spill file (a field larger than memory), the field has the
+// values and attributes of the one built in memory, and nothing but the field is left beside it.
+TEST(BuildField, InBandsWithinAMemoryBudgetGivesTheFieldBuiltInMemory) {
+  ls::testing::TempDir dir;
+  Stage stage = small_stage();
+  for (Led& led : stage.leds) led.distance_m = 2.0;  // Near LEDs: a gain per pixel and LED.
+  Captured c = capture(dir / "s", stage);
+  BuildSummary whole_summary;
+  const ReflectanceField whole = build_field(c.session, {}, &whole_summary);
+  BuildOptions options;
+  options.memory_bytes = 2 * ReflectanceField::bytes_for(kSize, 7, kLeds);  // Bands of 7 rows.
+  int bands = 0;
+  options.on_band_written = [&](int done, int total) {
+    EXPECT_EQ(done, bands + 1);
+    bands = done;
+    EXPECT_EQ(total, (kSize + 6) / 7);
+  };
+  BuildSummary summary;
+  EXPECT_EQ(build_field_file(c.session, options, dir / "bands.exr", {}, &summary), 7);
+  EXPECT_EQ(bands, (kSize + 6) / 7);
+  const ReflectanceField banded = read_field(dir / "bands.exr");
+  EXPECT_TRUE(banded.values() == whole.values());  // Bit for bit.
+  ASSERT_EQ(banded.num_lights(), whole.num_lights());
+  for (int l = 0; l < whole.num_lights(); ++l) {
+    EXPECT_EQ(banded.lights()[l].saturates_at, whole.lights()[l].saturates_at);
+    EXPECT_EQ(banded.lights()[l].position_in_stage, whole.lights()[l].position_in_stage);
+    EXPECT_EQ(banded.lights()[l].valid, whole.lights()[l].valid);
+  }
+  EXPECT_TRUE(banded.noise.measured);
+  EXPECT_EQ(banded.noise.read_variance, whole.noise.read_variance);
+  EXPECT_EQ(banded.noise.shot_variance_per_unit, whole.noise.shot_variance_per_unit);
+  EXPECT_EQ(banded.scene_time_s, whole.scene_time_s);
+  ASSERT_TRUE(banded.view.has_value());
+  EXPECT_EQ(banded.view->reference_z_m, whole.view->reference_z_m);
+  EXPECT_EQ(summary.lights_used, whole_summary.lights_used);
+  EXPECT_EQ(summary.saturated_fraction, whole_summary.saturated_fraction);
+  std::vector<std::string> left;
+  for (const auto& entry : std::filesystem::directory_iterator(dir.path())) {
+    left.push_back(entry.path().filename().string());
+  }
+  EXPECT_THAT(left, ::testing::UnorderedElementsAre("s", "bands.exr"));
+
+  // Where the spill cannot be written, the build stops with the file named and leaves nothing.
+  try {
+    build_field_file(c.session, options, dir / "absent" / "f.exr");
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("absent/f.exr.spill-"));
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "absent"));
+}
+
 }  // namespace
 }  // namespace ls::capture

@@ -1,0 +1,80 @@
+#include "capture/band_spill.h"
+
+#include <fcntl.h>
+#include <tbb/parallel_for.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+#include "lightstage/errors.h"
+
+namespace ls::capture {
+
+SpillFile::SpillFile(std::filesystem::path path, int width, int height, int num_lights,
+                     int band_rows)
+    : path_(std::move(path)),
+      width_(width),
+      height_(height),
+      lights_(num_lights),
+      band_rows_(band_rows) {
+  fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  if (fd_ < 0) fail("cannot create the build's spill file");
+}
+
+SpillFile::~SpillFile() {
+  ::close(fd_);
+  std::error_code ignored;
+  std::filesystem::remove(path_, ignored);
+}
+
+void SpillFile::put(int light, const std::vector<float>& rgb) {
+  for (int b = 0; b < bands(); ++b) {
+    const std::size_t count = std::size_t(band_height(b)) * width_ * 3;
+    const float* rows = rgb.data() + std::size_t(band_first_row(b)) * width_ * 3;
+    transfer(::pwrite, const_cast<float*>(rows), count, offset(b) + std::size_t(light) * count);
+  }
+}
+
+void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& band) {
+  const std::size_t per_light = std::size_t(band_height(b)) * width_ * 3;
+  scratch.resize(per_light * std::size_t(lights_));
+  transfer(::pread, scratch.data(), scratch.size(), offset(b));
+  if (band.width() != width_ || band.height() != band_height(b)) {
+    band = ReflectanceField(width_, band_height(b), band.lights());
+  }
+  tbb::parallel_for(0, band_height(b), [&](int y) {
+    for (int x = 0; x < width_; ++x) {
+      float* out = band.pixel(x, y);
+      const std::size_t at = (std::size_t(y) * width_ + x) * 3;
+      for (int l = 0; l < lights_; ++l)
+        std::copy_n(&scratch[std::size_t(l) * per_light + at], 3, out + 3 * l);
+    }
+  });
+}
+
+std::size_t SpillFile::offset(int band) const {
+  return std::size_t(band_first_row(band)) * width_ * 3 * std::size_t(lights_);
+}
+
+template <class Io>
+void SpillFile::transfer(Io io, float* data, std::size_t count, std::size_t at) {
+  char* bytes = reinterpret_cast<char*>(data);
+  std::size_t left = count * sizeof(float);
+  off_t position = off_t(at * sizeof(float));
+  while (left > 0) {
+    const ssize_t n = io(fd_, bytes, left, position);
+    if (n == 0) fail("unexpected end of the build's spill file", false);
+    if (n < 0) fail("reading or writing the build's spill file");
+    bytes += n, left -= std::size_t(n), position += n;
+  }
+}
+
+void SpillFile::fail(const std::string& what, bool with_errno) const {
+  throw InputError(path_.string() + ": " + what +
+                   (with_errno ? std::string(": ") + std::strerror(errno) : "") +
+                   " (a field built in bands needs free space for the whole field beside it)");
+}
+
+}  // namespace ls::capture

@@ -1,0 +1,42 @@
+#pragma once
+// LED images spilled to disk in bands of rows, so that a field larger than memory is built from
+// LED-major frames into a pixel-major file (issue 14, capture/build_field.h): band b holds each
+// LED's rows of that band in turn, so an LED is written with one pwrite per band and a band is
+// read back with one pread. The file is removed when the SpillFile is destroyed.
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+
+namespace ls::capture {
+
+class SpillFile {
+ public:
+  SpillFile(std::filesystem::path path, int width, int height, int num_lights, int band_rows);
+  ~SpillFile();
+  SpillFile(const SpillFile&) = delete;
+  SpillFile& operator=(const SpillFile&) = delete;
+
+  int bands() const { return (height_ + band_rows_ - 1) / band_rows_; }
+  int band_first_row(int band) const { return band * band_rows_; }
+  int band_height(int band) const { return std::min(band_rows_, height_ - band_first_row(band)); }
+  // LED `light`'s image (width * height * 3 floats, row-major, RGB innermost).
+  void put(int light, const std::vector<float>& rgb);
+  // Band b into `band` (resized to the band's rows), pixel-major as the field stores it;
+  // `scratch` holds the band as spilled.
+  void read_band(int b, std::vector<float>& scratch, ReflectanceField& band);
+
+ private:
+  std::size_t offset(int band) const;  // In floats.
+  template <class Io>
+  void transfer(Io io, float* data, std::size_t count, std::size_t at);
+  [[noreturn]] void fail(const std::string& what, bool with_errno = true) const;
+
+  std::filesystem::path path_;
+  int width_, height_, lights_, band_rows_;
+  int fd_ = -1;
+};
+
+}  // namespace ls::capture

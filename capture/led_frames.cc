@@ -1,0 +1,73 @@
+#include "capture/led_frames.h"
+
+#include <utility>
+
+#include "lightstage/errors.h"
+
+namespace ls::capture {
+namespace {
+
+// LEDs whose brackets feed the response recovery (kRecover): a few views of the scene give the
+// solver a wider spread of radiances than one.
+constexpr int kRecoveryLeds = 3;
+
+}  // namespace
+
+ResponseCurve recover_from_session(const Session& session, const std::vector<LedFrames>& brackets,
+                                   const std::vector<bool>& usable) {
+  const Stage& stage = session.stage();
+  // "Brightest" without reading every frame: the LEDs nearest the camera axis (front light reaches
+  // what the camera sees) with the highest calibrated irradiance.
+  std::vector<std::pair<double, size_t>> scored;
+  for (size_t i = 0; i < brackets.size(); ++i) {
+    if (!usable[i]) continue;
+    const Led& led = stage.leds[brackets[i].led_index];
+    const double facing = std::max(0.05, led.dir_in_stage.z());
+    scored.push_back({-led.irradiance_rgb().mean() * facing, i});
+  }
+  if (scored.empty()) {
+    throw InputError(session.dir().string() +
+                     ": camera response 'recover' needs at least one LED with a complete bracket");
+  }
+  std::sort(scored.begin(), scored.end());
+  scored.resize(std::min<size_t>(scored.size(), kRecoveryLeds));
+
+  // The solver wants one static scene per exposure: put the chosen LEDs' frames side by side, so
+  // each exposure step becomes one wide image of several lighting conditions.
+  const size_t num_exposures = brackets[scored[0].second].records.size();
+  std::vector<RawFrame> tiled(num_exposures);
+  std::vector<double> exposure_gain(num_exposures);
+  for (size_t e = 0; e < num_exposures; ++e) {
+    std::vector<RawFrame> parts;
+    for (const auto& [score, i] : scored) {
+      parts.push_back(session.load_frame(brackets[i].records[e]->key));
+    }
+    const RawFrame& first = parts[0];
+    for (const RawFrame& p : parts) {
+      if (p.width != first.width || p.height != first.height || p.channels != first.channels ||
+          p.bit_depth != first.bit_depth) {
+        throw InputError(session.dir().string() + ": frames differ in size or format");
+      }
+    }
+    RawFrame& t = tiled[e];
+    t.width = first.width * int(parts.size());
+    t.height = first.height;
+    t.channels = first.channels;
+    t.bit_depth = first.bit_depth;
+    t.pixels.resize(size_t(t.width) * t.height * t.channels);
+    const size_t part_row = size_t(first.width) * first.channels;
+    for (int y = 0; y < t.height; ++y) {
+      for (size_t p = 0; p < parts.size(); ++p) {
+        std::copy_n(parts[p].pixels.data() + y * part_row, part_row,
+                    t.pixels.data() + y * part_row * parts.size() + p * part_row);
+      }
+    }
+    const FrameRecord* record = brackets[scored[0].second].records[e];
+    exposure_gain[e] = record->exposure_s * record->gain;
+  }
+  std::vector<const RawFrame*> frames;
+  for (const RawFrame& t : tiled) frames.push_back(&t);
+  return recover_response(frames, exposure_gain);
+}
+
+}  // namespace ls::capture
