@@ -48,8 +48,9 @@ void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& 
     for (int x = 0; x < width_; ++x) {
       float* out = band.pixel(x, y);
       const std::size_t at = (std::size_t(y) * width_ + x) * 3;
-      for (int l = 0; l < lights_; ++l)
-        std::copy_n(&scratch[std::size_t(l) * per_light + at], 3, out + 3 * l);
+      for (std::size_t l = 0; l < std::size_t(lights_); ++l) {
+        std::copy_n(&scratch[l * per_light + at], 3, out + 3 * l);
+      }
     }
   });
 }

@@ -39,6 +39,7 @@ ResponseCurve recover_from_session(const Session& session, const std::vector<Led
   std::vector<double> exposure_gain(num_exposures);
   for (size_t e = 0; e < num_exposures; ++e) {
     std::vector<RawFrame> parts;
+    parts.reserve(scored.size());
     for (const auto& [score, i] : scored) {
       parts.push_back(session.load_frame(brackets[i].records[e]->key));
     }
@@ -66,6 +67,7 @@ ResponseCurve recover_from_session(const Session& session, const std::vector<Led
     exposure_gain[e] = record->exposure_s * record->gain;
   }
   std::vector<const RawFrame*> frames;
+  frames.reserve(tiled.size());
   for (const RawFrame& t : tiled) frames.push_back(&t);
   return recover_response(frames, exposure_gain);
 }
