@@ -444,12 +444,24 @@ int FieldStream::rows_within(std::size_t bytes) const {
   return std::min(rows, height());
 }
 
+int FieldStream::row_alignment() const { return std::max(1, file_->in->spec().tile_height); }
+
 int FieldStream::band_rows(std::size_t memory_bytes) const {
   if (memory_bytes > 0) return rows_within(memory_bytes);
   const std::size_t field_bytes =
       ReflectanceField::bytes_for(width(), height(), header_.num_lights());
   const std::size_t half_available = available_memory_bytes() / 2;
   return rows_within(std::min(2 * field_bytes, half_available));
+}
+
+FieldBands FieldStream::bands(int rows) {
+  return [this, rows](const BandVisitor& visit) {
+    ReflectanceField band;
+    for (int y0 = 0; y0 < height(); y0 += rows) {
+      read_rows(y0, std::min(height(), y0 + rows), band);
+      visit(band);
+    }
+  };
 }
 
 void FieldStream::read_rows_into(int y0, int y1, float* dst) {

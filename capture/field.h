@@ -16,6 +16,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -195,6 +196,15 @@ class FieldWriter {
   int width_, height_, next_row_ = 0;
 };
 
+// A field visited band by band, top to bottom (a field larger than memory, issue 14): a
+// FieldBands calls its visitor with each band in turn (a ReflectanceField of the band's rows that
+// knows its first_row() and frame_height()). whole_field visits one band, the field itself.
+using BandVisitor = std::function<void(const ReflectanceField& band)>;
+using FieldBands = std::function<void(const BandVisitor& visit)>;
+inline FieldBands whole_field(const ReflectanceField& field) {
+  return [&field](const BandVisitor& visit) { visit(field); };
+}
+
 // A field on disk read in bands of rows, every LED of a band's pixels at once, so that a field
 // larger than memory can be streamed (issue 14); scanline or tiled files alike. A band is a
 // ReflectanceField of the band's rows (its lights, noise and time the file's); it knows nothing
@@ -214,6 +224,8 @@ class FieldStream {
   // The rows of a band that fits in `bytes` (the band and the read buffer), at least one tile
   // row (tiled files) or one row, whole tiles where the file is tiled.
   int rows_within(std::size_t bytes) const;
+  // Bands start on multiples of this (the file's tile height; 1 for scanline files).
+  int row_alignment() const;
   // The rows of a band for a memory budget: rows_within(memory_bytes), or with 0 (the default)
   // the whole field when it and its read buffer take at most half of the memory available, else
   // bands within that half.
@@ -222,6 +234,8 @@ class FieldStream {
   void read_rows(int y0, int y1, ReflectanceField& band);
   // Rows [y0, y1) into dst: (y1 - y0) * width() pixels in the field's layout.
   void read_rows_into(int y0, int y1, float* dst);
+  // The file in bands of `rows` rows (one band held at a time), each read when visited.
+  FieldBands bands(int rows);
 
  private:
   struct File;

@@ -8,6 +8,7 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/compress_job.h"
+#include "lightstage/memory.h"
 
 namespace ls::cli {
 
@@ -31,6 +32,9 @@ void add_compress_command(CLI::App& app) {
                    "RTI files: display units (white = 1) per field unit; 0: the brightest "
                    "sample is white.")
       ->capture_default_str();
+  compress->add_option("--memory", args->memory_bytes,
+                       "Bytes of memory for a field EXR: a larger one is read in bands of rows "
+                       "(default: whole when it takes at most half of what is available).");
   compress->callback([args] {
     // A bad --format or --rank is bad input (exit 2), as before options were validated here.
     const jobs::CompressSummary summary = jobs::compress(*args);
@@ -42,6 +46,8 @@ void add_compress_command(CLI::App& app) {
                   summary.representation.c_str(), summary.details.c_str(), summary.bytes_per_pixel,
                   summary.raw_bytes_per_pixel);
     }
+    if (summary.band_rows > 0) std::printf("read in bands of %d rows\n", summary.band_rows);
+    std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   });
 }
 

@@ -1,6 +1,8 @@
 #include "app/jobs/compress_job.h"
 
 #include <charconv>
+#include <numeric>
+#include <optional>
 
 #include "capture/field.h"
 #include "capture/olat_import.h"
@@ -60,21 +62,52 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("compress: " + problem);
   }
-  report(progress, "read", 0, 1, options.input.filename());
+  relight::PcaOptions pca_options;
+  pca_options.rank = parse_rank(options.rank);
+  pca_options.tile_size = options.tile;
+  // The field: an .lp set imported whole; an EXR in bands of rows when it is larger than the
+  // memory for it (whole PCA tiles or Gram sub-bands per band: the same bytes as in memory).
   const std::string ext = options.input.extension().string();
-  const capture::ReflectanceField field =
-      (ext == ".lp" || fs::is_directory(options.input))
-          ? capture::import_olat(options.input, capture::OlatImportOptions{})
-          : capture::read_field(options.input);
-  report(progress, "read", 1, 1);
+  capture::ReflectanceField whole;
+  std::optional<capture::FieldStream> stream;
+  capture::FieldBands bands;
+  int rows = 0;
+  if (ext == ".lp" || fs::is_directory(options.input)) {
+    report(progress, "read", 0, 1, options.input.filename());
+    whole = capture::import_olat(options.input, capture::OlatImportOptions{});
+    report(progress, "read", 1, 1);
+  } else {
+    stream.emplace(options.input);
+    const int align =
+        options.format == "pca"
+            ? std::lcm(stream->row_alignment(), relight::PcaField::band_alignment(
+                                                    stream->width(), stream->height(), pca_options))
+            : stream->row_alignment();
+    rows = std::max(align, stream->band_rows(options.memory_bytes) / align * align);
+    if (rows >= stream->height()) {
+      report(progress, "read", 0, 1, options.input.filename());
+      stream->read_rows(0, stream->height(), whole);
+      report(progress, "read", 1, 1);
+    } else {
+      // Each pass over the file shows its progress by rows.
+      bands = [&, read = stream->bands(rows), pass = 0](const capture::BandVisitor& visit) mutable {
+        const std::string label = "pass " + std::to_string(++pass) + " (rows)";
+        read([&](const capture::ReflectanceField& band) {
+          visit(band);
+          report(progress, label, band.first_row() + band.height(), band.frame_height());
+        });
+      };
+    }
+  }
+  const capture::ReflectanceField& header = bands ? stream->header() : whole;
+  if (!bands) bands = capture::whole_field(whole), rows = 0;
   CompressSummary summary;
-  summary.raw_bytes_per_pixel = 12.0 * field.num_lights();
+  summary.raw_bytes_per_pixel = 12.0 * header.num_lights();
+  summary.band_rows = rows;
   if (options.format == "pca") {
-    relight::PcaOptions pca_options;
-    pca_options.rank = parse_rank(options.rank);
-    pca_options.tile_size = options.tile;
     relight::PcaSummary pca_summary;
-    const relight::PcaField pca = relight::PcaField::build(field, pca_options, &pca_summary);
+    const relight::PcaField pca =
+        relight::PcaField::build(header, bands, pca_options, &pca_summary);
     pca.write(options.out);
     summary.representation = pca.name();
     summary.details = pca_summary.to_string();
@@ -83,7 +116,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   }
   relight::RtiFitOptions rti_options;
   rti_basis(options.format, rti_options);
-  const relight::RtiField fit = relight::RtiField::fit(field, rti_options);
+  const relight::RtiField fit = relight::RtiField::fit(header, bands, rti_options);
   relight::write_rti_file(options.out, relight::quantise(fit, options.gain));
   summary.representation = fit.name();
   summary.details = "from " + std::to_string(fit.lights_used) + " LEDs";

@@ -1,6 +1,7 @@
 #pragma once
 // Compress a field (or an .lp one-light set, imported on the way) into a compact representation:
 // the lightstage PCA format, .ptm (PTM 1.2 RGB/LRGB) or .rti (HSH).
+#include <cstddef>
 #include <filesystem>
 #include <string>
 
@@ -15,6 +16,9 @@ struct CompressOptions {
   std::string rank = "auto";   // PCA: a positive number, or auto (from the noise floor).
   int tile = 0;                // PCA tile size in pixels; 0: one global basis.
   double gain = 0.0;           // RTI files: display units per field unit; 0: brightest = white.
+  // Bytes of memory for a field EXR: a larger one is read in bands of rows (twice for PCA, three
+  // times with the held-out rank rule). 0: FieldStream::band_rows' default. .lp sets are whole.
+  std::size_t memory_bytes = 0;
   std::string validate() const;
 };
 
@@ -23,6 +27,7 @@ struct CompressSummary {
   std::string details;         // The builder's own summary (PCA rank choice, lights used).
   double bytes_per_pixel = 0.0;
   double raw_bytes_per_pixel = 0.0;  // The float field it came from.
+  int band_rows = 0;                 // Rows read at once: the height when read whole.
 };
 
 // Throws InputError for bad options or inputs; the output is written only on success.

@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -91,7 +92,8 @@ constexpr char kPcaMagic[] = "LSPCA1\n";
 // Held-out error of every rank (see PcaRankRule::kHeldOutLights): the training lights' Gram is a
 // sub-matrix of the full one, so only its eigen-decomposition and the predictions are new.
 std::vector<double> held_out_errors(const capture::ReflectanceField& field,
-                                    const Eigen::MatrixXd& gram, int max_rank, double sigma_rad) {
+                                    const capture::FieldBands& bands, const Eigen::MatrixXd& gram,
+                                    int max_rank, double sigma_rad) {
   std::vector<int> train, test;
   for (int l = 0; l < field.num_lights(); ++l) {
     if (!field.lights()[l].valid) continue;
@@ -121,29 +123,34 @@ std::vector<double> held_out_errors(const capture::ReflectanceField& field,
   const long stride = std::max<long>(1, pixels / 65536);
   std::mutex mutex;
   std::vector<double> errors(k_max + 1, 0.0);
-  tbb::parallel_for(tbb::blocked_range<long>(0, (pixels + stride - 1) / stride),
-                    [&](const tbb::blocked_range<long>& range) {
-                      std::vector<double> local(k_max + 1, 0.0);
-                      Eigen::VectorXf v(nt), truth(nh), pred(nh), c(k_max);
-                      for (long i = range.begin(); i < range.end(); ++i) {
-                        const long p = i * stride;
-                        const float* values =
-                            field.pixel(int(p % field.width()), int(p / field.width()));
-                        for (int ch = 0; ch < 3; ++ch) {
-                          for (int t = 0; t < nt; ++t) v(t) = values[3 * train[t] + ch];
-                          for (int h = 0; h < nh; ++h) truth(h) = values[3 * test[h] + ch];
-                          c.noalias() = project * v;
-                          pred.setZero();
-                          local[0] += (pred - truth).squaredNorm();
-                          for (int k = 0; k < k_max; ++k) {
-                            pred += predict.col(k) * c(k);
-                            local[k + 1] += (pred - truth).squaredNorm();
-                          }
-                        }
-                      }
-                      std::lock_guard<std::mutex> lock(mutex);
-                      for (int k = 0; k <= k_max; ++k) errors[k] += local[k];
-                    });
+  const long width = field.width();
+  bands([&](const capture::ReflectanceField& band) {
+    // The sampled pixels (every stride-th of the frame) in this band's rows.
+    const long first = band.first_row() * width, end = first + band.height() * width;
+    tbb::parallel_for(
+        tbb::blocked_range<long>((first + stride - 1) / stride, (end + stride - 1) / stride),
+        [&](const tbb::blocked_range<long>& range) {
+          std::vector<double> local(k_max + 1, 0.0);
+          Eigen::VectorXf v(nt), truth(nh), pred(nh), c(k_max);
+          for (long i = range.begin(); i < range.end(); ++i) {
+            const long p = i * stride - first;
+            const float* values = band.pixel(int(p % width), int(p / width));
+            for (int ch = 0; ch < 3; ++ch) {
+              for (int t = 0; t < nt; ++t) v(t) = values[3 * train[t] + ch];
+              for (int h = 0; h < nh; ++h) truth(h) = values[3 * test[h] + ch];
+              c.noalias() = project * v;
+              pred.setZero();
+              local[0] += (pred - truth).squaredNorm();
+              for (int k = 0; k < k_max; ++k) {
+                pred += predict.col(k) * c(k);
+                local[k + 1] += (pred - truth).squaredNorm();
+              }
+            }
+          }
+          std::lock_guard<std::mutex> lock(mutex);
+          for (int k = 0; k <= k_max; ++k) errors[k] += local[k];
+        });
+  });
   const double count = 3.0 * nh * double((pixels + stride - 1) / stride);
   for (double& e : errors) e /= count;
   return errors;
@@ -184,36 +191,51 @@ int PcaField::tile_of(int x, int y) const {
 
 namespace {
 
-// Gram matrices per tile of tile_size pixels (0: one, summed over bands of rows).
-std::vector<Eigen::MatrixXd> tile_gram_matrices(const capture::ReflectanceField& field,
-                                                int tile_size, int tiles_x, int tiles_y) {
-  const int width = field.width(), height = field.height(), num_lights = field.num_lights();
+// The global Gram matrix is summed over sub-bands of this many rows (computed in parallel): about
+// 4096 pixels, a power of two so that bands of a tiled file's tile rows hold whole sub-bands.
+int gram_rows(int width) { return int(std::bit_floor(unsigned(std::max(1, 4096 / width)))); }
+
+// Gram matrices per tile of tile_size pixels (0: one, summed over sub-bands of gram_rows), added
+// band by band (each band whole tile rows or whole sub-bands: PcaField::band_alignment), and the
+// sum of the positive values (for the noise floor).
+std::vector<Eigen::MatrixXd> tile_gram_matrices(const capture::ReflectanceField& header,
+                                                const capture::FieldBands& bands, int tile_size,
+                                                int tiles_x, int tiles_y, double* positive_sum) {
+  const int width = header.width(), height = header.height(), num_lights = header.num_lights();
   std::vector<Eigen::MatrixXd> tile_grams(size_t(tiles_x) * tiles_y);
-  if (tile_size > 0) {
-    tbb::parallel_for(0, tiles_x * tiles_y, [&](int t) {
-      const int x0 = (t % tiles_x) * tile_size, y0 = (t / tiles_x) * tile_size;
-      tile_grams[t] = gram_of_rect(field, x0, y0, std::min(width, x0 + tile_size),
-                                   std::min(height, y0 + tile_size));
-    });
-    return tile_grams;
-  }
-  const int band = std::max(1, 4096 / width);
-  const int bands = (height + band - 1) / band;
-  std::vector<Eigen::MatrixXd> band_grams(bands);
-  tbb::parallel_for(0, bands, [&](int b) {
-    band_grams[b] = gram_of_rect(field, 0, b * band, width, std::min(height, (b + 1) * band));
+  if (tile_size == 0) tile_grams[0] = Eigen::MatrixXd::Zero(num_lights, num_lights);
+  *positive_sum = 0;
+  bands([&](const capture::ReflectanceField& band) {
+    const int y0 = band.first_row(), y1 = y0 + band.height();
+    if (tile_size > 0) {
+      const int row0 = y0 / tile_size, rows = (y1 - y0 + tile_size - 1) / tile_size;
+      tbb::parallel_for(row0 * tiles_x, (row0 + rows) * tiles_x, [&](int t) {
+        const int x0 = (t % tiles_x) * tile_size, ty0 = (t / tiles_x) * tile_size;
+        tile_grams[size_t(t)] = gram_of_rect(band, x0, ty0 - y0, std::min(width, x0 + tile_size),
+                                             std::min(height, ty0 + tile_size) - y0);
+      });
+    } else {
+      const int sub = gram_rows(width);
+      const int subs = (band.height() + sub - 1) / sub;
+      std::vector<Eigen::MatrixXd> sub_grams(static_cast<size_t>(subs));
+      tbb::parallel_for(0, subs, [&](int b) {
+        sub_grams[size_t(b)] =
+            gram_of_rect(band, 0, b * sub, width, std::min(band.height(), (b + 1) * sub));
+      });
+      for (const auto& g : sub_grams) tile_grams[0] += g;
+    }
+    if (header.noise.measured) {
+      for (float v : band.values()) *positive_sum += v > 0 ? v : 0;
+    }
   });
-  tile_grams[0] = Eigen::MatrixXd::Zero(num_lights, num_lights);
-  for (const auto& g : band_grams) tile_grams[0] += g;
   return tile_grams;
 }
 
 // The noise floor per value: from the field's measured noise, else from the spectrum's tail.
 void estimate_noise_floor(const capture::ReflectanceField& field, const Spectrum& global,
-                          int valid_lights, double samples, double values, PcaSummary& sum) {
+                          double positive_sum, int valid_lights, double samples, double values,
+                          PcaSummary& sum) {
   if (field.noise.measured) {
-    double positive_sum = 0;
-    for (float v : field.values()) positive_sum += v > 0 ? v : 0;
     sum.noise_variance =
         field.noise.read_variance + field.noise.shot_variance_per_unit * positive_sum / values;
     sum.noise_measured = true;
@@ -231,9 +253,10 @@ void estimate_noise_floor(const capture::ReflectanceField& field, const Spectrum
 
 // The rank: options.rank, or (0) the first component at the noise floor, or the best on held-out
 // LEDs (PcaRankRule::kHeldOutLights).
-int choose_rank(const capture::ReflectanceField& field, const PcaOptions& options,
-                const Spectrum& global, const Eigen::MatrixXd& global_gram, int valid_lights,
-                double samples, PcaSummary& sum) {
+int choose_rank(const capture::ReflectanceField& field, const capture::FieldBands& bands,
+                const PcaOptions& options, const Spectrum& global,
+                const Eigen::MatrixXd& global_gram, int valid_lights, double samples,
+                PcaSummary& sum) {
   const int max_rank = std::min(options.max_rank, std::max(valid_lights, 1));
   int rank = options.rank;
   if (rank == 0) {
@@ -249,7 +272,7 @@ int choose_rank(const capture::ReflectanceField& field, const PcaOptions& option
     }
   }
   if (options.rank == 0 && options.rank_rule == PcaRankRule::kHeldOutLights) {
-    sum.held_out_ms = held_out_errors(field, global_gram, max_rank, options.rbf_sigma_rad);
+    sum.held_out_ms = held_out_errors(field, bands, global_gram, max_rank, options.rbf_sigma_rad);
     if (!sum.held_out_ms.empty()) {
       const double best = *std::min_element(sum.held_out_ms.begin() + 1, sum.held_out_ms.end());
       for (int k = 1; k < int(sum.held_out_ms.size()); ++k) {
@@ -268,6 +291,16 @@ int choose_rank(const capture::ReflectanceField& field, const PcaOptions& option
 
 PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOptions& options,
                          PcaSummary* summary) {
+  return build(field, capture::whole_field(field), options, summary);
+}
+
+int PcaField::band_alignment(int width, int height, const PcaOptions& options) {
+  return options.tile_size > 0 && options.tile_size < std::max(width, height) ? options.tile_size
+                                                                              : gram_rows(width);
+}
+
+PcaField PcaField::build(const capture::ReflectanceField& field, const capture::FieldBands& bands,
+                         const PcaOptions& options, PcaSummary* summary) {
   const auto t0 = std::chrono::steady_clock::now();
   if (const std::string e = options.validate(); !e.empty()) {
     throw InputError(field.source + ": PCA options: " + e);
@@ -292,7 +325,9 @@ PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOption
   // Gram matrices per tile (global: bands of rows, summed).
   const int tx = out.tiles_x();
   const int ty = out.tile_size_ > 0 ? (height + out.tile_size_ - 1) / out.tile_size_ : 1;
-  const std::vector<Eigen::MatrixXd> tile_grams = tile_gram_matrices(field, out.tile_size_, tx, ty);
+  double positive_sum = 0;
+  const std::vector<Eigen::MatrixXd> tile_grams =
+      tile_gram_matrices(field, bands, out.tile_size_, tx, ty, &positive_sum);
   Eigen::MatrixXd global_gram = Eigen::MatrixXd::Zero(num_lights, num_lights);
   for (const auto& g : tile_grams) global_gram += g;
   const Spectrum global = eigen_descending(global_gram);
@@ -318,24 +353,28 @@ PcaField PcaField::build(const capture::ReflectanceField& field, const PcaOption
 
   PcaSummary sum;
   sum.mean_square = global.values.sum() / values;
-  estimate_noise_floor(field, global, valid_lights, samples, values, sum);
-  const int rank = choose_rank(field, options, global, global_gram, valid_lights, samples, sum);
+  estimate_noise_floor(field, global, positive_sum, valid_lights, samples, values, sum);
+  const int rank =
+      choose_rank(field, bands, options, global, global_gram, valid_lights, samples, sum);
   out.rank_ = rank;
   for (const Spectrum& s : spectra) out.bases_.push_back(s.vectors.leftCols(rank).cast<float>());
 
   // Coefficients: C = B^T V per pixel (V: L x 3).
   out.coefs_.assign(size_t(width) * height * rank * 3, 0.0f);
-  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
-    for (int y = rows.begin(); y < rows.end(); ++y) {
-      for (int x = 0; x < width; ++x) {
-        const Eigen::MatrixXf& basis = out.bases_[out.tile_of(x, y)];
-        Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> v(
-            field.pixel(x, y), num_lights, 3);
-        Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> c(
-            out.coefs_.data() + (size_t(y) * width + x) * rank * 3, rank, 3);
-        c.noalias() = basis.transpose() * v;
+  bands([&](const capture::ReflectanceField& band) {
+    const int y0 = band.first_row();
+    tbb::parallel_for(tbb::blocked_range<int>(y0, y0 + band.height()), [&](const auto& rows) {
+      for (int y = rows.begin(); y < rows.end(); ++y) {
+        for (int x = 0; x < width; ++x) {
+          const Eigen::MatrixXf& basis = out.bases_[out.tile_of(x, y)];
+          Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> v(
+              band.pixel(x, y - y0), num_lights, 3);
+          Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> c(
+              out.coefs_.data() + (size_t(y) * width + x) * rank * 3, rank, 3);
+          c.noalias() = basis.transpose() * v;
+        }
       }
-    }
+    });
   });
   out.sigma_rad_ = options.rbf_sigma_rad;
   out.interpolator_ = LightInterpolator(out.led_dirs_, out.led_valid_, options.rbf_sigma_rad);

@@ -141,6 +141,13 @@ class PcaField : public CompactField {
   PcaField() = default;
   static PcaField build(const capture::ReflectanceField& field, const PcaOptions& options,
                         PcaSummary* summary = nullptr);
+  // The same over a field visited in bands (capture::FieldBands; a field larger than memory),
+  // two passes (three with PcaRankRule::kHeldOutLights), each band a multiple of
+  // band_alignment() rows but the last: the PCA of the whole field, bit for bit. `header` has the
+  // field's size, lights and noise.
+  static PcaField build(const capture::ReflectanceField& header, const capture::FieldBands& bands,
+                        const PcaOptions& options, PcaSummary* summary = nullptr);
+  static int band_alignment(int width, int height, const PcaOptions& options);
 
   std::string name() const override;
   int width() const override { return width_; }

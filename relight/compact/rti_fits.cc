@@ -114,6 +114,11 @@ std::string RtiField::name() const {
 double RtiField::bytes_per_pixel() const { return lrgb_ ? num_terms() + 3 : 3 * num_terms(); }
 
 RtiField RtiField::fit(const capture::ReflectanceField& field, const RtiFitOptions& options) {
+  return fit(field, capture::whole_field(field), options);
+}
+
+RtiField RtiField::fit(const capture::ReflectanceField& field, const capture::FieldBands& bands,
+                       const RtiFitOptions& options) {
   if (const std::string e = options.validate(); !e.empty()) {
     throw InputError(field.source + ": RTI fit options: " + e);
   }
@@ -145,36 +150,41 @@ RtiField RtiField::fit(const capture::ReflectanceField& field, const RtiFitOptio
   std::vector<float> coefs(size_t(width) * height * per_pixel, 0.0f);
   std::vector<float> colors(options.lrgb ? size_t(width) * height * 3 : 0, 0.0f);
   std::vector<float> row_max(height, 0.0f);
-  tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
-    Eigen::MatrixXf samples(n, 3);
-    Eigen::VectorXf lum(n), lum_fit(n);
-    for (int y = rows.begin(); y < rows.end(); ++y) {
-      for (int x = 0; x < width; ++x) {
-        const float* v = field.pixel(x, y);
-        for (int i = 0; i < n; ++i) {
-          for (int c = 0; c < 3; ++c) samples(i, c) = v[3 * used[i] + c];
-        }
-        row_max[y] = std::max(row_max[y], samples.maxCoeff());
-        float* out = coefs.data() + (size_t(y) * width + x) * per_pixel;
-        if (!options.lrgb) {
-          const Eigen::MatrixXf c = pinv * samples;  // T x 3
-          for (int ch = 0; ch < 3; ++ch) {
-            for (int j = 0; j < terms; ++j) out[ch * terms + j] = c(j, ch);
+  bands([&](const capture::ReflectanceField& band) {
+    const int y0 = band.first_row();
+    tbb::parallel_for(
+        tbb::blocked_range<int>(y0, y0 + band.height()), [&](const tbb::blocked_range<int>& rows) {
+          Eigen::MatrixXf samples(n, 3);
+          Eigen::VectorXf lum(n), lum_fit(n);
+          for (int y = rows.begin(); y < rows.end(); ++y) {
+            for (int x = 0; x < width; ++x) {
+              const float* v = band.pixel(x, y - y0);
+              for (int i = 0; i < n; ++i) {
+                for (int c = 0; c < 3; ++c) samples(i, c) = v[3 * used[i] + c];
+              }
+              row_max[y] = std::max(row_max[y], samples.maxCoeff());
+              float* out = coefs.data() + (size_t(y) * width + x) * per_pixel;
+              if (!options.lrgb) {
+                const Eigen::MatrixXf c = pinv * samples;  // T x 3
+                for (int ch = 0; ch < 3; ++ch) {
+                  for (int j = 0; j < terms; ++j) out[ch * terms + j] = c(j, ch);
+                }
+                continue;
+              }
+              // LRGB: a polynomial for the luminance, then per channel the colour that best scales
+              // it.
+              lum = samples.rowwise().mean();
+              const Eigen::VectorXf a_lum = pinv * lum;
+              lum_fit = design_f * a_lum;
+              const float energy = lum_fit.squaredNorm();
+              for (int j = 0; j < terms; ++j) out[j] = a_lum(j);
+              float* color = colors.data() + (size_t(y) * width + x) * 3;
+              for (int ch = 0; ch < 3; ++ch) {
+                color[ch] = energy > 1e-30f ? samples.col(ch).dot(lum_fit) / energy : 0.0f;
+              }
+            }
           }
-          continue;
-        }
-        // LRGB: a polynomial for the luminance, then per channel the colour that best scales it.
-        lum = samples.rowwise().mean();
-        const Eigen::VectorXf a_lum = pinv * lum;
-        lum_fit = design_f * a_lum;
-        const float energy = lum_fit.squaredNorm();
-        for (int j = 0; j < terms; ++j) out[j] = a_lum(j);
-        float* color = colors.data() + (size_t(y) * width + x) * 3;
-        for (int ch = 0; ch < 3; ++ch) {
-          color[ch] = energy > 1e-30f ? samples.col(ch).dot(lum_fit) / energy : 0.0f;
-        }
-      }
-    }
+        });
   });
   RtiField out(options.basis, options.lrgb, width, height, std::move(coefs), std::move(colors));
   out.lights_used = n;

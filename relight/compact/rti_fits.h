@@ -53,6 +53,10 @@ class RtiField : public CompactField {
            std::vector<float> colors = {});
 
   static RtiField fit(const capture::ReflectanceField& field, const RtiFitOptions& options);
+  // The same over a field visited in bands (capture::FieldBands; a field larger than memory):
+  // `header` has its size and lights. The coefficients of the whole field, bit for bit.
+  static RtiField fit(const capture::ReflectanceField& header, const capture::FieldBands& bands,
+                      const RtiFitOptions& options);
 
   std::string name() const override;
   int width() const override { return width_; }

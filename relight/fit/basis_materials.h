@@ -47,8 +47,8 @@ void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap
 // The same for a field read in bands of rows (capture::FieldStream), in two passes: `bands`
 // calls its visitor with each band in turn (each knows its first_row()); `header` has the
 // field's lights and view.
-using BandVisitor = std::function<void(const capture::ReflectanceField& band)>;
-using FieldBands = std::function<void(const BandVisitor& visit)>;
+using capture::BandVisitor;
+using capture::FieldBands;
 void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,
                          const NormalMap& normals, const FitOptions& options, ModelMaps& maps);
 

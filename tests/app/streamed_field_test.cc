@@ -4,7 +4,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <fstream>
 #include <iostream>
+#include <iterator>
 #include <string>
 #include <vector>
 
@@ -45,6 +47,11 @@ capture::ReflectanceField synthetic_field(int width, int height, int leds) {
     }
   }
   return field;
+}
+
+std::string read_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 // Runs the CLI; its exit code and the peak resident memory it reports (its own, VmHWM), in KiB.
@@ -239,6 +246,56 @@ TEST(StreamedField, PeakMemoryFollowsTheBudgetNotTheField) {
   std::cout << "fit peak RSS: 16x16 field " << fit_overhead_kib << " KiB, 48 MiB field in bands "
             << fit_banded_kib << " KiB (allowed " << fit_allowed_kib << ")\n";
   EXPECT_LT(fit_banded_kib, fit_allowed_kib);
+
+  // Compressed to HSH (order 2, 12 coefficients a pixel) within the same budget: beside it, the
+  // coefficients whole (12 floats a pixel, 6 MiB here) and their 8-bit copy for the file.
+  auto compress = [&](const std::string& file, const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"compress", (dir / file).string(),
+                                     "--format", "hsh2",
+                                     "--out",    (dir / ("hsh_" + file + ".rti")).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    const Measured m = run_measured(args);
+    EXPECT_EQ(m.code, 0) << file;
+    return m.peak_kib;
+  };
+  const long compress_overhead_kib = compress("small.exr", {});
+  const long compress_banded_kib = compress("big.exr", {"--memory", std::to_string(budget)});
+  const long compress_allowed_kib = compress_overhead_kib + long(budget >> 10) +
+                                    long(512 * 256 * 13 * sizeof(float) >> 10) + (4 << 10);
+  std::cout << "compress peak RSS: 16x16 field " << compress_overhead_kib
+            << " KiB, 48 MiB field in bands " << compress_banded_kib << " KiB (allowed "
+            << compress_allowed_kib << ")\n";
+  EXPECT_LT(compress_banded_kib, compress_allowed_kib);
+}
+
+// Compressed in bands (scanline and tiled files, global and tiled PCA, RTI fits), the files have
+// the bytes of the compression in memory.
+TEST(StreamedField, CompressInBandsWritesTheBytesOfTheWholeField) {
+  const testing::TempDir dir;
+  const capture::ReflectanceField field = synthetic_field(96, 80, 24);
+  capture::write_field(dir / "scanline.exr", field);
+  capture::write_field(dir / "tiled.exr", field, {}, 16);
+  // Bands of about 10 rows (PCA: whole 16-row tiles, or the Gram's 32-row sub-bands).
+  const std::string budget = std::to_string(10 * 2 * 96 * 72 * sizeof(float));
+  const std::vector<std::vector<std::string>> formats = {{"--format", "pca"},
+                                                         {"--format", "pca", "--tile", "16"},
+                                                         {"--format", "hsh3"},
+                                                         {"--format", "ptm-lrgb"}};
+  for (const std::string name : {"scanline", "tiled"}) {
+    for (size_t f = 0; f < formats.size(); ++f) {
+      const auto compress = [&](const std::string& out, const std::vector<std::string>& extra) {
+        std::vector<std::string> args = {"compress", (dir / (name + ".exr")).string(), "--out",
+                                         (dir / out).string()};
+        args.insert(args.end(), formats[f].begin(), formats[f].end());
+        args.insert(args.end(), extra.begin(), extra.end());
+        EXPECT_EQ(run_measured(args).code, 0) << name << " " << f;
+        return read_bytes(dir / out);
+      };
+      const std::string whole = compress("whole", {});
+      EXPECT_FALSE(whole.empty());
+      EXPECT_EQ(compress("bands", {"--memory", budget}), whole) << name << " " << formats[f][1];
+    }
+  }
 }
 
 }  // namespace
