@@ -12,9 +12,17 @@
 
 namespace ls::capture {
 
-SpillFile::SpillFile(std::filesystem::path path, int width, int height, int num_lights,
+int spill_band_rows(int width, int height, int num_lights, std::size_t memory_bytes) {
+  const std::size_t row_bytes = ReflectanceField::bytes_for(width, 1, num_lights);
+  const std::size_t budget = memory_bytes > 0 ? memory_bytes
+                                              : std::min(2 * row_bytes * std::size_t(height),
+                                                         available_memory_bytes() / 2);
+  return int(std::clamp<std::size_t>(budget / (2 * row_bytes), 1, std::size_t(height)));
+}
+
+SpillFile::SpillFile(const std::filesystem::path& field_file, int width, int height, int num_lights,
                      int band_rows)
-    : path_(std::move(path)),
+    : path_(field_file.string() + ".spill-" + std::to_string(::getpid())),
       width_(width),
       height_(height),
       lights_(num_lights),
@@ -53,6 +61,20 @@ void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& 
       }
     }
   });
+}
+
+void SpillFile::write_field(const std::filesystem::path& out, const ReflectanceField& header,
+                            const ExrAttributes& attributes,
+                            const std::function<void(int done, int total)>& on_band) {
+  FieldWriter writer(out, header, attributes);
+  std::vector<float> scratch;
+  ReflectanceField band = ReflectanceField::without_values(0, 0, header.lights());
+  for (int b = 0; b < bands(); ++b) {
+    read_band(b, scratch, band);
+    writer.write_rows(band_first_row(b), band);
+    if (on_band) on_band(b + 1, bands());
+  }
+  writer.finish();
 }
 
 std::size_t SpillFile::offset(int band) const {

@@ -5,6 +5,7 @@
 // read back with one pread. The file is removed when the SpillFile is destroyed.
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -12,9 +13,16 @@
 
 namespace ls::capture {
 
+// The rows per band for making a field of this size within memory_bytes (0: the whole field when
+// it takes at most half of the memory available, else bands within that half); a band is held
+// twice while it is written (as spilled, then pixel-major). The height: make it in memory.
+int spill_band_rows(int width, int height, int num_lights, std::size_t memory_bytes);
+
 class SpillFile {
  public:
-  SpillFile(std::filesystem::path path, int width, int height, int num_lights, int band_rows);
+  // Beside `field_file` (OUT.spill-PID).
+  SpillFile(const std::filesystem::path& field_file, int width, int height, int num_lights,
+            int band_rows);
   ~SpillFile();
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
@@ -27,6 +35,11 @@ class SpillFile {
   // Band b into `band` (resized to the band's rows), pixel-major as the field stores it;
   // `scratch` holds the band as spilled.
   void read_band(int b, std::vector<float>& scratch, ReflectanceField& band);
+  // Every band into the field file `out` (FieldWriter; header: its lights and attributes), band
+  // by band; on_band(done, total) after each.
+  void write_field(const std::filesystem::path& out, const ReflectanceField& header,
+                   const ExrAttributes& attributes,
+                   const std::function<void(int done, int total)>& on_band);
 
  private:
   std::size_t offset(int band) const;  // In floats.

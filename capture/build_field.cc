@@ -98,20 +98,10 @@ class FieldBuild {
   void run_to_file(const std::filesystem::path& out, const ExrAttributes& attributes,
                    int band_rows) {
     prepare();
-    std::filesystem::path spill_path = out;
-    spill_path += ".spill-" + std::to_string(::getpid());
-    SpillFile spill(spill_path, camera_.width, camera_.height, int(order_.size()), band_rows);
+    SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows);
     merge_brackets([&](int i, const std::vector<float>& rgb) { spill.put(i, rgb); });
     finish();
-    FieldWriter writer(out, header_, attributes);
-    std::vector<float> scratch;
-    ReflectanceField band = ReflectanceField::without_values(0, 0, header_.lights());
-    for (int b = 0; b < spill.bands(); ++b) {
-      spill.read_band(b, scratch, band);
-      writer.write_rows(spill.band_first_row(b), band);
-      if (options_.on_band_written) options_.on_band_written(b + 1, spill.bands());
-    }
-    writer.finish();
+    spill.write_field(out, header_, attributes, options_.on_band_written);
   }
 
  private:

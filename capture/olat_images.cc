@@ -8,9 +8,12 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <mutex>
 #include <opencv2/imgproc.hpp>
+#include <tuple>
 
+#include "capture/band_spill.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -115,9 +118,12 @@ std::pair<int, int> target_size(int width, int height, int max_size) {
 
 // Reads one light's image as linear RGB at the field's size, with the mask and the light's
 // intensity applied, into the field. Returns the number of saturated samples (inside the mask).
+// Light `light`'s image read, linearised, masked, resized to width x height and divided by its
+// intensity into rgb (width * height * 3, field units); its ceiling into `field_light`. Returns
+// the saturated samples.
 long long import_image(const OlatImageSet& job, int light, const ImageHeader& first,
-                       const Linearizer& linearizer, const OlatImportOptions& options,
-                       ReflectanceField& field) {
+                       const Linearizer& linearizer, const OlatImportOptions& options, int width,
+                       int height, FieldLight& field_light, std::vector<float>& rgb_out) {
   const OlatLight& entry = job.lights[light];
   const auto in = open_image(entry.image, entry.where);
   const ImageHeader h = header_of(*in);
@@ -164,8 +170,8 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
       out[p * 3 + c] = std::max(v, 0.0f);
     }
   }
-  if (field.width() != h.width || field.height() != h.height) {
-    const cv::Size size(field.width(), field.height());
+  if (width != h.width || height != h.height) {
+    const cv::Size size(width, height);
     cv::Mat small;
     cv::resize(rgb, small, size, 0, 0, cv::INTER_AREA);
     if (!job.mask.empty()) {
@@ -196,98 +202,172 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   // An integer file clips at its largest code: after the transfer curve and the intensity that is
   // this light's ceiling. (A field pixel averaged from clipped and unclipped image pixels lies
   // below it and is not caught.) Float files carry no ceiling.
-  if (integer) {
-    field.lights()[light].saturates_at = (*table)[max_code] * inverse_intensity;
-  }
-  for (int y = 0; y < field.height(); ++y) {
-    for (int x = 0; x < field.width(); ++x) {
-      const float* v = values + (std::size_t(y) * field.width() + x) * 3;
-      float* sample = field.pixel(x, y) + light * 3;
-      for (int c = 0; c < 3; ++c) sample[c] = v[c] * inverse_intensity[c];
-    }
+  if (integer) field_light.saturates_at = (*table)[max_code] * inverse_intensity;
+  rgb_out.resize(std::size_t(width) * height * 3);
+  for (std::size_t p = 0; p < std::size_t(width) * height; ++p) {
+    for (int c = 0; c < 3; ++c) rgb_out[3 * p + c] = values[3 * p + c] * inverse_intensity[c];
   }
   return saturated_count;
 }
 
 }  // namespace
 
-ReflectanceField import_images(OlatImageSet job, const OlatImportOptions& options,
-                               OlatImportSummary* summary) {
-  const auto start = std::chrono::steady_clock::now();
-  if (const std::string error = options.validate(); !error.empty()) {
-    throw InputError(job.source.string() + ": " + error);
-  }
-  if (job.lights.empty()) throw InputError(job.source.string() + ": no lights listed");
-  ImageHeader first;
-  {
-    const auto in = open_image(job.lights[0].image, job.lights[0].where);
-    first = header_of(*in);
-  }
-  if (!job.mask.empty() && (job.mask_width != first.width || job.mask_height != first.height)) {
-    throw InputError(job.mask_name + ": size: expected " + size_text(first.width, first.height) +
-                     " like the images, got " + size_text(job.mask_width, job.mask_height));
-  }
-  const auto [width, height] = target_size(first.width, first.height, options.max_size);
-  const int n = int(job.lights.size());
-  require_memory(ReflectanceField::bytes_for(width, height, n),
-                 job.source.string() + ": reflectance field " + size_text(width, height) +
-                     " with " + std::to_string(n) + " lights");
-  std::vector<FieldLight> lights;
-  for (int l = 0; l < n; ++l) lights.push_back({l, job.lights[l].dir_in_stage, true});
-  ReflectanceField field(width, height, std::move(lights));
-  field.source = job.source.string();
+namespace {
 
-  const Linearizer linearizer(job.transfer, options.gamma);
-  std::atomic<long long> saturated{0};
-  std::atomic<int> done{0};
-  std::mutex progress_mutex;
-  tbb::parallel_for(0, n, [&](int l) {
-    saturated += import_image(job, l, first, linearizer, options, field);
-    const int finished = ++done;
-    if (options.on_progress) {
-      const std::lock_guard<std::mutex> lock(progress_mutex);
-      options.on_progress(finished, n);
+// One import: the set checked and sized (the first image's header), then every light's image
+// read (in parallel) and handed to a sink in field units.
+class SetImport {
+ public:
+  using LightSink = std::function<void(int light, const std::vector<float>& rgb)>;
+
+  SetImport(OlatImageSet job, const OlatImportOptions& options)
+      : start_(std::chrono::steady_clock::now()), job_(std::move(job)), options_(options) {
+    if (const std::string error = options.validate(); !error.empty()) {
+      throw InputError(job_.source.string() + ": " + error);
     }
-  });
+    if (job_.lights.empty()) throw InputError(job_.source.string() + ": no lights listed");
+    {
+      const auto in = open_image(job_.lights[0].image, job_.lights[0].where);
+      first_ = header_of(*in);
+    }
+    if (!job_.mask.empty() &&
+        (job_.mask_width != first_.width || job_.mask_height != first_.height)) {
+      throw InputError(job_.mask_name + ": size: expected " +
+                       size_text(first_.width, first_.height) + " like the images, got " +
+                       size_text(job_.mask_width, job_.mask_height));
+    }
+    std::tie(width_, height_) = target_size(first_.width, first_.height, options.max_size);
+    std::vector<FieldLight> lights;
+    for (int l = 0; l < num_lights(); ++l) lights.push_back({l, job_.lights[l].dir_in_stage, true});
+    header_ = ReflectanceField::without_values(width_, height_, std::move(lights));
+    header_.source = job_.source.string();
+  }
 
-  if (summary) {
+  int num_lights() const { return int(job_.lights.size()); }
+  const ReflectanceField& header() const { return header_; }
+  std::string what() const {
+    return job_.source.string() + ": reflectance field " + size_text(width_, height_) + " with " +
+           std::to_string(num_lights()) + " lights";
+  }
+
+  // Every light's image to `sink` (from worker threads, one light at a time each).
+  void read_images(const LightSink& sink) {
+    const Linearizer linearizer(job_.transfer, options_.gamma);
+    std::atomic<int> done{0};
+    std::mutex progress_mutex;
+    const int n = num_lights();
+    tbb::parallel_for(0, n, [&](int l) {
+      std::vector<float> rgb;
+      saturated_ += import_image(job_, l, first_, linearizer, options_, width_, height_,
+                                 header_.lights()[size_t(l)], rgb);
+      sink(l, rgb);
+      const int finished = ++done;
+      if (options_.on_progress) {
+        const std::lock_guard<std::mutex> lock(progress_mutex);
+        options_.on_progress(finished, n);
+      }
+    });
+  }
+
+  void summarise(OlatImportSummary* summary) {
+    if (!summary) return;
     OlatImportSummary& s = *summary;
     s = OlatImportSummary{};
-    s.format = job.format;
-    s.source = job.source;
-    s.images = n;
-    s.source_width = first.width;
-    s.source_height = first.height;
-    s.width = width;
-    s.height = height;
-    s.pixel_format = pixel_format_text(first);
-    s.transfer_undone = is_integer_format(first.format) ? transfer_text(job.transfer, options.gamma)
-                                                        : "none (float images are linear)";
+    s.format = job_.format;
+    s.source = job_.source;
+    s.images = num_lights();
+    s.source_width = first_.width;
+    s.source_height = first_.height;
+    s.width = width_;
+    s.height = height_;
+    s.pixel_format = pixel_format_text(first_);
+    s.transfer_undone = is_integer_format(first_.format)
+                            ? transfer_text(job_.transfer, options_.gamma)
+                            : "none (float images are linear)";
     s.min_dir_z = 1.0;
     s.max_dir_z = -1.0;
-    for (const OlatLight& e : job.lights) {
+    for (const OlatLight& e : job_.lights) {
       s.min_dir_z = std::min(s.min_dir_z, e.dir_in_stage.z());
       s.max_dir_z = std::max(s.max_dir_z, e.dir_in_stage.z());
     }
-    s.saturated_samples = saturated.load();
-    const std::size_t inside = job.mask.empty()
-                                   ? std::size_t(first.width) * first.height
-                                   : std::size_t(std::count_if(job.mask.begin(), job.mask.end(),
+    s.saturated_samples = saturated_.load();
+    const std::size_t all = std::size_t(first_.width) * first_.height;
+    const std::size_t inside = job_.mask.empty()
+                                   ? all
+                                   : std::size_t(std::count_if(job_.mask.begin(), job_.mask.end(),
                                                                [](float m) { return m > 0; }));
-    s.masked_out_pixels = int(std::size_t(first.width) * first.height - inside);
-    s.saturated_fraction = inside > 0 ? double(s.saturated_samples) / (double(inside) * 3 * n) : 0;
-    s.intensities_divided = job.format == OlatFormat::kDiligent;
-    s.notes = std::move(job.notes);
+    s.masked_out_pixels = int(all - inside);
+    s.saturated_fraction =
+        inside > 0 ? double(s.saturated_samples) / (double(inside) * 3 * num_lights()) : 0;
+    s.intensities_divided = job_.format == OlatFormat::kDiligent;
+    s.notes = std::move(job_.notes);
     if (s.saturated_samples > 0) {
       s.notes.push_back(
           std::to_string(s.saturated_samples) + " samples at the maximum code (saturated): " +
-          (options.zero_saturated ? "set to 0, so the normals and fits leave them out as shadowed"
-                                  : "kept as lower bounds, which the normals and fits leave out "
-                                    "as censored (FieldLight::saturates_at)"));
+          (options_.zero_saturated ? "set to 0, so the normals and fits leave them out as shadowed"
+                                   : "kept as lower bounds, which the normals and fits leave out "
+                                     "as censored (FieldLight::saturates_at)"));
     }
-    s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   }
+
+ private:
+  std::chrono::steady_clock::time_point start_;
+  OlatImageSet job_;
+  const OlatImportOptions& options_;
+  ImageHeader first_;
+  int width_ = 0, height_ = 0;
+  ReflectanceField header_;  // Lights (with their ceilings once read); no values.
+  std::atomic<long long> saturated_{0};
+};
+
+// The field in memory (refused when it does not fit).
+ReflectanceField read_whole(SetImport& set, const LightImageFn& on_light) {
+  const ReflectanceField& header = set.header();
+  require_memory(ReflectanceField::bytes_for(header.width(), header.height(), set.num_lights()),
+                 set.what());
+  ReflectanceField field(header.width(), header.height(), header.lights());
+  set.read_images([&](int l, const std::vector<float>& rgb) {
+    if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
+    for (int y = 0; y < field.height(); ++y) {
+      for (int x = 0; x < field.width(); ++x) {
+        std::copy_n(&rgb[(std::size_t(y) * field.width() + x) * 3], 3, field.pixel(x, y) + 3 * l);
+      }
+    }
+  });
+  field.lights() = header.lights();  // With the ceilings the images gave.
+  copy_attributes(header, field);
   return field;
+}
+
+}  // namespace
+
+ReflectanceField import_images(OlatImageSet job, const OlatImportOptions& options,
+                               OlatImportSummary* summary) {
+  SetImport set(std::move(job), options);
+  ReflectanceField field = read_whole(set, {});
+  set.summarise(summary);
+  return field;
+}
+
+int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, const fs::path& out,
+                          const ExrAttributes& attributes, std::size_t memory_bytes,
+                          const LightImageFn& on_light, OlatImportSummary* summary) {
+  SetImport set(std::move(job), options);
+  const ReflectanceField& header = set.header();
+  const int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory_bytes);
+  if (rows >= header.height()) {
+    write_field(out, read_whole(set, on_light), attributes);
+  } else {
+    SpillFile spill(out, header.width(), header.height(), set.num_lights(), rows);
+    set.read_images([&](int l, const std::vector<float>& rgb) {
+      if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
+      spill.put(l, rgb);
+    });
+    spill.write_field(out, header, attributes, {});
+  }
+  set.summarise(summary);
+  return rows;
 }
 
 void read_mask(const fs::path& mask_file, OlatImageSet& job) {

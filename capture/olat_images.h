@@ -3,7 +3,9 @@
 // light's direction and intensity, read as linear RGB into a ReflectanceField. The text formats
 // that produce the list (.lp files, DiLiGenT folders) are parsed in olat_import.cc.
 #include <Eigen/Core>
+#include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -36,6 +38,15 @@ struct OlatImageSet {
 // size. Integer files give each light its saturation ceiling (FieldLight::saturates_at).
 ReflectanceField import_images(OlatImageSet set, const OlatImportOptions& options,
                                OlatImportSummary* summary);
+
+// The same into the field file `out` (write_field's format), holding no more of the field than
+// memory_bytes at once (capture/band_spill.h: bands through a spill file beside `out` when the
+// field is larger; the same bytes either way). on_light (optional) sees each light's image.
+// Returns the rows per band (the height: imported in memory).
+int import_images_to_file(OlatImageSet set, const OlatImportOptions& options,
+                          const std::filesystem::path& out, const ExrAttributes& attributes,
+                          std::size_t memory_bytes, const LightImageFn& on_light,
+                          OlatImportSummary* summary);
 
 // Reads a mask image into set.mask (non-zero in any of the first three channels = object).
 void read_mask(const std::filesystem::path& mask_file, OlatImageSet& set);

@@ -245,8 +245,9 @@ OlatFormat detect_olat_format(const fs::path& source) {
                    "(filenames.txt, light_directions.txt, light_intensities.txt, mask.png)");
 }
 
-ReflectanceField import_rti_lp(const fs::path& lp_path, const OlatImportOptions& options,
-                               OlatImportSummary* summary) {
+namespace {
+
+OlatImageSet read_rti_lp_set(const fs::path& lp_path, const OlatImportOptions& options) {
   if (!fs::exists(lp_path)) throw InputError(lp_path.string() + ": not found");
   const fs::path lp_file = fs::is_directory(lp_path) ? lp_in_folder(lp_path) : lp_path;
   const std::string name = lp_file.string();
@@ -304,11 +305,10 @@ ReflectanceField import_rti_lp(const fs::path& lp_path, const OlatImportOptions&
   }
   finder.add_notes(name, &job.notes);
   note_direction_norms(norms, name, &job.notes);
-  return import_images(std::move(job), options, summary);
+  return job;
 }
 
-ReflectanceField import_diligent(const fs::path& folder, const OlatImportOptions& options,
-                                 OlatImportSummary* summary) {
+OlatImageSet read_diligent_set(const fs::path& folder, const OlatImportOptions& options) {
   if (!fs::is_directory(folder)) throw InputError(folder.string() + ": not a folder");
   const fs::path names_file = folder / "filenames.txt";
   const fs::path dirs_file = folder / "light_directions.txt";
@@ -389,14 +389,37 @@ ReflectanceField import_diligent(const fs::path& folder, const OlatImportOptions
   } else {
     job.notes.push_back(mask_file.string() + ": not found; every pixel used");
   }
-  return import_images(std::move(job), options, summary);
+  return job;
+}
+
+OlatImageSet read_set(const fs::path& source, const OlatImportOptions& options) {
+  return detect_olat_format(source) == OlatFormat::kDiligent ? read_diligent_set(source, options)
+                                                             : read_rti_lp_set(source, options);
+}
+
+}  // namespace
+
+ReflectanceField import_rti_lp(const fs::path& lp_file, const OlatImportOptions& options,
+                               OlatImportSummary* summary) {
+  return import_images(read_rti_lp_set(lp_file, options), options, summary);
+}
+
+ReflectanceField import_diligent(const fs::path& folder, const OlatImportOptions& options,
+                                 OlatImportSummary* summary) {
+  return import_images(read_diligent_set(folder, options), options, summary);
 }
 
 ReflectanceField import_olat(const fs::path& source, const OlatImportOptions& options,
                              OlatImportSummary* summary) {
-  return detect_olat_format(source) == OlatFormat::kDiligent
-             ? import_diligent(source, options, summary)
-             : import_rti_lp(source, options, summary);
+  return import_images(read_set(source, options), options, summary);
+}
+
+int import_olat_to_file(const fs::path& source, const OlatImportOptions& options,
+                        const fs::path& out, const ExrAttributes& attributes,
+                        std::size_t memory_bytes, const LightImageFn& on_light,
+                        OlatImportSummary* summary) {
+  return import_images_to_file(read_set(source, options), options, out, attributes, memory_bytes,
+                               on_light, summary);
 }
 
 }  // namespace ls::capture

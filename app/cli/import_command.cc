@@ -6,6 +6,7 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/import_job.h"
+#include "lightstage/memory.h"
 
 namespace ls::cli {
 namespace {
@@ -13,10 +14,10 @@ namespace {
 namespace fs = std::filesystem;
 
 int print_import(const fs::path& source, const fs::path& out,
-                 const capture::OlatImportOptions& options, bool quiet) {
+                 const capture::OlatImportOptions& options, std::size_t memory_bytes, bool quiet) {
   std::printf("%s: %s\n", source.c_str(), capture::to_string(capture::detect_olat_format(source)));
   const jobs::ImportJobSummary job =
-      jobs::import_set(source, out, options, progress_printer(quiet));
+      jobs::import_set(source, out, options, memory_bytes, progress_printer(quiet));
   const capture::OlatImportSummary& summary = job.import;
   std::printf("  %d images, %s, %dx%d", summary.images, summary.pixel_format.c_str(),
               summary.source_width, summary.source_height);
@@ -35,6 +36,10 @@ int print_import(const fs::path& source, const fs::path& out,
   for (const std::string& note : summary.notes) std::printf("  note: %s\n", note.c_str());
   std::printf("wrote %s (%.1f MiB) and %s (light %d), %.2f s\n", out.c_str(), job.mebibytes,
               job.preview.c_str(), job.preview_light, summary.seconds);
+  if (job.band_rows < summary.height) {
+    std::printf("written in bands of %d rows through a spill file beside it\n", job.band_rows);
+  }
+  std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   return 0;
 }
 
@@ -67,12 +72,17 @@ void add_import_command(CLI::App& app) {
   cmd->add_flag("--drop-saturated", options->zero_saturated,
                 "Write saturated samples (maximum code) as 0, so fits leave them out as shadowed; "
                 "default: keep them as lower bounds.");
+  auto memory = std::make_shared<std::size_t>(0);
+  cmd->add_option("--memory", *memory,
+                  "Bytes of memory for the field: a larger one is written in bands of rows, each "
+                  "image spilled to a file beside --out that needs the field's size free "
+                  "(default: in memory when the field takes at most half of what is available).");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
-  cmd->callback([options, source, out, quiet, linear, srgb, gamma] {
+  cmd->callback([options, source, out, quiet, linear, srgb, gamma, memory] {
     if (*linear) options->transfer = capture::TransferCurve::kLinear;
     if (*srgb) options->transfer = capture::TransferCurve::kSrgb;
     if (gamma->count() > 0) options->transfer = capture::TransferCurve::kGamma;
-    print_import(*source, *out, *options, *quiet);
+    print_import(*source, *out, *options, *memory, *quiet);
   });
 }
 

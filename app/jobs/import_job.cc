@@ -1,5 +1,6 @@
 #include "app/jobs/import_job.h"
 
+#include <mutex>
 #include <nlohmann/json.hpp>
 
 #include "capture/field.h"
@@ -10,25 +11,6 @@ namespace ls::jobs {
 namespace fs = std::filesystem;
 
 namespace {
-
-// The light nearest the camera (+Z): the most evenly lit of the images, for the preview.
-int frontal_light(const capture::ReflectanceField& field) {
-  int best = 0;
-  for (int l = 1; l < field.num_lights(); ++l) {
-    if (field.lights()[l].dir_in_stage.z() > field.lights()[best].dir_in_stage.z()) best = l;
-  }
-  return best;
-}
-
-Image light_image(const capture::ReflectanceField& field, int light) {
-  Image image(field.width(), field.height(), 3);
-  for (int y = 0; y < field.height(); ++y) {
-    for (int x = 0; x < field.width(); ++x) {
-      for (int c = 0; c < 3; ++c) image.at(x, y, c) = field.at(x, y, light, c);
-    }
-  }
-  return image;
-}
 
 std::string options_json(const fs::path& source, const capture::OlatImportOptions& options) {
   nlohmann::json j;
@@ -43,16 +25,34 @@ std::string options_json(const fs::path& source, const capture::OlatImportOption
 }  // namespace
 
 ImportJobSummary import_set(const fs::path& source, const fs::path& out,
-                            capture::OlatImportOptions options, const ProgressFn& progress) {
+                            capture::OlatImportOptions options, std::size_t memory_bytes,
+                            const ProgressFn& progress) {
   ImportJobSummary summary;
   summary.format = capture::detect_olat_format(source);
   options.on_progress = [&](int done, int total) { report(progress, "import", done, total); };
-  const capture::ReflectanceField field = capture::import_olat(source, options, &summary.import);
-  capture::write_field(out, field, {{kOptionsAttribute, options_json(source, options)}});
-  summary.lights = field.num_lights();
-  summary.mebibytes = field.bytes() / 1048576.0;
-  summary.preview_light = frontal_light(field);
-  const Image preview = light_image(field, summary.preview_light);
+  // The preview: the light nearest the camera (+Z), the most evenly lit of the images (the first
+  // of equals), kept as the images are read.
+  std::mutex preview_mutex;
+  double preview_z = -2;
+  std::vector<float> preview_rgb;
+  const auto keep_frontal = [&](int light, const Eigen::Vector3d& dir,
+                                const std::vector<float>& rgb) {
+    const std::lock_guard lock(preview_mutex);
+    if (dir.z() > preview_z || (dir.z() == preview_z && light < summary.preview_light)) {
+      preview_z = dir.z();
+      summary.preview_light = light;
+      preview_rgb = rgb;
+    }
+  };
+  summary.band_rows = capture::import_olat_to_file(
+      source, options, out, {{kOptionsAttribute, options_json(source, options)}}, memory_bytes,
+      keep_frontal, &summary.import);
+  summary.lights = summary.import.images;
+  summary.mebibytes = capture::ReflectanceField::bytes_for(summary.import.width,
+                                                           summary.import.height, summary.lights) /
+                      1048576.0;
+  Image preview(summary.import.width, summary.import.height, 3);
+  preview.pixels = std::move(preview_rgb);
   summary.preview = out;
   summary.preview.replace_extension(".preview.png");
   write_png_preview(summary.preview, preview, auto_exposure_stops(preview));

@@ -3,6 +3,7 @@
 #include "capture/olat_import.h"
 
 #include <OpenImageIO/imageio.h>
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <mutex>
 #include <random>
 
 #include "capture/field.h"
@@ -464,6 +466,44 @@ TEST(OlatImport, DiligentDownsizedKeepsMaskBorderUndarkened) {
   EXPECT_LT(e.mean_deg, 1.0);
   EXPECT_LE(e.flagged, e.pixels / 20);
   EXPECT_NEAR(ratio.x(), 1.4, 0.005);
+}
+
+// Issue 14: imported in bands of rows through a spill file (a set larger than memory), the field
+// file holds the values and lights of the import in memory, and each light's image is seen once.
+TEST(OlatImport, InBandsWithinAMemoryBudgetWritesTheFieldOfTheWholeImport) {
+  ls::testing::TempDir tmp;
+  const SimSet set = render_sphere(40, 24);
+  write_diligent(set, tmp / "sphere", 9);  // A mask, RGB intensities to divide out.
+  OlatImportOptions options;
+  options.max_size = 30;  // Area-averaged to 30 x 30.
+  const ReflectanceField whole = import_diligent(tmp / "sphere", options);
+  std::vector<int> seen(24, 0);
+  std::mutex mutex;
+  const auto count = [&](int light, const Eigen::Vector3d& dir, const std::vector<float>& rgb) {
+    const std::lock_guard lock(mutex);
+    ++seen[size_t(light)];
+    EXPECT_EQ(dir, whole.lights()[size_t(light)].dir_in_stage);
+    EXPECT_EQ(rgb.size(), size_t(30 * 30 * 3));
+    EXPECT_EQ(rgb[3 * (15 * 30 + 15) + 1], whole.at(15, 15, light, 1));
+  };
+  const std::size_t budget = 2 * ReflectanceField::bytes_for(30, 4, 24);  // Bands of 4 rows.
+  OlatImportSummary summary;
+  EXPECT_EQ(
+      import_olat_to_file(tmp / "sphere", options, tmp / "bands.exr", {}, budget, count, &summary),
+      4);
+  EXPECT_EQ(seen, std::vector<int>(24, 1));
+  EXPECT_EQ(summary.width, 30);
+  const ReflectanceField banded = read_field(tmp / "bands.exr");
+  EXPECT_TRUE(banded.values() == whole.values());  // Bit for bit.
+  ASSERT_EQ(banded.num_lights(), whole.num_lights());
+  for (int l = 0; l < whole.num_lights(); ++l) {
+    EXPECT_EQ(banded.lights()[l].saturates_at, whole.lights()[l].saturates_at);
+  }
+  std::vector<std::string> left;
+  for (const auto& entry : fs::directory_iterator(tmp.path())) {
+    left.push_back(entry.path().filename().string());
+  }
+  EXPECT_THAT(left, ::testing::UnorderedElementsAre("sphere", "bands.exr"));
 }
 
 // --- .lp sets from the simulator: transfer curves
