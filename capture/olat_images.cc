@@ -238,6 +238,7 @@ class SetImport {
     }
     std::tie(width_, height_) = target_size(first_.width, first_.height, options.max_size);
     std::vector<FieldLight> lights;
+    lights.reserve(job_.lights.size());
     for (int l = 0; l < num_lights(); ++l) lights.push_back({l, job_.lights[l].dir_in_stage, true});
     header_ = ReflectanceField::without_values(width_, height_, std::move(lights));
     header_.source = job_.source.string();
@@ -331,7 +332,8 @@ ReflectanceField read_whole(SetImport& set, const LightImageFn& on_light) {
     if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
     for (int y = 0; y < field.height(); ++y) {
       for (int x = 0; x < field.width(); ++x) {
-        std::copy_n(&rgb[(std::size_t(y) * field.width() + x) * 3], 3, field.pixel(x, y) + 3 * l);
+        std::copy_n(&rgb[(std::size_t(y) * field.width() + x) * 3], 3,
+                    field.pixel(x, y) + 3 * std::size_t(l));
       }
     }
   });
