@@ -109,6 +109,12 @@ class FieldBuild {
   void prepare() {
     index_frames();
     header_ = ReflectanceField::without_values(camera_.width, camera_.height, field_lights());
+    if (std::find(usable_.begin(), usable_.end(), true) == usable_.end()) {
+      throw InputError(where_ + ": no LED has a complete bracket of frames at time step " +
+                       std::to_string(options_.time_step) + " (" +
+                       std::to_string(session_.frames().size()) +
+                       " frames in the journal): nothing to build a field from");
+    }
     choose_response();
     read_flat_fields();
     header_.source = where_;

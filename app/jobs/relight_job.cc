@@ -99,7 +99,10 @@ std::string output_name(const fs::path& map_path, double rotation, bool several_
 // Walks the maps and rotations in output order, loading each map once.
 class MapRotations {
  public:
-  explicit MapRotations(const RelightOptions& options) : options_(options) {}
+  // Every map is read once here, so that a bad one stops the run before any image is written.
+  explicit MapRotations(const RelightOptions& options) : options_(options) {
+    for (const fs::path& map_path : options_.maps) relight::EnvironmentMap::load(map_path);
+  }
   long count() const { return long(options_.maps.size() * options_.rotations_deg.size()); }
   template <typename Fn>  // fn(map, rotation_deg, output name)
   void for_each(Fn&& fn) {
@@ -120,10 +123,10 @@ class MapRotations {
 class RelitWriter {
  public:
   RelitWriter(const RelightOptions& options, RelightSummary& summary)
-      : options_(options), summary_(summary), attributes_{{kOptionsAttribute, options.to_json()}} {
-    fs::create_directories(options.out_dir);
-  }
+      : options_(options), summary_(summary), attributes_{{kOptionsAttribute, options.to_json()}} {}
+  // The output directory is made with the first image: a run that fails before leaves none.
   void write(const std::string& name, Image& relit, std::string detail = {}) {
+    fs::create_directories(options_.out_dir);
     relit.channel_names = {"R", "G", "B"};
     RelitImage out{options_.out_dir / (name + ".exr"), options_.out_dir / (name + ".png"), name,
                    std::move(detail)};

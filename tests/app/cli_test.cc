@@ -132,6 +132,12 @@ TEST(Cli, MalformedStageSceneAndMapFilesGiveClearErrors) {
   ExpectCliError("relight " + (tmp / "f.exr").string() + " --env " + (tmp / "nan.exr").string() +
                      " --out " + (tmp / "r").string(),
                  {"nan.exr", "x=5", "y=7"});
+  // A good map before the bad one: the run stops before any image, and leaves no output folder.
+  const fs::path good_map = testing::source_dir() / "data" / "envmaps" / "softbox_studio.exr";
+  ExpectCliError("relight " + (tmp / "f.exr").string() + " --env " + good_map.string() + " " +
+                     (tmp / "nan.exr").string() + " --out " + (tmp / "r").string(),
+                 {"nan.exr"});
+  EXPECT_FALSE(fs::exists(tmp / "r"));
   ExpectCliError("build " + tmp.path().string() + " --out " + (tmp / "g.exr").string(),
                  {"not a lightstage session"});
 }

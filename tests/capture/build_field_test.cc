@@ -332,5 +332,22 @@ TEST(BuildField, InBandsWithinAMemoryBudgetGivesTheFieldBuiltInMemory) {
   EXPECT_FALSE(std::filesystem::exists(dir / "absent"));
 }
 
+// Issue 19: a session with no usable frames (its journal gone) is refused, naming the session,
+// and no field is written; not an all-zero field.
+TEST(BuildField, ASessionWithoutUsableFramesIsRefusedAndNothingIsWritten) {
+  ls::testing::TempDir dir;
+  capture(dir / "s", small_stage());
+  std::filesystem::remove(dir / "s" / "frames.jsonl");
+  const Session session = Session::open(dir / "s");
+  try {
+    build_field_file(session, {}, dir / "f.exr");
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_THAT(e.what(), ::testing::HasSubstr((dir / "s").string()));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("no LED has a complete bracket"));
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir / "f.exr"));
+}
+
 }  // namespace
 }  // namespace ls::capture

@@ -311,6 +311,25 @@ TEST(EnvmapTest, RejectsWrongChannelCountAndAspect) {
   expect_input_error([&] { EnvironmentMap::load(two_channel); },
                      {two_channel.string(), "channels: expected 1, 3 or 4 channels", "got 2"});
 
+  // Five channels: used where R, G and B are named among them, refused where nothing says which.
+  Image five(8, 4, 5, 0.5f);
+  five.channel_names = {"A", "B", "G", "R", "Z"};
+  five.at(1, 1, 3) = 2.0f;  // R.
+  const fs::path named = tmp / "named_five.exr";
+  ls::write_exr(named, five);
+  EXPECT_EQ(EnvironmentMap::load(named).radiance().at(1, 1, 0), 2.0f);
+  five.channel_names = {"c0", "c1", "c2", "c3", "c4"};
+  const fs::path unnamed = tmp / "unnamed_five.exr";
+  ls::write_exr(unnamed, five);
+  expect_input_error([&] { EnvironmentMap::load(unnamed); },
+                     {unnamed.string(), "channels named R, G and B", "got 5"});
+
+  // A map of -1 everywhere is not compression ringing: refused, not clamped to black.
+  const fs::path all_negative = tmp / "all_negative.exr";
+  ls::write_exr(all_negative, Image(16, 8, 3, -1.0f));
+  expect_input_error([&] { EnvironmentMap::load(all_negative); },
+                     {all_negative.string(), "negative values hold", "not a radiance map"});
+
   const fs::path wide = tmp / "three_to_one.exr";
   ls::write_exr(wide, Image(12, 4, 3, 1.0f));
   expect_input_error(
