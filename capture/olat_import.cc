@@ -62,6 +62,22 @@ std::optional<double> parse_number(std::string_view text) {
   return value;
 }
 
+// A line of the file as a message may quote it: bytes that are not printable ASCII as \xNN (a
+// binary file named as an .lp must not write raw bytes to the terminal), at most 80 characters.
+std::string printable(const std::string& text) {
+  std::string out;
+  for (const unsigned char c : text.substr(0, 80)) {
+    if (c >= 0x20 && c < 0x7f) {
+      out += char(c);
+    } else {
+      char hex[8];
+      std::snprintf(hex, sizeof hex, "\\x%02x", c);
+      out += hex;
+    }
+  }
+  return text.size() > 80 ? out + "..." : out;
+}
+
 std::string vector_text(const Eigen::Vector3d& v) {
   char text[96];
   std::snprintf(text, sizeof(text), "(%g, %g, %g)", v.x(), v.y(), v.z());
@@ -262,7 +278,7 @@ OlatImageSet read_rti_lp_set(const fs::path& lp_path, const OlatImportOptions& o
       *count_value > 1e6) {
     throw InputError(where(lp_file, lines[0].number) +
                      ": count: expected the number of lights (a positive integer), got '" +
-                     lines[0].text + "'");
+                     printable(lines[0].text) + "'");
   }
   const int count = int(*count_value);
   const int listed = int(lines.size()) - 1;
@@ -287,7 +303,7 @@ OlatImageSet read_rti_lp_set(const fs::path& lp_path, const OlatImportOptions& o
     const std::string at = where(lp_file, line.number);
     const std::vector<Token> tokens = tokenize(line.text);
     if (tokens.size() < 4) {
-      throw InputError(at + ": light: expected 'image x y z', got '" + line.text + "'");
+      throw InputError(at + ": light: expected 'image x y z', got '" + printable(line.text) + "'");
     }
     const std::size_t first_number = tokens.size() - 3;
     const Eigen::Vector3d raw = parse_triple(tokens, first_number, at, "light direction");

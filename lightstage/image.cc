@@ -50,8 +50,9 @@ void commit_temp(const fs::path& tmp, const fs::path& path) {
   }
   fs::rename(tmp, path, ec);
   if (ec) {
+    const std::string why = fs::is_directory(path) ? "it is a folder" : ec.message();
     fs::remove(tmp, ec);
-    throw InputError(path.string() + ": cannot rename temporary file into place: " + ec.message());
+    throw InputError(path.string() + ": cannot write the file there: " + why);
   }
   fsync_path(path.parent_path().empty() ? fs::path(".") : path.parent_path(), true);
 }

@@ -68,7 +68,7 @@ void add_import_command(CLI::App& app) {
   linear_flag->excludes(srgb_flag);
   cmd->add_option("--max-size", options->max_size,
                   "Downsize (area averaging) so that the larger side is at most N pixels.")
-      ->check(CLI::PositiveNumber);
+      ->check(CLI::Range(1, 1 << 20));
   cmd->add_flag("--drop-saturated", options->zero_saturated,
                 "Write saturated samples (maximum code) as 0, so fits leave them out as shadowed; "
                 "default: keep them as lower bounds.");

@@ -608,6 +608,11 @@ TEST(OlatImport, LpErrorsNameFileLineAndField) {
   e = input_error(
       [&] { import_rti_lp(set.lp("3\na0.png 0 0 1\nmissing.png 0 1 1\na2.png 1 0 1"), {}); });
   EXPECT_NE(e.find("set.lp:3: image: 'missing.png' not found"), std::string::npos) << e;
+  // A binary file named as an .lp: its bytes quoted as \xNN, never raw to the terminal.
+  e = input_error([&] { import_rti_lp(set.lp(std::string("1\n\x01\xff\x00zz\n", 8)), {}); });
+  EXPECT_NE(e.find("set.lp:2: light: expected 'image x y z', got '\\x01\\xff\\x00zz'"),
+            std::string::npos)
+      << e;
   e = input_error(
       [&] { import_rti_lp(set.lp("3\na0.png 0 0 1\na1.png 0 0 0\na2.png 1 0 1"), {}); });
   EXPECT_NE(e.find("set.lp:3: light direction"), std::string::npos) << e;

@@ -70,6 +70,21 @@ TEST(Image, TruncatedOrMissingFilesAreInputErrorsNamingTheFile) {
   }
 }
 
+// Issue 19: a file written where a folder stands says so (it said "...: Success").
+TEST(Image, WritingOverAFolderSaysItIsAFolder) {
+  testing::TempDir tmp;
+  std::filesystem::create_directories(tmp / "maps.exr");
+  try {
+    write_exr(tmp / "maps.exr", Image(4, 2, 3, 0.5f));
+    ADD_FAILURE() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("maps.exr: cannot write the file there: it is a folder"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_TRUE(std::filesystem::is_empty(tmp / "maps.exr"));
+}
+
 TEST(Image, AutoExposurePutsTheBrightPercentileNearWhite) {
   Image img(10, 10, 3, 4.0f);
   const double stops = auto_exposure_stops(img);
