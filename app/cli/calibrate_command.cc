@@ -6,6 +6,7 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <regex>
@@ -17,6 +18,21 @@
 #include "lightstage/progress.h"
 
 namespace ls::cli {
+namespace {
+
+// CLI11's numeric checks let NaN through (every comparison with it is false): the measurements
+// given on the command line must be finite numbers.
+const CLI::Validator kFinite(
+    [](std::string& text) {
+      double value = 0;
+      const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+      const bool ok =
+          error == std::errc() && end == text.data() + text.size() && std::isfinite(value);
+      return ok ? std::string() : "expected a finite number, got " + text;
+    },
+    "FINITE");
+
+}  // namespace
 
 namespace fs = std::filesystem;
 
@@ -211,13 +227,25 @@ int run_directions(const CalibrateArgs& args) {
                 e.rays.size() > 1 ? "calibrated" : "calibrated (one sphere)");
   }
   print_problems(all.problems);
+  if (update.directions_changed == 0) {
+    std::printf("\nno LED direction calibrated: %s not written\n", args.out.c_str());
+    return kExitInputError;
+  }
   write_file_atomic(args.out, stage_to_json(calibrated));
   std::printf("\n%d of %zu LED directions calibrated -> %s\n", update.directions_changed,
               nominal.leds.size(), args.out.c_str());
-  return update.directions_changed > 0 ? 0 : kExitInputError;
+  return 0;
 }
 
 int run_intensities(const CalibrateArgs& args) {
+  // Outputs go into folders that exist (a typo in a path is not a new folder).
+  for (const fs::path& file : {args.out, args.flat_field}) {
+    if (file.empty()) continue;  // --flat-field: beside --out by default.
+    const fs::path folder = fs::absolute(file).parent_path();
+    if (!fs::is_directory(folder)) {
+      throw InputError(file.string() + ": folder " + folder.string() + " does not exist");
+    }
+  }
   const Stage stage = load_stage(args.stage_file);
   const auto photos = list_photos(args.images_dir, stage, {});
   const capture::ViewCamera camera = capture::ViewCamera::from_spec(stage.camera);
@@ -251,6 +279,11 @@ int run_intensities(const CalibrateArgs& args) {
   print_problems(all.problems);
   fs::path flat = args.flat_field;
   if (flat.empty()) flat = fs::path(args.out).replace_extension(".flatfield.exr");
+  if (update.intensities_changed == 0) {
+    std::printf("\nno LED intensity calibrated: %s and %s not written\n", args.out.c_str(),
+                flat.c_str());
+    return kExitInputError;
+  }
   write_exr(flat, capture::flat_field_image(
                       all, stage, 64, std::max(1, 64 * stage.camera.height / stage.camera.width)));
   // The calibrated stage names its side car (relative to itself when beside it), so that `build`
@@ -264,7 +297,7 @@ int run_intensities(const CalibrateArgs& args) {
   write_file_atomic(args.out, stage_to_json(calibrated));
   std::printf("\n%d of %zu LED intensities calibrated -> %s (flat fields: %s)\n",
               update.intensities_changed, stage.leds.size(), args.out.c_str(), flat.c_str());
-  return update.intensities_changed > 0 ? 0 : kExitInputError;
+  return 0;
 }
 
 capture::ChessboardSpec parse_board(const std::string& text, double square_mm) {
@@ -378,14 +411,18 @@ void add_calibrate_command(CLI::App& app) {
     sub->add_option("--spheres", args->spheres, "Spheres to look for in the reference shot.")
         ->capture_default_str();
     sub->add_option("--sphere-radius", args->sphere_radius_m,
-                    "Sphere radius in metres (needed with a perspective camera).");
+                    "Sphere radius in metres (needed with a perspective camera).")
+        ->check(kFinite);
     sub->add_option("--sphere-z", args->sphere_z_m,
                     "Sphere centres' z in metres (orthographic camera).")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(kFinite);
     sub->add_option("--blob-fraction", args->blob_fraction,
                     "Highlight pixels: above this fraction of the peak (0.975 for 8-bit JPEGs).")
-        ->capture_default_str();
-    sub->add_option("--saturation", args->saturation, "Clipped value of the images (0: none).");
+        ->capture_default_str()
+        ->check(kFinite);
+    sub->add_option("--saturation", args->saturation, "Clipped value of the images (0: none).")
+        ->check(kFinite);
     sub->add_option("--out", args->out, "Calibrated stage file to write.")->required();
     sub->add_flag("--quiet", args->quiet, "No progress output.");
     sub->callback([args] {
@@ -404,10 +441,13 @@ void add_calibrate_command(CLI::App& app) {
     sub->add_option("--white", args->images_dir, "Directory of photographs.")->required();
     sub->add_option("--albedo", args->albedo,
                     "Reflectance of the target (1: intensities relative to it).")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(kFinite);
     sub->add_option("--plane-z", args->plane_z_m, "The plane's z in metres.")
-        ->capture_default_str();
-    sub->add_option("--saturation", args->saturation, "Clipped value of the images (0: none).");
+        ->capture_default_str()
+        ->check(kFinite);
+    sub->add_option("--saturation", args->saturation, "Clipped value of the images (0: none).")
+        ->check(kFinite);
     sub->add_option("--flat-field", args->flat_field,
                     "Where to write the flat fields (default: OUT with .flatfield.exr).");
     sub->add_option("--out", args->out, "Calibrated stage file to write.")->required();
@@ -427,7 +467,8 @@ void add_calibrate_command(CLI::App& app) {
         ->required();
     sub->add_option("--board", args->board, "Inner corners, WxH (W != H).")->capture_default_str();
     sub->add_option("--square", args->square_mm, "Square size in millimetres.")
-        ->capture_default_str();
+        ->capture_default_str()
+        ->check(kFinite);
     sub->add_flag("--square-pixels", args->square_pixels, "Fit one focal length (fx = fy).");
     sub->add_option("--stage", args->stage_file, "Stage file to update (with --out).")
         ->check(CLI::ExistingFile);

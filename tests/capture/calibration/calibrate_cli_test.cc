@@ -118,6 +118,41 @@ TEST(CalibrateCli, DirectionsThenIntensitiesRecoverThePerturbedDome) {
   EXPECT_GE(intensities, 7);
   EXPECT_LT(worst_e, 0.01);
 
+  // Issue 19: no LED calibrated (every LED photo dark) is exit code 2 with no stage written; a
+  // NaN measurement (a usage error, 1) and an output in a missing folder (2) are refused before
+  // any work.
+  std::filesystem::create_directories(dir / "dark");
+  std::filesystem::copy_file(dir / "spheres" / "reference.exr", dir / "dark" / "reference.exr");
+  for (const Led& led : nominal.leds) {
+    char name[32];
+    std::snprintf(name, sizeof name, "led%03d.exr", led.id);
+    write_exr(dir / "dark" / name, Image(640, 320, 3));
+  }
+  EXPECT_EQ(
+      testing::run_command(cli + " calibrate directions --quiet --stage " +
+                               (dir / "stage.json").string() + " --images " +
+                               (dir / "dark").string() + " --out " + (dir / "none.json").string(),
+                           &output),
+      2)
+      << output;
+  EXPECT_NE(output.find("no LED direction calibrated"), std::string::npos) << output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "none.json"));
+  const std::string intensities_cli =
+      cli + " calibrate intensities --quiet --stage " + (dir / "directions.json").string() +
+      " --white " + (dir / "white").string() + " --out " + (dir / "i2.json").string();
+  EXPECT_EQ(testing::run_command(intensities_cli + " --plane-z nan", &output), 1)  // Usage.
+      << output;
+  EXPECT_NE(output.find("--plane-z: expected a finite number, got nan"), std::string::npos)
+      << output;
+  EXPECT_EQ(
+      testing::run_command(
+          intensities_cli + " --flat-field " + (dir / "missing" / "ff.exr").string(), &output),
+      2)
+      << output;
+  EXPECT_NE(output.find("does not exist"), std::string::npos) << output;
+  EXPECT_FALSE(std::filesystem::exists(dir / "missing"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "i2.json"));
+
   // No sphere in the reference shot: exit code 2 and a message naming the file.
   write_exr(dir / "spheres" / "reference.exr", Image(640, 320, 3));
   EXPECT_EQ(
