@@ -10,6 +10,24 @@ namespace ls::jobs {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+// The files a stage names for the build (flat field, response table): a capture that would end
+// unbuildable is refused before its first frame, naming the stage file and the field.
+void check_calibration_files(const Stage& stage) {
+  const fs::path& flat = stage.calibration.flat_field;
+  if (!flat.empty() && !fs::is_regular_file(flat)) {
+    throw InputError(stage.source + ": calibration.flat_field: " + flat.string() + " not found");
+  }
+  const CameraResponse& response = stage.camera.response;
+  if (response.kind == CameraResponse::Kind::kTable && !fs::is_regular_file(response.table_file)) {
+    throw InputError(stage.source + ": camera.response.file: " + response.table_file.string() +
+                     " not found");
+  }
+}
+
+}  // namespace
+
 std::string CaptureOptions::validate() const {
   if (session_dir.empty()) return "give --out DIR (new session) or --resume DIR";
   if (resume && !stage_file.empty()) return "--resume uses the session's own stage: drop --stage";
@@ -43,6 +61,7 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   } else {
     const Stage stage =
         options.stage_file.empty() ? default_stage() : load_stage(options.stage_file);
+    check_calibration_files(stage);
     const Backend& backend = backend_registry().find(stage.camera.backend, stage.source);
     if (!options.scene_file.empty() && backend.input_file_name.empty()) {
       throw InputError(options.scene_file.string() + ": the \"" + backend.name + "\" back-end (" +

@@ -101,6 +101,15 @@ TEST(Cli, MalformedStageSceneAndMapFilesGiveClearErrors) {
       {"stage.json", "camera.bracket[0].exposure_s", "expected"});
   EXPECT_FALSE(fs::exists(tmp / "s" / "manifest.json"));  // Nothing created for bad input.
 
+  // A stage naming a flat field that is not there: refused before the first frame (the build
+  // would need it), naming the stage file and the field.
+  std::ofstream(tmp / "flat.json") << R"({"layout": {"type": "fibonacci", "count": 10},
+    "calibration": {"flat_field": "missing.flatfield.exr"}})";
+  ExpectCliError(
+      "capture --stage " + (tmp / "flat.json").string() + " --out " + (tmp / "s3").string(),
+      {"flat.json: calibration.flat_field", "missing.flatfield.exr not found"});
+  EXPECT_FALSE(fs::exists(tmp / "s3"));
+
   std::ofstream(tmp / "scene.json") << R"({"materials": [{"name": "m", "albedo": [0.5, 0.5, 0.5]}],
     "spheres": [{"center": [0, 0, 0], "radius": -1, "material": "m"}]})";
   ExpectCliError(
