@@ -110,10 +110,13 @@ class FieldBuild {
     index_frames();
     header_ = ReflectanceField::without_values(camera_.width, camera_.height, field_lights());
     if (std::find(usable_.begin(), usable_.end(), true) == usable_.end()) {
+      const std::filesystem::path frames = session_.dir() / "frames";
+      const std::string found = std::filesystem::is_directory(frames)
+                                    ? std::to_string(session_.frames().size()) + " frames found"
+                                    : frames.string() + " is not a folder";
       throw InputError(where_ + ": no LED has a complete bracket of frames at time step " +
-                       std::to_string(options_.time_step) + " (" +
-                       std::to_string(session_.frames().size()) +
-                       " frames in the journal): nothing to build a field from");
+                       std::to_string(options_.time_step) + " (" + found +
+                       "): nothing to build a field from");
     }
     choose_response();
     read_flat_fields();

@@ -49,6 +49,8 @@ uint64_t sequence_key(const FrameKey& k) {
 }
 
 std::string read_text(const fs::path& path) {
+  // A folder opens as an empty stream on Linux: say what it is, not "invalid JSON".
+  if (fs::is_directory(path)) throw InputError(path.string() + ": expected a file, found a folder");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path.string() + ": cannot open");
   std::stringstream s;

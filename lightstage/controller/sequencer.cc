@@ -226,10 +226,16 @@ class CaptureRun {
   }
 
  private:
-  static std::string cannot_save(const std::string& why) {
+  std::string cannot_save(const std::string& why) const {
+    // A full disk wants space; a session whose frames/ is not a folder wants it moved aside.
+    const std::filesystem::path frames = session_.dir() / "frames";
+    const std::string fix = std::filesystem::is_directory(frames)
+                                ? "free space and resume with --resume"
+                                : frames.string() +
+                                      " is not a folder: move it aside and resume "
+                                      "with --resume";
     return "cannot save frames: " + why +
-           "; all LEDs are off and every frame saved before that is kept; free space and resume "
-           "with --resume";
+           "; all LEDs are off and every frame saved before that is kept; " + fix;
   }
 
   bool stop_requested() const {

@@ -5,6 +5,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <fstream>
 
 #include "capture/field.h"
 #include "lightstage/controller/sequencer.h"
@@ -347,6 +348,20 @@ TEST(BuildField, ASessionWithoutUsableFramesIsRefusedAndNothingIsWritten) {
     EXPECT_THAT(e.what(), ::testing::HasSubstr("no LED has a complete bracket"));
   }
   EXPECT_FALSE(std::filesystem::exists(dir / "f.exr"));
+
+  // frames/ replaced by a file: said so.
+  std::filesystem::remove_all(dir / "s" / "frames");
+  std::ofstream(dir / "s" / "frames") << "not a folder";
+  EXPECT_THROW(
+      {
+        try {
+          build_field(Session::open(dir / "s"), {});
+        } catch (const InputError& e) {
+          EXPECT_THAT(e.what(), ::testing::HasSubstr("frames is not a folder"));
+          throw;
+        }
+      },
+      InputError);
 }
 
 }  // namespace

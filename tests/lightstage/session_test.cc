@@ -90,6 +90,20 @@ TEST(Session, RefusesToOverwriteAnExistingSessionAndNamesNonSessions) {
   }
 }
 
+// Issue 19: a manifest.json that is a folder is called one, not "invalid JSON".
+TEST(Session, AManifestThatIsAFolderIsCalledOne) {
+  testing::TempDir tmp;
+  std::filesystem::create_directories(tmp / "s" / "manifest.json");
+  try {
+    Session::open(tmp / "s");
+    FAIL();
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("manifest.json: expected a file, found a folder"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Session, UnwritableDirectoryIsRefusedBeforeCapture) {
   if (geteuid() == 0) {
     // Root ignores permissions; use a path under a regular file instead.
