@@ -149,6 +149,18 @@ TEST(Cli, MalformedStageSceneAndMapFilesGiveClearErrors) {
   EXPECT_FALSE(fs::exists(tmp / "r"));
   ExpectCliError("build " + tmp.path().string() + " --out " + (tmp / "g.exr").string(),
                  {"not a lightstage session"});
+
+  // A session whose frames/ became a file: resume stops (exit 4) and says to move it aside, not
+  // to free space.
+  fs::copy(tmp / "ok", tmp / "damaged", fs::copy_options::recursive);
+  fs::remove_all(tmp / "damaged" / "frames");
+  std::ofstream(tmp / "damaged" / "frames") << "not a folder";
+  EXPECT_EQ(
+      run_command(cli_path().string() + " capture --quiet --resume " + (tmp / "damaged").string(),
+                  &out),
+      4)
+      << out;
+  EXPECT_NE(out.find("frames is not a folder: move it aside"), std::string::npos) << out;
 }
 
 // Each subcommand's help names its own options and positionals (a few that only it has), and not
