@@ -112,9 +112,10 @@ long long repair_negative_values(Image& rgb, const std::string& source) {
   double all_positive = 0, all_negative = 0;
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
-      for (int c = 0; c < 3; ++c)
-        (rgb.at(x, y, c) < 0 ? all_negative : all_positive) +=
-            std::abs(rgb.at(x, y, c)) * row_sr[y];
+      for (int c = 0; c < 3; ++c) {
+        const float v = rgb.at(x, y, c);
+        (v < 0 ? all_negative : all_positive) += std::abs(v) * row_sr[y];
+      }
     }
   }
   if (all_negative > kMaxRingingEnergy * all_positive) {
