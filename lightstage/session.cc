@@ -123,6 +123,34 @@ Session Session::create(const fs::path& dir, const Stage& stage, const SessionIn
   return s;
 }
 
+SessionWriterLock::SessionWriterLock(const fs::path& session_dir) {
+  const fs::path path = session_dir / "capture.lock";
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd_ < 0) {
+    throw InputError(path.string() + ": cannot open the session's lock: " + std::strerror(errno));
+  }
+  struct flock lock {};
+  lock.l_type = F_WRLCK;
+  lock.l_whence = SEEK_SET;
+  if (::fcntl(fd_, F_SETLK, &lock) != 0) {
+    struct flock holder {};
+    holder.l_type = F_WRLCK;
+    holder.l_whence = SEEK_SET;
+    const bool known = ::fcntl(fd_, F_GETLK, &holder) == 0 && holder.l_type != F_UNLCK;
+    ::close(fd_);
+    throw InputError(session_dir.string() + ": another capture is writing this session" +
+                     (known ? " (process " + std::to_string(holder.l_pid) + ")" : "") +
+                     ": wait for it to end, or stop it, then resume");
+  }
+  // For people looking: who holds it (the lock itself is the kernel's).
+  const std::string pid = std::to_string(::getpid()) + "\n";
+  if (::ftruncate(fd_, 0) != 0 || ::write(fd_, pid.data(), pid.size()) < 0) {
+    // The lock holds without the note.
+  }
+}
+
+SessionWriterLock::~SessionWriterLock() { ::close(fd_); }  // Releases the lock.
+
 Session Session::open(const fs::path& dir) {
   const fs::path manifest_path = dir / kManifest;
   if (!fs::exists(manifest_path)) {

@@ -58,6 +58,21 @@ struct SessionInfo {
   uint64_t seed = 1;
 };
 
+// One capture writes a session at a time (issue 19): an exclusive lock on SESSION/capture.lock,
+// held while this lives. A POSIX record lock, so the kernel drops it when its process ends: the
+// lock of a killed capture is stale by construction and the next capture takes it. InputError
+// naming the holding process when another capture holds it.
+class SessionWriterLock {
+ public:
+  explicit SessionWriterLock(const std::filesystem::path& session_dir);
+  ~SessionWriterLock();
+  SessionWriterLock(const SessionWriterLock&) = delete;
+  SessionWriterLock& operator=(const SessionWriterLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
 class Session {
  public:
   // Creates SESSION; refuses a directory that already holds a session (use open + resume).

@@ -41,9 +41,12 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   }
   CaptureJobSummary summary;
   std::optional<Session> session;
+  std::optional<SessionWriterLock> writer_lock;  // One capture writes a session at a time.
   OpenedBackend devices;
   if (options.resume) {
     session.emplace(Session::open(options.session_dir));
+    writer_lock.emplace(options.session_dir);
+    session.emplace(Session::open(options.session_dir));  // As the last writer left it.
     summary.frames_present_before = int(session->frames().size());
     summary.frames_missing_before = int(session->missing_frames().size());
     if (session->complete()) {
@@ -74,6 +77,7 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
     info.backend = stage.camera.backend;
     info.seed = options.seed;
     session.emplace(Session::create(options.session_dir, stage, info));
+    writer_lock.emplace(options.session_dir);
     if (!options.scene_file.empty()) {
       fs::copy_file(options.scene_file, options.session_dir / backend.input_file_name,
                     fs::copy_options::overwrite_existing);

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <thread>
 
+#include "lightstage/session.h"
 #include "lightstage/stage.h"
 #include "tests/app/cli_process.h"
 #include "tests/support/test_support.h"
@@ -46,6 +47,20 @@ TEST(Cli, KilledCaptureResumesToExactlyTheFramesOfAnUninterruptedOne) {
   const int before = CountLines(tmp / "killed" / "frames.jsonl");
   EXPECT_GE(before, 40);
 
+  // One writer at a time: while another process holds the session (here, this test), a resume
+  // is refused naming it, and captures nothing.
+  {
+    const SessionWriterLock held(tmp / "killed");
+    EXPECT_EQ(run_command(cli + " capture --quiet --resume " + (tmp / "killed").string(), &out), 2)
+        << out;
+    EXPECT_NE(out.find("another capture is writing this session (process " +
+                       std::to_string(getpid()) + ")"),
+              std::string::npos)
+        << out;
+    EXPECT_EQ(CountLines(tmp / "killed" / "frames.jsonl"), before);
+  }
+  // The killed capture's lock died with it (its capture.lock file is left, and stale): the resume
+  // takes it.
   ASSERT_EQ(run_command(cli + " capture --quiet --resume " + (tmp / "killed").string(), &out), 0)
       << out;
   // Same frames, bit for bit, and nothing else.
