@@ -81,14 +81,7 @@ class FieldBuild {
     prepare();
     // The field is the big allocation and refuses cleanly when it cannot fit.
     ReflectanceField field(camera_.width, camera_.height, header_.lights());
-    merge_brackets([&](int i, const std::vector<float>& rgb) {
-      tbb::parallel_for(0, camera_.height, [&](int y) {
-        for (int x = 0; x < camera_.width; ++x) {
-          const float* v = &rgb[(size_t(y) * camera_.width + x) * 3];
-          std::copy_n(v, 3, field.pixel(x, y) + 3 * size_t(i));
-        }
-      });
-    });
+    merge_brackets([&](int i, const std::vector<float>& rgb) { field.set_light_image(i, rgb); });
     finish();
     copy_attributes(header_, field);
     return field;

@@ -395,6 +395,12 @@ void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
 
 }  // namespace
 
+void ReflectanceField::set_light_image(int light, const std::vector<float>& rgb) {
+  for (std::size_t p = 0; p < std::size_t(width_) * height_; ++p) {
+    std::copy_n(&rgb[3 * p], 3, values_.data() + p * lights_.size() * 3 + 3 * std::size_t(light));
+  }
+}
+
 void copy_attributes(const ReflectanceField& from, ReflectanceField& to) {
   to.scene_time_s = from.scene_time_s;
   to.source = from.source;

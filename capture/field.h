@@ -90,6 +90,9 @@ class ReflectanceField {
   const float* pixel(int x, int y) const { return values_.data() + offset(x, y); }
   float* pixel(int x, int y) { return values_.data() + offset(x, y); }
   float at(int x, int y, int light, int c) const { return pixel(x, y)[light * 3 + c]; }
+  // Light `light`'s values at every pixel from its image (width * height * 3, row-major, RGB
+  // innermost): what a build or an import has of one light at a time.
+  void set_light_image(int light, const std::vector<float>& rgb);
   float& at(int x, int y, int light, int c) { return pixel(x, y)[light * 3 + c]; }
 
   // A band of rows of a larger field (FieldStream::read_rows): its first row there and that

@@ -116,8 +116,6 @@ std::pair<int, int> target_size(int width, int height, int max_size) {
           std::max(1, int(std::lround(height * scale)))};
 }
 
-// Reads one light's image as linear RGB at the field's size, with the mask and the light's
-// intensity applied, into the field. Returns the number of saturated samples (inside the mask).
 // Light `light`'s image read, linearised, masked, resized to width x height and divided by its
 // intensity into rgb (width * height * 3, field units); its ceiling into `field_light`. Returns
 // the saturated samples.
@@ -209,10 +207,6 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   }
   return saturated_count;
 }
-
-}  // namespace
-
-namespace {
 
 // One import: the set checked and sized (the first image's header), then every light's image
 // read (in parallel) and handed to a sink in field units.
@@ -330,12 +324,7 @@ ReflectanceField read_whole(SetImport& set, const LightImageFn& on_light) {
   ReflectanceField field(header.width(), header.height(), header.lights());
   set.read_images([&](int l, const std::vector<float>& rgb) {
     if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
-    for (int y = 0; y < field.height(); ++y) {
-      for (int x = 0; x < field.width(); ++x) {
-        std::copy_n(&rgb[(std::size_t(y) * field.width() + x) * 3], 3,
-                    field.pixel(x, y) + 3 * std::size_t(l));
-      }
-    }
+    field.set_light_image(l, rgb);
   });
   field.lights() = header.lights();  // With the ceilings the images gave.
   copy_attributes(header, field);
