@@ -44,9 +44,10 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   std::optional<SessionWriterLock> writer_lock;  // One capture writes a session at a time.
   OpenedBackend devices;
   if (options.resume) {
+    // Locked before the journal is read (as the last writer left it); a folder that is no session
+    // gets no lock file, and Session::open names what is missing.
+    if (fs::exists(options.session_dir / "manifest.json")) writer_lock.emplace(options.session_dir);
     session.emplace(Session::open(options.session_dir));
-    writer_lock.emplace(options.session_dir);
-    session.emplace(Session::open(options.session_dir));  // As the last writer left it.
     summary.frames_present_before = int(session->frames().size());
     summary.frames_missing_before = int(session->missing_frames().size());
     if (session->complete()) {
