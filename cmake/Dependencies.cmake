@@ -45,3 +45,6 @@ endif()
 if(LIGHTSTAGE_BUILD_BENCHMARKS)
   find_package(benchmark REQUIRED)
 endif()
+
+# Runs across machines (issue 14): optional. Without MPI everything builds and runs as one process.
+find_package(MPI COMPONENTS CXX)

@@ -15,6 +15,7 @@ PACKAGES=(
   libeigen3-dev libglfw3-dev libgl-dev libegl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libceres-dev libtbb-dev nlohmann-json3-dev libcli11-dev libimgui-dev
+  libopenmpi-dev openmpi-bin
   xvfb xauth mesa-utils
 )
 

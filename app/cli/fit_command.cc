@@ -8,6 +8,7 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/fit_job.h"
+#include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
 
 namespace ls::cli {
@@ -23,8 +24,11 @@ void print_noise(const std::string& source, const relight::NoiseModel& noise) {
 }  // namespace
 
 int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
+  // Under MPI rank 0 reports (its own share of the bands) and prints; the others are silent.
+  quiet = quiet || !jobs::Ranks::world().root();
   const jobs::FitJobSummary summary =
       jobs::fit(options, progress_printer(quiet), quiet ? jobs::NoiseNoticeFn{} : print_noise);
+  if (!jobs::Ranks::world().root()) return 0;
   const relight::FitSummary& s = summary.fit;
   std::printf("%s: %dx%d pixels, %d fitted, %d flagged\n", options.out.c_str(), summary.width,
               summary.height, s.fitted, s.flagged);
@@ -65,6 +69,7 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
               summary.noise.a, summary.noise.b);
   if (summary.band_rows < summary.height) {
     std::printf("  read in bands of %d rows", summary.band_rows);
+    if (summary.ranks > 1) std::printf(" split over %d MPI ranks", summary.ranks);
     if (summary.resumed_rows > 0) {
       std::printf(" (%d rows' fits taken from an interrupted run)", summary.resumed_rows);
     }

@@ -2,12 +2,33 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "app/cli/commands.h"
 #include "app/cli/register_backends.h"
+#include "app/jobs/ranks.h"
 #include "lightstage/errors.h"
 
-int main(int argc, char** argv) {
+namespace {
+
+// Under MPI (several ranks), only `fit` splits its work; any other command would run once per
+// rank, each writing the same outputs: refused.
+void check_split_over_ranks(const CLI::App& app, int argc, char** argv) {
+  const ls::jobs::Ranks& ranks = ls::jobs::Ranks::world();
+  if (ranks.size() == 1) return;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg.empty() || arg[0] == '-') continue;
+    if (arg == "fit") return;
+    const auto named = [&](const CLI::App* sub) { return sub->get_name() == arg; };
+    if (app.get_subcommands(named).empty()) continue;
+    throw ls::InputError("'lightstage " + arg + "' runs as one process; under MPI (" +
+                         std::to_string(ranks.size()) +
+                         " ranks) only 'lightstage fit' splits its work over ranks");
+  }
+}
+
+int run(int argc, char** argv) {
   CLI::App app{
       "lightstage: light-stage capture and relighting.\n"
       "Typical use: lightstage capture --out S && lightstage build S --out F.exr && "
@@ -30,6 +51,7 @@ int main(int argc, char** argv) {
   ls::cli::add_import_command(app);
   ls::cli::add_view_command(app);
   try {
+    check_split_over_ranks(app, argc, argv);
     app.parse(argc, argv);
   } catch (const CLI::RuntimeError& e) {
     return e.get_exit_code();  // A subcommand's own exit code (2, 3, 4, 130).
@@ -44,4 +66,19 @@ int main(int argc, char** argv) {
     return ls::cli::kExitHardwareError;
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    const ls::jobs::Ranks::Session mpi(argc, argv);
+    const int code = run(argc, argv);
+    // One rank's error ends them all: the others may be waiting for it.
+    if (code != 0) ls::jobs::Ranks::world().abort(code);
+    return code;
+  } catch (const ls::InputError& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
 }

@@ -5,7 +5,9 @@
 #include <nlohmann/json.hpp>
 #include <optional>
 
+#include "app/jobs/fit_bands.h"
 #include "app/jobs/fit_checkpoint.h"
+#include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "relight/fit/basis_materials.h"
@@ -53,71 +55,6 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-// Rows [y0, y0 + band.height) of `frame` (sized and named after the first band when empty).
-void paste_rows(const Image& band, int y0, int frame_height, Image& frame) {
-  if (frame.pixels.empty()) {
-    frame = Image(band.width, frame_height, band.channels);
-    frame.channel_names = band.channel_names;
-  }
-  std::copy(band.pixels.begin(), band.pixels.end(),
-            frame.pixels.begin() + std::ptrdiff_t(y0) * band.width * band.channels);
-}
-
-// Normals and per-pixel fits band by band (each kept in `checkpoints`, or taken from there when
-// an earlier run of the same fit finished it), then basis materials over two more passes of the
-// file: the field is never whole in memory, the maps and normals are (~25 floats a pixel).
-relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
-                                const relight::FitOptions& fit, const BandCheckpoints& checkpoints,
-                                const ProgressFn& progress, double* read_seconds,
-                                int* resumed_rows) {
-  const capture::ReflectanceField& header = stream.header();
-  const int height = header.height();
-  relight::FitOptions per_band = fit;
-  per_band.materials = relight::FitMaterials::kPerPixel;
-  per_band.progress = {};
-  relight::NormalMap normals;
-  relight::ModelMaps maps;
-  maps.noise = fit.normals.noise;  // As fit_models records them.
-  maps.noise_source = fit.noise_source;
-  capture::ReflectanceField band;
-  const auto read = [&](int y0, int y1) {
-    const auto t0 = Clock::now();
-    stream.read_rows(y0, y1, band);
-    *read_seconds += seconds_since(t0);
-  };
-  for (int y0 = 0; y0 < height; y0 += rows) {
-    const int y1 = std::min(height, y0 + rows);
-    relight::NormalMap band_normals;
-    relight::ModelMaps band_maps;
-    if (checkpoints.load(y0, band_normals, band_maps)) {
-      *resumed_rows += y1 - y0;
-    } else {
-      read(y0, y1);
-      band_normals = relight::estimate_normals(band, fit.normals);
-      band_maps = relight::fit_models(band, band_normals, per_band);
-      checkpoints.save(y0, band_normals, band_maps);
-    }
-    paste_rows(band_normals.normal, y0, height, normals.normal);
-    paste_rows(band_normals.albedo, y0, height, normals.albedo);
-    paste_rows(band_normals.confidence, y0, height, normals.confidence);
-    paste_rows(band_normals.flags, y0, height, normals.flags);
-    normals.flagged_pixels += band_normals.flagged_pixels;
-    paste_rows(band_maps.maps, y0, height, maps.maps);
-    maps.summary.add(band_maps.summary);
-    report(progress, "fit (rows)", y1, height);
-  }
-  if (fit.materials == relight::FitMaterials::kBasis) {
-    const auto bands = [&](const relight::BandVisitor& visit) {
-      for (int y0 = 0; y0 < height; y0 += rows) {
-        read(y0, std::min(height, y0 + rows));
-        visit(band);
-      }
-    };
-    relight::fit_basis_materials(header, bands, normals, fit, maps);
-  }
-  return maps;
 }
 
 relight::NormalMethod normal_method(const FitJobOptions& options) {
@@ -175,16 +112,20 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(options.field_file.string() + ": noise: " + error);
   }
-  int rows = stream.band_rows(options.memory_bytes);
-  double read_seconds = 0;  // Not counted in the fit's time.
+  const Ranks& ranks = Ranks::world();
+  int rows = band_rows_for_ranks(stream.band_rows(options.memory_bytes), field.height(),
+                                 stream.row_alignment(), ranks);
   auto start = Clock::now();
   relight::ModelMaps maps;
-  int resumed_rows = 0;
+  BandFitTimes times;
   std::optional<BandCheckpoints> checkpoints;  // Fits in bands only.
   if (rows < field.height()) {
     checkpoints.emplace(options.out, fit_identity(options.field_file, options.to_json()));
-    rows = checkpoints->band_rows(rows);
-    maps = fit_in_bands(stream, rows, fit, *checkpoints, progress, &read_seconds, &resumed_rows);
+    // Rank 0 decides (and may clear an earlier run's checkpoints); the others follow.
+    std::vector<double> decided = {double(ranks.root() ? checkpoints->band_rows(rows) : 0)};
+    ranks.broadcast(decided);
+    rows = int(decided[0]);
+    maps = fit_in_bands(stream, rows, fit, *checkpoints, ranks, progress, times);
   } else {
     capture::ReflectanceField whole;
     stream.read_rows(0, field.height(), whole);
@@ -201,9 +142,11 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
                         field.height(),
                         fit.noise_source,
                         fit.normals.noise,
-                        seconds_since(start) - read_seconds,
+                        seconds_since(start) - times.read_seconds,
                         rows};
-  summary.resumed_rows = resumed_rows;
+  summary.resumed_rows = times.resumed_rows;
+  summary.ranks = ranks.size();
+  if (!ranks.root()) return summary;  // Rank 0 writes the maps.
   relight::write_model_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
   if (checkpoints) checkpoints->remove();
   return summary;

@@ -35,6 +35,7 @@ struct FitJobSummary {
   double seconds = 0.0;  // Normals and fits.
   int band_rows = 0;     // Rows of a band (the height: the whole field at once).
   int resumed_rows = 0;  // Rows whose fits an earlier, killed run had finished (BandCheckpoints).
+  int ranks = 1;         // Processes the bands were split over (MPI); rank 0 wrote the maps.
 };
 
 struct TemporalFitJobSummary {

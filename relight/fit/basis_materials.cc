@@ -385,7 +385,8 @@ bool same_shape(const Material& a, const Material& b) {
          close(a.roughness, b.roughness);
 }
 
-// Sets every material's scene_material from the material channel; returns their number.
+}  // namespace
+
 int group_scene_materials(const Image& image, std::vector<Material>& materials) {
   const size_t n = materials.size();
   std::vector<std::vector<long>> shared(n, std::vector<long>(n, 0));
@@ -432,6 +433,8 @@ int group_scene_materials(const Image& image, std::vector<Material>& materials) 
   }
   return scene_materials;
 }
+
+namespace {
 
 // Step 4 over one band: each pixel's blend of materials written into maps (rows of the frame),
 // the summary's counts and the materials' pixels updated under `mutex`.
@@ -494,13 +497,14 @@ void assign_band(const capture::ReflectanceField& band, const PixelGatherer& gat
 
 }  // namespace
 
-void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,
-                         const NormalMap& normals, const FitOptions& options, ModelMaps& maps) {
-  Image& image = maps.maps;
+BasisMaterials find_basis_materials(const capture::ReflectanceField& header,
+                                    const FieldBands& bands, const ModelMaps& maps,
+                                    const FitOptions& options) {
+  const Image& image = maps.maps;
   const int width = image.width;
   const Segments segments = over_segment(maps, options.max_materials);
   const std::vector<std::vector<int>>& clusters = segments.clusters;
-  if (clusters.empty()) return;
+  if (clusters.empty()) return {};
   const PixelGatherer gather(header, options);
   // Each cluster's pool: up to kPoolPixels of its pixels, evenly spread; each pool pixel stands
   // for `stride` of them.
@@ -540,18 +544,30 @@ void fit_basis_materials(const capture::ReflectanceField& header, const FieldBan
   });
   double residuals = 0, pixels = 0;
   for (const PoolPixel& p : pool) residuals += p.scale * 3 * p.terms.count(), pixels += p.scale;
-  const std::vector<Material> materials =
-      merge_materials(pool, std::move(pooled), options, std::log(std::max(residuals / pixels, 2.0)),
-                      segments.dispersion);
-  pool.clear();
-  maps.materials = materials;
+  return {merge_materials(pool, std::move(pooled), options,
+                          std::log(std::max(residuals / pixels, 2.0)), segments.dispersion),
+          segments.dispersion};
+}
 
+void assign_basis_materials(const capture::ReflectanceField& header,
+                            const capture::ReflectanceField& band, const NormalMap& normals,
+                            const BasisMaterials& basis, const FitOptions& options,
+                            ModelMaps& maps) {
   std::mutex mutex;
-  maps.summary.materials = int(materials.size());
+  assign_band(band, PixelGatherer(header, options), normals, basis.materials, basis.dispersion,
+              options, maps, mutex);
+}
+
+void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,
+                         const NormalMap& normals, const FitOptions& options, ModelMaps& maps) {
+  const BasisMaterials basis = find_basis_materials(header, bands, maps, options);
+  if (basis.materials.empty()) return;
+  maps.materials = basis.materials;
+  maps.summary.materials = int(basis.materials.size());
   bands([&](const capture::ReflectanceField& band) {
-    assign_band(band, gather, normals, materials, segments.dispersion, options, maps, mutex);
+    assign_basis_materials(header, band, normals, basis, options, maps);
   });
-  maps.summary.scene_materials = group_scene_materials(image, maps.materials);
+  maps.summary.scene_materials = group_scene_materials(maps.maps, maps.materials);
 }
 
 void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap& normals,

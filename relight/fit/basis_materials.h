@@ -31,6 +31,7 @@
 //     an albedo texture (Material::scene_material); edits by material select all of it.
 // Samples, weights and conventions as in relight/fit/fit.h.
 #include <functional>
+#include <vector>
 
 #include "capture/field.h"
 #include "relight/fit/fit.h"
@@ -51,5 +52,24 @@ using capture::BandVisitor;
 using capture::FieldBands;
 void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,
                          const NormalMap& normals, const FitOptions& options, ModelMaps& maps);
+
+// The steps apart, for a fit whose bands are assigned by several processes (lightstage fit under
+// MPI): steps 1-3 from the whole per-pixel maps and one pass of `bands` (find_basis_materials),
+// step 4 per band (assign_basis_materials), step 5 (group_scene_materials).
+struct BasisMaterials {
+  std::vector<Material> materials;  // Empty: no pixel fit well enough to form one.
+  double dispersion = 0;            // The scene's median reduced chi^2 (the BIC's scale).
+};
+BasisMaterials find_basis_materials(const capture::ReflectanceField& header,
+                                    const FieldBands& bands, const ModelMaps& maps,
+                                    const FitOptions& options);
+// Rewrites the band's rows of maps.maps with their blends of `basis`; adds the band's changes to
+// maps.summary's counts and to maps.materials' pixels (maps.materials: basis.materials).
+void assign_basis_materials(const capture::ReflectanceField& header,
+                            const capture::ReflectanceField& band, const NormalMap& normals,
+                            const BasisMaterials& basis, const FitOptions& options,
+                            ModelMaps& maps);
+// Sets every material's scene_material from the maps' material channel; returns their number.
+int group_scene_materials(const Image& maps, std::vector<Material>& materials);
 
 }  // namespace ls::relight

@@ -1,0 +1,96 @@
+// `lightstage fit` under MPI (issue 14): `mpirun -n 2` splits the bands over two ranks and writes
+// the bytes of a one-process fit (but for the time in its header). Runs where CMake found MPI (CI
+// installs it); skipped with a message elsewhere.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <iostream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+#include "lightstage/stage.h"
+#include "sim/noisy_field.h"
+#include "sim/scene.h"
+#include "tests/support/test_support.h"
+
+namespace ls {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Two ranks on this machine, talking through shared memory and loopback only (no traffic leaves
+// it); as root, Open MPI wants its two confirmations.
+std::string mpirun_two() {
+  return "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 " LIGHTSTAGE_MPIEXEC
+         " -n 2 --oversubscribe --bind-to none --mca btl self,vader --mca oob_tcp_if_include lo ";
+}
+
+// The file's bytes with the time it was written (OpenEXR's capDate attribute) blanked.
+std::string bytes_but_time(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  const std::string name("capDate\0string\0", 15);  // Then its size (4 bytes) and value.
+  const size_t at = bytes.find(name);
+  if (at != std::string::npos) {
+    const size_t value = at + name.size() + 4;  // "YYYY:MM:DD HH:MM:SS"
+    for (size_t i = value; i < value + 19 && i < bytes.size(); ++i) bytes[i] = '#';
+  }
+  return bytes;
+}
+
+int run(const std::string& command, std::string* out) {
+  const int code = testing::run_command(command, out);
+  if (code != 0) std::cout << command << "\n" << *out << "\n";  // Why it failed.
+  return code;
+}
+
+fs::path write_test_field(const fs::path& dir) {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(60, -11.5));
+  stage.camera.width = 48;
+  stage.camera.height = 40;
+  capture::FieldNoise noise;
+  noise.read_variance = 1e-6;
+  noise.shot_variance_per_unit = 1e-4;
+  capture::write_field(dir / "field.exr",
+                       sim::render_noisy_field(stage, sim::default_scene(), noise, 5));
+  return dir / "field.exr";
+}
+
+TEST(MpiFit, TwoRanksWriteTheBytesOfOneProcess) {
+  if (std::string(LIGHTSTAGE_MPIEXEC).empty()) {
+    GTEST_SKIP() << "built without MPI (install libopenmpi-dev and openmpi-bin: scripts/setup.sh)";
+  }
+  const testing::TempDir dir;
+  const fs::path field = write_test_field(dir.path());
+  const std::string cli = testing::cli_path().string();
+  for (const std::string materials : {"basis", "per-pixel"}) {
+    const std::string fit = " fit '" + field.string() + "' --materials " + materials + " --out ";
+    std::string one_out, two_out;
+    ASSERT_EQ(run(cli + fit + "'" + (dir / "one.exr").string() + "'", &one_out), 0);
+    ASSERT_EQ(run(mpirun_two() + cli + fit + "'" + (dir / "two.exr").string() + "'", &two_out), 0);
+    EXPECT_NE(two_out.find("split over 2 MPI ranks"), std::string::npos) << two_out;
+    const std::string one = bytes_but_time(dir / "one.exr");
+    EXPECT_GT(one.size(), 48u * 40 * 4);
+    EXPECT_TRUE(one == bytes_but_time(dir / "two.exr")) << materials;
+    EXPECT_FALSE(fs::exists(dir / "two.exr.partial")) << "the checkpoints are removed";
+  }
+}
+
+// Any other command would run once per rank, each writing the same outputs: refused, on every rank.
+TEST(MpiFit, OtherCommandsAreRefusedUnderMpi) {
+  if (std::string(LIGHTSTAGE_MPIEXEC).empty()) GTEST_SKIP() << "built without MPI";
+  const testing::TempDir dir;
+  const fs::path field = write_test_field(dir.path());
+  std::string out;
+  EXPECT_NE(testing::run_command(mpirun_two() + testing::cli_path().string() + " relight '" +
+                                     field.string() + "' --out '" + (dir / "relit").string() + "'",
+                                 &out),
+            0);
+  EXPECT_NE(out.find("only 'lightstage fit' splits its work"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(dir / "relit"));
+}
+
+}  // namespace
+}  // namespace ls
