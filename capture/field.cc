@@ -15,6 +15,7 @@
 #include <sstream>
 #include <unordered_map>
 
+#include "capture/exr_band_reader.h"
 #include "lightstage/errors.h"
 #include "lightstage/memory.h"
 
@@ -166,12 +167,11 @@ OIIO::ImageSpec field_spec(const std::string& name, const ReflectanceField& fiel
     spec.attribute(kViewAttribute, view.dump());
   }
   for (const auto& [key, value] : attributes) spec.attribute(key, value);
-  // RLE: lossless, and the fastest to write and read of the compressed modes. Measured on the demo
-  // field (256x256, 151 LEDs, 119 MB; best of 3 on a shared 2-core machine), write / read MB/s and
-  // file size: none 1000 / 377 / 119 MB, rle 651 / 340 / 92 MB, piz 191 / 142 / 77 MB,
-  // zip 81 / 166 / 74 MB. Fields are read far more often than written (relighting, fitting,
-  // viewer); RLE keeps most of the saving (zeros of invalid LEDs and background) at near raw speed.
-  spec.attribute("compression", "rle");
+  // Uncompressed: ExrBandReader reads its rows as raw bytes, without OpenEXR's conversion value by
+  // value. Relighting the 512x512 sim field (151 LEDs, 475 MB): 1034 MiB/s of file uncompressed
+  // against 338 MiB/s with RLE, which saves nothing on noisy values (the demo field, with invalid
+  // LEDs and a black background: 92 against 119 MB). Older RLE fields still read, more slowly.
+  spec.attribute("compression", "none");
   if (tile_size > 0) {
     spec.tile_width = spec.tile_height = tile_size;
     spec.tile_depth = 1;
@@ -411,9 +411,7 @@ void copy_attributes(const ReflectanceField& from, ReflectanceField& to) {
 struct FieldStream::File {
   std::string name;
   std::unique_ptr<OIIO::ImageInput> in;
-  std::vector<int> file_to_layout;
-  bool identity = true;     // The file's channels are in the field's order.
-  std::vector<float> band;  // The file's order, permuted into the field's.
+  std::unique_ptr<ExrBandReader> pixels;  // OIIO reads the header; OpenEXR the pixels, faster.
 };
 
 FieldStream::FieldStream(const std::filesystem::path& path) : file_(std::make_unique<File>()) {
@@ -428,10 +426,8 @@ FieldStream::FieldStream(const std::filesystem::path& path) : file_(std::make_un
                      std::string(kLightsAttribute) + "'");
   }
   std::vector<FieldLight> lights = parse_lights(f.name, lights_param->get_string());
-  f.file_to_layout = channel_layout(f.name, spec, lights);
-  for (size_t i = 0; i < f.file_to_layout.size(); ++i) {
-    f.identity = f.identity && f.file_to_layout[i] == int(i);
-  }
+  f.pixels = std::make_unique<ExrBandReader>(path, spec.channelnames,
+                                             channel_layout(f.name, spec, lights));
   header_ = ReflectanceField::without_values(spec.width, spec.height, std::move(lights));
   header_.source = f.name;
   read_field_attributes(f.name, spec, header_);
@@ -442,9 +438,10 @@ FieldStream::~FieldStream() = default;
 int FieldStream::rows_within(std::size_t bytes) const {
   const OIIO::ImageSpec& spec = file_->in->spec();
   const std::size_t row_bytes = std::size_t(width()) * spec.nchannels * sizeof(float);
-  const std::size_t per_row = row_bytes * (file_->identity ? 1 : 2);
-  int rows =
-      int(std::min<std::size_t>(std::size_t(height()), std::max<std::size_t>(1, bytes / per_row)));
+  // The band and the reader's buffer (a quarter of it at most: ExrBandReader).
+  const std::size_t band_bytes = bytes / 5 * 4;
+  int rows = int(std::min<std::size_t>(std::size_t(height()),
+                                       std::max<std::size_t>(1, band_bytes / row_bytes)));
   if (spec.tile_height > 0)
     rows = std::max(spec.tile_height, rows / spec.tile_height * spec.tile_height);
   return std::min(rows, height());
@@ -470,42 +467,7 @@ FieldBands FieldStream::bands(int rows) {
   };
 }
 
-void FieldStream::read_rows_into(int y0, int y1, float* dst) {
-  File& f = *file_;
-  const OIIO::ImageSpec& spec = f.in->spec();
-  const int num_channels = spec.nchannels;
-  const std::size_t values = std::size_t(y1 - y0) * width() * num_channels;
-  float* read_to = dst;
-  if (!f.identity) {
-    f.band.resize(values);
-    read_to = f.band.data();
-  }
-  // Tiled files by whole tiles (the band's rows start on a tile row: rows_within), which OIIO's
-  // read_scanlines does not do for them.
-  const bool read =
-      spec.tile_width > 0
-          ? f.in->read_tiles(0, 0, spec.x, spec.x + spec.width, y0 + spec.y, y1 + spec.y, 0, 1, 0,
-                             num_channels, OIIO::TypeDesc::FLOAT, read_to)
-          : f.in->read_scanlines(0, 0, y0 + spec.y, y1 + spec.y, 0, 0, num_channels,
-                                 OIIO::TypeDesc::FLOAT, read_to);
-  if (!read) {
-    throw InputError(f.name + ": reading pixels failed (rows " + std::to_string(y0) + ".." +
-                     std::to_string(y1 - 1) + "): " + f.in->geterror());
-  }
-  std::atomic<bool> non_finite{false};
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values / num_channels), [&](const auto& r) {
-    for (std::size_t p = r.begin(); p < r.end(); ++p) {
-      const float* src = read_to + p * num_channels;
-      for (int i = 0; i < num_channels; ++i) {
-        if (!std::isfinite(src[i])) non_finite = true;
-      }
-      if (f.identity) continue;
-      float* out = dst + p * num_channels;
-      for (int i = 0; i < num_channels; ++i) out[f.file_to_layout[i]] = src[i];
-    }
-  });
-  if (non_finite) throw InputError(f.name + ": the reflectance field holds non-finite values");
-}
+void FieldStream::read_rows_into(int y0, int y1, float* dst) { file_->pixels->read(y0, y1, dst); }
 
 void FieldStream::read_rows(int y0, int y1, ReflectanceField& band) {
   LS_CHECK(0 <= y0 && y0 < y1 && y1 <= height(), "rows out of the field");

@@ -224,8 +224,8 @@ class FieldStream {
   int height() const { return header_.height(); }
   // The file's lights, noise, time and view, with no pixels.
   const ReflectanceField& header() const { return header_; }
-  // The rows of a band that fits in `bytes` (the band and the read buffer), at least one tile
-  // row (tiled files) or one row, whole tiles where the file is tiled.
+  // The rows of a band that fits in `bytes` (reading adds a buffer of about 8 MiB), at least one
+  // tile row (tiled files) or one row, whole tiles where the file is tiled.
   int rows_within(std::size_t bytes) const;
   // Bands start on multiples of this (the file's tile height; 1 for scanline files).
   int row_alignment() const;

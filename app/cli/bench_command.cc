@@ -9,12 +9,14 @@
 #include <cstdio>
 #include <memory>
 #include <optional>
+#include <string>
 
 #include "app/cli/commands.h"
 #include "evaluation/compact_bench.h"
 #include "evaluation/fit_bench.h"
 #include "evaluation/fit_sweeps_bench.h"
 #include "evaluation/led_bench.h"
+#include "evaluation/scale_bench.h"
 #include "evaluation/temporal_bench.h"
 
 namespace ls::cli {
@@ -216,6 +218,59 @@ void add_compact(CLI::App& bench) {
   });
 }
 
+void print_scale(const evaluation::ScaleBenchSummary& summary, std::size_t budget) {
+  std::printf("medians; every step's --memory %zu MiB\n", budget >> 20);
+  std::printf("%-6s %-5s %-16s %10s %10s %10s %12s\n", "size", "LEDs", "step", "seconds",
+              "peak MiB", "field MiB", "per unit");
+  for (const evaluation::ScaleBenchRow& r : summary.rows) {
+    std::printf("%-6d %-5d %-16s %10.2f %10.1f %10.1f %12.4g %s\n", r.size, r.leds, r.step.c_str(),
+                r.seconds, r.peak_mib, r.field_mib, r.per_unit, r.unit.c_str());
+  }
+  const evaluation::ScaleMpiModel& m = summary.mpi;
+  if (m.ranks.empty()) {
+    if (!summary.mpi_note.empty()) std::printf("MPI not measured: %s\n", summary.mpi_note.c_str());
+  } else {
+    std::printf(
+        "fit under MPI (one core a rank): 1 rank %.2f s, 2 ranks %.2f s (%.2fx); model "
+        "%.2f s serial + %.2f s parallel, I/O floor %.2f s:",
+        m.one_rank_s, m.two_ranks_s, m.one_rank_s / m.two_ranks_s, m.serial_s, m.parallel_s,
+        m.io_floor_s);
+    for (size_t i = 0; i < m.ranks.size(); ++i)
+      std::printf(" %d: %.2f s", m.ranks[i], m.model_s[i]);
+    std::printf("\n");
+  }
+  std::fprintf(stderr, "wrote %s and scale_*.png\n", summary.csv.c_str());
+}
+
+void add_scale(CLI::App& bench) {
+  auto args = std::make_shared<evaluation::ScaleBenchOptions>();
+  auto* cmd = bench.add_subcommand(
+      "scale",
+      "Each step (capture, build, relight, fit, compress) on the built-in dome at growing "
+      "camera sizes, as separate lightstage processes within --memory: median time, peak "
+      "resident memory against the budget, relighting against reading the field from the page "
+      "cache and from disk; fit under MPI with 1 and 2 ranks and a model to 64. The capture is "
+      "the simulated stage's, every shadow ray traced (not repeated). CSV + charts.");
+  cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
+  cmd->add_option("--sizes", args->sizes, "Camera widths (= heights).")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--runs", args->runs, "Runs of each step (medians reported).")
+      ->capture_default_str();
+  cmd->add_option("--memory", args->memory_bytes, "Bytes: every step's --memory.")
+      ->capture_default_str();
+  cmd->add_option("--fit-max-size", args->fit_max_size,
+                  "Larger sizes are not fitted (the maps, 25 floats a pixel, are held whole).")
+      ->capture_default_str();
+  cmd->add_flag("!--no-mpi", args->mpi, "Skip the MPI fits.");
+  cmd->add_flag("--keep", args->keep, "Keep each size's session and field.");
+  cmd->callback([args] {
+    args->executable = fs::read_symlink("/proc/self/exe");
+    args->env_map = data_dir() / "envmaps/sky_sun.exr";
+    print_scale(evaluation::run_scale_bench(*args, progress_printer(false)), args->memory_bytes);
+  });
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
@@ -227,6 +282,7 @@ void add_bench_command(CLI::App& app) {
   add_fit(*bench);
   add_temporal(*bench);
   add_compact(*bench);
+  add_scale(*bench);
 }
 
 }  // namespace ls::cli

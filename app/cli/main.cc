@@ -77,8 +77,14 @@ int main(int argc, char** argv) {
     // One rank's error ends them all: the others may be waiting for it.
     if (code != 0) ls::jobs::Ranks::world().abort(code);
     return code;
-  } catch (const ls::InputError& e) {
+  } catch (const ls::InputError& e) {  // Started by mpirun, built without MPI.
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;
+  } catch (const std::exception& e) {  // Not one of ours: said, not a core dump.
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return ls::cli::kExitInputError;
+  } catch (...) {
+    std::fprintf(stderr, "error: unknown exception\n");
+    return ls::cli::kExitInputError;
   }
 }

@@ -25,6 +25,10 @@ jobs::RelightSummary relight_and_report(const jobs::RelightOptions& options, boo
   }
   std::printf("%zu images in %s; peak memory %.1f MiB\n", summary.images.size(),
               options.out_dir.c_str(), double(peak_resident_bytes()) / (1 << 20));
+  if (summary.field_pass_s > 0) {
+    std::printf("field read and relit in %.3f s (%.0f MiB/s of its file)\n", summary.field_pass_s,
+                summary.field_file_bytes / (1 << 20) / summary.field_pass_s);
+  }
   if (!options.temporal_file.empty()) {
     const int extrapolated = summary.extrapolated_pixels;
     std::printf("t = %.1f s (captured %.1f .. %.1f s)%s\n", *options.time_s, summary.first_time_s,

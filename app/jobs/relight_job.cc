@@ -185,6 +185,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   const int rows = stream.band_rows(options.memory_bytes);
   capture::ReflectanceField band;
   Image band_relit;
+  const auto pass_start = Clock::now();
   for (int y0 = 0; y0 < header.height(); y0 += rows) {
     const int y1 = std::min(header.height(), y0 + rows);
     stream.read_rows(y0, y1, band);
@@ -197,6 +198,8 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
     }
     if (y1 < header.height()) report(progress, "relight (rows)", y1, header.height());
   }
+  summary.field_pass_s = ms_between(pass_start, Clock::now()) / 1e3;
+  summary.field_file_bytes = double(fs::file_size(options.field_file));
   RelitWriter writer(options, summary);
   long done = 0;
   for (Output& out : outputs) {

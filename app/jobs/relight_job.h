@@ -47,6 +47,10 @@ struct RelightSummary {
   // Temporal: the captured span and how many varying pixels were extrapolated beyond it.
   double first_time_s = 0.0, last_time_s = 0.0;
   int extrapolated_pixels = 0;
+  // Relighting a field: the pass over it (reading its bands and relighting them under every map),
+  // without the light weights and the writing; and the field file's bytes.
+  double field_pass_s = 0.0;
+  double field_file_bytes = 0.0;
 };
 
 // Throws InputError for bad options (validate()) or inputs, before out_dir is written.

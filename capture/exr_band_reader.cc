@@ -1,0 +1,165 @@
+#include "capture/exr_band_reader.h"
+
+#include <ImfChannelList.h>
+#include <ImfCompression.h>
+#include <ImfFrameBuffer.h>
+#include <ImfHeader.h>
+#include <ImfInputFile.h>
+#include <ImfTiledInputFile.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstdint>
+#include <exception>
+#include <unordered_map>
+
+#include "lightstage/errors.h"
+
+namespace ls::capture {
+
+struct ExrBandReader::File {
+  std::string name;
+  std::unique_ptr<Imf::InputFile> in;
+  // Tiled files by whole rows of tiles, straight into the buffer (InputFile would go through a
+  // cache of one row of tiles: as much memory again).
+  std::unique_ptr<Imf::TiledInputFile> tiled;
+  std::vector<std::string>
+      channels;                     // In the file's order (sorted by name, as OpenEXR keeps them).
+  std::vector<int> to_pixel_index;  // Of each channel, in that order.
+  int width = 0, min_x = 0, min_y = 0;
+  // Uncompressed scanlines of float channels hold, per row, each channel's row in turn: read as
+  // they are, without OpenEXR's per-value conversion.
+  bool raw = false;
+  int step = 1;               // Tile height (1: scanlines).
+  int piece_rows = 1;         // Rows read at a time (whole tiles where the file is tiled).
+  std::vector<float> planar;  // One piece: [row][channel][x], as an uncompressed file holds it.
+};
+
+ExrBandReader::ExrBandReader(const std::filesystem::path& path,
+                             const std::vector<std::string>& channels,
+                             const std::vector<int>& to_pixel_index)
+    : file_(std::make_unique<File>()) {
+  File& f = *file_;
+  f.name = path.string();
+  try {
+    f.in = std::make_unique<Imf::InputFile>(f.name.c_str());
+  } catch (const std::exception& e) {
+    throw InputError(f.name + ": cannot read reflectance field: " + e.what());
+  }
+  const Imf::Header& header = f.in->header();
+  std::unordered_map<std::string, int> index;
+  for (size_t i = 0; i < channels.size(); ++i) index[channels[i]] = to_pixel_index[i];
+  bool all_float = true;
+  std::size_t file_channels = 0;
+  for (auto c = header.channels().begin(); c != header.channels().end(); ++c) {
+    ++file_channels;
+    const auto found = index.find(c.name());
+    if (found == index.end()) continue;  // Not the field's (channel_layout checked what is).
+    f.channels.emplace_back(c.name());
+    f.to_pixel_index.push_back(found->second);
+    all_float = all_float && c.channel().type == Imf::FLOAT && c.channel().xSampling == 1 &&
+                c.channel().ySampling == 1;
+  }
+  if (f.channels.size() != channels.size()) {
+    throw InputError(f.name +
+                     ": channels: OpenEXR and OpenImageIO disagree on the field's channels");
+  }
+  const Imath::Box2i window = header.dataWindow();
+  f.width = window.max.x - window.min.x + 1;
+  f.min_x = window.min.x;
+  f.min_y = window.min.y;
+  f.raw = all_float && f.channels.size() == file_channels &&
+          header.compression() == Imf::NO_COMPRESSION && !header.hasTileDescription();
+  constexpr std::size_t kPieceBytes = std::size_t(8) << 20;
+  const std::size_t row_bytes = std::size_t(f.width) * f.channels.size() * sizeof(float);
+  if (header.hasTileDescription()) {
+    f.step = int(header.tileDescription().ySize);
+    try {
+      f.tiled = std::make_unique<Imf::TiledInputFile>(f.name.c_str());
+    } catch (const std::exception& e) {
+      throw InputError(f.name + ": cannot read reflectance field: " + e.what());
+    }
+  }
+  f.piece_rows = std::max(f.step, int(kPieceBytes / row_bytes) / f.step * f.step);
+}
+
+ExrBandReader::~ExrBandReader() = default;
+
+void ExrBandReader::read(int y0, int y1, float* dst) {
+  File& f = *file_;
+  const int num_channels = int(f.channels.size());
+  const std::size_t width = std::size_t(f.width);
+  const std::size_t row_values = width * num_channels;
+  std::atomic<bool> non_finite{false};
+  // At most a quarter of the band at a time (FieldStream::rows_within counts on it).
+  const int piece_rows = std::max(f.step, std::min(f.piece_rows, (y1 - y0) / 4 / f.step * f.step));
+  for (int a = y0; a < y1; a += piece_rows) {
+    const int b = std::min(y1, a + piece_rows);
+    f.planar.resize(std::size_t(b - a) * row_values);
+    try {
+      if (f.raw) {
+        for (int y = a; y < b; ++y) {
+          int bytes = int(row_values * sizeof(float));
+          char* row = reinterpret_cast<char*>(f.planar.data() + std::size_t(y - a) * row_values);
+          f.in->rawPixelDataToBuffer(y + f.min_y, row, bytes);
+          if (std::size_t(bytes) != row_values * sizeof(float)) {
+            throw InputError(f.name + ": row " + std::to_string(y) + " holds " +
+                             std::to_string(bytes) + " bytes, expected " +
+                             std::to_string(row_values * sizeof(float)));
+          }
+        }
+      } else {
+        // OpenEXR addresses pixel (x, y) of the data window at base + x * xStride + y * yStride:
+        // each channel's base offset back to the window's origin.
+        Imf::FrameBuffer frame;
+        const std::ptrdiff_t origin =
+            std::ptrdiff_t(f.min_x * sizeof(float)) +
+            std::ptrdiff_t(a + f.min_y) * std::ptrdiff_t(row_values * sizeof(float));
+        for (int c = 0; c < num_channels; ++c) {
+          const auto base = std::intptr_t(f.planar.data() + std::size_t(c) * width) - origin;
+          frame.insert(f.channels[size_t(c)],
+                       Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(base), sizeof(float),
+                                  row_values * sizeof(float)));
+        }
+        if (f.tiled) {
+          f.tiled->setFrameBuffer(frame);
+          f.tiled->readTiles(0, f.tiled->numXTiles(0) - 1, a / f.step, (b - 1) / f.step);
+        } else {
+          f.in->setFrameBuffer(frame);
+          f.in->readPixels(a + f.min_y, b - 1 + f.min_y);
+        }
+      }
+    } catch (const std::exception& e) {
+      if (dynamic_cast<const InputError*>(&e)) throw;
+      throw InputError(f.name + ": reading pixels failed (rows " + std::to_string(a) + ".." +
+                       std::to_string(b - 1) + "): " + e.what());
+    }
+    // [row][channel][x] to pixel-major, a block of pixels of one row at a time (it stays in cache
+    // across the channels).
+    float* out = dst + std::size_t(a - y0) * row_values;
+    constexpr std::size_t kBlock = 64;
+    const std::size_t blocks_per_row = (width + kBlock - 1) / kBlock;
+    tbb::parallel_for(std::size_t(0), std::size_t(b - a) * blocks_per_row, [&](std::size_t k) {
+      const std::size_t row = k / blocks_per_row, x0 = (k % blocks_per_row) * kBlock;
+      const std::size_t x1 = std::min(width, x0 + kBlock);
+      const float* in_row = f.planar.data() + row * row_values;
+      float* out_row = out + row * row_values;
+      int not_finite = 0;
+      for (int c = 0; c < num_channels; ++c) {
+        const float* plane = in_row + std::size_t(c) * width;
+        float* to = out_row + f.to_pixel_index[size_t(c)];
+        for (std::size_t x = x0; x < x1; ++x) {
+          not_finite |= int(!std::isfinite(plane[x]));
+          to[x * num_channels] = plane[x];
+        }
+      }
+      if (not_finite != 0) non_finite = true;
+    });
+  }
+  if (non_finite) throw InputError(f.name + ": the reflectance field holds non-finite values");
+}
+
+}  // namespace ls::capture

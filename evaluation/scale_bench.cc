@@ -1,0 +1,322 @@
+#include "evaluation/scale_bench.h"
+
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <map>
+
+#include "evaluation/chart.h"
+#include "lightstage/errors.h"
+#include "lightstage/stage.h"
+
+namespace ls::evaluation {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+struct Measured {
+  double seconds = 0;
+  double peak_mib = 0;  // The process's own peak resident memory (wait4's ru_maxrss).
+  std::string output;   // What it printed.
+};
+
+// Runs `argv` (argv[0] looked up on PATH when it has no '/'), its output written to `log`;
+// InputError naming the step and the log when it fails.
+Measured run_process(const std::vector<std::string>& argv, const fs::path& log) {
+  std::vector<char*> args;
+  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  const std::string log_name = log.string();
+  const auto t0 = Clock::now();
+  const pid_t pid = fork();
+  if (pid < 0) throw InputError("bench scale: cannot start " + argv[0]);
+  if (pid == 0) {  // Only async-signal-safe calls until exec.
+    const int fd = open(log_name.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    if (fd >= 0) dup2(fd, 1), dup2(fd, 2);
+    execvp(args[0], args.data());
+    _exit(127);
+  }
+  int status = 0;
+  rusage usage{};
+  wait4(pid, &status, 0, &usage);
+  Measured m{seconds_since(t0), double(usage.ru_maxrss) / 1024.0, {}};
+  std::ifstream printed(log);
+  m.output.assign(std::istreambuf_iterator<char>(printed), std::istreambuf_iterator<char>());
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    std::string command;
+    for (const std::string& a : argv) command += a + " ";
+    throw InputError("bench scale: '" + command + "' failed (exit " +
+                     std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + "): see " +
+                     log_name);
+  }
+  return m;
+}
+
+// Drops the file's pages from this machine's page cache (written back first), so that the next
+// read comes from the disk (or the VM host's cache, which this cannot reach).
+void evict(const fs::path& file) {
+  const int fd = open(file.c_str(), O_RDONLY);
+  if (fd < 0) return;
+  fdatasync(fd);
+  posix_fadvise(fd, 0, 0, POSIX_FADV_DONTNEED);
+  close(fd);
+}
+
+// Seconds to read the whole file in 8 MiB chunks.
+double read_seconds(const fs::path& file) {
+  std::vector<char> buffer(size_t(8) << 20);
+  const auto t0 = Clock::now();
+  const int fd = open(file.c_str(), O_RDONLY);
+  if (fd < 0) throw InputError(file.string() + ": cannot open to time its reading");
+  while (read(fd, buffer.data(), buffer.size()) > 0) {
+  }
+  close(fd);
+  return seconds_since(t0);
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+bool on_path(const std::string& program) {
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "";
+  for (size_t start = 0; start <= dirs.size();) {
+    const size_t end = std::min(dirs.find(':', start), dirs.size());
+    if (end > start &&
+        access((dirs.substr(start, end - start) + "/" + program).c_str(), X_OK) == 0) {
+      return true;
+    }
+    start = end + 1;
+  }
+  return false;
+}
+
+// The steps' measurements over the runs, by step name.
+struct Samples {
+  std::map<std::string, std::vector<double>> seconds, peak_mib;
+  const std::string& add(const std::string& step, const Measured& m) {
+    seconds[step].push_back(m.seconds);
+    peak_mib[step].push_back(m.peak_mib);
+    return m.output;
+  }
+};
+
+ScaleMpiModel mpi_model(double one_rank_s, double two_ranks_s, double io_floor_s) {
+  ScaleMpiModel model;
+  model.one_rank_s = one_rank_s;
+  model.two_ranks_s = two_ranks_s;
+  // T(1) = s + p, T(2) = s + p/2.
+  model.serial_s = std::clamp(2 * two_ranks_s - one_rank_s, 0.0, one_rank_s);
+  model.parallel_s = one_rank_s - model.serial_s;
+  model.io_floor_s = io_floor_s;
+  for (int n = 1; n <= 64; n *= 2) {
+    model.ranks.push_back(n);
+    model.model_s.push_back(std::max(model.serial_s + model.parallel_s / n, io_floor_s));
+  }
+  return model;
+}
+
+void write_scale_charts(const fs::path& out, const ScaleBenchSummary& summary, double budget_mib) {
+  const auto series_of = [&](const std::string& step, auto value) {
+    ChartSeries series{step, {}, {}, {}, true};
+    for (const ScaleBenchRow& r : summary.rows) {
+      if (r.step != step) continue;
+      series.x.push_back(double(r.size) * r.size / 1e6);
+      series.y.push_back(value(r));
+    }
+    return series;
+  };
+  std::vector<ChartSeries> memory, speed;
+  for (const char* step : {"build", "relight (disk)", "fit", "compress hsh3"}) {
+    memory.push_back(series_of(step, [](const ScaleBenchRow& r) { return r.peak_mib; }));
+  }
+  ChartSeries budget = series_of("build", [&](const ScaleBenchRow&) { return budget_mib; });
+  budget.name = "--memory budget";
+  memory.push_back(budget);
+  ChartSeries field = series_of("build", [](const ScaleBenchRow& r) { return r.field_mib; });
+  field.name = "field file";
+  memory.push_back(field);
+  write_chart(out / "scale_peak_memory.png",
+              {"Peak resident memory of each step against the budget", "megapixels", "MiB", false},
+              memory);
+  for (const char* step : {"read (cache)", "read (disk)", "relight pass (cache)",
+                           "relight pass (disk)", "relight (disk)", "build", "compress hsh3"}) {
+    speed.push_back(
+        series_of(step, [](const ScaleBenchRow& r) { return r.field_mib / r.seconds; }));
+  }
+  write_chart(
+      out / "scale_throughput.png",
+      {"Field bytes through each step (relight: one image; pass: its reading and relighting)",
+       "megapixels", "field MiB/s", false},
+      speed);
+  const ScaleMpiModel& m = summary.mpi;
+  if (m.ranks.empty()) return;
+  ChartSeries measured{"measured", {1, 2}, {m.one_rank_s, m.two_ranks_s}, {}, true};
+  ChartSeries model{"model: serial + parallel / n, floored by I/O", {}, {}, {}, true};
+  ChartSeries floor{"I/O floor (3 passes from one store as fast as this disk)", {}, {}, {}, true};
+  for (size_t i = 0; i < m.ranks.size(); ++i) {
+    model.x.push_back(m.ranks[i]);
+    model.y.push_back(m.model_s[i]);
+    floor.x.push_back(m.ranks[i]);
+    floor.y.push_back(m.io_floor_s);
+  }
+  write_chart(
+      out / "scale_mpi_ranks.png",
+      {"lightstage fit under MPI: time against ranks (one core each)", "ranks", "seconds", true},
+      {measured, model, floor});
+}
+
+}  // namespace
+
+std::string ScaleBenchOptions::validate() const {
+  if (executable.empty() || !fs::exists(executable)) return "the lightstage executable is missing";
+  if (env_map.empty() || !fs::exists(env_map)) return "--env: the environment map is missing";
+  if (sizes.empty()) return "--sizes: give at least one size";
+  for (const int s : sizes) {
+    if (s < 16 || s > 16384) return "--sizes: each in [16, 16384], got " + std::to_string(s);
+  }
+  if (runs < 1) return "--runs: at least 1";
+  if (memory_bytes < (std::size_t(16) << 20)) return "--memory: at least 16 MiB";
+  return {};
+}
+
+ScaleBenchSummary run_scale_bench(const ScaleBenchOptions& options, const ProgressFn& progress) {
+  throw_if_invalid(options.validate());
+  fs::create_directories(options.out);
+  ScaleBenchSummary summary;
+  summary.csv = options.out / "scale.csv";
+  std::ofstream csv(summary.csv);
+  csv << "size,leds,step,run,seconds,peak_mib,field_mib,budget_mib\n";
+  const std::string exe = fs::absolute(options.executable).string();
+  const std::string budget = std::to_string(options.memory_bytes);
+  const double budget_mib = double(options.memory_bytes) / (1 << 20);
+  const bool mpi = options.mpi && on_path("mpiexec");
+  if (options.mpi && !mpi) summary.mpi_note = "mpiexec is not on PATH (install openmpi-bin)";
+  if (mpi && geteuid() == 0) {  // Open MPI refuses root without both.
+    setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 0);
+    setenv("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1", 0);
+  }
+  const int smallest = *std::min_element(options.sizes.begin(), options.sizes.end());
+  long done = 0;
+  const long total = long(options.sizes.size()) * (1 + options.runs) + (mpi ? options.runs : 0);
+  for (const int size : options.sizes) {
+    const fs::path dir = options.out / ("size" + std::to_string(size));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    const fs::path session = dir / "session", field = dir / "field.exr";
+    const auto log = [&](const std::string& step) { return dir / (step + ".log"); };
+    Stage stage = default_stage();
+    stage.camera.width = stage.camera.height = size;
+    std::ofstream(dir / "stage.json") << stage_to_json(stage);
+    const int leds = int(stage.leds.size());
+    const std::string label = std::to_string(size) + "²";
+    Samples samples;
+    samples.add("capture", run_process({exe, "capture", "--stage", (dir / "stage.json").string(),
+                                        "--out", session.string(), "--quiet"},
+                                       log("capture")));
+    report(progress, "bench scale", ++done, total, label + " captured");
+    const auto step = [&](const std::string& name, std::vector<std::string> args) {
+      args.insert(args.begin(), exe);
+      return samples.add(name, run_process(args, log(name)));
+    };
+    // Relighting's own pass over the field (reading and relighting, as it prints it), beside the
+    // process's time.
+    const auto relight_step = [&](const std::string& from, const std::vector<std::string>& args) {
+      const std::string printed = step("relight (" + from + ")", args);
+      const std::string key = "field read and relit in ";
+      const size_t at = printed.find(key);
+      if (at == std::string::npos) throw InputError("bench scale: relight did not print its pass");
+      samples.add("relight pass (" + from + ")",
+                  {std::stod(printed.substr(at + key.size())), 0, {}});
+    };
+    double field_mib = 0;
+    for (int run = 0; run < options.runs; ++run) {
+      fs::remove(field);
+      step("build",
+           {"build", session.string(), "--out", field.string(), "--memory", budget, "--quiet"});
+      field_mib = double(fs::file_size(field)) / (1 << 20);
+      read_seconds(field);
+      samples.add("read (cache)", {read_seconds(field), 0, {}});
+      evict(field);
+      samples.add("read (disk)", {read_seconds(field), 0, {}});
+      const std::vector<std::string> relight = {
+          "relight", field.string(),           "--env",    options.env_map.string(),
+          "--out",   (dir / "relit").string(), "--memory", budget,
+          "--quiet"};
+      evict(field);
+      relight_step("disk", relight);
+      read_seconds(field);
+      relight_step("cache", relight);
+      if (size <= options.fit_max_size) {
+        step("fit", {"fit", field.string(), "--out", (dir / "maps.exr").string(), "--memory",
+                     budget, "--quiet"});
+      }
+      step("compress hsh3", {"compress", field.string(), "--out", (dir / "field.rti").string(),
+                             "--format", "hsh3", "--memory", budget});
+      report(progress, "bench scale", ++done, total, label + " run " + std::to_string(run + 1));
+    }
+    if (mpi && size == smallest) {
+      for (int run = 0; run < options.runs; ++run) {
+        for (const int n : {1, 2}) {
+          samples.add("fit mpi " + std::to_string(n),
+                      run_process({"mpiexec", "-n", std::to_string(n), "--bind-to", "core", "--mca",
+                                   "btl", "self,vader", "--mca", "oob_tcp_if_include", "lo", exe,
+                                   "fit", field.string(), "--out", (dir / "maps_mpi.exr").string(),
+                                   "--memory", budget, "--quiet"},
+                                  log("fit mpi " + std::to_string(n))));
+        }
+        report(progress, "bench scale", ++done, total,
+               label + " MPI run " + std::to_string(run + 1));
+      }
+    }
+    const double pixels = double(size) * size;
+    for (const auto& [name, seconds] : samples.seconds) {
+      for (size_t r = 0; r < seconds.size(); ++r) {
+        csv << size << "," << leds << "," << name << "," << r << "," << seconds[r] << ","
+            << samples.peak_mib[name][r] << "," << field_mib << "," << budget_mib << "\n";
+      }
+      ScaleBenchRow row{size,     leds, name, median(seconds), median(samples.peak_mib[name]),
+                        field_mib};
+      if (name == "capture" || name == "build") {
+        row.per_unit = row.seconds / leds, row.unit = "s per LED";
+      } else if (name.rfind("relight pass", 0) == 0) {
+        row.per_unit = field_mib / row.seconds, row.unit = "field MiB/s";
+      } else if (name.rfind("relight", 0) == 0) {
+        row.per_unit = row.seconds, row.unit = "s per relit image";
+      } else if (name.rfind("fit", 0) == 0) {
+        row.per_unit = pixels / row.seconds, row.unit = "pixels/s";
+      } else {
+        row.per_unit = field_mib / row.seconds, row.unit = "field MiB/s";
+      }
+      summary.rows.push_back(row);
+    }
+    if (mpi && size == smallest) {
+      // Basis materials read the field three times (fits, pool, blends).
+      const double disk_mib_per_s = field_mib / median(samples.seconds["read (disk)"]);
+      summary.mpi = mpi_model(median(samples.seconds["fit mpi 1"]),
+                              median(samples.seconds["fit mpi 2"]), 3 * field_mib / disk_mib_per_s);
+    }
+    if (!options.keep) fs::remove_all(dir);
+  }
+  write_scale_charts(options.out, summary, budget_mib);
+  return summary;
+}
+
+}  // namespace ls::evaluation
