@@ -118,6 +118,31 @@ struct Samples {
   }
 };
 
+// One size's runs into the CSV, and their medians into `rows`.
+void record(int size, int leds, double field_mib, double budget_mib, Samples& samples,
+            std::ostream& csv, std::vector<ScaleBenchRow>& rows) {
+  const double pixels = double(size) * size;
+  for (const auto& [name, seconds] : samples.seconds) {
+    for (size_t r = 0; r < seconds.size(); ++r) {
+      csv << size << "," << leds << "," << name << "," << r << "," << seconds[r] << ","
+          << samples.peak_mib[name][r] << "," << field_mib << "," << budget_mib << "\n";
+    }
+    ScaleBenchRow row{size, leds, name, median(seconds), median(samples.peak_mib[name]), field_mib};
+    if (name == "capture" || name == "build") {
+      row.per_unit = row.seconds / leds, row.unit = "s per LED";
+    } else if (name.rfind("relight pass", 0) == 0) {
+      row.per_unit = field_mib / row.seconds, row.unit = "field MiB/s";
+    } else if (name.rfind("relight", 0) == 0) {
+      row.per_unit = row.seconds, row.unit = "s per relit image";
+    } else if (name.rfind("fit", 0) == 0) {
+      row.per_unit = pixels / row.seconds, row.unit = "pixels/s";
+    } else {
+      row.per_unit = field_mib / row.seconds, row.unit = "field MiB/s";
+    }
+    rows.push_back(row);
+  }
+}
+
 ScaleMpiModel mpi_model(double one_rank_s, double two_ranks_s, double io_floor_s) {
   ScaleMpiModel model;
   model.one_rank_s = one_rank_s;
@@ -286,27 +311,7 @@ ScaleBenchSummary run_scale_bench(const ScaleBenchOptions& options, const Progre
                label + " MPI run " + std::to_string(run + 1));
       }
     }
-    const double pixels = double(size) * size;
-    for (const auto& [name, seconds] : samples.seconds) {
-      for (size_t r = 0; r < seconds.size(); ++r) {
-        csv << size << "," << leds << "," << name << "," << r << "," << seconds[r] << ","
-            << samples.peak_mib[name][r] << "," << field_mib << "," << budget_mib << "\n";
-      }
-      ScaleBenchRow row{size,     leds, name, median(seconds), median(samples.peak_mib[name]),
-                        field_mib};
-      if (name == "capture" || name == "build") {
-        row.per_unit = row.seconds / leds, row.unit = "s per LED";
-      } else if (name.rfind("relight pass", 0) == 0) {
-        row.per_unit = field_mib / row.seconds, row.unit = "field MiB/s";
-      } else if (name.rfind("relight", 0) == 0) {
-        row.per_unit = row.seconds, row.unit = "s per relit image";
-      } else if (name.rfind("fit", 0) == 0) {
-        row.per_unit = pixels / row.seconds, row.unit = "pixels/s";
-      } else {
-        row.per_unit = field_mib / row.seconds, row.unit = "field MiB/s";
-      }
-      summary.rows.push_back(row);
-    }
+    record(size, leds, field_mib, budget_mib, samples, csv, summary.rows);
     if (mpi && size == smallest) {
       // Basis materials read the field three times (fits, pool, blends).
       const double disk_mib_per_s = field_mib / median(samples.seconds["read (disk)"]);
