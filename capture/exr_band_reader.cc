@@ -6,8 +6,10 @@
 #include <ImfHeader.h>
 #include <ImfInputFile.h>
 #include <ImfTiledInputFile.h>
+#include <fcntl.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -33,6 +35,22 @@ struct ExrBandReader::File {
   // Uncompressed scanlines of float channels hold, per row, each channel's row in turn: read as
   // they are, without OpenEXR's per-value conversion.
   bool raw = false;
+  // Raw files only: rows are chunks of a known size at the end of the file, so the next band's
+  // bytes can be asked of the kernel (read ahead while this band is used).
+  int advise_fd = -1;
+  std::uintmax_t file_bytes = 0;
+  int height = 0;
+  ~File() {
+    if (advise_fd >= 0) ::close(advise_fd);
+  }
+  // Starts reading rows [y0, y1) into the page cache.
+  void read_ahead(int y0, int y1) const {
+    if (advise_fd < 0 || y0 >= y1) return;
+    const std::uintmax_t chunk = 8 + std::uintmax_t(width) * channels.size() * sizeof(float);
+    const std::uintmax_t first = file_bytes - std::uintmax_t(height - y0) * chunk;
+    posix_fadvise(advise_fd, off_t(first), off_t(std::uintmax_t(y1 - y0) * chunk),
+                  POSIX_FADV_WILLNEED);
+  }
   int step = 1;               // Tile height (1: scanlines).
   int piece_rows = 1;         // Rows read at a time (whole tiles where the file is tiled).
   std::vector<float> planar;  // One piece: [row][channel][x], as an uncompressed file holds it.
@@ -73,6 +91,12 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
   f.min_y = window.min.y;
   f.raw = all_float && f.channels.size() == file_channels &&
           header.compression() == Imf::NO_COMPRESSION && !header.hasTileDescription();
+  f.height = window.max.y - window.min.y + 1;
+  if (f.raw && header.lineOrder() == Imf::INCREASING_Y) {
+    std::error_code error;
+    f.file_bytes = std::filesystem::file_size(path, error);
+    if (!error) f.advise_fd = ::open(f.name.c_str(), O_RDONLY | O_CLOEXEC);
+  }
   constexpr std::size_t kPieceBytes = std::size_t(8) << 20;
   const std::size_t row_bytes = std::size_t(f.width) * f.channels.size() * sizeof(float);
   if (header.hasTileDescription()) {
@@ -88,55 +112,22 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
 
 ExrBandReader::~ExrBandReader() = default;
 
+namespace {
+// Rows [a, b) into f.planar as [row][channel][x]; InputError naming the file and rows.
+void read_piece(ExrBandReader::File& f, int a, int b);
+}  // namespace
+
 void ExrBandReader::read(int y0, int y1, float* dst) {
   File& f = *file_;
   const int num_channels = int(f.channels.size());
   const std::size_t width = std::size_t(f.width);
   const std::size_t row_values = width * num_channels;
-  std::atomic<bool> non_finite{false};
   // At most a quarter of the band at a time (FieldStream::rows_within counts on it).
   const int piece_rows = std::max(f.step, std::min(f.piece_rows, (y1 - y0) / 4 / f.step * f.step));
+  std::atomic<bool> non_finite{false};
   for (int a = y0; a < y1; a += piece_rows) {
     const int b = std::min(y1, a + piece_rows);
-    f.planar.resize(std::size_t(b - a) * row_values);
-    try {
-      if (f.raw) {
-        for (int y = a; y < b; ++y) {
-          int bytes = int(row_values * sizeof(float));
-          char* row = reinterpret_cast<char*>(f.planar.data() + std::size_t(y - a) * row_values);
-          f.in->rawPixelDataToBuffer(y + f.min_y, row, bytes);
-          if (std::size_t(bytes) != row_values * sizeof(float)) {
-            throw InputError(f.name + ": row " + std::to_string(y) + " holds " +
-                             std::to_string(bytes) + " bytes, expected " +
-                             std::to_string(row_values * sizeof(float)));
-          }
-        }
-      } else {
-        // OpenEXR addresses pixel (x, y) of the data window at base + x * xStride + y * yStride:
-        // each channel's base offset back to the window's origin.
-        Imf::FrameBuffer frame;
-        const std::ptrdiff_t origin =
-            std::ptrdiff_t(f.min_x * sizeof(float)) +
-            std::ptrdiff_t(a + f.min_y) * std::ptrdiff_t(row_values * sizeof(float));
-        for (int c = 0; c < num_channels; ++c) {
-          const auto base = std::intptr_t(f.planar.data() + std::size_t(c) * width) - origin;
-          frame.insert(f.channels[size_t(c)],
-                       Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(base), sizeof(float),
-                                  row_values * sizeof(float)));
-        }
-        if (f.tiled) {
-          f.tiled->setFrameBuffer(frame);
-          f.tiled->readTiles(0, f.tiled->numXTiles(0) - 1, a / f.step, (b - 1) / f.step);
-        } else {
-          f.in->setFrameBuffer(frame);
-          f.in->readPixels(a + f.min_y, b - 1 + f.min_y);
-        }
-      }
-    } catch (const std::exception& e) {
-      if (dynamic_cast<const InputError*>(&e)) throw;
-      throw InputError(f.name + ": reading pixels failed (rows " + std::to_string(a) + ".." +
-                       std::to_string(b - 1) + "): " + e.what());
-    }
+    read_piece(f, a, b);
     // [row][channel][x] to pixel-major, a block of pixels of one row at a time (it stays in cache
     // across the channels).
     float* out = dst + std::size_t(a - y0) * row_values;
@@ -160,6 +151,76 @@ void ExrBandReader::read(int y0, int y1, float* dst) {
     });
   }
   if (non_finite) throw InputError(f.name + ": the reflectance field holds non-finite values");
+  f.read_ahead(y1, std::min(f.height, y1 + (y1 - y0)));  // Bands come in order.
 }
+
+void ExrBandReader::read_planar(int y0, int y1, const PlanarVisitor& visit) {
+  File& f = *file_;
+  const std::size_t values_per_row = std::size_t(f.width) * f.channels.size();
+  f.read_ahead(y0, std::min(y1, y0 + f.piece_rows));
+  for (int a = y0; a < y1; a += f.piece_rows) {
+    const int b = std::min(y1, a + f.piece_rows);
+    read_piece(f, a, b);
+    f.read_ahead(b, std::min(y1, b + f.piece_rows));  // While this piece is used.
+    std::atomic<bool> non_finite{false};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.planar.size(), values_per_row),
+                      [&](const auto& r) {
+                        int not_finite = 0;
+                        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+                          not_finite |= int(!std::isfinite(f.planar[i]));
+                        }
+                        if (not_finite != 0) non_finite = true;
+                      });
+    if (non_finite) throw InputError(f.name + ": the reflectance field holds non-finite values");
+    visit(PlanarRows{f.planar.data(), a, b - a, f.width, f.to_pixel_index});
+  }
+}
+
+namespace {
+void read_piece(ExrBandReader::File& f, int a, int b) {
+  const std::size_t width = std::size_t(f.width);
+  const std::size_t row_values = width * f.channels.size();
+  const int num_channels = int(f.channels.size());
+  f.planar.resize(std::size_t(b - a) * row_values);
+  try {
+    if (f.raw) {
+      for (int y = a; y < b; ++y) {
+        int bytes = int(row_values * sizeof(float));
+        char* row = reinterpret_cast<char*>(f.planar.data() + std::size_t(y - a) * row_values);
+        f.in->rawPixelDataToBuffer(y + f.min_y, row, bytes);
+        if (std::size_t(bytes) != row_values * sizeof(float)) {
+          throw InputError(f.name + ": row " + std::to_string(y) + " holds " +
+                           std::to_string(bytes) + " bytes, expected " +
+                           std::to_string(row_values * sizeof(float)));
+        }
+      }
+      return;
+    }
+    // OpenEXR addresses pixel (x, y) of the data window at base + x * xStride + y * yStride: each
+    // channel's base offset back to the window's origin.
+    Imf::FrameBuffer frame;
+    const std::ptrdiff_t origin =
+        std::ptrdiff_t(f.min_x * sizeof(float)) +
+        std::ptrdiff_t(a + f.min_y) * std::ptrdiff_t(row_values * sizeof(float));
+    for (int c = 0; c < num_channels; ++c) {
+      const auto base = std::intptr_t(f.planar.data() + std::size_t(c) * width) - origin;
+      frame.insert(f.channels[size_t(c)], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(base),
+                                                     sizeof(float), row_values * sizeof(float)));
+    }
+    if (f.tiled) {
+      f.tiled->setFrameBuffer(frame);
+      f.tiled->readTiles(0, f.tiled->numXTiles(0) - 1, a / f.step, (b - 1) / f.step);
+    } else {
+      f.in->setFrameBuffer(frame);
+      f.in->readPixels(a + f.min_y, b - 1 + f.min_y);
+    }
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError(f.name + ": reading pixels failed (rows " + std::to_string(a) + ".." +
+                     std::to_string(b - 1) + "): " + e.what());
+  }
+}
+}  // namespace
 
 }  // namespace ls::capture

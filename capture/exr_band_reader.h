@@ -6,14 +6,27 @@
 // and a quarter of the rows asked for): uncompressed float rows as raw bytes, others through
 // OpenEXR into the same [row][channel][x] layout; then transposed in blocks, in parallel.
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
 namespace ls::capture {
 
+// A piece of rows as the file holds them: [row][channel][x], `rows` rows of `width` pixels; the
+// values of channel c of a pixel go to its value index to_pixel_index[c] (light * 3 + colour).
+struct PlanarRows {
+  const float* values;
+  int first_row, rows, width;
+  std::span<const int> to_pixel_index;
+};
+using PlanarVisitor = std::function<void(const PlanarRows&)>;
+
 class ExrBandReader {
  public:
+  struct File;
+
   // channels: the field's channel names; to_pixel_index[i]: where channel i goes in a pixel's
   // values (a permutation of 0..channels-1).
   ExrBandReader(const std::filesystem::path& path, const std::vector<std::string>& channels,
@@ -26,9 +39,11 @@ class ExrBandReader {
   // row). InputError naming the file and rows when OpenEXR cannot read them, or when a value is
   // not finite.
   void read(int y0, int y1, float* dst);
+  // Rows [y0, y1) in pieces of about 8 MiB, untransposed (a consumer that sums over each pixel's
+  // values, as relighting does, needs no pixel-major copy); the same errors.
+  void read_planar(int y0, int y1, const PlanarVisitor& visit);
 
  private:
-  struct File;
   std::unique_ptr<File> file_;
 };
 

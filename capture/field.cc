@@ -469,10 +469,16 @@ FieldBands FieldStream::bands(int rows) {
 
 void FieldStream::read_rows_into(int y0, int y1, float* dst) { file_->pixels->read(y0, y1, dst); }
 
+void FieldStream::read_rows_planar(int y0, int y1, const PlanarVisitor& visit) {
+  LS_CHECK(0 <= y0 && y0 < y1 && y1 <= height(), "rows out of the field");
+  file_->pixels->read_planar(y0, y1, visit);
+}
+
 void FieldStream::read_rows(int y0, int y1, ReflectanceField& band) {
   LS_CHECK(0 <= y0 && y0 < y1 && y1 <= height(), "rows out of the field");
   if (band.width() != width() || band.height() != y1 - y0 ||
       band.num_lights() != header_.num_lights()) {
+    band = ReflectanceField();  // Freed first: the last, shorter band must not hold two.
     band = ReflectanceField(width(), y1 - y0, header_.lights());
   }
   band.lights() = header_.lights();

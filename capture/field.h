@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "capture/exr_band_reader.h"
 #include "lightstage/image.h"
 
 namespace ls::capture {
@@ -237,6 +238,9 @@ class FieldStream {
   void read_rows(int y0, int y1, ReflectanceField& band);
   // Rows [y0, y1) into dst: (y1 - y0) * width() pixels in the field's layout.
   void read_rows_into(int y0, int y1, float* dst);
+  // Rows [y0, y1) as the file holds them, in pieces of about 8 MiB (capture/exr_band_reader.h),
+  // for a consumer that sums over each pixel's values (relighting): no band is held at all.
+  void read_rows_planar(int y0, int y1, const PlanarVisitor& visit);
   // The file in bands of `rows` rows (one band held at a time), each read when visited.
   FieldBands bands(int rows);
 

@@ -249,6 +249,9 @@ ScaleBenchSummary run_scale_bench(const ScaleBenchOptions& options, const Progre
     const auto log = [&](const std::string& step) { return dir / (step + ".log"); };
     Stage stage = default_stage();
     stage.camera.width = stage.camera.height = size;
+    if (options.single_exposure) {
+      stage.camera.bracket = {stage.camera.bracket[stage.camera.bracket.size() / 2]};
+    }
     std::ofstream(dir / "stage.json") << stage_to_json(stage);
     const int leds = int(stage.leds.size());
     const std::string label = std::to_string(size) + "²";

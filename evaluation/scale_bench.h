@@ -26,6 +26,9 @@ struct ScaleBenchOptions {
       1024;           // Larger fields are not fitted (the maps, 25 floats a pixel, are whole).
   bool mpi = true;    // 1 and 2 ranks at the smallest size, when mpiexec is on PATH.
   bool keep = false;  // Keep the sessions and fields (otherwise removed after each size).
+  // One exposure (the bracket's middle one) instead of the dome's three: a third of the frames'
+  // disk and capture time, for the largest sizes.
+  bool single_exposure = false;
   std::string validate() const;
 };
 

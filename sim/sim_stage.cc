@@ -267,6 +267,11 @@ struct SimStage::State {
   double cached_time_s = 0.0;
   std::vector<SurfaceHit> hits;
   std::vector<std::optional<Image>> one_light;  // Per LED, computed on first use.
+  // Kept within cache_bytes, least recently used first out: a 4096^2 dome's 151 images would take
+  // 30 GB, and a capture lights one LED after another (its bracket shares the image).
+  std::size_t cache_bytes = std::size_t(1) << 30;
+  std::vector<uint64_t> last_used;  // Per LED, a use counter.
+  uint64_t uses = 0;
   std::vector<bool> on, dead;
   std::multiset<uint64_t> timeout_keys;
   int timeout_after = -1;  // Negative: off.
@@ -319,7 +324,30 @@ struct SimStage::State {
     for (auto& image : one_light) image.reset();
   }
 
+  // Drops the least recently used one-light images, but those of the LEDs `keep` marks, while the
+  // cache with `keep`'s images is over its budget. Only at the start of a capture: references
+  // handed out by one_light_image stay valid until the next capture.
+  void trim_cache(const std::vector<bool>& keep) {
+    const std::size_t image_bytes =
+        std::size_t(stage.camera.width) * stage.camera.height * 3 * sizeof(float);
+    std::size_t cached = 0;  // And those this capture will render.
+    for (size_t l = 0; l < one_light.size(); ++l)
+      cached += one_light[l] || keep[l] ? image_bytes : 0;
+    while (cached > cache_bytes) {
+      int oldest = -1;
+      for (size_t l = 0; l < one_light.size(); ++l) {
+        if (one_light[l] && !keep[l] && (oldest < 0 || last_used[l] < last_used[size_t(oldest)])) {
+          oldest = int(l);
+        }
+      }
+      if (oldest < 0) return;
+      one_light[size_t(oldest)].reset();
+      cached -= image_bytes;
+    }
+  }
+
   const Image& one_light_image(int led) {
+    last_used[size_t(led)] = ++uses;
     if (!one_light[led]) {
       const Led& l = stage.leds[led];
       one_light[led] = l.distance_m
@@ -360,6 +388,7 @@ struct SimStage::State {
     const int w = cam_spec.width, h = cam_spec.height;
     const size_t n = size_t(w) * h;
     set_time(request.scene_time_s);  // The scene as it is at this frame's plan time.
+    trim_cache(on);
     const auto exposure_ends =
         std::chrono::steady_clock::now() + std::chrono::duration<double>(request.exposure_s);
 
@@ -442,6 +471,7 @@ SimStage::SimStage(Stage stage, Scene scene, uint64_t seed) : state_(std::make_u
   state_->time_varying = has_time_varying_materials(state_->scene);
   const size_t leds = state_->stage.leds.size();
   state_->one_light.resize(leds);
+  state_->last_used.resize(leds, 0);
   state_->on.assign(leds, false);
   state_->dead.assign(leds, false);
 }
@@ -461,6 +491,13 @@ const Image& SimStage::one_light_image(int led_index) {
   LS_CHECK(led_index >= 0 && led_index < int(state_->stage.leds.size()),
            "LED index " + std::to_string(led_index) + " out of range");
   return state_->one_light_image(led_index);
+}
+
+void SimStage::set_one_light_cache_bytes(std::size_t bytes) { state_->cache_bytes = bytes; }
+
+int SimStage::cached_one_light_images() const {
+  return int(std::count_if(state_->one_light.begin(), state_->one_light.end(),
+                           [](const auto& image) { return image.has_value(); }));
 }
 
 const Image& SimStage::one_light_image(int led_index, double time_s) {

@@ -61,10 +61,15 @@ class SimStage {
   double scene_time_s() const;
   void set_scene_time(double time_s);
   // The noise-free one-light image of LED `led_index` (the ideal R(x, l), ignoring set_dead_led),
-  // rendered on first use and cached; near-field (render_one_near_light) when the LED has a
-  // distance_m, distant otherwise. At scene_time_s(), or at `time_s` (which moves the cache).
+  // rendered on first use and cached (within 1 GiB: the least recently used are dropped at the
+  // start of a capture, so a reference stays valid until the next one); near-field
+  // (render_one_near_light) when the LED has a distance_m, distant otherwise. At scene_time_s(), or
+  // at `time_s` (which moves the cache).
   const Image& one_light_image(int led_index);
   const Image& one_light_image(int led_index, double time_s);
+  // The cache's budget (default 1 GiB) and how many images it holds now.
+  void set_one_light_cache_bytes(std::size_t bytes);
+  int cached_one_light_images() const;
 
   // Failure injection for tests: the camera times out on these sequence keys (once each), or
   // after `frames` more successful frames (forever, until cleared with a negative count).

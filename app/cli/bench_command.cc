@@ -264,6 +264,9 @@ void add_scale(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_flag("!--no-mpi", args->mpi, "Skip the MPI fits.");
   cmd->add_flag("--keep", args->keep, "Keep each size's session and field.");
+  cmd->add_flag("--single-exposure", args->single_exposure,
+                "Capture one exposure per LED (the bracket's middle one), not three: a third of "
+                "the frames' disk, for the largest sizes.");
   cmd->callback([args] {
     args->executable = fs::read_symlink("/proc/self/exe");
     args->env_map = data_dir() / "envmaps/sky_sun.exr";

@@ -182,22 +182,18 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
         out.relit = Image(header.width(), header.height(), 3);
         outputs.push_back(std::move(out));
       });
-  const int rows = stream.band_rows(options.memory_bytes);
-  capture::ReflectanceField band;
-  Image band_relit;
+  // The field's rows as the file holds them, in pieces of about 8 MiB: relighting sums over each
+  // pixel's values, so it needs no pixel-major band (and no memory for one: --memory is moot).
   const auto pass_start = Clock::now();
-  for (int y0 = 0; y0 < header.height(); y0 += rows) {
-    const int y1 = std::min(header.height(), y0 + rows);
-    stream.read_rows(y0, y1, band);
+  stream.read_rows_planar(0, header.height(), [&](const capture::PlanarRows& rows) {
     for (Output& out : outputs) {
       const auto t0 = Clock::now();
-      relight::relight_into(band, out.weights.irradiance_rgb, band_relit);
-      std::copy(band_relit.pixels.begin(), band_relit.pixels.end(),
-                out.relit.pixels.begin() + std::ptrdiff_t(y0) * header.width() * 3);
+      relight::relight_rows_into(rows, out.weights.irradiance_rgb, out.relit);
       out.relight_ms += ms_between(t0, Clock::now());
     }
-    if (y1 < header.height()) report(progress, "relight (rows)", y1, header.height());
-  }
+    const int done = rows.first_row + rows.rows;
+    if (done < header.height()) report(progress, "relight (rows)", done, header.height());
+  });
   summary.field_pass_s = ms_between(pass_start, Clock::now()) / 1e3;
   summary.field_file_bytes = double(fs::file_size(options.field_file));
   RelitWriter writer(options, summary);
@@ -205,9 +201,9 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   for (Output& out : outputs) {
     char detail[200];
     std::snprintf(detail, sizeof detail,
-                  "light weights %.1f ms, relight %.1f ms (%d rows a band); %.2f%% of the map's "
-                  "light falls outside the dome's coverage and is not represented",
-                  out.weights_ms, out.relight_ms, rows, 100.0 * out.weights.uncovered_fraction());
+                  "light weights %.1f ms, relight %.1f ms; %.2f%% of the map's light falls "
+                  "outside the dome's coverage and is not represented",
+                  out.weights_ms, out.relight_ms, 100.0 * out.weights.uncovered_fraction());
     writer.write(out.name, out.relit, detail);
     report(progress, "relight", ++done, long(outputs.size()), out.name);
   }

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <string>
+#include <vector>
 
 #include "lightstage/errors.h"
 
@@ -70,6 +71,41 @@ void relight_into(const capture::ReflectanceField& field, std::span<const float>
                         }
                       }
                     });
+}
+
+void relight_rows_into(const capture::PlanarRows& rows, std::span<const float> irradiance_rgb,
+                       Image& out) {
+  const int count = int(rows.to_pixel_index.size());
+  if (irradiance_rgb.size() != size_t(count)) {
+    throw InputError("relight: the field has " + std::to_string(count / 3) +
+                     " lights but the weights have " + std::to_string(irradiance_rgb.size() / 3));
+  }
+  LS_CHECK(out.width == rows.width && out.channels == 3 && rows.first_row + rows.rows <= out.height,
+           "relight_rows_into: the output is not the frame");
+  // The plane holding each value index, so that values are summed in shade_pixel's order: value i
+  // into lane i % kChunk, lanes then summed per colour.
+  std::vector<int> plane_of(size_t(count), 0);
+  for (int c = 0; c < count; ++c) plane_of[size_t(rows.to_pixel_index[size_t(c)])] = c;
+  const size_t width = size_t(rows.width);
+  tbb::parallel_for(0, rows.rows, [&](int row) {
+    thread_local std::vector<float> acc;  // [lane][x]
+    acc.assign(kChunk * width, 0.0f);
+    const float* planes = rows.values + size_t(row) * count * width;
+    for (int i = 0; i < count; ++i) {
+      const float* __restrict plane = planes + size_t(plane_of[size_t(i)]) * width;
+      float* __restrict lane = acc.data() + size_t(i % kChunk) * width;
+      const float w = irradiance_rgb[size_t(i)];
+      for (size_t x = 0; x < width; ++x) lane[x] += plane[x] * w;
+    }
+    float* out_row = out.pixels.data() + size_t(rows.first_row + row) * width * 3;
+    for (size_t x = 0; x < width; ++x) {
+      float rgb[3] = {0, 0, 0};
+      for (int k = 0; k < kChunk; ++k) rgb[k % 3] += acc[size_t(k) * width + x];
+      out_row[3 * x] = rgb[0];
+      out_row[3 * x + 1] = rgb[1];
+      out_row[3 * x + 2] = rgb[2];
+    }
+  });
 }
 
 Image relight(const capture::ReflectanceField& field, const LightWeights& weights) {

@@ -17,4 +17,10 @@ Image relight(const capture::ReflectanceField& field, const LightWeights& weight
 void relight_into(const capture::ReflectanceField& field, std::span<const float> irradiance_rgb,
                   Image& out);
 
+// Rows of a field as its file holds them (capture::FieldStream::read_rows_planar) relit into
+// the same rows of `out` (the whole frame, 3 channels, sized by the caller): the same sums in the
+// same order as relight_into, so the same bytes.
+void relight_rows_into(const capture::PlanarRows& rows, std::span<const float> irradiance_rgb,
+                       Image& out);
+
 }  // namespace ls::relight

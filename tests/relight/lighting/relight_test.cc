@@ -1,9 +1,12 @@
 #include "relight/lighting/relight.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <filesystem>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "capture/field.h"
@@ -125,3 +128,35 @@ TEST(RelightTest, WeightsForAnotherStageAreAnInputError) {
 }
 
 }  // namespace
+
+// Read from its file as the file holds it (scanline and tiled, in pieces), a field relights to the
+// bytes of relight_into on the field in memory: the same sums in the same order.
+TEST(RelightTest, RowsAsTheFileHoldsThemRelightToTheSameBytes) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("relight_rows_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  for (const int lights : {1, 8, 13, 151}) {
+    // 300 rows of 151 lights are three 8 MiB pieces.
+    const ReflectanceField field = random_field(37, 300, lights, 7u + unsigned(lights));
+    std::vector<float> weights(3 * size_t(lights));
+    std::mt19937 rng(lights);
+    std::uniform_real_distribution<float> weight(-0.1f, 1.0f);
+    for (float& w : weights) w = weight(rng);
+    Image in_memory;
+    ls::relight::relight_into(field, weights, in_memory);
+    for (const int tile : {0, 8}) {
+      const std::filesystem::path file = dir / ("field_" + std::to_string(tile) + ".exr");
+      ls::capture::write_field(file, field, {}, tile);
+      ls::capture::FieldStream stream(file);
+      Image from_rows(field.width(), field.height(), 3);
+      int pieces = 0;
+      stream.read_rows_planar(0, field.height(), [&](const ls::capture::PlanarRows& rows) {
+        ls::relight::relight_rows_into(rows, weights, from_rows);
+        ++pieces;
+      });
+      EXPECT_GE(pieces, lights == 151 ? 3 : 1);
+      EXPECT_EQ(from_rows.pixels, in_memory.pixels) << lights << " lights, tile " << tile;
+    }
+  }
+  std::filesystem::remove_all(dir);
+}
