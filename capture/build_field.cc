@@ -26,6 +26,14 @@
 namespace ls::capture {
 namespace {
 
+// What merging one LED holds: the bracket's frames, the merge, the LED's image in field units and
+// its per-pixel gain.
+size_t merge_bytes_per_led(const CameraSpec& camera, int exposures) {
+  const size_t pixels = size_t(camera.width) * size_t(camera.height);
+  return pixels * camera.channels * sizeof(uint16_t) * size_t(exposures) +
+         pixels * size_t(camera.channels + 1 + 3 + 1) * sizeof(float);
+}
+
 // Photon transfer (noise_estimate.h) uses the brackets of this many LEDs, spread over the capture
 // order, and about this many pixels of each: plenty for a few dozen level bins.
 constexpr int kTransferLeds = 12;
@@ -441,11 +449,7 @@ class FieldBuild {
   // that frames of large cameras do not exhaust memory.
   void merge_brackets(const LedSink& sink) {
     const int width = camera_.width, height = camera_.height;
-    const size_t frame_bytes = size_t(width) * height * camera_.channels * sizeof(uint16_t);
-    // The bracket's frames, the merge, the LED's image in field units and its per-pixel gain.
-    const size_t per_led_bytes = frame_bytes * num_exposures_ + size_t(width) * height *
-                                                                    (camera_.channels + 1 + 3 + 1) *
-                                                                    sizeof(float);
+    const size_t per_led_bytes = merge_bytes_per_led(camera_, num_exposures_);
     size_t spare = available_memory_bytes() / 2;
     if (options_.memory_bytes > 0) spare = std::min(spare, options_.memory_bytes);
     const int max_in_flight =
@@ -523,13 +527,20 @@ int build_field_file(const Session& session, const BuildOptions& options,
   const size_t budget = options.memory_bytes > 0 ? options.memory_bytes
                                                  : std::min(2 * row_bytes * size_t(camera.height),
                                                             available_memory_bytes() / 2);
-  // A band is held twice while it is written (as spilled, then pixel-major).
-  const int rows = int(std::clamp<size_t>(budget / (2 * row_bytes), 1, size_t(camera.height)));
+  // The budget is shared: the merges of the LEDs in flight (a quarter of it, at least one LED),
+  // then the band, held twice while it is written (as spilled, then pixel-major).
+  const size_t per_led = merge_bytes_per_led(camera, int(camera.bracket.size()));
+  const size_t in_flight = std::clamp<size_t>(budget / 4 / std::max<size_t>(per_led, 1), 1,
+                                              std::max(1u, std::thread::hardware_concurrency()));
+  BuildOptions banded = options;
+  banded.memory_bytes = per_led * in_flight;
+  const size_t band_budget = budget > banded.memory_bytes ? budget - banded.memory_bytes : 0;
+  const int rows = int(std::clamp<size_t>(band_budget / (2 * row_bytes), 1, size_t(camera.height)));
   if (rows >= camera.height) {
     write_field(out, build_field(session, options, summary), attributes);
     return camera.height;
   }
-  return timed(session, options, summary, [&](FieldBuild build) {
+  return timed(session, banded, summary, [&](FieldBuild build) {
     build.run_to_file(out, attributes, rows);
     return rows;
   });

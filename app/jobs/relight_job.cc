@@ -69,7 +69,6 @@ std::string RelightOptions::to_json() const {
   if (exposure_stops) j["exposure_stops"] = *exposure_stops;
   j["coverage_deg"] = coverage_deg;
   j["directions"] = directions_width;
-  j["memory_bytes"] = memory_bytes;
   return j.dump();
 }
 
@@ -157,9 +156,9 @@ FieldLights field_lights(const capture::ReflectanceField& field) {
 
 double coverage_rad(const RelightOptions& options) { return options.coverage_deg * M_PI / 180.0; }
 
-// The field relit under every map and rotation, read once in bands of rows (FieldStream) so that
-// its memory stays within options.memory_bytes whatever its size: each band is relit under every
-// map before the next is read, into full-size outputs (3 floats per pixel each).
+// The field relit under every map and rotation, read once a few MiB at a time (FieldStream's rows
+// as the file holds them) whatever its size: each piece is relit under every map before the next
+// is read, into full-size outputs (3 floats per pixel each).
 void relight_field(const RelightOptions& options, RelightSummary& summary,
                    const ProgressFn& progress) {
   capture::FieldStream stream(options.field_file);

@@ -25,9 +25,6 @@ struct RelightOptions {
   std::optional<double> exposure_stops;      // Previews; empty: automatic per image.
   double coverage_deg = 0.0;                 // Dome coverage around each LED; 0: automatic.
   int directions_width = 64;                 // Models: lat-long grid the map is integrated on.
-  // A field is read in bands of rows within this many bytes (issue 14); 0: the whole field when
-  // it takes at most half of the memory available, else bands within that half.
-  std::size_t memory_bytes = 0;
   std::filesystem::path out_dir;
   // Empty when the options make sense, else what is wrong, naming the option.
   std::string validate() const;
