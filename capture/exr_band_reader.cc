@@ -203,9 +203,9 @@ void read_piece(ExrBandReader::File& f, int a, int b) {
         std::ptrdiff_t(f.min_x * sizeof(float)) +
         std::ptrdiff_t(a + f.min_y) * std::ptrdiff_t(row_values * sizeof(float));
     for (int c = 0; c < num_channels; ++c) {
-      const auto base = std::intptr_t(f.planar.data() + std::size_t(c) * width) - origin;
-      frame.insert(f.channels[size_t(c)], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(base),
-                                                     sizeof(float), row_values * sizeof(float)));
+      char* base = reinterpret_cast<char*>(f.planar.data() + std::size_t(c) * width) - origin;
+      frame.insert(f.channels[size_t(c)],
+                   Imf::Slice(Imf::FLOAT, base, sizeof(float), row_values * sizeof(float)));
     }
     if (f.tiled) {
       f.tiled->setFrameBuffer(frame);

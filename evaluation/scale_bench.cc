@@ -39,6 +39,7 @@ struct Measured {
 // InputError naming the step and the log when it fails.
 Measured run_process(const std::vector<std::string>& argv, const fs::path& log) {
   std::vector<char*> args;
+  args.reserve(argv.size() + 1);
   for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
   const std::string log_name = log.string();
@@ -130,9 +131,7 @@ void record(int size, int leds, double field_mib, double budget_mib, Samples& sa
     ScaleBenchRow row{size, leds, name, median(seconds), median(samples.peak_mib[name]), field_mib};
     if (name == "capture" || name == "build") {
       row.per_unit = row.seconds / leds, row.unit = "s per LED";
-    } else if (name.rfind("relight pass", 0) == 0) {
-      row.per_unit = field_mib / row.seconds, row.unit = "field MiB/s";
-    } else if (name.rfind("relight", 0) == 0) {
+    } else if (name.rfind("relight (", 0) == 0) {
       row.per_unit = row.seconds, row.unit = "s per relit image";
     } else if (name.rfind("fit", 0) == 0) {
       row.per_unit = pixels / row.seconds, row.unit = "pixels/s";
