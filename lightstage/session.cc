@@ -200,8 +200,10 @@ Session Session::open(const fs::path& dir) {
     try {
       j = json::parse(line);
     } catch (const json::parse_error&) {
+      // Not a torn write (only the last line can be one, and it was cut above): damage.
       std::cerr << "warning: " << (dir / kJournal).string() << ":" << line_no
-                << ": incomplete journal line ignored (interrupted write); that frame will be "
+                << ": not a journal record (the journal is damaged here; a write cut short can "
+                   "only be the last line): ignored; the frame it named, if any, will be "
                    "captured again\n";
       continue;
     } catch (const json::exception& e) {  // E.g. a number beyond a double.

@@ -118,8 +118,8 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   auto start = Clock::now();
   relight::ModelMaps maps;
   BandFitTimes times;
-  std::optional<BandCheckpoints> checkpoints;  // Fits in bands only.
-  if (rows < field.height()) {
+  std::optional<BandCheckpoints> checkpoints;       // Fits in bands only.
+  if (rows < field.height() || ranks.size() > 1) {  // Under MPI, only rank 0 writes.
     checkpoints.emplace(options.out, fit_identity(options.field_file, options.to_json()));
     // Rank 0 decides (and may clear an earlier run's checkpoints); the others follow.
     std::vector<double> decided = {double(ranks.root() ? checkpoints->band_rows(rows) : 0)};

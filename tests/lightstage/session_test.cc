@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <string>
 
 #include "lightstage/errors.h"
 #include "tests/support/test_support.h"
@@ -76,6 +77,28 @@ TEST(Session, TornJournalLineAndMissingFrameFileAreRecapturedNotTrusted) {
     s.record_frame(plan[2], Frame(7));  // Appended after the cut, not onto the torn line.
   }
   EXPECT_EQ(Session::open(tmp / "s").frames().size(), 4u);
+}
+
+// Issue 19: garbage in the middle of the journal is damage, not "an interrupted write" (only the
+// last line can be that); it is ignored, and the frames around it are kept.
+TEST(Session, GarbageMidJournalIsCalledDamageAndIgnored) {
+  testing::TempDir tmp;
+  const Stage stage = SmallStage();
+  auto plan = plan_frames(stage);
+  {
+    Session s = Session::create(tmp / "s", stage, {});
+    s.record_frame(plan[0], Frame(7));
+  }
+  std::ofstream(tmp / "s" / "frames.jsonl", std::ios::app) << "\x01garbage}\n";
+  Session::open(tmp / "s").record_frame(plan[1], Frame(7));  // After the garbage line.
+  ::testing::internal::CaptureStderr();
+  const Session s = Session::open(tmp / "s");
+  const std::string said = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(s.frames().size(), 2u);
+  EXPECT_NE(said.find("frames.jsonl:2: not a journal record (the journal is damaged"),
+            std::string::npos)
+      << said;
+  EXPECT_EQ(said.find("interrupted"), std::string::npos) << said;
 }
 
 TEST(Session, RefusesToOverwriteAnExistingSessionAndNamesNonSessions) {
