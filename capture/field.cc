@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <new>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -272,7 +273,14 @@ std::vector<FieldLight> parse_lights(const std::string& name, const std::string&
       const auto& dir = e.at("dir");
       if (!dir.is_array() || dir.size() != 3) throw InputError("dir must be [x, y, z]");
       FieldLight light;
-      light.led_id = e.at("id").get<int>();
+      // Checked, not cast: a huge id would wrap to another LED's channel name.
+      const nlohmann::json& id = e.at("id");
+      if (!id.is_number_integer() || id.get<long long>() < 0 ||
+          id.get<long long>() > std::numeric_limits<int>::max()) {
+        throw InputError("id must be an integer in [0, " +
+                         std::to_string(std::numeric_limits<int>::max()) + "], got " + id.dump());
+      }
+      light.led_id = id.get<int>();
       light.dir_in_stage = {dir[0].get<double>(), dir[1].get<double>(), dir[2].get<double>()};
       light.valid = e.at("valid").get<bool>();
       if (!light.dir_in_stage.allFinite() || !(light.dir_in_stage.norm() > 0)) {

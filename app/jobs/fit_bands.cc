@@ -97,9 +97,8 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
   maps.noise = fit.normals.noise;  // As fit_models records them.
   maps.noise_source = fit.noise_source;
   capture::ReflectanceField band;
-  const auto end_of = [&](int b) {
-    return std::min(height, (b + 1) * rows);
-  };  // Band b's rows end.
+  // Where band b's rows end.
+  const auto end_of = [&](int b) { return std::min(height, (b + 1) * rows); };
   const auto read = [&](int b) {
     const auto t0 = Clock::now();
     stream.read_rows(b * rows, end_of(b), band);

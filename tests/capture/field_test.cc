@@ -188,6 +188,13 @@ TEST(Field, ReadValidatesAndNamesTheFile) {
                   R"([{"id": 4, "dir": [0, 0, 0], "valid": true}])");
   EXPECT_THAT(read_error(f6), HasSubstr(f6));
   EXPECT_THAT(read_error(f6), HasSubstr("non-zero direction"));
+  // Issue 19: an id beyond an int is refused by name, not wrapped onto another LED's channels.
+  const std::string f7 = (dir / "hugeid.exr").string();
+  write_plain_exr(f7, {"led001.R", "led001.G", "led001.B"},
+                  R"([{"id": 4294967297, "dir": [0, 1, 0], "valid": true}])");
+  EXPECT_THAT(read_error(f7), HasSubstr(f7));
+  EXPECT_THAT(read_error(f7),
+              HasSubstr("id must be an integer in [0, 2147483647], got 4294967297"));
   EXPECT_THAT(read_error(dir / "absent.exr"), HasSubstr("absent.exr"));
   // A valid minimal file reads.
   const std::string ok = (dir / "ok.exr").string();
