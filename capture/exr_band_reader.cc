@@ -22,6 +22,20 @@
 
 namespace ls::capture {
 
+namespace {
+
+// OpenEXR's file of type T (InputFile, TiledInputFile) at `name`, or InputError naming it.
+template <class T>
+std::unique_ptr<T> open_exr(const std::string& name) {
+  try {
+    return std::make_unique<T>(name.c_str());
+  } catch (const std::exception& e) {
+    throw InputError(name + ": cannot read reflectance field: " + e.what());
+  }
+}
+
+}  // namespace
+
 struct ExrBandReader::File {
   std::string name;
   std::unique_ptr<Imf::InputFile> in;
@@ -51,8 +65,10 @@ struct ExrBandReader::File {
     posix_fadvise(advise_fd, off_t(first), off_t(std::uintmax_t(y1 - y0) * chunk),
                   POSIX_FADV_WILLNEED);
   }
-  int step = 1;               // Tile height (1: scanlines).
-  int piece_rows = 1;         // Rows read at a time (whole tiles where the file is tiled).
+  int step = 1;        // Tile height (1: scanlines).
+  int piece_rows = 1;  // Rows read at a time (whole tiles where the file is tiled).
+  // Rows [a, b) into `planar` as [row][channel][x]; InputError naming the file and rows.
+  void read_piece(int a, int b);
   std::vector<float> planar;  // One piece: [row][channel][x], as an uncompressed file holds it.
 };
 
@@ -62,11 +78,7 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
     : file_(std::make_unique<File>()) {
   File& f = *file_;
   f.name = path.string();
-  try {
-    f.in = std::make_unique<Imf::InputFile>(f.name.c_str());
-  } catch (const std::exception& e) {
-    throw InputError(f.name + ": cannot read reflectance field: " + e.what());
-  }
+  f.in = open_exr<Imf::InputFile>(f.name);
   const Imf::Header& header = f.in->header();
   std::unordered_map<std::string, int> index;
   for (size_t i = 0; i < channels.size(); ++i) index[channels[i]] = to_pixel_index[i];
@@ -101,21 +113,12 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
   const std::size_t row_bytes = std::size_t(f.width) * f.channels.size() * sizeof(float);
   if (header.hasTileDescription()) {
     f.step = int(header.tileDescription().ySize);
-    try {
-      f.tiled = std::make_unique<Imf::TiledInputFile>(f.name.c_str());
-    } catch (const std::exception& e) {
-      throw InputError(f.name + ": cannot read reflectance field: " + e.what());
-    }
+    f.tiled = open_exr<Imf::TiledInputFile>(f.name);
   }
   f.piece_rows = std::max(f.step, int(kPieceBytes / row_bytes) / f.step * f.step);
 }
 
 ExrBandReader::~ExrBandReader() = default;
-
-namespace {
-// Rows [a, b) into f.planar as [row][channel][x]; InputError naming the file and rows.
-void read_piece(ExrBandReader::File& f, int a, int b);
-}  // namespace
 
 void ExrBandReader::read(int y0, int y1, float* dst) {
   File& f = *file_;
@@ -127,7 +130,7 @@ void ExrBandReader::read(int y0, int y1, float* dst) {
   std::atomic<bool> non_finite{false};
   for (int a = y0; a < y1; a += piece_rows) {
     const int b = std::min(y1, a + piece_rows);
-    read_piece(f, a, b);
+    f.read_piece(a, b);
     // [row][channel][x] to pixel-major, a block of pixels of one row at a time (it stays in cache
     // across the channels).
     float* out = dst + std::size_t(a - y0) * row_values;
@@ -160,7 +163,7 @@ void ExrBandReader::read_planar(int y0, int y1, const PlanarVisitor& visit) {
   f.read_ahead(y0, std::min(y1, y0 + f.piece_rows));
   for (int a = y0; a < y1; a += f.piece_rows) {
     const int b = std::min(y1, a + f.piece_rows);
-    read_piece(f, a, b);
+    f.read_piece(a, b);
     f.read_ahead(b, std::min(y1, b + f.piece_rows));  // While this piece is used.
     std::atomic<bool> non_finite{false};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.planar.size(), values_per_row),
@@ -176,22 +179,19 @@ void ExrBandReader::read_planar(int y0, int y1, const PlanarVisitor& visit) {
   }
 }
 
-namespace {
-void read_piece(ExrBandReader::File& f, int a, int b) {
-  const std::size_t width = std::size_t(f.width);
-  const std::size_t row_values = width * f.channels.size();
-  const int num_channels = int(f.channels.size());
-  f.planar.resize(std::size_t(b - a) * row_values);
+void ExrBandReader::File::read_piece(int a, int b) {
+  const std::size_t row_values = std::size_t(width) * channels.size();
+  const int num_channels = int(channels.size());
+  planar.resize(std::size_t(b - a) * row_values);
   try {
-    if (f.raw) {
+    if (raw) {
       for (int y = a; y < b; ++y) {
         int bytes = int(row_values * sizeof(float));
-        char* row = reinterpret_cast<char*>(f.planar.data() + std::size_t(y - a) * row_values);
-        f.in->rawPixelDataToBuffer(y + f.min_y, row, bytes);
+        char* row = reinterpret_cast<char*>(planar.data() + std::size_t(y - a) * row_values);
+        in->rawPixelDataToBuffer(y + min_y, row, bytes);
         if (std::size_t(bytes) != row_values * sizeof(float)) {
-          throw InputError(f.name + ": row " + std::to_string(y) + " holds " +
-                           std::to_string(bytes) + " bytes, expected " +
-                           std::to_string(row_values * sizeof(float)));
+          throw InputError(name + ": row " + std::to_string(y) + " holds " + std::to_string(bytes) +
+                           " bytes, expected " + std::to_string(row_values * sizeof(float)));
         }
       }
       return;
@@ -200,27 +200,27 @@ void read_piece(ExrBandReader::File& f, int a, int b) {
     // channel's base offset back to the window's origin.
     Imf::FrameBuffer frame;
     const std::ptrdiff_t origin =
-        std::ptrdiff_t(f.min_x * sizeof(float)) +
-        std::ptrdiff_t(a + f.min_y) * std::ptrdiff_t(row_values * sizeof(float));
+        std::ptrdiff_t(min_x * sizeof(float)) +
+        std::ptrdiff_t(a + min_y) * std::ptrdiff_t(row_values * sizeof(float));
     for (int c = 0; c < num_channels; ++c) {
-      char* base = reinterpret_cast<char*>(f.planar.data() + std::size_t(c) * width) - origin;
-      frame.insert(f.channels[size_t(c)],
+      char* base =
+          reinterpret_cast<char*>(planar.data() + std::size_t(c) * std::size_t(width)) - origin;
+      frame.insert(channels[size_t(c)],
                    Imf::Slice(Imf::FLOAT, base, sizeof(float), row_values * sizeof(float)));
     }
-    if (f.tiled) {
-      f.tiled->setFrameBuffer(frame);
-      f.tiled->readTiles(0, f.tiled->numXTiles(0) - 1, a / f.step, (b - 1) / f.step);
+    if (tiled) {
+      tiled->setFrameBuffer(frame);
+      tiled->readTiles(0, tiled->numXTiles(0) - 1, a / step, (b - 1) / step);
     } else {
-      f.in->setFrameBuffer(frame);
-      f.in->readPixels(a + f.min_y, b - 1 + f.min_y);
+      in->setFrameBuffer(frame);
+      in->readPixels(a + min_y, b - 1 + min_y);
     }
   } catch (const InputError&) {
     throw;
   } catch (const std::exception& e) {
-    throw InputError(f.name + ": reading pixels failed (rows " + std::to_string(a) + ".." +
+    throw InputError(name + ": reading pixels failed (rows " + std::to_string(a) + ".." +
                      std::to_string(b - 1) + "): " + e.what());
   }
 }
-}  // namespace
 
 }  // namespace ls::capture

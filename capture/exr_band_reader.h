@@ -25,8 +25,6 @@ using PlanarVisitor = std::function<void(const PlanarRows&)>;
 
 class ExrBandReader {
  public:
-  struct File;
-
   // channels: the field's channel names; to_pixel_index[i]: where channel i goes in a pixel's
   // values (a permutation of 0..channels-1).
   ExrBandReader(const std::filesystem::path& path, const std::vector<std::string>& channels,
@@ -44,6 +42,7 @@ class ExrBandReader {
   void read_planar(int y0, int y1, const PlanarVisitor& visit);
 
  private:
+  struct File;
   std::unique_ptr<File> file_;
 };
 

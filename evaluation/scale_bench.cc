@@ -95,20 +95,6 @@ double median(std::vector<double> v) {
   return v.empty() ? 0 : v[v.size() / 2];
 }
 
-bool on_path(const std::string& program) {
-  const char* path = std::getenv("PATH");
-  std::string dirs = path ? path : "";
-  for (size_t start = 0; start <= dirs.size();) {
-    const size_t end = std::min(dirs.find(':', start), dirs.size());
-    if (end > start &&
-        access((dirs.substr(start, end - start) + "/" + program).c_str(), X_OK) == 0) {
-      return true;
-    }
-    start = end + 1;
-  }
-  return false;
-}
-
 // The steps' measurements over the runs, by step name.
 struct Samples {
   std::map<std::string, std::vector<double>> seconds, peak_mib;
@@ -231,7 +217,7 @@ ScaleBenchSummary run_scale_bench(const ScaleBenchOptions& options, const Progre
   const std::string exe = fs::absolute(options.executable).string();
   const std::string budget = std::to_string(options.memory_bytes);
   const double budget_mib = double(options.memory_bytes) / (1 << 20);
-  const bool mpi = options.mpi && on_path("mpiexec");
+  const bool mpi = options.mpi && std::system("command -v mpiexec > /dev/null 2>&1") == 0;
   if (options.mpi && !mpi) summary.mpi_note = "mpiexec is not on PATH (install openmpi-bin)";
   if (mpi && geteuid() == 0) {  // Open MPI refuses root without both.
     setenv("OMPI_ALLOW_RUN_AS_ROOT", "1", 0);
