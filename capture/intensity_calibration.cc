@@ -159,6 +159,14 @@ IntensityCalibration calibrate_intensities(const std::vector<const Image*>& imag
     for (double& c : est.flat_field.coefficients) c /= at_origin;
     const Eigen::VectorXd fitted = a * coef;
     est.fit_rms = std::sqrt((sum - fitted).squaredNorm() / double(uv.size())) / sum.mean();
+    if (!(est.fit_rms <= options.max_fit_rms)) {
+      report(format_percent("the image is not a smoothly lit white plane: its fit leaves %.0f%% ",
+                            100.0 * est.fit_rms) +
+             format_percent("RMS (at most %.0f%% for a white target lit by one LED); is the target "
+                            "in view and lit by this LED alone?",
+                            100.0 * options.max_fit_rms));
+      continue;
+    }
     // Per-channel scale of the shared shape, least squares: E_c = sum(q_c s) / sum(s^2).
     Eigen::Vector3d num = Eigen::Vector3d::Zero();
     double den = 0;

@@ -197,6 +197,10 @@ struct IntensityOptions {
   double max_saturated_fraction = 0.001;  // Of the target's pixels; above: the image is refused.
   double min_signal = 0;                  // Pixels below this are not used (noise floor).
   int step = 2;                           // Pixel stride of the fit.
+  // A white plane lit by one LED is smooth: its quadratic shape fits within a few percent (shot
+  // noise, a little texture). Above this relative RMS the image is no such plane (noise, the
+  // target out of view, another light on): refused, rather than an LED made 3x brighter.
+  double max_fit_rms = 0.1;
 };
 
 // One image per LED. Each LED's direction (and position, when known) comes from `stage` (already

@@ -109,7 +109,7 @@ std::vector<FitBenchRow> rows_for_map(const capture::ReflectanceField& field, co
                                       const relight::EnvironmentMap& map, int repeats) {
   const std::string map_name = fs::path(map.source()).stem().string();
   const auto dirs = stage.led_directions();
-  const double coverage = relight::max_nearest_neighbour_angle(dirs);
+  const double coverage = max_nearest_neighbour_angle(dirs);
   const relight::LightWeights weights = relight::integrate_environment(map, dirs, 0.0, coverage);
   sim::GroundTruthOptions gt;
   gt.covered_by_leds = dirs;

@@ -85,7 +85,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
         capture_sim_field(stage, scene, options.out / ("session_" + std::to_string(count)),
                           "capture " + std::to_string(count), progress);
     const auto dirs = stage.led_directions();
-    const double coverage = relight::max_nearest_neighbour_angle(dirs);
+    const double coverage = max_nearest_neighbour_angle(dirs);
     for (const relight::EnvironmentMap& map : maps) {
       LedBenchRow row;
       row.leds = count;

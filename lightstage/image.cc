@@ -4,6 +4,7 @@
 #include <OpenImageIO/imageio.h>
 #include <fcntl.h>
 #include <unistd.h>
+#include <zlib.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -85,14 +86,10 @@ void write_bytes_atomic(const fs::path& path, const void* data, size_t size) {
   commit_temp(tmp, path);
 }
 
-// Encodes in memory (the format from path's extension), then writes with write_bytes_atomic: an
-// encoder's own file writes do not all report a full disk.
-void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc in_type,
-                     const void* data) {
-  if (!path.parent_path().empty()) {
-    std::error_code ec;
-    fs::create_directories(path.parent_path(), ec);
-  }
+// Encodes in memory, the format from path's extension: an encoder's own file writes do not all
+// report a full disk, so the bytes are written by write_bytes_atomic.
+std::vector<unsigned char> encode_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec,
+                                            OIIO::TypeDesc in_type, const void* data) {
   std::vector<unsigned char> encoded;
   OIIO::Filesystem::IOVecOutput memory(encoded);
   auto out = OIIO::ImageOutput::create(path.string());
@@ -104,6 +101,17 @@ void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec, OIIO::Ty
   if (!out->open(path.string(), spec) || !out->write_image(in_type, data) || !out->close()) {
     throw InputError(path.string() + ": encoding failed: " + out->geterror());
   }
+  return encoded;
+}
+
+// An output file, its folder created when missing.
+void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc in_type,
+                     const void* data) {
+  if (!path.parent_path().empty()) {
+    std::error_code ec;
+    fs::create_directories(path.parent_path(), ec);
+  }
+  const std::vector<unsigned char> encoded = encode_with_oiio(path, spec, in_type, data);
   write_bytes_atomic(path, encoded.data(), encoded.size());
 }
 
@@ -184,7 +192,7 @@ void write_png_preview(const fs::path& path, const Image& image, double exposure
   write_with_oiio(path, spec, OIIO::TypeDesc::UINT8, bytes.data());
 }
 
-void write_raw_frame(const fs::path& path, const RawFrame& frame) {
+StoredFile write_raw_frame(const fs::path& path, const RawFrame& frame) {
   LS_CHECK(frame.bit_depth >= 1 && frame.bit_depth <= 16, "bit depth out of range");
   // Stored MSB-aligned (as most cameras do), so the PNG looks right in any viewer.
   const int shift = 16 - frame.bit_depth;
@@ -193,7 +201,24 @@ void write_raw_frame(const fs::path& path, const RawFrame& frame) {
   OIIO::ImageSpec spec(frame.width, frame.height, frame.channels, OIIO::TypeDesc::UINT16);
   spec.attribute("png:compressionLevel", 1);  // Fast: capture must not wait on the encoder.
   spec.attribute("lightstage:bit_depth", frame.bit_depth);
-  write_with_oiio(path, spec, OIIO::TypeDesc::UINT16, aligned.data());
+  // The frame's folder is not created: a session folder deleted or unmounted mid-capture must
+  // stop the capture, not be recreated half empty.
+  const std::vector<unsigned char> encoded =
+      encode_with_oiio(path, spec, OIIO::TypeDesc::UINT16, aligned.data());
+  write_bytes_atomic(path, encoded.data(), encoded.size());
+  return {encoded.size(), crc32_of(encoded.data(), encoded.size())};
+}
+
+uint32_t crc32_of(const void* data, size_t size) {
+  uLong crc = ::crc32(0L, Z_NULL, 0);
+  const auto* bytes = static_cast<const Bytef*>(data);
+  // zlib takes at most a uInt per call.
+  for (size_t done = 0; done < size;) {
+    const uInt n = uInt(std::min<size_t>(size - done, 1u << 30));
+    crc = ::crc32(crc, bytes + done, n);
+    done += n;
+  }
+  return uint32_t(crc);
 }
 
 RawFrame read_raw_frame(const fs::path& path, int bit_depth) {

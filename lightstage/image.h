@@ -60,10 +60,19 @@ void write_png_preview(const std::filesystem::path& path, const Image& image,
 // Exposure (in stops) that puts the image's 99th-percentile luminance near white.
 double auto_exposure_stops(const Image& image, double percentile = 0.99);
 
+// A file as written: its size and the CRC-32 (zlib's) of its bytes, for checking it later.
+struct StoredFile {
+  uint64_t bytes = 0;
+  uint32_t crc32 = 0;
+};
+
 // Raw frames are stored as 16-bit PNG (lossless). Writing is atomic and durable: the data goes to a
-// temporary name, is fsync'ed, then renamed, so a killed process never leaves a half frame.
-void write_raw_frame(const std::filesystem::path& path, const RawFrame& frame);
+// temporary name, is fsync'ed, then renamed, so a killed process never leaves a half frame. The
+// folder must exist (it is not created).
+StoredFile write_raw_frame(const std::filesystem::path& path, const RawFrame& frame);
 RawFrame read_raw_frame(const std::filesystem::path& path, int bit_depth);
+// CRC-32 as zlib computes it (the checksum PNG and gzip use).
+uint32_t crc32_of(const void* data, size_t size);
 
 // Writes `contents` to `path` atomically (temp + fsync + rename). Throws InputError on failure.
 void write_file_atomic(const std::filesystem::path& path, const std::string& contents);

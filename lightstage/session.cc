@@ -233,6 +233,10 @@ Session Session::open(const fs::path& dir) {
       rec.gain = j["gain"].get<double>();
       rec.scene_time_s = j["scene_time_s"].get<double>();
       rec.captured_at = j["at"].get<std::string>();
+      if (j.contains("crc32")) {
+        rec.bytes = j["bytes"].get<uint64_t>();
+        rec.crc32 = j["crc32"].get<uint32_t>();
+      }
       std::error_code missing;  // A symlink loop or an unreadable entry is a missing frame too.
       if (!fs::exists(dir / rec.file, missing) || missing) {
         std::cerr << "warning: " << (dir / rec.file).string()
@@ -243,7 +247,7 @@ Session Session::open(const fs::path& dir) {
     } catch (const json::exception& e) {
       throw InputError(journal_path.string() + ":" + std::to_string(line_no) +
                        ": expected a frame {t, led, e, r, file, exposure_s, gain, scene_time_s, "
-                       "at}, an led_signal, an overrun or a dead_led: " +
+                       "at, bytes, crc32}, an led_signal, an overrun or a dead_led: " +
                        e.what());
     }
   }
@@ -288,7 +292,10 @@ FrameRecord Session::write_frame_file(const PlannedFrame& planned,
   rec.captured_at = utc_now_iso8601();
   RawFrame raw = frame.raw;
   raw.bit_depth = stage_.camera.bit_depth;
-  write_raw_frame(dir_ / rec.file, raw);  // Durable (fsync'ed and renamed) before it is journaled.
+  // Durable (fsync'ed and renamed) before it is journaled.
+  const StoredFile stored = write_raw_frame(dir_ / rec.file, raw);
+  rec.bytes = stored.bytes;
+  rec.crc32 = stored.crc32;
   return rec;
 }
 
@@ -303,7 +310,9 @@ void Session::journal_frames(const std::vector<FrameRecord>& records) {
                   {"exposure_s", rec.exposure_s},
                   {"gain", rec.gain},
                   {"scene_time_s", rec.scene_time_s},
-                  {"at", rec.captured_at}}
+                  {"at", rec.captured_at},
+                  {"bytes", rec.bytes},
+                  {"crc32", rec.crc32}}
                  .dump() +
              "\n";
   }
@@ -371,6 +380,61 @@ void Session::write_manifest(const std::string& status) const {
                     {"time_step_overruns", overruns},
                     {"stage", json::parse(stage_to_json(stage_))}};
   write_file_atomic(dir_ / kManifest, doc.dump(2) + "\n");
+}
+
+namespace {
+
+// What is wrong with a journaled frame's file, or "" when it is as saved.
+std::string frame_file_problem(const fs::path& path, const FrameRecord& rec, const Stage& stage,
+                               uint64_t& bytes_read) {
+  if (rec.bytes == 0) {  // Journaled without a checksum: it must decode at the camera's size.
+    try {
+      const RawFrame f = read_raw_frame(path, stage.camera.bit_depth);
+      bytes_read += f.pixels.size() * sizeof(uint16_t);
+      if (f.width != stage.camera.width || f.height != stage.camera.height ||
+          f.channels != stage.camera.channels) {
+        return std::to_string(f.width) + "x" + std::to_string(f.height) + "x" +
+               std::to_string(f.channels) + " pixels, the camera's are " +
+               std::to_string(stage.camera.width) + "x" + std::to_string(stage.camera.height) +
+               "x" + std::to_string(stage.camera.channels);
+      }
+      return {};
+    } catch (const InputError& e) {
+      return e.what();
+    }
+  }
+  std::error_code ec;
+  const uint64_t size = fs::file_size(path, ec);
+  if (ec) return "cannot read its size: " + ec.message();
+  if (size != rec.bytes) {
+    return std::to_string(size) + " bytes, the journal says " + std::to_string(rec.bytes);
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> bytes(size);
+  if (!in.read(bytes.data(), std::streamsize(size))) return "cannot read it";
+  bytes_read += size;
+  if (crc32_of(bytes.data(), bytes.size()) != rec.crc32) {
+    return "its bytes changed since it was saved (CRC-32 differs from the journal's)";
+  }
+  return {};
+}
+
+}  // namespace
+
+FrameCheck Session::verify_frames() {
+  FrameCheck check;
+  for (auto it = frames_.begin(); it != frames_.end();) {
+    const fs::path path = dir_ / it->second.file;
+    const std::string problem = frame_file_problem(path, it->second, stage_, check.bytes_read);
+    if (problem.empty()) {
+      ++check.verified;
+      ++it;
+    } else {
+      check.damaged.push_back(path.string() + ": " + problem);
+      it = frames_.erase(it);
+    }
+  }
+  return check;
 }
 
 }  // namespace ls

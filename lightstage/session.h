@@ -43,6 +43,16 @@ struct FrameRecord {
   double gain = 1.0;
   double scene_time_s = 0.0;
   std::string captured_at;  // ISO 8601 UTC.
+  // The file as written (journals before issue 19 have neither: bytes = 0).
+  uint64_t bytes = 0;
+  uint32_t crc32 = 0;
+};
+
+// What Session::verify_frames found: frames whose files are not what was saved.
+struct FrameCheck {
+  int verified = 0;  // Frames whose files are as saved.
+  uint64_t bytes_read = 0;
+  std::vector<std::string> damaged;  // One line per damaged frame: its file and what is wrong.
 };
 
 // A time step whose capture took longer than the time to the next step (CapturePlan).
@@ -98,6 +108,10 @@ class Session {
   FrameRecord write_frame_file(const PlannedFrame& planned, const CapturedFrame& frame) const;
   void journal_frames(const std::vector<FrameRecord>& records);
   RawFrame load_frame(const FrameKey& key) const;  // Throws InputError if absent or unreadable.
+  // Reads every journaled frame's file back and checks it against the journal (size and CRC-32;
+  // for frames journaled without them, that it decodes at the stage camera's size). Damaged
+  // frames stop being frames of the session, so that a resume captures them again.
+  FrameCheck verify_frames();
 
   // LEDs judged broken (see sequencer.h); later stages treat them as missing, not as black lights.
   const std::map<int, std::string>& dead_leds() const { return dead_leds_; }

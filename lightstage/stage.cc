@@ -105,8 +105,8 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
   if (r.has("retries")) cam.retries = r["retries"].integer_in(0, 100);
   if (r.has("simulated_sensor")) {
     const JsonReader s = r["simulated_sensor"];
-    s.expect_object(
-        {"full_well_e", "read_noise_e", "dark_current_e_per_s", "black_level", "real_time"});
+    s.expect_object({"full_well_e", "read_noise_e", "dark_current_e_per_s", "black_level",
+                     "real_time", "dead_leds"});
     auto& sim = cam.simulated;
     if (s.has("full_well_e")) sim.full_well_e = s["full_well_e"].positive("(electrons)");
     if (s.has("read_noise_e")) sim.read_noise_e = s["read_noise_e"].number_in(0, 1e4);
@@ -115,6 +115,12 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
     }
     if (s.has("black_level")) sim.black_level = s["black_level"].number_in(0, 0.5);
     if (s.has("real_time")) sim.real_time = s["real_time"].boolean();
+    if (s.has("dead_leds")) {
+      const JsonReader ids = s["dead_leds"];
+      for (size_t i = 0; i < ids.size(); ++i) {
+        sim.dead_led_ids.push_back(ids[i].integer_in(0, 1 << 20));
+      }
+    }
   }
   return cam;
 }
@@ -318,7 +324,8 @@ std::string stage_to_json(const Stage& stage) {
                    {"read_noise_e", c.simulated.read_noise_e},
                    {"dark_current_e_per_s", c.simulated.dark_current_e_per_s},
                    {"black_level", c.simulated.black_level},
-                   {"real_time", c.simulated.real_time}}}};
+                   {"real_time", c.simulated.real_time},
+                   {"dead_leds", c.simulated.dead_led_ids}}}};
   json plan = {{"dark_frames", stage.plan.dark_frames}, {"settle_s", stage.plan.settle_s}};
   if (stage.plan.times_s.empty()) {
     plan["time_steps"] = stage.plan.time_steps;

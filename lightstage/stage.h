@@ -47,6 +47,8 @@ struct SimulatedSensor {
   // Each frame takes its exposure time, as on a real camera (to try interrupting a capture, or
   // timing); false: frames come as fast as they render.
   bool real_time = false;
+  // LEDs (by id) that never light, to try the dead-LED check on (a burnt-out LED, a loose wire).
+  std::vector<int> dead_led_ids;
 };
 
 struct CameraSpec {

@@ -8,13 +8,15 @@ BUILD_DIR=${BUILD_DIR:-build}
 
 PACKAGES=(
   g++ cmake ninja-build pkg-config ccache clang-format clang-tidy git
+  clang libclang-rt-14-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
   libopencv-calib3d-dev libopencv-videoio-dev
   libopenexr-dev libimath-dev libopenimageio-dev openimageio-tools
   libgpiod-dev gpiod libaravis-dev libusb-1.0-0-dev aravis-tools-cli
   libeigen3-dev libglfw3-dev libgl-dev libegl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  libceres-dev libtbb-dev nlohmann-json3-dev libcli11-dev libimgui-dev
+  libceres-dev libtbb-dev nlohmann-json3-dev libcli11-dev libimgui-dev zlib1g-dev
+  libnanoflann-dev
   libopenmpi-dev openmpi-bin
   xvfb xauth mesa-utils
 )

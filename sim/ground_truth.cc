@@ -33,7 +33,7 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
   if (!options.covered_by_leds.empty()) {
     const double radius = options.coverage_radius_rad > 0
                               ? options.coverage_radius_rad
-                              : relight::max_nearest_neighbour_angle(options.covered_by_leds);
+                              : max_nearest_neighbour_angle(options.covered_by_leds);
     const double cos_radius = std::cos(radius);
     std::erase_if(texels, [&](const relight::CoarseTexel& t) {
       for (const auto& led : options.covered_by_leds) {

@@ -41,7 +41,7 @@ void ViewerApp::Impl::update_strip() {
   if (!strip_texture) glGenTextures(1, &strip_texture);
   if (strip_nearest_led.empty()) {
     strip_nearest_led.assign(kStripWidth * kStripHeight, -1);
-    const double coverage = led_dirs.size() > 1 ? relight::max_nearest_neighbour_angle(led_dirs)
+    const double coverage = led_dirs.size() > 1 ? max_nearest_neighbour_angle(led_dirs)
                                                 : M_PI;  // Cells stop at the dome's coverage.
     for (int y = 0; y < kStripHeight; ++y) {
       for (int x = 0; x < kStripWidth; ++x) {

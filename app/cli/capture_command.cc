@@ -45,6 +45,14 @@ class StopSignals {
   }, old_term_{};
 };
 
+// What a resume found when it read the saved frames back.
+void print_frame_check(const jobs::CaptureOptions& options, const FrameCheck& check) {
+  std::fprintf(stderr, "%s: %d saved frames read back (%.1f MiB), %zu damaged%s\n",
+               options.session_dir.c_str(), check.verified, double(check.bytes_read) / (1 << 20),
+               check.damaged.size(), check.damaged.empty() ? "" : ", to be captured again:");
+  for (const std::string& damaged : check.damaged) std::fprintf(stderr, "  %s\n", damaged.c_str());
+}
+
 }  // namespace
 
 int capture_session(const jobs::CaptureOptions& options, bool quiet) {
@@ -54,6 +62,7 @@ int capture_session(const jobs::CaptureOptions& options, bool quiet) {
   callbacks.stop_requested = &g_stop_requested;
   callbacks.on_start = [&](const jobs::CaptureJobSummary& before, int total_frames) {
     if (options.resume) {
+      print_frame_check(options, before.frame_check);
       std::fprintf(stderr, "resuming %s: %d frames present, %d missing\n",
                    options.session_dir.c_str(), before.frames_present_before,
                    before.frames_missing_before);
@@ -63,6 +72,10 @@ int capture_session(const jobs::CaptureOptions& options, bool quiet) {
   callbacks.on_progress = [&](const CaptureProgress& p) { progress->update(p.done, p.current); };
   const jobs::CaptureJobSummary job = jobs::capture(options, callbacks);
   if (job.already_complete) {
+    print_frame_check(options, job.frame_check);
+    for (const auto& [led_id, reason] : job.dead_leds) {
+      std::fprintf(stderr, "warning: LED %d flagged dead: %s\n", led_id, reason.c_str());
+    }
     std::fprintf(stderr, "%s: session is already complete (%d frames)\n",
                  options.session_dir.c_str(), job.frames_present_before);
     return 0;

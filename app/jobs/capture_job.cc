@@ -26,6 +26,12 @@ void check_calibration_files(const Stage& stage) {
   }
 }
 
+void collect_dead_leds(const Session& session, CaptureJobSummary& summary) {
+  for (const auto& [index, reason] : session.dead_leds()) {
+    summary.dead_leds.emplace_back(session.stage().leds[size_t(index)].id, reason);
+  }
+}
+
 }  // namespace
 
 std::string CaptureOptions::validate() const {
@@ -48,10 +54,15 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
     // gets no lock file, and Session::open names what is missing.
     if (fs::exists(options.session_dir / "manifest.json")) writer_lock.emplace(options.session_dir);
     session.emplace(Session::open(options.session_dir));
+    // What is trusted is read back first: a damaged frame is captured again, never kept.
+    summary.frame_check = session->verify_frames();
     summary.frames_present_before = int(session->frames().size());
     summary.frames_missing_before = int(session->missing_frames().size());
     if (session->complete()) {
       summary.already_complete = true;
+      // A kill after the last frame but before its step was judged: judge it now.
+      judge_captured_steps(*session, SequencerOptions{}.dead_led_threshold);
+      collect_dead_leds(*session, summary);
       return summary;
     }
     const Backend& backend =
@@ -98,9 +109,7 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   for (const TimeStepOverrun& o : summary.capture.overruns) {
     summary.overrun_step_times_s.push_back(stage.plan.step_time_s(o.time_step));
   }
-  for (const auto& [index, reason] : session->dead_leds()) {
-    summary.dead_leds.emplace_back(stage.leds[index].id, reason);
-  }
+  collect_dead_leds(*session, summary);
   return summary;
 }
 

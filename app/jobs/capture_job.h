@@ -26,7 +26,8 @@ struct CaptureJobSummary {
   bool already_complete = false;  // --resume of a complete session: nothing done.
   int frames_present_before = 0;  // In the session before this run.
   int frames_missing_before = 0;
-  CaptureSummary capture;                              // This run (sequencer summary).
+  FrameCheck frame_check;  // --resume: the saved frames read back; the damaged are re-captured.
+  CaptureSummary capture;  // This run (sequencer summary).
   std::vector<std::pair<int, std::string>> dead_leds;  // LED id, why it was flagged.
   std::vector<double> overrun_step_times_s;            // Scene time of each overrun step.
 };

@@ -5,8 +5,12 @@
 
 namespace ls {
 
-FrameWriter::FrameWriter(Session& session, std::size_t max_queued_bytes)
-    : session_(session), max_queued_bytes_(max_queued_bytes), thread_([this] { run(); }) {}
+FrameWriter::FrameWriter(Session& session, std::size_t max_queued_bytes,
+                         std::size_t max_queued_frames)
+    : session_(session),
+      max_queued_bytes_(max_queued_bytes),
+      max_queued_frames_(max_queued_frames),
+      thread_([this] { run(); }) {}
 
 FrameWriter::~FrameWriter() {
   {
@@ -22,15 +26,19 @@ void FrameWriter::throw_if_failed_locked() const {
 }
 
 void FrameWriter::enqueue(Job job, std::size_t bytes) {
+  const bool is_frame = std::holds_alternative<FrameJob>(job);
   std::unique_lock lock(mutex_);
   throw_if_failed_locked();
   // Backpressure: wait for room, but always admit one job into an empty queue.
   changed_.wait(lock, [&] {
-    return error_ || queued_bytes_ == 0 || queued_bytes_ + bytes <= max_queued_bytes_;
+    return error_ || queued_bytes_ == 0 ||
+           (queued_bytes_ + bytes <= max_queued_bytes_ &&
+            (!is_frame || queued_frames_ < max_queued_frames_));
   });
   throw_if_failed_locked();
   queue_.emplace_back(std::move(job), bytes);
   queued_bytes_ += bytes;
+  queued_frames_ += is_frame;
   lock.unlock();
   changed_.notify_all();
 }
@@ -96,7 +104,10 @@ void FrameWriter::run() {
     }
     {
       std::lock_guard lock(mutex_);
-      for (const auto& entry : batch) queued_bytes_ -= entry.second;
+      for (const auto& [job, bytes] : batch) {
+        queued_bytes_ -= bytes;
+        queued_frames_ -= std::holds_alternative<FrameJob>(job);
+      }
       if (error && !error_) error_ = error;
       busy_ = false;
     }

@@ -6,7 +6,9 @@
 // sequencer hands a frame over and goes on; the writer writes each frame's file durably, then
 // journals all frames written so far in one fsync'ed append (group commit). The journal stays the
 // only record of what was captured, so a frame still in the queue when the process dies is simply
-// not a frame: a resume captures it again. What it costs is bounded by max_queued_bytes.
+// not a frame: a resume captures it again. What it costs is bounded by max_queued_bytes and
+// max_queued_frames, and so is the time a stop waits for the queue to drain: the count bounds it
+// for small frames, whose cost is the fsyncs, not the bytes.
 //
 // While a FrameWriter is active the session is changed only through it (frames, LED signals, dead
 // LEDs, all journaled in submission order); call flush() before reading the session.
@@ -25,7 +27,8 @@ namespace ls {
 
 class FrameWriter {
  public:
-  explicit FrameWriter(Session& session, std::size_t max_queued_bytes = std::size_t(256) << 20);
+  explicit FrameWriter(Session& session, std::size_t max_queued_bytes = std::size_t(256) << 20,
+                       std::size_t max_queued_frames = 64);
   // Finishes writing what is queued (errors are dropped: call flush() to see them).
   ~FrameWriter();
   FrameWriter(const FrameWriter&) = delete;
@@ -61,11 +64,13 @@ class FrameWriter {
 
   Session& session_;
   const std::size_t max_queued_bytes_;
+  const std::size_t max_queued_frames_;
   std::mutex mutex_;
   std::condition_variable changed_;
   std::deque<std::pair<Job, std::size_t>> queue_;  // With each job's bytes.
   std::size_t queued_bytes_ = 0;
-  bool busy_ = false;  // The writer thread holds jobs taken off the queue.
+  std::size_t queued_frames_ = 0;  // Frame jobs in queue_.
+  bool busy_ = false;              // The writer thread holds jobs taken off the queue.
   bool stopping_ = false;
   std::exception_ptr error_;
   std::thread thread_;  // Last: starts after everything above is initialised.

@@ -11,6 +11,7 @@
 #include <thread>
 
 #include "lightstage/controller/frame_writer.h"
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 
 namespace ls {
@@ -33,7 +34,8 @@ class AllOffGuard {
 // frames of this run as they are captured, else (a resumed capture) from the session's files.
 class DarkCache {
  public:
-  DarkCache(const Session& session, FrameWriter& writer) : session_(session), writer_(writer) {}
+  // With a writer, it is flushed before the session's files are read.
+  DarkCache(const Session& session, FrameWriter* writer) : session_(session), writer_(writer) {}
 
   void add(const FrameKey& key, const RawFrame& frame) {
     Sum& sum = captured_[{key.time_step, key.exposure_index}];
@@ -53,7 +55,7 @@ class DarkCache {
       count = it->second.count;
       captured_.erase(it);
     } else {
-      writer_.flush();  // The session is read only when nothing is in flight.
+      if (writer_) writer_->flush();  // The session is read only when nothing is in flight.
       for (int r = 0; r < session_.stage().plan.dark_frames; ++r) {
         const FrameKey k{time_step, -1, exposure_index, r};
         if (!session_.frames().count(k)) continue;
@@ -75,7 +77,7 @@ class DarkCache {
     int count = 0;
   };
   const Session& session_;
-  FrameWriter& writer_;
+  FrameWriter* writer_;
   std::map<std::pair<int, int>, Sum> captured_;
   std::map<std::pair<int, int>, std::vector<float>> mean_;
 };
@@ -117,31 +119,67 @@ void require_free_space(const Session& session, const std::vector<PlannedFrame>&
   }
 }
 
-// Flags LEDs that are dark while their neighbours are lit (see SequencerOptions).
-void flag_dead_leds(const Session& session, FrameWriter& writer, int time_step, double threshold) {
-  writer.flush();  // Reads the LED signals journaled so far.
+// Each LED's neighbours on the dome: the LEDs within 1.6x the angle to its nearest one.
+class LedNeighbours {
+ public:
+  explicit LedNeighbours(const Stage& stage) : of_(stage.leds.size()) {
+    std::vector<Eigen::Vector3d> dirs;
+    for (const Led& led : stage.leds) dirs.push_back(led.dir_in_stage.normalized());
+    const DirectionIndex index(dirs);
+    for (int i = 0; i < int(dirs.size()); ++i) {
+      for (const int j : index.within(dirs[size_t(i)], 1.6 * index.nearest_other_angle(i))) {
+        if (j != i) of_[size_t(i)].push_back(j);
+      }
+    }
+  }
+  const std::vector<int>& of(int led) const { return of_[size_t(led)]; }
+
+ private:
+  std::vector<std::vector<int>> of_;
+};
+
+// Whether every LED frame of time step t is in the session.
+bool step_captured(const Session& session, int t) {
   const Stage& stage = session.stage();
-  const auto& signals = session.led_signals();
+  for (int led = 0; led < int(stage.leds.size()); ++led) {
+    for (int e = 0; e < int(stage.camera.bracket.size()); ++e) {
+      if (!session.frames().count({t, led, e, 0})) return false;
+    }
+  }
+  return true;
+}
+
+// An LED's brightest bracket frame above the dark frame, from its saved frames: for an LED whose
+// bracket was split between runs, or whose signal line a kill cut off.
+double saved_signal(const Session& session, DarkCache& darks, int t, int led) {
+  double brightest = 0.0;
+  for (int e = 0; e < int(session.stage().camera.bracket.size()); ++e) {
+    const std::vector<float>* dark = darks.get(t, e);
+    if (!dark) return 1.0;  // No dark reference: cannot judge.
+    brightest =
+        std::max(brightest, bright_signal_fraction(session.load_frame({t, led, e, 0}), *dark));
+  }
+  return brightest;
+}
+
+// Judges time step t once all its LED frames are saved: records the signal of every LED that has
+// none, then flags LEDs that are dark while their neighbours are lit (see SequencerOptions).
+// Idempotent, so a step is judged again after any kill; nothing may be in flight in a FrameWriter.
+void judge_step(Session& session, DarkCache& darks, const LedNeighbours& neighbours, int t,
+                double threshold) {
+  const Stage& stage = session.stage();
   const int n = int(stage.leds.size());
   for (int i = 0; i < n; ++i) {
-    const auto it = signals.find({time_step, i});
-    if (it == signals.end() || it->second >= threshold) continue;
-    // Neighbours: LEDs within 1.6x the angle to the nearest one.
-    double nearest_cos = -1;
-    for (int j = 0; j < n; ++j) {
-      if (j != i)
-        nearest_cos =
-            std::max(nearest_cos, stage.leds[i].dir_in_stage.dot(stage.leds[j].dir_in_stage));
+    if (!session.led_signals().count({t, i})) {
+      session.record_led_signal(t, i, saved_signal(session, darks, t, i));
     }
-    const double radius = 1.6 * std::acos(std::clamp(nearest_cos, -1.0, 1.0));
+  }
+  const auto& signals = session.led_signals();
+  for (int i = 0; i < n; ++i) {
+    const double signal = signals.at({t, i});
+    if (signal >= threshold || session.dead_leds().count(i)) continue;
     std::vector<double> around;
-    for (int j = 0; j < n; ++j) {
-      const double angle = std::acos(
-          std::clamp(stage.leds[i].dir_in_stage.dot(stage.leds[j].dir_in_stage), -1.0, 1.0));
-      if (j == i || angle > radius) continue;
-      if (const auto s = signals.find({time_step, j}); s != signals.end())
-        around.push_back(s->second);
-    }
+    for (const int j : neighbours.of(i)) around.push_back(signals.at({t, j}));
     if (around.empty()) continue;
     // An LED on the edge of a dark region has dark neighbours too; a broken one is dark among
     // lit ones. Lit: above 10x the threshold.
@@ -149,10 +187,10 @@ void flag_dead_leds(const Session& session, FrameWriter& writer, int time_step, 
         std::count_if(around.begin(), around.end(), [&](double v) { return v > 10 * threshold; });
     if (lit >= 0.8 * double(around.size())) {
       std::ostringstream reason;
-      reason << "time step " << time_step << ": brightest frame exceeds the dark frame by "
-             << it->second * 100 << "% of full scale while " << lit << " of its " << around.size()
+      reason << "time step " << t << ": brightest frame exceeds the dark frame by " << signal * 100
+             << "% of full scale while " << lit << " of its " << around.size()
              << " neighbours are lit";
-      if (!session.dead_leds().count(i)) writer.mark_dead_led(i, reason.str());
+      session.mark_dead_led(i, reason.str());
     }
   }
 }
@@ -187,8 +225,11 @@ class CaptureRun {
 
   CaptureSummary run() {
     require_free_space(session_, missing_);  // Before any LED is switched on.
+    // Steps a killed run finished without judging them (or all their LEDs): judged now.
+    judge_captured_steps(session_, options_.dead_led_threshold);
+    const LedNeighbours neighbours(stage_);
     writer_.emplace(session_);
-    DarkCache darks(session_, *writer_);
+    DarkCache darks(session_, &*writer_);
     session_.write_manifest("capturing");
     AllOffGuard guard(lights_);
     try {
@@ -211,7 +252,8 @@ class CaptureRun {
         // Once the last LED of a time step is in, judge that step's dark LEDs.
         const bool step_done = end == missing_.size() || missing_[end].key.time_step != t;
         if (step_done && led >= 0) {
-          flag_dead_leds(session_, *writer_, t, options_.dead_led_threshold);
+          writer_->flush();  // The session is touched only when nothing is in flight.
+          judge_step(session_, darks, neighbours, t, options_.dead_led_threshold);
         }
         i = end;
       }
@@ -227,13 +269,17 @@ class CaptureRun {
 
  private:
   std::string cannot_save(const std::string& why) const {
-    // A full disk wants space; a session whose frames/ is not a folder wants it moved aside.
+    // A full disk wants space; a session whose frames/ is not a folder wants it moved aside; a
+    // session folder that is gone (deleted, moved, unmounted) wants it back.
     const std::filesystem::path frames = session_.dir() / "frames";
-    const std::string fix = std::filesystem::is_directory(frames)
-                                ? "free space and resume with --resume"
-                                : frames.string() +
-                                      " is not a folder: move it aside and resume "
-                                      "with --resume";
+    std::error_code ec;
+    const std::string fix =
+        !std::filesystem::is_directory(session_.dir(), ec)
+            ? "the session folder " + session_.dir().string() +
+                  " is gone (deleted, moved or unmounted): restore it and resume with --resume"
+        : std::filesystem::is_directory(frames, ec)
+            ? "free space and resume with --resume"
+            : frames.string() + " is not a folder: move it aside and resume with --resume";
     return "cannot save frames: " + why +
            "; all LEDs are off and every frame saved before that is kept; " + fix;
   }
@@ -349,7 +395,8 @@ class CaptureRun {
     }
     if (led >= 0) {
       lights_.set_light(led, false);
-      // Only a whole bracket taken in this run tells how bright the LED is.
+      // Only a whole bracket taken in this run tells how bright the LED is; a split one is
+      // judged from its saved frames (judge_step).
       if (end - i == stage_.camera.bracket.size()) writer_->record_led_signal(t, led, brightest);
     }
   }
@@ -373,6 +420,14 @@ class CaptureRun {
 };
 
 }  // namespace
+
+void judge_captured_steps(Session& session, double dead_led_threshold) {
+  const LedNeighbours neighbours(session.stage());
+  DarkCache darks(session, nullptr);
+  for (int t = 0; t < session.stage().plan.time_steps; ++t) {
+    if (step_captured(session, t)) judge_step(session, darks, neighbours, t, dead_led_threshold);
+  }
+}
 
 CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,
                            const SequencerOptions& options) {

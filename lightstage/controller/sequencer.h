@@ -26,9 +26,11 @@ struct SequencerOptions {
   std::function<void(const CaptureProgress&)> on_progress;
   // Dead LEDs. An LED is dark when its brightest bracket frame exceeds the dark frame by less than
   // dead_led_threshold of full scale (99.9th percentile). A dark LED is judged broken, and flagged,
-  // only when nearly all its neighbours on the dome (80%) are clearly lit (> 10x the threshold): a
-  // whole dark region is the scene not being lit from there (LEDs behind an opaque backdrop), which
-  // is data, not a fault. Judged once every LED of a time step is captured; the capture continues.
+  // only when nearly all its neighbours on the dome (80%; those within 1.6x the angle to its
+  // nearest LED) are clearly lit (> 10x the threshold): a whole dark region is the scene not being
+  // lit from there (LEDs behind an opaque backdrop), which is data, not a fault. Judged once every
+  // LED of a time step is captured, and again on resume (judge_captured_steps); the capture
+  // continues.
   double dead_led_threshold = 0.002;
   // Sleeps for plan.settle_s and inter-step waits; tests replace it to run instantly.
   std::function<void(double seconds)> sleep;
@@ -58,5 +60,11 @@ struct CaptureSummary {
 
 CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,
                            const SequencerOptions& options);
+
+// Judges the LEDs of every time step whose frames are all saved, as run_capture does when a step
+// ends: the signal of an LED whose bracket was split between runs, or whose signal a kill cut
+// off, is measured from its saved frames. So a dead LED is flagged whatever moment a capture was
+// killed at (run_capture calls it first; a resume that finds nothing missing calls it alone).
+void judge_captured_steps(Session& session, double dead_led_threshold);
 
 }  // namespace ls

@@ -46,9 +46,16 @@ class NearestLed {
   NearestLed(const std::vector<Eigen::Vector3d>& unit_dirs, const std::vector<bool>& usable)
       : dirs_(unit_dirs) {
     std::vector<int> pool;
+    std::vector<Eigen::Vector3d> pool_dirs;
     for (int l = 0; l < int(dirs_.size()); ++l) {
-      if (usable.empty() || usable[l]) pool.push_back(l);
+      if (usable.empty() || usable[l]) {
+        pool.push_back(l);
+        pool_dirs.push_back(dirs_[l]);
+      }
     }
+    // Each bucket's nearest LED and the LEDs within its reach from a k-d tree: scanning every LED
+    // per bucket is O(buckets x LEDs), minutes at 100,000 LEDs.
+    const DirectionIndex index(pool_dirs);
     // Buckets about a quarter of the mean LED spacing: a handful of candidates each.
     const double spacing_rad = std::sqrt(4.0 * kPi / std::max<size_t>(pool.size(), 1));
     grid_h_ = std::clamp(int(std::ceil(kPi / (0.25 * spacing_rad))), 16, 512);
@@ -68,14 +75,11 @@ class NearestLed {
           }
         }
         const double radius_rad = std::acos(std::clamp(min_corner_dot, -1.0, 1.0)) + 1e-9;
-        double best_dot = -2.0;
-        for (int l : pool) best_dot = std::max(best_dot, centre.dot(dirs_[l]));
-        const double reach_rad = std::acos(std::clamp(best_dot, -1.0, 1.0)) + 2.0 * radius_rad;
-        const double min_dot = reach_rad >= kPi ? -2.0 : std::cos(reach_rad) - 1e-12;
+        if (pool.empty()) continue;
+        const double reach_rad = index.nearest_angle(centre) + 2.0 * radius_rad + 1e-9;
         std::vector<int>& list = lists[size_t(by) * grid_w_ + bx];
-        for (int l : pool) {
-          if (centre.dot(dirs_[l]) >= min_dot) list.push_back(l);
-        }
+        for (const int k : index.within(centre, reach_rad)) list.push_back(pool[size_t(k)]);
+        std::sort(list.begin(), list.end());
       }
     });
     for (size_t b = 0; b < lists.size(); ++b) offsets_[b + 1] = offsets_[b] + int(lists[b].size());
@@ -187,20 +191,6 @@ Eigen::Matrix3d rotation_about_y(double angle_rad) {
 }
 
 }  // namespace
-
-double max_nearest_neighbour_angle(const std::vector<Eigen::Vector3d>& led_dirs) {
-  if (led_dirs.size() < 2) return kPi;  // One LED (or none) stands for the whole sphere.
-  double worst_dot = 1.0;
-  for (size_t i = 0; i < led_dirs.size(); ++i) {
-    const Eigen::Vector3d a = led_dirs[i].normalized();
-    double best_dot = -1.0;
-    for (size_t j = 0; j < led_dirs.size(); ++j) {
-      if (j != i) best_dot = std::max(best_dot, a.dot(led_dirs[j].normalized()));
-    }
-    worst_dot = std::min(worst_dot, best_dot);
-  }
-  return std::acos(std::clamp(worst_dot, -1.0, 1.0));
-}
 
 LightCells LightCells::compute(const std::vector<Eigen::Vector3d>& led_dirs,
                                double coverage_radius_rad, int resolution, int supersample) {

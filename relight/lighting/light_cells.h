@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <vector>
 
+#include "lightstage/direction_index.h"  // max_nearest_neighbour_angle: the default coverage.
 #include "relight/lighting/envmap.h"
 
 namespace ls::relight {
@@ -22,9 +23,6 @@ struct LightCells {
                             double coverage_radius_rad = 0.0, int resolution = 2048,
                             int supersample = 2);
 };
-
-// The largest angle from any LED to its nearest neighbour (the default coverage radius).
-double max_nearest_neighbour_angle(const std::vector<Eigen::Vector3d>& led_dirs);
 
 struct LightWeights {
   std::vector<float> irradiance_rgb;                  // 3 per LED: E_l per channel.

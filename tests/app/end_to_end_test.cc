@@ -85,7 +85,7 @@ TEST(EndToEnd, MapOfOneLedsCellReturnsThatLedsImage) {
         for (int l = 1; l < int(dirs.size()); ++l) {
           if (d.dot(dirs[l]) > d.dot(dirs[best])) best = l;
         }
-        const double coverage = relight::max_nearest_neighbour_angle(dirs);
+        const double coverage = max_nearest_neighbour_angle(dirs);
         if (best == led && std::acos(std::min(1.0, d.dot(dirs[best]))) <= coverage) {
           in_cell[y * W + x] = 1;
           cell_sr += probe.pixel_solid_angle_sr(y);
@@ -136,7 +136,7 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
     sim::GroundTruthOptions gt;
     gt.directions_width = 128;
     gt.covered_by_leds = dirs;
-    gt.coverage_radius_rad = relight::max_nearest_neighbour_angle(dirs);
+    gt.coverage_radius_rad = max_nearest_neighbour_angle(dirs);
     const Image truth = sim::render_ground_truth(scene, stage.camera, map, gt);
     const auto err = testing::compare_images(relit, truth);
     std::cout << name << ": relative RMSE " << err.relative_rmse << ", PSNR " << err.psnr_db

@@ -157,7 +157,7 @@ TEST(EnvironmentRelighting, EveryRepresentationAgainstGroundTruth) {
   const auto& field = sim_field(scene);
   const Stage stage = rti_dome_stage();
   const auto dirs = stage.led_directions();
-  const double coverage = relight::max_nearest_neighbour_angle(dirs);
+  const double coverage = max_nearest_neighbour_angle(dirs);
   const auto map =
       relight::EnvironmentMap::load(testing::source_dir() / "data/envmaps/sky_sun.exr");
   const relight::LightWeights weights = relight::integrate_environment(map, dirs, 0, coverage);

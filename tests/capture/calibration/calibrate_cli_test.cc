@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <random>
 
 #include "capture/light_calibration.h"
 #include "sim/calibration_targets.h"
@@ -151,6 +152,29 @@ TEST(CalibrateCli, DirectionsThenIntensitiesRecoverThePerturbedDome) {
       << output;
   EXPECT_NE(output.find("does not exist"), std::string::npos) << output;
   EXPECT_FALSE(std::filesystem::exists(dir / "missing"));
+  EXPECT_FALSE(std::filesystem::exists(dir / "i2.json"));
+  // Photos of noise, not of the white target: every LED refused by name, no LED made 3x brighter
+  // (it was +201%), exit code 2 and nothing written.
+  std::filesystem::create_directories(dir / "noise");
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> noise(0.0f, 0.4f);
+  for (size_t l = 0; l < nominal.leds.size(); ++l) {
+    Image photo(640, 320, 3);
+    for (float& v : photo.pixels) v = noise(rng);
+    char name[32];
+    std::snprintf(name, sizeof name, "white_%02zu.exr", l);
+    write_exr(dir / "noise" / name, photo);
+  }
+  EXPECT_EQ(
+      testing::run_command(cli + " calibrate intensities --quiet --stage " +
+                               (dir / "directions.json").string() + " --white " +
+                               (dir / "noise").string() + " --out " + (dir / "i2.json").string(),
+                           &output),
+      2)
+      << output;
+  EXPECT_NE(output.find("white_01.exr: the image is not a smoothly lit white plane"),
+            std::string::npos)
+      << output;
   EXPECT_FALSE(std::filesystem::exists(dir / "i2.json"));
 
   // No sphere in the reference shot: exit code 2 and a message naming the file.

@@ -215,5 +215,109 @@ TEST(Sequencer, FramesThatCannotBeSavedStopTheCaptureCleanlyAndResumeRecapturesT
   EXPECT_EQ(healthy.frames, int(plan_frames(stage).size()) - stopped.frames_captured);
 }
 
+// A kill inside a dead LED's bracket (the bracket split between two runs), or after its step's
+// last frame but before the verdict was journaled: the resume still flags it (issue 19).
+TEST(Sequencer, ADeadLedIsFlaggedWhateverMomentTheCaptureWasKilledAt) {
+  const Stage stage = SmallStage(12);
+  const std::string first_of_dead = FrameKey{0, 5, 0, 0}.name(stage);
+  for (const bool split_bracket : {true, false}) {
+    testing::TempDir tmp;
+    FakeLights lights(int(stage.leds.size()));
+    {
+      Session session = Session::create(tmp / "s", stage, {});
+      FakeCamera camera(lights);
+      camera.dead_leds = {5};
+      std::atomic<bool> stop{false};
+      SequencerOptions options = Instant();
+      options.stop_requested = &stop;
+      options.on_progress = [&](const CaptureProgress& p) {
+        if (split_bracket && p.current == first_of_dead) stop = true;
+      };
+      run_capture(session, lights, camera, options);
+    }
+    if (!split_bracket) {
+      // As if killed after the last frame: the signals and verdict lines never reached the journal.
+      std::ifstream in(tmp / "s" / "frames.jsonl");
+      std::string kept;
+      for (std::string line; std::getline(in, line);) {
+        if (line.find("led_signal") == std::string::npos &&
+            line.find("dead_led") == std::string::npos) {
+          kept += line + "\n";
+        }
+      }
+      in.close();
+      std::ofstream(tmp / "s" / "frames.jsonl", std::ios::trunc) << kept;
+    }
+    Session resumed = Session::open(tmp / "s");
+    EXPECT_TRUE(resumed.dead_leds().empty());
+    FakeCamera camera(lights);
+    camera.dead_leds = {5};
+    EXPECT_EQ(run_capture(resumed, lights, camera, Instant()).status,
+              CaptureSummary::Status::kComplete);
+    EXPECT_EQ(resumed.dead_leds().count(5), 1u) << "split bracket: " << split_bracket;
+    EXPECT_EQ(resumed.dead_leds().size(), 1u);
+    EXPECT_EQ(Session::open(tmp / "s").dead_leds().count(5), 1u);
+  }
+}
+
+// The session folder is deleted (or unmounted) mid-capture: the capture stops as a storage
+// failure naming the folder, and never recreates it half empty (issue 19).
+TEST(Sequencer, AVanishedSessionFolderStopsTheCaptureAndIsNotRecreated) {
+  testing::TempDir tmp;
+  const Stage stage = SmallStage();
+  Session session = Session::create(tmp / "s", stage, {});
+  struct DeletingCamera : FakeCamera {
+    using FakeCamera::FakeCamera;
+    CapturedFrame capture(const FrameRequest& r) override {
+      if (frames == 20) std::filesystem::remove_all(dir);
+      return FakeCamera::capture(r);
+    }
+    std::filesystem::path dir;
+  };
+  FakeLights lights(int(stage.leds.size()));
+  DeletingCamera camera(lights);
+  camera.dir = tmp / "s";
+  const CaptureSummary s = run_capture(session, lights, camera, Instant());
+  EXPECT_EQ(s.status, CaptureSummary::Status::kWriteFailed);
+  EXPECT_NE(s.message.find((tmp / "s").string() + " is gone"), std::string::npos) << s.message;
+  EXPECT_EQ(lights.count_on(), 0);
+  EXPECT_FALSE(std::filesystem::exists(tmp / "s"));
+}
+
+// Frames damaged after they were saved (truncated, overwritten, replaced by another image) are
+// found when the session is read back and captured again; the intact ones are kept (issue 19).
+TEST(Sequencer, DamagedFramesAreFoundOnResumeAndCapturedAgain) {
+  testing::TempDir tmp;
+  const Stage stage = SmallStage();
+  FakeLights lights(int(stage.leds.size()));
+  {
+    Session session = Session::create(tmp / "s", stage, {});
+    FakeCamera camera(lights);
+    ASSERT_EQ(run_capture(session, lights, camera, Instant()).status,
+              CaptureSummary::Status::kComplete);
+  }
+  const std::filesystem::path frames = tmp / "s" / "frames";
+  const auto file = [&](const FrameKey& k) { return frames / (k.name(stage) + ".png"); };
+  std::filesystem::resize_file(file({0, 1, 0, 0}), 100);               // Truncated.
+  std::ofstream(file({0, 2, 1, 0}), std::ios::trunc) << "garbage";     // Overwritten.
+  std::filesystem::copy_file(file({0, 3, 2, 0}), file({0, -1, 0, 0}),  // Another frame's image.
+                             std::filesystem::copy_options::overwrite_existing);
+  const int planned = int(plan_frames(stage).size());
+  Session reopened = Session::open(tmp / "s");
+  EXPECT_TRUE(reopened.complete());  // Before the check: the journal trusts every frame.
+  const FrameCheck check = reopened.verify_frames();
+  EXPECT_EQ(check.verified, planned - 3);
+  ASSERT_EQ(check.damaged.size(), 3u);
+  EXPECT_NE(check.damaged[0].find(file({0, -1, 0, 0}).string()), std::string::npos);
+  EXPECT_EQ(reopened.missing_frames().size(), 3u);
+  FakeCamera camera(lights);
+  EXPECT_EQ(run_capture(reopened, lights, camera, Instant()).status,
+            CaptureSummary::Status::kComplete);
+  EXPECT_EQ(camera.frames, 3);
+  Session again = Session::open(tmp / "s");
+  EXPECT_EQ(again.verify_frames().verified, planned);
+  EXPECT_EQ(again.load_frame({0, 2, 1, 0}).pixels[0], 50 + 120);  // LED 2 at 10 ms.
+}
+
 }  // namespace
 }  // namespace ls

@@ -56,7 +56,7 @@ TEST(LightCellsTest, DefaultDomeSumsTo4PiAndEveryCellLiesInItsCoverageCap) {
   ASSERT_GT(dirs.size(), 100u);
   const LightCells cells = LightCells::compute(dirs, 0.0, /*resolution=*/1024);
   EXPECT_NEAR(total_sr(cells), 4 * kPi, 1e-6 * 4 * kPi);
-  EXPECT_NEAR(cells.coverage_radius_rad, ls::relight::max_nearest_neighbour_angle(dirs), 0.0);
+  EXPECT_NEAR(cells.coverage_radius_rad, ls::max_nearest_neighbour_angle(dirs), 0.0);
   // The dome stops about 11.5 degrees below the horizon: most of the lower hemisphere is open.
   EXPECT_GT(cells.uncovered_sr, 0.5 * 2 * kPi);
   EXPECT_LT(cells.uncovered_sr, 2 * kPi);
@@ -179,7 +179,7 @@ TEST(LightCellsTest, ConstantMapGivesRadianceTimesCellSolidAngle) {
 // radius) and 0 elsewhere. The last LED is on the lowest ring, where coverage cuts its cell.
 TEST(LightCellsTest, IndicatorMapOfOneCellGivesUnitIrradianceToThatLedOnly) {
   const std::vector<Eigen::Vector3d> dirs = ls::default_stage().led_directions();
-  const double cos_coverage = std::cos(ls::relight::max_nearest_neighbour_angle(dirs));
+  const double cos_coverage = std::cos(ls::max_nearest_neighbour_angle(dirs));
   const int width = 512;
   const EnvironmentMap grid(Image(width, width / 2, 3));
   const auto in_cell = [&](int x, int y, int target) {
@@ -315,11 +315,11 @@ TEST(LightCellsTest, RotationSequenceConservesTheMapAndOppositeRotationsCancelTh
 }
 
 TEST(LightCellsTest, MaxNearestNeighbourAngle) {
-  EXPECT_NEAR(ls::relight::max_nearest_neighbour_angle(axis_directions()), kPi / 2, 1e-12);
-  EXPECT_EQ(ls::relight::max_nearest_neighbour_angle({{0, 1, 0}}), kPi);
+  EXPECT_NEAR(ls::max_nearest_neighbour_angle(axis_directions()), kPi / 2, 1e-12);
+  EXPECT_EQ(ls::max_nearest_neighbour_angle({{0, 1, 0}}), kPi);
   const auto at_angle = [](double rad) { return Eigen::Vector3d(std::sin(rad), std::cos(rad), 0); };
-  EXPECT_NEAR(ls::relight::max_nearest_neighbour_angle({at_angle(0), at_angle(0.1), at_angle(0.3)}),
-              0.2, 1e-12);
+  EXPECT_NEAR(ls::max_nearest_neighbour_angle({at_angle(0), at_angle(0.1), at_angle(0.3)}), 0.2,
+              1e-12);
 }
 
 }  // namespace
