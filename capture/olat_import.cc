@@ -217,7 +217,8 @@ fs::path lp_in_folder(const fs::path& folder) {
   }
   if (found.size() != 1) {
     throw InputError(folder.string() + ": expected exactly one .lp file in the folder, found " +
-                     std::to_string(found.size()));
+                     std::to_string(found.size()) +
+                     " (or a DiLiGenT folder: filenames.txt and light_directions.txt)");
   }
   return found[0];
 }
@@ -248,9 +249,14 @@ std::string OlatImportOptions::validate() const {
 OlatFormat detect_olat_format(const fs::path& source) {
   if (!fs::exists(source)) throw InputError(source.string() + ": not found");
   if (fs::is_directory(source)) {
-    if (fs::is_regular_file(source / "filenames.txt") &&
-        fs::is_regular_file(source / "light_directions.txt")) {
-      return OlatFormat::kDiligent;
+    const bool names = fs::is_regular_file(source / "filenames.txt");
+    const bool dirs = fs::is_regular_file(source / "light_directions.txt");
+    if (names && dirs) return OlatFormat::kDiligent;
+    if (names || dirs) {  // Half a DiLiGenT folder: say what the other half is.
+      throw InputError(source.string() + ": a DiLiGenT folder needs " +
+                       (names ? "light_directions.txt" : "filenames.txt") + " beside its " +
+                       (names ? "filenames.txt" : "light_directions.txt") +
+                       " (one line per image)");
     }
     lp_in_folder(source);  // Throws unless there is exactly one.
     return OlatFormat::kRtiLp;

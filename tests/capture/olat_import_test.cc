@@ -674,6 +674,12 @@ TEST(OlatImport, DiligentErrorsNameFileLineAndField) {
   write_text(dir / "filenames.txt", "a0.png\nnone.png\na2.png\n");
   e = input_error([&] { import_olat(dir, {}); });
   EXPECT_NE(e.find("filenames.txt:2: image: 'none.png' not found"), std::string::npos) << e;
+  // Half a DiLiGenT folder names the missing half, not an .lp file (issue 19).
+  fs::remove(dir / "filenames.txt");
+  e = input_error([&] { detect_olat_format(dir); });
+  EXPECT_NE(e.find("a DiLiGenT folder needs filenames.txt beside its light_directions.txt"),
+            std::string::npos)
+      << e;
 }
 
 TEST(OlatImport, SaturatedSamplesAreCountedAndOptionallyZeroed) {

@@ -65,9 +65,8 @@ TEST(DirectionIndex, TheLargestStageAFileMayHoldIsSummarised) {
                     R"({"name": "big", "layout": {"type": "fibonacci", "count": 100000},
                         "camera": {"backend": "sim", "width": 16, "height": 16}})");
   std::string output;
-  ASSERT_EQ(testing::run_command(testing::cli_path().string() + " stage " +
-                                     (dir / "big.json").string(),
-                                 &output),
+  ASSERT_EQ(testing::run_command(
+                testing::cli_path().string() + " stage " + (dir / "big.json").string(), &output),
             0)
       << output;
   EXPECT_NE(output.find("LEDs: 100000"), std::string::npos) << output;
