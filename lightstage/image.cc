@@ -226,6 +226,14 @@ RawFrame read_raw_frame(const fs::path& path, int bit_depth) {
   auto in = OIIO::ImageInput::open(path.string());
   if (!in) throw InputError(path.string() + ": cannot read frame: " + OIIO::geterror());
   const OIIO::ImageSpec& spec = in->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) {
+    throw InputError(path.string() + ": frame has no pixels");
+  }
+  // Checked before it is allocated, as read_image does: a damaged header can claim gigabytes.
+  require_memory(std::size_t(spec.width) * spec.height * spec.nchannels * sizeof(uint16_t),
+                 path.string() + ": the frame's " + std::to_string(spec.width) + "x" +
+                     std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + " pixels",
+                 "is its header damaged?");
   RawFrame frame;
   frame.width = spec.width;
   frame.height = spec.height;

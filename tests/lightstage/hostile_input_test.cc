@@ -54,6 +54,24 @@ TEST(HostileInput, ImageHeaderClaimingTooMuchIsRefusedBeforeAllocating) {
       << what;
 }
 
+TEST(HostileInput, FrameHeaderClaimingTooMuchIsRefusedBeforeAllocating) {
+  testing::TempDir dir;
+  // A PNG whose header claims 200000 x 200000 16-bit RGB (240 GB) and holds no pixels.
+  std::string ihdr = std::string("IHDR") + std::string("\x00\x03\x0d\x40", 4) +
+                     std::string("\x00\x03\x0d\x40", 4) + std::string("\x10\x02\x00\x00\x00", 5);
+  const uint32_t crc = crc32_of(ihdr.data(), ihdr.size());
+  std::string png = std::string("\x89PNG\r\n\x1a\n", 8) + std::string("\x00\x00\x00\x0d", 4) + ihdr;
+  for (int shift = 24; shift >= 0; shift -= 8) png += char((crc >> shift) & 0xff);
+  png += std::string("\x00\x00\x00\x00IDAT\x35\xaf\x06\x1e", 12);  // Empty: no pixels.
+  png += std::string("\x00\x00\x00\x00IEND\xae\x42\x60\x82", 12);
+  const fs::path file = dir / "t000_led001_e0.png";
+  std::ofstream(file, std::ios::binary) << png;
+  const std::string what = input_error([&] { (void)read_raw_frame(file, 12); });
+  EXPECT_NE(what.find("t000_led001_e0.png: the frame's 200000x200000x3 pixels needs"),
+            std::string::npos)
+      << what;
+}
+
 class DamagedJournal : public ::testing::Test {
  protected:
   void SetUp() override {
