@@ -89,7 +89,7 @@ void write_bytes_atomic(const fs::path& path, const void* data, size_t size) {
 // Encodes in memory, the format from path's extension: an encoder's own file writes do not all
 // report a full disk, so the bytes are written by write_bytes_atomic.
 std::vector<unsigned char> encode_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec,
-                                            OIIO::TypeDesc in_type, const void* data) {
+                                            const OIIO::TypeDesc& in_type, const void* data) {
   std::vector<unsigned char> encoded;
   OIIO::Filesystem::IOVecOutput memory(encoded);
   auto out = OIIO::ImageOutput::create(path.string());
@@ -105,8 +105,8 @@ std::vector<unsigned char> encode_with_oiio(const fs::path& path, const OIIO::Im
 }
 
 // An output file, its folder created when missing.
-void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec, OIIO::TypeDesc in_type,
-                     const void* data) {
+void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec,
+                     const OIIO::TypeDesc& in_type, const void* data) {
   if (!path.parent_path().empty()) {
     std::error_code ec;
     fs::create_directories(path.parent_path(), ec);
