@@ -1,6 +1,9 @@
 # One helper per kind of target so every folder builds the same way.
 # -Wno-restrict: GCC 12 reports false positives inside std::string (GCC bug 105329).
-set(LIGHTSTAGE_WARNINGS -Wall -Wextra -Wpedantic -Wno-missing-field-initializers -Wno-restrict)
+set(LIGHTSTAGE_WARNINGS -Wall -Wextra -Wpedantic -Wno-missing-field-initializers)
+if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+  list(APPEND LIGHTSTAGE_WARNINGS -Wno-restrict)  # clang (LIGHTSTAGE_FUZZ) has no such warning.
+endif()
 if(LIGHTSTAGE_WERROR)
   list(APPEND LIGHTSTAGE_WARNINGS -Werror)
 endif()
@@ -17,9 +20,20 @@ endfunction()
 # lightstage_test(NAME SOURCES ... LINKS ... [LABELS ...]): one GoogleTest binary, registered with CTest.
 function(lightstage_test name)
   cmake_parse_arguments(ARG "" "TIMEOUT" "SOURCES;LINKS;LABELS" ${ARGN})
-  add_executable(${name} ${ARG_SOURCES})
+  # The sanitizer build (cmake/Fuzzing.cmake) builds and runs only the tests it names.
+  set(exclude "")
+  if(LIGHTSTAGE_FUZZ)
+    if(NOT name IN_LIST LIGHTSTAGE_SANITIZE_TESTS)
+      set(exclude EXCLUDE_FROM_ALL)
+    endif()
+    list(APPEND ARG_LABELS sanitize)
+  endif()
+  add_executable(${name} ${exclude} ${ARG_SOURCES})
   target_compile_options(${name} PRIVATE ${LIGHTSTAGE_WARNINGS})
   target_link_libraries(${name} PRIVATE ${ARG_LINKS} lightstage_test_support GTest::gtest_main GTest::gmock)
+  if(exclude)
+    return()
+  endif()
   if(NOT ARG_TIMEOUT)
     set(ARG_TIMEOUT 600)
   endif()

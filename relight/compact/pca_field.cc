@@ -8,6 +8,7 @@
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <mutex>
@@ -182,7 +183,7 @@ std::string PcaSummary::to_string() const {
 }
 
 int PcaField::tiles_x() const {
-  return tile_size_ > 0 ? (width_ + tile_size_ - 1) / tile_size_ : 1;
+  return tile_size_ > 0 ? (width_ - 1) / tile_size_ + 1 : 1;  // No overflow for any tile size.
 }
 
 int PcaField::tile_of(int x, int y) const {
@@ -514,10 +515,20 @@ PcaField PcaField::read(const std::filesystem::path& path) {
     out.led_dirs_.push_back(d);
     out.led_valid_.push_back(read_pod<uint8_t>(in, file, "lights") != 0);
   }
-  const int tiles = out.tile_size_ > 0
-                        ? out.tiles_x() * ((out.height_ + out.tile_size_ - 1) / out.tile_size_)
-                        : 1;
-  for (int t = 0; t < tiles; ++t) {
+  const int64_t tiles =
+      out.tile_size_ > 0 ? int64_t(out.tiles_x()) * ((out.height_ - 1) / out.tile_size_ + 1) : 1;
+  // The sizes the header claims must be in the file before anything of that size is allocated.
+  const double claimed_bytes = sizeof(float) * (double(tiles) * lights * out.rank_ +
+                                                double(out.width_) * out.height_ * out.rank_ * 3);
+  std::error_code error;
+  const double left_bytes = double(std::filesystem::file_size(path, error)) - double(in.tellg());
+  if (!error && claimed_bytes > left_bytes) {
+    char sizes[96];  // Printed as doubles: a hostile header's claim does not fit an integer.
+    std::snprintf(sizes, sizeof sizes, "expected %.0f bytes, got %.0f", claimed_bytes, left_bytes);
+    throw InputError(file + ": bases and coefficients (as width, height, lights, rank and " +
+                     "tile_size say): " + sizes);
+  }
+  for (int64_t t = 0; t < tiles; ++t) {
     Eigen::MatrixXf basis(lights, out.rank_);
     in.read(reinterpret_cast<char*>(basis.data()), basis.size() * sizeof(float));
     if (!in)

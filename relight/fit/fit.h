@@ -219,7 +219,7 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
                       const ExrAttributes& attributes = {});
 
 // Reads what write_model_maps wrote, bit-exactly (channels found by name, in any order). Validates
-// every channel: finite values, model in 0..4, flags a non-negative integer, unit normals and
+// every channel: finite values, model in 0..4, flags an integer in 0..65535, unit normals and
 // albedo/sigma/ks/roughness within their bounds on fitted pixels. Errors are InputErrors naming
 // the file and the channel: "maps.exr: channel 'model': expected an integer in 0..4 at (3, 7),
 // got 9".

@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "lightstage/errors.h"
@@ -17,6 +18,8 @@ using brdf::kPi;
 constexpr double kMaxSigma = 0.5 * kPi + 1e-6;  // Oren-Nayar's range, and rounding.
 constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
 constexpr const char* kMaterialsAttribute = "lightstage:materials";
+// The flags channel holds bits up to 512 (fit.h, normals.h); room for more, and always an int.
+constexpr int kMaxFlags = 65535;
 
 nlohmann::json to_json(const std::vector<Material>& materials) {
   nlohmann::json out = nlohmann::json::array();
@@ -30,6 +33,17 @@ nlohmann::json to_json(const std::vector<Material>& materials) {
                    {"scene_material", m.scene_material}});
   }
   return out;
+}
+
+// An integer member of a material: a fraction, or a number no int holds, is refused rather than
+// converted (the conversion is undefined behaviour).
+int int_member(const nlohmann::json& material, const char* key, const std::string& at) {
+  const nlohmann::json& value = material.at(key);
+  if (!value.is_number_integer() || value.get<int64_t>() < std::numeric_limits<int>::min() ||
+      value.get<int64_t>() > std::numeric_limits<int>::max()) {
+    throw InputError(at + ": " + key + ": expected an integer, got " + value.dump());
+  }
+  return int(value.get<int64_t>());
 }
 
 // The materials attribute; InputErrors name the file, the attribute and the material.
@@ -58,9 +72,10 @@ std::vector<Material> materials_from(const std::string& text, const std::string&
       m.sigma = j[k].at("sigma").get<double>();
       m.ks = j[k].at("ks").get<double>();
       m.roughness = j[k].at("roughness").get<double>();
-      m.pixels = j[k].at("pixels").get<int>();
+      m.pixels = int_member(j[k], "pixels", at);
       // Maps written before scene materials: each basis material is its own.
-      m.scene_material = j[k].value("scene_material", int(k) + 1);
+      m.scene_material =
+          j[k].contains("scene_material") ? int_member(j[k], "scene_material", at) : int(k) + 1;
       if (m.scene_material < 1 || m.scene_material > int(j.size())) {
         throw InputError(at + ": scene_material " + std::to_string(m.scene_material) +
                          " is not one of 1.." + std::to_string(j.size()));
@@ -197,8 +212,8 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
         fail(kMapModel, x, y, "an integer in 0..4 (FitModel)");
       }
       const float flags = out.maps.at(x, y, kMapFlags);
-      if (!(flags == std::floor(flags) && flags >= 0)) {
-        fail(kMapFlags, x, y, "a non-negative integer");
+      if (!(flags == std::floor(flags) && flags >= 0 && flags <= kMaxFlags)) {
+        fail(kMapFlags, x, y, "flag bits, an integer in 0.." + std::to_string(kMaxFlags));
       }
       for (int j = 0; j < 2; ++j) {
         const float material = out.maps.at(x, y, kMapMaterial + 2 * j);

@@ -6,8 +6,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 
 #include "lightstage/errors.h"
 #include "relight/lighting/relight.h"
@@ -234,6 +236,19 @@ TEST(PcaField, MalformedFilesNameFileAndField) {
   const int32_t huge = 100000;
   std::memcpy(bad_rank.data() + 7 + 12, &huge, 4);
   expect_error(bad_rank, "rank");
+  // A header claiming more than the file holds is refused before anything that size is allocated
+  // (fuzz/pca_fuzz: 65536 x 65536 pixels asked for gigabytes of coefficients).
+  std::string huge_image = bytes;
+  const int32_t side = 65536;
+  std::memcpy(huge_image.data() + 7, &side, 4);
+  std::memcpy(huge_image.data() + 7 + 4, &side, 4);
+  expect_error(huge_image, "bases and coefficients");
+  // A tile larger than the image is one tile (the tile count overflowed an int).
+  std::string huge_tile = bytes;
+  const int32_t max_tile = std::numeric_limits<int32_t>::max();
+  std::memcpy(huge_tile.data() + 7 + 16, &max_tile, 4);
+  write_file_atomic(dir / "one_tile.lspca", huge_tile);
+  EXPECT_EQ(PcaField::read(dir / "one_tile.lspca").num_tiles(), 1u);
 }
 
 }  // namespace

@@ -282,6 +282,35 @@ TEST_F(SmallFit, ReadModelMapsNamesTheFileAndTheChannel) {
     EXPECT_NE(message.find("channel 'model'"), std::string::npos) << message;
     EXPECT_NE(message.find("(5, 7)"), std::string::npos) << message;
   }
+  // A flags value no int holds (fuzz/model_maps_fuzz: converting it was undefined behaviour).
+  maps = *maps_;
+  maps.maps.at(5, 7, kMapFlags) = 1.28889e30f;
+  write_model_maps(dir / "bad_flags.exr", maps);
+  try {
+    read_model_maps(dir / "bad_flags.exr");
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("bad_flags.exr: channel 'flags': expected flag bits"), std::string::npos)
+        << message;
+    EXPECT_NE(message.find("(5, 7)"), std::string::npos) << message;
+  }
+  // A material's pixel count no int holds (the same: its conversion was undefined behaviour).
+  Image named = maps_->maps;
+  named.channel_names = model_map_channel_names();
+  write_exr(dir / "bad_material.exr", named, ExrPixelType::kFloat,
+            {{"lightstage:materials", R"([{"model": "lambert", "albedo": [0.5, 0.5, 0.5],
+                                          "sigma": 0, "ks": 0, "roughness": 0, "pixels": 1e40}])"}});
+  try {
+    read_model_maps(dir / "bad_material.exr");
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("bad_material.exr: attribute 'lightstage:materials': material 1: "
+                           "pixels: expected an integer, got 1e+40"),
+              std::string::npos)
+        << message;
+  }
   write_exr(dir / "rgb.exr", Image(4, 4, 3));
   try {
     read_model_maps(dir / "rgb.exr");
