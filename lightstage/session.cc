@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstdio>
@@ -57,6 +58,29 @@ std::string read_text(const fs::path& path) {
   s << in.rdbuf();
   return s.str();
 }
+
+// The integers of a journal line, checked against the session's plan: an index beyond it (or
+// beyond an int) would reach past the stage's LEDs, steps or exposures.
+struct JournalLine {
+  const json& j;
+  std::string where;  // "SESSION/frames.jsonl:N"
+  const Stage& stage;
+
+  int int_in(const char* key, int lo, int hi) const {
+    const json& v = j.at(key);
+    const bool in_range = v.is_number_unsigned()
+                              ? v.get<uint64_t>() <= uint64_t(std::max(hi, 0)) && lo <= hi
+                          : v.is_number_integer() ? v.get<int64_t>() >= lo && v.get<int64_t>() <= hi
+                                                  : false;
+    if (!in_range) {
+      throw InputError(where + ": " + key + ": expected an integer in [" + std::to_string(lo) +
+                       ", " + std::to_string(hi) + "] (the session's plan), got " + v.dump());
+    }
+    return int(v.get<int64_t>());
+  }
+  int step(const char* key) const { return int_in(key, 0, stage.plan.time_steps - 1); }
+  int led(const char* key) const { return int_in(key, 0, int(stage.leds.size()) - 1); }
+};
 
 }  // namespace
 
@@ -210,24 +234,27 @@ Session Session::open(const fs::path& dir) {
       throw InputError(journal_path.string() + ":" + std::to_string(line_no) +
                        ": not a journal line: " + e.what());
     }
-    // Valid JSON of the wrong shape is a damaged journal: say where, never abort.
+    // Valid JSON of the wrong shape, or naming a step, LED or exposure the plan has not, is a
+    // damaged journal: say where, never abort.
+    const JournalLine in{j, journal_path.string() + ":" + std::to_string(line_no), s.stage_};
     try {
       if (j.contains("led_signal")) {
-        s.led_signals_[{j["t"].get<int>(), j["led_signal"].get<int>()}] =
-            j["fraction"].get<double>();
+        s.led_signals_[{in.step("t"), in.led("led_signal")}] = j["fraction"].get<double>();
         continue;
       }
       if (j.contains("overrun")) {
-        s.overruns_[j["overrun"].get<int>()] = {
-            j["overrun"].get<int>(), j["capture_s"].get<double>(), j["interval_s"].get<double>()};
+        s.overruns_[in.step("overrun")] = {in.step("overrun"), j["capture_s"].get<double>(),
+                                           j["interval_s"].get<double>()};
         continue;
       }
       if (j.contains("dead_led")) {
-        s.dead_leds_[j["dead_led"].get<int>()] = j.value("reason", "");
+        s.dead_leds_[in.led("dead_led")] = j.value("reason", "");
         continue;
       }
       FrameRecord rec;
-      rec.key = {j["t"].get<int>(), j["led"].get<int>(), j["e"].get<int>(), j["r"].get<int>()};
+      const int led = in.int_in("led", -1, int(s.stage_.leds.size()) - 1);
+      rec.key = {in.step("t"), led, in.int_in("e", 0, int(s.stage_.camera.bracket.size()) - 1),
+                 in.int_in("r", 0, std::max(s.stage_.plan.dark_frames, 1) - 1)};
       rec.file = j["file"].get<std::string>();
       rec.exposure_s = j["exposure_s"].get<double>();
       rec.gain = j["gain"].get<double>();

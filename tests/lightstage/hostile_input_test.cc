@@ -94,9 +94,29 @@ class DamagedJournal : public ::testing::Test {
 };
 
 TEST_F(DamagedJournal, ValidJsonOfTheWrongShapeNamesTheJournalLine) {
-  append(R"({"t": [1, 2], "led": 0})");
+  append(R"({"t": 0, "led": 0, "e": 0, "r": 0, "file": 5})");
   const std::string what = input_error([&] { (void)Session::open(dir_ / "s"); });
   EXPECT_NE(what.find("frames.jsonl:4: expected a frame"), std::string::npos) << what;
+}
+
+// Found by the session fuzz target: indices beyond the plan (or an int) reached past the stage's
+// LEDs and steps when the manifest was written (out of range, UB), now named by line and field.
+TEST_F(DamagedJournal, IndicesBeyondThePlanNameTheJournalLineAndField) {
+  const std::pair<const char*, const char*> cases[] = {
+      {R"({"dead_led": 99, "reason": "x"})",
+       "frames.jsonl:4: dead_led: expected an integer in [0, 3]"},
+      {R"({"overrun": 7, "capture_s": 40, "interval_s": 30})", "frames.jsonl:4: overrun: expected"},
+      {R"({"t": 1e40, "led": 0, "e": 0, "r": 0})",
+       "frames.jsonl:4: t: expected an integer in [0, 0]"},
+      {R"({"t": [1, 2], "led": 0, "e": 0, "r": 0})", "frames.jsonl:4: t: expected"},
+      {R"({"led_signal": 18446744073709551615, "t": 0, "fraction": 1})", "led_signal: expected"}};
+  for (const auto& [line, message] : cases) {
+    fs::remove_all(dir_ / "s");
+    SetUp();  // A fresh session of 3 frames: the line appended is line 4.
+    append(line);
+    const std::string what = input_error([&] { (void)Session::open(dir_ / "s"); });
+    EXPECT_NE(what.find(message), std::string::npos) << what;
+  }
 }
 
 TEST_F(DamagedJournal, NumberBeyondADoubleNamesTheJournalLine) {
