@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "fuzz/fuzz_support.h"
 #include "lightstage/image.h"
 #include "lightstage/stage.h"
 
@@ -157,6 +158,14 @@ void write_half_white_png(const std::filesystem::path& path) {
     }
   }
   write_png_preview(path, image);
+}
+
+const std::filesystem::path& edits_dir() {
+  static const std::filesystem::path dir = [] {
+    write_half_white_png(work_dir() / "mask.png");
+    return work_dir();
+  }();
+  return dir;
 }
 
 }  // namespace ls::fuzz

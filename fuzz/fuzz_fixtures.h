@@ -35,5 +35,8 @@ void write_small_frames(const std::filesystem::path& session_dir, const Stage& s
 
 // A 4 x 3 PNG, the left half white: an edit file's mask, an .lp file's image.
 void write_half_white_png(const std::filesystem::path& path);
+// The folder an edit file is read from: work_dir(), holding mask.png (write_half_white_png) for
+// "mask" selections; written on the first call.
+const std::filesystem::path& edits_dir();
 
 }  // namespace ls::fuzz

@@ -8,10 +8,7 @@
 #include "relight/fit/model_edit.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static const std::filesystem::path dir = [] {
-    ls::fuzz::write_half_white_png(ls::fuzz::work_dir() / "mask.png");
-    return ls::fuzz::work_dir();
-  }();
+  const std::filesystem::path& dir = ls::fuzz::edits_dir();
   static const ls::relight::ModelMaps fixture = ls::fuzz::small_model_maps();
   ls::fuzz::expect_only_input_errors([&] {
     const ls::relight::ModelEdits edits =

@@ -9,10 +9,7 @@
 #include "relight/time/temporal_render.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
-  static const std::filesystem::path dir = [] {
-    ls::fuzz::write_half_white_png(ls::fuzz::work_dir() / "mask.png");
-    return ls::fuzz::work_dir();
-  }();
+  const std::filesystem::path& dir = ls::fuzz::edits_dir();
   static const ls::relight::TemporalMaps fixture = ls::fuzz::small_temporal_maps();
   ls::fuzz::expect_only_input_errors([&] {
     const ls::relight::TemporalEdits edits =

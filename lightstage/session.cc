@@ -11,6 +11,7 @@
 #include <ctime>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -68,11 +69,11 @@ struct JournalLine {
 
   int int_in(const char* key, int lo, int hi) const {
     const json& v = j.at(key);
-    const bool in_range = v.is_number_unsigned()
-                              ? v.get<uint64_t>() <= uint64_t(std::max(hi, 0)) && lo <= hi
-                          : v.is_number_integer() ? v.get<int64_t>() >= lo && v.get<int64_t>() <= hi
-                                                  : false;
-    if (!in_range) {
+    // An unsigned beyond int64 is out of range whatever the plan: not converted.
+    const bool fits = v.is_number_integer() &&
+                      !(v.is_number_unsigned() &&
+                        v.get<uint64_t>() > uint64_t(std::numeric_limits<int64_t>::max()));
+    if (!fits || v.get<int64_t>() < lo || v.get<int64_t>() > hi) {
       throw InputError(where + ": " + key + ": expected an integer in [" + std::to_string(lo) +
                        ", " + std::to_string(hi) + "] (the session's plan), got " + v.dump());
     }

@@ -1,7 +1,5 @@
 #include "sim/sim_backend.h"
 
-#include <algorithm>
-
 #include "lightstage/errors.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
@@ -18,14 +16,12 @@ void register_backend(BackendRegistry& registry) {
         request.input_file.empty() ? default_scene() : load_scene(request.input_file);
     auto stage = std::make_shared<SimStage>(request.stage, scene, request.seed);
     for (const int id : request.stage.camera.simulated.dead_led_ids) {
-      const auto& leds = request.stage.leds;
-      const auto led =
-          std::find_if(leds.begin(), leds.end(), [&](const Led& l) { return l.id == id; });
-      if (led == leds.end()) {
+      const int led = request.stage.led_index(id);
+      if (led < 0) {
         throw InputError(request.stage.source + ": camera.simulated_sensor.dead_leds: LED id " +
                          std::to_string(id) + " is not in \"leds\"");
       }
-      stage->set_dead_led(int(led - leds.begin()), true);
+      stage->set_dead_led(led, true);
     }
     OpenedBackend opened;
     // Aliasing pointers: the LEDs and the camera live as long as the stage that owns them.

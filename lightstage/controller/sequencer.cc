@@ -195,6 +195,14 @@ void judge_step(Session& session, DarkCache& darks, const LedNeighbours& neighbo
   }
 }
 
+// judge_step for every time step whose LED frames are all saved.
+void judge_saved_steps(Session& session, DarkCache& darks, const LedNeighbours& neighbours,
+                       double threshold) {
+  for (int t = 0; t < session.stage().plan.time_steps; ++t) {
+    if (step_captured(session, t)) judge_step(session, darks, neighbours, t, threshold);
+  }
+}
+
 // The camera gave no frame after its retries: the capture stops, resumable.
 struct CameraGaveUp {
   std::string message;
@@ -225,11 +233,11 @@ class CaptureRun {
 
   CaptureSummary run() {
     require_free_space(session_, missing_);  // Before any LED is switched on.
-    // Steps a killed run finished without judging them (or all their LEDs): judged now.
-    judge_captured_steps(session_, options_.dead_led_threshold);
     const LedNeighbours neighbours(stage_);
     writer_.emplace(session_);
     DarkCache darks(session_, &*writer_);
+    // Steps a killed run finished without judging them (or all their LEDs): judged now.
+    judge_saved_steps(session_, darks, neighbours, options_.dead_led_threshold);
     session_.write_manifest("capturing");
     AllOffGuard guard(lights_);
     try {
@@ -422,11 +430,8 @@ class CaptureRun {
 }  // namespace
 
 void judge_captured_steps(Session& session, double dead_led_threshold) {
-  const LedNeighbours neighbours(session.stage());
   DarkCache darks(session, nullptr);
-  for (int t = 0; t < session.stage().plan.time_steps; ++t) {
-    if (step_captured(session, t)) judge_step(session, darks, neighbours, t, dead_led_threshold);
-  }
+  judge_saved_steps(session, darks, LedNeighbours(session.stage()), dead_led_threshold);
 }
 
 CaptureSummary run_capture(Session& session, LightController& lights, Camera& camera,
