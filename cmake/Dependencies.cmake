@@ -14,7 +14,7 @@ find_package(nanoflann REQUIRED)  # k-d tree over LED directions (libnanoflann-d
 
 # Debian's split OpenCV module packages ship no OpenCVConfig.cmake: define imported targets.
 find_path(OPENCV_INCLUDE_DIR opencv2/core.hpp PATH_SUFFIXES opencv4 REQUIRED)
-foreach(module core imgproc imgcodecs photo calib3d videoio)
+foreach(module core imgproc imgcodecs photo calib3d videoio video)
   find_library(OPENCV_${module}_LIBRARY opencv_${module} REQUIRED)
   add_library(opencv::${module} UNKNOWN IMPORTED)
   # SYSTEM include: OpenCV 4.6 headers warn under C++20.
@@ -28,6 +28,7 @@ set_property(TARGET opencv::imgcodecs APPEND PROPERTY INTERFACE_LINK_LIBRARIES o
 set_property(TARGET opencv::photo APPEND PROPERTY INTERFACE_LINK_LIBRARIES opencv::imgproc)
 set_property(TARGET opencv::calib3d APPEND PROPERTY INTERFACE_LINK_LIBRARIES opencv::imgproc)
 set_property(TARGET opencv::videoio APPEND PROPERTY INTERFACE_LINK_LIBRARIES opencv::imgproc)
+set_property(TARGET opencv::video APPEND PROPERTY INTERFACE_LINK_LIBRARIES opencv::imgproc)
 
 # Hardware back-ends (pkg-config only): LEDs through libgpiod 1.6, cameras through Aravis 0.8
 # (which needs libusb-1.0-0-dev for pkg-config to resolve it).

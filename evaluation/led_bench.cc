@@ -1,10 +1,13 @@
 #include "evaluation/led_bench.h"
 
 #include <fstream>
+#include <optional>
+#include <set>
 
 #include "evaluation/chart.h"
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
+#include "relight/fit/source_relight.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/ground_truth.h"
@@ -34,23 +37,24 @@ namespace {
 void write_csv(const fs::path& path, const std::vector<LedBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
-  csv << "leds,map,relative_rmse,psnr_db,relight_ms,relight_gb_per_s,light_weights_ms,"
+  csv << "leds,map,method,relative_rmse,psnr_db,relight_ms,relight_gb_per_s,light_weights_ms,"
          "uncovered_fraction\n";
   for (const LedBenchRow& r : rows) {
-    csv << r.leds << ',' << r.map << ',' << r.relative_rmse << ',' << r.psnr_db << ','
-        << r.relight_ms << ',' << r.relight_gb_per_s << ',' << r.light_weights_ms << ','
+    csv << r.leds << ',' << r.map << ',' << r.method << ',' << r.relative_rmse << ',' << r.psnr_db
+        << ',' << r.relight_ms << ',' << r.relight_gb_per_s << ',' << r.light_weights_ms << ','
         << r.uncovered_fraction << '\n';
   }
 }
 
 void write_charts(const LedBenchOptions& options, const std::vector<LedBenchRow>& rows) {
   std::vector<ChartSeries> speed, error;
-  for (const LedBenchRow& r : rows) {  // One series per map, in the order the maps come.
+  for (const LedBenchRow& r : rows) {  // One series per map and method, in the order they come.
+    const std::string name = r.map + (r.method == "cells" ? "" : " + sources");
     size_t m = 0;
-    while (m < speed.size() && speed[m].name != r.map) ++m;
+    while (m < speed.size() && speed[m].name != name) ++m;
     if (m == speed.size()) {
-      speed.push_back({r.map, {}, {}, {}, true});
-      error.push_back({r.map, {}, {}, {}, true});
+      speed.push_back({name, {}, {}, {}, true});
+      error.push_back({name, {}, {}, {}, true});
     }
     speed[m].x.push_back(r.relight_ms);
     speed[m].y.push_back(r.psnr_db);
@@ -86,26 +90,47 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
                           "capture " + std::to_string(count), progress);
     const auto dirs = stage.led_directions();
     const double coverage = max_nearest_neighbour_angle(dirs);
+    std::vector<relight::SplitLighting> splits;
+    std::set<int> source_leds;
     for (const relight::EnvironmentMap& map : maps) {
-      LedBenchRow row;
-      row.leds = count;
-      row.map = fs::path(map.source()).stem().string();
-      relight::LightWeights weights;
-      row.light_weights_ms =
-          median_ms(3, [&] { weights = relight::integrate_environment(map, dirs, 0.0, coverage); });
-      Image relit;
-      row.relight_ms = median_ms(
-          options.repeats, [&] { relight::relight_into(field, weights.irradiance_rgb, relit); });
+      splits.push_back(relight::split_lighting(map, field.lights(), 0.0, coverage, true));
+      for (const int led : splits.back().leds()) source_leds.insert(led);
+    }
+    std::optional<relight::FieldSources> sources;
+    const double sources_ms = median_ms(1, [&] {
+      sources.emplace(field, capture::whole_field(field),
+                      std::vector<int>(source_leds.begin(), source_leds.end()));
+    });
+    for (size_t m = 0; m < maps.size(); ++m) {
+      const relight::EnvironmentMap& map = maps[m];
       sim::GroundTruthOptions gt;
       gt.covered_by_leds = dirs;
       gt.coverage_radius_rad = coverage;
       const Image truth = sim::render_ground_truth(scene, stage.camera, map, gt);
-      const ImageError err = compare_images(relit, truth);
-      row.relative_rmse = err.relative_rmse;
-      row.psnr_db = err.psnr_db;
-      row.relight_gb_per_s = field.bytes() / (row.relight_ms * 1e6);
-      row.uncovered_fraction = weights.uncovered_fraction();
-      summary.rows.push_back(row);
+      for (const bool split : {false, true}) {
+        if (split && splits[m].sources.empty()) continue;
+        LedBenchRow row;
+        row.leds = count;
+        row.map = fs::path(map.source()).stem().string();
+        row.method = split ? "cells + sources" : "cells";
+        relight::SplitLighting lighting;
+        row.light_weights_ms = median_ms(3, [&] {
+          lighting = relight::split_lighting(map, field.lights(), 0.0, coverage, split);
+        });
+        Image relit;
+        row.relight_ms = median_ms(options.repeats, [&] {
+          relight::relight_into(field, lighting.weights.irradiance_rgb, relit);
+          sources->add(lighting, relit);
+        });
+        // Reading the field for the sources' normals and LED shadows, once per field.
+        if (split) row.light_weights_ms += sources_ms;
+        const ImageError err = compare_images(relit, truth);
+        row.relative_rmse = err.relative_rmse;
+        row.psnr_db = err.psnr_db;
+        row.relight_gb_per_s = field.bytes() / (row.relight_ms * 1e6);
+        row.uncovered_fraction = lighting.weights.uncovered_fraction();
+        summary.rows.push_back(row);
+      }
     }
   }
   summary.csv = options.out / "leds.csv";

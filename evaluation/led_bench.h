@@ -1,8 +1,10 @@
 #pragma once
 // `lightstage bench leds`: relighting accuracy and speed as the number of LEDs grows. For each dome
 // size, a simulated capture of the demo scene built into a field, relit under each map (median
-// time over repeats) and compared with ground truth rendered directly from the scene. Writes
-// leds.csv and two charts (PSNR against relight time; error against LEDs).
+// time over repeats) by LED cells alone and with the map's compact sources split off and rendered
+// at their true direction (relight/fit/source_relight.h), and compared with ground truth rendered
+// directly from the scene. Writes leds.csv and two charts (PSNR against relight time; error
+// against LEDs).
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -22,7 +24,8 @@ struct LedBenchOptions {
 
 struct LedBenchRow {
   int leds = 0;
-  std::string map;  // The map file's stem.
+  std::string map;     // The map file's stem.
+  std::string method;  // "cells" (every light by LED cells) or "cells + sources" (issue 16).
   double relative_rmse = 0, psnr_db = 0;
   double relight_ms = 0, relight_gb_per_s = 0, light_weights_ms = 0;
   double uncovered_fraction = 0;

@@ -11,7 +11,7 @@
 # BUILD_DIR/fuzz-findings/<target>/crash-… (or leak-, timeout-, oom-), and the log shows its stack.
 # Replay one with BUILD_DIR/fuzz/<target> FILE (LIGHTSTAGE_FUZZ_VERBOSE=1 prints the refusals).
 #   scripts/fuzz.sh [TARGET...]        (default: every target; a name is e.g. lp_fuzz or lp)
-#   FUZZ_SECONDS    seconds per target (default 10, what CI runs; e.g. 600 for a local run)
+#   FUZZ_SECONDS    seconds per target (default 5, what CI runs; e.g. 600 for a local run)
 #   FUZZ_BUILD_DIR  build directory (default build-fuzz)
 #   FUZZ_SKIP_TESTS=1  only the fuzz targets
 #   FUZZ_CLI        the lightstage executable the tests that run the CLI use (default: the normal
@@ -19,7 +19,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BUILD_DIR=${FUZZ_BUILD_DIR:-build-fuzz}
-SECONDS_PER_TARGET=${FUZZ_SECONDS:-10}
+SECONDS_PER_TARGET=${FUZZ_SECONDS:-5}
 ALL_TARGETS=(stage_fuzz scene_fuzz session_fuzz model_edits_fuzz temporal_edits_fuzz lp_fuzz
              field_exr_fuzz model_maps_fuzz temporal_maps_fuzz rti_fuzz pca_fuzz)
 

@@ -10,7 +10,7 @@ PACKAGES=(
   g++ cmake ninja-build pkg-config ccache clang-format clang-tidy git
   clang libclang-rt-14-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
-  libopencv-calib3d-dev libopencv-videoio-dev
+  libopencv-calib3d-dev libopencv-videoio-dev libopencv-video-dev
   libopenexr-dev libimath-dev libopenimageio-dev openimageio-tools
   libgpiod-dev gpiod libaravis-dev libusb-1.0-0-dev aravis-tools-cli
   libeigen3-dev libglfw3-dev libgl-dev libegl-dev

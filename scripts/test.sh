@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Set up, build and run the whole test suite, then the sanitizer build and the fuzz targets
-# (scripts/fuzz.sh: its own build directory, build-fuzz; FUZZ_SECONDS per target, default 10;
+# (scripts/fuzz.sh: its own build directory, build-fuzz; FUZZ_SECONDS per target, default 5;
 # FUZZ=0 leaves it out).
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -17,6 +17,7 @@
 #include "evaluation/fit_sweeps_bench.h"
 #include "evaluation/led_bench.h"
 #include "evaluation/scale_bench.h"
+#include "evaluation/sun_bench.h"
 #include "evaluation/temporal_bench.h"
 
 namespace ls::cli {
@@ -26,11 +27,11 @@ namespace fs = std::filesystem;
 namespace {
 
 void print_leds(const evaluation::LedBenchSummary& summary) {
-  std::printf("%6s %-14s %10s %8s %11s %11s %10s\n", "LEDs", "map", "rel.RMSE", "PSNR",
-              "relight ms", "weights ms", "uncovered");
+  std::printf("%6s %-14s %-15s %10s %8s %11s %11s %10s\n", "LEDs", "map", "method", "rel.RMSE",
+              "PSNR", "relight ms", "weights ms", "uncovered");
   for (const evaluation::LedBenchRow& r : summary.rows) {
-    std::printf("%6d %-14s %10.4f %8.2f %11.3f %11.2f %9.2f%%\n", r.leds, r.map.c_str(),
-                r.relative_rmse, r.psnr_db, r.relight_ms, r.light_weights_ms,
+    std::printf("%6d %-14s %-15s %10.4f %8.2f %11.3f %11.2f %9.2f%%\n", r.leds, r.map.c_str(),
+                r.method.c_str(), r.relative_rmse, r.psnr_db, r.relight_ms, r.light_weights_ms,
                 100 * r.uncovered_fraction);
   }
   std::fprintf(stderr, "wrote %s, leds_psnr_vs_time.png, leds_error_vs_count.png\n",
@@ -108,6 +109,40 @@ void print_compact(const evaluation::CompactBenchSummary& summary) {
   }
   std::fprintf(stderr, "wrote %s and compact_<scene>_psnr_vs_{time,bytes}.png\n",
                summary.csv.c_str());
+}
+
+void add_sun(CLI::App& bench) {
+  auto args = std::make_shared<evaluation::SunBenchOptions>();
+  auto* cmd = bench.add_subcommand(
+      "sun",
+      "A small source between the LEDs: swept from an LED to the middle of three and turned "
+      "through a full circle; the field relit by LED cells and with the source at its true "
+      "direction, each against ground truth (built-in dome, demo scene).");
+  cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
+  cmd->add_option("--resolution", args->resolution, "Camera width and height.")
+      ->capture_default_str();
+  cmd->add_option("--radius-deg", args->radius_deg, "Angular radius of the source.")
+      ->capture_default_str();
+  cmd->add_option("--sweep-steps", args->sweep_steps, "Steps of the sweep.")->capture_default_str();
+  cmd->add_option("--turn-steps", args->turn_steps, "Positions around the turn.")
+      ->capture_default_str();
+  cmd->add_option("--repeats", args->repeats, "Timed repeats (median reported).")
+      ->capture_default_str();
+  cmd->callback([args] {
+    const evaluation::SunBenchSummary summary =
+        evaluation::run_sun_bench(*args, progress_printer(false));
+    std::printf("%-6s %9s %12s %11s %13s %9s %11s\n", "path", "position", "nearest LED",
+                "cells RMSE", "sources RMSE", "cells ms", "sources ms");
+    for (const evaluation::SunBenchRow& r : summary.rows) {
+      std::printf("%-6s %9.3f %10.1f d %11.4f %13.4f %9.2f %11.2f\n", r.path.c_str(), r.position,
+                  r.angle_to_nearest_led_deg, r.cells_rmse, r.sources_rmse, r.cells_ms,
+                  r.sources_ms);
+    }
+    std::fprintf(stderr, "sources' normals and LED shadows: %.0f ms once per field\n",
+                 summary.sources_setup_ms);
+    std::fprintf(stderr, "wrote %s, sun_sweep.png, sun_turn.png, sun_error_vs_time.png\n",
+                 summary.csv.c_str());
+  });
 }
 
 void add_leds(CLI::App& bench) {
@@ -281,6 +316,7 @@ void add_bench_command(CLI::App& app) {
       app.add_subcommand("bench", "Measure speed and accuracy; writes CSV and chart images.");
   bench->require_subcommand(1);
   add_leds(*bench);
+  add_sun(*bench);
   add_fit_sweeps(*bench);
   add_fit(*bench);
   add_temporal(*bench);

@@ -91,6 +91,10 @@ void add_relight_command(CLI::App& app) {
   cmd->add_option("--coverage-deg", options->coverage_deg,
                   "Dome coverage radius around each LED, degrees (0: automatic).")
       ->capture_default_str();
+  cmd->add_flag("!--no-compact-sources", options->compact_sources,
+                "Fields: relight a map's sun or small lamp by the LED cells too, as one LED "
+                "cell's light each (shadows at the LEDs' directions), instead of rendering it "
+                "at its true direction with moving shadows.");
   cmd->add_option("--out", options->out_dir, "Output directory.")->required();
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->add_option("--temporal", options->temporal_file,

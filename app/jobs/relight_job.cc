@@ -12,6 +12,7 @@
 #include "lightstage/image.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
+#include "relight/fit/source_relight.h"
 #include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
@@ -68,6 +69,7 @@ std::string RelightOptions::to_json() const {
   if (light_dir) j["light"] = {(*light_dir)[0], (*light_dir)[1], (*light_dir)[2]};
   if (exposure_stops) j["exposure_stops"] = *exposure_stops;
   j["coverage_deg"] = coverage_deg;
+  j["compact_sources"] = compact_sources;
   j["directions"] = directions_width;
   return j.dump();
 }
@@ -163,22 +165,25 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
                    const ProgressFn& progress) {
   capture::FieldStream stream(options.field_file);
   const capture::ReflectanceField& header = stream.header();
-  const FieldLights lights = field_lights(header);
   struct Output {
     std::string name;
-    relight::LightWeights weights;
+    double rotation_deg = 0;
+    relight::SplitLighting lighting;
     double weights_ms = 0, relight_ms = 0;
     Image relit;
   };
   std::vector<Output> outputs;
+  std::set<int> source_leds;
   MapRotations map_rotations(options);
   map_rotations.for_each(
       [&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
         const auto t0 = Clock::now();
-        Output out{name, relight::integrate_environment(map, lights.dirs, rotation,
-                                                        coverage_rad(options), lights.valid)};
+        Output out{name, rotation,
+                   relight::split_lighting(map, header.lights(), rotation, coverage_rad(options),
+                                           options.compact_sources)};
         out.weights_ms = ms_between(t0, Clock::now());
         out.relit = Image(header.width(), header.height(), 3);
+        for (const int led : out.lighting.leds()) source_leds.insert(led);
         outputs.push_back(std::move(out));
       });
   // The field's rows as the file holds them, in pieces of about 8 MiB: relighting sums over each
@@ -187,7 +192,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   stream.read_rows_planar(0, header.height(), [&](const capture::PlanarRows& rows) {
     for (Output& out : outputs) {
       const auto t0 = Clock::now();
-      relight::relight_rows_into(rows, out.weights.irradiance_rgb, out.relit);
+      relight::relight_rows_into(rows, out.lighting.weights.irradiance_rgb, out.relit);
       out.relight_ms += ms_between(t0, Clock::now());
     }
     const int done = rows.first_row + rows.rows;
@@ -195,6 +200,17 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   });
   summary.field_pass_s = ms_between(pass_start, Clock::now()) / 1e3;
   summary.field_file_bytes = double(fs::file_size(options.field_file));
+  double sources_ms = 0;
+  if (!source_leds.empty()) {
+    // Compact sources need the field's normals and the images of the LEDs around them: a second
+    // pass, in bands.
+    const auto t0 = Clock::now();
+    report(progress, "compact sources (normals)", 0, 1);
+    const relight::FieldSources sources(header, stream.bands(stream.band_rows(0)),
+                                        {source_leds.begin(), source_leds.end()});
+    for (Output& out : outputs) sources.add(out.lighting, out.relit);
+    sources_ms = ms_between(t0, Clock::now());
+  }
   RelitWriter writer(options, summary);
   long done = 0;
   for (Output& out : outputs) {
@@ -202,8 +218,16 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
     std::snprintf(detail, sizeof detail,
                   "light weights %.1f ms, relight %.1f ms; %.2f%% of the map's light falls "
                   "outside the dome's coverage and is not represented",
-                  out.weights_ms, out.relight_ms, 100.0 * out.weights.uncovered_fraction());
-    writer.write(out.name, out.relit, detail);
+                  out.weights_ms, out.relight_ms,
+                  100.0 * out.lighting.weights.uncovered_fraction());
+    std::string line = detail;
+    if (!out.lighting.sources.empty()) {
+      char ms[96];
+      std::snprintf(ms, sizeof ms, " (normals and shadows of the sources' LEDs: %.0f ms, all maps)",
+                    sources_ms);
+      line += "\n    " + out.lighting.report(out.rotation_deg) + ms;
+    }
+    writer.write(out.name, out.relit, line);
     report(progress, "relight", ++done, long(outputs.size()), out.name);
   }
 }

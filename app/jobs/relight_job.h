@@ -24,7 +24,10 @@ struct RelightOptions {
   std::optional<Eigen::Vector3d> light_dir;  // Models: one distant light of unit irradiance.
   std::optional<double> exposure_stops;      // Previews; empty: automatic per image.
   double coverage_deg = 0.0;                 // Dome coverage around each LED; 0: automatic.
-  int directions_width = 64;                 // Models: lat-long grid the map is integrated on.
+  // Fields: a map's compact bright sources (a sun, a lamp) are split off and rendered at their
+  // true direction with moving shadows (relight/lighting/source_render.h), the rest by LED cells.
+  bool compact_sources = true;
+  int directions_width = 64;  // Models: lat-long grid the map is integrated on.
   std::filesystem::path out_dir;
   // Empty when the options make sense, else what is wrong, naming the option.
   std::string validate() const;

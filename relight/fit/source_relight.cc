@@ -1,0 +1,140 @@
+#include "relight/fit/source_relight.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <set>
+
+#include "lightstage/direction_index.h"
+#include "lightstage/errors.h"
+#include "relight/fit/normals.h"
+
+namespace ls::relight {
+
+std::string SplitLighting::report(double rotation_deg) const {
+  std::string line;
+  for (const PlacedSource& source : sources) {
+    if (!line.empty()) line += "; ";
+    line += source.found.describe(rotation_deg);
+    if (!source.triangle) line += " (outside the dome's coverage: not rendered)";
+  }
+  return line.empty() ? "no compact source" : line;
+}
+
+std::vector<int> SplitLighting::leds() const {
+  std::set<int> leds;
+  for (const PlacedSource& source : sources) {
+    if (source.triangle) leds.insert(source.triangle->leds.begin(), source.triangle->leds.end());
+  }
+  return {leds.begin(), leds.end()};
+}
+
+SplitLighting split_lighting(const EnvironmentMap& map,
+                             const std::vector<capture::FieldLight>& lights, double rotation_deg,
+                             double coverage_rad, bool split, const CompactSourceOptions& options) {
+  std::vector<Eigen::Vector3d> dirs;
+  std::vector<bool> valid;
+  for (const capture::FieldLight& light : lights) {
+    dirs.push_back(light.dir_in_stage.normalized());
+    valid.push_back(light.valid);
+  }
+  SplitLighting out;
+  if (!split) {
+    out.weights = integrate_environment(map, dirs, rotation_deg, coverage_rad, valid);
+    return out;
+  }
+  SplitEnvironment parts = split_compact_sources(map, options);
+  out.weights = integrate_environment(parts.rest, dirs, rotation_deg, coverage_rad, valid);
+  const double coverage = coverage_rad > 0 ? coverage_rad : max_nearest_neighbour_angle(dirs);
+  for (const CompactSource& found : parts.sources) {
+    PlacedSource placed{
+        found,
+        {rotate_about_y(found.dir, rotation_deg), found.radius_rad, found.irradiance_rgb},
+        std::nullopt};
+    placed.triangle = led_triangle(dirs, valid, placed.render.dir_in_stage, coverage);
+    if (!placed.triangle) {
+      // What the dome cannot light stays in the map's account of uncovered light.
+      out.weights.uncovered_irradiance_rgb += found.irradiance_rgb;
+      out.weights.total_irradiance_rgb += found.irradiance_rgb;
+    } else {
+      out.weights.total_irradiance_rgb += found.irradiance_rgb;
+    }
+    out.sources.push_back(std::move(placed));
+  }
+  return out;
+}
+
+FieldSources::FieldSources(const capture::ReflectanceField& header,
+                           const capture::FieldBands& bands, const std::vector<int>& leds) {
+  const int width = header.width(), height = header.height();
+  const size_t pixels = size_t(width) * height;
+  for (const int led : leds) {
+    LS_CHECK(led >= 0 && led < header.num_lights(),
+             "FieldSources: no light " + std::to_string(led));
+  }
+  fit_ = {Image(width, height, 3), Image(width, height, 3)};
+  std::map<int, std::vector<float>> images;
+  for (const int led : leds) images[led].resize(3 * pixels);
+  NormalOptions normal_options;
+  if (header.noise.measured) {
+    normal_options.noise.a = header.noise.read_variance;
+    normal_options.noise.b = header.noise.shot_variance_per_unit;
+  }
+  bands([&](const capture::ReflectanceField& band) {
+    const NormalMap normals = estimate_normals(band, normal_options);
+    const size_t first = size_t(band.first_row()) * width;
+    const size_t count = size_t(band.width()) * band.height();
+    std::copy(normals.normal.pixels.begin(), normals.normal.pixels.end(),
+              fit_.normal.pixels.begin() + long(3 * first));
+    std::copy(normals.albedo.pixels.begin(), normals.albedo.pixels.end(),
+              fit_.albedo.pixels.begin() + long(3 * first));
+    for (auto& [led, rgb] : images) {
+      for (size_t p = 0; p < count; ++p) {
+        const float* v = band.pixel(0, 0) + p * 3 * size_t(band.num_lights()) + 3 * size_t(led);
+        std::copy(v, v + 3, rgb.begin() + long(3 * (first + p)));
+      }
+    }
+  });
+  for (auto& [led, rgb] : images) {
+    shadows_.emplace(led,
+                     led_shadow(header.lights()[size_t(led)].dir_in_stage, std::move(rgb), fit_));
+  }
+}
+
+const std::vector<float>& FieldSources::flow(int from_led, int to_led) const {
+  const std::lock_guard<std::mutex> lock(flows_mutex_);
+  auto it = flows_.find({from_led, to_led});
+  if (it == flows_.end()) {
+    it = flows_
+             .emplace(std::pair{from_led, to_led},
+                      shadow_flow(shadows_.at(from_led), shadows_.at(to_led)))
+             .first;
+  }
+  return it->second;
+}
+
+void FieldSources::add(const SplitLighting& lighting, Image& out) const {
+  for (const PlacedSource& source : lighting.sources) {
+    if (!source.triangle) continue;
+    std::array<const LedShadow*, 3> shadows{};
+    for (int k = 0; k < 3; ++k) {
+      const auto it = shadows_.find(source.triangle->leds[size_t(k)]);
+      LS_CHECK(it != shadows_.end(), "FieldSources: LED " +
+                                         std::to_string(source.triangle->leds[size_t(k)]) +
+                                         " was not read");
+      shadows[size_t(k)] = &it->second;
+    }
+    ShadowFlows flows{};
+    for (int k = 0; k < 3; ++k) {
+      for (int j = 0; j < 3; ++j) {
+        const int from = source.triangle->leds[size_t(k)], to = source.triangle->leds[size_t(j)];
+        if (j != k && from != to && source.triangle->weights[size_t(k)] >= kMinTriangleWeight &&
+            source.triangle->weights[size_t(j)] >= kMinTriangleWeight) {
+          flows[size_t(k)][size_t(j)] = &flow(from, to);
+        }
+      }
+    }
+    add_compact_source(shadows, flows, *source.triangle, source.render, fit_, out);
+  }
+}
+
+}  // namespace ls::relight

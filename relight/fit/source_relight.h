@@ -1,0 +1,61 @@
+#pragma once
+// Relighting a field under a map with its compact sources split off (issue 16): the rest of the map
+// by LED cells (relight.h), each source at its true direction with moving shadows
+// (relight/lighting/source_render.h), from the field's own Lambertian fit and the images of the
+// LEDs around the sources. Fields in memory and streamed ones alike (capture::FieldBands).
+#include <map>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+#include "relight/lighting/compact_sources.h"
+#include "relight/lighting/light_cells.h"
+#include "relight/lighting/source_render.h"
+
+namespace ls::relight {
+
+struct PlacedSource {
+  CompactSource found;                  // In the unrotated map.
+  SourceToRender render;                // In the stage, rotated with the map.
+  std::optional<LedTriangle> triangle;  // Unset: outside the dome's coverage, not rendered.
+};
+
+// A map's light as the field is relit with it: cell weights of what is left once the compact
+// sources are split off (all of the map when `split` is false), and the sources.
+struct SplitLighting {
+  LightWeights weights;
+  std::vector<PlacedSource> sources;
+  // What was split off and what it left uncovered, one line for the operator.
+  std::string report(double rotation_deg) const;
+  // The LEDs whose images the sources need.
+  std::vector<int> leds() const;
+};
+
+// coverage_rad <= 0: the largest nearest-neighbour angle between the field's LEDs.
+SplitLighting split_lighting(const EnvironmentMap& map,
+                             const std::vector<capture::FieldLight>& lights, double rotation_deg,
+                             double coverage_rad, bool split,
+                             const CompactSourceOptions& options = {});
+
+// The field's Lambertian fit and LedShadows of the LEDs asked for, in one pass over its bands.
+class FieldSources {
+ public:
+  FieldSources(const capture::ReflectanceField& header, const capture::FieldBands& bands,
+               const std::vector<int>& leds);
+  // Adds every source of `lighting` that has a triangle to `out` (the field's size, 3 channels).
+  // The flows between a triangle's LEDs are computed when first needed and kept: a sun that stays
+  // between the same LEDs (a rotation's small steps, a viewer's frames) costs one pass per pixel.
+  void add(const SplitLighting& lighting, Image& out) const;
+
+ private:
+  const std::vector<float>& flow(int from_led, int to_led) const;
+
+  LambertianFit fit_;
+  std::map<int, LedShadow> shadows_;
+  mutable std::mutex flows_mutex_;
+  mutable std::map<std::pair<int, int>, std::vector<float>> flows_;
+};
+
+}  // namespace ls::relight

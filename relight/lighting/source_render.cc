@@ -1,0 +1,246 @@
+#include "relight/lighting/source_render.h"
+
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include "lightstage/errors.h"
+
+namespace ls::relight {
+
+namespace {
+
+constexpr double kInvPi = 1.0 / std::numbers::pi;
+// A sample under this share of its Lambertian term is in a cast shadow. Half: a penumbra pixel is
+// shadowed once the occluder covers more than half of the LED.
+constexpr double kShadowRatio = 0.5;
+// Lambertian terms under this share of the image's mean one are too dark to tell a shadow from a
+// dark material: taken as lit.
+constexpr double kDarkShare = 0.1;
+// Near the terminator rough materials fall well below Lambert's cosine (Oren-Nayar): there only a
+// sample under this share is a shadow (a cast shadow there is near black).
+constexpr double kGrazingCosine = 0.2;
+constexpr double kGrazingShadowRatio = 0.15;
+
+double luminance(const Eigen::Vector3d& rgb) {
+  return rgb.dot(Eigen::Vector3d(0.2126, 0.7152, 0.0722));
+}
+
+Eigen::Vector3d pixel3(const Image& image, size_t p) {
+  const float* v = &image.pixels[3 * p];
+  return {v[0], v[1], v[2]};
+}
+
+// Lambertian term of a pixel toward a light, per channel, in field units.
+Eigen::Vector3d lambert(const LambertianFit& fit, size_t p, const Eigen::Vector3d& dir) {
+  return pixel3(fit.albedo, p) * (kInvPi * std::max(0.0, pixel3(fit.normal, p).dot(dir)));
+}
+
+// The signed distances as an 8-bit image for optical flow: 8 levels per pixel within 16 pixels of
+// an edge, where the shapes are; flat farther away.
+cv::Mat distance_image(const LedShadow& led) {
+  cv::Mat image(led.height, led.width, CV_8U);
+  for (size_t p = 0; p < led.edge_distance_px.size(); ++p) {
+    image.data[p] = uchar(std::clamp(128.0f + 8.0f * led.edge_distance_px[p], 0.0f, 255.0f));
+  }
+  return image;
+}
+
+// Bilinear lookup of a float image, clamped at the border.
+float sample(const std::vector<float>& image, int width, int height, double x, double y) {
+  x = std::clamp(x, 0.0, double(width - 1));
+  y = std::clamp(y, 0.0, double(height - 1));
+  const int x0 = int(x), y0 = int(y);
+  const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
+  const double fx = x - x0, fy = y - y0;
+  const auto at = [&](int xx, int yy) { return double(image[size_t(yy) * width + xx]); };
+  return float((1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x1, y0)) +
+               fy * ((1 - fx) * at(x0, y1) + fx * at(x1, y1)));
+}
+
+}  // namespace
+
+std::optional<LedTriangle> led_triangle(const std::vector<Eigen::Vector3d>& unit_dirs,
+                                        const std::vector<bool>& usable, const Eigen::Vector3d& dir,
+                                        double coverage_rad) {
+  std::vector<int> near;
+  for (int l = 0; l < int(unit_dirs.size()); ++l) {
+    if (usable.empty() || usable[size_t(l)]) near.push_back(l);
+  }
+  if (near.empty()) return std::nullopt;
+  const size_t count = std::min<size_t>(12, near.size());
+  std::partial_sort(near.begin(), near.begin() + long(count), near.end(), [&](int a, int b) {
+    return unit_dirs[size_t(a)].dot(dir) > unit_dirs[size_t(b)].dot(dir);
+  });
+  near.resize(count);
+  std::optional<LedTriangle> best;
+  double best_plane =
+      -2;  // The containing triangle with the smallest circumcircle, if none is empty.
+  for (size_t i = 0; i < count; ++i) {
+    for (size_t j = i + 1; j < count; ++j) {
+      for (size_t k = j + 1; k < count; ++k) {
+        const Eigen::Vector3d& a = unit_dirs[size_t(near[i])];
+        const Eigen::Vector3d& b = unit_dirs[size_t(near[j])];
+        const Eigen::Vector3d& c = unit_dirs[size_t(near[k])];
+        Eigen::Matrix3d m;
+        m << a, b, c;
+        if (std::abs(m.determinant()) < 1e-12) continue;
+        const Eigen::Vector3d w = m.partialPivLu().solve(dir);
+        if (w.minCoeff() < -1e-12) continue;
+        // The circumcircle is where the plane through a, b, c cuts the sphere; Delaunay: no other
+        // LED beyond that plane.
+        Eigen::Vector3d normal = (b - a).cross(c - a).normalized();
+        if (normal.dot(a) < 0) normal = -normal;
+        const double plane = normal.dot(a);
+        bool empty = true;
+        for (size_t o = 0; o < count && empty; ++o) {
+          if (o != i && o != j && o != k && normal.dot(unit_dirs[size_t(near[o])]) > plane + 1e-9) {
+            empty = false;
+          }
+        }
+        if (!empty && plane <= best_plane) continue;
+        LedTriangle t;
+        t.leds = {near[i], near[j], near[k]};
+        const Eigen::Vector3d weights = w.cwiseMax(0.0) / w.cwiseMax(0.0).sum();
+        t.weights = {weights[0], weights[1], weights[2]};
+        if (empty) return t;
+        best = t;
+        best_plane = plane;
+      }
+    }
+  }
+  if (best) return best;
+  const Eigen::Vector3d& nearest = unit_dirs[size_t(near.front())];
+  if (std::atan2(nearest.cross(dir).norm(), nearest.dot(dir)) > coverage_rad) return std::nullopt;
+  return LedTriangle{{near.front(), near.front(), near.front()}, {1.0, 0.0, 0.0}};
+}
+
+LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
+                     const LambertianFit& fit) {
+  const int width = fit.normal.width, height = fit.normal.height;
+  const size_t pixels = size_t(width) * height;
+  LS_CHECK(rgb.size() == 3 * pixels && fit.albedo.pixels.size() == 3 * pixels,
+           "led_shadow: the LED image and the Lambertian fit differ in size");
+  LedShadow shadow;
+  shadow.dir = led_dir.normalized();
+  shadow.width = width;
+  shadow.height = height;
+  std::vector<double> expected(pixels);
+  double sum = 0;
+  size_t lit_count = 0;
+  for (size_t p = 0; p < pixels; ++p) {
+    expected[p] = luminance(lambert(fit, p, shadow.dir));
+    if (expected[p] > 0) {
+      sum += expected[p];
+      ++lit_count;
+    }
+  }
+  const double dark = kDarkShare * (lit_count ? sum / double(lit_count) : 0.0);
+  // 255 where lit, 0 in a cast shadow.
+  cv::Mat lit(height, width, CV_8U);
+  for (size_t p = 0; p < pixels; ++p) {
+    const double measured = luminance(Eigen::Vector3d(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]));
+    const double ratio =
+        pixel3(fit.normal, p).dot(shadow.dir) < kGrazingCosine ? kGrazingShadowRatio : kShadowRatio;
+    const bool in_shadow = expected[p] > dark && measured < ratio * expected[p];
+    lit.data[p] = in_shadow ? 0 : 255;
+    shadow.shadowed_pixels += in_shadow;
+  }
+  // Distances to the nearest pixel of the other kind; the edge lies half a pixel from both sides.
+  cv::Mat to_shadow, to_lit, shadowed;
+  cv::distanceTransform(lit, to_shadow, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  cv::bitwise_not(lit, shadowed);
+  cv::distanceTransform(shadowed, to_lit, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  const float limit = float(std::max(width, height)) / 4;
+  shadow.edge_distance_px.resize(pixels);
+  for (size_t p = 0; p < pixels; ++p) {
+    const float d = lit.data[p] ? to_shadow.ptr<float>()[p] - 0.5f : 0.5f - to_lit.ptr<float>()[p];
+    shadow.edge_distance_px[p] = std::clamp(d, -limit, limit);
+  }
+  shadow.rgb = std::move(rgb);
+  return shadow;
+}
+
+std::vector<float> shadow_flow(const LedShadow& from, const LedShadow& to) {
+  LS_CHECK(from.width > 0 && from.width == to.width && from.height == to.height,
+           "shadow_flow: the LED shadows differ in size");
+  cv::Mat flow;
+  cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM)
+      ->calc(distance_image(from), distance_image(to), flow);
+  const float* f = flow.ptr<float>();
+  return {f, f + 2 * size_t(from.width) * from.height};
+}
+
+void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const ShadowFlows& flows,
+                        const LedTriangle& triangle, const SourceToRender& source,
+                        const LambertianFit& fit, Image& out) {
+  const int width = fit.normal.width, height = fit.normal.height;
+  LS_CHECK(out.width == width && out.height == height && out.channels == 3,
+           "add_compact_source: the output is not the field's size");
+  const float limit = float(std::max(width, height)) / 4;
+  // Each LED's shadows move toward where the others have them, by the others' weights
+  // (multi-image morphing, on the distance images).
+  std::array<std::array<double, 3>, 3> angle{};
+  for (int k = 0; k < 3; ++k) {
+    for (int j = 0; j < 3; ++j) {
+      const Eigen::Vector3d& a = shadows[size_t(k)]->dir;
+      const Eigen::Vector3d& b = shadows[size_t(j)]->dir;
+      angle[size_t(k)][size_t(j)] = std::atan2(a.cross(b).norm(), a.dot(b));
+      LS_CHECK(j == k || triangle.weights[size_t(k)] < kMinTriangleWeight ||
+                   triangle.weights[size_t(j)] < kMinTriangleWeight ||
+                   flows[size_t(k)][size_t(j)] != nullptr,
+               "add_compact_source: a flow between two weighted LEDs is missing");
+    }
+  }
+  const Eigen::Vector3d s = source.dir_in_stage.normalized();
+  tbb::parallel_for(0, height, [&](int y) {
+    for (int x = 0; x < width; ++x) {
+      const size_t p = size_t(y) * width + x;
+      double distance_px = 0, speed = 0, shadow_weight = 0;
+      Eigen::Vector3d gloss(0, 0, 0), in_shadow(0, 0, 0);
+      for (int k = 0; k < 3; ++k) {
+        const LedShadow& led = *shadows[size_t(k)];
+        const double w = triangle.weights[size_t(k)];
+        if (w < kMinTriangleWeight) continue;
+        // LED k's shadows displaced toward the source: by sum_j w_j flow[k][j] (sampled where
+        // the pixel is; the flows are smooth).
+        double dx = 0, dy = 0;
+        for (int j = 0; j < 3; ++j) {
+          const std::vector<float>* f = flows[size_t(k)][size_t(j)];
+          if (j == k || f == nullptr || triangle.weights[size_t(j)] < kMinTriangleWeight ||
+              angle[size_t(k)][size_t(j)] <= 0) {
+            continue;
+          }
+          const float vx = (*f)[2 * p], vy = (*f)[2 * p + 1];
+          dx += triangle.weights[size_t(j)] * vx;
+          dy += triangle.weights[size_t(j)] * vy;
+          speed = std::max(speed, std::hypot(vx, vy) / angle[size_t(k)][size_t(j)]);
+        }
+        distance_px += w * sample(led.edge_distance_px, width, height, x - dx, y - dy);
+        const Eigen::Vector3d measured(led.rgb[3 * p], led.rgb[3 * p + 1], led.rgb[3 * p + 2]);
+        if (led.edge_distance_px[p] > 0) {
+          gloss += w * (measured - lambert(fit, p, led.dir));
+        } else {
+          in_shadow += w * measured;
+          shadow_weight += w;
+        }
+      }
+      const double half_width = std::clamp(source.radius_rad * speed, 0.5, double(limit) / 4);
+      const double visible = std::clamp(0.5 + distance_px / (2 * half_width), 0.0, 1.0);
+      const Eigen::Vector3d shading = (lambert(fit, p, s) + gloss).cwiseMax(0.0);
+      const Eigen::Vector3d bounced =
+          shadow_weight > 0 ? Eigen::Vector3d(in_shadow / shadow_weight) : Eigen::Vector3d::Zero();
+      const Eigen::Vector3d value =
+          source.irradiance_rgb.cwiseProduct(visible * shading + (1 - visible) * bounced);
+      float* o = &out.pixels[3 * p];
+      for (int c = 0; c < 3; ++c) o[c] += float(value[c]);
+    }
+  });
+}
+
+}  // namespace ls::relight

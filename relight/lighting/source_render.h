@@ -1,0 +1,80 @@
+#pragma once
+// A compact source (compact_sources.h) rendered from a reflectance field at its true direction,
+// between the LEDs that sampled the field:
+//  - Shading: the pixel's Lambertian term at the source's direction (normal and albedo from
+//    photometric stereo), plus what the LEDs around the source show beyond their own Lambertian
+//    term (gloss), interpolated with the source's barycentric weights in their spherical Delaunay
+//    triangle.
+//  - Visibility: per LED of the triangle, the signed distance in pixels from each pixel to the edge
+//    of that LED's cast shadow (a shadowed sample is under half of its Lambertian term). Each
+//    LED's distances are carried toward the source along the optical flow between the LEDs'
+//    distance images (DIS flow; multi-image morphing, in the spirit of Fuchs et al. 2007's flow
+//    between one-light images), weighted by the source's barycentric weights, then blended with
+//    those weights: a shadow's edge moves with the light instead of cross-fading between two or
+//    three offset copies. The edge is ramped over the penumbra a disc of the source's radius
+//    casts: half-width = radius x how fast the edge moves between the LEDs (flow length per
+//    radian), at least half a pixel.
+// Values are in field units per unit irradiance, like the field: out += E (.) (V S + (1 - V) A),
+// with A what the shadowed LEDs still see (light bounced into the shadow).
+// Near-LED fields are lit along the LEDs' nominal directions here.
+#include <Eigen/Core>
+#include <array>
+#include <optional>
+#include <vector>
+
+#include "lightstage/image.h"
+
+namespace ls::relight {
+
+struct LedTriangle {
+  std::array<int, 3> leds{};        // Light indices of the field.
+  std::array<double, 3> weights{};  // Barycentric: >= 0, sum 1; sum_k w_k l_k is along the source.
+};
+
+// The spherical Delaunay triangle of the usable LEDs (unit directions) that holds `dir`, found
+// among its 12 nearest LEDs (the empty-circumcircle test run there). Outside every triangle but
+// within coverage_rad of an LED: that LED alone, weight 1. Farther: nullopt (the dome has no light
+// there; integrate_environment reports such light as uncovered).
+std::optional<LedTriangle> led_triangle(const std::vector<Eigen::Vector3d>& unit_dirs,
+                                        const std::vector<bool>& usable, const Eigen::Vector3d& dir,
+                                        double coverage_rad);
+
+// Each pixel's Lambertian fit (relight::estimate_normals): unit normal, (0,0,0) where unknown, and
+// albedo per channel (R = albedo / pi * cos).
+struct LambertianFit {
+  Image normal;
+  Image albedo;
+};
+
+// One LED's image (width x height x 3, field units) and the signed distance from each pixel to the
+// edge of its cast shadow, in pixels: > 0 lit, < 0 shadowed, clamped to +-max(width, height) / 4.
+struct LedShadow {
+  Eigen::Vector3d dir{0, 1, 0};
+  int width = 0, height = 0;
+  std::vector<float> rgb;
+  std::vector<float> edge_distance_px;
+  int shadowed_pixels = 0;
+};
+LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
+                     const LambertianFit& fit);
+
+// Where each pixel's shadow edges under LED `from` lie under LED `to`: dense optical flow (DIS,
+// Kroeger et al. 2016) between their signed-distance images, (dx, dy) per pixel, row-major.
+std::vector<float> shadow_flow(const LedShadow& from, const LedShadow& to);
+
+struct SourceToRender {
+  Eigen::Vector3d dir_in_stage{0, 1, 0};  // Unit, toward the source.
+  double radius_rad = 0.0;
+  Eigen::Vector3d irradiance_rgb{0, 0, 0};  // At normal incidence.
+};
+
+// Adds the source's light to `out` (width x height x 3). shadows[k] is the LedShadow of
+// triangle.leds[k]; flows[k][j] the shadow_flow from shadows[k] to shadows[j], needed (not null)
+// for k != j where both LEDs weigh at least kMinTriangleWeight.
+inline constexpr double kMinTriangleWeight = 1e-3;
+using ShadowFlows = std::array<std::array<const std::vector<float>*, 3>, 3>;
+void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const ShadowFlows& flows,
+                        const LedTriangle& triangle, const SourceToRender& source,
+                        const LambertianFit& fit, Image& out);
+
+}  // namespace ls::relight
