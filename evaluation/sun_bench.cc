@@ -126,7 +126,7 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
                             std::cos(el) * std::sin(30 * kDeg));
   const DirectionIndex index(dirs);
   const int start_led = index.within(aim, std::numbers::pi).front();
-  const Eigen::Vector3d start = dirs[size_t(start_led)];
+  const Eigen::Vector3d& start = dirs[size_t(start_led)];
   // A direction just off the LED, toward the aim, names the triangle the sweep crosses.
   const Eigen::Vector3d nudged =
       (start + 0.05 * (aim - start + 0.1 * start.cross(Eigen::Vector3d::UnitY())).normalized())
