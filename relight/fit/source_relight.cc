@@ -63,6 +63,24 @@ SplitLighting split_lighting(const EnvironmentMap& map,
   return out;
 }
 
+namespace {
+
+NormalOptions normal_options_for(const capture::ReflectanceField& field) {
+  NormalOptions options;
+  if (field.noise.measured) {
+    options.noise.a = field.noise.read_variance;
+    options.noise.b = field.noise.shot_variance_per_unit;
+  }
+  return options;
+}
+
+}  // namespace
+
+FieldSources::FieldSources(const capture::ReflectanceField& field) : field_(&field) {
+  const NormalMap normals = estimate_normals(field, normal_options_for(field));
+  fit_ = {normals.normal, normals.albedo};
+}
+
 FieldSources::FieldSources(const capture::ReflectanceField& header,
                            const capture::FieldBands& bands, const std::vector<int>& leds) {
   const int width = header.width(), height = header.height();
@@ -74,11 +92,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
   fit_ = {Image(width, height, 3), Image(width, height, 3)};
   std::map<int, std::vector<float>> images;
   for (const int led : leds) images[led].resize(3 * pixels);
-  NormalOptions normal_options;
-  if (header.noise.measured) {
-    normal_options.noise.a = header.noise.read_variance;
-    normal_options.noise.b = header.noise.shot_variance_per_unit;
-  }
+  const NormalOptions normal_options = normal_options_for(header);
   bands([&](const capture::ReflectanceField& band) {
     const NormalMap normals = estimate_normals(band, normal_options);
     const size_t first = size_t(band.first_row()) * width;
@@ -100,13 +114,28 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
   }
 }
 
+// Callers hold mutex_.
+const LedShadow& FieldSources::shadow(int led) const {
+  auto it = shadows_.find(led);
+  if (it != shadows_.end()) return it->second;
+  LS_CHECK(field_ != nullptr, "FieldSources: LED " + std::to_string(led) + " was not read");
+  LS_CHECK(led >= 0 && led < field_->num_lights(), "FieldSources: no light " + std::to_string(led));
+  const size_t pixels = size_t(field_->width()) * field_->height();
+  std::vector<float> rgb(3 * pixels);
+  const size_t stride = 3 * size_t(field_->num_lights());
+  const float* values = field_->values().data() + 3 * size_t(led);
+  for (size_t p = 0; p < pixels; ++p)
+    std::copy(values + p * stride, values + p * stride + 3, &rgb[3 * p]);
+  return shadows_
+      .emplace(led, led_shadow(field_->lights()[size_t(led)].dir_in_stage, std::move(rgb), fit_))
+      .first->second;
+}
+
+// Callers hold mutex_.
 const std::vector<float>& FieldSources::flow(int from_led, int to_led) const {
-  const std::lock_guard<std::mutex> lock(flows_mutex_);
   auto it = flows_.find({from_led, to_led});
   if (it == flows_.end()) {
-    it = flows_
-             .emplace(std::pair{from_led, to_led},
-                      shadow_flow(shadows_.at(from_led), shadows_.at(to_led)))
+    it = flows_.emplace(std::pair{from_led, to_led}, shadow_flow(shadow(from_led), shadow(to_led)))
              .first;
   }
   return it->second;
@@ -116,14 +145,9 @@ void FieldSources::add(const SplitLighting& lighting, Image& out) const {
   for (const PlacedSource& source : lighting.sources) {
     if (!source.triangle) continue;
     std::array<const LedShadow*, 3> shadows{};
-    for (int k = 0; k < 3; ++k) {
-      const auto it = shadows_.find(source.triangle->leds[size_t(k)]);
-      LS_CHECK(it != shadows_.end(), "FieldSources: LED " +
-                                         std::to_string(source.triangle->leds[size_t(k)]) +
-                                         " was not read");
-      shadows[size_t(k)] = &it->second;
-    }
     ShadowFlows flows{};
+    std::unique_lock<std::mutex> lock(mutex_);  // std::map keeps references: render unlocked.
+    for (int k = 0; k < 3; ++k) shadows[size_t(k)] = &shadow(source.triangle->leds[size_t(k)]);
     for (int k = 0; k < 3; ++k) {
       for (int j = 0; j < 3; ++j) {
         const int from = source.triangle->leds[size_t(k)], to = source.triangle->leds[size_t(j)];
@@ -133,6 +157,7 @@ void FieldSources::add(const SplitLighting& lighting, Image& out) const {
         }
       }
     }
+    lock.unlock();
     add_compact_source(shadows, flows, *source.triangle, source.render, fit_, out);
   }
 }

@@ -39,22 +39,29 @@ SplitLighting split_lighting(const EnvironmentMap& map,
                              double coverage_rad, bool split,
                              const CompactSourceOptions& options = {});
 
-// The field's Lambertian fit and LedShadows of the LEDs asked for, in one pass over its bands.
+// The field's Lambertian fit and the LedShadows of the LEDs its sources fall between.
 class FieldSources {
  public:
+  // A streamed field: the fit and the shadows of `leds`, in one pass over its bands; add() needs no
+  // other LED.
   FieldSources(const capture::ReflectanceField& header, const capture::FieldBands& bands,
                const std::vector<int>& leds);
+  // A field in memory (it must outlive this): the fit now, each LED's shadow when a source first
+  // falls next to it (a sun turning with the map in the viewer).
+  explicit FieldSources(const capture::ReflectanceField& field);
   // Adds every source of `lighting` that has a triangle to `out` (the field's size, 3 channels).
   // The flows between a triangle's LEDs are computed when first needed and kept: a sun that stays
   // between the same LEDs (a rotation's small steps, a viewer's frames) costs one pass per pixel.
   void add(const SplitLighting& lighting, Image& out) const;
 
  private:
+  const LedShadow& shadow(int led) const;
   const std::vector<float>& flow(int from_led, int to_led) const;
 
+  const capture::ReflectanceField* field_ = nullptr;  // In memory: shadows made on demand.
   LambertianFit fit_;
-  std::map<int, LedShadow> shadows_;
-  mutable std::mutex flows_mutex_;
+  mutable std::mutex mutex_;  // add() may run on several threads; it fills the caches.
+  mutable std::map<int, LedShadow> shadows_;
   mutable std::map<std::pair<int, int>, std::vector<float>> flows_;
 };
 

@@ -151,6 +151,7 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
   }
   const relight::FieldSources sources(field, capture::whole_field(field),
                                       {source_leds.begin(), source_leds.end()});
+  const relight::FieldSources on_demand(field);  // The viewer's: each LED's shadow when needed.
   for (size_t m = 0; m < std::size(cases); ++m) {
     const Case& c = cases[m];
     const EnvironmentMap map =
@@ -158,6 +159,9 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
     const Image cells = relight::relight(field, relight::integrate_environment(map, dirs));
     Image split = relight::relight(field, splits[m].weights);
     sources.add(splits[m], split);
+    Image split_on_demand = relight::relight(field, splits[m].weights);
+    on_demand.add(splits[m], split_on_demand);
+    EXPECT_EQ(split_on_demand.pixels, split.pixels) << c.name;
     sim::GroundTruthOptions gt;
     gt.directions_width = 128;
     gt.covered_by_leds = dirs;
