@@ -4,12 +4,18 @@
 // GlWindow. Needs a display:
 //   xvfb-run -a -s "-screen 0 1280x720x24" build/bench/bench_viewer   (llvmpipe)
 // The upload itself (once per source) is timed too (BM_UploadField).
+// Issue 16: the field on the CPU under sky_sun.exr turning by 0.1 deg a frame, the sun split off
+// and rendered at its true direction (BM_FieldSunRotationOnCpu, with/without the split), and the
+// first frame with a sun (photometric-stereo normals, then the sun's LED shadows and flows).
 #include <benchmark/benchmark.h>
 
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
+#include <chrono>
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 
@@ -18,9 +24,11 @@
 #include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
+#include "relight/lighting/envmap.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"
+#include "viewer/view_lighting.h"
 
 namespace {
 
@@ -139,6 +147,113 @@ void BM_FieldFrameOnCpu(benchmark::State& state) {
   run_frames(state, *source, led_lighting());
 }
 BENCHMARK(BM_FieldFrameOnCpu)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+// sky_sun.exr from the checkout's data folder (LIGHTSTAGE_DATA overrides, as for the viewer).
+const ls::relight::EnvironmentMap& sky_sun() {
+  static const ls::relight::EnvironmentMap map = [] {
+    const char* data = std::getenv("LIGHTSTAGE_DATA");
+    const std::filesystem::path dir =
+        data ? std::filesystem::path(data)
+             : std::filesystem::path(__FILE__).parent_path().parent_path() / "data";
+    return ls::relight::EnvironmentMap::load(dir / "envmaps" / "sky_sun.exr");
+  }();
+  return map;
+}
+
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// The lighting the viewer makes for the field alone under sky_sun.exr turned by rotation_deg
+// (viewer/view_lighting.h), the sun split off or not.
+ls::viewer::ViewLighting sky_sun_lighting(double rotation_deg, bool split) {
+  static const std::vector<Eigen::Vector3d> dirs = [] {
+    std::vector<Eigen::Vector3d> d;
+    for (const auto& light : field().lights()) d.push_back(light.dir_in_stage);
+    return d;
+  }();
+  static const std::vector<bool> valid(dirs.size(), true);
+  ls::viewer::EnvironmentNeeds needs;
+  needs.field_sources = split;
+  needs.whole_map_led_weights = false;  // Only the field is shown.
+  needs.model_lights = false;
+  return ls::viewer::environment_lighting(sky_sun(), rotation_deg, dirs, valid, needs);
+}
+
+std::string sources_label(const ls::viewer::ViewLighting& lighting, double rotation_deg) {
+  return lighting.split ? lighting.split->report(rotation_deg) : "by LED cells alone";
+}
+
+// A frame of the viewer turning the map (a drag), 0.1 deg a frame: the lighting for the new
+// rotation (the sun split off when split = 1), the CPU relighting by cells, the sun added, the
+// upload. The first frame with a sun (normals, the sun's LED shadows and flows) is made before the
+// timed loop; a new LED triangle every ~100 frames (LEDs ~14 deg apart) is part of the loop.
+// Measured on 2 cores (llvmpipe, quiet machine): 21 fps with the sun split off (lighting 5.5 ms,
+// the sun ~15 ms, the cells ~26 ms: the 472 MB field streamed once), 33 fps by cells alone.
+void BM_FieldSunRotationOnCpu(benchmark::State& state) {
+  window();
+  const bool split = state.range(0) != 0;
+  const auto source = ls::viewer::relight_field_on_cpu(field());
+  ls::viewer::GpuTarget target(source->width(), source->height());
+  double rotation = 300.0;
+  source->render(sky_sun_lighting(rotation, split), target);
+  glFinish();
+  double lighting_ms = 0;
+  for (auto _ : state) {
+    rotation += 0.1;
+    const auto t0 = std::chrono::steady_clock::now();
+    const ls::viewer::ViewLighting lighting = sky_sun_lighting(rotation, split);
+    lighting_ms += ms_since(t0);
+    source->render(lighting, target);
+    glFinish();
+  }
+  state.SetLabel(sources_label(sky_sun_lighting(rotation, split), rotation));
+  state.counters["fps"] =
+      benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["lighting_ms"] =
+      benchmark::Counter(lighting_ms / std::max<double>(1, double(state.iterations())));
+}
+BENCHMARK(BM_FieldSunRotationOnCpu)
+    ->ArgName("split")
+    ->Arg(1)
+    ->Arg(0)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// The first frame with a sun on a freshly opened field: the field's normals (photometric stereo,
+// once per field), the shadows of the sun's three LEDs and the flows between them, then the frame.
+void BM_FieldSunFirstFrameOnCpu(benchmark::State& state) {
+  window();
+  const ls::viewer::ViewLighting lighting = sky_sun_lighting(300.0, /*split=*/true);
+  ls::viewer::GpuTarget target(field().width(), field().height());
+  for (auto _ : state) {
+    const auto source = ls::viewer::relight_field_on_cpu(field());
+    source->render(lighting, target);
+    glFinish();
+  }
+  state.SetLabel(sources_label(lighting, 300.0));
+}
+BENCHMARK(BM_FieldSunFirstFrameOnCpu)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+
+// A frame whose sun has jumped 47 deg to LEDs not used before (normals known): the new LEDs'
+// shadows and flows, then the frame.
+void BM_FieldSunNewLedsOnCpu(benchmark::State& state) {
+  window();
+  const auto source = ls::viewer::relight_field_on_cpu(field());
+  ls::viewer::GpuTarget target(source->width(), source->height());
+  double rotation = 300.0;
+  source->render(sky_sun_lighting(rotation, /*split=*/true), target);
+  glFinish();
+  for (auto _ : state) {
+    state.PauseTiming();
+    rotation += 47.0;  // 7 jumps before the sun comes back near where it was.
+    const ls::viewer::ViewLighting lighting = sky_sun_lighting(rotation, /*split=*/true);
+    state.ResumeTiming();
+    source->render(lighting, target);
+    glFinish();
+  }
+}
+BENCHMARK(BM_FieldSunNewLedsOnCpu)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(6);
 
 const ls::relight::PcaField& pca16() {
   static const ls::relight::PcaField pca = [] {

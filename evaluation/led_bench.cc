@@ -124,6 +124,19 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
         });
         // Reading the field for the sources' normals and LED shadows, once per field.
         if (split) row.light_weights_ms += sources_ms;
+        if (count == options.counts.back() && !splits[m].sources.empty()) {
+          // The largest dome's images of maps with a source, at the truth's exposure.
+          const fs::path png =
+              options.out / "compare" / (row.map + (split ? "_sources" : "_cells") + ".png");
+          fs::create_directories(png.parent_path());
+          write_png_preview(png, relit, auto_exposure_stops(truth));
+          summary.comparison.push_back({png, row.map + (split ? ": with sources" : ": LED cells")});
+          if (split) {
+            const fs::path truth_png = options.out / "compare" / (row.map + "_truth.png");
+            write_png_preview(truth_png, truth, auto_exposure_stops(truth));
+            summary.comparison.push_back({truth_png, row.map + ": ground truth"});
+          }
+        }
         const ImageError err = compare_images(relit, truth);
         row.relative_rmse = err.relative_rmse;
         row.psnr_db = err.psnr_db;

@@ -34,6 +34,13 @@ struct LedBenchRow {
 struct LedBenchSummary {
   std::vector<LedBenchRow> rows;
   std::filesystem::path csv;  // leds.csv; the charts beside it.
+  // Maps with a compact source, largest dome: by cells, with sources and ground truth, in that
+  // order (compare/*.png, at the truth's exposure), with labels.
+  struct ComparisonImage {
+    std::filesystem::path png;
+    std::string label;
+  };
+  std::vector<ComparisonImage> comparison;
 };
 
 LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& progress = {});

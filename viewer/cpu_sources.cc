@@ -10,14 +10,17 @@
 #include "lightstage/errors.h"
 #include "relight/lighting/relight.h"
 #include "viewer/gl_util.h"
+#include "viewer/view_lighting.h"
 
 namespace ls::viewer {
 namespace {
 
 class CpuFieldSource : public GpuSource {
  public:
-  explicit CpuFieldSource(const capture::ReflectanceField& field) : field_(field) {}
+  explicit CpuFieldSource(const capture::ReflectanceField& field)
+      : field_(field), sources_(field) {}
   std::string name() const override { return "field"; }
+  bool adds_compact_sources() const override { return true; }
   std::string note() const override {
     return "field: " + std::to_string(field_.num_lights()) + " LEDs, " +
            gl_util::mb(field_.bytes()) +
@@ -28,13 +31,17 @@ class CpuFieldSource : public GpuSource {
   std::size_t bytes() const override { return 0; }
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     gl_util::check_target(*this, target);
-    gl_util::check_led_weights(*this, lighting, field_.num_lights());
-    relight::relight_into(field_, lighting.led_irradiance_rgb, image_);
+    gl_util::check_led_weights(*this, lighting.field_irradiance_rgb(), field_.num_lights());
+    // The map by LED cells (without its compact sources when they were split off), then the
+    // sources at their true directions (issue 16).
+    relight::relight_into(field_, lighting.field_irradiance_rgb(), image_);
+    sources_.add(lighting, image_);
     target.upload(image_);
   }
 
  private:
   const capture::ReflectanceField& field_;
+  CompactSourceLight sources_;
   Image image_;
 };
 
@@ -50,7 +57,7 @@ class CpuPcaSource : public GpuSource {
   std::size_t bytes() const override { return 0; }
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     gl_util::check_target(*this, target);
-    gl_util::check_led_weights(*this, lighting, pca_.num_lights());
+    gl_util::check_led_weights(*this, lighting.led_irradiance_rgb, pca_.num_lights());
     pca_.relight_led_weights_into(lighting.led_irradiance_rgb.data(), image_);
     target.upload(image_);
   }

@@ -137,11 +137,12 @@ void check_target(const GpuSource& source, const GpuTarget& target) {
   }
 }
 
-void check_led_weights(const GpuSource& source, const ViewLighting& lighting, int leds) {
-  if (lighting.led_irradiance_rgb.size() != std::size_t(leds) * 3) {
+void check_led_weights(const GpuSource& source, const std::vector<float>& irradiance_rgb,
+                       int leds) {
+  if (irradiance_rgb.size() != std::size_t(leds) * 3) {
     throw InputError("GPU relight: lighting: the " + source.name() + " has " +
                      std::to_string(leds) + " LEDs but the weights have " +
-                     std::to_string(lighting.led_irradiance_rgb.size() / 3));
+                     std::to_string(irradiance_rgb.size() / 3));
   }
 }
 

@@ -100,8 +100,9 @@ class TargetPass {
 };
 
 void check_target(const GpuSource& source, const GpuTarget& target);
-// InputError unless the lighting has one RGB weight per LED of the source.
-void check_led_weights(const GpuSource& source, const ViewLighting& lighting, int leds);
+// InputError unless the weights a source relights by (ViewLighting::led_irradiance_rgb, or
+// field_irradiance_rgb() for a field) hold one RGB weight per LED of the source.
+void check_led_weights(const GpuSource& source, const std::vector<float>& irradiance_rgb, int leds);
 
 // Uploads per-pixel data stored pixel-major (`stride` floats per pixel, `layers` RGB triples at
 // its start) into a W x H x layers RGB texture array, one layer per triple, image row 0 at texture

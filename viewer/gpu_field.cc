@@ -14,6 +14,7 @@
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_util.h"
 #include "viewer/gpu_relight.h"
+#include "viewer/view_lighting.h"
 
 namespace ls::viewer {
 
@@ -43,6 +44,8 @@ uniform int groups;                  // Per pixel.
 uniform int image_width;
 uniform int image_height;
 uniform float output_scale;          // Undoes the storage scale.
+uniform sampler2D sources_image;     // The compact sources' light (issue 16), image row 0 at
+uniform int with_sources;            // texture row 0; added when with_sources != 0.
 out vec4 radiance;
 void main() {
   ivec2 p = ivec2(gl_FragCoord.xy);
@@ -57,7 +60,9 @@ void main() {
   }
   vec3 sum = vec3(a0.x + a0.w + a1.z + a2.y, a0.y + a1.x + a1.w + a2.z,
                   a0.z + a1.y + a2.x + a2.w);
-  radiance = vec4(sum * output_scale, 1.0);
+  vec3 sources = with_sources != 0
+      ? texelFetch(sources_image, ivec2(p.x, image_height - 1 - p.y), 0).rgb : vec3(0.0);
+  radiance = vec4(sum * output_scale + sources, 1.0);
 }
 )";
 
@@ -103,7 +108,8 @@ class FieldSource : public GpuSource {
         groups_((field.num_lights() + 3) / 4),
         half_(half),
         scale_(scale),
-        program_(kFieldShader, "field") {
+        program_(kFieldShader, "field"),
+        sources_(field) {
     valid_.reserve(lights_);
     for (const capture::FieldLight& light : field.lights()) valid_.push_back(light.valid);
     glGenBuffers(1, &values_buffer_);
@@ -127,9 +133,14 @@ class FieldSource : public GpuSource {
     program_.use();
     program_.bind_block("FieldLighting", 0);
     check_gl("allocating the field lighting");
+    glBindTexture(GL_TEXTURE_2D, sources_texture_.id());
+    set_nearest(GL_TEXTURE_2D);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, 1, 1, 0, GL_RGB, GL_FLOAT, nullptr);
+    check_gl("allocating the compact sources' image");
     note_ = "field: " + std::to_string(lights_) + " LEDs, " + mb(bytes()) + " of " +
             (half ? "half" : "float") + " in a buffer texture" +
-            (why.empty() ? "" : " (" + why + ")");
+            (why.empty() ? "" : " (" + why + ")") +
+            "; compact sources (a sun) computed on the CPU and added";
   }
   ~FieldSource() override {
     glDeleteBuffers(1, &lighting_);
@@ -158,6 +169,7 @@ class FieldSource : public GpuSource {
   }
 
   std::string name() const override { return "field"; }
+  bool adds_compact_sources() const override { return true; }
   std::string note() const override { return note_; }
   int width() const override { return width_; }
   int height() const override { return height_; }
@@ -167,8 +179,9 @@ class FieldSource : public GpuSource {
 
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     check_target(*this, target);
-    check_led_weights(*this, lighting, lights_);
+    check_led_weights(*this, lighting.field_irradiance_rgb(), lights_);
     // Only groups of LEDs that carry light (and data) are fetched: a point light lights a few.
+    const std::vector<float>& irradiance = lighting.field_irradiance_rgb();
     std::fill(block_.begin(), block_.end(), 0.0f);
     int active = 0;
     for (int g = 0; g < groups_; ++g) {
@@ -176,7 +189,7 @@ class FieldSource : public GpuSource {
       bool any = false;
       for (int j = 0; j < 12; ++j) {
         const int l = 4 * g + j / 3;
-        const float e = l < lights_ && valid_[l] ? lighting.led_irradiance_rgb[l * 3 + j % 3] : 0;
+        const float e = l < lights_ && valid_[l] ? irradiance[l * 3 + j % 3] : 0;
         w[j] = e;
         any = any || e != 0;
       }
@@ -189,6 +202,7 @@ class FieldSource : public GpuSource {
     glBufferSubData(GL_UNIFORM_BUFFER, 0, kLightingBytes, block_.data());
     glBindBuffer(GL_UNIFORM_BUFFER, 0);
     glBindBufferBase(GL_UNIFORM_BUFFER, 0, lighting_);
+    const bool with_sources = upload_sources(lighting);
     TargetPass pass(target);
     program_.use();
     bind_texture(program_, "field_values", 0, GL_TEXTURE_BUFFER, values_.id());
@@ -197,6 +211,8 @@ class FieldSource : public GpuSource {
     glUniform1i(program_.uniform("image_width"), width_);
     glUniform1i(program_.uniform("image_height"), height_);
     glUniform1f(program_.uniform("output_scale"), 1.0f / scale_);
+    bind_texture(program_, "sources_image", 1, GL_TEXTURE_2D, sources_texture_.id());
+    glUniform1i(program_.uniform("with_sources"), with_sources ? 1 : 0);
     program_.draw();
     check_gl("relighting the field");
   }
@@ -230,6 +246,25 @@ class FieldSource : public GpuSource {
     }
   }
 
+  // The compact sources' light (issue 16) computed on the CPU into the sources texture; false
+  // when the lighting has none.
+  bool upload_sources(const ViewLighting& lighting) {
+    if (!sources_.render(lighting, sources_image_)) return false;
+    glBindTexture(GL_TEXTURE_2D, sources_texture_.id());
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    if (!sources_allocated_) {
+      glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, width_, height_, 0, GL_RGB, GL_FLOAT,
+                   sources_image_.pixels.data());
+      sources_allocated_ = true;
+    } else {
+      glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, width_, height_, GL_RGB, GL_FLOAT,
+                      sources_image_.pixels.data());
+    }
+    glBindTexture(GL_TEXTURE_2D, 0);
+    check_gl("uploading the compact sources' image");
+    return true;
+  }
+
   int width_, height_, lights_, groups_;
   bool half_;
   float scale_;  // Stored values are R * scale_ (a power of two: exact).
@@ -237,6 +272,10 @@ class FieldSource : public GpuSource {
   Program program_;
   GLuint values_buffer_ = 0, lighting_ = 0;
   Texture values_;
+  CompactSourceLight sources_;
+  Image sources_image_;
+  Texture sources_texture_;  // 1 x 1 until a lighting has compact sources.
+  bool sources_allocated_ = false;
   std::vector<float> block_ = std::vector<float>(kLightingBytes / 4);
   std::string note_;
 };
@@ -305,7 +344,7 @@ class PcaSource : public GpuSource {
 
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     check_target(*this, target);
-    check_led_weights(*this, lighting, pca_.num_lights());
+    check_led_weights(*this, lighting.led_irradiance_rgb, pca_.num_lights());
     const int k = pca_.rank();
     const std::vector<float> w = pca_.project_led_weights(lighting.led_irradiance_rgb.data());
     glBindTexture(GL_TEXTURE_2D, basis_weights_.id());

@@ -11,11 +11,15 @@
 // argument of upload_field (defaulted; benchmarks force half or float), GpuSource::bytes().
 // Additions by vpre: ModelShading and the `shading` argument of upload_models (defaulted: kExact,
 // as before).
+// Additions for issue 16 (compact sources): ViewLighting::split and field_irradiance_rgb(),
+// GpuSource::adds_compact_sources(); field sources add the split-off sources
+// (relight::FieldSources) to the cells' image.
 //
 // Everything here needs a current OpenGL 3.3 core context (viewer/gl_window.h) on the calling
 // thread. Errors (shader compile, GL out of memory) throw ls::HardwareError with the GL message.
 #include <cstddef>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,6 +28,7 @@
 #include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
+#include "relight/fit/source_relight.h"
 #include "relight/lighting/light_cells.h"
 
 namespace ls::viewer {
@@ -31,11 +36,24 @@ namespace ls::viewer {
 // The lighting of one frame, in both forms the sources take.
 struct ViewLighting {
   // 3 floats per LED of the field/PCA (E_l per channel, as integrate_environment gives). Field and
-  // PCA sources use this.
+  // PCA sources use this (a field only when `split` is unset; with `split` set this may be empty
+  // when no PCA is shown: viewer/view_lighting.h).
   std::vector<float> led_irradiance_rgb;
   // The same lighting as distant lights (LightingForModels::environment or ::directional). Model
   // sources use this.
   relight::LightingForModels lights;
+  // Issue 16: a field under an environment map with compact sources (a sun, a small lamp), set
+  // only when the map has some. Field sources relight by split->weights (the map without its
+  // sources, by LED cells) and add each source at its true direction (relight::FieldSources::add),
+  // as `lightstage relight` does. Sources that cannot add them back (PCA, models) keep
+  // led_irradiance_rgb and lights: the whole map, sun included.
+  std::optional<relight::SplitLighting> split;
+
+  // What a field source relights by: split->weights.irradiance_rgb when set, else
+  // led_irradiance_rgb.
+  const std::vector<float>& field_irradiance_rgb() const {
+    return split ? split->weights.irradiance_rgb : led_irradiance_rgb;
+  }
 };
 
 // A float RGBA render target (texture + framebuffer) of a source's size, owned by the caller.
@@ -70,6 +88,10 @@ class GpuSource {
   virtual int width() const = 0;
   virtual int height() const = 0;
   virtual std::size_t bytes() const = 0;  // GPU memory its textures take.
+  // Whether it renders ViewLighting::split (a field: the map without its compact sources by cells
+  // plus the sources); the others (PCA, a field over budget shown as PCA, models) use the whole
+  // map's led_irradiance_rgb or lights.
+  virtual bool adds_compact_sources() const { return false; }
   // Throws InputError when the lighting does not fit the source (LED count) or the target's size
   // is not the source's.
   virtual void render(const ViewLighting& lighting, GpuTarget& target) = 0;
@@ -89,7 +111,9 @@ enum class FieldPrecision { kAuto, kHalf, kFloat };
 // The field in textures (half float where that keeps the CPU result within tolerance; say which in
 // note()). A field over `budget_bytes` is compressed (PCA, noise-floor rank, at most 64 and at
 // most what fits the budget) and that is uploaded instead, with note() saying so; HardwareError
-// when not even rank 1 fits.
+// when not even rank 1 fits. Under a lighting with compact sources (ViewLighting::split) the source
+// computes their light on the CPU (relight::FieldSources, built from `field` the first time) and
+// adds it in the shader, so `field` must then outlive the source.
 std::unique_ptr<GpuSource> upload_field(const capture::ReflectanceField& field,
                                         std::size_t budget_bytes = gpu_memory_budget_bytes(),
                                         FieldPrecision precision = FieldPrecision::kAuto);

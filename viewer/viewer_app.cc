@@ -29,6 +29,7 @@
 #include "relight/lighting/light_cells.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
+#include "viewer/view_lighting.h"
 #include "viewer/viewer_app_impl.h"
 
 namespace ls::viewer {
@@ -160,9 +161,23 @@ GpuSource* ViewerApp::Impl::gpu_source(Source s) {
 
 // --- Lighting -----------------------------------------------------------------------------
 
+bool ViewerApp::Impl::shows(Source s) const {
+  return state.map == ParameterMap::kNone && (state.source == s || state.split == s);
+}
+
 const ViewLighting& ViewerApp::Impl::current_lighting() {
+  // Compact sources are split off only for a field on show (issue 16), and distant lights made
+  // only for models on show: a rotation costs what the shown sources need.
+  EnvironmentNeeds needs;
+  needs.field_sources = field.has_value() && shows(Source::kField);
+  // The whole map per LED for a PCA, and for a field shown as PCA (over the GPU budget).
+  needs.whole_map_led_weights =
+      shows(Source::kPca) ||
+      (shows(Source::kField) && !(gpu_field && gpu_field->adds_compact_sources()));
+  needs.model_lights = shows(Source::kModels);
   const auto key = std::make_tuple(state.environment, state.rotation_deg, state.point_light,
-                                   state.light_dir, led_dirs.size());
+                                   state.light_dir, led_dirs.size(), needs.field_sources,
+                                   needs.whole_map_led_weights, needs.model_lights);
   if (lighting_key && *lighting_key == key) return lighting;
   const auto t0 = std::chrono::steady_clock::now();
   ViewLighting l;
@@ -175,20 +190,16 @@ const ViewLighting& ViewerApp::Impl::current_lighting() {
       l.led_irradiance_rgb = interpolator.led_irradiance(l.lights);
     }
   } else {
-    if (!led_dirs.empty()) {
-      l.led_irradiance_rgb =
-          relight::integrate_environment(*env, led_dirs, state.rotation_deg, 0.0, led_valid)
-              .irradiance_rgb;
-    }
     // With LEDs known the models get the light the dome covers, as `lightstage relight`
     // --models with a field does, so field and models are lit alike.
-    relight::EnvironmentSampling sampling;
-    sampling.covered_by_leds = led_dirs;
-    l.lights = relight::LightingForModels::environment(*env, state.rotation_deg, sampling);
+    l = environment_lighting(*env, state.rotation_deg, led_dirs, led_valid, needs);
   }
+  // The LED weights shown: the whole map's, or the field's when only those were made.
+  const std::vector<float>& weights =
+      l.led_irradiance_rgb.empty() ? l.field_irradiance_rgb() : l.led_irradiance_rgb;
   led_luminance.assign(led_dirs.size(), 0.0f);
-  for (size_t i = 0; i < led_dirs.size() && 3 * i + 2 < l.led_irradiance_rgb.size(); ++i)
-    led_luminance[i] = luminance(&l.led_irradiance_rgb[3 * i]);
+  for (size_t i = 0; i < led_dirs.size() && 3 * i + 2 < weights.size(); ++i)
+    led_luminance[i] = luminance(&weights[3 * i]);
   lighting = std::move(l);
   lighting_key = key;
   lighting_ms =
@@ -220,12 +231,13 @@ void ViewerApp::Impl::render_targets() {
     }
     return;
   }
-  const ViewLighting& l = current_lighting();
+  // The sources first: what the lighting must hold depends on them.
   GpuSource* first = gpu_source(state.source);
+  GpuSource* second = state.split ? gpu_source(*state.split) : nullptr;
+  const ViewLighting& l = current_lighting();
   ensure_target(target, first->width(), first->height());
   first->render(l, *target);
-  if (state.split) {
-    GpuSource* second = gpu_source(*state.split);
+  if (second) {
     ensure_target(split_target, second->width(), second->height());
     second->render(l, *split_target);
   }

@@ -49,7 +49,9 @@ class ViewerApp {
   // prints the command line that reproduces the view to stdout.
   void save_screenshot(const std::filesystem::path& png_path);
 
-  // The lighting of the current frame (per-LED irradiance and distant lights).
+  // The lighting of the current frame: per-LED irradiance of the whole map; for a field on show
+  // under a map with compact sources, the sources split off (ViewLighting::split); distant lights
+  // for models on show.
   const ViewLighting& lighting();
   // Milliseconds of the last frame's GPU relighting (upload + draw + finish).
   double last_relight_ms() const;

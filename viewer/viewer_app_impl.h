@@ -91,7 +91,8 @@ struct ViewerApp::Impl {
 
   // Lighting and what it was computed for.
   ViewLighting lighting;
-  std::optional<std::tuple<std::string, double, bool, Eigen::Vector3d, size_t>> lighting_key;
+  std::optional<std::tuple<std::string, double, bool, Eigen::Vector3d, size_t, bool, bool, bool>>
+      lighting_key;
   std::vector<float> led_luminance;
 
   double relight_ms = 0;   // Last frame: light weights (when they changed) + GPU relighting.
@@ -136,6 +137,10 @@ struct ViewerApp::Impl {
 
   // --- Lighting -----------------------------------------------------------------------------
 
+  // Whether the image area shows source `s` (left of the divider or right of it).
+  bool shows(Source s) const;
+  // The lighting of the frame, computed when the environment, its rotation, the point light or
+  // what is shown changed.
   const ViewLighting& current_lighting();
 
   // --- Rendering ----------------------------------------------------------------------------

@@ -260,6 +260,10 @@ void ViewerApp::Impl::lighting_section() {
   if (state.point_light) {
     ImGui::Text("light dir %.2f %.2f %.2f", state.light_dir.x(), state.light_dir.y(),
                 state.light_dir.z());
+  } else if (lighting.split && shows(Source::kField)) {
+    // Issue 16: what the field renders at its true direction instead of by LED cells.
+    ImGui::TextWrapped("field: compact sources at their true direction (orange on the strip): %s",
+                       lighting.split->report(state.rotation_deg).c_str());
   }
   if (!led_luminance.empty()) {
     ImGui::PlotHistogram("LED weights", led_luminance.data(), int(led_luminance.size()), 0, nullptr,
@@ -364,11 +368,14 @@ void ViewerApp::Impl::hover_info() {
   ImGui::Text("pixel (%d, %d)", px, py);
   if (field) {
     double sum[3] = {0, 0, 0};
-    const auto& e = current_lighting().led_irradiance_rgb;
+    const ViewLighting& l = current_lighting();
+    const auto& e = l.field_irradiance_rgb();
     const float* r = field->pixel(px, py);
-    for (int l = 0; l < field->num_lights() && 3 * size_t(l) + 2 < e.size(); ++l)
-      for (int c = 0; c < 3; ++c) sum[c] += double(r[3 * l + c]) * e[3 * l + c];
-    ImGui::Text("field relit %.4g %.4g %.4g", sum[0], sum[1], sum[2]);
+    for (int i = 0; i < field->num_lights() && 3 * size_t(i) + 2 < e.size(); ++i)
+      for (int c = 0; c < 3; ++c) sum[c] += double(r[3 * i + c]) * e[3 * i + c];
+    ImGui::Text(l.split ? "field by LED cells %.4g %.4g %.4g (+ compact sources)"
+                        : "field relit %.4g %.4g %.4g",
+                sum[0], sum[1], sum[2]);
   }
   if (!base_maps) return;
   const relight::ModelMaps& maps = current_maps();
@@ -482,6 +489,12 @@ void ViewerApp::Impl::strip_panel() {
     const Eigen::Vector2d uv = relight::EnvironmentMap::uv(state.light_dir.normalized());
     draw->AddCircle(ImVec2(p.x + float(uv.x()) * w, p.y + float(uv.y()) * h), 7,
                     IM_COL32(255, 255, 255, 255), 16, 2);
+  } else if (lighting.split && shows(Source::kField)) {
+    for (const relight::PlacedSource& source : lighting.split->sources) {
+      const Eigen::Vector2d uv = relight::EnvironmentMap::uv(source.render.dir_in_stage);
+      draw->AddCircle(ImVec2(p.x + float(uv.x()) * w, p.y + float(uv.y()) * h), 9,
+                      IM_COL32(255, 140, 0, 255), 16, 2);
+    }
   }
   ImGui::SameLine();
   ImGui::BeginGroup();

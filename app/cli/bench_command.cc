@@ -12,6 +12,7 @@
 #include <string>
 
 #include "app/cli/commands.h"
+#include "app/jobs/contact_sheet.h"
 #include "evaluation/compact_bench.h"
 #include "evaluation/fit_bench.h"
 #include "evaluation/fit_sweeps_bench.h"
@@ -36,6 +37,15 @@ void print_leds(const evaluation::LedBenchSummary& summary) {
   }
   std::fprintf(stderr, "wrote %s, leds_psnr_vs_time.png, leds_error_vs_count.png\n",
                summary.csv.c_str());
+  if (!summary.comparison.empty()) {
+    std::vector<jobs::Preview> tiles;
+    for (const auto& image : summary.comparison) tiles.push_back({image.png, image.label});
+    const std::filesystem::path sheet = summary.csv.parent_path() / "leds_compact_sources.png";
+    jobs::write_contact_sheet(sheet, tiles,
+                              "Maps with a compact source: LED cells | source at its direction | "
+                              "ground truth (largest dome)");
+    std::fprintf(stderr, "wrote %s\n", sheet.c_str());
+  }
 }
 
 std::string show(const std::optional<double>& v, double scale = 1.0) {
@@ -157,8 +167,11 @@ void add_leds(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_option("--repeats", args->repeats, "Timed repeats (median reported).")
       ->capture_default_str();
-  cmd->callback([args] {
-    args->maps = shipped_environment_maps(false);
+  auto shared_maps = std::make_shared<bool>(false);
+  cmd->add_flag("--shared-maps", *shared_maps,
+                "Also the real maps in ../shared/data/envmaps (ground truth rendered under each).");
+  cmd->callback([args, shared_maps] {
+    args->maps = shipped_environment_maps(*shared_maps);
     print_leds(evaluation::run_led_bench(*args, progress_printer(false)));
   });
 }

@@ -78,7 +78,7 @@ NormalOptions normal_options_for(const capture::ReflectanceField& field) {
 
 FieldSources::FieldSources(const capture::ReflectanceField& field) : field_(&field) {
   const NormalMap normals = estimate_normals(field, normal_options_for(field));
-  fit_ = {normals.normal, normals.albedo};
+  fit_ = {normals.normal, normals.albedo, normals.confidence};
 }
 
 FieldSources::FieldSources(const capture::ReflectanceField& header,
@@ -89,7 +89,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
     LS_CHECK(led >= 0 && led < header.num_lights(),
              "FieldSources: no light " + std::to_string(led));
   }
-  fit_ = {Image(width, height, 3), Image(width, height, 3)};
+  fit_ = {Image(width, height, 3), Image(width, height, 3), Image(width, height, 1)};
   std::map<int, std::vector<float>> images;
   for (const int led : leds) images[led].resize(3 * pixels);
   const NormalOptions normal_options = normal_options_for(header);
@@ -101,6 +101,8 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
               fit_.normal.pixels.begin() + long(3 * first));
     std::copy(normals.albedo.pixels.begin(), normals.albedo.pixels.end(),
               fit_.albedo.pixels.begin() + long(3 * first));
+    std::copy(normals.confidence.pixels.begin(), normals.confidence.pixels.end(),
+              fit_.confidence.pixels.begin() + long(first));
     for (auto& [led, rgb] : images) {
       for (size_t p = 0; p < count; ++p) {
         const float* v = band.pixel(0, 0) + p * 3 * size_t(band.num_lights()) + 3 * size_t(led);
@@ -132,11 +134,12 @@ const LedShadow& FieldSources::shadow(int led) const {
 }
 
 // Callers hold mutex_.
-const std::vector<float>& FieldSources::flow(int from_led, int to_led) const {
+const LedPairFlow& FieldSources::flow(int from_led, int to_led) const {
   auto it = flows_.find({from_led, to_led});
   if (it == flows_.end()) {
-    it = flows_.emplace(std::pair{from_led, to_led}, shadow_flow(shadow(from_led), shadow(to_led)))
-             .first;
+    it =
+        flows_.emplace(std::pair{from_led, to_led}, led_pair_flow(shadow(from_led), shadow(to_led)))
+            .first;
   }
   return it->second;
 }
@@ -145,7 +148,7 @@ void FieldSources::add(const SplitLighting& lighting, Image& out) const {
   for (const PlacedSource& source : lighting.sources) {
     if (!source.triangle) continue;
     std::array<const LedShadow*, 3> shadows{};
-    ShadowFlows flows{};
+    PairFlows flows{};
     std::unique_lock<std::mutex> lock(mutex_);  // std::map keeps references: render unlocked.
     for (int k = 0; k < 3; ++k) shadows[size_t(k)] = &shadow(source.triangle->leds[size_t(k)]);
     for (int k = 0; k < 3; ++k) {

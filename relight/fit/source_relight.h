@@ -56,13 +56,13 @@ class FieldSources {
 
  private:
   const LedShadow& shadow(int led) const;
-  const std::vector<float>& flow(int from_led, int to_led) const;
+  const LedPairFlow& flow(int from_led, int to_led) const;
 
   const capture::ReflectanceField* field_ = nullptr;  // In memory: shadows made on demand.
   LambertianFit fit_;
   mutable std::mutex mutex_;  // add() may run on several threads; it fills the caches.
   mutable std::map<int, LedShadow> shadows_;
-  mutable std::map<std::pair<int, int>, std::vector<float>> flows_;
+  mutable std::map<std::pair<int, int>, LedPairFlow> flows_;
 };
 
 }  // namespace ls::relight

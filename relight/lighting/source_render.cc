@@ -21,7 +21,7 @@ constexpr double kInvPi = 1.0 / std::numbers::pi;
 constexpr double kShadowRatio = 0.5;
 // Lambertian terms under this share of the image's mean one are too dark to tell a shadow from a
 // dark material: taken as lit.
-constexpr double kDarkShare = 0.1;
+constexpr double kDarkShare = 0.02;
 // Near the terminator rough materials fall well below Lambert's cosine (Oren-Nayar): there only a
 // sample under this share is a shadow (a cast shadow there is near black).
 constexpr double kGrazingCosine = 0.2;
@@ -51,16 +51,56 @@ cv::Mat distance_image(const LedShadow& led) {
   return image;
 }
 
-// Bilinear lookup of a float image, clamped at the border.
-float sample(const std::vector<float>& image, int width, int height, double x, double y) {
+// The gloss as an 8-bit image for optical flow: log scaled, so that a highlight's shape and not
+// only its peak is seen, from 1% of the brightest gloss up.
+cv::Mat gloss_image(const LedShadow& led) {
+  const size_t pixels = size_t(led.width) * led.height;
+  std::vector<float> y(pixels);
+  float peak = 0;
+  for (size_t p = 0; p < pixels; ++p) {
+    const float* g = &led.gloss_rgb[3 * p];
+    y[p] = std::max(0.0f, 0.2126f * g[0] + 0.7152f * g[1] + 0.0722f * g[2]);
+    peak = std::max(peak, y[p]);
+  }
+  cv::Mat image(led.height, led.width, CV_8U);
+  const float floor = 0.01f * peak;
+  for (size_t p = 0; p < pixels; ++p) {
+    image.data[p] =
+        peak > 0 && y[p] > floor
+            ? uchar(std::clamp(255.0f * std::log(y[p] / floor) / std::log(100.0f), 0.0f, 255.0f))
+            : 0;
+  }
+  return image;
+}
+
+cv::Mat dense_flow(const cv::Mat& from, const cv::Mat& to) {
+  cv::Mat flow;
+  cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM)->calc(from, to, flow);
+  return flow;
+}
+
+std::vector<float> flow_values(const cv::Mat& flow) {
+  const float* f = flow.ptr<float>();
+  return {f, f + 2 * size_t(flow.rows) * flow.cols};
+}
+
+// Bilinear lookup of an image of `channels` floats per pixel, clamped at the border.
+Eigen::Vector3d sample(const std::vector<float>& image, int width, int height, int channels,
+                       double x, double y) {
   x = std::clamp(x, 0.0, double(width - 1));
   y = std::clamp(y, 0.0, double(height - 1));
   const int x0 = int(x), y0 = int(y);
   const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
   const double fx = x - x0, fy = y - y0;
-  const auto at = [&](int xx, int yy) { return double(image[size_t(yy) * width + xx]); };
-  return float((1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x1, y0)) +
-               fy * ((1 - fx) * at(x0, y1) + fx * at(x1, y1)));
+  Eigen::Vector3d out(0, 0, 0);
+  for (int c = 0; c < channels; ++c) {
+    const auto at = [&](int xx, int yy) {
+      return double(image[(size_t(yy) * width + xx) * channels + c]);
+    };
+    out[c] = (1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x1, y0)) +
+             fy * ((1 - fx) * at(x0, y1) + fx * at(x1, y1));
+  }
+  return out;
 }
 
 }  // namespace
@@ -141,15 +181,31 @@ LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
     }
   }
   const double dark = kDarkShare * (lit_count ? sum / double(lit_count) : 0.0);
-  // 255 where lit, 0 in a cast shadow.
-  cv::Mat lit(height, width, CV_8U);
+  // 255 where lit, 0 in a cast shadow. Where the Lambertian term is too dark to tell (attached
+  // shadow, black material) the nearest told pixel's answer: edges then run only between what was
+  // seen lit and what was seen shadowed, not along every terminator.
+  cv::Mat lit(height, width, CV_8U), untold(height, width, CV_8U);
   for (size_t p = 0; p < pixels; ++p) {
     const double measured = luminance(Eigen::Vector3d(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]));
     const double ratio =
         pixel3(fit.normal, p).dot(shadow.dir) < kGrazingCosine ? kGrazingShadowRatio : kShadowRatio;
-    const bool in_shadow = expected[p] > dark && measured < ratio * expected[p];
+    const bool told = expected[p] > dark;
+    const bool in_shadow = told && measured < ratio * expected[p];
     lit.data[p] = in_shadow ? 0 : 255;
+    untold.data[p] = told ? 0 : 255;
     shadow.shadowed_pixels += in_shadow;
+  }
+  if (cv::countNonZero(untold) < int(pixels)) {
+    cv::Mat distance, labels;
+    cv::distanceTransform(untold, distance, labels, cv::DIST_L2, cv::DIST_MASK_5,
+                          cv::DIST_LABEL_PIXEL);
+    std::vector<uchar> answer_of_label(pixels + 1, 255);
+    for (size_t p = 0; p < pixels; ++p) {
+      if (!untold.data[p]) answer_of_label[size_t(labels.ptr<int>()[p])] = lit.data[p];
+    }
+    for (size_t p = 0; p < pixels; ++p) {
+      if (untold.data[p]) lit.data[p] = answer_of_label[size_t(labels.ptr<int>()[p])];
+    }
   }
   // Distances to the nearest pixel of the other kind; the edge lies half a pixel from both sides.
   cv::Mat to_shadow, to_lit, shadowed;
@@ -162,21 +218,25 @@ LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
     const float d = lit.data[p] ? to_shadow.ptr<float>()[p] - 0.5f : 0.5f - to_lit.ptr<float>()[p];
     shadow.edge_distance_px[p] = std::clamp(d, -limit, limit);
   }
+  shadow.gloss_rgb.assign(3 * pixels, 0.0f);
+  for (size_t p = 0; p < pixels; ++p) {
+    if (!lit.data[p]) continue;
+    const Eigen::Vector3d excess =
+        Eigen::Vector3d(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]) - lambert(fit, p, shadow.dir);
+    for (int c = 0; c < 3; ++c) shadow.gloss_rgb[3 * p + size_t(c)] = float(excess[c]);
+  }
   shadow.rgb = std::move(rgb);
   return shadow;
 }
 
-std::vector<float> shadow_flow(const LedShadow& from, const LedShadow& to) {
+LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to) {
   LS_CHECK(from.width > 0 && from.width == to.width && from.height == to.height,
-           "shadow_flow: the LED shadows differ in size");
-  cv::Mat flow;
-  cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM)
-      ->calc(distance_image(from), distance_image(to), flow);
-  const float* f = flow.ptr<float>();
-  return {f, f + 2 * size_t(from.width) * from.height};
+           "led_pair_flow: the LED shadows differ in size");
+  return {flow_values(dense_flow(distance_image(from), distance_image(to))),
+          flow_values(dense_flow(gloss_image(from), gloss_image(to)))};
 }
 
-void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const ShadowFlows& flows,
+void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
                         const LedTriangle& triangle, const SourceToRender& source,
                         const LambertianFit& fit, Image& out) {
   const int width = fit.normal.width, height = fit.normal.height;
@@ -209,23 +269,26 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Sh
         if (w < kMinTriangleWeight) continue;
         // LED k's shadows displaced toward the source: by sum_j w_j flow[k][j] (sampled where
         // the pixel is; the flows are smooth).
-        double dx = 0, dy = 0;
+        double dx = 0, dy = 0, gx = 0, gy = 0;
         for (int j = 0; j < 3; ++j) {
-          const std::vector<float>* f = flows[size_t(k)][size_t(j)];
+          const LedPairFlow* f = flows[size_t(k)][size_t(j)];
           if (j == k || f == nullptr || triangle.weights[size_t(j)] < kMinTriangleWeight ||
               angle[size_t(k)][size_t(j)] <= 0) {
             continue;
           }
-          const float vx = (*f)[2 * p], vy = (*f)[2 * p + 1];
-          dx += triangle.weights[size_t(j)] * vx;
-          dy += triangle.weights[size_t(j)] * vy;
+          const double wj = triangle.weights[size_t(j)];
+          const float vx = f->shadow[2 * p], vy = f->shadow[2 * p + 1];
+          dx += wj * vx;
+          dy += wj * vy;
+          gx += wj * f->gloss[2 * p];
+          gy += wj * f->gloss[2 * p + 1];
           speed = std::max(speed, std::hypot(vx, vy) / angle[size_t(k)][size_t(j)]);
         }
-        distance_px += w * sample(led.edge_distance_px, width, height, x - dx, y - dy);
+        const double dk = sample(led.edge_distance_px, width, height, 1, x - dx, y - dy)[0];
+        distance_px += w * dk;
+        gloss += w * sample(led.gloss_rgb, width, height, 3, x - gx, y - gy);
         const Eigen::Vector3d measured(led.rgb[3 * p], led.rgb[3 * p + 1], led.rgb[3 * p + 2]);
-        if (led.edge_distance_px[p] > 0) {
-          gloss += w * (measured - lambert(fit, p, led.dir));
-        } else {
+        if (led.edge_distance_px[p] <= 0) {
           in_shadow += w * measured;
           shadow_weight += w;
         }

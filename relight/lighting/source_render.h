@@ -3,8 +3,9 @@
 // between the LEDs that sampled the field:
 //  - Shading: the pixel's Lambertian term at the source's direction (normal and albedo from
 //    photometric stereo), plus what the LEDs around the source show beyond their own Lambertian
-//    term (gloss), interpolated with the source's barycentric weights in their spherical Delaunay
-//    triangle.
+//    term (gloss), each LED's carried toward the source along the optical flow between the LEDs'
+//    gloss images (a highlight moves with the light instead of showing once per LED) and
+//    blended with the source's barycentric weights in their spherical Delaunay triangle.
 //  - Visibility: per LED of the triangle, the signed distance in pixels from each pixel to the edge
 //    of that LED's cast shadow (a shadowed sample is under half of its Lambertian term). Each
 //    LED's distances are carried toward the source along the optical flow between the LEDs'
@@ -44,6 +45,10 @@ std::optional<LedTriangle> led_triangle(const std::vector<Eigen::Vector3d>& unit
 struct LambertianFit {
   Image normal;
   Image albedo;
+  // 1 channel in [0, 1] (NormalMap::confidence); empty: 1. Where it is low (a silhouette's mixed
+  // pixels, grazing normals) the Lambertian term is interpolated between the LEDs like the rest
+  // instead of evaluated at the source's direction.
+  Image confidence;
 };
 
 // One LED's image (width x height x 3, field units) and the signed distance from each pixel to the
@@ -52,15 +57,21 @@ struct LedShadow {
   Eigen::Vector3d dir{0, 1, 0};
   int width = 0, height = 0;
   std::vector<float> rgb;
+  // What the LED shows beyond the pixel's Lambertian term where lit (highlights), 0 in shadow.
+  std::vector<float> gloss_rgb;
   std::vector<float> edge_distance_px;
   int shadowed_pixels = 0;
 };
 LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
                      const LambertianFit& fit);
 
-// Where each pixel's shadow edges under LED `from` lie under LED `to`: dense optical flow (DIS,
-// Kroeger et al. 2016) between their signed-distance images, (dx, dy) per pixel, row-major.
-std::vector<float> shadow_flow(const LedShadow& from, const LedShadow& to);
+// Where what LED `from` shows at each pixel lies under LED `to`: dense optical flow (DIS, Kroeger
+// et al. 2016), (dx, dy) per pixel, row-major; of the shadow edges between the signed-distance
+// images, and of the highlights between the gloss images (log scaled).
+struct LedPairFlow {
+  std::vector<float> shadow, gloss;
+};
+LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to);
 
 struct SourceToRender {
   Eigen::Vector3d dir_in_stage{0, 1, 0};  // Unit, toward the source.
@@ -69,11 +80,11 @@ struct SourceToRender {
 };
 
 // Adds the source's light to `out` (width x height x 3). shadows[k] is the LedShadow of
-// triangle.leds[k]; flows[k][j] the shadow_flow from shadows[k] to shadows[j], needed (not null)
-// for k != j where both LEDs weigh at least kMinTriangleWeight.
+// triangle.leds[k]; flows[k][j] the led_pair_flow from shadows[k] to shadows[j], needed (not
+// null) for k != j where both LEDs weigh at least kMinTriangleWeight.
 inline constexpr double kMinTriangleWeight = 1e-3;
-using ShadowFlows = std::array<std::array<const std::vector<float>*, 3>, 3>;
-void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const ShadowFlows& flows,
+using PairFlows = std::array<std::array<const LedPairFlow*, 3>, 3>;
+void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
                         const LedTriangle& triangle, const SourceToRender& source,
                         const LambertianFit& fit, Image& out);
 
