@@ -84,23 +84,21 @@ std::vector<float> flow_values(const cv::Mat& flow) {
   return {f, f + 2 * size_t(flow.rows) * flow.cols};
 }
 
-// Bilinear lookup of an image of `channels` floats per pixel, clamped at the border.
-Eigen::Vector3d sample(const std::vector<float>& image, int width, int height, int channels,
-                       double x, double y) {
-  x = std::clamp(x, 0.0, double(width - 1));
-  y = std::clamp(y, 0.0, double(height - 1));
+// Bilinear lookup of an image of `channels` (<= 3) floats per pixel, clamped at the border.
+inline void bilinear(const float* image, int width, int height, int channels, float x, float y,
+                     float* out) {
+  x = std::clamp(x, 0.0f, float(width - 1));
+  y = std::clamp(y, 0.0f, float(height - 1));
   const int x0 = int(x), y0 = int(y);
   const int x1 = std::min(x0 + 1, width - 1), y1 = std::min(y0 + 1, height - 1);
-  const double fx = x - x0, fy = y - y0;
-  Eigen::Vector3d out(0, 0, 0);
-  for (int c = 0; c < channels; ++c) {
-    const auto at = [&](int xx, int yy) {
-      return double(image[(size_t(yy) * width + xx) * channels + c]);
-    };
-    out[c] = (1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x1, y0)) +
-             fy * ((1 - fx) * at(x0, y1) + fx * at(x1, y1));
+  const float fx = x - float(x0), fy = y - float(y0);
+  const float* a = image + (size_t(y0) * width + x0) * channels;
+  const float* b = image + (size_t(y0) * width + x1) * channels;
+  const float* c = image + (size_t(y1) * width + x0) * channels;
+  const float* d = image + (size_t(y1) * width + x1) * channels;
+  for (int ch = 0; ch < channels; ++ch) {
+    out[ch] = (1 - fy) * ((1 - fx) * a[ch] + fx * b[ch]) + fy * ((1 - fx) * c[ch] + fx * d[ch]);
   }
-  return out;
 }
 
 }  // namespace
@@ -257,51 +255,82 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
                "add_compact_source: a flow between two weighted LEDs is missing");
     }
   }
-  const Eigen::Vector3d s = source.dir_in_stage.normalized();
+  // The LEDs that carry weight, each with the flows toward the others that do (float, per pixel:
+  // this loop runs for every frame of a turning sun).
+  struct Toward {
+    const float* shadow_flow;
+    const float* gloss_flow;
+    float weight, inv_angle;
+  };
+  struct Active {
+    const LedShadow* led;
+    float weight;
+    int towards = 0;
+    std::array<Toward, 2> toward{};
+  };
+  std::array<Active, 3> active{};
+  int count = 0;
+  for (int k = 0; k < 3; ++k) {
+    if (triangle.weights[size_t(k)] < kMinTriangleWeight) continue;
+    Active& a = active[size_t(count++)];
+    a = {shadows[size_t(k)], float(triangle.weights[size_t(k)])};
+    for (int j = 0; j < 3; ++j) {
+      const LedPairFlow* f = flows[size_t(k)][size_t(j)];
+      if (j == k || f == nullptr || triangle.weights[size_t(j)] < kMinTriangleWeight ||
+          angle[size_t(k)][size_t(j)] <= 0) {
+        continue;
+      }
+      a.toward[size_t(a.towards++)] = {f->shadow.data(), f->gloss.data(),
+                                       float(triangle.weights[size_t(j)]),
+                                       float(1 / angle[size_t(k)][size_t(j)])};
+    }
+  }
+  const Eigen::Vector3f s = source.dir_in_stage.normalized().cast<float>();
+  const Eigen::Vector3f irradiance = source.irradiance_rgb.cast<float>();
+  const float radius = float(source.radius_rad), max_half_width = limit / 4;
   tbb::parallel_for(0, height, [&](int y) {
     for (int x = 0; x < width; ++x) {
       const size_t p = size_t(y) * width + x;
-      double distance_px = 0, speed = 0, shadow_weight = 0;
-      Eigen::Vector3d gloss(0, 0, 0), in_shadow(0, 0, 0);
-      for (int k = 0; k < 3; ++k) {
-        const LedShadow& led = *shadows[size_t(k)];
-        const double w = triangle.weights[size_t(k)];
-        if (w < kMinTriangleWeight) continue;
-        // LED k's shadows displaced toward the source: by sum_j w_j flow[k][j] (sampled where
-        // the pixel is; the flows are smooth).
-        double dx = 0, dy = 0, gx = 0, gy = 0;
-        for (int j = 0; j < 3; ++j) {
-          const LedPairFlow* f = flows[size_t(k)][size_t(j)];
-          if (j == k || f == nullptr || triangle.weights[size_t(j)] < kMinTriangleWeight ||
-              angle[size_t(k)][size_t(j)] <= 0) {
-            continue;
-          }
-          const double wj = triangle.weights[size_t(j)];
-          const float vx = f->shadow[2 * p], vy = f->shadow[2 * p + 1];
-          dx += wj * vx;
-          dy += wj * vy;
-          gx += wj * f->gloss[2 * p];
-          gy += wj * f->gloss[2 * p + 1];
-          speed = std::max(speed, std::hypot(vx, vy) / angle[size_t(k)][size_t(j)]);
+      float distance_px = 0, speed = 0, shadow_weight = 0;
+      float gloss[3] = {0, 0, 0}, in_shadow[3] = {0, 0, 0};
+      for (int i = 0; i < count; ++i) {
+        const Active& a = active[size_t(i)];
+        // LED k's shadows and highlights displaced toward the source: by sum_j w_j flow[k][j]
+        // (sampled where the pixel is; the flows are smooth).
+        float dx = 0, dy = 0, gx = 0, gy = 0;
+        for (int t = 0; t < a.towards; ++t) {
+          const Toward& to = a.toward[size_t(t)];
+          const float vx = to.shadow_flow[2 * p], vy = to.shadow_flow[2 * p + 1];
+          dx += to.weight * vx;
+          dy += to.weight * vy;
+          gx += to.weight * to.gloss_flow[2 * p];
+          gy += to.weight * to.gloss_flow[2 * p + 1];
+          speed = std::max(speed, std::sqrt(vx * vx + vy * vy) * to.inv_angle);
         }
-        const double dk = sample(led.edge_distance_px, width, height, 1, x - dx, y - dy)[0];
-        distance_px += w * dk;
-        gloss += w * sample(led.gloss_rgb, width, height, 3, x - gx, y - gy);
-        const Eigen::Vector3d measured(led.rgb[3 * p], led.rgb[3 * p + 1], led.rgb[3 * p + 2]);
+        const LedShadow& led = *a.led;
+        float edge;
+        bilinear(led.edge_distance_px.data(), width, height, 1, float(x) - dx, float(y) - dy,
+                 &edge);
+        distance_px += a.weight * edge;
+        float g[3];
+        bilinear(led.gloss_rgb.data(), width, height, 3, float(x) - gx, float(y) - gy, g);
+        for (int c = 0; c < 3; ++c) gloss[c] += a.weight * g[c];
         if (led.edge_distance_px[p] <= 0) {
-          in_shadow += w * measured;
-          shadow_weight += w;
+          for (int c = 0; c < 3; ++c) in_shadow[c] += a.weight * led.rgb[3 * p + size_t(c)];
+          shadow_weight += a.weight;
         }
       }
-      const double half_width = std::clamp(source.radius_rad * speed, 0.5, double(limit) / 4);
-      const double visible = std::clamp(0.5 + distance_px / (2 * half_width), 0.0, 1.0);
-      const Eigen::Vector3d shading = (lambert(fit, p, s) + gloss).cwiseMax(0.0);
-      const Eigen::Vector3d bounced =
-          shadow_weight > 0 ? Eigen::Vector3d(in_shadow / shadow_weight) : Eigen::Vector3d::Zero();
-      const Eigen::Vector3d value =
-          source.irradiance_rgb.cwiseProduct(visible * shading + (1 - visible) * bounced);
+      const float half_width = std::clamp(radius * speed, 0.5f, max_half_width);
+      const float visible = std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
+      const float* n = &fit.normal.pixels[3 * p];
+      const float cosine = std::max(0.0f, n[0] * s[0] + n[1] * s[1] + n[2] * s[2]) * float(kInvPi);
+      const float* albedo = &fit.albedo.pixels[3 * p];
       float* o = &out.pixels[3 * p];
-      for (int c = 0; c < 3; ++c) o[c] += float(value[c]);
+      for (int c = 0; c < 3; ++c) {
+        const float shading = std::max(0.0f, albedo[c] * cosine + gloss[c]);
+        const float bounced = shadow_weight > 0 ? in_shadow[c] / shadow_weight : 0.0f;
+        o[c] += irradiance[c] * (visible * shading + (1 - visible) * bounced);
+      }
     }
   });
 }
