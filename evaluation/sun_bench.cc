@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <numbers>
 #include <optional>
@@ -187,6 +188,15 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
     const Image truth = sim::render_ground_truth(scene, stage.camera, maps[i], gt);
     row.cells_rmse = compare_images(relit_cells, truth).relative_rmse;
     row.sources_rmse = compare_images(relit_sources, truth).relative_rmse;
+    // Every position's images at the truth's exposure: what the numbers mean.
+    char stem[64];
+    std::snprintf(stem, sizeof stem, "%s_%07.3f", row.path.c_str(), row.position);
+    const fs::path frames = options.out / "sun_frames";
+    fs::create_directories(frames);
+    const double stops = auto_exposure_stops(truth);
+    write_png_preview(frames / (std::string(stem) + "_cells.png"), relit_cells, stops);
+    write_png_preview(frames / (std::string(stem) + "_sources.png"), relit_sources, stops);
+    write_png_preview(frames / (std::string(stem) + "_truth.png"), truth, stops);
     summary.rows.push_back(row);
     report(progress, "sun positions", long(i + 1), long(places.size()), places[i].path);
   }

@@ -6,7 +6,8 @@
 // and the field relit under it by LED cells alone and with the source split off and rendered at
 // its true direction, each against ground truth rendered from the scene. Writes sun.csv and
 // sun_sweep.png, sun_turn.png (error against position, both methods) and
-// sun_error_vs_time.png (error against the time per frame).
+// sun_error_vs_time.png (error against the time per frame), and each position's images in
+// sun_frames/ (by cells, with the source, ground truth).
 #include <filesystem>
 #include <string>
 #include <vector>

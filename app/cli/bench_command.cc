@@ -43,7 +43,8 @@ void print_leds(const evaluation::LedBenchSummary& summary) {
     const std::filesystem::path sheet = summary.csv.parent_path() / "leds_compact_sources.png";
     jobs::write_contact_sheet(sheet, tiles,
                               "Maps with a compact source: LED cells | source at its direction | "
-                              "ground truth (largest dome)");
+                              "ground truth (largest dome)",
+                              256, 3);
     std::fprintf(stderr, "wrote %s\n", sheet.c_str());
   }
 }

@@ -8,9 +8,9 @@
 namespace ls::jobs {
 
 void write_contact_sheet(const std::filesystem::path& out, const std::vector<Preview>& tiles,
-                         const std::string& title, int tile_size) {
+                         const std::string& title, int tile_size, int max_columns) {
   if (tiles.empty()) return;
-  const int columns = std::min<int>(4, int(tiles.size()));
+  const int columns = std::min<int>(std::max(1, max_columns), int(tiles.size()));
   const int rows = (int(tiles.size()) + columns - 1) / columns;
   constexpr int kLabel = 22, kTitle = 30, kGap = 4;
   cv::Mat sheet(kTitle + rows * (tile_size + kLabel + kGap), columns * (tile_size + kGap), CV_8UC3,

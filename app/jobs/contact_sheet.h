@@ -13,6 +13,6 @@ struct Preview {
 
 // Writes nothing for no tiles. Throws InputError naming a preview that cannot be read.
 void write_contact_sheet(const std::filesystem::path& out, const std::vector<Preview>& tiles,
-                         const std::string& title, int tile_size = 256);
+                         const std::string& title, int tile_size = 256, int max_columns = 4);
 
 }  // namespace ls::jobs

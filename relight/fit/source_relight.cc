@@ -78,7 +78,7 @@ NormalOptions normal_options_for(const capture::ReflectanceField& field) {
 
 FieldSources::FieldSources(const capture::ReflectanceField& field) : field_(&field) {
   const NormalMap normals = estimate_normals(field, normal_options_for(field));
-  fit_ = {normals.normal, normals.albedo, normals.confidence};
+  fit_ = {normals.normal, normals.albedo};
 }
 
 FieldSources::FieldSources(const capture::ReflectanceField& header,
@@ -89,7 +89,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
     LS_CHECK(led >= 0 && led < header.num_lights(),
              "FieldSources: no light " + std::to_string(led));
   }
-  fit_ = {Image(width, height, 3), Image(width, height, 3), Image(width, height, 1)};
+  fit_ = {Image(width, height, 3), Image(width, height, 3)};
   std::map<int, std::vector<float>> images;
   for (const int led : leds) images[led].resize(3 * pixels);
   const NormalOptions normal_options = normal_options_for(header);
@@ -101,8 +101,6 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
               fit_.normal.pixels.begin() + long(3 * first));
     std::copy(normals.albedo.pixels.begin(), normals.albedo.pixels.end(),
               fit_.albedo.pixels.begin() + long(3 * first));
-    std::copy(normals.confidence.pixels.begin(), normals.confidence.pixels.end(),
-              fit_.confidence.pixels.begin() + long(first));
     for (auto& [led, rgb] : images) {
       for (size_t p = 0; p < count; ++p) {
         const float* v = band.pixel(0, 0) + p * 3 * size_t(band.num_lights()) + 3 * size_t(led);

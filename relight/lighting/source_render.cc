@@ -20,7 +20,7 @@ constexpr double kInvPi = 1.0 / std::numbers::pi;
 // shadowed once the occluder covers more than half of the LED.
 constexpr double kShadowRatio = 0.5;
 // Lambertian terms under this share of the image's mean one are too dark to tell a shadow from a
-// dark material: taken as lit.
+// dark material (or are an attached shadow): such pixels take the nearest told pixel's answer.
 constexpr double kDarkShare = 0.02;
 // Near the terminator rough materials fall well below Lambert's cosine (Oren-Nayar): there only a
 // sample under this share is a shadow (a cast shadow there is near black).

@@ -45,10 +45,6 @@ std::optional<LedTriangle> led_triangle(const std::vector<Eigen::Vector3d>& unit
 struct LambertianFit {
   Image normal;
   Image albedo;
-  // 1 channel in [0, 1] (NormalMap::confidence); empty: 1. Where it is low (a silhouette's mixed
-  // pixels, grazing normals) the Lambertian term is interpolated between the LEDs like the rest
-  // instead of evaluated at the source's direction.
-  Image confidence;
 };
 
 // One LED's image (width x height x 3, field units) and the signed distance from each pixel to the
