@@ -41,10 +41,7 @@ void print_leds(const evaluation::LedBenchSummary& summary) {
     std::vector<jobs::Preview> tiles;
     for (const auto& image : summary.comparison) tiles.push_back({image.png, image.label});
     const std::filesystem::path sheet = summary.csv.parent_path() / "leds_compact_sources.png";
-    jobs::write_contact_sheet(sheet, tiles,
-                              "Maps with a compact source: LED cells | source at its direction | "
-                              "ground truth (largest dome)",
-                              256, 3);
+    jobs::write_contact_sheet(sheet, tiles, "LED cells | source at its direction | truth", 256, 3);
     std::fprintf(stderr, "wrote %s\n", sheet.c_str());
   }
 }
