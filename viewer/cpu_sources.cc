@@ -3,11 +3,14 @@
 #define GL_GLEXT_PROTOTYPES
 #include <GL/glcorearb.h>
 
+#include <cstdio>
 #include <cstring>
+#include <optional>
 #include <string>
 #include <utility>
 
 #include "lightstage/errors.h"
+#include "relight/lighting/half_relight.h"
 #include "relight/lighting/relight.h"
 #include "viewer/gl_util.h"
 #include "viewer/view_lighting.h"
@@ -17,13 +20,23 @@ namespace {
 
 class CpuFieldSource : public GpuSource {
  public:
+  // Half floats when their relit error allows (half the bytes a frame streams: about twice the
+  // frame rate, bench_viewer).
   explicit CpuFieldSource(const capture::ReflectanceField& field)
-      : field_(field), sources_(field) {}
+      : field_(field), half_(relight::HalfField::of(field, 1e-3, &half_error_)), sources_(field) {}
   std::string name() const override { return "field"; }
   bool adds_compact_sources() const override { return true; }
   std::string note() const override {
+    char precision[96];
+    if (half_) {
+      std::snprintf(precision, sizeof precision, " (streamed in half float: %s, relit error %.1e)",
+                    gl_util::mb(half_->bytes()).c_str(), half_error_);
+    } else {
+      std::snprintf(precision, sizeof precision, " (float: %s)",
+                    half_error_ < 0 ? "this CPU has no F16C" : "half's relit error over 1e-3");
+    }
     return "field: " + std::to_string(field_.num_lights()) + " LEDs, " +
-           gl_util::mb(field_.bytes()) +
+           gl_util::mb(field_.bytes()) + precision +
            " in memory; software OpenGL: relit on the CPU and uploaded (faster than its shader)";
   }
   int width() const override { return field_.width(); }
@@ -34,13 +47,19 @@ class CpuFieldSource : public GpuSource {
     gl_util::check_led_weights(*this, lighting.field_irradiance_rgb(), field_.num_lights());
     // The map by LED cells (without its compact sources when they were split off), then the
     // sources at their true directions (issue 16).
-    relight::relight_into(field_, lighting.field_irradiance_rgb(), image_);
+    if (half_) {
+      half_->relight_into(lighting.field_irradiance_rgb(), image_);
+    } else {
+      relight::relight_into(field_, lighting.field_irradiance_rgb(), image_);
+    }
     sources_.add(lighting, image_);
     target.upload(image_);
   }
 
  private:
   const capture::ReflectanceField& field_;
+  double half_error_ = 0;
+  std::optional<relight::HalfField> half_;
   CompactSourceLight sources_;
   Image image_;
 };

@@ -11,6 +11,7 @@
 #include <utility>
 
 #include "lightstage/errors.h"
+#include "relight/lighting/half_relight.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_util.h"
 #include "viewer/gpu_relight.h"
@@ -65,38 +66,6 @@ void main() {
   radiance = vec4(sum * output_scale + sources, 1.0);
 }
 )";
-
-// Worst relative error of half storage on a sample of pixels relit under equal weights: per
-// channel |sum half(s v) / s - sum v| / sum |v|, over (pixel, channel) pairs whose sum |v| is at
-// least 1e-3 of the largest (darker ones are below display precision anyway).
-double half_relit_error(const capture::ReflectanceField& field, float scale) {
-  const std::size_t pixels = std::size_t(field.width()) * field.height();
-  const std::size_t step = std::max<std::size_t>(1, pixels / 4096);
-  const int lights = field.num_lights();
-  std::vector<double> abs_sum, error;
-  for (std::size_t i = 0; i < pixels; i += step) {
-    const float* v = field.values().data() + i * lights * 3;
-    for (int c = 0; c < 3; ++c) {
-      double exact = 0, rounded = 0, magnitude = 0;
-      for (int l = 0; l < lights; ++l) {
-        const float value = v[l * 3 + c];
-        exact += value;
-        magnitude += std::abs(value);
-        rounded += double(float(Eigen::half(value * scale))) / scale;
-      }
-      abs_sum.push_back(magnitude);
-      error.push_back(std::abs(rounded - exact));
-    }
-  }
-  const double largest = abs_sum.empty() ? 0 : *std::max_element(abs_sum.begin(), abs_sum.end());
-  double worst = 0;
-  for (std::size_t i = 0; i < abs_sum.size(); ++i) {
-    if (abs_sum[i] >= 1e-3 * largest && abs_sum[i] > 0) {
-      worst = std::max(worst, error[i] / abs_sum[i]);
-    }
-  }
-  return worst;
-}
 
 class FieldSource : public GpuSource {
  public:
@@ -378,14 +347,11 @@ std::unique_ptr<GpuSource> upload_field(const capture::ReflectanceField& field,
   const std::size_t values = FieldSource::texels(field) * 4;  // Padded to whole LED groups.
   // Scale by a power of two so the largest |value| is 2^14: well inside half's range (65504), and
   // exact.
-  float largest = 0;
-  for (float v : field.values()) largest = std::max(largest, std::abs(v));
-  const float scale =
-      largest > 0 && std::isfinite(largest) ? std::ldexp(1.0f, 14 - std::ilogb(largest)) : 1.0f;
+  const float scale = relight::half_scale(field);
   std::string why;
   bool half = precision == FieldPrecision::kHalf;
   if (precision == FieldPrecision::kAuto) {
-    const double error = half_relit_error(field, scale);
+    const double error = relight::half_relit_error(field, scale);
     half = error <= 1e-3;
     std::ostringstream out;
     out.precision(1);

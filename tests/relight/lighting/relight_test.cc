@@ -5,12 +5,14 @@
 
 #include <cmath>
 #include <filesystem>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
 
 #include "capture/field.h"
 #include "lightstage/errors.h"
+#include "relight/lighting/half_relight.h"
 
 namespace {
 
@@ -160,3 +162,38 @@ TEST(RelightTest, RowsAsTheFileHoldsThemRelightToTheSameBytes) {
   }
   std::filesystem::remove_all(dir);
 }
+
+namespace {
+
+// Half floats (the viewer's CPU path): within half's precision of the float relighting, and
+// refused when asked for more.
+TEST(HalfRelight, MatchesFloatWithinHalfPrecisionOrIsRefused) {
+  const ReflectanceField field = random_field(33, 17, 151, 7);
+  double error = 0;
+  const std::optional<ls::relight::HalfField> half =
+      ls::relight::HalfField::of(field, 1e-3, &error);
+  if (!half) GTEST_SKIP() << "this CPU has no F16C/AVX2/FMA (error " << error << ")";
+  EXPECT_GE(error, 0.0);
+  EXPECT_LE(error, 1e-3);
+  EXPECT_EQ(half->bytes(), field.values().size() * 2);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> irradiance(0.0f, 3.0f);
+  std::vector<float> weights;
+  for (int i = 0; i < 3 * field.num_lights(); ++i) weights.push_back(irradiance(rng));
+  Image exact, halved;
+  ls::relight::relight_into(field, weights, exact);
+  half->relight_into(weights, halved);
+  ASSERT_EQ(halved.pixels.size(), exact.pixels.size());
+  for (size_t i = 0; i < exact.pixels.size(); ++i) {
+    // Each value rounds to within 2^-11 of itself: a sum of positive terms too.
+    EXPECT_NEAR(halved.pixels[i], exact.pixels[i], 4.9e-4 * exact.pixels[i] + 1e-6) << i;
+  }
+  weights.pop_back();
+  EXPECT_THROW(half->relight_into(weights, halved), ls::InputError);
+
+  // Half rounds each value to 2^-11 of itself: a bound tighter than that refuses it.
+  EXPECT_FALSE(ls::relight::HalfField::of(field, 1e-6, &error).has_value());
+  EXPECT_GT(error, 1e-6);
+}
+
+}  // namespace
