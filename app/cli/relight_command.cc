@@ -45,7 +45,6 @@ jobs::RelightSummary relight_and_report(const jobs::RelightOptions& options, boo
 void add_relight_command(CLI::App& app) {
   auto options = std::make_shared<jobs::RelightOptions>();
   auto quiet = std::make_shared<bool>(false);
-  auto ignored_memory = std::make_shared<std::size_t>(0);
   // CLI11 binds plain values: these become the options' optionals when given.
   auto exposure = std::make_shared<double>(0.0);
   auto light = std::make_shared<std::vector<double>>();
@@ -85,9 +84,11 @@ void add_relight_command(CLI::App& app) {
       ->capture_default_str();
   auto* exp_opt = cmd->add_option("--exposure", *exposure,
                                   "Preview exposure in stops (default: automatic per image).");
-  cmd->add_option("--memory", *ignored_memory,
-                  "Accepted for earlier scripts: the field is read a few MiB at a time whatever "
-                  "its size.");
+  cmd->add_option("--memory", options->memory_bytes,
+                  "Bytes that rendering compact sources may hold (full-size images of the LEDs "
+                  "around them); over it they are relit by the LED cells, with a note. Default: "
+                  "half of the memory available. The field itself is read a few MiB at a time "
+                  "whatever its size.");
   cmd->add_option("--coverage-deg", options->coverage_deg,
                   "Dome coverage radius around each LED, degrees (0: automatic).")
       ->capture_default_str();

@@ -10,6 +10,7 @@
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/memory.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
 #include "relight/fit/source_relight.h"
@@ -70,6 +71,7 @@ std::string RelightOptions::to_json() const {
   if (exposure_stops) j["exposure_stops"] = *exposure_stops;
   j["coverage_deg"] = coverage_deg;
   j["compact_sources"] = compact_sources;
+  j["memory_bytes"] = memory_bytes;
   j["directions"] = directions_width;
   return j.dump();
 }
@@ -158,6 +160,48 @@ FieldLights field_lights(const capture::ReflectanceField& field) {
 
 double coverage_rad(const RelightOptions& options) { return options.coverage_deg * M_PI / 180.0; }
 
+// One relit image of a field: its map and rotation's light and what relighting it took.
+struct Output {
+  std::string name;
+  double rotation_deg = 0;
+  relight::SplitLighting lighting;
+  double weights_ms = 0, relight_ms = 0;
+  Image relit;
+};
+
+// Rendering compact sources holds full-size images (relight::FieldSources::bytes_needed): 11 GiB
+// for one source at 24 MP. When that is over options.memory_bytes (0: half the memory available),
+// the sources are relit by the LED cells with the rest of their maps instead, and the returned
+// line says why (empty when they fit).
+std::string fit_sources_in_memory(const RelightOptions& options,
+                                  const capture::ReflectanceField& header,
+                                  std::vector<Output>& outputs, std::set<int>& source_leds) {
+  if (source_leds.empty()) return {};
+  int triangles = 0;
+  for (const Output& out : outputs) {
+    for (const auto& source : out.lighting.sources) triangles += source.triangle.has_value();
+  }
+  const std::size_t need = relight::FieldSources::bytes_needed(header.width(), header.height(),
+                                                               int(source_leds.size()), triangles);
+  const std::size_t may =
+      options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
+  if (need <= may) return {};
+  MapRotations map_rotations(options);
+  size_t i = 0;
+  map_rotations.for_each(
+      [&](const relight::EnvironmentMap& map, double rotation, const std::string&) {
+        outputs[i++].lighting =
+            relight::split_lighting(map, header.lights(), rotation, coverage_rad(options), false);
+      });
+  source_leds.clear();
+  char note[240];
+  std::snprintf(note, sizeof note,
+                "compact sources relit by the LED cells: rendering them at their direction would "
+                "hold %.0f MiB for this %dx%d field, over the %.0f MiB it may use (--memory)",
+                double(need) / (1 << 20), header.width(), header.height(), double(may) / (1 << 20));
+  return note;
+}
+
 // The field relit under every map and rotation, read once a few MiB at a time (FieldStream's rows
 // as the file holds them) whatever its size: each piece is relit under every map before the next
 // is read, into full-size outputs (3 floats per pixel each).
@@ -165,13 +209,6 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
                    const ProgressFn& progress) {
   capture::FieldStream stream(options.field_file);
   const capture::ReflectanceField& header = stream.header();
-  struct Output {
-    std::string name;
-    double rotation_deg = 0;
-    relight::SplitLighting lighting;
-    double weights_ms = 0, relight_ms = 0;
-    Image relit;
-  };
   std::vector<Output> outputs;
   std::set<int> source_leds;
   MapRotations map_rotations(options);
@@ -186,6 +223,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
         for (const int led : out.lighting.leds()) source_leds.insert(led);
         outputs.push_back(std::move(out));
       });
+  const std::string sources_note = fit_sources_in_memory(options, header, outputs, source_leds);
   // The field's rows as the file holds them, in pieces of about 8 MiB: relighting sums over each
   // pixel's values, so it needs no pixel-major band (and no memory for one: --memory is moot).
   const auto pass_start = Clock::now();
@@ -227,6 +265,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
                     sources_ms);
       line += "\n    " + out.lighting.report(out.rotation_deg) + ms;
     }
+    if (!sources_note.empty()) line += "\n    " + sources_note;
     writer.write(out.name, out.relit, line);
     report(progress, "relight", ++done, long(outputs.size()), out.name);
   }

@@ -27,6 +27,9 @@ struct RelightOptions {
   // Fields: a map's compact bright sources (a sun, a lamp) are split off and rendered at their
   // true direction with moving shadows (relight/lighting/source_render.h), the rest by LED cells.
   bool compact_sources = true;
+  // What rendering them may hold (relight::FieldSources::bytes_needed); 0: half of the memory
+  // available. Over it they are relit by the cells, and the output's detail says so.
+  std::size_t memory_bytes = 0;
   int directions_width = 64;  // Models: lat-long grid the map is integrated on.
   std::filesystem::path out_dir;
   // Empty when the options make sense, else what is wrong, naming the option.

@@ -114,6 +114,12 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
   }
 }
 
+std::size_t FieldSources::bytes_needed(int width, int height, int leds, int triangles) {
+  const std::size_t floats_per_pixel =
+      6 + 7 * std::size_t(std::max(leds, 0)) + 6 * 4 * std::size_t(std::max(triangles, 0));
+  return std::size_t(width) * std::size_t(height) * floats_per_pixel * sizeof(float);
+}
+
 // Callers hold mutex_.
 const LedShadow& FieldSources::shadow(int led) const {
   auto it = shadows_.find(led);

@@ -177,6 +177,38 @@ TEST_F(Jobs, BuildAndRelightWriteWhatTheLibraryComputesAndRecordTheirOptions) {
   }
 }
 
+// A map's compact source is rendered at its direction and reported; when that would hold more
+// than the memory given, it is relit by the LED cells instead (the same bytes as
+// --no-compact-sources) and the output's detail says so.
+TEST_F(Jobs, CompactSourcesOverTheMemoryGivenAreRelitByTheCellsAndSaySo) {
+  jobs::BuildJobOptions build;
+  build.session_dir = *dir_ / "session";
+  build.out = *dir_ / "field.exr";
+  (void)jobs::build(build);
+  jobs::RelightOptions relight;
+  relight.field_file = build.out;
+  relight.maps = {testing::source_dir() / "data" / "envmaps" / "small_source.exr"};
+  const auto run = [&](const std::string& name) {
+    relight.out_dir = *dir_ / name;
+    const jobs::RelightSummary summary = jobs::relight(relight);
+    EXPECT_EQ(summary.images.size(), 1u);
+    return std::make_pair(summary.images[0].detail, read_image(summary.images[0].exr));
+  };
+  const auto [split_detail, split] = run("split");
+  EXPECT_NE(split_detail.find("compact source at elevation 50.0 deg"), std::string::npos)
+      << split_detail;
+  relight.compact_sources = false;
+  const auto [cells_detail, cells] = run("cells");
+  EXPECT_EQ(cells_detail.find("compact source"), std::string::npos) << cells_detail;
+  EXPECT_NE(split.pixels, cells.pixels);
+  relight.compact_sources = true;
+  relight.memory_bytes = 1000;
+  const auto [tight_detail, tight] = run("tight");
+  EXPECT_NE(tight_detail.find("relit by the LED cells"), std::string::npos) << tight_detail;
+  EXPECT_NE(tight_detail.find("--memory"), std::string::npos) << tight_detail;
+  EXPECT_EQ(tight.pixels, cells.pixels);
+}
+
 // A fit in bands of rows that is stopped halfway (as by a kill) resumes from the bands it
 // finished: it fits only the rest, and its maps are those of an uninterrupted fit of the whole
 // field; the finished bands are removed once the maps are written.
