@@ -115,8 +115,9 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
 }
 
 std::size_t FieldSources::bytes_needed(int width, int height, int leds, int triangles) {
-  const std::size_t floats_per_pixel =
-      6 + 7 * std::size_t(std::max(leds, 0)) + 6 * 4 * std::size_t(std::max(triangles, 0));
+  const std::size_t floats_per_pixel = std::size_t{6} +
+                                       std::size_t{7} * std::size_t(std::max(leds, 0)) +
+                                       std::size_t{24} * std::size_t(std::max(triangles, 0));
   return std::size_t(width) * std::size_t(height) * floats_per_pixel * sizeof(float);
 }
 

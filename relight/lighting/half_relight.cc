@@ -1,5 +1,6 @@
 #include "relight/lighting/half_relight.h"
 
+#include <cpuid.h>
 #include <immintrin.h>
 #include <tbb/parallel_for.h>
 
@@ -15,8 +16,10 @@ namespace ls::relight {
 namespace {
 
 bool has_f16c() {
-  return __builtin_cpu_supports("f16c") && __builtin_cpu_supports("avx2") &&
-         __builtin_cpu_supports("fma");
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  if (!__get_cpuid(1, &eax, &ebx, &ecx, &edx)) return false;
+  constexpr unsigned kF16cBit = 1u << 29;  // CPUID.1:ECX.F16C
+  return (ecx & kF16cBit) != 0 && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
 }
 
 __attribute__((target("avx2,f16c"))) void to_half(const float* in, std::size_t count, float scale,
@@ -28,7 +31,15 @@ __attribute__((target("avx2,f16c"))) void to_half(const float* in, std::size_t c
         _mm256_cvtps_ph(_mm256_mul_ps(_mm256_loadu_ps(in + i), s), _MM_FROUND_TO_NEAREST_INT);
     _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i), h);
   }
-  for (; i < count; ++i) out[i] = _cvtss_sh(in[i] * scale, _MM_FROUND_TO_NEAREST_INT);
+  if (i < count) {  // The tail through an 8-wide buffer.
+    alignas(32) float tail[8] = {};
+    alignas(16) std::uint16_t halves[8];
+    std::copy(in + i, in + count, tail);
+    _mm_store_si128(
+        reinterpret_cast<__m128i*>(halves),
+        _mm256_cvtps_ph(_mm256_mul_ps(_mm256_load_ps(tail), s), _MM_FROUND_TO_NEAREST_INT));
+    std::copy(halves, halves + (count - i), out + i);
+  }
 }
 
 // One pixel's 3L values against E: lanes of 24 values (8 lights x RGB), so lane k holds channel
@@ -50,7 +61,15 @@ __attribute__((target("avx2,f16c,fma"))) void shade_half(const std::uint16_t* va
   _mm256_store_ps(lanes, a0);
   _mm256_store_ps(lanes + 8, a1);
   _mm256_store_ps(lanes + 16, a2);
-  for (int k = 0; i + k < count; ++k) lanes[k] += _cvtsh_ss(values[i + k]) * irradiance[i + k];
+  for (int k = 0; i + k < count; k += 8) {  // The tail (< 24 values) through 8-wide buffers.
+    alignas(16) std::uint16_t halves[8] = {};
+    alignas(32) float floats[8];
+    const int n = std::min(8, count - i - k);
+    std::copy(values + i + k, values + i + k + n, halves);
+    _mm256_store_ps(floats,
+                    _mm256_cvtph_ps(_mm_load_si128(reinterpret_cast<const __m128i*>(halves))));
+    for (int m = 0; m < n; ++m) lanes[k + m] += floats[m] * irradiance[i + k + m];
+  }
   float sum[3] = {0, 0, 0};
   for (int k = 0; k < 24; ++k) sum[k % 3] += lanes[k];
   for (int c = 0; c < 3; ++c) rgb[c] = sum[c] * inv_scale;
@@ -132,7 +151,7 @@ void HalfField::relight_into(std::span<const float> irradiance_rgb, Image& out) 
     float* out_row = out.pixels.data() + std::size_t(y) * width_ * 3;
     for (int x = 0; x < width_; ++x) {
       shade_half(row + std::size_t(x) * count, irradiance_rgb.data(), count, inv_scale,
-                 out_row + 3 * x);
+                 out_row + std::size_t(3) * x);
     }
   });
 }
