@@ -66,8 +66,9 @@ class CpuFieldSource : public GpuSource {
 
 class CpuPcaSource : public GpuSource {
  public:
-  explicit CpuPcaSource(relight::PcaField pca) : pca_(std::move(pca)) {}
+  explicit CpuPcaSource(relight::PcaField pca) : pca_(std::move(pca)), sources_(pca_) {}
   std::string name() const override { return pca_.name(); }
+  bool adds_compact_sources() const override { return true; }
   std::string note() const override {
     return pca_.name() + ": software OpenGL: relit on the CPU and uploaded";
   }
@@ -76,13 +77,17 @@ class CpuPcaSource : public GpuSource {
   std::size_t bytes() const override { return 0; }
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     gl_util::check_target(*this, target);
-    gl_util::check_led_weights(*this, lighting.led_irradiance_rgb, pca_.num_lights());
-    pca_.relight_led_weights_into(lighting.led_irradiance_rgb.data(), image_);
+    gl_util::check_led_weights(*this, lighting.field_irradiance_rgb(), pca_.num_lights());
+    // As the field: the map without its compact sources by the LED cells, then the sources,
+    // rendered from the PCA's own reconstruction.
+    pca_.relight_led_weights_into(lighting.field_irradiance_rgb().data(), image_);
+    sources_.add(lighting, image_);
     target.upload(image_);
   }
 
  private:
   relight::PcaField pca_;
+  CompactSourceLight sources_;  // After pca_, which it reads.
   Image image_;
 };
 

@@ -43,8 +43,47 @@ bool renders_compact_sources(const ViewLighting& lighting) {
                      [](const relight::PlacedSource& s) { return s.triangle.has_value(); });
 }
 
+CompactSourceLight::CompactSourceLight(const capture::ReflectanceField& field)
+    : width_(field.width()),
+      height_(field.height()),
+      make_([&field] { return std::make_unique<relight::FieldSources>(field); }) {}
+
+CompactSourceLight::CompactSourceLight(const relight::PcaField& pca)
+    : width_(pca.width()), height_(pca.height()), make_([&pca] {
+        std::vector<capture::FieldLight> lights;
+        for (size_t l = 0; l < pca.led_dirs().size(); ++l) {
+          lights.push_back({int(l), pca.led_dirs()[l], bool(pca.led_valid()[l])});
+        }
+        const capture::ReflectanceField header =
+            capture::ReflectanceField::without_values(pca.width(), pca.height(), lights);
+        // The reconstruction in bands of 64 rows: what photometric stereo reads.
+        const capture::FieldBands bands = [&](const capture::BandVisitor& visit) {
+          for (int y0 = 0; y0 < pca.height(); y0 += 64) {
+            const int rows = std::min(64, pca.height() - y0);
+            capture::ReflectanceField band(pca.width(), rows, lights);
+            band.set_band(y0, pca.height());
+            for (int y = 0; y < rows; ++y) {
+              for (int x = 0; x < pca.width(); ++x) {
+                float* v = band.pixel(x, y);
+                for (int l = 0; l < int(lights.size()); ++l) {
+                  for (int c = 0; c < 3; ++c) v[3 * l + c] = pca.reconstruct(x, y0 + y, l, c);
+                }
+              }
+            }
+            visit(band);
+          }
+        };
+        return std::make_unique<relight::FieldSources>(header, bands, [&pca](int led) {
+          std::vector<float> one_led(3 * size_t(pca.num_lights()), 0.0f);
+          std::fill_n(one_led.begin() + 3 * led, 3, 1.0f);
+          Image image;
+          pca.relight_led_weights_into(one_led.data(), image);
+          return image.pixels;
+        });
+      }) {}
+
 const relight::FieldSources& CompactSourceLight::sources() {
-  if (!sources_) sources_ = std::make_unique<relight::FieldSources>(field_);
+  if (!sources_) sources_ = make_();
   return *sources_;
 }
 
@@ -54,8 +93,8 @@ void CompactSourceLight::add(const ViewLighting& lighting, Image& out) {
 
 bool CompactSourceLight::render(const ViewLighting& lighting, Image& out) {
   if (!renders_compact_sources(lighting)) return false;
-  if (out.width != field_.width() || out.height != field_.height() || out.channels != 3) {
-    out = Image(field_.width(), field_.height(), 3);
+  if (out.width != width_ || out.height != height_ || out.channels != 3) {
+    out = Image(width_, height_, 3);
   } else {
     std::fill(out.pixels.begin(), out.pixels.end(), 0.0f);
   }

@@ -5,11 +5,13 @@
 // come out as two or three offset copies; split off (relight/fit/source_relight.h), it is rendered
 // at its true direction, turning with the map, while the rest of the map is relit by the cells.
 #include <Eigen/Core>
+#include <functional>
 #include <memory>
 #include <vector>
 
 #include "capture/field.h"
 #include "lightstage/image.h"
+#include "relight/compact/pca_field.h"
 #include "relight/fit/source_relight.h"
 #include "relight/lighting/envmap.h"
 #include "viewer/gpu_relight.h"
@@ -49,7 +51,10 @@ bool renders_compact_sources(const ViewLighting& lighting);
 class CompactSourceLight {
  public:
   // `field` must outlive this.
-  explicit CompactSourceLight(const capture::ReflectanceField& field) : field_(field) {}
+  explicit CompactSourceLight(const capture::ReflectanceField& field);
+  // A PCA's sources, from its reconstruction: normals from the reconstructed field (in bands of
+  // rows), each LED's image from the PCA under that LED alone. `pca` must outlive this.
+  explicit CompactSourceLight(const relight::PcaField& pca);
   // Adds the sources of lighting.split (if any) to `out` (the field's size, 3 channels).
   void add(const ViewLighting& lighting, Image& out);
   // The same into `out` alone: zeros plus the sources. False (out untouched) when there is none.
@@ -58,7 +63,8 @@ class CompactSourceLight {
  private:
   const relight::FieldSources& sources();
 
-  const capture::ReflectanceField& field_;
+  int width_ = 0, height_ = 0;
+  std::function<std::unique_ptr<relight::FieldSources>()> make_;  // Called once, when needed.
   std::unique_ptr<relight::FieldSources> sources_;
 };
 

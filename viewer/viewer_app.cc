@@ -169,11 +169,14 @@ const ViewLighting& ViewerApp::Impl::current_lighting() {
   // Compact sources are split off only for a field on show (issue 16), and distant lights made
   // only for models on show: a rotation costs what the shown sources need.
   EnvironmentNeeds needs;
-  needs.field_sources = field.has_value() && shows(Source::kField);
-  // The whole map per LED for a PCA, and for a field shown as PCA (over the GPU budget).
+  const bool field_on_show = field.has_value() && shows(Source::kField);
+  const bool pca_on_show = shows(Source::kPca);
+  needs.field_sources = field_on_show || pca_on_show;
+  // The whole map per LED for a source that cannot add the compact sources back (the shader PCA,
+  // a field shown as PCA over the GPU budget).
   needs.whole_map_led_weights =
-      shows(Source::kPca) ||
-      (shows(Source::kField) && !(gpu_field && gpu_field->adds_compact_sources()));
+      (pca_on_show && !(gpu_pca && gpu_pca->adds_compact_sources())) ||
+      (field_on_show && !(gpu_field && gpu_field->adds_compact_sources()));
   needs.model_lights = shows(Source::kModels);
   const auto key = std::make_tuple(state.environment, state.rotation_deg, state.point_light,
                                    state.light_dir, led_dirs.size(), needs.field_sources,

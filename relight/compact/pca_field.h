@@ -160,6 +160,8 @@ class PcaField : public CompactField {
 
   int rank() const { return rank_; }
   int num_lights() const { return int(led_dirs_.size()); }
+  const std::vector<Eigen::Vector3d>& led_dirs() const { return led_dirs_; }
+  const std::vector<bool>& led_valid() const { return led_valid_; }
   int tile_size() const { return tile_size_; }
   // The reconstruction of one pixel's value under LED l.
   float reconstruct(int x, int y, int light, int c) const;

@@ -76,9 +76,32 @@ NormalOptions normal_options_for(const capture::ReflectanceField& field) {
 
 }  // namespace
 
-FieldSources::FieldSources(const capture::ReflectanceField& field) : field_(&field) {
-  const NormalMap normals = estimate_normals(field, normal_options_for(field));
-  fit_ = {normals.normal, normals.albedo};
+FieldSources::FieldSources(const capture::ReflectanceField& field)
+    : FieldSources(field, capture::whole_field(field), [&field](int led) {
+        const std::size_t pixels = std::size_t(field.width()) * field.height();
+        const std::size_t stride = 3 * std::size_t(field.num_lights());
+        const float* values = field.values().data() + 3 * std::size_t(led);
+        std::vector<float> rgb(3 * pixels);
+        for (std::size_t p = 0; p < pixels; ++p) {
+          std::copy(values + p * stride, values + p * stride + 3, &rgb[3 * p]);
+        }
+        return rgb;
+      }) {}
+
+FieldSources::FieldSources(const capture::ReflectanceField& header,
+                           const capture::FieldBands& bands, LedImageFn led_image)
+    : led_image_(std::move(led_image)) {
+  fit_ = {Image(header.width(), header.height(), 3), Image(header.width(), header.height(), 3)};
+  for (const capture::FieldLight& light : header.lights()) led_dirs_.push_back(light.dir_in_stage);
+  const NormalOptions normal_options = normal_options_for(header);
+  bands([&](const capture::ReflectanceField& band) {
+    const NormalMap normals = estimate_normals(band, normal_options);
+    const long first = 3 * long(band.first_row()) * header.width();
+    std::copy(normals.normal.pixels.begin(), normals.normal.pixels.end(),
+              fit_.normal.pixels.begin() + first);
+    std::copy(normals.albedo.pixels.begin(), normals.albedo.pixels.end(),
+              fit_.albedo.pixels.begin() + first);
+  });
 }
 
 FieldSources::FieldSources(const capture::ReflectanceField& header,
@@ -90,6 +113,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
              "FieldSources: no light " + std::to_string(led));
   }
   fit_ = {Image(width, height, 3), Image(width, height, 3)};
+  for (const capture::FieldLight& light : header.lights()) led_dirs_.push_back(light.dir_in_stage);
   std::map<int, std::vector<float>> images;
   for (const int led : leds) images[led].resize(3 * pixels);
   const NormalOptions normal_options = normal_options_for(header);
@@ -125,16 +149,13 @@ std::size_t FieldSources::bytes_needed(int width, int height, int leds, int tria
 const LedShadow& FieldSources::shadow(int led) const {
   auto it = shadows_.find(led);
   if (it != shadows_.end()) return it->second;
-  LS_CHECK(field_ != nullptr, "FieldSources: LED " + std::to_string(led) + " was not read");
-  LS_CHECK(led >= 0 && led < field_->num_lights(), "FieldSources: no light " + std::to_string(led));
-  const size_t pixels = size_t(field_->width()) * field_->height();
-  std::vector<float> rgb(3 * pixels);
-  const size_t stride = 3 * size_t(field_->num_lights());
-  const float* values = field_->values().data() + 3 * size_t(led);
-  for (size_t p = 0; p < pixels; ++p)
-    std::copy(values + p * stride, values + p * stride + 3, &rgb[3 * p]);
-  return shadows_
-      .emplace(led, led_shadow(field_->lights()[size_t(led)].dir_in_stage, std::move(rgb), fit_))
+  LS_CHECK(led_image_ != nullptr, "FieldSources: LED " + std::to_string(led) + " was not read");
+  LS_CHECK(led >= 0 && led < int(led_dirs_.size()),
+           "FieldSources: no light " + std::to_string(led));
+  std::vector<float> rgb = led_image_(led);
+  LS_CHECK(rgb.size() == fit_.albedo.pixels.size(),
+           "FieldSources: LED " + std::to_string(led) + "'s image is not the field's size");
+  return shadows_.emplace(led, led_shadow(led_dirs_[size_t(led)], std::move(rgb), fit_))
       .first->second;
 }
 

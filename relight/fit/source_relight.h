@@ -3,6 +3,7 @@
 // by LED cells (relight.h), each source at its true direction with moving shadows
 // (relight/lighting/source_render.h), from the field's own Lambertian fit and the images of the
 // LEDs around the sources. Fields in memory and streamed ones alike (capture::FieldBands).
+#include <functional>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -49,6 +50,11 @@ class FieldSources {
   // A field in memory (it must outlive this): the fit now, each LED's shadow when a source first
   // falls next to it (a sun turning with the map in the viewer).
   explicit FieldSources(const capture::ReflectanceField& field);
+  // Any representation of a field (a PCA): the fit from its bands now, and each LED's image
+  // (width x height x 3, field units) from led_image when a source first falls next to it.
+  using LedImageFn = std::function<std::vector<float>(int led)>;
+  FieldSources(const capture::ReflectanceField& header, const capture::FieldBands& bands,
+               LedImageFn led_image);
   // Memory it takes for a field of width x height with `leds` LED shadows and the flows of
   // `triangles` LED triangles: the fit (6 floats a pixel), each LED (image, gloss and distance: 7)
   // and each triangle's 6 ordered pairs (4 each). 11 GiB at 24 MP with one source.
@@ -62,8 +68,9 @@ class FieldSources {
   const LedShadow& shadow(int led) const;
   const LedPairFlow& flow(int from_led, int to_led) const;
 
-  const capture::ReflectanceField* field_ = nullptr;  // In memory: shadows made on demand.
   LambertianFit fit_;
+  std::vector<Eigen::Vector3d> led_dirs_;
+  LedImageFn led_image_;      // Set: shadows made on demand.
   mutable std::mutex mutex_;  // add() may run on several threads; it fills the caches.
   mutable std::map<int, LedShadow> shadows_;
   mutable std::map<std::pair<int, int>, LedPairFlow> flows_;

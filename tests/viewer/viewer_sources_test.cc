@@ -164,9 +164,9 @@ TEST_F(ViewerCompactSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
   }
 }
 
-// The PCA cannot add a source back: it keeps the whole map's weights (sun included), also when it
-// is shown beside the field.
-TEST_F(ViewerCompactSources, PcaKeepsTheWholeMap) {
+// The PCA on the CPU renders the sources as the field does, from its own reconstruction (its
+// LEDs' images and the normals of the reconstructed field), also when shown beside the field.
+TEST_F(ViewerCompactSources, PcaOnTheCpuRendersTheSourcesFromItsReconstruction) {
   ViewState state;
   state.field_file = field_path();
   state.environment = "small_source";
@@ -179,20 +179,21 @@ TEST_F(ViewerCompactSources, PcaKeepsTheWholeMap) {
   ViewerApp app(state, /*visible=*/false);
   ASSERT_TRUE(app.frame());
   EXPECT_EQ(app.error_message(), "");
+  ASSERT_TRUE(app.lighting().split.has_value());
   const std::vector<float> whole =
       relight::integrate_environment(*map_, dirs_, 300, 0.0, valid_).irradiance_rgb;
-  EXPECT_EQ(app.lighting().led_irradiance_rgb, whole);
-  // The field beside it relights the map without its source by cells: nearly dark here.
-  ASSERT_TRUE(app.lighting().split.has_value());
   EXPECT_NE(app.lighting().field_irradiance_rgb(), whole);
   relight::PcaOptions options;
   options.rank = 8;
   const relight::PcaField pca = relight::PcaField::build(*field_, options);
-  Image cpu_pca;
-  pca.relight_led_weights_into(whole.data(), cpu_pca);
+  // The map without its source from the PCA, plus the source from the PCA's own reconstruction.
+  Image expected;
+  pca.relight_led_weights_into(app.lighting().field_irradiance_rgb().data(), expected);
+  CompactSourceLight from_pca(pca);
+  from_pca.add(app.lighting(), expected);
   const Image shown = app.relit_image();
-  EXPECT_LT(max_relative_difference(shown, cpu_pca), 1e-5);
-  // Not the map without its source (which would drop the sun from the PCA).
+  EXPECT_LT(max_relative_difference(shown, expected), 1e-5);
+  // Far from the map without its source (which would drop the sun).
   Image without_sun;
   pca.relight_led_weights_into(app.lighting().field_irradiance_rgb().data(), without_sun);
   EXPECT_GT(max_relative_difference(without_sun, shown), 0.5);
