@@ -75,7 +75,7 @@ CompactSourceLight::CompactSourceLight(const relight::PcaField& pca)
         };
         return std::make_unique<relight::FieldSources>(header, bands, [&pca](int led) {
           std::vector<float> one_led(3 * size_t(pca.num_lights()), 0.0f);
-          std::fill_n(one_led.begin() + 3 * led, 3, 1.0f);
+          std::fill_n(one_led.begin() + 3 * long(led), 3, 1.0f);
           Image image;
           pca.relight_led_weights_into(one_led.data(), image);
           return image.pixels;
