@@ -51,13 +51,9 @@ SplitLighting split_lighting(const EnvironmentMap& map,
         {rotate_about_y(found.dir, rotation_deg), found.radius_rad, found.irradiance_rgb},
         std::nullopt};
     placed.triangle = led_triangle(dirs, valid, placed.render.dir_in_stage, coverage);
-    if (!placed.triangle) {
-      // What the dome cannot light stays in the map's account of uncovered light.
-      out.weights.uncovered_irradiance_rgb += found.irradiance_rgb;
-      out.weights.total_irradiance_rgb += found.irradiance_rgb;
-    } else {
-      out.weights.total_irradiance_rgb += found.irradiance_rgb;
-    }
+    out.weights.total_irradiance_rgb += found.irradiance_rgb;
+    // What the dome cannot light stays in the map's account of uncovered light.
+    if (!placed.triangle) out.weights.uncovered_irradiance_rgb += found.irradiance_rgb;
     out.sources.push_back(std::move(placed));
   }
   return out;
