@@ -79,6 +79,16 @@ struct JournalLine {
     }
     return int(v.get<int64_t>());
   }
+  // A non-negative integer at most `hi` (a size or a checksum); a float, a negative or a larger
+  // number is refused before any conversion.
+  uint64_t unsigned_at_most(const char* key, uint64_t hi) const {
+    const json& v = j.at(key);
+    if (!v.is_number_unsigned() || v.get<uint64_t>() > hi) {
+      throw InputError(where + ": " + key + ": expected an integer in [0, " + std::to_string(hi) +
+                       "], got " + v.dump());
+    }
+    return v.get<uint64_t>();
+  }
   int step(const char* key) const { return int_in(key, 0, stage.plan.time_steps - 1); }
   int led(const char* key) const { return int_in(key, 0, int(stage.leds.size()) - 1); }
 };
@@ -192,7 +202,9 @@ Session Session::open(const fs::path& dir) {
   s.stage_ = parse_stage(r["stage"].value().dump(), source + " (stage)");
   s.info_.backend = r["backend"].string();
   s.info_.scene_file = r.has("scene_file") ? r["scene_file"].string() : "";
-  s.info_.seed = r["seed"].value().get<uint64_t>();
+  const JsonReader seed = r["seed"];
+  if (!seed.value().is_number_unsigned()) seed.fail("a non-negative integer");
+  s.info_.seed = seed.value().get<uint64_t>();
 
   // A write killed mid-way leaves its temporary file (never journaled, so never a frame): sweep.
   std::error_code ec;
@@ -262,8 +274,8 @@ Session Session::open(const fs::path& dir) {
       rec.scene_time_s = j["scene_time_s"].get<double>();
       rec.captured_at = j["at"].get<std::string>();
       if (j.contains("crc32")) {
-        rec.bytes = j["bytes"].get<uint64_t>();
-        rec.crc32 = j["crc32"].get<uint32_t>();
+        rec.bytes = in.unsigned_at_most("bytes", std::numeric_limits<uint64_t>::max());
+        rec.crc32 = uint32_t(in.unsigned_at_most("crc32", std::numeric_limits<uint32_t>::max()));
       }
       std::error_code missing;  // A symlink loop or an unreadable entry is a missing frame too.
       if (!fs::exists(dir / rec.file, missing) || missing) {

@@ -3,6 +3,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <string>
 
 #include "lightstage/errors.h"
@@ -117,6 +118,39 @@ TEST_F(DamagedJournal, IndicesBeyondThePlanNameTheJournalLineAndField) {
     const std::string what = input_error([&] { (void)Session::open(dir_ / "s"); });
     EXPECT_NE(what.find(message), std::string::npos) << what;
   }
+}
+
+// Found by the session fuzz target: a frame's size or checksum, or the manifest's seed, given as
+// a float far beyond its integer type was converted (undefined behaviour); now refused by name.
+TEST_F(DamagedJournal, SizesChecksumsAndSeedsBeyondTheirTypesAreRefusedByName) {
+  const std::string frame =
+      R"({"t": 0, "led": 0, "e": 0, "r": 0, "file": "x.png", "exposure_s": 0.01, "gain": 1, )"
+      R"("scene_time_s": 0, "at": "now", )";
+  const std::pair<std::string, const char*> cases[] = {
+      {frame + R"("bytes": 10, "crc32": 2.1951e28})",
+       "frames.jsonl:4: crc32: expected an integer in [0, 4294967295]"},
+      {frame + R"("bytes": -5, "crc32": 7})", "frames.jsonl:4: bytes: expected an integer"}};
+  for (const auto& [line, message] : cases) {
+    fs::remove_all(dir_ / "s");
+    SetUp();
+    append(line);
+    const std::string what = input_error([&] { (void)Session::open(dir_ / "s"); });
+    EXPECT_NE(what.find(message), std::string::npos) << what;
+  }
+  fs::remove_all(dir_ / "s");
+  SetUp();
+  const fs::path manifest = dir_ / "s" / "manifest.json";
+  std::stringstream text;
+  text << std::ifstream(manifest).rdbuf();
+  std::string json = text.str();
+  const size_t at = json.find("\"seed\": ");
+  ASSERT_NE(at, std::string::npos) << json;
+  const size_t end = json.find_first_of(",\n}", at + 8);
+  json.replace(at, end - at, "\"seed\": 2.1951e28");
+  std::ofstream(manifest) << json;
+  const std::string what = input_error([&] { (void)Session::open(dir_ / "s"); });
+  EXPECT_NE(what.find("seed"), std::string::npos) << what;
+  EXPECT_NE(what.find("non-negative integer"), std::string::npos) << what;
 }
 
 TEST_F(DamagedJournal, NumberBeyondADoubleNamesTheJournalLine) {
