@@ -180,8 +180,8 @@ ls::viewer::ViewLighting sky_sun_lighting(double rotation_deg, bool split) {
   return ls::viewer::environment_lighting(sky_sun(), rotation_deg, dirs, valid, needs);
 }
 
-std::string sources_label(const ls::viewer::ViewLighting& lighting, double rotation_deg) {
-  return lighting.split ? lighting.split->report(rotation_deg) : "by LED cells alone";
+std::string sources_label(const ls::viewer::ViewLighting& lighting) {
+  return lighting.split ? lighting.split->report() : "by LED cells alone";
 }
 
 // A frame of the viewer turning the map (a drag), 0.1 deg a frame: the lighting for the new
@@ -207,7 +207,7 @@ void BM_FieldSunRotationOnCpu(benchmark::State& state) {
     source->render(lighting, target);
     glFinish();
   }
-  state.SetLabel(sources_label(sky_sun_lighting(rotation, split), rotation));
+  state.SetLabel(sources_label(sky_sun_lighting(rotation, split)));
   state.counters["fps"] =
       benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
   state.counters["lighting_ms"] =
@@ -231,7 +231,7 @@ void BM_FieldSunFirstFrameOnCpu(benchmark::State& state) {
     source->render(lighting, target);
     glFinish();
   }
-  state.SetLabel(sources_label(lighting, 300.0));
+  state.SetLabel(sources_label(lighting));
 }
 BENCHMARK(BM_FieldSunFirstFrameOnCpu)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
 

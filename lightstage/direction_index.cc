@@ -1,5 +1,6 @@
 #include "lightstage/direction_index.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <nanoflann.hpp>
@@ -79,6 +80,10 @@ double max_nearest_neighbour_angle(const std::vector<Eigen::Vector3d>& dirs) {
   double worst = 0;
   for (int i = 0; i < int(unit.size()); ++i) worst = std::max(worst, index.nearest_other_angle(i));
   return worst;
+}
+
+double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
 }  // namespace ls

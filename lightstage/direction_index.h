@@ -29,6 +29,10 @@ class DirectionIndex {
   std::unique_ptr<Tree> tree_;
 };
 
+// The angle between two directions in radians (any lengths, non-zero): atan2 of |a x b| and a . b,
+// accurate at small angles where acos of the dot product is not.
+double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
 // The largest angle from any direction to its nearest other one (pi for fewer than two): the
 // widest gap of a dome's sampling. Directions need not be unit length (non-zero, finite).
 double max_nearest_neighbour_angle(const std::vector<Eigen::Vector3d>& dirs);

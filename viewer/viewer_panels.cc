@@ -263,7 +263,7 @@ void ViewerApp::Impl::lighting_section() {
   } else if (lighting.split && shows(Source::kField)) {
     // Issue 16: what the field renders at its true direction instead of by LED cells.
     ImGui::TextWrapped("field: compact sources at their true direction (orange on the strip): %s",
-                       lighting.split->report(state.rotation_deg).c_str());
+                       lighting.split->report().c_str());
   }
   if (!led_luminance.empty()) {
     ImGui::PlotHistogram("LED weights", led_luminance.data(), int(led_luminance.size()), 0, nullptr,
@@ -491,7 +491,7 @@ void ViewerApp::Impl::strip_panel() {
                     IM_COL32(255, 255, 255, 255), 16, 2);
   } else if (lighting.split && shows(Source::kField)) {
     for (const relight::PlacedSource& source : lighting.split->sources) {
-      const Eigen::Vector2d uv = relight::EnvironmentMap::uv(source.render.dir_in_stage);
+      const Eigen::Vector2d uv = relight::EnvironmentMap::uv(source.in_stage.dir);
       draw->AddCircle(ImVec2(p.x + float(uv.x()) * w, p.y + float(uv.y()) * h), 9,
                       IM_COL32(255, 140, 0, 255), 16, 2);
     }

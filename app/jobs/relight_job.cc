@@ -263,7 +263,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
       char ms[96];
       std::snprintf(ms, sizeof ms, " (normals and shadows of the sources' LEDs: %.0f ms, all maps)",
                     sources_ms);
-      line += "\n    " + out.lighting.report(out.rotation_deg) + ms;
+      line += "\n    " + out.lighting.report() + ms;
     }
     if (!sources_note.empty()) line += "\n    " + sources_note;
     writer.write(out.name, out.relit, line);

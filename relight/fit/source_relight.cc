@@ -6,15 +6,16 @@
 
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
+#include "relight/fit/fit.h"
 #include "relight/fit/normals.h"
 
 namespace ls::relight {
 
-std::string SplitLighting::report(double rotation_deg) const {
+std::string SplitLighting::report() const {
   std::string line;
   for (const PlacedSource& source : sources) {
     if (!line.empty()) line += "; ";
-    line += source.found.describe(rotation_deg);
+    line += source.in_stage.describe();
     if (!source.triangle) line += " (outside the dome's coverage: not rendered)";
   }
   return line.empty() ? "no compact source" : line;
@@ -46,11 +47,9 @@ SplitLighting split_lighting(const EnvironmentMap& map,
   out.weights = integrate_environment(parts.rest, dirs, rotation_deg, coverage_rad, valid);
   const double coverage = coverage_rad > 0 ? coverage_rad : max_nearest_neighbour_angle(dirs);
   for (const CompactSource& found : parts.sources) {
-    PlacedSource placed{
-        found,
-        {rotate_about_y(found.dir, rotation_deg), found.radius_rad, found.irradiance_rgb},
-        std::nullopt};
-    placed.triangle = led_triangle(dirs, valid, placed.render.dir_in_stage, coverage);
+    PlacedSource placed{found, std::nullopt};
+    placed.in_stage.dir = rotate_about_y(found.dir, rotation_deg);
+    placed.triangle = led_triangle(dirs, valid, placed.in_stage.dir, coverage);
     out.weights.total_irradiance_rgb += found.irradiance_rgb;
     // What the dome cannot light stays in the map's account of uncovered light.
     if (!placed.triangle) out.weights.uncovered_irradiance_rgb += found.irradiance_rgb;
@@ -61,32 +60,59 @@ SplitLighting split_lighting(const EnvironmentMap& map,
 
 namespace {
 
+// The noise the fit would weigh photometric stereo by: the field's own when measured.
 NormalOptions normal_options_for(const capture::ReflectanceField& field) {
-  NormalOptions options;
-  if (field.noise.measured) {
-    options.noise.a = field.noise.read_variance;
-    options.noise.b = field.noise.shot_variance_per_unit;
+  FitOptions fit;
+  fit.use_noise_of(field);
+  return fit.normals;
+}
+
+// LED `led`'s values at every pixel of `field` (pixel-major) into out (3 per pixel).
+void copy_led_image(const capture::ReflectanceField& field, int led, float* out) {
+  const std::size_t pixels = std::size_t(field.width()) * field.height();
+  const std::size_t stride = 3 * std::size_t(field.num_lights());
+  const float* values = field.values().data() + 3 * std::size_t(led);
+  for (std::size_t p = 0; p < pixels; ++p) {
+    std::copy(values + p * stride, values + p * stride + 3, out + 3 * p);
   }
-  return options;
 }
 
 }  // namespace
 
 FieldSources::FieldSources(const capture::ReflectanceField& field)
     : FieldSources(field, capture::whole_field(field), [&field](int led) {
-        const std::size_t pixels = std::size_t(field.width()) * field.height();
-        const std::size_t stride = 3 * std::size_t(field.num_lights());
-        const float* values = field.values().data() + 3 * std::size_t(led);
-        std::vector<float> rgb(3 * pixels);
-        for (std::size_t p = 0; p < pixels; ++p) {
-          std::copy(values + p * stride, values + p * stride + 3, &rgb[3 * p]);
-        }
+        std::vector<float> rgb(3 * std::size_t(field.width()) * field.height());
+        copy_led_image(field, led, rgb.data());
         return rgb;
       }) {}
 
 FieldSources::FieldSources(const capture::ReflectanceField& header,
                            const capture::FieldBands& bands, LedImageFn led_image)
     : led_image_(std::move(led_image)) {
+  read_fit(header, bands, {});
+}
+
+FieldSources::FieldSources(const capture::ReflectanceField& header,
+                           const capture::FieldBands& bands, const std::vector<int>& leds) {
+  const size_t pixels = size_t(header.width()) * header.height();
+  std::map<int, std::vector<float>> images;
+  for (const int led : leds) {
+    LS_CHECK(led >= 0 && led < header.num_lights(),
+             "FieldSources: no light " + std::to_string(led));
+    images[led].resize(3 * pixels);
+  }
+  // The LEDs' images in the same pass as the fit.
+  read_fit(header, bands, [&](const capture::ReflectanceField& band) {
+    const size_t first = size_t(band.first_row()) * header.width();
+    for (auto& [led, rgb] : images) copy_led_image(band, led, rgb.data() + 3 * first);
+  });
+  for (auto& [led, rgb] : images) {
+    shadows_.emplace(led, led_shadow(led_dirs_[size_t(led)], std::move(rgb), fit_));
+  }
+}
+
+void FieldSources::read_fit(const capture::ReflectanceField& header,
+                            const capture::FieldBands& bands, const capture::BandVisitor& also) {
   fit_ = {Image(header.width(), header.height(), 3), Image(header.width(), header.height(), 3)};
   for (const capture::FieldLight& light : header.lights()) led_dirs_.push_back(light.dir_in_stage);
   const NormalOptions normal_options = normal_options_for(header);
@@ -97,41 +123,8 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
               fit_.normal.pixels.begin() + first);
     std::copy(normals.albedo.pixels.begin(), normals.albedo.pixels.end(),
               fit_.albedo.pixels.begin() + first);
+    if (also) also(band);
   });
-}
-
-FieldSources::FieldSources(const capture::ReflectanceField& header,
-                           const capture::FieldBands& bands, const std::vector<int>& leds) {
-  const int width = header.width(), height = header.height();
-  const size_t pixels = size_t(width) * height;
-  for (const int led : leds) {
-    LS_CHECK(led >= 0 && led < header.num_lights(),
-             "FieldSources: no light " + std::to_string(led));
-  }
-  fit_ = {Image(width, height, 3), Image(width, height, 3)};
-  for (const capture::FieldLight& light : header.lights()) led_dirs_.push_back(light.dir_in_stage);
-  std::map<int, std::vector<float>> images;
-  for (const int led : leds) images[led].resize(3 * pixels);
-  const NormalOptions normal_options = normal_options_for(header);
-  bands([&](const capture::ReflectanceField& band) {
-    const NormalMap normals = estimate_normals(band, normal_options);
-    const size_t first = size_t(band.first_row()) * width;
-    const size_t count = size_t(band.width()) * band.height();
-    std::copy(normals.normal.pixels.begin(), normals.normal.pixels.end(),
-              fit_.normal.pixels.begin() + long(3 * first));
-    std::copy(normals.albedo.pixels.begin(), normals.albedo.pixels.end(),
-              fit_.albedo.pixels.begin() + long(3 * first));
-    for (auto& [led, rgb] : images) {
-      for (size_t p = 0; p < count; ++p) {
-        const float* v = band.pixel(0, 0) + p * 3 * size_t(band.num_lights()) + 3 * size_t(led);
-        std::copy(v, v + 3, rgb.begin() + long(3 * (first + p)));
-      }
-    }
-  });
-  for (auto& [led, rgb] : images) {
-    shadows_.emplace(led,
-                     led_shadow(header.lights()[size_t(led)].dir_in_stage, std::move(rgb), fit_));
-  }
 }
 
 std::size_t FieldSources::bytes_needed(int width, int height, int leds, int triangles) {
@@ -183,7 +176,7 @@ void FieldSources::add(const SplitLighting& lighting, Image& out) const {
       }
     }
     lock.unlock();
-    add_compact_source(shadows, flows, *source.triangle, source.render, fit_, out);
+    add_compact_source(shadows, flows, *source.triangle, source.in_stage, fit_, out);
   }
 }
 

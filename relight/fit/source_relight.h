@@ -18,8 +18,7 @@
 namespace ls::relight {
 
 struct PlacedSource {
-  CompactSource found;                  // In the unrotated map.
-  SourceToRender render;                // In the stage, rotated with the map.
+  CompactSource in_stage;               // The map's source, its direction rotated with the map.
   std::optional<LedTriangle> triangle;  // Unset: outside the dome's coverage, not rendered.
 };
 
@@ -29,7 +28,7 @@ struct SplitLighting {
   LightWeights weights;
   std::vector<PlacedSource> sources;
   // What was split off and what it left uncovered, one line for the operator.
-  std::string report(double rotation_deg) const;
+  std::string report() const;
   // The LEDs whose images the sources need.
   std::vector<int> leds() const;
 };
@@ -65,6 +64,9 @@ class FieldSources {
   void add(const SplitLighting& lighting, Image& out) const;
 
  private:
+  // The fit over the bands (and led_dirs_), calling `also` with each band after it.
+  void read_fit(const capture::ReflectanceField& header, const capture::FieldBands& bands,
+                const capture::BandVisitor& also);
   const LedShadow& shadow(int led) const;
   const LedPairFlow& flow(int from_led, int to_led) const;
 

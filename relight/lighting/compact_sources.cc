@@ -1,12 +1,12 @@
 #include "relight/lighting/compact_sources.h"
 
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
 #include <utility>
 
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 
 namespace ls::relight {
@@ -18,10 +18,6 @@ constexpr double kDegToRad = std::numbers::pi / 180.0;
 double luminance(const float* rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
 double luminance(const Eigen::Vector3d& rgb) {
   return rgb.dot(Eigen::Vector3d(0.2126, 0.7152, 0.0722));
-}
-
-double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
 // The 8-connected pixels of a lat-long map at or above a luminance, grown from a seed (wrapping
@@ -100,8 +96,8 @@ Eigen::Vector3d border_radiance(const EnvironmentMap& map, const std::vector<int
 
 }  // namespace
 
-std::string CompactSource::describe(double rotation_deg) const {
-  const Eigen::Vector3d d = rotate_about_y(dir, rotation_deg);
+std::string CompactSource::describe() const {
+  const Eigen::Vector3d& d = dir;
   const double elevation = std::asin(std::clamp(d.y(), -1.0, 1.0)) / kDegToRad;
   // Azimuth in the stage frame: 0 toward the camera (+Z), 90 toward +X.
   const double azimuth = std::atan2(d.x(), d.z()) / kDegToRad;

@@ -14,14 +14,14 @@
 namespace ls::relight {
 
 struct CompactSource {
-  Eigen::Vector3d dir{0, 1, 0};  // Unit, toward the source's energy centroid, unrotated map frame.
+  Eigen::Vector3d dir{0, 1, 0};  // Unit, toward the source's energy centroid, in the map's frame.
   double radius_rad = 0.0;       // Of the uniform disc with the same angular spread.
   // Integral over the source of (L - the background around it) dw: the irradiance it gives at
   // normal incidence, per channel. The background stays in the rest of the map.
   Eigen::Vector3d irradiance_rgb{0, 0, 0};
   double energy_share = 0.0;  // Of the whole map's luminance integral, in [0, 1].
 
-  std::string describe(double rotation_deg = 0.0) const;  // Direction, size and share, one line.
+  std::string describe() const;  // Direction, size and share, one line.
 };
 
 struct CompactSourceOptions {

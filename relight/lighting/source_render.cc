@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 
 namespace ls::relight {
@@ -154,7 +155,7 @@ std::optional<LedTriangle> led_triangle(const std::vector<Eigen::Vector3d>& unit
   }
   if (best) return best;
   const Eigen::Vector3d& nearest = unit_dirs[size_t(near.front())];
-  if (std::atan2(nearest.cross(dir).norm(), nearest.dot(dir)) > coverage_rad) return std::nullopt;
+  if (angle_between(nearest, dir) > coverage_rad) return std::nullopt;
   return LedTriangle{{near.front(), near.front(), near.front()}, {1.0, 0.0, 0.0}};
 }
 
@@ -191,7 +192,6 @@ LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
     const bool in_shadow = told && measured < ratio * expected[p];
     lit.data[p] = in_shadow ? 0 : 255;
     untold.data[p] = told ? 0 : 255;
-    shadow.shadowed_pixels += in_shadow;
   }
   if (cv::countNonZero(untold) < int(pixels)) {
     cv::Mat distance, labels;
@@ -235,7 +235,7 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to) {
 }
 
 void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
-                        const LedTriangle& triangle, const SourceToRender& source,
+                        const LedTriangle& triangle, const CompactSource& source,
                         const LambertianFit& fit, Image& out) {
   const int width = fit.normal.width, height = fit.normal.height;
   LS_CHECK(out.width == width && out.height == height && out.channels == 3,
@@ -248,7 +248,7 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
     for (int j = 0; j < 3; ++j) {
       const Eigen::Vector3d& a = shadows[size_t(k)]->dir;
       const Eigen::Vector3d& b = shadows[size_t(j)]->dir;
-      angle[size_t(k)][size_t(j)] = std::atan2(a.cross(b).norm(), a.dot(b));
+      angle[size_t(k)][size_t(j)] = angle_between(a, b);
       LS_CHECK(j == k || triangle.weights[size_t(k)] < kMinTriangleWeight ||
                    triangle.weights[size_t(j)] < kMinTriangleWeight ||
                    flows[size_t(k)][size_t(j)] != nullptr,
@@ -285,7 +285,7 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
                                        float(1 / angle[size_t(k)][size_t(j)])};
     }
   }
-  const Eigen::Vector3f s = source.dir_in_stage.normalized().cast<float>();
+  const Eigen::Vector3f s = source.dir.normalized().cast<float>();
   const Eigen::Vector3f irradiance = source.irradiance_rgb.cast<float>();
   const float radius = float(source.radius_rad), max_half_width = limit / 4;
   tbb::parallel_for(0, height, [&](int y) {

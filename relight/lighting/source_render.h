@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "lightstage/image.h"
+#include "relight/lighting/compact_sources.h"
 
 namespace ls::relight {
 
@@ -56,7 +57,6 @@ struct LedShadow {
   // What the LED shows beyond the pixel's Lambertian term where lit (highlights), 0 in shadow.
   std::vector<float> gloss_rgb;
   std::vector<float> edge_distance_px;
-  int shadowed_pixels = 0;
 };
 LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
                      const LambertianFit& fit);
@@ -69,19 +69,14 @@ struct LedPairFlow {
 };
 LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to);
 
-struct SourceToRender {
-  Eigen::Vector3d dir_in_stage{0, 1, 0};  // Unit, toward the source.
-  double radius_rad = 0.0;
-  Eigen::Vector3d irradiance_rgb{0, 0, 0};  // At normal incidence.
-};
-
-// Adds the source's light to `out` (width x height x 3). shadows[k] is the LedShadow of
+// Adds the light of `source` (its direction in the stage frame: the map's, rotated with it) to
+// `out` (width x height x 3). shadows[k] is the LedShadow of
 // triangle.leds[k]; flows[k][j] the led_pair_flow from shadows[k] to shadows[j], needed (not
 // null) for k != j where both LEDs weigh at least kMinTriangleWeight.
 inline constexpr double kMinTriangleWeight = 1e-3;
 using PairFlows = std::array<std::array<const LedPairFlow*, 3>, 3>;
 void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
-                        const LedTriangle& triangle, const SourceToRender& source,
+                        const LedTriangle& triangle, const CompactSource& source,
                         const LambertianFit& fit, Image& out);
 
 }  // namespace ls::relight

@@ -132,10 +132,10 @@ TEST_F(ViewerCompactSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
         relight::split_lighting(*map_, field_->lights(), deg, 0.0, /*split=*/true);
     ASSERT_FALSE(split.sources.empty()) << "small_source.exr has no compact source";
     ASSERT_TRUE(app.lighting().split.has_value()) << "at " << deg << " deg";
-    EXPECT_EQ(app.lighting().split->report(deg), split.report(deg));
+    EXPECT_EQ(app.lighting().split->report(), split.report());
     const Image shown = app.relit_image();
     const double error = max_relative_difference(shown, cpu_with_sources(split));
-    std::cout << deg << " deg: " << split.report(deg) << "\n  viewer vs CPU with sources: max "
+    std::cout << deg << " deg: " << split.report() << "\n  viewer vs CPU with sources: max "
               << error << " of the peak";
     // The same code on the CPU (llvmpipe): measured 0. A hardware GPU sums in another order.
     EXPECT_LT(error, 1e-5) << "at " << deg << " deg";
