@@ -85,6 +85,19 @@ relight::ModelMaps small_model_maps() {
   maps.materials = {matte, glossy};
   maps.noise = {1e-5, 2e-4};
   maps.noise_source = "fixture";
+  // Ten LEDs (two shadow words), LED x of pixel (x, y) y/7 in shadow.
+  std::vector<Eigen::Vector3f> leds;
+  for (int l = 0; l < 10; ++l)
+    leds.push_back(Eigen::Vector3f(std::sin(0.6f * l), std::cos(0.6f * l), 1).normalized());
+  maps.shadows = LedShadows::all_lit(leds, kFixtureWidth, kFixtureHeight);
+  for (int y = 0; y < kFixtureHeight; ++y) {
+    for (int x = 0; x < kFixtureWidth && x < 10; ++x) {
+      uint32_t words[2] = {0, 0};
+      words[x / LedShadows::kLedsPerWord] =
+          uint32_t(y % 8) << (LedShadows::kBitsPerLed * (x % LedShadows::kLedsPerWord));
+      maps.shadows.set_pixel_words(x, y, words);
+    }
+  }
   return maps;
 }
 

@@ -60,6 +60,14 @@ double DirectionIndex::nearest_angle(const Eigen::Vector3d& d) const {
   return angle_of_chord(std::sqrt(distance_sq));
 }
 
+int DirectionIndex::nearest(const Eigen::Vector3d& d) const {
+  if (dirs_.empty()) return -1;
+  uint32_t index = 0;
+  double distance_sq = 0;
+  tree_->index.knnSearch(d.data(), 1, &index, &distance_sq);
+  return int(index);
+}
+
 std::vector<int> DirectionIndex::within(const Eigen::Vector3d& d, double angle_rad) const {
   const double chord = 2 * std::sin(std::clamp(angle_rad, 0.0, std::numbers::pi) / 2);
   std::vector<std::pair<uint32_t, double>> matches;

@@ -20,6 +20,8 @@ class DirectionIndex {
   double nearest_other_angle(int i) const;
   // Angle (radians) from the unit vector d to the nearest direction; pi when there is none.
   double nearest_angle(const Eigen::Vector3d& d) const;
+  // Index of the direction nearest to the unit vector d; -1 when there is none.
+  int nearest(const Eigen::Vector3d& d) const;
   // Indices of the directions within angle_rad of the unit vector d, nearest first.
   std::vector<int> within(const Eigen::Vector3d& d, double angle_rad) const;
 

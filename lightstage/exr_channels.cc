@@ -18,6 +18,14 @@ const std::string* NamedChannelFile::attribute(const std::string& name) const {
   return nullptr;
 }
 
+std::vector<std::string> exr_channel_names(const fs::path& path) {
+  const std::string name = path.string();
+  if (!fs::exists(path)) throw InputError(name + ": file not found");
+  auto in = OIIO::ImageInput::open(name);
+  if (!in) throw InputError(name + ": cannot read: " + OIIO::geterror());
+  return in->spec().channelnames;
+}
+
 NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std::string>& names,
                                      const std::string& kind, const std::string& origin, bool exact,
                                      size_t required) {

@@ -26,6 +26,10 @@ NamedChannelFile read_named_channels(const std::filesystem::path& path,
                                      const std::string& origin, bool exact,
                                      size_t required = SIZE_MAX);
 
+// The channel names of an EXR as its header lists them; InputError naming the file when it cannot
+// be opened.
+std::vector<std::string> exr_channel_names(const std::filesystem::path& path);
+
 // A PNG preview of channels [first, first + channels) of `maps` (the channels written to `path`),
 // each value through `transform` (non-finite values black), written beside `path` as
 // STEM.NAME.png.

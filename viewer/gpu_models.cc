@@ -24,7 +24,9 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Models: the maps in a 5-layer RGBA32F array, the distant lights in a uniform buffer, up to
 // LIGHTS_PER_PASS per pass (more lights: further passes added by blending); the shader is
-// relight/fit/model_render.cc's shade() with relight/lighting/brdf.h's models, line for line.
+// relight/fit/model_render.cc's shade() with relight/lighting/brdf.h's models, line for line, and
+// the same shadows (each light takes its nearest LED's). The prefiltered shading has no shadows:
+// its lighting is one environment for every pixel.
 // (Lights in a texture, the first version, cost two fetches per light: 1.6x slower on llvmpipe.)
 
 // "#define LIGHTS_PER_PASS n" goes after the version line.
@@ -43,9 +45,21 @@ uniform float level_roughness[PREFILTER_LEVELS];
 uniform float lobe_albedo_size;
 #else
 layout(std140) uniform Lights {
-  vec4 light_dir[LIGHTS_PER_PASS];         // Unit, toward the light.
+  vec4 light_dir[LIGHTS_PER_PASS];         // Unit, toward the light; w: its nearest LED.
   vec4 light_irradiance[LIGHTS_PER_PASS];  // RGB at normal incidence.
 };
+// The fit's LED shadows (relight/fit/led_shadows.h): layer w holds LEDs 8w .. 8w+7, 3 bits each,
+// as an integer-valued float.
+uniform sampler2DArray shadow_words;
+uniform bool has_shadows;
+
+// The share of light k that reaches the pixel.
+float lit_share(ivec2 texel, int k) {
+  if (!has_shadows) return 1.0;
+  int led = int(light_dir[k].w);
+  uint word = uint(texelFetch(shadow_words, ivec3(texel, led / 8), 0).r);
+  return 1.0 - float((word >> uint(3 * (led % 8))) & 7u) / 7.0;
+}
 #endif
 uniform sampler2DArray maps;  // 0: normal xyz, model; 1: albedo rgb, sigma; 2: ks, roughness;
                               // 3: view direction xyz; 4: flagged fallback rgb.
@@ -173,7 +187,7 @@ vec3 shade(ivec2 texel) {
     vec3 wi = light_dir[k].xyz;
     float cos_i = dot(n, wi);
     if (!(cos_i > 0.0)) continue;
-    vec3 e = light_irradiance[k].rgb;
+    vec3 e = light_irradiance[k].rgb * lit_share(texel, k);
     float cos_io = dot(wi, wo);
     diffuse += e * (cos_i * (oren ? oren_nayar(cos_i, cos_o, cos_io, sigma) : 1.0 / kPi));
     if (lobe) {
@@ -276,6 +290,7 @@ class ModelSource : public GpuSource {
                       layer.data());
     }
     check_gl("uploading the model maps");
+    upload_shadows(model_maps.shadows);
     glGenBuffers(1, &lights_);
     glBindBuffer(GL_UNIFORM_BUFFER, lights_);
     glBufferData(GL_UNIFORM_BUFFER, GLsizeiptr(lights_per_pass_) * 32, nullptr, GL_DYNAMIC_DRAW);
@@ -309,7 +324,9 @@ class ModelSource : public GpuSource {
   }
   int width() const override { return width_; }
   int height() const override { return height_; }
-  std::size_t bytes() const override { return std::size_t(width_) * height_ * kLayers * 16; }
+  std::size_t bytes() const override {
+    return std::size_t(width_) * height_ * kLayers * 16 + shadow_bytes_;
+  }
 
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     check_target(*this, target);
@@ -333,6 +350,11 @@ class ModelSource : public GpuSource {
     glUniform1i(program_.uniform("per_pixel_view"), per_pixel_view_);
     glUniform1i(program_.uniform("has_fallback"), has_fallback_);
     glUniform1f(program_.uniform("max_ks"), max_ks_);
+    const std::vector<int> nearest_led =
+        shadow_leds_.empty() ? std::vector<int>{}
+                             : relight::nearest_leds(shadow_leds_, in.dirs_in_stage);
+    bind_texture(program_, "shadow_words", 1, GL_TEXTURE_2D_ARRAY, shadow_words_.id());
+    glUniform1i(program_.uniform("has_shadows"), !shadow_leds_.empty());
     glBindBufferBase(GL_UNIFORM_BUFFER, 0, lights_);
     glBlendFunc(GL_ONE, GL_ONE);
     // At least one pass, so that no lights still draws black (or the fallback).
@@ -344,6 +366,7 @@ class ModelSource : public GpuSource {
           packed_[std::size_t(k) * 4 + c] = in.dirs_in_stage[first + k][c];
           packed_[(std::size_t(lights_per_pass_) + k) * 4 + c] = in.irradiance_rgb[first + k][c];
         }
+        if (!nearest_led.empty()) packed_[std::size_t(k) * 4 + 3] = float(nearest_led[first + k]);
       }
       glBindBuffer(GL_UNIFORM_BUFFER, lights_);
       glBufferSubData(GL_UNIFORM_BUFFER, 0, GLsizeiptr(packed_.size() * sizeof(float)),
@@ -356,10 +379,40 @@ class ModelSource : public GpuSource {
       program_.draw();
     }
     glDisable(GL_BLEND);
+    glActiveTexture(GL_TEXTURE0);
     check_gl("relighting the models");
   }
 
  private:
+  // One R32F layer per shadow word (a 1x1 layer of 0 when there are none, so the sampler is
+  // complete); the LEDs' directions kept for the lights' nearest LEDs.
+  void upload_shadows(const relight::LedShadows& shadows) {
+    if (!shadows.empty()) {
+      if (shadows.words.width != width_ || shadows.words.height != height_) {
+        throw InputError("GPU relight: model maps: the shadows are " +
+                         std::to_string(shadows.words.width) + "x" +
+                         std::to_string(shadows.words.height) + ", the maps " +
+                         std::to_string(width_) + "x" + std::to_string(height_));
+      }
+      shadow_leds_ = shadows.led_dirs_in_stage;
+    }
+    const int layers = std::max(1, shadows.words.channels);
+    const int w = shadows.empty() ? 1 : width_, h = shadows.empty() ? 1 : height_;
+    check_size(w, h, layers, "the shadows texture");
+    glBindTexture(GL_TEXTURE_2D_ARRAY, shadow_words_.id());
+    set_nearest(GL_TEXTURE_2D_ARRAY);
+    glTexImage3D(GL_TEXTURE_2D_ARRAY, 0, GL_R32F, w, h, layers, 0, GL_RED, GL_FLOAT, nullptr);
+    std::vector<float> layer(std::size_t(w) * h, 0.0f);
+    for (int l = 0; l < layers; ++l) {
+      for (std::size_t i = 0; !shadows.empty() && i < layer.size(); ++i) {
+        layer[i] = shadows.words.pixels[i * std::size_t(shadows.words.channels) + std::size_t(l)];
+      }
+      glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, l, w, h, 1, GL_RED, GL_FLOAT, layer.data());
+    }
+    check_gl("uploading the shadows");
+    shadow_bytes_ = shadows.empty() ? 0 : std::size_t(width_) * height_ * layers * 4;
+  }
+
   static constexpr int kLayers = 5;
   // 1024 lights (32 KiB) where uniform blocks may be that large (llvmpipe, NVIDIA, AMD: 64 KiB),
   // else 512 (16 KiB, the GL 3.3 minimum).
@@ -434,7 +487,9 @@ class ModelSource : public GpuSource {
   float max_ks_;
   int lights_per_pass_;
   Program program_;
-  Texture maps_;
+  Texture maps_, shadow_words_;
+  std::vector<Eigen::Vector3f> shadow_leds_;  // Empty: no shadows.
+  std::size_t shadow_bytes_ = 0;
   GLuint lights_ = 0;  // Uniform buffer: LIGHTS_PER_PASS directions, then as many irradiances.
   int light_count_ = 0;
   std::vector<float> packed_;

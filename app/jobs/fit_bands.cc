@@ -94,6 +94,7 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
   per_band.progress = {};
   relight::NormalMap normals;
   relight::ModelMaps maps;
+  const std::vector<Eigen::Vector3f> led_dirs = relight::led_dirs_of(header);
   maps.noise = fit.normals.noise;  // As fit_models records them.
   maps.noise_source = fit.noise_source;
   capture::ReflectanceField band;
@@ -110,7 +111,7 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
     const int y0 = b * rows, y1 = end_of(b);
     relight::NormalMap band_normals;
     relight::ModelMaps band_maps;
-    if (checkpoints.load(y0, band_normals, band_maps)) {
+    if (checkpoints.load(y0, led_dirs, band_normals, band_maps)) {
       if (own) times.resumed_rows += y1 - y0;
     } else {
       read(b);
@@ -124,6 +125,8 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
     paste_rows(band_normals.flags, y0, height, normals.flags);
     normals.flagged_pixels += band_normals.flagged_pixels;
     paste_rows(band_maps.maps, y0, height, maps.maps);
+    paste_rows(band_maps.shadows.words, y0, height, maps.shadows.words);
+    maps.shadows.led_dirs_in_stage = band_maps.shadows.led_dirs_in_stage;
     maps.summary.add(band_maps.summary);
   };
   long own_rows = 0, done_rows = 0;
@@ -162,9 +165,11 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
   for (size_t i = 0; i < change.size(); ++i) change[i] -= before[i];
   ranks.sum_to_root(change);
   for (int b = 0; ranks.size() > 1 && b < band_count; ++b) {
-    const std::span<float> band_rows = rows_of(maps.maps, b * rows, end_of(b));
-    if (ranks.root() && !ranks.owns(b)) ranks.receive(band_rows, ranks.owner(b));
-    if (!ranks.root() && ranks.owns(b)) ranks.send(band_rows, 0);
+    for (Image* image : {&maps.maps, &maps.shadows.words}) {
+      const std::span<float> band_rows = rows_of(*image, b * rows, end_of(b));
+      if (ranks.root() && !ranks.owns(b)) ranks.receive(band_rows, ranks.owner(b));
+      if (!ranks.root() && ranks.owns(b)) ranks.send(band_rows, 0);
+    }
   }
   if (!ranks.root()) return maps;
   for (size_t i = 0; i < change.size(); ++i) change[i] += before[i];

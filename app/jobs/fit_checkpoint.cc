@@ -123,12 +123,16 @@ int BandCheckpoints::band_rows(int proposed) const {
   return proposed;
 }
 
-bool BandCheckpoints::load(int y0, relight::NormalMap& normals, relight::ModelMaps& maps) const {
+bool BandCheckpoints::load(int y0, const std::vector<Eigen::Vector3f>& led_dirs,
+                           relight::NormalMap& normals, relight::ModelMaps& maps) const {
   if (!fs::exists(file(y0))) return false;
   NamedChannelFile band;
+  const int shadow_words = relight::LedShadows::words_for(int(led_dirs.size()));
+  std::vector<std::string> names = band_channel_names();
+  for (int w = 0; w < shadow_words; ++w) names.push_back("shadow." + std::to_string(w));
   try {
-    band = read_named_channels(file(y0), band_channel_names(), "fit checkpoint",
-                               "'lightstage fit --memory'", /*exact=*/true);
+    band = read_named_channels(file(y0), names, "fit checkpoint", "'lightstage fit --memory'",
+                               /*exact=*/true, /*required=*/names.size());
     const std::string* text = band.attribute(kBandAttribute);
     if (!text) return false;
     const nlohmann::json info = nlohmann::json::parse(*text);
@@ -148,18 +152,25 @@ bool BandCheckpoints::load(int y0, relight::NormalMap& normals, relight::ModelMa
     first += kParts[k].channels;
   }
   maps.maps.channel_names = relight::model_map_channel_names();
+  maps.shadows = relight::LedShadows::all_lit(led_dirs, image.width, image.height);
+  copy_channels(image, first, maps.shadows.words, 0, shadow_words);
   return true;
 }
 
 void BandCheckpoints::save(int y0, const relight::NormalMap& normals,
                            const relight::ModelMaps& maps) const {
-  Image band(maps.maps.width, maps.maps.height, int(band_channel_names().size()));
+  const Image& shadows = maps.shadows.words;
+  Image band(maps.maps.width, maps.maps.height,
+             int(band_channel_names().size()) + shadows.channels);
   band.channel_names = band_channel_names();
+  band.channel_names.insert(band.channel_names.end(), shadows.channel_names.begin(),
+                            shadows.channel_names.end());
   int first = 0;
   for (size_t k = 0; k < kParts.size(); ++k) {
     copy_channels(*images_of(normals, maps)[k], 0, band, first, kParts[k].channels);
     first += kParts[k].channels;
   }
+  if (!maps.shadows.empty()) copy_channels(shadows, 0, band, first, shadows.channels);
   const nlohmann::json info = {{"summary", summary_json(maps.summary)},
                                {"normals_flagged", normals.flagged_pixels}};
   write_exr(file(y0), band, ExrPixelType::kFloat, {{kBandAttribute, info.dump()}});

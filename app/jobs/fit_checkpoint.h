@@ -6,6 +6,7 @@
 // counts in an attribute, written atomically: a band is there whole or not at all.
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "relight/fit/fit.h"
 #include "relight/fit/normals.h"
@@ -20,8 +21,9 @@ class BandCheckpoints {
   // reused; otherwise `proposed`, recorded for a later run (an earlier run's bands are dropped).
   int band_rows(int proposed) const;
   // The band of rows [y0, ...) when an earlier run finished it, or false (none, or unreadable:
-  // the band is fitted again).
-  bool load(int y0, relight::NormalMap& normals, relight::ModelMaps& maps) const;
+  // the band is fitted again); led_dirs: the field's (relight::led_dirs_of), for its shadows.
+  bool load(int y0, const std::vector<Eigen::Vector3f>& led_dirs, relight::NormalMap& normals,
+            relight::ModelMaps& maps) const;
   void save(int y0, const relight::NormalMap& normals, const relight::ModelMaps& maps) const;
   // Once the maps are written.
   void remove() const;

@@ -290,6 +290,50 @@ double lobe_visibility(const PixelTerms& terms, const std::vector<Eigen::Vector3
   return lit + dark > 1e-6 ? lit / (lit + dark) : 1.0;
 }
 
+// The factor that fits a blend's prediction to the samples it leaves lit. A sample clearly below
+// the prediction (by LedShadows::kShadowSigmas of its noise) is in partial shadow: it tells of the
+// light that reached the pixel, not of its reflectance, and the render takes that light away
+// again (ModelMaps::shadows). Least squares over every sample would dim the whole pixel for it.
+// A few rounds: a brighter blend finds more of its penumbra.
+double lit_scale(const PixelTerms& terms, const Blend& blend,
+                 const std::vector<Material>& materials) {
+  thread_local std::vector<double> prediction, one;
+  const int n = terms.count();
+  prediction.assign(3 * size_t(n), 0);
+  one.resize(3 * size_t(n));
+  for (int j = 0; j < blend.weights(); ++j) {
+    const Material& mat = materials[size_t(blend.material[j])];
+    terms.predict(mat.model, shape_of(mat), mat.albedo, mat.ks, one.data());
+    for (size_t k = 0; k < one.size(); ++k) prediction[k] += blend.weight[j] * one[k];
+  }
+  double scale = 1;
+  for (int round = 0; round < 3; ++round) {
+    double pv = 0, pp = 0;
+    for (int i = 0; i < n; ++i) {
+      double predicted = 0, measured = 0, variance = 0;
+      for (int c = 0; c < 3; ++c) {
+        predicted += pixel::kLuma[c] * scale * prediction[3 * size_t(i) + size_t(c)];
+        measured += pixel::kLuma[c] * terms.value(i, c);
+        variance += pixel::kLuma[c] * pixel::kLuma[c] / terms.weight(i, c);
+      }
+      if (predicted - measured > LedShadows::kShadowSigmas * std::sqrt(variance)) continue;
+      for (int c = 0; c < 3; ++c) {
+        const double p = prediction[3 * size_t(i) + size_t(c)], w = terms.weight(i, c);
+        pv += w * p * terms.value(i, c);
+        pp += w * p * p;
+      }
+    }
+    if (!(pp > 0 && pv > 0)) return scale;
+    const double next = pv / pp;
+    if (std::abs(next - scale) < 1e-3 * scale) return next;
+    scale = next;
+  }
+  return scale;
+}
+
+// Below this lit share of its lobe a pixel is flagged kLobeShadowed.
+constexpr double kLobeLitShare = 0.99;
+
 // A material explains a pixel unless it leaves more than this many times the residual variance
 // (reduced chi^2) of the pixel's own fit: a texture the weights cannot follow, a material the
 // clustering missed. Not the BIC: the pixel's own fit wins the BIC wherever a lobe or sigma absorbs
@@ -342,9 +386,8 @@ bool write_blend(const Blend& blend, const Eigen::Vector3d& n, int residuals,
   // by BIC: a dark pixel's own colour is mostly its noise).
   const bool own_explains = m[kMapResidual] <= kUnexplainedOwnDispersions * dispersion;
   const bool other_colour = blend_bic > own_bic && !same_colour(mix.albedo, own_albedo);
-  const bool explained =
-      !own_explains ||
-      (reduced_chi2 <= kUnexplainedResidualRatio * m[kMapResidual] && !other_colour);
+  const bool explained = reduced_chi2 <= kUnexplainedResidualRatio * m[kMapResidual] &&
+                         (!own_explains || !other_colour);
   if (!explained && !own_is_main) return false;
   for (int j = 0; j < 2; ++j) {
     m[kMapMaterial + 2 * j] = float(blend.material[j] + 1);
@@ -475,12 +518,16 @@ void assign_band(const capture::ReflectanceField& band, const PixelGatherer& gat
                          dispersion, m)) {
           continue;
         }
-        if (m[kMapKs] > 0) {
-          const double visible = lobe_visibility(*terms, shadowed, n, view, m[kMapRoughness]);
-          if (visible < 1) {
-            m[kMapKs] = float(m[kMapKs] * visible);
-            m[kMapFlags] = float(int(m[kMapFlags]) | kLobeShadowed);
+        if ((int(m[kMapFlags]) & kOwnParameters) == 0) {
+          const float scale = float(lit_scale(*terms, blend, materials));
+          for (const MapChannel c : {kMapAlbedoR, kMapAlbedoG, kMapAlbedoB, kMapKs,
+                                     kMapMaterialWeight, kMapMaterial2Weight}) {
+            m[c] *= scale;
           }
+        }
+        if (m[kMapKs] > 0 &&
+            lobe_visibility(*terms, shadowed, n, view, m[kMapRoughness]) < kLobeLitShare) {
+          m[kMapFlags] = float(int(m[kMapFlags]) | kLobeShadowed);
         }
         --local.per_model[int(own)];
         ++local.per_model[int(m[kMapModel])];
@@ -556,6 +603,7 @@ void assign_basis_materials(const capture::ReflectanceField& header,
   std::mutex mutex;
   assign_band(band, PixelGatherer(header, options), normals, basis.materials, basis.dispersion,
               options, maps, mutex);
+  measure_led_shadows(band, options, /*maps_first_row=*/0, maps);  // Of the models they have now.
 }
 
 void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,

@@ -442,7 +442,10 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
     const std::lock_guard lock(summary_mutex);
     summary.add(local);
   });
-  if (options.materials == FitMaterials::kBasis) fit_basis_materials(field, normals, options, out);
+  if (options.materials == FitMaterials::kBasis) {
+    fit_basis_materials(field, normals, options, out);  // Measures the shadows of its models.
+  }
+  if (out.shadows.empty()) measure_led_shadows(field, options, field.first_row(), out);
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
   return out;

@@ -43,6 +43,7 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
+#include "relight/fit/led_shadows.h"
 #include "relight/fit/normals.h"
 
 namespace ls::relight {
@@ -155,9 +156,8 @@ inline constexpr int kFitNotConverged = 128;
 // parameters, of the material's model, which explain its data better by BIC.
 inline constexpr int kOwnParameters = 256;
 // Basis materials: part of the pixel's lobe points where its samples show cast shadows (an
-// occluder between it and some LEDs within the lobe): k_s is scaled by the lobe's lit fraction,
-// since the models have no visibility and would otherwise show a highlight from behind the
-// occluder.
+// occluder between it and some LEDs within the lobe); a render keeps the highlight out of them
+// (ModelMaps::shadows).
 inline constexpr int kLobeShadowed = 512;
 
 // One basis material: a model and its parameters, the reflectance a pixel of weight 1 has.
@@ -202,6 +202,10 @@ struct ModelMaps {
   // The basis materials kMapMaterial indexes (1-based); stored in the "lightstage:materials"
   // attribute. Empty for per-pixel fits.
   std::vector<Material> materials;
+  // The LEDs each fitted pixel saw in cast shadow (relight/fit/led_shadows.h), so that a model
+  // render has the field's visibility; channels "shadow.N" of the file. Empty for maps fitted
+  // before it existed: every light then lights every pixel.
+  LedShadows shadows;
   float at(int x, int y, MapChannel c) const { return maps.at(x, y, c); }
   FitModel model(int x, int y) const { return FitModel(int(maps.at(x, y, kMapModel))); }
 };
@@ -211,6 +215,12 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const FitOptions& o
 // Fits every pixel starting from given normals (flagged normals are not fitted).
 ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& normals,
                      const FitOptions& options);
+
+// Fills maps.shadows over the rows of `field` (a band of rows of the frame from its first_row(), or
+// the whole frame) from the fitted models in `maps`, whose row 0 is the frame's row
+// maps_first_row; maps.shadows is sized to the maps and the field's lights first if it is not.
+void measure_led_shadows(const capture::ReflectanceField& field, const FitOptions& options,
+                         int maps_first_row, ModelMaps& maps);
 
 // Writes the maps as one EXR (float, named channels) and a PNG preview per map beside it:
 // <stem>.normal.png (0.5 + 0.5 n), .albedo.png, .sigma.png (/ (pi/2)), .ks.png, .roughness.png,

@@ -18,6 +18,8 @@ using brdf::kPi;
 constexpr double kMaxSigma = 0.5 * kPi + 1e-6;  // Oren-Nayar's range, and rounding.
 constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
 constexpr const char* kMaterialsAttribute = "lightstage:materials";
+// The LEDs of ModelMaps::shadows: [[x, y, z], ...], unit, stage frame.
+constexpr const char* kShadowLedsAttribute = "lightstage:shadow_leds";
 // The flags channel holds bits up to 512 (fit.h, normals.h); room for more, and always an int.
 constexpr int kMaxFlags = 65535;
 
@@ -117,6 +119,48 @@ void write_material_preview(const std::filesystem::path& path, const Image& maps
   write_png_preview(out, image);
 }
 
+nlohmann::json to_json(const std::vector<Eigen::Vector3f>& dirs) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const Eigen::Vector3f& d : dirs) out.push_back({d.x(), d.y(), d.z()});
+  return out;
+}
+
+std::vector<Eigen::Vector3f> shadow_leds_from(const std::string& text, const std::string& file) {
+  const std::string where = file + ": attribute '" + kShadowLedsAttribute + "'";
+  std::vector<Eigen::Vector3f> dirs;
+  try {
+    for (const nlohmann::json& d : nlohmann::json::parse(text)) {
+      const Eigen::Vector3f dir(d.at(0).get<float>(), d.at(1).get<float>(), d.at(2).get<float>());
+      if (d.size() != 3 || !(std::abs(dir.norm() - 1) < 1e-3f)) {
+        throw InputError(where + ": LED " + std::to_string(dirs.size()) +
+                         ": expected a unit direction [x, y, z]");
+      }
+      dirs.push_back(dir);
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where + ": expected [[x, y, z], ...]: " + e.what());
+  }
+  return dirs;
+}
+
+// Shadow channel w (LedShadows) holds kLedsPerWord levels: an integer below 2^kBitsPerWord.
+void check_shadow_words(const Image& words, const std::string& file) {
+  for (int y = 0; y < words.height; ++y) {
+    for (int x = 0; x < words.width; ++x) {
+      for (int w = 0; w < words.channels; ++w) {
+        const float v = words.at(x, y, w);
+        if (!(v == std::floor(v) && v >= 0 && v < float(1 << LedShadows::kBitsPerWord))) {
+          char at[96];
+          std::snprintf(at, sizeof at, " at (%d, %d), got %.9g", x, y, double(v));
+          throw InputError(file + ": channel 'shadow." + std::to_string(w) +
+                           "': expected an integer in 0.." +
+                           std::to_string((1 << LedShadows::kBitsPerWord) - 1) + at);
+        }
+      }
+    }
+  }
+}
+
 }  // namespace
 
 const std::vector<std::string>& model_map_channel_names() {
@@ -136,9 +180,23 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
   const nlohmann::json noise = {{"read_variance", maps.noise.a},
                                 {"shot_variance_per_unit", maps.noise.b},
                                 {"source", maps.noise_source}};
-  Image named = image;
+  const Image& shadows = maps.shadows.words;
+  Image named(image.width, image.height, image.channels + shadows.channels);
   named.channel_names = model_map_channel_names();
+  named.channel_names.insert(named.channel_names.end(), shadows.channel_names.begin(),
+                             shadows.channel_names.end());
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    float* out = &named.pixels[i * size_t(named.channels)];
+    std::copy_n(&image.pixels[i * size_t(image.channels)], image.channels, out);
+    if (!maps.shadows.empty()) {
+      std::copy_n(&shadows.pixels[i * size_t(shadows.channels)], shadows.channels,
+                  out + image.channels);
+    }
+  }
   ExrAttributes header = attributes;
+  if (!maps.shadows.empty()) {
+    header.emplace_back(kShadowLedsAttribute, to_json(maps.shadows.led_dirs_in_stage).dump());
+  }
   header.emplace_back(kFitNoiseAttribute, noise.dump());
   if (!maps.materials.empty())
     header.emplace_back(kMaterialsAttribute, to_json(maps.materials).dump());
@@ -164,8 +222,14 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
 ModelMaps read_model_maps(const std::filesystem::path& path) {
   const std::string name = path.string();
   const std::vector<std::string>& names = model_map_channel_names();
+  std::vector<std::string> with_shadows = names;
+  for (const std::string& channel : exr_channel_names(path)) {
+    if (channel.starts_with("shadow.")) {
+      with_shadows.push_back("shadow." + std::to_string(with_shadows.size() - names.size()));
+    }
+  }
   NamedChannelFile file =
-      read_named_channels(path, names, "model maps", "'lightstage fit'", /*exact=*/true,
+      read_named_channels(path, with_shadows, "model maps", "'lightstage fit'", /*exact=*/true,
                           /*required=*/kMapMaterial);  // Maps from before basis materials.
   ModelMaps out;
   out.noise_source = "unknown (no '" + std::string(kFitNoiseAttribute) + "' attribute)";
@@ -192,7 +256,33 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
       out.summary.scene_materials = std::max(out.summary.scene_materials, m.scene_material);
     }
   }
-  out.maps = std::move(file.image);
+  const int shadow_words = int(with_shadows.size() - names.size());
+  const std::string* shadow_leds = file.attribute(kShadowLedsAttribute);
+  if (shadow_leds != nullptr || shadow_words > 0) {
+    if (shadow_leds == nullptr) {
+      throw InputError(name + ": shadow channels without attribute '" + kShadowLedsAttribute + "'");
+    }
+    std::vector<Eigen::Vector3f> leds = shadow_leds_from(*shadow_leds, name);
+    if (LedShadows::words_for(int(leds.size())) != shadow_words) {
+      throw InputError(name + ": channels 'shadow.N': expected " +
+                       std::to_string(LedShadows::words_for(int(leds.size()))) + " for the " +
+                       std::to_string(leds.size()) + " LEDs of attribute '" + kShadowLedsAttribute +
+                       "', got " + std::to_string(shadow_words));
+    }
+    const Image& all = file.image;
+    out.shadows = LedShadows::all_lit(std::move(leds), all.width, all.height);
+    for (size_t i = 0; i < all.num_pixels(); ++i) {
+      std::copy_n(&all.pixels[i * size_t(all.channels) + kMapChannelCount], shadow_words,
+                  &out.shadows.words.pixels[i * size_t(shadow_words)]);
+    }
+    check_shadow_words(out.shadows.words, name);
+  }
+  out.maps = Image(file.image.width, file.image.height, kMapChannelCount);
+  out.maps.channel_names = names;
+  for (size_t i = 0; i < out.maps.num_pixels(); ++i) {
+    std::copy_n(&file.image.pixels[i * size_t(file.image.channels)], kMapChannelCount,
+                &out.maps.pixels[i * size_t(kMapChannelCount)]);
+  }
   const int width = out.maps.width, height = out.maps.height;
   FitSummary& summary = out.summary;
   summary.pixels = width * height;

@@ -64,47 +64,111 @@ Eigen::Vector3f cosine_irradiance(const Lights& lights, const Eigen::Vector3f& n
   return sum;
 }
 
-// One pixel's outgoing radiance under the lights. Returns 0 when the pixel faces away.
-Eigen::Vector3f shade(const Lights& lights, const float* m, const Eigen::Vector3f& wo,
-                      float max_ks) {
-  const FitModel model = FitModel(int(m[kMapModel]));
-  Eigen::Vector3f n(m[kMapNormalX], m[kMapNormalY], m[kMapNormalZ]);
-  const float norm = n.norm();
-  if (!(norm > 0)) return Eigen::Vector3f::Zero();
-  n /= norm;
-  const float cos_o = n.dot(wo);
-  if (!(cos_o > 0)) return Eigen::Vector3f::Zero();  // Every BRDF is 0 below the surface.
-  const Eigen::Vector3f albedo(m[kMapAlbedoR], m[kMapAlbedoG], m[kMapAlbedoB]);
-  if (model == FitModel::kLambert) {
-    return albedo.cwiseProduct(cosine_irradiance(lights, n)) * float(1.0 / kPi);
+// A fitted pixel's model, read from its map channels.
+struct PixelModel {
+  FitModel model = FitModel::kNone;
+  Eigen::Vector3f n, albedo;
+  float sigma = 0, ks = 0, roughness = 0, exponent = 0;
+  bool oren_nayar = false, lobe = false;
+
+  // False when the pixel has no normal.
+  bool read(const float* m, float max_ks) {
+    model = FitModel(int(m[kMapModel]));
+    n = Eigen::Vector3f(m[kMapNormalX], m[kMapNormalY], m[kMapNormalZ]);
+    const float norm = n.norm();
+    if (!(norm > 0)) return false;
+    n /= norm;
+    albedo = Eigen::Vector3f(m[kMapAlbedoR], m[kMapAlbedoG], m[kMapAlbedoB]);
+    sigma = m[kMapSigma];
+    ks = std::min(m[kMapKs], max_ks);
+    roughness = std::max(m[kMapRoughness], 1e-3f);
+    // Phong's exponent from the stored equivalent roughness m = sqrt(2 / (exponent + 2)).
+    exponent = std::clamp(2.0f / (roughness * roughness) - 2.0f, 1.0f, 1e4f);
+    oren_nayar = model == FitModel::kOrenNayar;
+    lobe =
+        ks > 0 && (model == FitModel::kLambertTorranceSparrow || model == FitModel::kLambertPhong);
+    return true;
   }
-  const float sigma = m[kMapSigma];
-  const float ks = std::min(m[kMapKs], max_ks);
-  const float roughness = std::max(m[kMapRoughness], 1e-3f);
-  // Phong's exponent from the stored equivalent roughness m = sqrt(2 / (exponent + 2)).
-  const float exponent = std::clamp(2.0f / (roughness * roughness) - 2.0f, 1.0f, 1e4f);
-  const bool oren_nayar = model == FitModel::kOrenNayar;
-  // A Lambertian diffuse part is the (vectorised) cosine-weighted sum; only the rest is per light.
-  Eigen::Vector3f diffuse =
-      oren_nayar ? Eigen::Vector3f(0, 0, 0) : Eigen::Vector3f(cosine_irradiance(lights, n) / kPi);
-  const bool lobe =
-      ks > 0 && (model == FitModel::kLambertTorranceSparrow || model == FitModel::kLambertPhong);
-  Eigen::Vector3f specular_rgb(0, 0, 0);  // sum E cos f_lobe; the lobe is white (k_s one number).
-  for (int k = 0; (oren_nayar || lobe) && k < lights.count; ++k) {
-    const Eigen::Vector3f wi(lights.x[k], lights.y[k], lights.z[k]);
-    const float cos_i = n.dot(wi);
-    if (!(cos_i > 0)) continue;
-    const brdf::Geometry<float> g{cos_i, cos_o, wi.dot(wo)};
-    const Eigen::Vector3f e(lights.r[k], lights.g[k], lights.b[k]);
-    if (oren_nayar) diffuse += e * (brdf::oren_nayar(g, sigma) * cos_i);
-    if (lobe) {
-      const float f = model == FitModel::kLambertTorranceSparrow
-                          ? brdf::torrance_sparrow(g, roughness)
-                          : brdf::phong(g, exponent);
-      specular_rgb += e * (f * cos_i);
+  // The diffuse BRDF per unit albedo, 1/sr.
+  float diffuse(const brdf::Geometry<float>& g) const {
+    return oren_nayar ? brdf::oren_nayar(g, sigma) : float(1.0 / kPi);
+  }
+  // The lobe's BRDF per unit k_s, 1/sr.
+  float lobe_f(const brdf::Geometry<float>& g) const {
+    return model == FitModel::kLambertTorranceSparrow ? brdf::torrance_sparrow(g, roughness)
+                                                      : brdf::phong(g, exponent);
+  }
+};
+
+// Which lights a pixel's shadowed LEDs stand for: each light takes its nearest LED's visibility.
+struct LightShadows {
+  const LedShadows* shadows = nullptr;  // Null: every light lights every pixel.
+  std::vector<int> led_of;              // Per light.
+  std::vector<std::vector<int>> lights_of_led;
+
+  LightShadows(const LedShadows& led_shadows, const LightingForModels& lighting) {
+    if (led_shadows.empty()) return;
+    shadows = &led_shadows;
+    led_of = nearest_leds(led_shadows.led_dirs_in_stage, lighting.dirs_in_stage);
+    lights_of_led.resize(led_shadows.led_dirs_in_stage.size());
+    for (size_t k = 0; k < led_of.size(); ++k) lights_of_led[size_t(led_of[k])].push_back(int(k));
+  }
+};
+
+// A pixel's shadow bits; `any` false when every LED lights it.
+struct PixelShadows {
+  std::vector<uint32_t> words;
+  bool any = false;
+  float shadow(int led) const {
+    return float(LedShadows::level(words.data(), led)) * (1.0f / LedShadows::kShadowLevels);
+  }
+};
+
+// sum_k shadow_k E_k max(0, n . w_k): the cosine-weighted irradiance the pixel's shadows take.
+Eigen::Vector3f shadowed_cosine_irradiance(const Lights& lights, const LightShadows& light_shadows,
+                                           const PixelShadows& pixel, const Eigen::Vector3f& n) {
+  Eigen::Vector3f sum(0, 0, 0);
+  for (size_t led = 0; pixel.any && led < light_shadows.lights_of_led.size(); ++led) {
+    const float shadow = pixel.shadow(int(led));
+    if (shadow == 0) continue;
+    for (const int k : light_shadows.lights_of_led[led]) {
+      const float c =
+          std::max(0.0f, n.x() * lights.x[k] + n.y() * lights.y[k] + n.z() * lights.z[k]);
+      sum += (shadow * c) * Eigen::Vector3f(lights.r[k], lights.g[k], lights.b[k]);
     }
   }
-  Eigen::Vector3f out = albedo.cwiseProduct(diffuse) + ks * specular_rgb;
+  return sum;
+}
+
+// One pixel's outgoing radiance under the lights its shadows leave. Returns 0 when the pixel faces
+// away.
+Eigen::Vector3f shade(const Lights& lights, const PixelModel& p, const Eigen::Vector3f& wo,
+                      const LightShadows& light_shadows, const PixelShadows& pixel) {
+  const float cos_o = p.n.dot(wo);
+  if (!(cos_o > 0)) return Eigen::Vector3f::Zero();  // Every BRDF is 0 below the surface.
+  const auto lambert_irradiance = [&] {
+    return Eigen::Vector3f(cosine_irradiance(lights, p.n) -
+                           shadowed_cosine_irradiance(lights, light_shadows, pixel, p.n));
+  };
+  if (p.model == FitModel::kLambert) {
+    return p.albedo.cwiseProduct(lambert_irradiance()) * float(1.0 / kPi);
+  }
+  // A Lambertian diffuse part is the (vectorised) cosine-weighted sum; only the rest is per light.
+  Eigen::Vector3f diffuse =
+      p.oren_nayar ? Eigen::Vector3f(0, 0, 0) : Eigen::Vector3f(lambert_irradiance() / kPi);
+  Eigen::Vector3f specular_rgb(0, 0, 0);  // sum E cos f_lobe; the lobe is white (k_s one number).
+  for (int k = 0; (p.oren_nayar || p.lobe) && k < lights.count; ++k) {
+    const Eigen::Vector3f wi(lights.x[k], lights.y[k], lights.z[k]);
+    const float cos_i = p.n.dot(wi);
+    if (!(cos_i > 0)) continue;
+    const float lit = pixel.any ? 1 - pixel.shadow(light_shadows.led_of[size_t(k)]) : 1.0f;
+    if (lit == 0) continue;
+    const brdf::Geometry<float> g{cos_i, cos_o, wi.dot(wo)};
+    const Eigen::Vector3f e = lit * Eigen::Vector3f(lights.r[k], lights.g[k], lights.b[k]);
+    if (p.oren_nayar) diffuse += e * (p.diffuse(g) * cos_i);
+    if (p.lobe) specular_rgb += e * (p.lobe_f(g) * cos_i);
+  }
+  Eigen::Vector3f out = p.albedo.cwiseProduct(diffuse) + p.ks * specular_rgb;
   // A lobe evaluated at grazing angles can overflow float; never let that out as inf/NaN.
   for (int c = 0; c < 3; ++c) {
     if (!std::isfinite(out[c])) out[c] = 0;
@@ -113,6 +177,21 @@ Eigen::Vector3f shade(const Lights& lights, const float* m, const Eigen::Vector3
 }
 
 }  // namespace
+
+Eigen::Vector3f model_radiance(const float* m, const Eigen::Vector3f& wi, const Eigen::Vector3f& wo,
+                               float max_ks) {
+  PixelModel p;
+  if (!p.read(m, max_ks)) return Eigen::Vector3f::Zero();
+  const float cos_i = p.n.dot(wi), cos_o = p.n.dot(wo);
+  if (!(cos_i > 0 && cos_o > 0)) return Eigen::Vector3f::Zero();
+  const brdf::Geometry<float> g{cos_i, cos_o, wi.dot(wo)};
+  Eigen::Vector3f out = p.albedo * (p.diffuse(g) * cos_i);
+  if (p.lobe) out.array() += p.ks * p.lobe_f(g) * cos_i;
+  for (int c = 0; c < 3; ++c) {
+    if (!std::isfinite(out[c])) out[c] = 0;
+  }
+  return out;
+}
 
 Image render_models(const ModelMaps& maps, const LightingForModels& lighting,
                     const ModelRenderOptions& options) {
@@ -139,9 +218,19 @@ Image render_models(const ModelMaps& maps, const LightingForModels& lighting,
                      "x" + std::to_string(fallback->channels));
   }
   const Lights lights = to_soa(lighting);
+  const LedShadows& shadows = maps.shadows;
+  if (!shadows.empty()) {
+    LS_CHECK(
+        shadows.words.width == width && shadows.words.height == height &&
+            shadows.words.channels == LedShadows::words_for(int(shadows.led_dirs_in_stage.size())),
+        "model maps: shadows do not fit the maps");
+  }
+  const LightShadows light_shadows(shadows, lighting);
   Image out(width, height, 3);
   out.channel_names = {"R", "G", "B"};
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
+    PixelShadows pixel;
+    pixel.words.resize(size_t(shadows.words.channels));
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         const float* m = &src.pixels[(size_t(y) * width + x) * kMapChannelCount];
@@ -158,7 +247,17 @@ Image render_models(const ModelMaps& maps, const LightingForModels& lighting,
             options.view_dir_per_pixel.empty()
                 ? Eigen::Vector3f(0, 0, 1)
                 : options.view_dir_per_pixel[size_t(y) * width + x].normalized().cast<float>();
-        const Eigen::Vector3f rgb = shade(lights, m, wo, options.max_specular_albedo);
+        PixelModel p;
+        if (!p.read(m, options.max_specular_albedo)) {
+          o[0] = o[1] = o[2] = 0;
+          continue;
+        }
+        pixel.any = false;
+        if (!shadows.empty()) {
+          shadows.pixel_words(x, y, pixel.words.data());
+          for (int w = 0; w < shadows.words.channels; ++w) pixel.any |= pixel.words[w] != 0;
+        }
+        const Eigen::Vector3f rgb = shade(lights, p, wo, light_shadows, pixel);
         for (int c = 0; c < 3; ++c) o[c] = rgb[c];
       }
     }

@@ -5,11 +5,13 @@
 // irradiance each delivers at normal incidence (radiance x solid angle of the patch it stands for).
 // f_r is the pixel's fitted model (relight/lighting/brdf.h, cos not inside) with its fitted normal.
 //
-// The models have NO visibility: no cast shadows and no interreflection. A direction lights a
-// pixel whenever it is above the pixel's tangent plane, so where the field shows a cast shadow (or
-// a penumbra) a model render is brighter than field relighting or the truth. In exchange a model
-// can be lit from directions no LED covers (below the dome) and by sources smaller than an LED's
-// cell, and it can be edited (relight/fit/model_edit.h).
+// Visibility comes from the fit (ModelMaps::shadows, relight/fit/led_shadows.h): a direction
+// whose nearest LED the pixel saw in cast shadow does not light it. Known at the dome's
+// resolution: a shadow's edge between two LEDs falls on the boundary of their cells. Maps without
+// shadows (older files) have no visibility: a direction lights a pixel whenever it is above the
+// pixel's tangent plane. No interreflection. A model can be lit from directions no LED covers
+// (below the dome: lit) and by sources smaller than an LED's cell, and it can be edited
+// (relight/fit/model_edit.h).
 //
 // Two ways to turn an environment map into lights, both measured in
 // tests/relight/fit/model_render_test.cc:
@@ -47,6 +49,12 @@ struct ModelRenderOptions {
   float max_specular_albedo = float(kDefaultMaxSpecularAlbedo);
 };
 
+// A fitted pixel's radiance toward wo (unit) lit from wi (unit, toward the light) by unit
+// irradiance at normal incidence: f_r * max(0, n . wi) per channel; m: the pixel's map channels,
+// k_s clamped to max_ks. 0 for a pixel without a normal or facing away.
+Eigen::Vector3f model_radiance(const float* m, const Eigen::Vector3f& wi, const Eigen::Vector3f& wo,
+                               float max_ks);
+
 // 3-channel linear radiance image the size of the maps. Rows in parallel (TBB); never NaN (the maps
 // are finite, read_model_maps checks that). Throws InputError when the options do not fit the
 // maps (view directions or fallback of the wrong size).
@@ -54,9 +62,9 @@ Image render_models(const ModelMaps& maps, const LightingForModels& lighting,
                     const ModelRenderOptions& options = {});
 
 // The fitted analytic models (relight/fit/fit.h) as the most compact point: a normal, an RGB albedo
-// and up to two lobe parameters per pixel, rendered by render_models (no shadows: see
-// model_render.h). Size: the 7 parameters as float32 plus one byte for the model id = 29 bytes per
-// pixel.
+// and up to two lobe parameters per pixel, rendered by render_models with the fit's shadows. Size:
+// the 7 parameters as float32 plus one byte for the model id = 29 bytes per pixel, and 3 bits per
+// LED of shadows.
 class ModelCompactField : public CompactField {
  public:
   explicit ModelCompactField(ModelMaps maps, ModelRenderOptions options = {})
@@ -64,7 +72,12 @@ class ModelCompactField : public CompactField {
   std::string name() const override { return "models"; }
   int width() const override { return maps_.maps.width; }
   int height() const override { return maps_.maps.height; }
-  double bytes_per_pixel() const override { return 7 * 4 + 1; }
+  double bytes_per_pixel() const override {
+    return 7 * 4 + 1 +
+           (maps_.shadows.empty()
+                ? 0.0
+                : LedShadows::kBitsPerLed / 8.0 * double(maps_.shadows.led_dirs_in_stage.size()));
+  }
   void relight_into(const LightingForModels& lights, Image& out) const override {
     out = render_models(maps_, lights, options_);
   }

@@ -367,7 +367,9 @@ class PrefilteredModels : public GpuRelight {
     // handful of grazing rim pixels of the 40-LED dome, where one bright lobe sets the maximum).
     options.solver = relight::FitSolver::kEveryCandidateByLm;
     options.materials = relight::FitMaterials::kPerPixel;  // Likewise per-pixel, as measured.
-    return relight::fit_models(field, options);
+    relight::ModelMaps maps = relight::fit_models(field, options);
+    maps.shadows = {};  // Prefiltered shading has no shadows: the exact render without them.
+    return maps;
   }
   static ViewLighting studio(double rotation_deg) {
     ViewLighting lighting;

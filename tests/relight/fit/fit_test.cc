@@ -228,7 +228,14 @@ TEST_F(ThreeSpheres, MapsAreFiniteFlaggedWhereEmptyAndWritten) {
   testing::TempDir dir;
   write_model_maps(dir / "maps.exr", *maps_);
   const Image back = read_image(dir / "maps.exr");
-  EXPECT_EQ(back.channels, int(kMapChannelCount));
+  // The maps, then the words of the LED shadows (3 bits an LED, 8 LEDs a word).
+  ASSERT_FALSE(maps_->shadows.empty());
+  EXPECT_EQ(maps_->shadows.words.channels, (int(sim_->field.lights().size()) + 7) / 8);
+  EXPECT_EQ(back.channels, int(kMapChannelCount) + maps_->shadows.words.channels);
+  const ModelMaps read = read_model_maps(dir / "maps.exr");
+  EXPECT_EQ(read.maps.pixels, maps_->maps.pixels);
+  EXPECT_EQ(read.shadows.words.pixels, maps_->shadows.words.pixels);
+  EXPECT_EQ(read.shadows.led_dirs_in_stage, maps_->shadows.led_dirs_in_stage);
   for (const char* name : {"normal", "albedo", "sigma", "ks", "roughness", "model", "confidence",
                            "residual", "flags"}) {
     EXPECT_TRUE(std::filesystem::exists(dir / ("maps." + std::string(name) + ".png"))) << name;

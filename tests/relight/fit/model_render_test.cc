@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <iostream>
@@ -111,27 +112,35 @@ TEST_F(ModelRender, LambertRegionMatchesGroundTruthAndTheGridConverges) {
   const Image truth_with_neighbours =
       sim::render_ground_truth(sim::three_region_spheres(), stage_->camera, map, truth_options);
   const Image matte = mask(kMatte);
+  // The models without the shadows their fit measured: lit as if the neighbours were not there.
+  ModelMaps unshadowed = *maps_;
+  unshadowed.shadows = {};
   double error_at[4] = {};
   const int widths[4] = {16, 32, 64, 128};
   for (int i = 0; i < 4; ++i) {
     const Image rendered =
-        render_models(*maps_, LightingForModels::environment(map, 0.0, {widths[i]}));
+        render_models(unshadowed, LightingForModels::environment(map, 0.0, {widths[i]}));
     error_at[i] = compare_images(rendered, truth, &matte).relative_rmse;
     std::cout << "softbox, matte sphere, grid " << widths[i] << ": relative RMSE " << error_at[i]
               << "\n";
   }
-  const double with_neighbours =
-      compare_images(render_models(*maps_, LightingForModels::environment(map, 0.0, {64})),
-                     truth_with_neighbours, &matte)
-          .relative_rmse;
-  std::cout << "softbox, matte sphere beside its neighbours (shadows), grid 64: relative RMSE "
-            << with_neighbours << "\n";
+  const auto beside_neighbours = [&](const ModelMaps& maps) {
+    return compare_images(render_models(maps, LightingForModels::environment(map, 0.0, {64})),
+                          truth_with_neighbours, &matte)
+        .relative_rmse;
+  };
+  const double shadowed = beside_neighbours(*maps_);
+  const double unshadowed_beside = beside_neighbours(unshadowed);
+  std::cout << "softbox, matte sphere beside its neighbours, grid 64: relative RMSE " << shadowed
+            << " with the fit's shadows, " << unshadowed_beside << " without\n";
   // Measured: 0.0175, 0.0052, 0.0041, 0.0038 for grids 16..128 (what remains is fit noise and
-  // the truth's own 128-wide quadrature); beside the neighbours 0.031 (their shadows).
+  // the truth's own 128-wide quadrature); beside the neighbours 0.0057 with the shadows, 0.031
+  // without (the neighbours' shadows missing).
   EXPECT_LT(error_at[2], 0.01);
   EXPECT_LT(error_at[3], 0.01);
   EXPECT_LE(error_at[2], error_at[0]);
-  EXPECT_LT(with_neighbours, 0.06);
+  EXPECT_LT(shadowed, 0.01);
+  EXPECT_GT(unshadowed_beside, 3 * shadowed);
 }
 
 TEST_F(ModelRender, AgainstFieldRelightingAndGroundTruth) {
@@ -266,6 +275,15 @@ TEST_F(SmallFit, ModelMapsRoundTripBitExactly) {
   EXPECT_EQ(back.summary.fitted, maps.summary.fitted);
   EXPECT_EQ(back.summary.flagged, maps.summary.flagged);
   for (int m = 0; m < 5; ++m) EXPECT_EQ(back.summary.per_model[m], maps.summary.per_model[m]);
+  // The fit's shadows, some LEDs of some pixels in shadow; maps without them read as unshadowed.
+  ASSERT_FALSE(maps.shadows.empty());
+  EXPECT_TRUE(std::any_of(maps.shadows.words.pixels.begin(), maps.shadows.words.pixels.end(),
+                          [](float w) { return w != 0; }));
+  EXPECT_EQ(back.shadows.words.pixels, maps.shadows.words.pixels);
+  EXPECT_EQ(back.shadows.led_dirs_in_stage, maps.shadows.led_dirs_in_stage);
+  maps.shadows = {};
+  write_model_maps(dir / "unshadowed.exr", maps);
+  EXPECT_TRUE(read_model_maps(dir / "unshadowed.exr").shadows.empty());
 }
 
 TEST_F(SmallFit, ReadModelMapsNamesTheFileAndTheChannel) {
@@ -308,6 +326,33 @@ TEST_F(SmallFit, ReadModelMapsNamesTheFileAndTheChannel) {
     const std::string message = e.what();
     EXPECT_NE(message.find("bad_material.exr: attribute 'lightstage:materials': material 1: "
                            "pixels: expected an integer, got 1e+40"),
+              std::string::npos)
+        << message;
+  }
+  // A shadow word beyond its 24 bits, and shadows for other LEDs than the attribute lists.
+  maps = *maps_;
+  maps.shadows.words.at(2, 3, 1) = 0.5f;
+  write_model_maps(dir / "bad_shadow.exr", maps);
+  try {
+    read_model_maps(dir / "bad_shadow.exr");
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("bad_shadow.exr: channel 'shadow.1': expected an integer in 0..16777215 "
+                           "at (2, 3), got 0.5"),
+              std::string::npos)
+        << message;
+  }
+  maps = *maps_;
+  maps.shadows.led_dirs_in_stage.resize(8);
+  write_model_maps(dir / "shadow_leds.exr", maps);
+  try {
+    read_model_maps(dir / "shadow_leds.exr");
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("shadow_leds.exr: channels 'shadow.N': expected 1 for the 8 LEDs of "
+                           "attribute 'lightstage:shadow_leds', got 10"),
               std::string::npos)
         << message;
   }
