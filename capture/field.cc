@@ -351,14 +351,51 @@ std::vector<int> channel_layout(const std::string& name, const OIIO::ImageSpec& 
   return file_to_layout;
 }
 
+// The scene time, seconds: a number of any numeric EXR type (a time written by another tool as an
+// int or a float reads as that number); anything else is refused by name, never taken as 0.
+double scene_time_of(const std::string& name, const OIIO::ParamValue& t) {
+  const OIIO::TypeDesc type = t.type();
+  double seconds = std::numeric_limits<double>::quiet_NaN();
+  if (type.aggregate == OIIO::TypeDesc::SCALAR && type.arraylen == 0) {
+    switch (type.basetype) {
+      case OIIO::TypeDesc::DOUBLE:
+        seconds = t.get<double>();
+        break;
+      case OIIO::TypeDesc::FLOAT:
+      case OIIO::TypeDesc::HALF:
+        seconds = double(t.get_float());
+        break;
+      case OIIO::TypeDesc::UINT8:
+      case OIIO::TypeDesc::INT8:
+      case OIIO::TypeDesc::UINT16:
+      case OIIO::TypeDesc::INT16:
+      case OIIO::TypeDesc::UINT32:
+      case OIIO::TypeDesc::INT32:
+        seconds = double(t.get_int());
+        break;
+      case OIIO::TypeDesc::INT64:
+        seconds = double(t.get<int64_t>());
+        break;
+      case OIIO::TypeDesc::UINT64:
+        seconds = double(t.get<uint64_t>());
+        break;
+      default:
+        break;
+    }
+  }
+  if (!std::isfinite(seconds)) {
+    throw InputError(name + ": attribute '" + kSceneTimeAttribute +
+                     "': expected a finite number of seconds, got " +
+                     (std::string(type.c_str()) + " " + t.get_string()));
+  }
+  return seconds;
+}
+
 // The optional attributes: scene time, measured noise, view.
 void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
                            ReflectanceField& field) {
-  double scene_time_s = 0;
-  if (spec.getattribute(kSceneTimeAttribute, OIIO::TypeDesc::DOUBLE, &scene_time_s)) {
-    field.scene_time_s = scene_time_s;
-  } else if (const OIIO::ParamValue* t = spec.find_attribute(kSceneTimeAttribute)) {
-    field.scene_time_s = t->get_float();
+  if (const OIIO::ParamValue* t = spec.find_attribute(kSceneTimeAttribute)) {
+    field.scene_time_s = scene_time_of(name, *t);
   }
   if (const OIIO::ParamValue* noise = spec.find_attribute(kNoiseAttribute)) {
     try {

@@ -236,6 +236,7 @@ class SetImport {
     for (int l = 0; l < num_lights(); ++l) lights.push_back({l, job_.lights[l].dir_in_stage, true});
     header_ = ReflectanceField::without_values(width_, height_, std::move(lights));
     header_.source = job_.source.string();
+    header_.scene_time_s = options.scene_time_s;
   }
 
   int num_lights() const { return int(job_.lights.size()); }

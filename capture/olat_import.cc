@@ -243,6 +243,7 @@ std::string OlatImportOptions::validate() const {
   }
   if (max_size < 0)
     return "max_size: expected 0 (keep) or a positive size, got " + std::to_string(max_size);
+  if (!std::isfinite(scene_time_s)) return "scene_time_s: expected a finite number of seconds";
   return "";
 }
 

@@ -44,6 +44,9 @@ struct OlatImportOptions {
   int max_size = 0;
   // Saturated samples (max code): false keeps them as lower bounds, true writes 0 (see above).
   bool zero_saturated = false;
+  // The scene time the field records (ReflectanceField::scene_time_s), seconds: a set's place in
+  // a time-lapse, for `lightstage fit --time`. Finite.
+  double scene_time_s = 0.0;
   // Called as images finish, from worker threads but never two at a time.
   std::function<void(int done, int total)> on_progress;
 

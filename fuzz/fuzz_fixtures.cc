@@ -87,6 +87,7 @@ relight::ModelMaps small_model_maps() {
   maps.noise_source = "fixture";
   // Ten LEDs (two shadow words), LED x of pixel (x, y) y/7 in shadow.
   std::vector<Eigen::Vector3f> leds;
+  leds.reserve(10);
   for (int l = 0; l < 10; ++l)
     leds.push_back(Eigen::Vector3f(std::sin(0.6f * l), std::cos(0.6f * l), 1).normalized());
   maps.shadows = LedShadows::all_lit(leds, kFixtureWidth, kFixtureHeight);

@@ -43,11 +43,31 @@ int print_import(const fs::path& source, const fs::path& out,
   return 0;
 }
 
+int print_series(const std::vector<fs::path>& sources, const std::vector<double>& times,
+                 double interval_s, const fs::path& out, const capture::OlatImportOptions& options,
+                 std::size_t memory_bytes, bool quiet) {
+  const jobs::ImportSeriesSummary series = jobs::import_series(
+      sources, times, interval_s, out, options, memory_bytes, progress_printer(quiet));
+  for (size_t i = 0; i < series.steps.size(); ++i) {
+    const capture::OlatImportSummary& s = series.steps[i].import;
+    std::printf("%s -> %s: t = %g s, %d images, field %dx%d, %.3f%% samples saturated\n",
+                series.sets[i].c_str(), series.fields[i].filename().c_str(), series.times_s[i],
+                s.images, s.width, s.height, 100.0 * s.saturated_fraction);
+  }
+  std::printf("wrote %zu time steps to %s (fit them with: lightstage fit --time %s)\n",
+              series.steps.size(), out.c_str(), out.c_str());
+  std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
+  return 0;
+}
+
 }  // namespace
 
 void add_import_command(CLI::App& app) {
   auto options = std::make_shared<capture::OlatImportOptions>();
-  auto source = std::make_shared<fs::path>(), out = std::make_shared<fs::path>();
+  auto sources = std::make_shared<std::vector<fs::path>>();
+  auto out = std::make_shared<fs::path>();
+  auto times = std::make_shared<std::vector<double>>();
+  auto interval = std::make_shared<double>(0.0);
   auto quiet = std::make_shared<bool>(false);
   auto linear = std::make_shared<bool>(false), srgb = std::make_shared<bool>(false);
   auto* cmd = app.add_subcommand(
@@ -57,9 +77,19 @@ void add_import_command(CLI::App& app) {
       "folder (filenames.txt, light_directions.txt, light_intensities.txt, mask.png). Undoes the "
       "transfer curve (default: sRGB for .lp sets, linear for DiLiGenT), divides by each light's "
       "intensity, and writes the field plus FIELD.preview.png.");
-  cmd->add_option("source", *source, "An .lp file (or a folder with one) or a DiLiGenT folder.")
+  cmd->add_option("source", *sources,
+                  "An .lp file (or a folder with one) or a DiLiGenT folder; for a time-lapse, one "
+                  "per time step, or one folder whose subfolders (by name) are the steps.")
       ->required();
-  cmd->add_option("--out", *out, "Field file to write (.exr).")->required();
+  cmd->add_option("--out", *out,
+                  "Field file to write (.exr); for a time-lapse, a folder: field_t000.exr, ...")
+      ->required();
+  cmd->add_option("--time", *times,
+                  "Scene time of the set in seconds (default 0); for a time-lapse, one per set.");
+  cmd->add_option("--interval", *interval,
+                  "Time-lapse: seconds between consecutive sets (set i at i * S), instead of "
+                  "--time.")
+      ->check(CLI::PositiveNumber);
   auto* gamma = cmd->add_option("--gamma", options->gamma,
                                 "Undo a plain gamma curve: linear = code^G (G in (0, 10]).");
   auto* linear_flag = cmd->add_flag("--linear", *linear, "The images are linear already.");
@@ -78,11 +108,16 @@ void add_import_command(CLI::App& app) {
                   "image spilled to a file beside --out that needs the field's size free "
                   "(default: in memory when the field takes at most half of what is available).");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
-  cmd->callback([options, source, out, quiet, linear, srgb, gamma, memory] {
+  cmd->callback([options, sources, out, times, interval, quiet, linear, srgb, gamma, memory] {
     if (*linear) options->transfer = capture::TransferCurve::kLinear;
     if (*srgb) options->transfer = capture::TransferCurve::kSrgb;
     if (gamma->count() > 0) options->transfer = capture::TransferCurve::kGamma;
-    print_import(*source, *out, *options, *memory, *quiet);
+    if (jobs::series_sets(*sources).size() > 1 || times->size() > 1 || *interval > 0) {
+      print_series(*sources, *times, *interval, *out, *options, *memory, *quiet);
+      return;
+    }
+    if (!times->empty()) options->scene_time_s = times->front();
+    print_import(jobs::series_sets(*sources).front(), *out, *options, *memory, *quiet);
   });
 }
 

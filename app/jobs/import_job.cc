@@ -1,9 +1,13 @@
 #include "app/jobs/import_job.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <mutex>
 #include <nlohmann/json.hpp>
 
 #include "capture/field.h"
+#include "lightstage/errors.h"
 #include "lightstage/image.h"
 
 namespace ls::jobs {
@@ -19,6 +23,7 @@ std::string options_json(const fs::path& source, const capture::OlatImportOption
   j["gamma"] = options.gamma;
   j["max_size"] = options.max_size;
   j["drop_saturated"] = options.zero_saturated;
+  j["scene_time_s"] = options.scene_time_s;
   return j.dump();
 }
 
@@ -57,6 +62,64 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
   summary.preview.replace_extension(".preview.png");
   write_png_preview(summary.preview, preview, auto_exposure_stops(preview));
   return summary;
+}
+
+std::vector<fs::path> series_sets(const std::vector<fs::path>& sources) {
+  if (sources.size() != 1 || !fs::is_directory(sources[0])) return sources;
+  try {
+    capture::detect_olat_format(sources[0]);
+    return sources;  // One set.
+  } catch (const InputError&) {
+  }
+  std::vector<fs::path> sets;
+  for (const auto& entry : fs::directory_iterator(sources[0])) {
+    if (entry.is_directory()) sets.push_back(entry.path());
+  }
+  if (sets.empty()) {
+    throw InputError(sources[0].string() +
+                     ": expected an .lp set, a DiLiGenT folder, or a folder of them (one per time "
+                     "step), found none");
+  }
+  std::sort(sets.begin(), sets.end());
+  return sets;
+}
+
+ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
+                                  const std::vector<double>& times_s, double interval_s,
+                                  const fs::path& out_dir,
+                                  const capture::OlatImportOptions& options,
+                                  std::size_t memory_bytes, const ProgressFn& progress) {
+  ImportSeriesSummary out;
+  out.sets = series_sets(sources);
+  const size_t steps = out.sets.size();
+  if (!times_s.empty() && times_s.size() != steps) {
+    throw InputError("import: --time: expected one time per set (" + std::to_string(steps) +
+                     " sets), got " + std::to_string(times_s.size()));
+  }
+  if (times_s.empty() && !(interval_s > 0 && std::isfinite(interval_s))) {
+    throw InputError("import: " + std::to_string(steps) +
+                     " sets: give each its scene time (--time S...) or the interval between them "
+                     "(--interval S)");
+  }
+  for (size_t i = 0; i < steps; ++i) {
+    out.times_s.push_back(times_s.empty() ? double(i) * interval_s : times_s[i]);
+    if (i > 0 && !(out.times_s[i] > out.times_s[i - 1])) {
+      throw InputError("import: --time: expected increasing times, got " +
+                       std::to_string(out.times_s[i]) + " s after " +
+                       std::to_string(out.times_s[i - 1]) + " s (" + out.sets[i].string() + ")");
+    }
+  }
+  fs::create_directories(out_dir);
+  for (size_t i = 0; i < steps; ++i) {
+    char name[32];
+    std::snprintf(name, sizeof name, "field_t%03zu.exr", i);
+    capture::OlatImportOptions step = options;
+    step.scene_time_s = out.times_s[i];
+    out.fields.push_back(out_dir / name);
+    out.steps.push_back(import_set(out.sets[i], out.fields.back(), step, memory_bytes, {}));
+    report(progress, "import (time steps)", long(i + 1), long(steps), out.sets[i].filename());
+  }
+  return out;
 }
 
 }  // namespace ls::jobs

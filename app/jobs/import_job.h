@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "app/jobs/job.h"
 #include "capture/olat_import.h"
@@ -25,5 +26,21 @@ struct ImportJobSummary {
 ImportJobSummary import_set(const std::filesystem::path& source, const std::filesystem::path& out,
                             capture::OlatImportOptions options, std::size_t memory_bytes = 0,
                             const ProgressFn& progress = {});
+
+// A time-lapse: one set per time step, each imported as OUT_DIR/field_tNNN.exr (the layout `fit
+// --time DIR` reads) with its scene time. `sources` may be one folder whose subfolders (sorted by
+// name) are the sets. times_s: one per set, or empty with interval_s > 0 (set i at i *
+// interval_s). InputErrors name what does not match.
+struct ImportSeriesSummary {
+  std::vector<ImportJobSummary> steps;
+  std::vector<std::filesystem::path> sets, fields;
+  std::vector<double> times_s;
+};
+std::vector<std::filesystem::path> series_sets(const std::vector<std::filesystem::path>& sources);
+ImportSeriesSummary import_series(const std::vector<std::filesystem::path>& sources,
+                                  const std::vector<double>& times_s, double interval_s,
+                                  const std::filesystem::path& out_dir,
+                                  const capture::OlatImportOptions& options,
+                                  std::size_t memory_bytes = 0, const ProgressFn& progress = {});
 
 }  // namespace ls::jobs

@@ -43,6 +43,7 @@ void LedShadows::set_pixel_words(int x, int y, const uint32_t* in) {
 std::vector<int> nearest_leds(const std::vector<Eigen::Vector3f>& leds,
                               const std::vector<Eigen::Vector3f>& dirs) {
   std::vector<Eigen::Vector3d> unit;
+  unit.reserve(leds.size());
   for (const Eigen::Vector3f& d : leds) unit.push_back(d.cast<double>());
   const DirectionIndex index(unit);
   std::vector<int> out;
@@ -53,6 +54,7 @@ std::vector<int> nearest_leds(const std::vector<Eigen::Vector3f>& leds,
 
 std::vector<Eigen::Vector3f> led_dirs_of(const capture::ReflectanceField& field) {
   std::vector<Eigen::Vector3f> dirs;
+  dirs.reserve(field.lights().size());
   for (const capture::FieldLight& light : field.lights()) {
     dirs.push_back(light.dir_in_stage.normalized().cast<float>());
   }

@@ -106,8 +106,8 @@ std::string TemporalSummary::to_string() const {
   }
   s << "; flags: faster-than-sampling=" << faster_than_sampling
     << " too-few-steps=" << too_few_steps << " step-dropped=" << step_dropped
-    << " not-converged=" << not_converged << "; per-step BRDF fits " << seconds_steps
-    << " s, temporal fits " << seconds_temporal << " s";
+    << " not-converged=" << not_converged << " degenerate=" << degenerate << "; per-step BRDF fits "
+    << seconds_steps << " s, temporal fits " << seconds_temporal << " s";
   return s.str();
 }
 

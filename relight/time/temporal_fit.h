@@ -82,7 +82,14 @@ enum TemporalFlag : int {
   // the chosen per-step BRDF fit of a used step (brdf.max_iterations); the values are where LM
   // stopped, not at a minimum. The bit of kFitNotConverged (fit.h): models_at_time carries it.
   kTemporalNotConverged = 128,
+  // The best-fitting process ran away from the data: an endpoint far outside what the steps show
+  // (beyond their range by more than that range and 3 sigma), an onset at the last step, or a
+  // rate the captured span cannot show (rate x span < kMinRateTimesSpan). The model stays in the
+  // maps for inspection; the pixel renders from its nearest per-step fit
+  // (TemporalMaps::step_values), never from the runaway model.
+  kTemporalDegenerate = 256,
 };
+inline constexpr double kMinRateTimesSpan = 0.1;
 static_assert(kTemporalNotConverged == kFitNotConverged);
 
 // Measured on the simulator's time-varying scene (tests/time, 40 LEDs, 10 steps): mean normal
@@ -148,6 +155,7 @@ struct TemporalSummary {
   int too_few_steps = 0;
   int step_dropped = 0;
   int not_converged = 0;        // Fitted pixels flagged kTemporalNotConverged.
+  int degenerate = 0;           // Fitted pixels flagged kTemporalDegenerate.
   double seconds_steps = 0;     // Per-step BRDF fits.
   double seconds_temporal = 0;  // Temporal model fits.
   std::string to_string() const;
@@ -156,6 +164,10 @@ struct TemporalSummary {
 struct TemporalMaps {
   Image maps;  // kTemporalChannelCount named channels.
   std::vector<double> step_times_s;
+  // The per-step fits (step i's parameter p in channel i * kTemporalParamCount + p, named
+  // "step.I.<param>") of the pixels flagged kTemporalDegenerate, 0 elsewhere (a step unusable at
+  // the pixel holds its nearest usable step's). Empty when no pixel is.
+  Image step_values;
   NoiseModel noise;
   std::string noise_source;
   TemporalSummary summary;

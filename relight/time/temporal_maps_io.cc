@@ -28,8 +28,22 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
                                {"read_variance", maps.noise.a},
                                {"shot_variance_per_unit", maps.noise.b},
                                {"noise_source", maps.noise_source}};
-  Image named = image;
+  const Image& steps = maps.step_values;
+  LS_CHECK(steps.pixels.empty() ||
+               (steps.width == image.width && steps.height == image.height &&
+                steps.channels == int(maps.step_times_s.size()) * kTemporalParamCount),
+           "temporal maps: step values do not fit the maps");
+  Image named(image.width, image.height, image.channels + steps.channels);
   named.channel_names = temporal_channel_names();
+  named.channel_names.insert(named.channel_names.end(), steps.channel_names.begin(),
+                             steps.channel_names.end());
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    float* to = &named.pixels[i * size_t(named.channels)];
+    std::copy_n(&image.pixels[i * size_t(image.channels)], image.channels, to);
+    if (steps.channels > 0) {
+      std::copy_n(&steps.pixels[i * size_t(steps.channels)], steps.channels, to + image.channels);
+    }
+  }
   ExrAttributes header = attributes;
   header.emplace_back(kTemporalAttribute, meta.dump());
   write_exr(path, named, ExrPixelType::kFloat, header);
@@ -51,14 +65,24 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
   preview("wet_ks", kTWet + int(kParamKs), 1, identity);
   preview("dry_ks", kTDry + int(kParamKs), 1, identity);
   preview("confidence", kTConfidence, 1, identity);
-  preview("flags", kTFlags, 1, [](float v) { return v / 255; });  // Bits up to 128.
+  preview("flags", kTFlags, 1, [](float v) { return v / 511; });  // Bits up to 256.
 }
 
 TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
   const std::string name = path.string();
   const std::vector<std::string>& names = temporal_channel_names();
-  NamedChannelFile file =
-      read_named_channels(path, names, "temporal maps", "'lightstage fit --time'", /*exact=*/false);
+  // The degenerate pixels' per-step fits, when the file has them: step.I.<param>.
+  std::vector<std::string> with_steps = names;
+  const std::vector<std::string> in_file = exr_channel_names(path);
+  const auto step_channels = std::count_if(in_file.begin(), in_file.end(),
+                                           [](const auto& c) { return c.starts_with("step."); });
+  for (int i = 0; i < int(step_channels) / kTemporalParamCount; ++i) {
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      with_steps.push_back("step." + std::to_string(i) + "." + temporal_param_name(p));
+    }
+  }
+  NamedChannelFile file = read_named_channels(path, with_steps, "temporal maps",
+                                              "'lightstage fit --time'", /*exact=*/false);
   TemporalMaps out;
   const std::string* meta = file.attribute(kTemporalAttribute);
   if (!meta) {
@@ -80,8 +104,36 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
     throw InputError(name + ": attribute '" + kTemporalAttribute +
                      "': step_times_s: expected a non-empty increasing list");
   }
-  out.maps = std::move(file.image);
-  const int width = out.maps.width, height = out.maps.height;
+  const int width = file.image.width, height = file.image.height;
+  if (step_channels > 0) {
+    if (step_channels != long(out.step_times_s.size()) * kTemporalParamCount) {
+      throw InputError(name + ": channels 'step.I.<param>': expected " +
+                       std::to_string(out.step_times_s.size() * kTemporalParamCount) + " for the " +
+                       std::to_string(out.step_times_s.size()) + " steps, got " +
+                       std::to_string(step_channels));
+    }
+    out.step_values = Image(width, height, int(step_channels));
+    out.step_values.channel_names.assign(with_steps.begin() + kTemporalChannelCount,
+                                         with_steps.end());
+    for (size_t i = 0; i < out.step_values.num_pixels(); ++i) {
+      const float* from = &file.image.pixels[i * size_t(file.image.channels)];
+      for (int c = 0; c < out.step_values.channels; ++c) {
+        const float v = from[kTemporalChannelCount + c];
+        if (!std::isfinite(v)) {
+          throw InputError(name + ": channel '" + out.step_values.channel_names[size_t(c)] +
+                           "': expected a finite value at (" + std::to_string(i % width) + ", " +
+                           std::to_string(i / width) + ")");
+        }
+        out.step_values.pixels[i * size_t(step_channels) + size_t(c)] = v;
+      }
+    }
+  }
+  out.maps = Image(width, height, kTemporalChannelCount);
+  out.maps.channel_names = names;
+  for (size_t i = 0; i < out.maps.num_pixels(); ++i) {
+    std::copy_n(&file.image.pixels[i * size_t(file.image.channels)], kTemporalChannelCount,
+                &out.maps.pixels[i * size_t(kTemporalChannelCount)]);
+  }
   TemporalSummary& summary = out.summary;
   summary.pixels = width * height;
   for (int y = 0; y < height; ++y) {
@@ -109,6 +161,7 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
       } else {
         ++summary.fitted;
         ++summary.per_model[int(model)];
+        summary.degenerate += (int(flags) & kTemporalDegenerate) != 0;
       }
     }
   }

@@ -271,6 +271,31 @@ struct PixelContext {
   double t_first, span;
 };
 
+// Whether a process fit ran away from the series (kTemporalDegenerate): an onset at the last step
+// (the change happens after the data), a rate the span cannot show (the curve barely moves while
+// its endpoints are extrapolated), or an endpoint of a moving parameter beyond the range of the
+// series' values by more than that range and 3 sigma.
+bool ran_away(const Series& series, const TemporalResult& f, const PixelContext& c) {
+  if (c.span <= 0) return false;
+  if (f.onset >= c.t_first + c.span * (1 - 1e-6)) return true;
+  if (f.rate * c.span < kMinRateTimesSpan) return true;
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    double lo = HUGE_VAL, hi = -HUGE_VAL, largest_sigma = 0;
+    for (int i = 0; i < series.steps; ++i) {
+      if (!(series.w[i][p] > 0)) continue;
+      lo = std::min(lo, series.y[i][p]);
+      hi = std::max(hi, series.y[i][p]);
+      largest_sigma = std::max(largest_sigma, 1 / series.w[i][p]);
+    }
+    if (!(hi >= lo)) continue;  // No information on this parameter.
+    const double margin = (hi - lo) + 3 * largest_sigma;
+    for (const double end : {f.wet[p], f.dry[p]}) {
+      if (end < lo - margin || end > hi + margin) return true;
+    }
+  }
+  return false;
+}
+
 // Fits the temporal models to one pixel's series, chooses by BIC and writes the chosen model into
 // m; flags: what the series gathering found. Counts in local.
 void fit_pixel_models(const Series& series, int flags, const PixelContext& c, float* m,
@@ -328,6 +353,7 @@ void fit_pixel_models(const Series& series, int flags, const PixelContext& c, fl
     if (f.onset <= c.t_first + 1e-6 * std::max(c.span, 1.0) && model != TemporalModel::kSigmoid) {
       flags |= kOnsetAtCaptureStart;
     }
+    if (ran_away(series, f, c)) flags |= kTemporalDegenerate;
   }
   m[kTModel] = float(best);
   m[kTRate] = model == TemporalModel::kConstant ? 0.0f : float(f.rate);
@@ -347,6 +373,38 @@ void fit_pixel_models(const Series& series, int flags, const PixelContext& c, fl
   if (flags & kTooFewSteps) ++local.too_few_steps;
   if (flags & kStepDropped) ++local.step_dropped;
   if (flags & kTemporalNotConverged) ++local.not_converged;
+  if (flags & kTemporalDegenerate) ++local.degenerate;
+}
+
+// The per-step fits of the given pixels (TemporalMaps::step_values); a step unusable at a pixel
+// takes its nearest usable step's values.
+Image step_values_of(const std::vector<StepFit>& steps, const std::vector<int>& pixels, int width,
+                     int height) {
+  const int count = int(steps.size());
+  Image out(width, height, count * kTemporalParamCount);
+  for (int i = 0; i < count; ++i) {
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      out.channel_names.push_back("step." + std::to_string(i) + "." + temporal_param_name(p));
+    }
+  }
+  for (const int pixel : pixels) {
+    const int x = pixel % width, y = pixel / width;
+    for (int i = 0; i < count; ++i) {
+      int nearest = -1;
+      for (int j = 0; j < count; ++j) {
+        const bool usable = steps[size_t(j)].sigma.at(x, y, 0) > 0;
+        if (usable && (nearest < 0 ||
+                       std::abs(steps[size_t(j)].time_s - steps[size_t(i)].time_s) <
+                           std::abs(steps[size_t(nearest)].time_s - steps[size_t(i)].time_s))) {
+          nearest = j;
+        }
+      }
+      for (int p = 0; nearest >= 0 && p < kTemporalParamCount; ++p) {
+        out.at(x, y, i * kTemporalParamCount + p) = steps[size_t(nearest)].value.at(x, y, p);
+      }
+    }
+  }
+  return out;
 }
 
 }  // namespace
@@ -393,10 +451,12 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
   TemporalSummary& summary = out.summary;
   summary.pixels = width * height;
   std::mutex mutex;
+  std::vector<int> degenerate;  // Pixels flagged kTemporalDegenerate.
   std::atomic<long> rows_done{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
     TemporalSummary local;
     Series series;
+    std::vector<int> degenerate_pixels;
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         float* m = &out.maps.at(x, y, 0);
@@ -432,6 +492,7 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
           continue;
         }
         fit_pixel_models(series, flags, context, m, local);
+        if (int(m[kTFlags]) & kTemporalDegenerate) degenerate_pixels.push_back(y * width + x);
       }
       const long done = ++rows_done;
       if (options.progress) options.progress(done, height);
@@ -443,8 +504,11 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     summary.too_few_steps += local.too_few_steps;
     summary.step_dropped += local.step_dropped;
     summary.not_converged += local.not_converged;
+    summary.degenerate += local.degenerate;
     for (int k = 0; k < kTemporalModelCount; ++k) summary.per_model[k] += local.per_model[k];
+    degenerate.insert(degenerate.end(), degenerate_pixels.begin(), degenerate_pixels.end());
   });
+  if (!degenerate.empty()) out.step_values = step_values_of(steps, degenerate, width, height);
   summary.seconds_temporal =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
   return out;

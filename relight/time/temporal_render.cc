@@ -55,6 +55,8 @@ TemporalSelection read_selection(const JsonReader& r, const std::filesystem::pat
 bool selected(const TemporalSelection& s, const TemporalMaps& maps, int x, int y) {
   const TemporalModel model = maps.model(x, y);
   if (model == TemporalModel::kNone) return false;
+  // A degenerate pixel renders from its per-step fits: it has no process to edit or to give.
+  if ((int(maps.at(x, y, kTFlags)) & kTemporalDegenerate) != 0) return false;
   if (s.model && *s.model != model) return false;
   if (!s.mask.empty() && !s.mask[size_t(y) * maps.maps.width + x]) return false;
   return true;
@@ -76,6 +78,16 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
   out.maps.noise = maps.noise;
   out.maps.noise_source = maps.noise_source;
   const bool outside = time_s < maps.first_time_s() || time_s > maps.last_time_s();
+  // Degenerate pixels render from their nearest per-step fit (TemporalMaps::step_values).
+  int nearest_step = -1;
+  if (!maps.step_values.pixels.empty()) {
+    for (size_t i = 0; i < maps.step_times_s.size(); ++i) {
+      if (nearest_step < 0 || std::abs(maps.step_times_s[i] - time_s) <
+                                  std::abs(maps.step_times_s[size_t(nearest_step)] - time_s)) {
+        nearest_step = int(i);
+      }
+    }
+  }
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       const float* m = maps.maps.pixels.data() + (size_t(y) * width + x) * kTemporalChannelCount;
@@ -91,7 +103,13 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
         ++out.extrapolated_pixels;
       }
       double q[kTemporalParamCount];
-      for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s);
+      if ((flags & kTemporalDegenerate) != 0 && nearest_step >= 0) {
+        for (int p = 0; p < kTemporalParamCount; ++p) {
+          q[p] = clamp_param(p, maps.step_values.at(x, y, nearest_step * kTemporalParamCount + p));
+        }
+      } else {
+        for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s);
+      }
       for (int c = 0; c < 3; ++c) {
         o[kMapNormalX + c] = m[kTNormalX + c];
         o[kMapAlbedoR + c] = float(q[kParamAlbedoR + c]);

@@ -159,6 +159,50 @@ std::string read_error(const std::filesystem::path& path) {
   return "";
 }
 
+// A one-light field file whose scene time attribute has the given type and value.
+template <class T>
+void write_timed_exr(const std::string& path, OIIO::TypeDesc type, T time) {
+  OIIO::ImageSpec spec(2, 2, 3, OIIO::TypeDesc::FLOAT);
+  spec.channelnames = {"led004.R", "led004.G", "led004.B"};
+  spec.attribute("lightstage:lights", R"([{"id": 4, "dir": [0, 1, 0], "valid": true}])");
+  spec.attribute("lightstage:scene_time_s", type, &time);
+  std::vector<float> data(12, 1.0f);
+  auto out = OIIO::ImageOutput::create(path);
+  ASSERT_TRUE(out && out->open(path, spec));
+  ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, data.data()));
+  ASSERT_TRUE(out->close());
+}
+
+TEST(Field, SceneTimeOfAnyNumericTypeIsReadNeverTakenAsZero) {
+  ls::testing::TempDir dir;
+  const std::string as_int = (dir / "int.exr").string();
+  write_timed_exr(as_int, OIIO::TypeDesc::INT, 3600);
+  EXPECT_EQ(read_field(as_int).scene_time_s, 3600.0);
+  const std::string as_float = (dir / "float.exr").string();
+  write_timed_exr(as_float, OIIO::TypeDesc::FLOAT, 12.5f);
+  EXPECT_EQ(read_field(as_float).scene_time_s, 12.5);
+  const std::string as_double = (dir / "double.exr").string();
+  write_timed_exr(as_double, OIIO::TypeDesc::DOUBLE, 86400.25);
+  EXPECT_EQ(read_field(as_double).scene_time_s, 86400.25);
+  const std::string as_text = (dir / "text.exr").string();
+  {
+    OIIO::ImageSpec spec(2, 2, 3, OIIO::TypeDesc::FLOAT);
+    spec.channelnames = {"led004.R", "led004.G", "led004.B"};
+    spec.attribute("lightstage:lights", R"([{"id": 4, "dir": [0, 1, 0], "valid": true}])");
+    spec.attribute("lightstage:scene_time_s", "noon");
+    std::vector<float> data(12, 1.0f);
+    auto out = OIIO::ImageOutput::create(as_text);
+    ASSERT_TRUE(out && out->open(as_text, spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, data.data()));
+    ASSERT_TRUE(out->close());
+  }
+  EXPECT_THAT(read_error(as_text), HasSubstr("text.exr: attribute 'lightstage:scene_time_s': "
+                                             "expected a finite number of seconds, got string"));
+  const std::string as_nan = (dir / "nan.exr").string();
+  write_timed_exr(as_nan, OIIO::TypeDesc::DOUBLE, std::nan(""));
+  EXPECT_THAT(read_error(as_nan), HasSubstr("nan.exr: attribute 'lightstage:scene_time_s'"));
+}
+
 TEST(Field, ReadValidatesAndNamesTheFile) {
   ls::testing::TempDir dir;
   const std::string one_light = R"([{"id": 4, "dir": [0, 1, 0], "valid": true}])";

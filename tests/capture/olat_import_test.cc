@@ -731,5 +731,49 @@ TEST(OlatImport, CliImportsRealSetAndRejectsBadLpWithExitTwo) {
   EXPECT_FALSE(fs::exists(tmp / "bad.exr"));
 }
 
+TEST(OlatImport, CliImportsATimeLapseWithItsTimesInOneCommand) {
+  ls::testing::TempDir tmp;
+  const SimSet set = render_sphere(12, 20);
+  for (const char* step : {"a_morning", "b_noon", "c_evening"}) {
+    write_lp(set, tmp / "series" / step, ".png", 16, [](double v) { return v; });
+  }
+  const std::string cli = ls::testing::cli_path().string();
+  std::string output;
+  // One set with its time.
+  int rc = ls::testing::run_command(cli + " import '" + (tmp / "series" / "b_noon").string() +
+                                        "' --time 3600 --quiet --out '" +
+                                        (tmp / "one.exr").string() + "'",
+                                    &output);
+  ASSERT_EQ(rc, 0) << output;
+  EXPECT_EQ(read_field(tmp / "one.exr").scene_time_s, 3600.0);
+  // The folder of steps, a time each: field_t000.exr ... in the steps' name order.
+  rc = ls::testing::run_command(cli + " import '" + (tmp / "series").string() +
+                                    "' --time 0 3600 7200.5 --quiet --out '" +
+                                    (tmp / "fields").string() + "'",
+                                &output);
+  ASSERT_EQ(rc, 0) << output;
+  EXPECT_NE(output.find("wrote 3 time steps"), std::string::npos) << output;
+  const double expected[3] = {0, 3600, 7200.5};
+  for (int i = 0; i < 3; ++i) {
+    const fs::path field = tmp / "fields" / ("field_t00" + std::to_string(i) + ".exr");
+    EXPECT_EQ(read_field(field).scene_time_s, expected[i]) << field;
+  }
+  // Or an interval; a count of times that does not match is refused before anything is written.
+  rc = ls::testing::run_command(cli + " import '" + (tmp / "series").string() +
+                                    "' --interval 60 --quiet --out '" + (tmp / "spaced").string() +
+                                    "'",
+                                &output);
+  ASSERT_EQ(rc, 0) << output;
+  EXPECT_EQ(read_field(tmp / "spaced" / "field_t002.exr").scene_time_s, 120.0);
+  rc = ls::testing::run_command("{ " + cli + " import '" + (tmp / "series").string() +
+                                    "' --time 0 60 --out '" + (tmp / "short").string() +
+                                    "' 2>&1 >/dev/null; }",
+                                &output);
+  EXPECT_EQ(rc, 2) << output;
+  EXPECT_NE(output.find("--time: expected one time per set (3 sets), got 2"), std::string::npos)
+      << output;
+  EXPECT_FALSE(fs::exists(tmp / "short"));
+}
+
 }  // namespace
 }  // namespace ls::capture

@@ -413,12 +413,22 @@ TEST(TemporalEdit, RateScaleAndTransfer) {
                            "speed.json", ".", width, height);
   const std::vector<int> counts = apply_temporal_edits(speed, edited);
   ASSERT_EQ(counts.size(), 1u);
-  EXPECT_EQ(counts[0], f.maps.summary.per_model[int(TemporalModel::kDust)]);
+  // Degenerate pixels render from their per-step fits: no process to edit.
+  const auto degenerate = [&](int x, int y) {
+    return (int(pixel_of(f.maps, x, y)[kTFlags]) & kTemporalDegenerate) != 0;
+  };
+  int dust = 0;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x)
+      dust += f.maps.model(x, y) == TemporalModel::kDust && !degenerate(x, y);
+  }
+  EXPECT_EQ(counts[0], dust);
+  EXPECT_GT(dust, f.maps.summary.per_model[int(TemporalModel::kDust)] * 9 / 10);
   const TemporalState fast = models_at_time(edited, 100);
   const TemporalState slow = models_at_time(f.maps, 200);
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
-      if (f.maps.model(x, y) != TemporalModel::kDust) continue;
+      if (f.maps.model(x, y) != TemporalModel::kDust || degenerate(x, y)) continue;
       EXPECT_NEAR(fast.maps.maps.at(x, y, kMapAlbedoR), slow.maps.maps.at(x, y, kMapAlbedoR), 1e-4);
     }
   }
@@ -457,6 +467,63 @@ TEST(TemporalEdit, RateScaleAndTransfer) {
   EXPECT_THROW(parse_temporal_edits(R"({"time": [{"select": {}, "rate_scale": -1}]})", "bad.json",
                                     ".", width, height),
                InputError);
+}
+
+// A pixel whose albedo climbs in a straight line over the capture (the corroding metal's first
+// phase) has no process that the data bound: exponential and sigmoid fit the line with a rate the
+// span cannot show and endpoints far beyond the data (the 270x-too-bright renders of issue 20).
+// Such a pixel is flagged and renders from its nearest per-step fit, in memory and after a round
+// trip through the file; a pixel that follows a real exponential is not flagged.
+TEST(TemporalFit, RunawayProcessIsFlaggedAndRendersFromTheNearestStep) {
+  const int width = 2, count = 13;
+  NormalMap normals;
+  normals.normal = Image(width, 1, 3);
+  normals.flags = Image(width, 1, 1);
+  for (int x = 0; x < width; ++x) normals.normal.at(x, 0, 2) = 1;
+  std::vector<StepFit> steps;
+  for (int i = 0; i < count; ++i) {
+    StepFit s;
+    s.time_s = 3600.0 * i;
+    s.value = Image(width, 1, kTemporalParamCount);
+    s.sigma = Image(width, 1, kTemporalParamCount, 0.003f);
+    const double line = 0.05 + 0.07 * i / (count - 1);      // Pixel 0: a straight line.
+    const double decay = 0.06 + 0.08 * std::exp(-i / 3.0);  // Pixel 1: an exponential.
+    for (int x = 0; x < width; ++x) {
+      for (int c = 0; c < 3; ++c)
+        s.value.at(x, 0, kParamAlbedoR + c) = float(x == 0 ? line : decay);
+      s.value.at(x, 0, kParamSigma) = 0.1f;
+      s.value.at(x, 0, kParamKs) = 0.2f;
+      s.value.at(x, 0, kParamRoughness) = 0.3f;
+    }
+    steps.push_back(std::move(s));
+  }
+  const TemporalMaps maps = fit_temporal_models(steps, normals, TemporalFitOptions{});
+  const int line_flags = int(pixel_of(maps, 0, 0)[kTFlags]);
+  const int decay_flags = int(pixel_of(maps, 1, 0)[kTFlags]);
+  std::printf("line: model %s, rate %g /s, wet albedo %g, dry %g, flags %d; %s\n",
+              to_string(maps.model(0, 0)), pixel_of(maps, 0, 0)[kTRate],
+              pixel_of(maps, 0, 0)[kTWet], pixel_of(maps, 0, 0)[kTDry], line_flags,
+              maps.summary.to_string().c_str());
+  EXPECT_NE(line_flags & kTemporalDegenerate, 0);
+  EXPECT_EQ(decay_flags & kTemporalDegenerate, 0);
+  EXPECT_EQ(maps.summary.degenerate, 1);
+  ASSERT_EQ(maps.step_values.channels, count * kTemporalParamCount);
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("runaway_" + std::to_string(::getpid()));
+  write_temporal_maps(dir / "t.exr", maps);
+  const TemporalMaps back = read_temporal_maps(dir / "t.exr");
+  std::filesystem::remove_all(dir);
+  EXPECT_EQ(back.step_values.pixels, maps.step_values.pixels);
+  EXPECT_EQ(back.summary.degenerate, 1);
+  for (const TemporalMaps* m : {&maps, &back}) {
+    // 6.4 h: step 6 is nearest; 20 h (beyond the capture): the last step.
+    for (const auto& [t, step] : {std::pair{6.4 * 3600, 6}, std::pair{20 * 3600.0, 12}}) {
+      const TemporalState state = models_at_time(*m, t);
+      EXPECT_FLOAT_EQ(state.maps.maps.at(0, 0, kMapAlbedoR),
+                      steps[size_t(step)].value.at(0, 0, kParamAlbedoR))
+          << t;
+    }
+  }
 }
 
 TEST(TemporalMapsFile, RoundTrips) {
