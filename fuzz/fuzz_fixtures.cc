@@ -126,6 +126,9 @@ relight::TemporalMaps small_temporal_maps() {
     }
   }
   maps.step_times_s = {0.0, 30.0, 60.0, 90.0};
+  // The curves of the kCurve pixels: up and down for the albedo, down for the rest.
+  maps.curves.knots.assign(kTemporalParamCount, {1.0, 0.6, 0.2, 0.0});
+  for (int c = 0; c < 3; ++c) maps.curves.knots[size_t(c)] = {0.0, 1.0, 0.4, 0.1};
   maps.noise = {1e-5, 2e-4};
   maps.noise_source = "fixture";
   return maps;

@@ -66,6 +66,8 @@ const char* to_string(TemporalModel model) {
       return "sigmoid";
     case TemporalModel::kDust:
       return "dust";
+    case TemporalModel::kCurve:
+      return "curve";
   }
   return "?";
 }

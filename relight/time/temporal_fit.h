@@ -48,9 +48,11 @@ enum class TemporalModel : int {
   kExponential = 2,
   kSigmoid = 3,
   kDust = 4,
+  // A data-driven curve (TemporalMaps::curves) through a per-pixel time warp.
+  kCurve = 5,
 };
 const char* to_string(TemporalModel model);
-inline constexpr int kTemporalModelCount = 5;
+inline constexpr int kTemporalModelCount = 6;
 
 // The per-step BRDF parameters, in order.
 enum TemporalParam : int {
@@ -111,6 +113,8 @@ struct TemporalFitOptions {
   bool fit_dust = true;
   double max_rate_times_interval = 4.0;  // lambda, kappa <= this / smallest step interval.
   int max_iterations = 60;  // Per temporal model fit (brdf.max_iterations: per step fit).
+  // Learn data-driven curves (TemporalCurves) and offer them to every pixel.
+  bool fit_curves = true;
   // Called as rows finish (rows done, rows in all) from worker threads; must be thread-safe.
   std::function<void(long done, long total)> progress;
   std::string validate() const;
@@ -150,7 +154,7 @@ struct TemporalSummary {
   int pixels = 0;
   int fitted = 0;
   int flagged = 0;  // Not fitted.
-  int per_model[kTemporalModelCount] = {0, 0, 0, 0, 0};
+  int per_model[kTemporalModelCount] = {0, 0, 0, 0, 0, 0};
   int faster_than_sampling = 0;
   int too_few_steps = 0;
   int step_dropped = 0;
@@ -161,6 +165,26 @@ struct TemporalSummary {
   std::string to_string() const;
 };
 
+// Data-driven temporal curves (issue 20; after Gu, Tu, Ramamoorthi, Belhumeur, Matusik, Nayar
+// 2006, "Time-varying surface appearance: acquisition, modeling and rendering"): one curve per
+// BRDF parameter, shared by the surface, free to rise and fall; per pixel a time warp and its own
+// endpoints:
+//   p(t) = dry + (wet - dry) phi_p(tau),  tau = clamp(rate (t - onset), 0, 1)
+// phi_p runs over [0, 1] (its smallest knot 0, its largest 1), through its knots at evenly spaced
+// tau (Catmull-Rom), so "wet" is the parameter where the curve peaks and "dry" where it bottoms.
+// Learnt from the pixels the constant model does not explain (alternating: the knots by linear
+// least squares given every pixel's warp and endpoints, then each pixel's warp by a grid with its
+// endpoints linear), and offered to every pixel beside the parametric processes: BIC chooses, with
+// the same parameter count as the exponential (rate, onset, wet and dry of six parameters).
+struct TemporalCurves {
+  std::vector<std::vector<double>> knots;  // kTemporalParamCount curves, or none.
+  bool empty() const { return knots.empty(); }
+  // phi_p(tau), tau clamped to [0, 1].
+  double at(int p, double tau) const;
+  // The weights of the (up to four) knots that phi(tau) sums for n knots: first index and weights.
+  static int weights(double tau, int n, double w[4]);
+};
+
 struct TemporalMaps {
   Image maps;  // kTemporalChannelCount named channels.
   std::vector<double> step_times_s;
@@ -168,6 +192,7 @@ struct TemporalMaps {
   // "step.I.<param>") of the pixels flagged kTemporalDegenerate, 0 elsewhere (a step unusable at
   // the pixel holds its nearest usable step's). Empty when no pixel is.
   Image step_values;
+  TemporalCurves curves;  // Of the pixels whose model is kCurve; stored in the attribute.
   NoiseModel noise;
   std::string noise_source;
   TemporalSummary summary;
@@ -191,9 +216,10 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
 TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& steps,
                           const TemporalFitOptions& options);
 
-// One pixel's temporal curve of one parameter at time t (no clamping to bounds).
+// One pixel's temporal curve of one parameter at time t (no clamping to bounds); `curves` and p
+// for kCurve.
 double temporal_value(TemporalModel model, double rate, double onset, double wet, double dry,
-                      double t);
+                      double t, const TemporalCurves* curves = nullptr, int p = 0);
 
 // One EXR with named channels + the step times and noise in the "lightstage:temporal" attribute,
 // and PNG previews beside it: <stem>.model.png, .rate.png, .onset.png, .wet_albedo.png,

@@ -24,10 +24,11 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
   LS_CHECK(image.channels == kTemporalChannelCount &&
                image.pixels.size() == image.num_pixels() * kTemporalChannelCount,
            "temporal maps have " + std::to_string(image.channels) + " channels");
-  const nlohmann::json meta = {{"step_times_s", maps.step_times_s},
-                               {"read_variance", maps.noise.a},
-                               {"shot_variance_per_unit", maps.noise.b},
-                               {"noise_source", maps.noise_source}};
+  nlohmann::json meta = {{"step_times_s", maps.step_times_s},
+                         {"read_variance", maps.noise.a},
+                         {"shot_variance_per_unit", maps.noise.b},
+                         {"noise_source", maps.noise_source}};
+  if (!maps.curves.empty()) meta["curves"] = maps.curves.knots;
   const Image& steps = maps.step_values;
   LS_CHECK(steps.pixels.empty() ||
                (steps.width == image.width && steps.height == image.height &&
@@ -57,7 +58,7 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
     write_channel_preview(path, name, image, first, channels, transform);
   };
   auto identity = [](float v) { return v; };
-  preview("model", kTModel, 1, [](float v) { return v / 4; });
+  preview("model", kTModel, 1, [](float v) { return v / (kTemporalModelCount - 1); });
   preview("rate", kTRate, 1, [&](float v) { return max_rate > 0 ? v / max_rate : 0.0; });
   preview("onset", kTOnset, 1, [&](float v) { return (v - maps.first_time_s()) / span; });
   preview("wet_albedo", kTWet, 3, identity);
@@ -94,6 +95,19 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
     out.noise.a = j.at("read_variance").get<double>();
     out.noise.b = j.at("shot_variance_per_unit").get<double>();
     out.noise_source = j.value("noise_source", std::string());
+    if (j.contains("curves")) {
+      out.curves.knots = j.at("curves").get<std::vector<std::vector<double>>>();
+      bool valid = out.curves.knots.size() == size_t(kTemporalParamCount);
+      for (const std::vector<double>& c : out.curves.knots) {
+        valid = valid && c.size() >= 2 && c.size() == out.curves.knots[0].size() &&
+                std::all_of(c.begin(), c.end(), [](double v) { return std::isfinite(v); });
+      }
+      if (!valid) {
+        throw InputError(name + ": attribute '" + kTemporalAttribute + "': curves: expected " +
+                         std::to_string(kTemporalParamCount) +
+                         " lists of the same number (at least 2) of finite knots");
+      }
+    }
   } catch (const nlohmann::json::exception& e) {
     throw InputError(
         name + ": attribute '" + kTemporalAttribute +
@@ -147,14 +161,19 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
       }
       const float model = out.maps.at(x, y, kTModel);
       if (!(model == std::floor(model) && model >= 0 && model < kTemporalModelCount)) {
-        throw InputError(name + ": channel 'model': expected an integer in 0..4 at (" +
-                         std::to_string(x) + ", " + std::to_string(y) + "), got " +
-                         std::to_string(model));
+        throw InputError(name + ": channel 'model': expected an integer in 0.." +
+                         std::to_string(kTemporalModelCount - 1) + " at (" + std::to_string(x) +
+                         ", " + std::to_string(y) + "), got " + std::to_string(model));
       }
       const float flags = out.maps.at(x, y, kTFlags);
       if (!(flags == std::floor(flags) && flags >= 0)) {
         throw InputError(name + ": channel 'flags': expected a non-negative integer at (" +
                          std::to_string(x) + ", " + std::to_string(y) + ")");
+      }
+      if (model == float(TemporalModel::kCurve) && out.curves.empty()) {
+        throw InputError(name + ": channel 'model': a curve at (" + std::to_string(x) + ", " +
+                         std::to_string(y) + ") but no curves in attribute '" + kTemporalAttribute +
+                         "'");
       }
       if (model == 0) {
         ++summary.flagged;

@@ -24,8 +24,10 @@ namespace {
 
 using pixel::SolverStatus;
 using temporal_internal::kMaxSigma;
+using temporal_internal::kMaxSteps;
 using temporal_internal::kMinRoughness;
 using temporal_internal::kNoInformationSigma;
+using temporal_internal::Series;
 
 // ---------------------------------------------------------------------------------------------
 // Temporal models. Each parameter j follows p_j(t) = dry_j + (wet_j - dry_j) s(t), s = 1 at the
@@ -55,14 +57,6 @@ bool param_moves(TemporalModel model, int p) {
 bool dry_pinned_to_zero(TemporalModel model, int p) {
   return model == TemporalModel::kDust && p == kParamKs;
 }
-
-struct Series {
-  int steps = 0;  // Usable steps.
-  double t[64];
-  double y[64][kTemporalParamCount];
-  double w[64][kTemporalParamCount];  // 1 / sigma, 0 = no information.
-};
-constexpr int kMaxSteps = 64;
 
 // Bounds of the nonlinear parameters.
 struct ShapeBounds {
@@ -94,24 +88,8 @@ double solve_endpoints(TemporalModel model, const Series& s, double rate, double
       dry[p] = 0;
       wet[p] = saa > 1e-300 ? say / saa : 0;
     } else {
-      // Basis (1 - s, s) for (dry, wet); a tiny ridge keeps it solvable when s is the same at
-      // every step (then wet and dry are equal, the ridge decides).
-      Eigen::Matrix2d a = Eigen::Matrix2d::Zero();
-      Eigen::Vector2d b = Eigen::Vector2d::Zero();
-      for (int i = 0; i < s.steps; ++i) {
-        const double w2 = s.w[i][p] * s.w[i][p];
-        const Eigen::Vector2d basis(1 - shape[i], shape[i]);
-        a += w2 * basis * basis.transpose();
-        b += w2 * basis * s.y[i][p];
-      }
-      const double ridge = 1e-9 * std::max(a.trace(), 1e-300);
-      a(0, 0) += ridge;
-      a(1, 1) += ridge;
-      a(0, 1) -= ridge;
-      a(1, 0) -= ridge;  // Pulls wet toward dry, not toward 0.
-      const Eigen::Vector2d x = a.ldlt().solve(b);
-      dry[p] = std::isfinite(x(0)) ? x(0) : 0;
-      wet[p] = std::isfinite(x(1)) ? x(1) : dry[p];
+      chi2 += temporal_internal::fit_endpoints(s, p, shape, &wet[p], &dry[p]);
+      continue;
     }
     for (int i = 0; i < s.steps; ++i) {
       const double r = (dry[p] + (wet[p] - dry[p]) * shape[i] - s.y[i][p]) * s.w[i][p];
@@ -275,10 +253,7 @@ struct PixelContext {
 // (the change happens after the data), a rate the span cannot show (the curve barely moves while
 // its endpoints are extrapolated), or an endpoint of a moving parameter beyond the range of the
 // series' values by more than that range and 3 sigma.
-bool ran_away(const Series& series, const TemporalResult& f, const PixelContext& c) {
-  if (c.span <= 0) return false;
-  if (f.onset >= c.t_first + c.span * (1 - 1e-6)) return true;
-  if (f.rate * c.span < kMinRateTimesSpan) return true;
+bool endpoints_run_away(const Series& series, const double* wet, const double* dry) {
   for (int p = 0; p < kTemporalParamCount; ++p) {
     double lo = HUGE_VAL, hi = -HUGE_VAL, largest_sigma = 0;
     for (int i = 0; i < series.steps; ++i) {
@@ -289,17 +264,42 @@ bool ran_away(const Series& series, const TemporalResult& f, const PixelContext&
     }
     if (!(hi >= lo)) continue;  // No information on this parameter.
     const double margin = (hi - lo) + 3 * largest_sigma;
-    for (const double end : {f.wet[p], f.dry[p]}) {
+    for (const double end : {wet[p], dry[p]}) {
       if (end < lo - margin || end > hi + margin) return true;
     }
   }
   return false;
 }
 
+// A curve's endpoints are where it peaks and bottoms, which a pixel that sees part of the curve
+// need not reach: what must stay near the data is the curve over the captured span (sampled at
+// four times the steps), by the same margin.
+bool curve_runs_away(const Series& series, const temporal_internal::CurveFit& f,
+                     const TemporalCurves& curves) {
+  const int samples = 4 * series.steps;
+  const double t0 = series.t[0], t1 = series.t[series.steps - 1];
+  for (int j = 0; j <= samples; ++j) {
+    const double t = t0 + (t1 - t0) * j / samples;
+    double at[kTemporalParamCount];
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      at[p] = f.dry[p] + (f.wet[p] - f.dry[p]) * curves.at(p, f.rate * (t - f.onset));
+    }
+    if (endpoints_run_away(series, at, at)) return true;
+  }
+  return false;
+}
+
+bool ran_away(const Series& series, const TemporalResult& f, const PixelContext& c) {
+  if (c.span <= 0) return false;
+  if (f.onset >= c.t_first + c.span * (1 - 1e-6)) return true;
+  if (f.rate * c.span < kMinRateTimesSpan) return true;
+  return endpoints_run_away(series, f.wet, f.dry);
+}
+
 // Fits the temporal models to one pixel's series, chooses by BIC and writes the chosen model into
 // m; flags: what the series gathering found. Counts in local.
-void fit_pixel_models(const Series& series, int flags, const PixelContext& c, float* m,
-                      TemporalSummary& local) {
+double fit_pixel_models(const Series& series, int flags, const PixelContext& c, float* m,
+                        TemporalSummary& local) {
   std::array<TemporalResult, kTemporalModelCount> fits;
   fits[1] = fit_constant(series);
   // A model needs more usable steps than its parameters per series (4: wet, dry, rate, onset).
@@ -329,7 +329,7 @@ void fit_pixel_models(const Series& series, int flags, const PixelContext& c, fl
   if (best == 0) {
     m[kTFlags] = float(flags | kTemporalFitFailed);
     ++local.flagged;
-    return;
+    return HUGE_VAL;
   }
   const TemporalResult& f = fits[best];
   if (f.status != SolverStatus::kConverged) flags |= kTemporalNotConverged;
@@ -374,6 +374,7 @@ void fit_pixel_models(const Series& series, int flags, const PixelContext& c, fl
   if (flags & kStepDropped) ++local.step_dropped;
   if (flags & kTemporalNotConverged) ++local.not_converged;
   if (flags & kTemporalDegenerate) ++local.degenerate;
+  return bic[best];
 }
 
 // The per-step fits of the given pixels (TemporalMaps::step_values); a step unusable at a pixel
@@ -407,11 +408,105 @@ Image step_values_of(const std::vector<StepFit>& steps, const std::vector<int>& 
   return out;
 }
 
+// The data-driven curves (TemporalCurves): learnt from up to kCurveSample pixels that no process
+// explains, then offered to those pixels; one takes its curve where the curve's BIC (rate, onset,
+// wet and dry: the exponential's count) is lower than its process's by kCurveEvidence and its
+// endpoints stay near its data. A pixel a process explains keeps it.
+constexpr size_t kCurveSample = 1500;
+// The curve must win by strong evidence (a BIC difference above 6, Kass and Raftery 1995): a
+// process the data follow keeps its model, whose rate and onset mean something; the curve is
+// learnt from every process of the scene together and fits any of them a little by chance.
+constexpr double kCurveEvidence = 6;
+
+// A pixel that no process explains: its best leaves a reduced chi^2 above kUnexplainedResidual (the
+// per-step parameters carry their own uncertainties and a floor for model error, so a right model
+// leaves about 1; the simulator's paint, an exponential, leaves up to 3 on a few pixels), or ran
+// away.
+constexpr double kUnexplainedResidual = 4;
+bool unexplained(const float* m) {
+  return m[kTStepsUsed] >= 5 &&
+         (m[kTResidual] > kUnexplainedResidual || (int(m[kTFlags]) & kTemporalDegenerate) != 0);
+}
+
+void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
+                  const std::vector<double>& best_bic, TemporalMaps& out) {
+  const int width = out.maps.width, pixels = width * out.maps.height;
+  std::vector<int> changing;
+  for (int i = 0; i < pixels; ++i) {
+    const float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
+    const int model = int(m[kTModel]);
+    if (model > int(TemporalModel::kNone) && unexplained(m)) changing.push_back(i);
+  }
+  if (changing.size() < 10) return;
+  std::vector<Series> sample;
+  const size_t stride = (changing.size() + kCurveSample - 1) / kCurveSample;
+  for (size_t j = 0; j < changing.size(); j += stride) {
+    temporal_internal::gather_series(steps, changing[j] % width, changing[j] / width,
+                                     sample.emplace_back());
+  }
+  const int knots = std::clamp(int(steps.size()) + 3, 5, 16);
+  out.curves = temporal_internal::learn_curves(sample, c.t_first, c.span, knots);
+  constexpr int kCurveParameters = 2 + 2 * kTemporalParamCount;
+  tbb::parallel_for(0, pixels, [&](int i) {
+    float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
+    if (!std::isfinite(best_bic[size_t(i)]) || !unexplained(m)) return;
+    thread_local Series series;
+    const int flags = temporal_internal::gather_series(steps, i % width, i / width, series);
+    const temporal_internal::CurveFit f =
+        temporal_internal::fit_curve(series, out.curves, c.t_first, c.span);
+    const double n = double(series.steps * kTemporalParamCount);
+    const double bic = f.chi2 + kCurveParameters * std::log(n);
+    if (!(bic < best_bic[size_t(i)] - kCurveEvidence) || curve_runs_away(series, f, out.curves)) {
+      return;
+    }
+    m[kTModel] = float(TemporalModel::kCurve);
+    m[kTRate] = float(f.rate);
+    m[kTOnset] = float(f.onset);
+    // Not clamped: where the curve bottoms or peaks may lie beyond a parameter's bound that the
+    // curve never reaches over the span (renders clamp the value at each time).
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      m[kTWet + p] = float(to_physical(p, f.wet[p]));
+      m[kTDry + p] = float(to_physical(p, f.dry[p]));
+    }
+    // The BIC weight of the curve against the process it replaces.
+    m[kTConfidence] = float(1 / (1 + std::exp(-0.5 * (best_bic[size_t(i)] - bic))));
+    m[kTResidual] = float(f.chi2 / std::max(1.0, n - kCurveParameters));
+    m[kTFlags] = float(flags);
+  });
+}
+
 }  // namespace
 
+int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, int y,
+                                     Series& series) {
+  int flags = 0;
+  series.steps = 0;
+  for (const StepFit& s : steps) {
+    if (!(s.sigma.at(x, y, 0) > 0)) {
+      flags |= kStepDropped;
+      continue;
+    }
+    if (!s.flags.pixels.empty()) flags |= int(s.flags.at(x, y, 0)) & kTemporalNotConverged;
+    const int i = series.steps++;
+    series.t[i] = s.time_s;
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      double v = s.value.at(x, y, p), sd = s.sigma.at(x, y, p);
+      if (p == kParamRoughness) {  // Fitted as 1/m: sigma(1/m) = sigma(m) / m^2.
+        sd = sd / (v * v);
+        v = 1 / v;
+      }
+      series.y[i][p] = v;
+      series.w[i][p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
+    }
+  }
+  return flags;
+}
+
 double temporal_value(TemporalModel model, double rate, double onset, double wet, double dry,
-                      double t) {
-  const double s = shape_weight(model, rate, onset, t);
+                      double t, const TemporalCurves* curves, int p) {
+  const double s = model == TemporalModel::kCurve
+                       ? (curves && !curves->empty() ? curves->at(p, rate * (t - onset)) : 0.0)
+                       : shape_weight(model, rate, onset, t);
   return dry + (wet - dry) * s;
 }
 
@@ -451,12 +546,11 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
   TemporalSummary& summary = out.summary;
   summary.pixels = width * height;
   std::mutex mutex;
-  std::vector<int> degenerate;  // Pixels flagged kTemporalDegenerate.
+  std::vector<double> best_bic(size_t(width) * height, HUGE_VAL);
   std::atomic<long> rows_done{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
     TemporalSummary local;
     Series series;
-    std::vector<int> degenerate_pixels;
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         float* m = &out.maps.at(x, y, 0);
@@ -467,32 +561,13 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
           continue;
         }
         for (int c = 0; c < 3; ++c) m[kTNormalX + c] = normals.normal.at(x, y, c);
-        series.steps = 0;
-        for (const StepFit& s : steps) {
-          if (!(s.sigma.at(x, y, 0) > 0)) {
-            flags |= kStepDropped;
-            continue;
-          }
-          if (!s.flags.pixels.empty()) flags |= int(s.flags.at(x, y, 0)) & kTemporalNotConverged;
-          const int i = series.steps++;
-          series.t[i] = s.time_s;
-          for (int p = 0; p < kTemporalParamCount; ++p) {
-            double v = s.value.at(x, y, p), sd = s.sigma.at(x, y, p);
-            if (p == kParamRoughness) {  // Fitted as 1/m: sigma(1/m) = sigma(m) / m^2.
-              sd = sd / (v * v);
-              v = 1 / v;
-            }
-            series.y[i][p] = v;
-            series.w[i][p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
-          }
-        }
+        flags |= temporal_internal::gather_series(steps, x, y, series);
         if (series.steps == 0) {
           m[kTFlags] = float(flags | kTemporalFitFailed);
           ++local.flagged;
           continue;
         }
-        fit_pixel_models(series, flags, context, m, local);
-        if (int(m[kTFlags]) & kTemporalDegenerate) degenerate_pixels.push_back(y * width + x);
+        best_bic[size_t(y) * width + x] = fit_pixel_models(series, flags, context, m, local);
       }
       const long done = ++rows_done;
       if (options.progress) options.progress(done, height);
@@ -500,14 +575,22 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     const std::lock_guard lock(mutex);
     summary.fitted += local.fitted;
     summary.flagged += local.flagged;
-    summary.faster_than_sampling += local.faster_than_sampling;
-    summary.too_few_steps += local.too_few_steps;
-    summary.step_dropped += local.step_dropped;
-    summary.not_converged += local.not_converged;
-    summary.degenerate += local.degenerate;
-    for (int k = 0; k < kTemporalModelCount; ++k) summary.per_model[k] += local.per_model[k];
-    degenerate.insert(degenerate.end(), degenerate_pixels.begin(), degenerate_pixels.end());
   });
+  if (options.fit_curves && span > 0) offer_curves(steps, context, best_bic, out);
+  // The counts of the models and flags as they stand, and the per-step fits of the degenerate.
+  std::vector<int> degenerate;
+  for (int i = 0; i < width * height; ++i) {
+    const float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
+    const int model = int(m[kTModel]), flags = int(m[kTFlags]);
+    if (model == 0) continue;
+    ++summary.per_model[model];
+    summary.faster_than_sampling += (flags & kFasterThanSampling) != 0;
+    summary.too_few_steps += (flags & kTooFewSteps) != 0;
+    summary.step_dropped += (flags & kStepDropped) != 0;
+    summary.not_converged += (flags & kTemporalNotConverged) != 0;
+    if (flags & kTemporalDegenerate) degenerate.push_back(i);
+  }
+  summary.degenerate = int(degenerate.size());
   if (!degenerate.empty()) out.step_values = step_values_of(steps, degenerate, width, height);
   summary.seconds_temporal =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();

@@ -22,21 +22,22 @@ double clamp_param(int p, double v) {
 }
 
 // One parameter of one pixel at time t (roughness harmonic: 1/m follows the curve).
-double param_at(const float* m, int p, double t) {
+double param_at(const float* m, int p, double t, const TemporalCurves& curves) {
   const TemporalModel model = TemporalModel(int(m[kTModel]));
   double wet = m[kTWet + p], dry = m[kTDry + p];
   if (p == kParamRoughness) {
     wet = 1 / std::max(wet, kMinRoughness);
     dry = 1 / std::max(dry, kMinRoughness);
   }
-  double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t);
+  double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, &curves, p);
   if (p == kParamRoughness) v = v > 0 ? 1 / v : 1.0;
   return clamp_param(p, std::isfinite(v) ? v : dry);
 }
 
 TemporalModel read_temporal_model_name(const JsonReader& r) {
-  const std::string name = r.one_of({"constant", "exponential", "sigmoid", "dust"});
+  const std::string name = r.one_of({"constant", "exponential", "sigmoid", "dust", "curve"});
   if (name == "constant") return TemporalModel::kConstant;
+  if (name == "curve") return TemporalModel::kCurve;
   if (name == "exponential") return TemporalModel::kExponential;
   if (name == "sigmoid") return TemporalModel::kSigmoid;
   return TemporalModel::kDust;
@@ -108,7 +109,7 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
           q[p] = clamp_param(p, maps.step_values.at(x, y, nearest_step * kTemporalParamCount + p));
         }
       } else {
-        for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s);
+        for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s, maps.curves);
       }
       for (int c = 0; c < 3; ++c) {
         o[kMapNormalX + c] = m[kTNormalX + c];

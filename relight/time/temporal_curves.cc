@@ -1,0 +1,153 @@
+// Data-driven temporal curves (relight/time/temporal_fit.h, TemporalCurves): evaluation, learning
+// from a sample of pixels, and one pixel's warp and endpoints under them.
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "relight/time/temporal_fit.h"
+#include "relight/time/temporal_fit_internal.h"
+
+namespace ls::relight {
+
+int TemporalCurves::weights(double tau, int n, double w[4]) {
+  // Catmull-Rom through knots at tau_k = k / (n - 1); the end knots repeated beyond the ends.
+  const double u = std::clamp(tau, 0.0, 1.0) * (n - 1);
+  const int k = std::clamp(int(std::floor(u)), 0, n - 2);
+  const double f = u - k, f2 = f * f, f3 = f2 * f;
+  w[0] = 0.5 * (-f + 2 * f2 - f3);
+  w[1] = 0.5 * (2 - 5 * f2 + 3 * f3);
+  w[2] = 0.5 * (f + 4 * f2 - 3 * f3);
+  w[3] = 0.5 * (-f2 + f3);
+  return k - 1;  // Knot of w[0]; indices outside [0, n) stand for the end knot.
+}
+
+double TemporalCurves::at(int p, double tau) const {
+  const std::vector<double>& c = knots[size_t(p)];
+  const int n = int(c.size());
+  double w[4];
+  const int first = weights(tau, n, w);
+  double v = 0;
+  for (int j = 0; j < 4; ++j) v += w[j] * c[size_t(std::clamp(first + j, 0, n - 1))];
+  return v;
+}
+
+namespace temporal_internal {
+namespace {
+
+// The warp grid around the identity (tau from 0 at the first step to 1 at the last): rates as a
+// factor of 1 / span, onsets as a share of the span from the first step.
+constexpr double kRateFactors[] = {0.5, 0.63, 0.8, 1.0, 1.25, 1.6, 2.0};
+constexpr double kOnsetShares[] = {-0.5, -0.35, -0.2, -0.1, 0.0, 0.1, 0.2, 0.35, 0.5};
+
+double chi2_at(const Series& s, const TemporalCurves& curves, double rate, double onset,
+               CurveFit* out) {
+  double chi2 = 0, shape[kMaxSteps];
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    for (int i = 0; i < s.steps; ++i) shape[i] = curves.at(p, rate * (s.t[i] - onset));
+    double wet = 0, dry = 0;
+    chi2 += fit_endpoints(s, p, shape, &wet, &dry);
+    if (out) out->wet[p] = wet, out->dry[p] = dry;
+  }
+  return chi2;
+}
+
+// Rescales each curve to run over [0, 1]; a curve that barely moves becomes 1 - tau.
+void normalise(TemporalCurves& curves) {
+  for (std::vector<double>& c : curves.knots) {
+    const auto [lo, hi] = std::minmax_element(c.begin(), c.end());
+    const double low = *lo, range = *hi - *lo;
+    for (size_t k = 0; k < c.size(); ++k) {
+      c[k] = range > 1e-9 ? (c[k] - low) / range : 1.0 - double(k) / double(c.size() - 1);
+    }
+  }
+}
+
+}  // namespace
+
+CurveFit fit_curve(const Series& series, const TemporalCurves& curves, double t_first,
+                   double span) {
+  CurveFit best;
+  double best_rate = 1 / span, best_onset = t_first;
+  for (const double f : kRateFactors) {
+    for (const double g : kOnsetShares) {
+      const double rate = f / span, onset = t_first + g * span;
+      const double chi2 = chi2_at(series, curves, rate, onset, nullptr);
+      if (chi2 < best.chi2) best.chi2 = chi2, best_rate = rate, best_onset = onset;
+    }
+  }
+  // Two finer rounds around the best: a third of the grid's spacing, then a ninth.
+  for (double step = 1.0 / 3; step > 0.1; step /= 3) {
+    const double rate0 = best_rate, onset0 = best_onset;
+    for (int a = -2; a <= 2; ++a) {
+      for (int b = -2; b <= 2; ++b) {
+        const double rate = rate0 * std::pow(1.26, a * step),
+                     onset = onset0 + b * step * 0.12 * span;
+        const double chi2 = chi2_at(series, curves, rate, onset, nullptr);
+        if (chi2 < best.chi2) best.chi2 = chi2, best_rate = rate, best_onset = onset;
+      }
+    }
+  }
+  best.rate = best_rate;
+  best.onset = best_onset;
+  chi2_at(series, curves, best_rate, best_onset, &best);
+  return best;
+}
+
+// Alternations of the curves and the warps, at most; each lowers the sample's chi^2.
+constexpr int kMaxRounds = 60;
+
+TemporalCurves learn_curves(const std::vector<Series>& sample, double t_first, double span,
+                            int knots) {
+  TemporalCurves curves;
+  curves.knots.assign(kTemporalParamCount, std::vector<double>(size_t(knots)));
+  normalise(curves);  // Starts as 1 - tau.
+  std::vector<CurveFit> fits(sample.size());
+  double previous = HUGE_VAL;
+  for (int round = 0; round < kMaxRounds; ++round) {
+    tbb::parallel_for(size_t(0), sample.size(),
+                      [&](size_t i) { fits[i] = fit_curve(sample[i], curves, t_first, span); });
+    double chi2 = 0;
+    for (const CurveFit& f : fits) chi2 += f.chi2;
+    if (!(chi2 < previous * (1 - 1e-3))) break;  // Converged (or no longer improving).
+    previous = chi2;
+    // The knots of each parameter by linear least squares given the warps and endpoints:
+    // y - dry = (wet - dry) sum_k B_k(tau) c_k, with a small second-difference penalty that keeps
+    // knots no sample reaches near their neighbours.
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      Eigen::MatrixXd a = Eigen::MatrixXd::Zero(knots, knots);
+      Eigen::VectorXd b = Eigen::VectorXd::Zero(knots);
+      for (size_t s = 0; s < sample.size(); ++s) {
+        const Series& series = sample[s];
+        const double scale = fits[s].wet[p] - fits[s].dry[p];
+        for (int i = 0; i < series.steps; ++i) {
+          const double w2 = series.w[i][p] * series.w[i][p];
+          if (!(w2 > 0)) continue;
+          double w[4];
+          const int first =
+              TemporalCurves::weights(fits[s].rate * (series.t[i] - fits[s].onset), knots, w);
+          Eigen::VectorXd row = Eigen::VectorXd::Zero(knots);
+          for (int j = 0; j < 4; ++j) row(std::clamp(first + j, 0, knots - 1)) += scale * w[j];
+          a += w2 * row * row.transpose();
+          b += w2 * row * (series.y[i][p] - fits[s].dry[p]);
+        }
+      }
+      const double smooth = 1e-3 * std::max(a.trace() / knots, 1e-12);
+      for (int k = 1; k + 1 < knots; ++k) {
+        Eigen::VectorXd d = Eigen::VectorXd::Zero(knots);
+        d(k - 1) = 1, d(k) = -2, d(k + 1) = 1;
+        a += smooth * d * d.transpose();
+      }
+      a.diagonal().array() += 1e-12 * std::max(a.trace(), 1e-300);
+      const Eigen::VectorXd c = a.ldlt().solve(b);
+      if (c.allFinite()) curves.knots[size_t(p)].assign(c.data(), c.data() + knots);
+    }
+    normalise(curves);
+  }
+  return curves;
+}
+
+}  // namespace temporal_internal
+}  // namespace ls::relight
