@@ -350,9 +350,10 @@ bool same_colour(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 }
 
 // Writes a blend into the map values m (normal n) unless the blend leaves the pixel unexplained
-// (kUnexplainedResidualRatio) or in another colour while its own fit explains it; returns whether
-// the pixel now belongs to the blend's materials. A pixel whose own fit is of its main material
-// (same_colour) and explains it better by BIC keeps its own parameters, flagged
+// (kUnexplainedResidualRatio: also where the pixel's own fit is poor, as on a silhouette, whose
+// mixed colour its own fit renders better) or in another colour while its own fit explains it;
+// returns whether the pixel now belongs to the blend's materials. A pixel whose own fit is of its
+// main material (same_colour) and explains it better by BIC keeps its own parameters, flagged
 // kOwnParameters, whatever the blend leaves: a highlight seen across a silhouette pixel's
 // footprint is wider than the material's. The model is the material's all the same (no speckle),
 // and the material stands in only where the pixel's own data are silent.
