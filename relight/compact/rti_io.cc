@@ -207,10 +207,8 @@ RtiFile decode_hsh(const std::string& bytes, const std::string& name) {
   check_data_size(header, pixels * file.bytes_per_pixel());
   const uint8_t* in = reinterpret_cast<const uint8_t*>(bytes.data()) + header.pos();
   file.data.resize(pixels * file.bytes_per_pixel());
-  const size_t row = size_t(file.width) * file.bytes_per_pixel();
-  for (int r = file.height - 1; r >= 0; --r, in += row) {
-    std::memcpy(file.data.data() + r * row, in, row);
-  }
+  // Rows top to bottom, as RTIViewer's Hsh::loadData (row j at offset j * w) and relight read them.
+  std::memcpy(file.data.data(), in, file.data.size());
   return file;
 }
 
@@ -336,10 +334,8 @@ std::string encode_rti_file(const RtiFile& file) {
            std::to_string(file.terms) + " 2 1\n";
     out.append(reinterpret_cast<const char*>(file.scale.data()), 4 * file.terms);
     out.append(reinterpret_cast<const char*>(file.bias.data()), 4 * file.terms);
-    const size_t row = size_t(w) * file.bytes_per_pixel();
-    for (int r = h - 1; r >= 0; --r) {
-      out.append(reinterpret_cast<const char*>(file.data.data()) + r * row, row);
-    }
+    // Rows top to bottom (unlike .ptm): the order RTIViewer's and relight's HSH loaders read.
+    out.append(reinterpret_cast<const char*>(file.data.data()), file.data.size());
     return out;
   }
   const bool lrgb = file.format == RtiFileFormat::kPtmLrgb;

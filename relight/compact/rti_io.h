@@ -10,9 +10,10 @@
 //    u^2, v^2, uv, u, v, 1. LRGB pixel value = colour_byte / 255 * L(u, v).
 //  .rti (HSH, RTIViewer's "#HSH1.2"): text header "#HSH1.2\n", comment lines starting with '#',
 //    "3\n" (HSH), "<width> <height> 3\n", "<terms> 2 1\n", then terms float32 scales and terms
-//    float32 biases (little-endian), then bytes, rows bottom to top, per pixel the R terms, G
-//    terms, B terms: coefficient = byte / 255 * scale_j + bias_j; the evaluated value is 1 at
-//    white.
+//    float32 biases (little-endian), then bytes, rows TOP to bottom (RTIViewer's Hsh::loadData and
+//    relight read row j at offset j * width; lightstage before issue 18 wrote them bottom to top,
+//    and such files read upside down), per pixel the R terms, G terms, B terms: coefficient =
+//    byte / 255 * scale_j + bias_j; the evaluated value is 1 at white.
 //
 // Values in the files are display units (white = 255 codes for PTM, 1 for HSH); fields are in
 // field units. The writer maps field units to display units with a gain (default: the brightest
@@ -33,7 +34,7 @@ namespace ls::relight {
 
 enum class RtiFileFormat { kPtmRgb, kPtmLrgb, kHsh };
 
-// A quantised file as it is stored (rows top to bottom here; the encoder flips them).
+// A quantised file as it is stored (rows top to bottom here; the .ptm encoder flips them).
 struct RtiFile {
   RtiFileFormat format = RtiFileFormat::kHsh;
   int width = 0, height = 0;

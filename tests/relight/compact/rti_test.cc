@@ -164,6 +164,37 @@ TEST(RtiIo, PtmHeaderIsTheHpLayout) {
   EXPECT_EQ(bytes.size() - header, 6u * 5 * 9);
 }
 
+// Orientation as the viewers read it: .rti rows top to bottom (RTIViewer's Hsh::loadData, relight),
+// .ptm rows bottom to top (the HP PTM layout). A file whose top row is known: the first pixel
+// bytes after the header are the top row's in .rti and the bottom row's in .ptm.
+TEST(RtiIo, RowsAreInTheOrderTheViewersRead) {
+  for (const RtiFileFormat format : {RtiFileFormat::kHsh, RtiFileFormat::kPtmRgb}) {
+    RtiFile file;
+    file.format = format;
+    file.width = 3;
+    file.height = 4;
+    file.terms = format == RtiFileFormat::kHsh ? 4 : 6;
+    file.scale.assign(size_t(file.terms), 1.0f);
+    file.bias.assign(size_t(file.terms), 0.0f);
+    file.data.assign(size_t(file.width) * file.height * file.bytes_per_pixel(), 10);
+    const size_t row = size_t(file.width) * file.bytes_per_pixel();
+    std::fill_n(file.data.begin(), row, uint8_t(200));  // Row 0: the top row.
+    const std::string bytes = encode_rti_file(file);
+    if (format == RtiFileFormat::kHsh) {
+      const size_t data_start = bytes.size() - file.data.size();
+      EXPECT_EQ(uint8_t(bytes[data_start]), 200) << "the top row comes first in .rti";
+      EXPECT_EQ(uint8_t(bytes.back()), 10);
+    } else {
+      // RGB .ptm: three planes, each rows x pixels x 6, bottom row first: the top row ends each.
+      const size_t plane = size_t(file.width) * file.height * 6;
+      const size_t data_start = bytes.size() - 3 * plane;
+      EXPECT_EQ(uint8_t(bytes[data_start]), 10) << "the bottom row comes first in .ptm";
+      EXPECT_EQ(uint8_t(bytes[data_start + plane - 1]), 200);
+    }
+    EXPECT_EQ(decode_rti_file(bytes, "oriented").data, file.data);
+  }
+}
+
 TEST(RtiIo, MalformedFilesNameFileAndField) {
   testing::TempDir dir;
   RtiFitOptions ptm;
