@@ -470,7 +470,8 @@ std::vector<std::string> ViewState::to_args() const {
   if (rotation_deg != 0) option("--rotate", number(rotation_deg));
   if (exposure_stops != 0) option("--exposure", number(exposure_stops));
   option("--source", to_string(source));
-  option("--rank", std::to_string(rank));
+  // The rank of a PCA built from the field; a PCA file has its own.
+  if (pca_file.empty()) option("--rank", std::to_string(rank));
   if (split) option("--split", to_string(*split));
   if (divider != 0.5) option("--divider", number(divider));
   if (difference) args.push_back("--difference");

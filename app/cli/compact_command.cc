@@ -39,13 +39,20 @@ void add_compress_command(CLI::App& app) {
     // A bad --format or --rank is bad input (exit 2), as before options were validated here.
     const jobs::CompressSummary summary = jobs::compress(*args);
     if (args->format == "pca") {
-      std::printf("%s\n%s: %.1f bytes per pixel (raw field: %.1f)\n", summary.details.c_str(),
-                  args->out.c_str(), summary.bytes_per_pixel, summary.raw_bytes_per_pixel);
+      std::printf("%s\n%s: %.1f bytes per pixel\n", summary.details.c_str(), args->out.c_str(),
+                  summary.bytes_per_pixel);
     } else {
-      std::printf("%s: %s %s, %.0f bytes per pixel (raw field: %.0f)\n", args->out.c_str(),
-                  summary.representation.c_str(), summary.details.c_str(), summary.bytes_per_pixel,
-                  summary.raw_bytes_per_pixel);
+      std::printf("%s: %s %s, %.0f bytes per pixel\n", args->out.c_str(),
+                  summary.representation.c_str(), summary.details.c_str(), summary.bytes_per_pixel);
     }
+    // Against what the user has on disk, and the float field it was computed from.
+    const auto mib = [](std::uintmax_t bytes) { return double(bytes) / (1 << 20); };
+    std::printf(
+        "wrote %.2f MiB from %.2f MiB of input (%.3gx); the float field in memory: %.0f "
+        "bytes per pixel\n",
+        mib(summary.output_bytes), mib(summary.input_bytes),
+        summary.input_bytes > 0 ? double(summary.output_bytes) / summary.input_bytes : 0.0,
+        summary.raw_bytes_per_pixel);
     if (summary.band_rows > 0) std::printf("read in bands of %d rows\n", summary.band_rows);
     std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   });

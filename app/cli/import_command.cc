@@ -34,8 +34,10 @@ int print_import(const fs::path& source, const fs::path& out,
   std::printf("  %.3f%% samples saturated (%lld)\n", 100.0 * summary.saturated_fraction,
               summary.saturated_samples);
   for (const std::string& note : summary.notes) std::printf("  note: %s\n", note.c_str());
-  std::printf("wrote %s (%.1f MiB) and %s (light %d), %.2f s\n", out.c_str(), job.mebibytes,
-              job.preview.c_str(), job.preview_light, summary.seconds);
+  std::printf(
+      "wrote %s (%.1f MiB on disk, %.1f MiB as float in memory) and %s (light %d), %.2f s\n",
+      out.c_str(), double(fs::file_size(out)) / (1 << 20), job.mebibytes, job.preview.c_str(),
+      job.preview_light, summary.seconds);
   if (job.band_rows < summary.height) {
     std::printf("written in bands of %d rows through a spill file beside it\n", job.band_rows);
   }

@@ -1,5 +1,7 @@
 #include "app/jobs/compress_job.h"
 
+#include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <numeric>
 #include <optional>
@@ -58,6 +60,24 @@ std::string CompressOptions::validate() const {
   return {};
 }
 
+// Bytes of the input on disk: an EXR's file, or the images of an .lp set (every JPEG, PNG or TIFF
+// in the folder of its .lp file and below).
+std::uintmax_t input_bytes(const fs::path& input) {
+  if (!fs::is_directory(input) && input.extension() != ".lp") return fs::file_size(input);
+  std::uintmax_t bytes = 0;
+  const fs::path dir = fs::is_directory(input) ? input : input.parent_path();
+  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
+    std::string ext = entry.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return std::tolower(c); });
+    if (entry.is_regular_file() &&
+        (ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".tif" || ext == ".tiff")) {
+      bytes += entry.file_size();
+    }
+  }
+  return bytes;
+}
+
 CompressSummary compress(const CompressOptions& options, const ProgressFn& progress) {
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("compress: " + problem);
@@ -103,6 +123,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   if (!bands) bands = capture::whole_field(whole), rows = 0;
   CompressSummary summary;
   summary.raw_bytes_per_pixel = 12.0 * header.num_lights();
+  summary.input_bytes = input_bytes(options.input);
   summary.band_rows = rows;
   if (options.format == "pca") {
     relight::PcaSummary pca_summary;
@@ -112,6 +133,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
     summary.representation = pca.name();
     summary.details = pca_summary.to_string();
     summary.bytes_per_pixel = pca.bytes_per_pixel();
+    summary.output_bytes = fs::file_size(options.out);
     return summary;
   }
   relight::RtiFitOptions rti_options;
@@ -121,6 +143,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   summary.representation = fit.name();
   summary.details = "from " + std::to_string(fit.lights_used) + " LEDs";
   summary.bytes_per_pixel = fit.bytes_per_pixel();
+  summary.output_bytes = fs::file_size(options.out);
   return summary;
 }
 

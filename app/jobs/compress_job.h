@@ -2,6 +2,7 @@
 // Compress a field (or an .lp one-light set, imported on the way) into a compact representation:
 // the lightstage PCA format, .ptm (PTM 1.2 RGB/LRGB) or .rti (HSH).
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -26,8 +27,10 @@ struct CompressSummary {
   std::string representation;  // E.g. "pca k=12", "hsh3".
   std::string details;         // The builder's own summary (PCA rank choice, lights used).
   double bytes_per_pixel = 0.0;
-  double raw_bytes_per_pixel = 0.0;  // The float field it came from.
-  int band_rows = 0;                 // Rows read at once: the height when read whole.
+  double raw_bytes_per_pixel = 0.0;  // The float field it came from, in memory.
+  // On disk: the input (an EXR; an .lp set's images) and the file written.
+  std::uintmax_t input_bytes = 0, output_bytes = 0;
+  int band_rows = 0;  // Rows read at once: the height when read whole.
 };
 
 // Throws InputError for bad options or inputs; the output is written only on success.

@@ -34,6 +34,11 @@ TEST(CompressCommand, ImportsAnLpCaptureIntoEachRepresentation) {
       0)
       << output;
   EXPECT_EQ(relight::PcaField::read(dir / "lion.lspca").rank(), 6);
+  // Sizes against what is on disk: the set's JPEGs (3.6 MiB), not the float field in memory.
+  char sizes[96];
+  std::snprintf(sizes, sizeof sizes, "wrote %.2f MiB from 3.58 MiB of input",
+                double(std::filesystem::file_size(dir / "lion.lspca")) / (1 << 20));
+  EXPECT_NE(output.find(sizes), std::string::npos) << output;
   // Bad input: exit 2 with a message naming the option.
   EXPECT_EQ(testing::run_command(
                 cli + " compress " + lp + " --format jpeg --out " + (dir / "x").string(), &output),
