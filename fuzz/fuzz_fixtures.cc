@@ -90,12 +90,12 @@ relight::ModelMaps small_model_maps() {
   leds.reserve(10);
   for (int l = 0; l < 10; ++l)
     leds.push_back(Eigen::Vector3f(std::sin(0.6f * l), std::cos(0.6f * l), 1).normalized());
-  maps.shadows = LedShadows::all_lit(leds, kFixtureWidth, kFixtureHeight);
+  maps.shadows = FitShadows::all_lit(leds, kFixtureWidth, kFixtureHeight);
   for (int y = 0; y < kFixtureHeight; ++y) {
     for (int x = 0; x < kFixtureWidth && x < 10; ++x) {
       uint32_t words[2] = {0, 0};
-      words[x / LedShadows::kLedsPerWord] =
-          uint32_t(y % 8) << (LedShadows::kBitsPerLed * (x % LedShadows::kLedsPerWord));
+      words[x / FitShadows::kLedsPerWord] =
+          uint32_t(y % 8) << (FitShadows::kBitsPerLed * (x % FitShadows::kLedsPerWord));
       maps.shadows.set_pixel_words(x, y, words);
     }
   }

@@ -48,7 +48,7 @@ layout(std140) uniform Lights {
   vec4 light_dir[LIGHTS_PER_PASS];         // Unit, toward the light; w: its nearest LED.
   vec4 light_irradiance[LIGHTS_PER_PASS];  // RGB at normal incidence.
 };
-// The fit's LED shadows (relight/fit/led_shadows.h): layer w holds LEDs 8w .. 8w+7, 3 bits each,
+// The fit's LED shadows (relight/fit/fit_shadows.h): layer w holds LEDs 8w .. 8w+7, 3 bits each,
 // as an integer-valued float.
 uniform sampler2DArray shadow_words;
 uniform bool has_shadows;
@@ -386,7 +386,7 @@ class ModelSource : public GpuSource {
  private:
   // One R32F layer per shadow word (a 1x1 layer of 0 when there are none, so the sampler is
   // complete); the LEDs' directions kept for the lights' nearest LEDs.
-  void upload_shadows(const relight::LedShadows& shadows) {
+  void upload_shadows(const relight::FitShadows& shadows) {
     if (!shadows.empty()) {
       if (shadows.words.width != width_ || shadows.words.height != height_) {
         throw InputError("GPU relight: model maps: the shadows are " +

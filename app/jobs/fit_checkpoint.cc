@@ -127,7 +127,7 @@ bool BandCheckpoints::load(int y0, const std::vector<Eigen::Vector3f>& led_dirs,
                            relight::NormalMap& normals, relight::ModelMaps& maps) const {
   if (!fs::exists(file(y0))) return false;
   NamedChannelFile band;
-  const int shadow_words = relight::LedShadows::words_for(int(led_dirs.size()));
+  const int shadow_words = relight::FitShadows::words_for(int(led_dirs.size()));
   std::vector<std::string> names = band_channel_names();
   for (int w = 0; w < shadow_words; ++w) names.push_back("shadow." + std::to_string(w));
   try {
@@ -152,7 +152,7 @@ bool BandCheckpoints::load(int y0, const std::vector<Eigen::Vector3f>& led_dirs,
     first += kParts[k].channels;
   }
   maps.maps.channel_names = relight::model_map_channel_names();
-  maps.shadows = relight::LedShadows::all_lit(led_dirs, image.width, image.height);
+  maps.shadows = relight::FitShadows::all_lit(led_dirs, image.width, image.height);
   copy_channels(image, first, maps.shadows.words, 0, shadow_words);
   return true;
 }

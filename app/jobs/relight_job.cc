@@ -123,18 +123,53 @@ class MapRotations {
   std::set<std::string> used_names_;  // Maps from different folders may share a file name.
 };
 
+// A preview is exposed by its own highlights (auto_exposure_stops), but never more than
+// kDarkSceneStops brighter than a white Lambertian surface that all of the light reaches at normal
+// incidence (radiance sum E / pi at 0.9): a scene that a map leaves dark (lit from behind the
+// backdrop) reads as dark, not as its noise amplified to full scale.
+constexpr double kDarkSceneStops = 2;
+
+double preview_exposure(const Image& relit, double light_luma) {
+  const double own = auto_exposure_stops(relit);
+  if (!(light_luma > 0) || !std::isfinite(light_luma)) return own;
+  return std::min(own, -std::log2(light_luma / M_PI / 0.9) + kDarkSceneStops);
+}
+
+double luma(const Eigen::Vector3d& rgb) {
+  return 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
+}
+
+double total_luma(const std::vector<Eigen::Vector3f>& irradiance_rgb) {
+  double sum = 0;
+  for (const Eigen::Vector3f& e : irradiance_rgb) sum += luma(e.cast<double>());
+  return sum;
+}
+
+// RGB triplets, one per light (LightWeights::irradiance_rgb).
+double total_luma(const std::vector<float>& irradiance_rgb) {
+  double sum = 0;
+  for (size_t i = 0; i + 2 < irradiance_rgb.size(); i += 3) {
+    sum += luma(Eigen::Vector3d(irradiance_rgb[i], irradiance_rgb[i + 1], irradiance_rgb[i + 2]));
+  }
+  return sum;
+}
+
 class RelitWriter {
  public:
   RelitWriter(const RelightOptions& options, RelightSummary& summary)
       : options_(options), summary_(summary), attributes_{{kOptionsAttribute, options.to_json()}} {}
   // The output directory is made with the first image: a run that fails before leaves none.
-  void write(const std::string& name, Image& relit, std::string detail = {}) {
+  // light_luma: the lighting's total irradiance (luminance, at normal incidence), for the PNG's
+  // exposure (preview_exposure); 0 when unknown.
+  void write(const std::string& name, Image& relit, std::string detail = {},
+             double light_luma = 0) {
     fs::create_directories(options_.out_dir);
     relit.channel_names = {"R", "G", "B"};
     RelitImage out{options_.out_dir / (name + ".exr"), options_.out_dir / (name + ".png"), name,
                    std::move(detail)};
     write_exr(out.exr, relit, ExrPixelType::kFloat, attributes_);
-    write_png_preview(out.png, relit, options_.exposure_stops.value_or(auto_exposure_stops(relit)));
+    write_png_preview(out.png, relit,
+                      options_.exposure_stops.value_or(preview_exposure(relit, light_luma)));
     summary_.images.push_back(std::move(out));
   }
 
@@ -266,7 +301,11 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
       line += "\n    " + out.lighting.report() + ms;
     }
     if (!sources_note.empty()) line += "\n    " + sources_note;
-    writer.write(out.name, out.relit, line);
+    double light = total_luma(out.lighting.weights.irradiance_rgb);
+    for (const relight::PlacedSource& source : out.lighting.sources) {
+      light += luma(source.in_stage.irradiance_rgb);
+    }
+    writer.write(out.name, out.relit, line, light);
     report(progress, "relight", ++done, long(outputs.size()), out.name);
   }
 }
@@ -336,7 +375,7 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
                   ms_between(t0, t1), lighting.dirs_in_stage.size(),
                   field ? " within the dome; field for flagged pixels" : " over the sphere",
                   ms_between(t1, t2));
-    writer.write(name, relit, detail);
+    writer.write(name, relit, detail, total_luma(lighting.irradiance_rgb));
     report(progress, "relight", ++done, total, name);
   });
 }

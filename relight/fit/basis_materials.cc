@@ -291,7 +291,7 @@ double lobe_visibility(const PixelTerms& terms, const std::vector<Eigen::Vector3
 }
 
 // The factor that fits a blend's prediction to the samples it leaves lit. A sample clearly below
-// the prediction (by LedShadows::kShadowSigmas of its noise) is in partial shadow: it tells of the
+// the prediction (by FitShadows::kShadowSigmas of its noise) is in partial shadow: it tells of the
 // light that reached the pixel, not of its reflectance, and the render takes that light away
 // again (ModelMaps::shadows). Least squares over every sample would dim the whole pixel for it.
 // A few rounds: a brighter blend finds more of its penumbra.
@@ -316,7 +316,7 @@ double lit_scale(const PixelTerms& terms, const Blend& blend,
         measured += pixel::kLuma[c] * terms.value(i, c);
         variance += pixel::kLuma[c] * pixel::kLuma[c] / terms.weight(i, c);
       }
-      if (predicted - measured > LedShadows::kShadowSigmas * std::sqrt(variance)) continue;
+      if (predicted - measured > FitShadows::kShadowSigmas * std::sqrt(variance)) continue;
       for (int c = 0; c < 3; ++c) {
         const double p = prediction[3 * size_t(i) + size_t(c)], w = terms.weight(i, c);
         pv += w * p * terms.value(i, c);
@@ -604,7 +604,7 @@ void assign_basis_materials(const capture::ReflectanceField& header,
   std::mutex mutex;
   assign_band(band, PixelGatherer(header, options), normals, basis.materials, basis.dispersion,
               options, maps, mutex);
-  measure_led_shadows(band, options, /*maps_first_row=*/0, maps);  // Of the models they have now.
+  measure_fit_shadows(band, options, /*maps_first_row=*/0, maps);  // Of the models they have now.
 }
 
 void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,

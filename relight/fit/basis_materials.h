@@ -26,7 +26,7 @@
 //     whose own fit is of its material's model and colour keeps its own parameters where they
 //     explain it better by BIC (kOwnParameters). The blend's weight is fitted on the samples it
 //     leaves lit: a penumbra sample is shadow, which the fit's LED shadows render
-//     (relight/fit/led_shadows.h), not reflectance. A lobe pointing where the samples saw
+//     (relight/fit/fit_shadows.h), not reflectance. A lobe pointing where the samples saw
 //     shadows is flagged kLobeShadowed. The LED shadows are measured again for the new models.
 //  5. Scene materials: two basis materials of one model and shape whose pixels tile one region
 //     (each shares most of its boundary with the other: a checker, a print) are one material with

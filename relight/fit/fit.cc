@@ -445,7 +445,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
   if (options.materials == FitMaterials::kBasis) {
     fit_basis_materials(field, normals, options, out);  // Measures the shadows of its models.
   }
-  if (out.shadows.empty()) measure_led_shadows(field, options, field.first_row(), out);
+  if (out.shadows.empty()) measure_fit_shadows(field, options, field.first_row(), out);
   summary.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
   return out;

@@ -43,7 +43,7 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
-#include "relight/fit/led_shadows.h"
+#include "relight/fit/fit_shadows.h"
 #include "relight/fit/normals.h"
 
 namespace ls::relight {
@@ -202,10 +202,10 @@ struct ModelMaps {
   // The basis materials kMapMaterial indexes (1-based); stored in the "lightstage:materials"
   // attribute. Empty for per-pixel fits.
   std::vector<Material> materials;
-  // The LEDs each fitted pixel saw in cast shadow (relight/fit/led_shadows.h), so that a model
+  // The LEDs each fitted pixel saw in cast shadow (relight/fit/fit_shadows.h), so that a model
   // render has the field's visibility; channels "shadow.N" of the file. Empty for maps fitted
   // before it existed: every light then lights every pixel.
-  LedShadows shadows;
+  FitShadows shadows;
   float at(int x, int y, MapChannel c) const { return maps.at(x, y, c); }
   FitModel model(int x, int y) const { return FitModel(int(maps.at(x, y, kMapModel))); }
 };
@@ -219,7 +219,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
 // Fills maps.shadows over the rows of `field` (a band of rows of the frame from its first_row(), or
 // the whole frame) from the fitted models in `maps`, whose row 0 is the frame's row
 // maps_first_row; maps.shadows is sized to the maps and the field's lights first if it is not.
-void measure_led_shadows(const capture::ReflectanceField& field, const FitOptions& options,
+void measure_fit_shadows(const capture::ReflectanceField& field, const FitOptions& options,
                          int maps_first_row, ModelMaps& maps);
 
 // Writes the maps as one EXR (float, named channels) and a PNG preview per map beside it:

@@ -143,18 +143,18 @@ std::vector<Eigen::Vector3f> shadow_leds_from(const std::string& text, const std
   return dirs;
 }
 
-// Shadow channel w (LedShadows) holds kLedsPerWord levels: an integer below 2^kBitsPerWord.
+// Shadow channel w (FitShadows) holds kLedsPerWord levels: an integer below 2^kBitsPerWord.
 void check_shadow_words(const Image& words, const std::string& file) {
   for (int y = 0; y < words.height; ++y) {
     for (int x = 0; x < words.width; ++x) {
       for (int w = 0; w < words.channels; ++w) {
         const float v = words.at(x, y, w);
-        if (!(v == std::floor(v) && v >= 0 && v < float(1 << LedShadows::kBitsPerWord))) {
+        if (!(v == std::floor(v) && v >= 0 && v < float(1 << FitShadows::kBitsPerWord))) {
           char at[96];
           std::snprintf(at, sizeof at, " at (%d, %d), got %.9g", x, y, double(v));
           throw InputError(file + ": channel 'shadow." + std::to_string(w) +
                            "': expected an integer in 0.." +
-                           std::to_string((1 << LedShadows::kBitsPerWord) - 1) + at);
+                           std::to_string((1 << FitShadows::kBitsPerWord) - 1) + at);
         }
       }
     }
@@ -263,14 +263,14 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
       throw InputError(name + ": shadow channels without attribute '" + kShadowLedsAttribute + "'");
     }
     std::vector<Eigen::Vector3f> leds = shadow_leds_from(*shadow_leds, name);
-    if (LedShadows::words_for(int(leds.size())) != shadow_words) {
+    if (FitShadows::words_for(int(leds.size())) != shadow_words) {
       throw InputError(name + ": channels 'shadow.N': expected " +
-                       std::to_string(LedShadows::words_for(int(leds.size()))) + " for the " +
+                       std::to_string(FitShadows::words_for(int(leds.size()))) + " for the " +
                        std::to_string(leds.size()) + " LEDs of attribute '" + kShadowLedsAttribute +
                        "', got " + std::to_string(shadow_words));
     }
     const Image& all = file.image;
-    out.shadows = LedShadows::all_lit(std::move(leds), all.width, all.height);
+    out.shadows = FitShadows::all_lit(std::move(leds), all.width, all.height);
     for (size_t i = 0; i < all.num_pixels(); ++i) {
       std::copy_n(&all.pixels[i * size_t(all.channels) + kMapChannelCount], shadow_words,
                   &out.shadows.words.pixels[i * size_t(shadow_words)]);

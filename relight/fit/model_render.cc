@@ -102,15 +102,15 @@ struct PixelModel {
 
 // Which lights a pixel's shadowed LEDs stand for: each light takes its nearest LED's visibility.
 struct LightShadows {
-  const LedShadows* shadows = nullptr;  // Null: every light lights every pixel.
+  const FitShadows* shadows = nullptr;  // Null: every light lights every pixel.
   std::vector<int> led_of;              // Per light.
   std::vector<std::vector<int>> lights_of_led;
 
-  LightShadows(const LedShadows& led_shadows, const LightingForModels& lighting) {
-    if (led_shadows.empty()) return;
-    shadows = &led_shadows;
-    led_of = nearest_leds(led_shadows.led_dirs_in_stage, lighting.dirs_in_stage);
-    lights_of_led.resize(led_shadows.led_dirs_in_stage.size());
+  LightShadows(const FitShadows& fit_shadows, const LightingForModels& lighting) {
+    if (fit_shadows.empty()) return;
+    shadows = &fit_shadows;
+    led_of = nearest_leds(fit_shadows.led_dirs_in_stage, lighting.dirs_in_stage);
+    lights_of_led.resize(fit_shadows.led_dirs_in_stage.size());
     for (size_t k = 0; k < led_of.size(); ++k) lights_of_led[size_t(led_of[k])].push_back(int(k));
   }
 };
@@ -120,7 +120,7 @@ struct PixelShadows {
   std::vector<uint32_t> words;
   bool any = false;
   float shadow(int led) const {
-    return float(LedShadows::level(words.data(), led)) * (1.0f / LedShadows::kShadowLevels);
+    return float(FitShadows::level(words.data(), led)) * (1.0f / FitShadows::kShadowLevels);
   }
 };
 
@@ -218,11 +218,11 @@ Image render_models(const ModelMaps& maps, const LightingForModels& lighting,
                      "x" + std::to_string(fallback->channels));
   }
   const Lights lights = to_soa(lighting);
-  const LedShadows& shadows = maps.shadows;
+  const FitShadows& shadows = maps.shadows;
   if (!shadows.empty()) {
     LS_CHECK(
         shadows.words.width == width && shadows.words.height == height &&
-            shadows.words.channels == LedShadows::words_for(int(shadows.led_dirs_in_stage.size())),
+            shadows.words.channels == FitShadows::words_for(int(shadows.led_dirs_in_stage.size())),
         "model maps: shadows do not fit the maps");
   }
   const LightShadows light_shadows(shadows, lighting);

@@ -5,7 +5,7 @@
 // irradiance each delivers at normal incidence (radiance x solid angle of the patch it stands for).
 // f_r is the pixel's fitted model (relight/lighting/brdf.h, cos not inside) with its fitted normal.
 //
-// Visibility comes from the fit (ModelMaps::shadows, relight/fit/led_shadows.h): a direction
+// Visibility comes from the fit (ModelMaps::shadows, relight/fit/fit_shadows.h): a direction
 // whose nearest LED the pixel saw in cast shadow does not light it. Known at the dome's
 // resolution: a shadow's edge between two LEDs falls on the boundary of their cells. Maps without
 // shadows (older files) have no visibility: a direction lights a pixel whenever it is above the
@@ -76,7 +76,7 @@ class ModelCompactField : public CompactField {
     return 7 * 4 + 1 +
            (maps_.shadows.empty()
                 ? 0.0
-                : LedShadows::kBitsPerLed / 8.0 * double(maps_.shadows.led_dirs_in_stage.size()));
+                : FitShadows::kBitsPerLed / 8.0 * double(maps_.shadows.led_dirs_in_stage.size()));
   }
   void relight_into(const LightingForModels& lights, Image& out) const override {
     out = render_models(maps_, lights, options_);

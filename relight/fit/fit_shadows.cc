@@ -1,4 +1,4 @@
-#include "relight/fit/led_shadows.h"
+#include "relight/fit/fit_shadows.h"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -16,8 +16,8 @@
 
 namespace ls::relight {
 
-LedShadows LedShadows::all_lit(std::vector<Eigen::Vector3f> led_dirs, int width, int height) {
-  LedShadows out;
+FitShadows FitShadows::all_lit(std::vector<Eigen::Vector3f> led_dirs, int width, int height) {
+  FitShadows out;
   const int words = words_for(int(led_dirs.size()));
   out.led_dirs_in_stage = std::move(led_dirs);
   out.words = Image(width, height, words);
@@ -25,17 +25,17 @@ LedShadows LedShadows::all_lit(std::vector<Eigen::Vector3f> led_dirs, int width,
   return out;
 }
 
-void LedShadows::pixel_words(int x, int y, uint32_t* out) const {
+void FitShadows::pixel_words(int x, int y, uint32_t* out) const {
   const float* w = &words.pixels[(size_t(y) * words.width + x) * words.channels];
   for (int c = 0; c < words.channels; ++c) out[c] = uint32_t(w[c]);
 }
 
-double LedShadows::shadow(int x, int y, int led) const {
+double FitShadows::shadow(int x, int y, int led) const {
   const uint32_t word = uint32_t(words.at(x, y, led / kLedsPerWord));
   return double(level(&word - led / kLedsPerWord, led)) / kShadowLevels;
 }
 
-void LedShadows::set_pixel_words(int x, int y, const uint32_t* in) {
+void FitShadows::set_pixel_words(int x, int y, const uint32_t* in) {
   float* w = &words.pixels[(size_t(y) * words.width + x) * words.channels];
   for (int c = 0; c < words.channels; ++c) w[c] = float(in[c]);
 }
@@ -61,7 +61,7 @@ std::vector<Eigen::Vector3f> led_dirs_of(const capture::ReflectanceField& field)
   return dirs;
 }
 
-void measure_led_shadows(const capture::ReflectanceField& field, const FitOptions& options,
+void measure_fit_shadows(const capture::ReflectanceField& field, const FitOptions& options,
                          int maps_first_row, ModelMaps& maps) {
   const std::vector<capture::FieldLight>& lights = field.lights();
   const int width = maps.maps.width;
@@ -69,7 +69,7 @@ void measure_led_shadows(const capture::ReflectanceField& field, const FitOption
                field.first_row() + field.height() <= maps_first_row + maps.maps.height,
            "led shadows: the field's rows lie outside the maps");
   if (maps.shadows.empty() || maps.shadows.led_dirs_in_stage.size() != lights.size()) {
-    maps.shadows = LedShadows::all_lit(led_dirs_of(field), width, maps.maps.height);
+    maps.shadows = FitShadows::all_lit(led_dirs_of(field), width, maps.maps.height);
   }
   const capture::ValidLights valid = capture::valid_lights(field);
   const NoiseModel& noise = options.normals.noise;
@@ -105,14 +105,14 @@ void measure_led_shadows(const capture::ReflectanceField& field, const FitOption
             const double predicted = luma(model_radiance(m, wi, wo, max_ks));
             const double measured = luma(v);
             if (!(predicted - measured >
-                  LedShadows::kShadowSigmas * std::sqrt(noise.variance(predicted))) ||
+                  FitShadows::kShadowSigmas * std::sqrt(noise.variance(predicted))) ||
                 !std::isfinite(measured)) {
               continue;
             }
             const double share = std::clamp(1 - measured / predicted, 0.0, 1.0);
-            const auto level = uint32_t(std::lround(share * LedShadows::kShadowLevels));
-            bits[size_t(light / LedShadows::kLedsPerWord)] |=
-                level << (LedShadows::kBitsPerLed * (light % LedShadows::kLedsPerWord));
+            const auto level = uint32_t(std::lround(share * FitShadows::kShadowLevels));
+            bits[size_t(light / FitShadows::kLedsPerWord)] |=
+                level << (FitShadows::kBitsPerLed * (light % FitShadows::kLedsPerWord));
           }
         }
         maps.shadows.set_pixel_words(x, map_y, bits.data());

@@ -17,7 +17,7 @@
 
 namespace ls::relight {
 
-struct LedShadows {
+struct FitShadows {
   static constexpr int kBitsPerWord = 24;  // A float32 holds an integer below 2^24 exactly.
   static constexpr int kBitsPerLed = 3;
   static constexpr int kLedsPerWord = kBitsPerWord / kBitsPerLed;
@@ -37,7 +37,7 @@ struct LedShadows {
   }
   bool empty() const { return words.pixels.empty(); }
   // Every LED lit at every pixel of a width x height frame.
-  static LedShadows all_lit(std::vector<Eigen::Vector3f> led_dirs, int width, int height);
+  static FitShadows all_lit(std::vector<Eigen::Vector3f> led_dirs, int width, int height);
   // Pixel (x, y)'s words as integers (words_for(LEDs) of them).
   void pixel_words(int x, int y, uint32_t* out) const;
   // The share of LED `led`'s light that pixel (x, y) does not receive, 0..1.
@@ -49,7 +49,7 @@ struct LedShadows {
 std::vector<int> nearest_leds(const std::vector<Eigen::Vector3f>& leds,
                               const std::vector<Eigen::Vector3f>& dirs);
 
-// The nominal directions of a field's lights (unit, stage frame), as LedShadows keeps them.
+// The nominal directions of a field's lights (unit, stage frame), as FitShadows keeps them.
 std::vector<Eigen::Vector3f> led_dirs_of(const capture::ReflectanceField& field);
 
 }  // namespace ls::relight
