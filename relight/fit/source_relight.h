@@ -39,7 +39,7 @@ SplitLighting split_lighting(const EnvironmentMap& map,
                              double coverage_rad, bool split,
                              const CompactSourceOptions& options = {});
 
-// The field's Lambertian fit and the FitShadows of the LEDs its sources fall between.
+// The field's Lambertian fit and the LedShadow of each LED its sources fall between.
 class FieldSources {
  public:
   // A streamed field: the fit and the shadows of `leds`, in one pass over its bands; add() needs no

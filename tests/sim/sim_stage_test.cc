@@ -554,7 +554,7 @@ TEST(SimStage, NearLedLightsALambertPlaneAsCosOverRSquared) {
   EXPECT_NEAR(f.pixels[(py * 64 + px) * 3], expected_x * 4095, 18.0);
 }
 
-TEST(SimStage, NearFitShadowsOnlyWhatLiesBetweenItAndTheSurface) {
+TEST(SimStage, NearLedShadowsOnlyWhatLiesBetweenItAndTheSurface) {
   const double d0 = 1.0;
   Stage stage = stage_with_directions({Eigen::Vector3d(0, 0, 1), Eigen::Vector3d(0, 0, 1)});
   stage.leds[1].distance_m = d0;  // LED 0 distant, LED 1 near, same direction.
