@@ -97,8 +97,10 @@ int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
                 relight::to_string(relight::TemporalModel(m)), s.per_model[m],
                 s.fitted > 0 ? 100.0 * s.per_model[m] / s.fitted : 0.0);
   }
-  std::printf("  flagged: %d faster than sampling, %d too few steps, %d with a dropped step\n",
-              s.faster_than_sampling, s.too_few_steps, s.step_dropped);
+  std::printf(
+      "  flagged: %d faster than sampling, %d too few steps, %d with a dropped step, %d degenerate "
+      "(rendered from their nearest step)\n",
+      s.faster_than_sampling, s.too_few_steps, s.step_dropped, s.degenerate);
   std::printf("  %.2f s: per-step BRDF fits %.2f s, temporal fits %.2f s (%.1f us/pixel)\n",
               summary.seconds, s.seconds_steps, s.seconds_temporal,
               s.pixels > 0 ? 1e6 * s.seconds_temporal / s.pixels : 0.0);
