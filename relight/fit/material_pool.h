@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <initializer_list>
+#include <span>
 #include <vector>
 
 #include "relight/fit/fit.h"
@@ -31,6 +32,49 @@ inline double shape_of(const Material& m) {
   if (m.model == FitModel::kOrenNayar) return m.sigma;
   if (m.model == FitModel::kLambertTorranceSparrow) return m.roughness;
   return 0;
+}
+
+// Two albedos have the same colour when their chromaticities (the albedo over its sum) lie within
+// this of each other: a pixel's own fit is of its material when it has the material's model and
+// colour, and a blend explains a pixel only in the colour the pixel's own fit found (a scalar
+// weight cannot change a material's colour; a blend of two can, along the line between them).
+// 0.03 is 9% of a grey's chromaticity (1/3), several times its noise on well-exposed pixels.
+constexpr double kSameColour = 0.03;
+
+inline bool same_colour(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return colour_distance(a, b) <= kSameColour;
+}
+
+// A pixel's samples as fit_models gathers them, and its view direction.
+class PixelGatherer {
+ public:
+  // header: the field's (or its bands') lights and view.
+  PixelGatherer(const capture::ReflectanceField& header, const FitOptions& options)
+      : width_(header.width()), options_(options), valid_(capture::valid_lights(header)) {}
+  // The usable samples of pixel (x, y) of a band (y counted in the band) (thread-local storage,
+  // valid until this thread's next call); with `shadowed`: the directions of the lights left out
+  // as shadowed.
+  std::span<const pixel::Sample> gather(const capture::ReflectanceField& band, int x, int y,
+                                        std::vector<Eigen::Vector3d>* shadowed = nullptr) const {
+    thread_local std::vector<pixel::Sample> samples;
+    samples.resize(valid_.index.size());
+    const int count =
+        pixel::gather_samples(band, valid_, options_.normals, x, y, samples.data(), shadowed).count;
+    return {samples.data(), size_t(count)};
+  }
+  // The view direction at pixel (x, y) of the frame.
+  Eigen::Vector3d view(int x, int y) const {
+    return pixel::view_dir_at(options_.view_dir_per_pixel, size_t(y) * width_ + x);
+  }
+
+ private:
+  int width_;
+  const FitOptions& options_;
+  capture::ValidLights valid_;
+};
+
+inline Eigen::Vector3d fitted_normal(const float* m) {
+  return Eigen::Vector3d(m[kMapNormalX], m[kMapNormalY], m[kMapNormalZ]).normalized();
 }
 
 // A material's parameters: albedo r g b, plus sigma, or plus k_s and the roughness.

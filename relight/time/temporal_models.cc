@@ -297,7 +297,8 @@ bool ran_away(const Series& series, const TemporalResult& f, const PixelContext&
 }
 
 // Fits the temporal models to one pixel's series, chooses by BIC and writes the chosen model into
-// m; flags: what the series gathering found. Counts in local.
+// m; flags: what the series gathering found. Counts fitted and flagged pixels in local; returns the
+// BIC of the model written (HUGE_VAL when none).
 double fit_pixel_models(const Series& series, int flags, const PixelContext& c, float* m,
                         TemporalSummary& local) {
   std::array<TemporalResult, kTemporalModelCount> fits;
@@ -367,13 +368,7 @@ double fit_pixel_models(const Series& series, int flags, const PixelContext& c, 
   m[kTResidual] = float(dof > 0 ? f.chi2 / dof : f.chi2);
   m[kTStepsUsed] = float(series.steps);
   m[kTFlags] = float(flags);
-  ++local.fitted;
-  ++local.per_model[best];
-  if (flags & kFasterThanSampling) ++local.faster_than_sampling;
-  if (flags & kTooFewSteps) ++local.too_few_steps;
-  if (flags & kStepDropped) ++local.step_dropped;
-  if (flags & kTemporalNotConverged) ++local.not_converged;
-  if (flags & kTemporalDegenerate) ++local.degenerate;
+  ++local.fitted;  // Models and flags are counted from the maps once the curves are offered.
   return bic[best];
 }
 
