@@ -128,7 +128,7 @@ Candidate PixelTerms::oren_nayar() const {
 }
 
 LinearSums<double> PixelTerms::sums(FitModel model, double shape) const {
-  if (model == FitModel::kLambertTorranceSparrow) return lobe_sums(shape);
+  if (model == FitModel::kLambertTorranceSparrow) return lobe_sums(shape, nullptr);
   if (model != FitModel::kOrenNayar) return lambert_sums_;
   // a = A lambert + B oren_nayar: the sums of the two terms give any sigma's at no cost.
   double a, b;
@@ -165,8 +165,9 @@ double PixelTerms::lobe_weight(double roughness) const {
   return sum;
 }
 
-LinearSums<double> PixelTerms::lobe_sums(double roughness) const {
+LinearSums<double> PixelTerms::lobe_sums(double roughness, double* oren_nayar_lobe) const {
   LinearSums<double> sums = lambert_sums_;
+  if (oren_nayar_lobe) std::fill_n(oren_nayar_lobe, 3, 0.0);
   const double inv_m2 = 1 / (roughness * roughness);
   if (min_tan2_h_ * inv_m2 > kMaxLobeExponent) return sums;  // No sample sees this lobe.
   for (int i = 0; i < count_; ++i) {
@@ -180,26 +181,21 @@ LinearSums<double> PixelTerms::lobe_sums(double roughness) const {
       sums.ab[c] += wb * lambert_[i];
       sums.bb[c] += wb * b;
       sums.bv[c] += wb * v_[c][i];
+      if (oren_nayar_lobe) oren_nayar_lobe[c] += wb * oren_nayar_[i];
     }
   }
   return sums;
 }
 
-Candidate PixelTerms::torrance_sparrow(double max_specular_albedo) const {
-  if (!lit()) return {};
-  // The fit at a roughness; a lobe with k_s above the bound counts as no fit (chi^2 infinite).
-  auto fit_at = [&](double roughness) {
-    const LinearSums<double> sums = lobe_sums(roughness);
-    Candidate c;
-    solve_linear(sums, /*has_lobe=*/true, c.albedo.data(), &c.ks);
-    c.chi2 = c.ks > max_specular_albedo ? HUGE_VAL : chi2_of(sums, c.albedo.data(), c.ks);
-    c.roughness = roughness;
-    c.ok = std::isfinite(c.chi2);
-    return c;
-  };
-  // The grid over log(roughness), then one parabolic step through the best point and its two
-  // neighbours: each pass costs an exp per sample, and the polish refines m anyway.
-  const double lo = std::log(min_roughness_), step = -lo / (kRoughnessGrid - 1);
+namespace {
+
+// The best of fit_at(roughness) over log(roughness) in [min_roughness, 1]: a grid, then one
+// parabolic step through the best point and its two neighbours, then `refine_steps` golden-section
+// steps inside that bracket (each pass costs an exp per sample). A lobe with k_s above the bound
+// comes back with chi^2 infinite; none below it: implausible_lobe.
+template <class FitAt>
+Candidate search_roughness(const FitAt& fit_at, double min_roughness, int refine_steps) {
+  const double lo = std::log(min_roughness), step = -lo / (kRoughnessGrid - 1);
   double chi2[kRoughnessGrid];
   int best = 0;
   Candidate out;
@@ -221,7 +217,76 @@ Candidate PixelTerms::torrance_sparrow(double max_specular_albedo) const {
       if (c.chi2 < out.chi2) out = c;
     }
   }
+  if (refine_steps > 0) {
+    double log_m = std::log(out.roughness), f_best = out.chi2;
+    golden_refine(
+        [&](double x) { return fit_at(std::exp(x)).chi2; }, lo + std::max(0, best - 1) * step,
+        lo + std::min(kRoughnessGrid - 1, best + 1) * step, refine_steps, &log_m, &f_best);
+    if (f_best < out.chi2) out = fit_at(std::exp(log_m));
+  }
   return out;
+}
+
+}  // namespace
+
+Candidate PixelTerms::torrance_sparrow(double max_specular_albedo, int refine_steps) const {
+  if (!lit()) return {};
+  // The fit at a roughness; a lobe with k_s above the bound counts as no fit (chi^2 infinite).
+  auto fit_at = [&](double roughness) {
+    const LinearSums<double> sums = lobe_sums(roughness, nullptr);
+    Candidate c;
+    solve_linear(sums, /*has_lobe=*/true, c.albedo.data(), &c.ks);
+    c.chi2 = c.ks > max_specular_albedo ? HUGE_VAL : chi2_of(sums, c.albedo.data(), c.ks);
+    c.roughness = roughness;
+    c.ok = std::isfinite(c.chi2);
+    return c;
+  };
+  return search_roughness(fit_at, min_roughness_, refine_steps);
+}
+
+Candidate PixelTerms::oren_nayar_torrance_sparrow(double max_specular_albedo,
+                                                  int refine_steps) const {
+  if (!lit()) return {};
+  // At a roughness, the diffuse term a = A lambert + B oren_nayar and its cross term with the lobe
+  // follow from the lobe's sums with each of the two: every sigma is then free, searched as
+  // oren_nayar() does.
+  auto fit_at = [&](double roughness) {
+    double oren_nayar_lobe[3];
+    const LinearSums<double> lobe = lobe_sums(roughness, oren_nayar_lobe);
+    auto fit_sigma = [&](double sigma) {
+      LinearSums<double> s = sums(FitModel::kOrenNayar, sigma);
+      double a, b;
+      oren_nayar_ab(sigma, &a, &b);
+      for (int c = 0; c < 3; ++c) {
+        s.ab[c] = a * lobe.ab[c] + b * oren_nayar_lobe[c];
+        s.bb[c] = lobe.bb[c];
+        s.bv[c] = lobe.bv[c];
+      }
+      Candidate out;
+      solve_linear(s, /*has_lobe=*/true, out.albedo.data(), &out.ks);
+      out.chi2 = out.ks > max_specular_albedo ? HUGE_VAL : chi2_of(s, out.albedo.data(), out.ks);
+      out.sigma = sigma;
+      out.roughness = roughness;
+      out.ok = std::isfinite(out.chi2);
+      return out;
+    };
+    // A coarser grid than oren_nayar()'s and more golden steps: the same precision for half the
+    // solves, which this search repeats at every roughness.
+    constexpr int kGrid = (kSigmaGrid - 1) / 4 + 1, kSteps = kRefineSteps + 3;
+    const double step = kMaxSigma / (kGrid - 1);
+    int best = 0;
+    double best_chi2 = HUGE_VAL;
+    for (int k = 0; k < kGrid; ++k) {
+      const double chi2 = fit_sigma(k * step).chi2;
+      if (chi2 < best_chi2) best = k, best_chi2 = chi2;
+    }
+    if (!std::isfinite(best_chi2)) return Candidate{};
+    double sigma = best * step;
+    golden_refine([&](double x) { return fit_sigma(x).chi2; }, std::max(0, best - 1) * step,
+                  std::min(kGrid - 1, best + 1) * step, kSteps, &sigma, &best_chi2);
+    return fit_sigma(sigma);
+  };
+  return search_roughness(fit_at, min_roughness_, refine_steps);
 }
 
 namespace {

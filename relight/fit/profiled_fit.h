@@ -134,7 +134,12 @@ class PixelTerms {
 
   Candidate lambert() const;
   Candidate oren_nayar() const;
-  Candidate torrance_sparrow(double max_specular_albedo) const;
+  // refine_steps: golden-section steps on log(roughness) after the grid (fit.cc polishes its
+  // candidates by LM instead; the temporal step fits keep them as they are).
+  Candidate torrance_sparrow(double max_specular_albedo, int refine_steps = 0) const;
+  // Oren-Nayar + Torrance-Sparrow (the temporal step fits' full model): the roughness searched as
+  // torrance_sparrow(), sigma at each roughness as oren_nayar().
+  Candidate oren_nayar_torrance_sparrow(double max_specular_albedo, int refine_steps = 0) const;
   // The sums of a model (Lambert, Oren-Nayar or Lambert + Torrance-Sparrow) at its nonlinear
   // parameter `shape` (sigma, the roughness; ignored for Lambert): what the candidates solve, and
   // what basis materials pool over pixels (relight/fit/basis_materials.h).
@@ -155,10 +160,15 @@ class PixelTerms {
   }
   // The lowest roughness the samples resolve (see above), at least pixel::kMinRoughness.
   double min_roughness() const { return min_roughness_; }
+  // Searches lobes down to pixel::kMinRoughness after reset(): where the normal is known
+  // independently of these samples (the temporal step fits hold it from another step), the peak
+  // is placed, and one or two bright samples do set a narrow lobe.
+  void search_unresolved_lobes() { min_roughness_ = pixel::kMinRoughness; }
 
  private:
-  // The Lambert + Torrance-Sparrow sums at one roughness.
-  LinearSums<double> lobe_sums(double roughness) const;
+  // The Lambert + Torrance-Sparrow sums at one roughness; oren_nayar_lobe (3, or null): the
+  // per-channel sums of w o b, the lobe's cross term with Oren-Nayar's B term.
+  LinearSums<double> lobe_sums(double roughness, double* oren_nayar_lobe) const;
 
   int count_ = 0;
   std::vector<double> w_[3], v_[3];  // Weight 1/sigma^2 and value, per channel.

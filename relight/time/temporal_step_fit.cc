@@ -12,6 +12,7 @@
 
 #include "lightstage/errors.h"
 #include "relight/fit/pixel_solver.h"
+#include "relight/fit/profiled_fit.h"
 #include "relight/lighting/brdf.h"
 #include "relight/time/temporal_fit.h"
 #include "relight/time/temporal_fit_internal.h"
@@ -167,10 +168,67 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit) {
   return sigmas;
 }
 
+// The fit with the lowest BIC of those given (ok false: none).
+StepResult lowest_bic(const std::array<StepResult, 4>& fits, int count) {
+  const double log_n = std::log(3.0 * count);
+  int chosen = -1;
+  for (int m = 0; m < 4; ++m) {
+    if (!fits[m].ok) continue;
+    if (chosen < 0 ||
+        fits[m].chi2 + fits[m].k * log_n < fits[chosen].chi2 + fits[chosen].k * log_n) {
+      chosen = m;
+    }
+  }
+  return chosen < 0 ? StepResult{} : fits[chosen];
+}
+
+// A closed-form candidate (relight/fit/profiled_fit.h) as a step fit.
+StepResult step_result(const profiled::Candidate& c, bool oren_nayar, bool lobe) {
+  StepResult out;
+  if (!c.ok) return out;
+  out.ok = true;
+  out.status = SolverStatus::kConverged;
+  out.chi2 = c.chi2;
+  out.q = {c.albedo(0), c.albedo(1), c.albedo(2), c.sigma, c.ks, lobe ? c.roughness : 0.3};
+  out.used = {true, true, true, oren_nayar, lobe, lobe};
+  out.k = 3 + (oren_nayar ? 1 : 0) + (lobe ? 2 : 0);
+  return out;
+}
+
+// Golden-section steps on log(roughness) after the closed-form grid: the step fits are not
+// polished by LM, and the temporal series see the roughness to about 0.5% with these.
+constexpr int kStepRoughnessRefineSteps = 8;
+
+// The nested per-step models in closed form at the fixed normal (the default solver, as fit.cc's).
+StepResult fit_step_pixel_profiled(const StepPixel& d, const FitOptions& fo) {
+  thread_local profiled::PixelTerms terms;
+  terms.reset(d.samples, d.count, d.n, d.wo);
+  terms.search_unresolved_lobes();
+  std::array<StepResult, 4> fits;
+  fits[0] = step_result(terms.lambert(), false, false);
+  if (fo.fit_oren_nayar) fits[1] = step_result(terms.oren_nayar(), true, false);
+  if (fo.fit_torrance_sparrow) {
+    const double max_ks = fo.max_specular_albedo;
+    fits[2] = step_result(terms.torrance_sparrow(max_ks, kStepRoughnessRefineSteps), false, true);
+    // Forward selection: both together only where either alone is worth its parameters over
+    // Lambert (the search over both costs more than the other three together).
+    const auto better_than_lambert = [&](const StepResult& f) {
+      return f.ok && fits[0].ok &&
+             f.chi2 + (f.k - fits[0].k) * std::log(3.0 * d.count) < fits[0].chi2;
+    };
+    if (fo.fit_oren_nayar && (better_than_lambert(fits[1]) || better_than_lambert(fits[2]))) {
+      fits[3] = step_result(terms.oren_nayar_torrance_sparrow(max_ks, kStepRoughnessRefineSteps),
+                            true, true);
+    }
+  }
+  return lowest_bic(fits, d.count);
+}
+
 // The nested per-step models (Lambert, Oren-Nayar, each with or without the lobe), the lowest BIC
 // kept: a parameter the data do not support is fixed (sigma = 0, k_s = 0) rather than left free to
 // trade off against the albedo. Returns the kept fit (ok false: none).
 StepResult fit_step_pixel(const StepPixel& d, const FitOptions& fo) {
+  if (fo.solver == FitSolver::kProfiled) return fit_step_pixel_profiled(d, fo);
   std::array<double, 6> start{};
   const Eigen::Vector3d albedo = pixel::lambert_albedo(d.samples, d.count, d.n);
   for (int c = 0; c < 3; ++c) start[c] = albedo(c);
@@ -204,16 +262,7 @@ StepResult fit_step_pixel(const StepPixel& d, const FitOptions& fo) {
       if (full.ok && full.q[kParamKs] <= fo.max_specular_albedo) fits[3] = full;
     }
   }
-  const double log_n = std::log(3.0 * d.count);
-  int chosen = -1;
-  for (int m = 0; m < 4; ++m) {
-    if (!fits[m].ok) continue;
-    if (chosen < 0 ||
-        fits[m].chi2 + fits[m].k * log_n < fits[chosen].chi2 + fits[chosen].k * log_n) {
-      chosen = m;
-    }
-  }
-  return chosen < 0 ? StepResult{} : fits[chosen];
+  return lowest_bic(fits, d.count);
 }
 
 }  // namespace
