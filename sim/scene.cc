@@ -47,16 +47,27 @@ std::filesystem::path resolve(const std::string& file, const std::string& source
 
 MaterialProcess parse_process(const JsonReader& r, const brdf::Material& base,
                               const std::string& source) {
-  r.expect_object({"kind", "rate_per_s", "onset_s", "wet", "dry", "spatial"});
+  r.expect_object(
+      {"kind", "rate_per_s", "onset_s", "wet", "dry", "middle", "wetting_rate_per_s", "spatial"});
   MaterialProcess p;
-  const std::string kind = r["kind"].one_of({"paint_drying", "wet_drying", "dust_settling"});
-  p.kind = kind == "paint_drying" ? ProcessKind::kPaintDrying
-           : kind == "wet_drying" ? ProcessKind::kWetDrying
-                                  : ProcessKind::kDustSettling;
+  const std::string kind = r["kind"].one_of(
+      {"paint_drying", "wet_drying", "dust_settling", "corroding", "wetting_drying"});
+  p.kind = kind == "paint_drying"    ? ProcessKind::kPaintDrying
+           : kind == "wet_drying"    ? ProcessKind::kWetDrying
+           : kind == "dust_settling" ? ProcessKind::kDustSettling
+           : kind == "corroding"     ? ProcessKind::kCorroding
+                                     : ProcessKind::kWettingDrying;
   p.rate_per_s = r["rate_per_s"].positive("(1/s)");
+  if (r.has("middle") && p.kind != ProcessKind::kCorroding)
+    r["middle"].fail("no middle for " + kind);
+  if (p.kind == ProcessKind::kWettingDrying) {
+    p.wetting_rate_per_s = r["wetting_rate_per_s"].positive("(1/s)");  // Required.
+  } else if (r.has("wetting_rate_per_s")) {
+    r["wetting_rate_per_s"].fail("no wetting_rate_per_s for " + kind);
+  }
   if (r.has("onset_s")) p.onset_s = r["onset_s"].number_in(0, 1e9, "(seconds)");
-  auto endpoint = [&](const char* key, const brdf::Material& start) {
-    if (!r.has(key)) return start;
+  auto endpoint = [&](const char* key, const brdf::Material& start, bool required = false) {
+    if (!required && !r.has(key)) return start;  // r[key] throws "missing" when required.
     const JsonReader e = r[key];
     e.expect_object(
         {"diffuse", "albedo", "sigma_deg", "specular", "ks", "roughness", "phong_exponent"});
@@ -72,6 +83,7 @@ MaterialProcess parse_process(const JsonReader& r, const brdf::Material& base,
     dry_start.ks.setZero();
   }
   p.dry = endpoint("dry", dry_start);
+  if (p.kind == ProcessKind::kCorroding) p.middle = endpoint("middle", p.wet, /*required=*/true);
   if (r.has("spatial")) {
     const JsonReader sp = r["spatial"];
     sp.expect_object({"kind", "center", "speed_per_s", "max_radius", "stroke_duration_s",
@@ -320,6 +332,38 @@ constexpr std::string_view kTimeVaryingSceneJson = R"json({
 }
 )json";
 
+// The rise-and-fall scene (data/scenes/rise_and_fall.json holds the same text).
+constexpr std::string_view kRiseAndFallSceneJson = R"json({
+  "materials": [
+    {"name": "corroding-metal", "diffuse": "lambert", "specular": "torrance-sparrow",
+     "process": {"kind": "corroding", "rate_per_s": 0.003333, "onset_s": 0,
+       "wet": {"albedo": [0.073, 0.055, 0.045], "ks": [0.2, 0.2, 0.2], "roughness": 0.15},
+       "middle": {"albedo": [0.17, 0.07, 0.045], "ks": [0.06, 0.06, 0.06], "roughness": 0.18},
+       "dry": {"albedo": [0.057, 0.075, 0.065], "ks": [0.01, 0.01, 0.01], "roughness": 0.27},
+       "spatial": {"kind": "spreading_patch", "center": [0.5, 0.5], "speed_per_s": 0.0025}}},
+    {"name": "stone-slab", "diffuse": "lambert", "albedo": [0.55, 0.47, 0.38],
+     "specular": "torrance-sparrow", "ks": [0, 0, 0], "roughness": 0.2,
+     "process": {"kind": "wetting_drying", "rate_per_s": 0.004, "wetting_rate_per_s": 0.025,
+       "onset_s": 100,
+       "wet": {"albedo": [0.2, 0.16, 0.12], "ks": [0.12, 0.12, 0.12]},
+       "spatial": {"kind": "stroke", "stroke_duration_s": 300, "rate_scale_at_start": 0.7,
+                   "rate_scale_at_end": 1.4}}},
+    {"name": "matte-white", "diffuse": "lambert", "albedo": [0.8, 0.78, 0.75]},
+    {"name": "grey-backdrop", "diffuse": "lambert", "albedo": [0.4, 0.4, 0.4]}
+  ],
+  "spheres": [
+    {"center": [-0.45, 0.32, 0.0], "radius": 0.42, "material": "corroding-metal"},
+    {"center": [0.55, 0.38, 0.0], "radius": 0.3, "material": "matte-white"}
+  ],
+  "planes": [
+    {"center": [0.0, -0.55, -0.2], "normal": [0, 0, 1], "half_width": 1.0, "half_height": 0.4,
+     "material": "stone-slab"},
+    {"center": [0.0, 0.0, -0.6], "normal": [0, 0, 1], "half_width": 2.0, "half_height": 2.0,
+     "material": "grey-backdrop"}
+  ]
+}
+)json";
+
 }  // namespace
 
 int object_index_of_plane(const Scene& scene, int plane) {
@@ -428,6 +472,8 @@ Scene default_scene() {
 namespace ls::sim {
 
 Scene time_varying_scene() { return parse_scene(kTimeVaryingSceneJson, "<built-in>"); }
+
+Scene rise_and_fall_scene() { return parse_scene(kRiseAndFallSceneJson, "<built-in>"); }
 
 bool has_time_varying_materials(const Scene& scene) {
   for (const SceneMaterial& m : scene.materials) {

@@ -76,6 +76,13 @@ Scene default_scene();
 // sphere gathering dust along a stroke (lambda = 1/200 s, faster toward s = 1) and a static matte
 // sphere, before a grey backdrop.
 Scene time_varying_scene();
+// Materials that rise and fall (data/scenes/rise_and_fall.json holds the same text), over about
+// 20 minutes: a metal sphere corroding from a spot outwards (corroding, lambda = 1/300 s, front
+// speed 1/400 per s: red albedo 0.073 -> 0.118 at its peak -> 0.057, k_s 0.2 -> 0.01, roughness
+// 0.15 -> 0.27), a stone slab wetted along a brush stroke from 100 s, then drying (wetting_drying,
+// kappa = 1/40 s, lambda = 1/250 s, both x0.7 at the stroke's start to x1.4 at its end), a static
+// matte sphere, before a grey backdrop.
+Scene rise_and_fall_scene();
 bool has_time_varying_materials(const Scene& scene);
 
 // What the camera sees at one pixel.

@@ -26,6 +26,10 @@ const char* process_kind_name(ProcessKind kind) {
       return "wet_drying";
     case ProcessKind::kDustSettling:
       return "dust_settling";
+    case ProcessKind::kCorroding:
+      return "corroding";
+    case ProcessKind::kWettingDrying:
+      return "wetting_drying";
   }
   return "?";
 }
@@ -60,6 +64,18 @@ std::string MaterialProcess::validate() const {
              "expected lambert";
     }
   }
+  if (kind == ProcessKind::kCorroding) {
+    if (std::string p = middle.validate(); !p.empty()) return "middle: " + p;
+    if (middle.diffuse != wet.diffuse || middle.specular != wet.specular) {
+      return "middle: expected the diffuse and specular models of wet";
+    }
+  }
+  if (kind == ProcessKind::kWettingDrying &&
+      (!(wetting_rate_per_s > rate_per_s) || !std::isfinite(wetting_rate_per_s))) {
+    return "wetting_rate_per_s: expected a finite rate (1/s) above rate_per_s (the surface wets "
+           "faster than it dries), got " +
+           std::to_string(wetting_rate_per_s);
+  }
   const SpatialVariation& sp = spatial;
   if (sp.kind == SpatialVariation::Kind::kSpreadingPatch) {
     if (!(sp.speed_per_s > 0) || !std::isfinite(sp.speed_per_s)) {
@@ -86,8 +102,17 @@ std::string MaterialProcess::validate() const {
   return "";
 }
 
-double process_weight(ProcessKind kind, double rate_per_s, double onset_s, double time_s) {
+double process_weight(ProcessKind kind, double rate_per_s, double onset_s, double time_s,
+                      double wetting_rate_per_s) {
   if (kind == ProcessKind::kWetDrying) return sigmoid_weight(rate_per_s, onset_s, time_s);
+  if (kind == ProcessKind::kWettingDrying) {
+    const double lambda = rate_per_s, kappa = wetting_rate_per_s;
+    // The wetness peaks at t* = ln(kappa / lambda) / (kappa - lambda).
+    const double peak = std::log(kappa / lambda) / (kappa - lambda);
+    const double h_max = decay(lambda, peak) - decay(kappa, peak);
+    const double h = decay(lambda, time_s - onset_s) - decay(kappa, time_s - onset_s);
+    return 1.0 - std::clamp(h / h_max, 0.0, 1.0);
+  }
   return 1.0 - decay(rate_per_s, time_s - onset_s);
 }
 
@@ -121,12 +146,27 @@ brdf::Material blend_endpoints(const brdf::Material& wet, const brdf::Material& 
   return m;
 }
 
+brdf::Material blend_through(const brdf::Material& wet, const brdf::Material& middle,
+                             const brdf::Material& dry, double w) {
+  w = std::clamp(w, 0.0, 1.0);
+  const double a = (1 - w) * (1 - w), b = 2 * w * (1 - w), c = w * w;
+  brdf::Material m = wet;
+  m.albedo = a * wet.albedo + b * middle.albedo + c * dry.albedo;
+  m.ks = a * wet.ks + b * middle.ks + c * dry.ks;
+  m.sigma_rad = a * wet.sigma_rad + b * middle.sigma_rad + c * dry.sigma_rad;
+  m.roughness = 1.0 / (a / wet.roughness + b / middle.roughness + c / dry.roughness);
+  m.phong_exponent = a * wet.phong_exponent + b * middle.phong_exponent + c * dry.phong_exponent;
+  return m;
+}
+
 double ProcessTruth::weight(double time_s) const {
-  return varying ? process_weight(kind, rate_per_s, onset_s, time_s) : 0.0;
+  return varying ? process_weight(kind, rate_per_s, onset_s, time_s, wetting_rate_per_s) : 0.0;
 }
 
 brdf::Material ProcessTruth::material(double time_s) const {
-  return varying ? blend_endpoints(wet, dry, weight(time_s)) : wet;
+  if (!varying) return wet;
+  if (kind == ProcessKind::kCorroding) return blend_through(wet, middle, dry, weight(time_s));
+  return blend_endpoints(wet, dry, weight(time_s));
 }
 
 ProcessTruth truth_at(const SceneMaterial& material, double s, double t) {
@@ -160,6 +200,8 @@ ProcessTruth truth_at(const SceneMaterial& material, double s, double t) {
   truth.varying = true;
   truth.wet = p.wet;
   truth.dry = p.dry;
+  truth.middle = p.middle;
+  truth.wetting_rate_per_s = p.wetting_rate_per_s * (truth.rate_per_s / p.rate_per_s);
   return truth;
 }
 

@@ -24,6 +24,21 @@
 // wet surface drying has no or a constant specular lobe (validate() requires wet.ks == dry.ks and
 // equal roughness).
 //
+// Two processes whose parameters do not move monotonically between two endpoints (issue 20):
+//   corroding (rises and falls): the progress w = 1 - e^(-lambda t') as paint, and every
+//                    parameter on the quadratic Bezier curve from wet through the control point
+//                    `middle` to dry: p(w) = (1-w)^2 wet + 2 w (1-w) middle + w^2 dry (the
+//                    roughness's reciprocal, as harmonic above); a middle albedo above both ends
+//                    rises, then falls (issue 20's corroding metal: red 0.073 -> 0.118 -> 0.057).
+//                    At w = 1/2 the material is (wet + 2 middle + dry) / 4.
+//   wetting and drying (two phases): a dry surface wets at wetting_rate_per_s (kappa) from the
+//                    onset, then dries at rate_per_s (lambda < kappa): its wetness
+//                    h(t') = (e^(-lambda t') - e^(-kappa t')) / h_max, 0 before the onset, 1 at
+//                    its peak, and w = 1 - h (so w starts dry at 1, reaches 0 fully wet, and
+//                    returns to 1).
+// Spatial variation scales every rate of a point alike (the stroke's rate_scale), so a point's
+// process is its material's on its own clock.
+//
 // Spatial variation (per point (s, t) of the object):
 //   uniform:         onset = onset_s, rate = rate_per_s everywhere.
 //   spreading patch: onset = onset_s + |(s, t) - centre| / speed_per_s (the patch front moves
@@ -43,8 +58,9 @@ namespace ls::sim {
 
 struct SceneMaterial;  // sim/scene.h
 
-enum class ProcessKind { kPaintDrying, kWetDrying, kDustSettling };
-// "paint_drying", "wet_drying", "dust_settling" (the scene-file names).
+enum class ProcessKind { kPaintDrying, kWetDrying, kDustSettling, kCorroding, kWettingDrying };
+// "paint_drying", "wet_drying", "dust_settling", "corroding", "wetting_drying" (the scene-file
+// names).
 const char* process_kind_name(ProcessKind kind);
 
 struct SpatialVariation {
@@ -66,9 +82,11 @@ struct MaterialProcess {
   ProcessKind kind = ProcessKind::kPaintDrying;
   // lambda (1/s) for paint and dust; the sigmoid steepness kappa (1/s) for wet drying. > 0.
   double rate_per_s = 0.01;
-  double onset_s = 0.0;  // Scene time the process starts (sigmoid midpoint for wet drying), >= 0.
-  brdf::Material wet;    // Endpoint at onset (dust: the clean base).
-  brdf::Material dry;    // Endpoint at time -> inf (dust: albedo = dust colour, ks = 0).
+  double onset_s = 0.0;   // Scene time the process starts (sigmoid midpoint for wet drying), >= 0.
+  brdf::Material wet;     // Endpoint at onset (dust: the clean base; wetting: fully wet).
+  brdf::Material dry;     // Endpoint at time -> inf (dust: albedo = dust colour, ks = 0).
+  brdf::Material middle;  // Corroding: the Bezier control point between wet and dry.
+  double wetting_rate_per_s = 0.0;  // Wetting and drying: kappa (1/s), > rate_per_s.
   SpatialVariation spatial;
 
   // Empty when valid; otherwise a sentence naming the field (e.g. "dry.ks: ...").
@@ -83,14 +101,19 @@ struct ProcessTruth {
   double onset_s = 0.0;     // At this point (after spatial variation).
   brdf::Material wet;       // Equal to dry (and to the base) when !varying.
   brdf::Material dry;
+  brdf::Material middle;            // Corroding.
+  double wetting_rate_per_s = 0.0;  // Wetting and drying, at this point.
 
   double weight(double time_s) const;            // w(time) above; 0 when !varying.
-  brdf::Material material(double time_s) const;  // blend_endpoints(wet, dry, weight(time_s)).
+  brdf::Material material(double time_s) const;  // blend_endpoints(wet, dry, weight(time_s));
+                                                 // corroding: blend_through(...).
 };
 
 // The closed forms, for tests and for comparing fitted curves.
-// w for `kind` at scene time `time_s` (t' = max(0, time_s - onset_s) for the exponentials).
-double process_weight(ProcessKind kind, double rate_per_s, double onset_s, double time_s);
+// w for `kind` at scene time `time_s` (t' = max(0, time_s - onset_s) for the exponentials);
+// wetting_rate_per_s: kappa of kWettingDrying (ignored by the others).
+double process_weight(ProcessKind kind, double rate_per_s, double onset_s, double time_s,
+                      double wetting_rate_per_s = 0.0);
 // (value_wet - value_dry) e^(-lambda t') + value_dry, t' = max(0, time_s - onset_s).
 double exponential_value(double value_wet, double value_dry, double rate_per_s, double onset_s,
                          double time_s);
@@ -101,6 +124,9 @@ double beckmann_roughness_value(double m_wet, double m_dry, double rate_per_s, d
 double sigmoid_weight(double kappa_per_s, double onset_s, double time_s);
 // Every parameter at weight w in [0, 1] (see the top of this file); models come from `wet`.
 brdf::Material blend_endpoints(const brdf::Material& wet, const brdf::Material& dry, double w);
+// The quadratic Bezier from wet through the control `middle` to dry at w in [0, 1] (corroding).
+brdf::Material blend_through(const brdf::Material& wet, const brdf::Material& middle,
+                             const brdf::Material& dry, double w);
 
 // The true process at (s, t) of `material` (clamped to [0,1]^2).
 ProcessTruth truth_at(const SceneMaterial& material, double s, double t);

@@ -100,10 +100,11 @@ CurveFit fit_curve(const Series& series, const TemporalCurves& curves, double t_
 constexpr int kMaxRounds = 60;
 
 TemporalCurves learn_curves(const std::vector<Series>& sample, double t_first, double span,
-                            int knots) {
+                            int knots, const TemporalCurves* start) {
   TemporalCurves curves;
   curves.knots.assign(kTemporalParamCount, std::vector<double>(size_t(knots)));
-  normalise(curves);  // Starts as 1 - tau.
+  if (start && !start->empty() && int(start->knots[0].size()) == knots) curves = *start;
+  normalise(curves);  // Without a start: 1 - tau.
   std::vector<CurveFit> fits(sample.size());
   double previous = HUGE_VAL;
   for (int round = 0; round < kMaxRounds; ++round) {

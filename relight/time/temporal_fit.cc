@@ -28,13 +28,42 @@ capture::ReflectanceField pooled_field(const std::vector<const capture::Reflecta
   return pooled;
 }
 
+// Photometric stereo on the source, then (refine_normals) each pixel's normal refined by its own
+// BRDF fit on the source step (the last for kPooled): the fit's normal where it has one.
 NormalMap normals_from(const std::vector<const capture::ReflectanceField*>& sorted,
-                       const NormalOptions& options, NormalSource source) {
-  if (source == NormalSource::kPooled && sorted.size() > 1) {
-    return estimate_normals(pooled_field(sorted), options);
+                       const TemporalFitOptions& options) {
+  const NormalSource source = options.normal_source;
+  const capture::ReflectanceField& step =
+      source == NormalSource::kFirst ? *sorted.front() : *sorted.back();
+  NormalMap normals = source == NormalSource::kPooled && sorted.size() > 1
+                          ? estimate_normals(pooled_field(sorted), options.brdf.normals)
+                          : estimate_normals(step, options.brdf.normals);
+  if (!options.refine_normals) return normals;
+  FitOptions fit = options.brdf;
+  fit.refine_normal = true;
+  fit.materials = FitMaterials::kPerPixel;  // Only each pixel's own normal is wanted.
+  fit.progress = nullptr;
+  const ModelMaps fitted = fit_models(step, normals, fit);
+  for (int y = 0; y < step.height(); ++y) {
+    for (int x = 0; x < step.width(); ++x) {
+      if (normals.flags.at(x, y, 0) != 0 || fitted.model(x, y) == FitModel::kNone) continue;
+      const Eigen::Vector3d n(fitted.maps.at(x, y, kMapNormalX),
+                              fitted.maps.at(x, y, kMapNormalX + 1),
+                              fitted.maps.at(x, y, kMapNormalX + 2));
+      if (!(n.norm() > 0.5) || !n.allFinite()) continue;
+      for (int c = 0; c < 3; ++c) normals.normal.at(x, y, c) = float(n.normalized()(c));
+    }
   }
-  return estimate_normals(source == NormalSource::kLast ? *sorted.back() : *sorted.front(),
-                          options);
+  return normals;
+}
+
+std::vector<const capture::ReflectanceField*> by_time(
+    const std::vector<capture::ReflectanceField>& steps) {
+  std::vector<const capture::ReflectanceField*> order;
+  for (const auto& f : steps) order.push_back(&f);
+  std::stable_sort(order.begin(), order.end(),
+                   [](auto* a, auto* b) { return a->scene_time_s < b->scene_time_s; });
+  return order;
 }
 
 void check_same_layout(const std::vector<capture::ReflectanceField>& steps) {
@@ -85,7 +114,9 @@ const std::vector<std::string>& temporal_channel_names() {
       n.push_back(std::string("wet.") + temporal_param_name(p));
     for (int p = 0; p < kTemporalParamCount; ++p)
       n.push_back(std::string("dry.") + temporal_param_name(p));
-    for (const char* c : {"confidence", "residual", "steps_used", "flags"}) n.push_back(c);
+    for (const char* c : {"confidence", "residual", "steps_used", "flags", "curve"}) {
+      n.push_back(c);
+    }
     return n;
   }();
   return names;
@@ -114,11 +145,9 @@ std::string TemporalSummary::to_string() const {
 }
 
 NormalMap estimate_temporal_normals(const std::vector<capture::ReflectanceField>& steps,
-                                    const NormalOptions& options, NormalSource source) {
+                                    const TemporalFitOptions& options) {
   check_same_layout(steps);
-  std::vector<const capture::ReflectanceField*> sorted;
-  for (const auto& f : steps) sorted.push_back(&f);
-  return normals_from(sorted, options, source);
+  return normals_from(by_time(steps), options);
 }
 
 TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
@@ -127,10 +156,7 @@ TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
     throw InputError("temporal fit options: " + error);
   }
   check_same_layout(input);
-  std::vector<const capture::ReflectanceField*> order;
-  for (const auto& f : input) order.push_back(&f);
-  std::stable_sort(order.begin(), order.end(),
-                   [](auto* a, auto* b) { return a->scene_time_s < b->scene_time_s; });
+  const std::vector<const capture::ReflectanceField*> order = by_time(input);
   for (size_t i = 1; i < order.size(); ++i) {
     if (order[i]->scene_time_s == order[i - 1]->scene_time_s) {
       throw InputError(order[i]->source + ": scene_time_s: expected a time different from " +
@@ -139,7 +165,7 @@ TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
     }
   }
   const auto start_time = std::chrono::steady_clock::now();
-  const NormalMap normals = normals_from(order, options.brdf.normals, options.normal_source);
+  const NormalMap normals = normals_from(order, options);
   const long total_rows = long(order.size() + 1) * input[0].height();
   std::atomic<long> done_rows{0};
   std::vector<StepFit> steps;

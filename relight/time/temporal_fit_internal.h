@@ -63,8 +63,9 @@ inline double fit_endpoints(const Series& series, int p, const double* shape, do
 
 // The data-driven curves (temporal_curves.cc): learnt from a sample of changing pixels' series,
 // and one pixel's best time warp and endpoints under them.
+// start: the curves to refine (null: every curve starts as 1 - tau).
 TemporalCurves learn_curves(const std::vector<Series>& sample, double t_first, double span,
-                            int knots);
+                            int knots, const TemporalCurves* start = nullptr);
 struct CurveFit {
   double chi2 = HUGE_VAL;
   double rate = 0, onset = 0;

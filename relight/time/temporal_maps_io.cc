@@ -28,7 +28,11 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
                          {"read_variance", maps.noise.a},
                          {"shot_variance_per_unit", maps.noise.b},
                          {"noise_source", maps.noise_source}};
-  if (!maps.curves.empty()) meta["curves"] = maps.curves.knots;
+  if (!maps.curves.empty()) {
+    nlohmann::json families = nlohmann::json::array();
+    for (const TemporalCurves& family : maps.curves) families.push_back(family.knots);
+    meta["curve_families"] = families;
+  }
   const Image& steps = maps.step_values;
   LS_CHECK(steps.pixels.empty() ||
                (steps.width == image.width && steps.height == image.height &&
@@ -82,8 +86,10 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
       with_steps.push_back("step." + std::to_string(i) + "." + temporal_param_name(p));
     }
   }
+  // 'curve' and the step channels are optional ('curve' is 0 in files before curve families).
   NamedChannelFile file = read_named_channels(path, with_steps, "temporal maps",
-                                              "'lightstage fit --time'", /*exact=*/false);
+                                              "'lightstage fit --time'", /*exact=*/false,
+                                              /*required=*/kTCurve);
   TemporalMaps out;
   const std::string* meta = file.attribute(kTemporalAttribute);
   if (!meta) {
@@ -95,16 +101,23 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
     out.noise.a = j.at("read_variance").get<double>();
     out.noise.b = j.at("shot_variance_per_unit").get<double>();
     out.noise_source = j.value("noise_source", std::string());
-    if (j.contains("curves")) {
-      out.curves.knots = j.at("curves").get<std::vector<std::vector<double>>>();
-      bool valid = out.curves.knots.size() == size_t(kTemporalParamCount);
-      for (const std::vector<double>& c : out.curves.knots) {
-        valid = valid && c.size() >= 2 && c.size() == out.curves.knots[0].size() &&
+    // "curves": one family (files before families); "curve_families": a list of them.
+    std::vector<nlohmann::json> families;
+    if (j.contains("curves")) families.push_back(j.at("curves"));
+    if (j.contains("curve_families")) {
+      families = j.at("curve_families").get<std::vector<nlohmann::json>>();
+    }
+    for (size_t f = 0; f < families.size(); ++f) {
+      TemporalCurves& curves = out.curves.emplace_back();
+      curves.knots = families[f].get<std::vector<std::vector<double>>>();
+      bool valid = curves.knots.size() == size_t(kTemporalParamCount);
+      for (const std::vector<double>& c : curves.knots) {
+        valid = valid && c.size() >= 2 && c.size() == curves.knots[0].size() &&
                 std::all_of(c.begin(), c.end(), [](double v) { return std::isfinite(v); });
       }
       if (!valid) {
-        throw InputError(name + ": attribute '" + kTemporalAttribute + "': curves: expected " +
-                         std::to_string(kTemporalParamCount) +
+        throw InputError(name + ": attribute '" + kTemporalAttribute + "': curve family " +
+                         std::to_string(f) + ": expected " + std::to_string(kTemporalParamCount) +
                          " lists of the same number (at least 2) of finite knots");
       }
     }
@@ -170,10 +183,13 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
         throw InputError(name + ": channel 'flags': expected a non-negative integer at (" +
                          std::to_string(x) + ", " + std::to_string(y) + ")");
       }
-      if (model == float(TemporalModel::kCurve) && out.curves.empty()) {
-        throw InputError(name + ": channel 'model': a curve at (" + std::to_string(x) + ", " +
-                         std::to_string(y) + ") but no curves in attribute '" + kTemporalAttribute +
-                         "'");
+      const float family = out.maps.at(x, y, kTCurve);
+      if (model == float(TemporalModel::kCurve) &&
+          !(family == std::floor(family) && family >= 0 && family < float(out.curves.size()))) {
+        throw InputError(name + ": channel 'curve': a curve at (" + std::to_string(x) + ", " +
+                         std::to_string(y) + ") of family " + std::to_string(family) + " but " +
+                         std::to_string(out.curves.size()) + " families in attribute '" +
+                         kTemporalAttribute + "'");
       }
       if (model == 0) {
         ++summary.flagged;

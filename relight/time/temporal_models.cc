@@ -423,6 +423,76 @@ bool unexplained(const float* m) {
          (m[kTResidual] > kUnexplainedResidual || (int(m[kTFlags]) & kTemporalDegenerate) != 0);
 }
 
+constexpr int kCurveParameters = 2 + 2 * kTemporalParamCount;
+// At most this many curve families, each learnt from at least kMinFamilySeries series of the
+// sample, shared among them by this many k-means rounds after each new one.
+constexpr int kMaxCurveFamilies = 4;
+constexpr size_t kMinFamilySeries = 10;
+constexpr int kFamilyRounds = 3;
+
+// The best family of one series by chi^2.
+struct FamilyFit {
+  int family = 0;
+  temporal_internal::CurveFit fit;
+};
+FamilyFit best_family(const Series& series, const std::vector<TemporalCurves>& families,
+                      const PixelContext& c) {
+  FamilyFit best;
+  for (size_t f = 0; f < families.size(); ++f) {
+    const temporal_internal::CurveFit fit =
+        temporal_internal::fit_curve(series, families[f], c.t_first, c.span);
+    if (fit.chi2 < best.fit.chi2) best = {int(f), fit};
+  }
+  return best;
+}
+
+// The curve families of the sample (TemporalCurves): a first one from every series; while at least
+// kMinFamilySeries series stay unexplained (reduced chi^2 above kUnexplainedResidual under their
+// best family), a new family from those, then the series shared among the families by rounds of
+// assignment (each to its best family) and learning (each family from its own series).
+std::vector<TemporalCurves> learn_families(const std::vector<Series>& sample, int knots,
+                                           const PixelContext& c) {
+  std::vector<TemporalCurves> families = {
+      temporal_internal::learn_curves(sample, c.t_first, c.span, knots)};
+  std::vector<FamilyFit> fits(sample.size());
+  const auto assign = [&] {
+    tbb::parallel_for(size_t(0), sample.size(),
+                      [&](size_t i) { fits[i] = best_family(sample[i], families, c); });
+  };
+  const auto members = [&](int family, bool only_unexplained) {
+    std::vector<Series> out;
+    for (size_t i = 0; i < sample.size(); ++i) {
+      const double dof = std::max(1, sample[i].steps * kTemporalParamCount - kCurveParameters);
+      if (only_unexplained ? fits[i].fit.chi2 > kUnexplainedResidual * dof
+                           : fits[i].family == family) {
+        out.push_back(sample[i]);
+      }
+    }
+    return out;
+  };
+  assign();
+  while (families.size() < size_t(kMaxCurveFamilies)) {
+    const std::vector<Series> unexplained_series = members(-1, true);
+    if (unexplained_series.size() < kMinFamilySeries) break;
+    families.push_back(
+        temporal_internal::learn_curves(unexplained_series, c.t_first, c.span, knots));
+    for (int round = 0; round < kFamilyRounds; ++round) {
+      assign();
+      for (size_t f = 0; f < families.size(); ++f) {
+        const std::vector<Series> own = members(int(f), false);
+        if (own.size() < kMinFamilySeries) continue;
+        families[f] = temporal_internal::learn_curves(own, c.t_first, c.span, knots, &families[f]);
+      }
+    }
+    assign();
+    if (members(int(families.size()) - 1, false).size() < kMinFamilySeries) {
+      families.pop_back();  // The new family explains too few: the others do as well.
+      break;
+    }
+  }
+  return families;
+}
+
 void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
                   const std::vector<double>& best_bic, TemporalMaps& out) {
   const int width = out.maps.width, pixels = width * out.maps.height;
@@ -432,7 +502,7 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
     const int model = int(m[kTModel]);
     if (model > int(TemporalModel::kNone) && unexplained(m)) changing.push_back(i);
   }
-  if (changing.size() < 10) return;
+  if (changing.size() < kMinFamilySeries) return;
   std::vector<Series> sample;
   const size_t stride = (changing.size() + kCurveSample - 1) / kCurveSample;
   for (size_t j = 0; j < changing.size(); j += stride) {
@@ -440,20 +510,21 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
                                      sample.emplace_back());
   }
   const int knots = std::clamp(int(steps.size()) + 3, 5, 16);
-  out.curves = temporal_internal::learn_curves(sample, c.t_first, c.span, knots);
-  constexpr int kCurveParameters = 2 + 2 * kTemporalParamCount;
+  out.curves = learn_families(sample, knots, c);
   tbb::parallel_for(0, pixels, [&](int i) {
     float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
     if (!std::isfinite(best_bic[size_t(i)]) || !unexplained(m)) return;
     thread_local Series series;
     const int flags = temporal_internal::gather_series(steps, i % width, i / width, series);
-    const temporal_internal::CurveFit f =
-        temporal_internal::fit_curve(series, out.curves, c.t_first, c.span);
+    const FamilyFit best = best_family(series, out.curves, c);
+    const temporal_internal::CurveFit& f = best.fit;
     const double n = double(series.steps * kTemporalParamCount);
     const double bic = f.chi2 + kCurveParameters * std::log(n);
-    if (!(bic < best_bic[size_t(i)] - kCurveEvidence) || curve_runs_away(series, f, out.curves)) {
+    if (!(bic < best_bic[size_t(i)] - kCurveEvidence) ||
+        curve_runs_away(series, f, out.curves[size_t(best.family)])) {
       return;
     }
+    m[kTCurve] = float(best.family);
     m[kTModel] = float(TemporalModel::kCurve);
     m[kTRate] = float(f.rate);
     m[kTOnset] = float(f.onset);
@@ -495,6 +566,12 @@ int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, i
     }
   }
   return flags;
+}
+
+const TemporalCurves* TemporalMaps::curves_at(int x, int y) const {
+  if (model(x, y) != TemporalModel::kCurve) return nullptr;
+  const int family = int(maps.at(x, y, kTCurve));
+  return family >= 0 && family < int(curves.size()) ? &curves[size_t(family)] : nullptr;
 }
 
 double temporal_value(TemporalModel model, double rate, double onset, double wet, double dry,

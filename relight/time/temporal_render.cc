@@ -22,14 +22,14 @@ double clamp_param(int p, double v) {
 }
 
 // One parameter of one pixel at time t (roughness harmonic: 1/m follows the curve).
-double param_at(const float* m, int p, double t, const TemporalCurves& curves) {
+double param_at(const float* m, int p, double t, const TemporalCurves* curves) {
   const TemporalModel model = TemporalModel(int(m[kTModel]));
   double wet = m[kTWet + p], dry = m[kTDry + p];
   if (p == kParamRoughness) {
     wet = 1 / std::max(wet, kMinRoughness);
     dry = 1 / std::max(dry, kMinRoughness);
   }
-  double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, &curves, p);
+  double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, curves, p);
   if (p == kParamRoughness) v = v > 0 ? 1 / v : 1.0;
   return clamp_param(p, std::isfinite(v) ? v : dry);
 }
@@ -109,7 +109,8 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
           q[p] = clamp_param(p, maps.step_values.at(x, y, nearest_step * kTemporalParamCount + p));
         }
       } else {
-        for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s, maps.curves);
+        const TemporalCurves* curves = maps.curves_at(x, y);
+        for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s, curves);
       }
       for (int c = 0; c < 3; ++c) {
         o[kMapNormalX + c] = m[kTNormalX + c];
@@ -196,6 +197,7 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
     // The source process, summarised once before anything changes.
     TemporalModel source_model = TemporalModel::kNone;
     double source_rate = 0, source_onset = first;
+    int source_family = 0;  // kCurve: the family most of the source's curve pixels follow.
     double change[kTemporalParamCount] = {};
     if (edit.transfer_from) {
       int votes[kTemporalModelCount] = {};
@@ -232,6 +234,20 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
           }
         }
       }
+      if (source_model == TemporalModel::kCurve) {
+        std::vector<int> family_votes(maps.curves.size());
+        for (int y = 0; y < height; ++y) {
+          for (int x = 0; x < width; ++x) {
+            const int f = int(maps.at(x, y, kTCurve));
+            if (selected(*edit.transfer_from, maps, x, y) && maps.model(x, y) == source_model &&
+                f >= 0 && f < int(family_votes.size())) {
+              ++family_votes[size_t(f)];
+            }
+          }
+        }
+        source_family =
+            int(std::max_element(family_votes.begin(), family_votes.end()) - family_votes.begin());
+      }
       source_rate = median(rates);
       source_onset = median(onsets);
       for (int p = 0; p < kTemporalParamCount; ++p) change[p] = median(changes[p]);
@@ -243,6 +259,7 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
         float* m = &maps.maps.at(x, y, 0);
         if (edit.transfer_from) {
           m[kTModel] = float(source_model);
+          m[kTCurve] = float(source_family);
           m[kTRate] = float(source_rate);
           m[kTOnset] = float(source_onset);
           for (int p = 0; p < kTemporalParamCount; ++p) {

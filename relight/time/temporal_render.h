@@ -17,11 +17,12 @@
 //         "transfer_from": {"mask": "blue_paint.png"} }   // Source (same selection syntax).
 //     ]
 //   }
-// Transfer: the source region's process (the model that most of its fitted pixels chose; rate
-// and onset: medians over those pixels) with its normalised change per parameter (median of
-// wet/dry for the albedo channels, median of wet - dry for sigma, k_s, roughness) is applied to
-// each target pixel's own dry parameters: wet = dry x ratio (albedo), dry + difference (others),
-// clamped to bounds. A source region with no varying pixel is an InputError naming the edit.
+// Transfer: the source region's process (the model that most of its fitted pixels chose, and for
+// curves the family most of those follow; rate and onset: medians over those pixels) with its
+// normalised change per parameter (median of wet/dry for the albedo channels, median of wet - dry
+// for sigma, k_s, roughness) is applied to each target pixel's own dry parameters: wet = dry x
+// ratio (albedo), dry + difference (others), clamped to bounds. A source region with no varying
+// pixel is an InputError naming the edit.
 #include <filesystem>
 #include <optional>
 #include <string>

@@ -212,6 +212,55 @@ TEST(TimeVaryingScene, ProcessErrorsNameTheFileAndTheField) {
   const std::string onset =
       scene_error(R"({"kind": "paint_drying", "rate_per_s": 1, "onset_s": -5})");
   EXPECT_NE(onset.find("process.onset_s"), std::string::npos) << onset;
+  const std::string no_middle = scene_error(R"({"kind": "corroding", "rate_per_s": 1})");
+  EXPECT_NE(no_middle.find("process.middle: missing"), std::string::npos) << no_middle;
+  const std::string stray_middle =
+      scene_error(R"({"kind": "paint_drying", "rate_per_s": 1, "middle": {}})");
+  EXPECT_NE(stray_middle.find("process.middle"), std::string::npos) << stray_middle;
+  const std::string slow_wetting =
+      scene_error(R"({"kind": "wetting_drying", "rate_per_s": 1, "wetting_rate_per_s": 0.5})");
+  EXPECT_NE(slow_wetting.find("process.wetting_rate_per_s"), std::string::npos) << slow_wetting;
+  const std::string no_wetting = scene_error(R"({"kind": "wetting_drying", "rate_per_s": 1})");
+  EXPECT_NE(no_wetting.find("process.wetting_rate_per_s: missing"), std::string::npos)
+      << no_wetting;
+}
+
+// The two processes that are not monotone (issue 20), in the rise-and-fall scene.
+TEST(TimeVaryingClosedForms, CorrosionRisesAndFallsAndWettingReturnsDry) {
+  const Scene scene = rise_and_fall_scene();
+  const Scene file = load_scene(testing::source_dir() / "data/scenes/rise_and_fall.json");
+  ASSERT_EQ(file.materials.size(), scene.materials.size());
+  const SceneMaterial& metal = material_named(scene, "corroding-metal");
+  ASSERT_TRUE(metal.process && metal.process->kind == ProcessKind::kCorroding);
+  // At the spot's centre: onset 0, w = 1 - e^(-lambda t), lambda = 0.003333 /s. At w = 1/2 the
+  // Bezier gives (wet + 2 middle + dry) / 4: red (0.073 + 0.34 + 0.057) / 4 = 0.1175, above both
+  // ends.
+  const ProcessTruth centre = truth_at(metal, 0.5, 0.5);
+  const double half = std::log(2.0) / 0.003333;
+  EXPECT_NEAR(centre.weight(half), 0.5, 1e-9);
+  EXPECT_NEAR(centre.material(half).albedo.x(), 0.1175, 1e-9);
+  EXPECT_NEAR(centre.material(0).albedo.x(), 0.073, 1e-12);
+  EXPECT_NEAR(centre.material(1e7).albedo.x(), 0.057, 1e-9);
+  // k_s falls monotonically; the roughness's reciprocal follows the same Bezier.
+  EXPECT_NEAR(centre.material(half).ks.x(), (0.2 + 0.12 + 0.01) / 4, 1e-9);
+  EXPECT_NEAR(1 / centre.material(half).roughness, (1 / 0.15 + 2 / 0.18 + 1 / 0.27) / 4, 1e-9);
+  // Further from the spot the corrosion starts later: r = 0.2 -> 80 s.
+  EXPECT_NEAR(truth_at(metal, 0.7, 0.5).onset_s, 80.0, 1e-6);
+
+  const SceneMaterial& slab = material_named(scene, "stone-slab");
+  ASSERT_TRUE(slab.process && slab.process->kind == ProcessKind::kWettingDrying);
+  // At the stroke's start (s = 0): both rates x 0.7, onset 100 s. Dry before the onset, fully wet
+  // at the wetness peak t* = ln(kappa / lambda) / (kappa - lambda), dry again long after.
+  const ProcessTruth start = truth_at(slab, 0.0, 0.5);
+  const double kappa = 0.025 * 0.7, lambda = 0.004 * 0.7;
+  EXPECT_NEAR(start.wetting_rate_per_s, kappa, 1e-12);
+  const double peak = 100 + std::log(kappa / lambda) / (kappa - lambda);
+  EXPECT_NEAR(start.weight(50), 1.0, 1e-12);
+  EXPECT_NEAR(start.weight(peak), 0.0, 1e-9);
+  EXPECT_GT(start.weight(peak + 1), 0.0);
+  EXPECT_GT(start.weight(1e5), 0.999);
+  expect_same_material(start.material(peak), slab.process->wet, 1e-9, "wet at the peak");
+  expect_same_material(start.material(50), slab.base, 1e-12, "dry before the onset");
 }
 
 // A sphere of paint drying fast (lambda = 0.1 /s), captured at 0, 10 and 30 s.
