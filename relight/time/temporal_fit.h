@@ -134,8 +134,16 @@ struct StepFit {
   // 1 channel: kTemporalNotConverged where the chosen per-step fit stopped on its iteration
   // limit, else 0. Empty: no such information (treated as 0).
   Image flags;
+  // 1 channel: the standard deviation of the lobe's peak k_s / m^2 (1/sr) from the joint
+  // covariance of k_s and m (a fit trades one against the other along the peak, which it measures
+  // far better than either). Empty: propagated from their own deviations.
+  Image peak_sigma;
   int valid_lights = 0;
 };
+
+// Curves follow the lobe's peak k_s / m^2 (1/sr) over time rather than k_s, with the roughness
+// beside it: k_s(t) = peak(t) m(t)^2. A curve pixel's wet.ks and dry.ks hold the peak's values.
+// (The processes keep k_s: their closed forms are in k_s.)
 
 // Channels of TemporalMaps::maps, in order.
 enum TemporalChannel : int {

@@ -29,8 +29,9 @@ struct Series {
 };
 
 // Pixel (x, y)'s series from the per-step fits; returns the flags it found (kStepDropped,
-// kTemporalNotConverged of a used step).
-int gather_series(const std::vector<StepFit>& steps, int x, int y, Series& series);
+// kTemporalNotConverged of a used step). lobe_peak: kParamKs holds the peak k_s / m^2 (curves).
+int gather_series(const std::vector<StepFit>& steps, int x, int y, Series& series,
+                  bool lobe_peak = false);
 
 // Parameter p's endpoints given its shape s[i] at the series' steps: p_i = dry + (wet - dry) s_i by
 // weighted least squares (a tiny ridge pulls wet toward dry where s is the same at every step);

@@ -272,19 +272,29 @@ bool endpoints_run_away(const Series& series, const double* wet, const double* d
 }
 
 // A curve's endpoints are where it peaks and bottoms, which a pixel that sees part of the curve
-// need not reach: what must stay near the data is the curve over the captured span (sampled at
-// four times the steps), by the same margin.
+// need not reach: what must stay near the data is the curve over the steps that measure each
+// parameter (sampled at four times the steps; a parameter the step does not constrain, the
+// roughness of a lobe with k_s = 0, leaves the curve free there), by the same margin as above.
 bool curve_runs_away(const Series& series, const temporal_internal::CurveFit& f,
                      const TemporalCurves& curves) {
-  const int samples = 4 * series.steps;
-  const double t0 = series.t[0], t1 = series.t[series.steps - 1];
-  for (int j = 0; j <= samples; ++j) {
-    const double t = t0 + (t1 - t0) * j / samples;
-    double at[kTemporalParamCount];
-    for (int p = 0; p < kTemporalParamCount; ++p) {
-      at[p] = f.dry[p] + (f.wet[p] - f.dry[p]) * curves.at(p, f.rate * (t - f.onset));
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    double lo = HUGE_VAL, hi = -HUGE_VAL, largest_sigma = 0, t0 = HUGE_VAL, t1 = -HUGE_VAL;
+    for (int i = 0; i < series.steps; ++i) {
+      if (!(series.w[i][p] > 0)) continue;
+      lo = std::min(lo, series.y[i][p]);
+      hi = std::max(hi, series.y[i][p]);
+      largest_sigma = std::max(largest_sigma, 1 / series.w[i][p]);
+      t0 = std::min(t0, series.t[i]);
+      t1 = std::max(t1, series.t[i]);
     }
-    if (endpoints_run_away(series, at, at)) return true;
+    if (!(hi >= lo)) continue;  // No information on this parameter.
+    const double margin = (hi - lo) + 3 * largest_sigma;
+    const int samples = 4 * series.steps;
+    for (int j = 0; j <= samples; ++j) {
+      const double t = t0 + (t1 - t0) * j / samples;
+      const double at = f.dry[p] + (f.wet[p] - f.dry[p]) * curves.at(p, f.rate * (t - f.onset));
+      if (at < lo - margin || at > hi + margin) return true;
+    }
   }
   return false;
 }
@@ -507,7 +517,7 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
   const size_t stride = (changing.size() + kCurveSample - 1) / kCurveSample;
   for (size_t j = 0; j < changing.size(); j += stride) {
     temporal_internal::gather_series(steps, changing[j] % width, changing[j] / width,
-                                     sample.emplace_back());
+                                     sample.emplace_back(), /*lobe_peak=*/true);
   }
   const int knots = std::clamp(int(steps.size()) + 3, 5, 16);
   out.curves = learn_families(sample, knots, c);
@@ -515,7 +525,8 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
     float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
     if (!std::isfinite(best_bic[size_t(i)]) || !unexplained(m)) return;
     thread_local Series series;
-    const int flags = temporal_internal::gather_series(steps, i % width, i / width, series);
+    const int flags =
+        temporal_internal::gather_series(steps, i % width, i / width, series, /*lobe_peak=*/true);
     const FamilyFit best = best_family(series, out.curves, c);
     const temporal_internal::CurveFit& f = best.fit;
     const double n = double(series.steps * kTemporalParamCount);
@@ -544,7 +555,7 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
 }  // namespace
 
 int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, int y,
-                                     Series& series) {
+                                     Series& series, bool lobe_peak) {
   int flags = 0;
   series.steps = 0;
   for (const StepFit& s : steps) {
@@ -563,6 +574,17 @@ int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, i
       }
       series.y[i][p] = v;
       series.w[i][p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
+    }
+    if (lobe_peak) {
+      const double ks = s.value.at(x, y, kParamKs), m = s.value.at(x, y, kParamRoughness);
+      const double sd_ks = s.sigma.at(x, y, kParamKs), sd_m = s.sigma.at(x, y, kParamRoughness);
+      double sd = s.peak_sigma.pixels.empty()
+                      ? std::hypot(sd_ks / (m * m),
+                                   sd_m < kNoInformationSigma ? 2 * ks * sd_m / (m * m * m) : 0.0)
+                      : double(s.peak_sigma.at(x, y, 0));
+      sd = std::max(sd, kParamSigmaFloor[kParamKs] / (m * m));
+      series.y[i][kParamKs] = ks / (m * m);
+      series.w[i][kParamKs] = sd < kNoInformationSigma ? 1 / sd : 0.0;
     }
   }
   return flags;

@@ -111,6 +111,8 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
       } else {
         const TemporalCurves* curves = maps.curves_at(x, y);
         for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s, curves);
+        // A curve follows the lobe's peak k_s / m^2 (temporal_fit.h).
+        if (model == TemporalModel::kCurve) q[kParamKs] *= q[kParamRoughness] * q[kParamRoughness];
       }
       for (int c = 0; c < 3; ++c) {
         o[kMapNormalX + c] = m[kTNormalX + c];
@@ -258,6 +260,13 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
         if (!selected(edit.select, maps, x, y)) continue;
         float* m = &maps.maps.at(x, y, 0);
         if (edit.transfer_from) {
+          // A curve's k_s channels hold the lobe's peak k_s / m^2, a process's k_s.
+          const bool to_curve = source_model == TemporalModel::kCurve;
+          if (to_curve != (maps.model(x, y) == TemporalModel::kCurve)) {
+            const double r = m[kTDry + int(kParamRoughness)], m2 = r * r;
+            float& ks = m[kTDry + int(kParamKs)];
+            ks = float(to_curve ? ks / m2 : ks * m2);
+          }
           m[kTModel] = float(source_model);
           m[kTCurve] = float(source_family);
           m[kTRate] = float(source_rate);

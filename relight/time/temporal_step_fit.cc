@@ -129,7 +129,9 @@ StepResult solve_step(const StepPixel& d, const std::array<double, 6>& start, in
 // Why only the fitted block: a wide lobe trades off against the albedo (and sigma against the
 // albedo where the view is along the normal), so the full 6x6 inverse would call a well-measured
 // Lambertian albedo unconstrained.
-std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit) {
+// peak_sigma: the deviation of the lobe's peak k_s / m^2 by the same covariance (joint in k_s and
+// m where the model fits both), kNoInformationSigma where it has no lobe and no k_s information.
+std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit, double* peak_sigma) {
   using Function = ceres::TinySolverAutoDiffFunction<StepCostPhysical, Eigen::Dynamic, 6>;
   const StepCostPhysical cost{&d};
   const Function function(cost);
@@ -138,6 +140,7 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit) {
   Eigen::MatrixXd jacobian(n, 6);
   std::array<double, 6> sigmas;
   sigmas.fill(kNoInformationSigma);
+  *peak_sigma = kNoInformationSigma;
   if (!function(fit.q.data(), residuals.data(), jacobian.data()) || !jacobian.allFinite()) {
     return sigmas;
   }
@@ -165,6 +168,22 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit) {
     sigmas[p] = std::clamp(sigmas[p], kParamSigmaFloor[p], kNoInformationSigma);
   }
   if (!fit.used[kParamRoughness]) sigmas[kParamRoughness] = kNoInformationSigma;
+  // d(k_s / m^2) = dk_s / m^2 - 2 k_s dm / m^3.
+  const double m = fit.q[kParamRoughness], ks = fit.q[kParamKs];
+  double peak_variance = variance[kParamKs] / (m * m * m * m);
+  if (fit.used[kParamKs] && fit.used[kParamRoughness]) {
+    const auto at = [&](int p) {
+      return int(std::find(used.begin(), used.end(), p) - used.begin());
+    };
+    const double g[2] = {1 / (m * m), -2 * ks / (m * m * m)};
+    const int i = at(kParamKs), j = at(kParamRoughness);
+    peak_variance = g[0] * g[0] * covariance(i, i) + 2 * g[0] * g[1] * covariance(i, j) +
+                    g[1] * g[1] * covariance(j, j);
+  }
+  peak_variance *= scale;
+  if (std::isfinite(peak_variance) && peak_variance > 0) {
+    *peak_sigma = std::min(std::sqrt(peak_variance), kNoInformationSigma);
+  }
   return sigmas;
 }
 
@@ -275,6 +294,7 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
   out.value = Image(width, height, kTemporalParamCount);
   out.sigma = Image(width, height, kTemporalParamCount);
   out.flags = Image(width, height, 1);
+  out.peak_sigma = Image(width, height, 1);
   const capture::ValidLights valid = capture::valid_lights(field);
   out.valid_lights = int(valid.index.size());
   const NormalOptions& no = options.brdf.normals;
@@ -298,7 +318,9 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
         d.wo = pixel::view_dir_at(fo.view_dir_per_pixel, size_t(y) * width + x);
         const StepResult best = fit_step_pixel(d, fo);
         if (!best.ok) continue;
-        const std::array<double, 6> sig = step_sigmas(d, best);
+        double peak_sigma = 0;
+        const std::array<double, 6> sig = step_sigmas(d, best, &peak_sigma);
+        out.peak_sigma.at(x, y, 0) = float(peak_sigma);
         for (int p = 0; p < kTemporalParamCount; ++p) {
           out.value.at(x, y, p) = float(best.q[p]);
           out.sigma.at(x, y, p) = float(sig[p]);

@@ -1,0 +1,132 @@
+#include "evaluation/temporal_held_out.h"
+
+#include <cmath>
+#include <functional>
+
+#include "lightstage/errors.h"
+#include "relight/time/temporal_render.h"
+#include "sim/noisy_field.h"
+#include "sim/sim_stage.h"
+#include "sim/time_varying.h"
+
+namespace ls::evaluation {
+
+double ErrorSum::relative() const { return ref2 > 0 ? std::sqrt(err2 / ref2) : 0; }
+
+ErrorSum total(const ErrorsByMaterial& errors) {
+  ErrorSum sum;
+  for (const auto& [name, e] : errors) sum.err2 += e.err2, sum.ref2 += e.ref2;
+  return sum;
+}
+
+TimeLapse rise_and_fall_time_lapse(int leds, int width, int height, int steps, double duration_s,
+                                   uint64_t seed) {
+  TimeLapse out;
+  out.stage = stage_with_directions(fibonacci_dome_directions(leds, -11.5));
+  out.stage.camera.width = width;
+  out.stage.camera.height = height;
+  out.scene = sim::rise_and_fall_scene();
+  out.hits = sim::trace_camera(out.scene, out.stage.camera);
+  for (int i = 0; i < steps; ++i) {
+    sim::SimFieldOptions at;
+    at.scene_time_s = steps > 1 ? duration_s * i / (steps - 1) : 0;
+    out.ideal.push_back(sim::render_ideal_field(out.stage, out.scene, at));
+    out.noisy.push_back(out.ideal.back());
+    sim::add_sensor_noise(out.noisy.back(), relight::NoiseModel{}.as_field_noise(), seed + i);
+    out.noisy.back().source = "sim t=" + std::to_string(at.scene_time_s);
+  }
+  return out;
+}
+
+namespace {
+
+// value(x, y, k, c) for valid light k against the ideal field of `step`, per varying material.
+using SampleValue = std::function<double(int x, int y, int k, int c)>;
+
+void accumulate(const TimeLapse& lapse, int step, const SampleValue& value,
+                ErrorsByMaterial& errors) {
+  const capture::ReflectanceField& truth = lapse.ideal[size_t(step)];
+  const capture::ValidLights lights = capture::valid_lights(truth);
+  for (const sim::SurfaceHit& h : lapse.hits) {
+    if (!h.hit || h.material_index < 0) continue;
+    const sim::SceneMaterial& material = lapse.scene.materials[size_t(h.material_index)];
+    if (!sim::truth_at(material, h.st.x(), h.st.y()).varying) continue;
+    ErrorSum& e = errors[material.name];
+    for (size_t k = 0; k < lights.index.size(); ++k) {
+      const Eigen::Vector3d& dir = lights.dirs_in_stage[k];
+      if (h.normal.dot(dir) <= 0 || !sim::visible(lapse.scene, h.position + 1e-3 * h.normal, dir)) {
+        continue;
+      }
+      for (int c = 0; c < 3; ++c) {
+        const double t = truth.at(h.pixel_x, h.pixel_y, lights.index[k], c);
+        const double d = value(h.pixel_x, h.pixel_y, int(k), c) - t;
+        e.err2 += d * d;
+        e.ref2 += t * t;
+      }
+    }
+  }
+}
+
+// Temporal maps at time t under each valid LED: one radiance image per light.
+SampleValue rendered(const relight::TemporalMaps& maps, double t,
+                     const capture::ValidLights& lights) {
+  auto images = std::make_shared<std::vector<Image>>();
+  for (const Eigen::Vector3d& dir : lights.dirs_in_stage) {
+    images->push_back(relight::render_temporal(
+        maps, t, relight::LightingForModels::directional(dir, Eigen::Vector3d(1, 1, 1))));
+  }
+  return [images](int x, int y, int k, int c) { return (*images)[size_t(k)].at(x, y, c); };
+}
+
+}  // namespace
+
+HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured) {
+  const int steps = int(lapse.noisy.size());
+  if (captured.size() < 2 || captured.front() != 0 || captured.back() != steps - 1 ||
+      !std::is_sorted(captured.begin(), captured.end())) {
+    throw InputError("held-out score: captured steps: expected increasing indices from 0 to " +
+                     std::to_string(steps - 1) + ", at least two");
+  }
+  std::vector<capture::ReflectanceField> fields;
+  for (const int i : captured) fields.push_back(lapse.noisy[size_t(i)]);
+  const relight::TemporalFitOptions options;
+  HeldOutScores out;
+  out.maps = relight::fit_temporal(fields, options);
+  relight::TemporalFitOptions without_curves = options;
+  without_curves.fit_curves = false;
+  const relight::TemporalMaps processes = relight::fit_temporal(fields, without_curves);
+  const relight::NormalMap normals = relight::estimate_temporal_normals(fields, options);
+  const capture::ValidLights lights = capture::valid_lights(lapse.ideal[0]);
+  size_t next = 0;  // Index into `captured` of the first captured step at or after `step`.
+  for (int step = 0; step < steps; ++step) {
+    while (captured[next] < step) ++next;
+    const double t = lapse.ideal[size_t(step)].scene_time_s;
+    if (captured[next] == step) {
+      accumulate(lapse, step, rendered(out.maps, t, lights), out.curves_at_captured);
+      // A one-step temporal model is that step's fit: its constant.
+      const relight::TemporalMaps alone = relight::fit_temporal_models(
+          {relight::fit_step(lapse.noisy[size_t(step)], normals, options)}, normals, options);
+      accumulate(lapse, step, rendered(alone, t, lights), out.step_fits_at_captured);
+      continue;
+    }
+    accumulate(lapse, step, rendered(out.maps, t, lights), out.curves);
+    accumulate(lapse, step, rendered(processes, t, lights), out.processes_only);
+    const capture::ReflectanceField &before = lapse.noisy[size_t(captured[next - 1])],
+                                    &after = lapse.noisy[size_t(captured[next])];
+    const double w = (t - before.scene_time_s) / (after.scene_time_s - before.scene_time_s);
+    const auto light = [&](int k) { return lights.index[size_t(k)]; };
+    accumulate(
+        lapse, step,
+        [&](int x, int y, int k, int c) {
+          return (1 - w) * before.at(x, y, light(k), c) + w * after.at(x, y, light(k), c);
+        },
+        out.linear);
+    const capture::ReflectanceField& nearest = w <= 0.5 ? before : after;
+    accumulate(
+        lapse, step, [&](int x, int y, int k, int c) { return nearest.at(x, y, light(k), c); },
+        out.nearest);
+  }
+  return out;
+}
+
+}  // namespace ls::evaluation

@@ -1,0 +1,60 @@
+#pragma once
+// Temporal fits judged at the time steps they were not given (issue 20): a time-lapse of the
+// simulator's rise-and-fall scene (sim::rise_and_fall_scene: a corroding metal whose red rises and
+// falls, a stone slab wetted and drying), some steps captured with noise, the temporal models
+// fitted from those and rendered under every LED at every step, against the simulator's
+// noise-free images. Beside them: the two captured neighbours' images interpolated linearly in
+// time, the nearest captured step's image, and at the captured steps each step's own BRDF fit.
+//
+// Error: relative RMS sqrt(sum (model - truth)^2 / sum truth^2) over a material's pixels and the
+// LEDs that reach them (n . l > 0 and no cast shadow: a shadow is in the images and in no model,
+// so what is compared is what the models model), every channel.
+#include <map>
+#include <string>
+#include <vector>
+
+#include "capture/field.h"
+#include "lightstage/stage.h"
+#include "relight/time/temporal_fit.h"
+#include "sim/scene.h"
+
+namespace ls::evaluation {
+
+struct TimeLapse {
+  Stage stage;
+  sim::Scene scene;
+  std::vector<sim::SurfaceHit> hits;
+  std::vector<capture::ReflectanceField> noisy;  // Every step, as a capture would have them.
+  std::vector<capture::ReflectanceField> ideal;  // The truth at every step.
+};
+
+// `steps` evenly spaced steps over [0, duration_s] of the rise-and-fall scene on a Fibonacci dome
+// of `leds` LEDs, at the fit's default noise (relight::NoiseModel), seeded.
+TimeLapse rise_and_fall_time_lapse(int leds, int width, int height, int steps, double duration_s,
+                                   uint64_t seed = 40);
+
+struct ErrorSum {
+  double err2 = 0, ref2 = 0;
+  double relative() const;
+};
+using ErrorsByMaterial = std::map<std::string, ErrorSum>;  // Varying materials, by name.
+// Every material's sums together.
+ErrorSum total(const ErrorsByMaterial& errors);
+
+struct HeldOutScores {
+  // At the steps held out.
+  ErrorsByMaterial curves;          // Temporal fit with data-driven curves (the default).
+  ErrorsByMaterial processes_only;  // Temporal fit without them (fit_curves = false).
+  ErrorsByMaterial linear;          // The captured neighbours' images, linear in time.
+  ErrorsByMaterial nearest;         // The nearest captured step's image.
+  // At the captured steps.
+  ErrorsByMaterial curves_at_captured;
+  ErrorsByMaterial step_fits_at_captured;  // Each step's own BRDF fit (fit_step, same normals).
+  relight::TemporalMaps maps;              // The curves' fit.
+};
+
+// Fits the steps `captured` (indices into the time lapse, increasing, at least two, the first and
+// the last step among them) and scores every other step.
+HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured);
+
+}  // namespace ls::evaluation
