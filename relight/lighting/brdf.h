@@ -42,11 +42,18 @@ T lambert(const Geometry<T>& g) {
 // tan(beta)) with alpha = max(theta_i, theta_o), beta = min. The product max(0, cos dphi)
 // sin(alpha) tan(beta) equals max(0, wi.wo - cos_i cos_o) / max(cos_i, cos_o): no angles, no
 // division by sin. Returns the factor multiplying albedo.
+// A(sigma): with the B term absent (light and view a right angle apart in azimuth) Oren-Nayar is
+// Lambert with albedo * A(sigma), the albedo a render of it mostly sees.
+template <class T>
+T oren_nayar_a(const T& sigma) {
+  const T s2 = sigma * sigma;
+  return T(1) - T(0.5) * s2 / (s2 + T(0.33));
+}
 template <class T>
 T oren_nayar(const Geometry<T>& g, const T& sigma) {
   if (!g.above()) return T(0);
   const T s2 = sigma * sigma;
-  const T a = T(1) - T(0.5) * s2 / (s2 + T(0.33));
+  const T a = oren_nayar_a(sigma);
   const T b = T(0.45) * s2 / (s2 + T(0.09));
   T azimuthal = g.cos_io - g.cos_i * g.cos_o;
   if (azimuthal < T(0)) azimuthal = T(0);

@@ -134,16 +134,33 @@ struct StepFit {
   // 1 channel: kTemporalNotConverged where the chosen per-step fit stopped on its iteration
   // limit, else 0. Empty: no such information (treated as 0).
   Image flags;
-  // 1 channel: the standard deviation of the lobe's peak k_s / m^2 (1/sr) from the joint
-  // covariance of k_s and m (a fit trades one against the other along the peak, which it measures
-  // far better than either). Empty: propagated from their own deviations.
-  Image peak_sigma;
+  // kRenderedCount channels: the standard deviations of what a render sees (RenderedParam) from
+  // the fit's joint covariance: a fit trades k_s against m along the lobe's peak, and the albedo
+  // against Oren-Nayar's sigma along albedo * A(sigma), both measured far better than their
+  // parts. Empty: propagated from the parameters' own deviations.
+  Image rendered_sigma;
+  // kInformationCount channels: the step's information (inverse covariance, model-error floors
+  // included) on the parameters as the curves follow them (albedo A(sigma) r, g, b, sigma, the
+  // peak k_s / m^2, 1/m), the upper triangle row by row: weighting a curve's misfit by it weighs
+  // it as the step's images do, couplings included. Empty: none (diagonal weights only).
+  Image information;
   int valid_lights = 0;
 };
 
-// Curves follow the lobe's peak k_s / m^2 (1/sr) over time rather than k_s, with the roughness
-// beside it: k_s(t) = peak(t) m(t)^2. A curve pixel's wet.ks and dry.ks hold the peak's values.
-// (The processes keep k_s: their closed forms are in k_s.)
+// Curves follow what a render sees (a curve per parameter loses what one step's fit couples):
+// the albedo as albedo * A(sigma) (brdf::oren_nayar_a; = albedo for Lambert), sigma, k_s as the
+// lobe's peak k_s / m^2 (1/sr) and the roughness as 1/m; at time t m(t) = 1 / curve, albedo(t)
+// = curve / A(sigma(t)), k_s(t) = curve m(t)^2. A curve pixel's wet and dry channels hold its
+// endpoints in that space (unclamped: a curve's extreme may lie outside the span it was fitted
+// on). The processes keep the BRDF's parameters: their closed forms are in them.
+enum RenderedParam : int {
+  kRenderedAlbedoR = 0,
+  kRenderedAlbedoG,
+  kRenderedAlbedoB,
+  kRenderedPeak,
+  kRenderedCount
+};
+inline constexpr int kInformationCount = kTemporalParamCount * (kTemporalParamCount + 1) / 2;
 
 // Channels of TemporalMaps::maps, in order.
 enum TemporalChannel : int {

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "relight/fit/pixel_solver.h"
+#include "relight/lighting/brdf.h"
 #include "relight/time/temporal_fit.h"
 
 namespace ls::relight::temporal_internal {
@@ -19,19 +20,56 @@ inline constexpr double kMaxSigma = 0.5 * kPi;
 // the roughness of a lobe with k_s = 0): weight 1e-12, i.e. none.
 inline constexpr double kNoInformationSigma = 1e6;
 
-// One pixel's per-step parameters over its usable steps (roughness as 1/m).
+// A BRDF parameter clamped to its bounds.
+inline double clamp_param(int p, double v) {
+  if (p == kParamSigma) return std::clamp(v, 0.0, kMaxSigma);
+  if (p == kParamRoughness) return std::clamp(v, kMinRoughness, 1.0);
+  return std::max(v, 0.0);
+}
+
+// The BRDF's parameters to and from the space the curves follow (temporal_fit.h): albedo
+// A(sigma), sigma, the peak k_s / m^2, 1/m; from it clamped to their bounds.
+inline void to_fitted_space(double* q) {
+  const double a = brdf::oren_nayar_a(q[kParamSigma]), m = q[kParamRoughness];
+  for (int c = 0; c < 3; ++c) q[c] *= a;
+  q[kParamKs] /= m * m;
+  q[kParamRoughness] = 1 / m;
+}
+inline void from_fitted_space(double* y) {
+  y[kParamSigma] = clamp_param(kParamSigma, y[kParamSigma]);
+  const double m =
+      clamp_param(kParamRoughness, y[kParamRoughness] > 0 ? 1 / y[kParamRoughness] : 1.0);
+  const double a = brdf::oren_nayar_a(y[kParamSigma]);
+  for (int c = 0; c < 3; ++c) y[c] = clamp_param(c, y[c] / a);
+  y[kParamKs] = clamp_param(kParamKs, y[kParamKs] * m * m);
+  y[kParamRoughness] = m;
+}
+
+// One pixel's per-step parameters over its usable steps (gather_series).
 inline constexpr int kMaxSteps = 64;
 struct Series {
   int steps = 0;  // Usable steps.
   double t[kMaxSteps];
   double y[kMaxSteps][kTemporalParamCount];
   double w[kMaxSteps][kTemporalParamCount];  // 1 / sigma, 0 = no information.
+  // Each step's StepFit::information (upper triangle), when every used step has it.
+  bool has_information = false;
+  double information[kMaxSteps][kInformationCount];
+  // set_change_scales (curves): per parameter the scale of a plausible change, twice the larger
+  // of the range its informative steps span and 3 of their smallest deviations; a curve's wet -
+  // dry carries the prior N(0, scale^2) so that where its steps barely see the curve move (the
+  // roughness where k_s is 0 at most steps) its endpoints stay near the data rather than run to
+  // wherever the curve's extreme is. 0: none (the processes).
+  double change_scale[kTemporalParamCount] = {};
 };
 
 // Pixel (x, y)'s series from the per-step fits; returns the flags it found (kStepDropped,
-// kTemporalNotConverged of a used step). lobe_peak: kParamKs holds the peak k_s / m^2 (curves).
+// kTemporalNotConverged of a used step). In the processes' space (the BRDF's parameters, the
+// roughness as 1/m), or with `curves` in the curves' (to_fitted_space).
 int gather_series(const std::vector<StepFit>& steps, int x, int y, Series& series,
-                  bool lobe_peak = false);
+                  bool curves = false);
+// Sets series.change_scale (the curves' prior on wet - dry).
+void set_change_scales(Series& series);
 
 // Parameter p's endpoints given its shape s[i] at the series' steps: p_i = dry + (wet - dry) s_i by
 // weighted least squares (a tiny ridge pulls wet toward dry where s is the same at every step);
@@ -46,7 +84,13 @@ inline double fit_endpoints(const Series& series, int p, const double* shape, do
     a += w2 * basis * basis.transpose();
     b += w2 * basis * series.y[i][p];
   }
-  const double ridge = 1e-9 * std::max(a.trace(), 1e-300);
+  if (!(a.trace() > 0)) {  // No step informs p: its values stand (a fit's placeholder), constant.
+    *wet = *dry = series.steps > 0 ? series.y[0][p] : 0.0;
+    return 0;
+  }
+  const double scale = series.change_scale[p];
+  const double prior = scale > 0 ? 1 / (scale * scale) : 0.0;
+  const double ridge = prior + 1e-9 * std::max(a.trace(), 1e-300);
   a(0, 0) += ridge;
   a(1, 1) += ridge;
   a(0, 1) -= ridge;
@@ -54,7 +98,7 @@ inline double fit_endpoints(const Series& series, int p, const double* shape, do
   const Eigen::Vector2d x = a.ldlt().solve(b);
   *dry = std::isfinite(x(0)) ? x(0) : 0;
   *wet = std::isfinite(x(1)) ? x(1) : *dry;
-  double chi2 = 0;
+  double chi2 = prior * (*wet - *dry) * (*wet - *dry);
   for (int i = 0; i < series.steps; ++i) {
     const double r = (*dry + (*wet - *dry) * shape[i] - series.y[i][p]) * series.w[i][p];
     chi2 += r * r;
@@ -73,5 +117,10 @@ struct CurveFit {
   double wet[kTemporalParamCount] = {}, dry[kTemporalParamCount] = {};
 };
 CurveFit fit_curve(const Series& series, const TemporalCurves& curves, double t_first, double span);
+// The endpoints of a curve fit at its warp again, weighted by each step's full information
+// (Series::information) instead of the parameters' own deviations: the misfit then weighs as in
+// the step's images. Leaves `fit` as it is without information or when the solve fails; chi2 is
+// kept (the model choice compares the diagonal chi^2 of every model).
+void couple_endpoints(const Series& series, const TemporalCurves& curves, CurveFit& fit);
 
 }  // namespace ls::relight::temporal_internal

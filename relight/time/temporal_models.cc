@@ -16,6 +16,7 @@
 
 #include "lightstage/errors.h"
 #include "relight/fit/pixel_solver.h"
+#include "relight/lighting/brdf.h"
 #include "relight/time/temporal_fit.h"
 #include "relight/time/temporal_fit_internal.h"
 
@@ -27,6 +28,7 @@ using temporal_internal::kMaxSigma;
 using temporal_internal::kMaxSteps;
 using temporal_internal::kMinRoughness;
 using temporal_internal::kNoInformationSigma;
+using temporal_internal::clamp_param;
 using temporal_internal::Series;
 
 // ---------------------------------------------------------------------------------------------
@@ -225,21 +227,10 @@ TemporalResult fit_constant(const Series& s) {
   return out;
 }
 
-// Converts a series value back from the fitted space (roughness is fitted as 1/m).
+// Converts a series value back from the processes' space (roughness is fitted as 1/m).
 double to_physical(int p, double v) {
   if (p == kParamRoughness) return v > 1.0 ? 1.0 / v : 1.0;  // 1/m >= 1 for m <= 1.
   return v;
-}
-
-double clamp_param(int p, double v) {
-  switch (p) {
-    case kParamSigma:
-      return std::clamp(v, 0.0, kMaxSigma);
-    case kParamRoughness:
-      return std::clamp(v, kMinRoughness, 1.0);
-    default:
-      return std::max(v, 0.0);
-  }
 }
 
 struct PixelContext {
@@ -516,8 +507,10 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
   std::vector<Series> sample;
   const size_t stride = (changing.size() + kCurveSample - 1) / kCurveSample;
   for (size_t j = 0; j < changing.size(); j += stride) {
-    temporal_internal::gather_series(steps, changing[j] % width, changing[j] / width,
-                                     sample.emplace_back(), /*lobe_peak=*/true);
+    Series& series = sample.emplace_back();
+    temporal_internal::gather_series(steps, changing[j] % width, changing[j] / width, series,
+                                     /*curves=*/true);
+    temporal_internal::set_change_scales(series);
   }
   const int knots = std::clamp(int(steps.size()) + 3, 5, 16);
   out.curves = learn_families(sample, knots, c);
@@ -526,9 +519,11 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
     if (!std::isfinite(best_bic[size_t(i)]) || !unexplained(m)) return;
     thread_local Series series;
     const int flags =
-        temporal_internal::gather_series(steps, i % width, i / width, series, /*lobe_peak=*/true);
-    const FamilyFit best = best_family(series, out.curves, c);
+        temporal_internal::gather_series(steps, i % width, i / width, series, /*curves=*/true);
+    temporal_internal::set_change_scales(series);
+    FamilyFit best = best_family(series, out.curves, c);
     const temporal_internal::CurveFit& f = best.fit;
+    temporal_internal::couple_endpoints(series, out.curves[size_t(best.family)], best.fit);
     const double n = double(series.steps * kTemporalParamCount);
     const double bic = f.chi2 + kCurveParameters * std::log(n);
     if (!(bic < best_bic[size_t(i)] - kCurveEvidence) ||
@@ -539,11 +534,12 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
     m[kTModel] = float(TemporalModel::kCurve);
     m[kTRate] = float(f.rate);
     m[kTOnset] = float(f.onset);
-    // Not clamped: where the curve bottoms or peaks may lie beyond a parameter's bound that the
-    // curve never reaches over the span (renders clamp the value at each time).
+    // In the curves' space (temporal_fit.h) and not clamped: where the curve bottoms or peaks
+    // may lie beyond a parameter's bound that the curve never reaches over the span (renders
+    // clamp the value at each time).
     for (int p = 0; p < kTemporalParamCount; ++p) {
-      m[kTWet + p] = float(to_physical(p, f.wet[p]));
-      m[kTDry + p] = float(to_physical(p, f.dry[p]));
+      m[kTWet + p] = float(f.wet[p]);
+      m[kTDry + p] = float(f.dry[p]);
     }
     // The BIC weight of the curve against the process it replaces.
     m[kTConfidence] = float(1 / (1 + std::exp(-0.5 * (best_bic[size_t(i)] - bic))));
@@ -554,8 +550,40 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
 
 }  // namespace
 
+namespace {
+
+// One step's albedo and k_s of pixel (x, y) as a render sees them (RenderedParam) in y and their
+// weights w (1 / sigma): the step's joint deviations where it has them, else propagated from the
+// parameters' own (no covariance: wider), floored at the parameters' floors.
+void to_rendered(const StepFit& s, int x, int y, double* value, double* weight) {
+  const bool joint = !s.rendered_sigma.pixels.empty();
+  const auto set = [&](int p, double v, double sd, double floor) {
+    sd = std::max(sd, floor);
+    value[p] = v;
+    weight[p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
+  };
+  const double sigma = s.value.at(x, y, kParamSigma), sd_sigma = s.sigma.at(x, y, kParamSigma);
+  const double s2 = sigma * sigma, a = brdf::oren_nayar_a(sigma);
+  const double a_prime = -0.33 * sigma / ((s2 + 0.33) * (s2 + 0.33));
+  for (int c = 0; c < 3; ++c) {
+    const double albedo = s.value.at(x, y, c), sd = s.sigma.at(x, y, c);
+    const double propagated = std::hypot(a * sd, albedo * a_prime * sd_sigma);
+    set(c, albedo * a, joint ? double(s.rendered_sigma.at(x, y, c)) : propagated,
+        kParamSigmaFloor[c] * a);
+  }
+  const double ks = s.value.at(x, y, kParamKs), m = s.value.at(x, y, kParamRoughness);
+  const double sd_ks = s.sigma.at(x, y, kParamKs), sd_m = s.sigma.at(x, y, kParamRoughness);
+  const double propagated =
+      std::hypot(sd_ks / (m * m), sd_m < kNoInformationSigma ? 2 * ks * sd_m / (m * m * m) : 0.0);
+  set(kParamKs, ks / (m * m),
+      joint ? double(s.rendered_sigma.at(x, y, kRenderedPeak)) : propagated,
+      kParamSigmaFloor[kParamKs] / (m * m));
+}
+
+}  // namespace
+
 int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, int y,
-                                     Series& series, bool lobe_peak) {
+                                     Series& series, bool curves) {
   int flags = 0;
   series.steps = 0;
   for (const StepFit& s : steps) {
@@ -575,19 +603,30 @@ int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, i
       series.y[i][p] = v;
       series.w[i][p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
     }
-    if (lobe_peak) {
-      const double ks = s.value.at(x, y, kParamKs), m = s.value.at(x, y, kParamRoughness);
-      const double sd_ks = s.sigma.at(x, y, kParamKs), sd_m = s.sigma.at(x, y, kParamRoughness);
-      double sd = s.peak_sigma.pixels.empty()
-                      ? std::hypot(sd_ks / (m * m),
-                                   sd_m < kNoInformationSigma ? 2 * ks * sd_m / (m * m * m) : 0.0)
-                      : double(s.peak_sigma.at(x, y, 0));
-      sd = std::max(sd, kParamSigmaFloor[kParamKs] / (m * m));
-      series.y[i][kParamKs] = ks / (m * m);
-      series.w[i][kParamKs] = sd < kNoInformationSigma ? 1 / sd : 0.0;
+    if (curves) to_rendered(s, x, y, series.y[i], series.w[i]);
+    if (curves && !s.information.pixels.empty()) {
+      for (int k = 0; k < kInformationCount; ++k) {
+        series.information[i][k] = s.information.at(x, y, k);
+      }
     }
   }
+  series.has_information = curves && series.steps > 0;
+  for (const StepFit& s : steps) series.has_information &= !s.information.pixels.empty();
+  std::fill_n(series.change_scale, kTemporalParamCount, 0.0);
   return flags;
+}
+
+void temporal_internal::set_change_scales(Series& series) {
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    double lo = HUGE_VAL, hi = -HUGE_VAL, smallest_sigma = HUGE_VAL;
+    for (int i = 0; i < series.steps; ++i) {
+      if (!(series.w[i][p] > 0)) continue;
+      lo = std::min(lo, series.y[i][p]);
+      hi = std::max(hi, series.y[i][p]);
+      smallest_sigma = std::min(smallest_sigma, 1 / series.w[i][p]);
+    }
+    series.change_scale[p] = hi >= lo ? 2 * std::max(hi - lo, 3 * smallest_sigma) : 0.0;
+  }
 }
 
 const TemporalCurves* TemporalMaps::curves_at(int x, int y) const {

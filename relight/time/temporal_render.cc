@@ -8,30 +8,39 @@
 #include "lightstage/errors.h"
 #include "lightstage/json_reader.h"
 #include "relight/fit/model_edit.h"
+#include "relight/lighting/brdf.h"
+#include "relight/time/temporal_fit_internal.h"
 
 namespace ls::relight {
 namespace {
 
-constexpr double kMaxSigma = 0.5 * 3.14159265358979323846;
-constexpr double kMinRoughness = 0.02;
+using temporal_internal::clamp_param;
+using temporal_internal::from_fitted_space;
+using temporal_internal::kMinRoughness;
+using temporal_internal::to_fitted_space;
 
-double clamp_param(int p, double v) {
-  if (p == kParamSigma) return std::clamp(v, 0.0, kMaxSigma);
-  if (p == kParamRoughness) return std::clamp(v, kMinRoughness, 1.0);
-  return std::max(v, 0.0);
-}
-
-// One parameter of one pixel at time t (roughness harmonic: 1/m follows the curve).
-double param_at(const float* m, int p, double t, const TemporalCurves* curves) {
+// A pixel's BRDF parameters q at time t. A process follows the BRDF's parameters (the roughness
+// harmonic: 1/m follows the process); a curve its own space (temporal_fit.h), its endpoints stored
+// in it.
+void params_at(const float* m, double t, const TemporalCurves* curves, double* q) {
   const TemporalModel model = TemporalModel(int(m[kTModel]));
-  double wet = m[kTWet + p], dry = m[kTDry + p];
-  if (p == kParamRoughness) {
-    wet = 1 / std::max(wet, kMinRoughness);
-    dry = 1 / std::max(dry, kMinRoughness);
+  const bool curve = model == TemporalModel::kCurve;
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    double wet = m[kTWet + p], dry = m[kTDry + p];
+    const bool reciprocal = p == kParamRoughness && !curve;
+    if (reciprocal) {
+      wet = 1 / std::max(wet, kMinRoughness);
+      dry = 1 / std::max(dry, kMinRoughness);
+    }
+    double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, curves, p);
+    if (!std::isfinite(v)) v = dry;
+    q[p] = reciprocal ? (v > 0 ? 1 / v : 1.0) : v;
   }
-  double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, curves, p);
-  if (p == kParamRoughness) v = v > 0 ? 1 / v : 1.0;
-  return clamp_param(p, std::isfinite(v) ? v : dry);
+  if (curve) {
+    from_fitted_space(q);
+  } else {
+    for (int p = 0; p < kTemporalParamCount; ++p) q[p] = clamp_param(p, q[p]);
+  }
 }
 
 TemporalModel read_temporal_model_name(const JsonReader& r) {
@@ -109,10 +118,7 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
           q[p] = clamp_param(p, maps.step_values.at(x, y, nearest_step * kTemporalParamCount + p));
         }
       } else {
-        const TemporalCurves* curves = maps.curves_at(x, y);
-        for (int p = 0; p < kTemporalParamCount; ++p) q[p] = param_at(m, p, time_s, curves);
-        // A curve follows the lobe's peak k_s / m^2 (temporal_fit.h).
-        if (model == TemporalModel::kCurve) q[kParamKs] *= q[kParamRoughness] * q[kParamRoughness];
+        params_at(m, time_s, maps.curves_at(x, y), q);
       }
       for (int c = 0; c < 3; ++c) {
         o[kMapNormalX + c] = m[kTNormalX + c];
@@ -260,12 +266,17 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
         if (!selected(edit.select, maps, x, y)) continue;
         float* m = &maps.maps.at(x, y, 0);
         if (edit.transfer_from) {
-          // A curve's k_s channels hold the lobe's peak k_s / m^2, a process's k_s.
+          // A curve's endpoints are in its own space (temporal_fit.h), a process's not.
           const bool to_curve = source_model == TemporalModel::kCurve;
           if (to_curve != (maps.model(x, y) == TemporalModel::kCurve)) {
-            const double r = m[kTDry + int(kParamRoughness)], m2 = r * r;
-            float& ks = m[kTDry + int(kParamKs)];
-            ks = float(to_curve ? ks / m2 : ks * m2);
+            double q[kTemporalParamCount];
+            std::copy_n(m + kTDry, kTemporalParamCount, q);
+            if (to_curve) {
+              to_fitted_space(q);
+            } else {
+              from_fitted_space(q);
+            }
+            std::copy_n(q, kTemporalParamCount, m + kTDry);
           }
           m[kTModel] = float(source_model);
           m[kTCurve] = float(source_family);

@@ -129,9 +129,11 @@ StepResult solve_step(const StepPixel& d, const std::array<double, 6>& start, in
 // Why only the fitted block: a wide lobe trades off against the albedo (and sigma against the
 // albedo where the view is along the normal), so the full 6x6 inverse would call a well-measured
 // Lambertian albedo unconstrained.
-// peak_sigma: the deviation of the lobe's peak k_s / m^2 by the same covariance (joint in k_s and
-// m where the model fits both), kNoInformationSigma where it has no lobe and no k_s information.
-std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit, double* peak_sigma) {
+// rendered: the deviations of what a render sees (StepFit::rendered_sigma) by the same covariance,
+// joint where the model fits both parts.
+std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit,
+                                  std::array<double, kRenderedCount>* rendered,
+                                  std::array<double, kInformationCount>* information) {
   using Function = ceres::TinySolverAutoDiffFunction<StepCostPhysical, Eigen::Dynamic, 6>;
   const StepCostPhysical cost{&d};
   const Function function(cost);
@@ -140,7 +142,8 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit, dou
   Eigen::MatrixXd jacobian(n, 6);
   std::array<double, 6> sigmas;
   sigmas.fill(kNoInformationSigma);
-  *peak_sigma = kNoInformationSigma;
+  rendered->fill(kNoInformationSigma);
+  information->fill(0.0);
   if (!function(fit.q.data(), residuals.data(), jacobian.data()) || !jacobian.allFinite()) {
     return sigmas;
   }
@@ -168,21 +171,58 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit, dou
     sigmas[p] = std::clamp(sigmas[p], kParamSigmaFloor[p], kNoInformationSigma);
   }
   if (!fit.used[kParamRoughness]) sigmas[kParamRoughness] = kNoInformationSigma;
+  // The variance of g(q) for a gradient over two parameters (a, b): joint where the model fitted
+  // both, else from the first one's own.
+  const auto combined = [&](int a, int b, double ga, double gb) {
+    double v = ga * ga * variance[a];
+    if (fit.used[a] && fit.used[b]) {
+      const auto at = [&](int p) {
+        return int(std::find(used.begin(), used.end(), p) - used.begin());
+      };
+      const int i = at(a), j = at(b);
+      v = ga * ga * covariance(i, i) + 2 * ga * gb * covariance(i, j) + gb * gb * covariance(j, j);
+    }
+    v *= scale;
+    return std::isfinite(v) && v > 0 ? std::min(std::sqrt(v), kNoInformationSigma)
+                                     : kNoInformationSigma;
+  };
+  // d(albedo A(sigma)) = A d albedo + albedo A'(sigma) d sigma, A' = -0.33 sigma / (s^2 + 0.33)^2.
+  const double sigma = fit.q[kParamSigma], s2 = sigma * sigma;
+  const double a = brdf::oren_nayar_a(sigma), a_prime = -0.33 * sigma / ((s2 + 0.33) * (s2 + 0.33));
+  for (int c = 0; c < 3; ++c) {
+    (*rendered)[size_t(c)] = combined(c, kParamSigma, a, fit.q[size_t(c)] * a_prime);
+  }
   // d(k_s / m^2) = dk_s / m^2 - 2 k_s dm / m^3.
   const double m = fit.q[kParamRoughness], ks = fit.q[kParamKs];
-  double peak_variance = variance[kParamKs] / (m * m * m * m);
-  if (fit.used[kParamKs] && fit.used[kParamRoughness]) {
-    const auto at = [&](int p) {
-      return int(std::find(used.begin(), used.end(), p) - used.begin());
-    };
-    const double g[2] = {1 / (m * m), -2 * ks / (m * m * m)};
-    const int i = at(kParamKs), j = at(kParamRoughness);
-    peak_variance = g[0] * g[0] * covariance(i, i) + 2 * g[0] * g[1] * covariance(i, j) +
-                    g[1] * g[1] * covariance(j, j);
+  (*rendered)[kRenderedPeak] =
+      combined(kParamKs, kParamRoughness, 1 / (m * m), -2 * ks / (m * m * m));
+  // The information on y = (albedo A, sigma, k_s / m^2, 1/m): J_y = J_q dq/dy with albedo = y_c /
+  // A(sigma), k_s = y_peak / y_m^2, m = 1 / y_m; then the floors added to its covariance:
+  // W = (F^-1 + diag(floor^2))^-1 = F (I + diag(floor^2) F)^-1, F = J_y^T J_y / scale.
+  Eigen::Matrix<double, 6, 6> dq_dy = Eigen::Matrix<double, 6, 6>::Zero();
+  for (int c = 0; c < 3; ++c) {
+    dq_dy(c, c) = 1 / a;
+    dq_dy(c, kParamSigma) = -fit.q[size_t(c)] * a_prime / a;
   }
-  peak_variance *= scale;
-  if (std::isfinite(peak_variance) && peak_variance > 0) {
-    *peak_sigma = std::min(std::sqrt(peak_variance), kNoInformationSigma);
+  dq_dy(kParamSigma, kParamSigma) = 1;
+  dq_dy(kParamKs, kParamKs) = m * m;
+  dq_dy(kParamKs, kParamRoughness) = -2 * ks * m;
+  dq_dy(kParamRoughness, kParamRoughness) = -m * m;
+  const Eigen::Matrix<double, 6, 6> f = dq_dy.transpose() * jtj * dq_dy / scale;
+  Eigen::Matrix<double, 6, 1> floor2;
+  for (int c = 0; c < 3; ++c) floor2(c) = kParamSigmaFloor[c] * a;
+  floor2(kParamSigma) = kParamSigmaFloor[kParamSigma];
+  floor2(kParamKs) = kParamSigmaFloor[kParamKs] / (m * m);
+  floor2(kParamRoughness) = kParamSigmaFloor[kParamRoughness] / (m * m);
+  floor2 = floor2.cwiseProduct(floor2);
+  Eigen::Matrix<double, 6, 6> w = f * (Eigen::Matrix<double, 6, 6>::Identity() +
+                                       floor2.asDiagonal() * f).inverse();
+  w = 0.5 * (w + w.transpose());
+  if (w.allFinite()) {
+    int k = 0;
+    for (int i = 0; i < 6; ++i) {
+      for (int j = i; j < 6; ++j) (*information)[size_t(k++)] = w(i, j);
+    }
   }
   return sigmas;
 }
@@ -294,7 +334,8 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
   out.value = Image(width, height, kTemporalParamCount);
   out.sigma = Image(width, height, kTemporalParamCount);
   out.flags = Image(width, height, 1);
-  out.peak_sigma = Image(width, height, 1);
+  out.rendered_sigma = Image(width, height, kRenderedCount);
+  out.information = Image(width, height, kInformationCount);
   const capture::ValidLights valid = capture::valid_lights(field);
   out.valid_lights = int(valid.index.size());
   const NormalOptions& no = options.brdf.normals;
@@ -318,9 +359,15 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
         d.wo = pixel::view_dir_at(fo.view_dir_per_pixel, size_t(y) * width + x);
         const StepResult best = fit_step_pixel(d, fo);
         if (!best.ok) continue;
-        double peak_sigma = 0;
-        const std::array<double, 6> sig = step_sigmas(d, best, &peak_sigma);
-        out.peak_sigma.at(x, y, 0) = float(peak_sigma);
+        std::array<double, kRenderedCount> rendered{};
+        std::array<double, kInformationCount> information{};
+        const std::array<double, 6> sig = step_sigmas(d, best, &rendered, &information);
+        for (int k = 0; k < kInformationCount; ++k) {
+          out.information.at(x, y, k) = float(information[size_t(k)]);
+        }
+        for (int r = 0; r < kRenderedCount; ++r) {
+          out.rendered_sigma.at(x, y, r) = float(rendered[size_t(r)]);
+        }
         for (int p = 0; p < kTemporalParamCount; ++p) {
           out.value.at(x, y, p) = float(best.q[p]);
           out.sigma.at(x, y, p) = float(sig[p]);

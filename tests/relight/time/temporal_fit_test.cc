@@ -106,7 +106,11 @@ std::map<Region, RegionStats> region_stats(const World& w, const TemporalMaps& m
                                                 : TemporalModel::kConstant;
     st.right_model += m == expected;
     st.varying_model += m != TemporalModel::kConstant && m != TemporalModel::kNone;
-    if (r == kStatic || m == TemporalModel::kConstant || m == TemporalModel::kNone) continue;
+    // A curve's endpoints are its extremes in its own space (temporal_fit.h), not the process's.
+    if (r == kStatic || m == TemporalModel::kConstant || m == TemporalModel::kNone ||
+        m == TemporalModel::kCurve) {
+      continue;
+    }
     const sim::ProcessTruth t = truth_of(w.scene, h);
     const float* p = pixel_of(maps, h.pixel_x, h.pixel_y);
     st.rate_error.push_back(std::abs(p[kTRate] / t.rate_per_s - 1));
