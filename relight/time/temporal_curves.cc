@@ -96,46 +96,6 @@ CurveFit fit_curve(const Series& series, const TemporalCurves& curves, double t_
   return best;
 }
 
-void couple_endpoints(const Series& series, const TemporalCurves& curves, CurveFit& fit) {
-  if (!series.has_information) return;
-  constexpr int P = kTemporalParamCount;
-  // Unknowns (dry_0 .. dry_5, wet_0 .. wet_5); step i predicts dry_p + (wet_p - dry_p) phi_p.
-  Eigen::Matrix<double, 2 * P, 2 * P> normal = Eigen::Matrix<double, 2 * P, 2 * P>::Zero();
-  Eigen::Matrix<double, 2 * P, 1> rhs = Eigen::Matrix<double, 2 * P, 1>::Zero();
-  for (int i = 0; i < series.steps; ++i) {
-    Eigen::Matrix<double, P, P> w;
-    int k = 0;
-    for (int a = 0; a < P; ++a) {
-      for (int b = a; b < P; ++b) w(a, b) = w(b, a) = series.information[i][k++];
-    }
-    Eigen::Matrix<double, P, 2 * P> design = Eigen::Matrix<double, P, 2 * P>::Zero();
-    for (int p = 0; p < P; ++p) {
-      const double phi = curves.at(p, fit.rate * (series.t[i] - fit.onset));
-      design(p, p) = 1 - phi;
-      design(p, P + p) = phi;
-    }
-    const Eigen::Matrix<double, P, 1> y = Eigen::Map<const Eigen::Matrix<double, P, 1>>(series.y[i]);
-    normal += design.transpose() * w * design;
-    rhs += design.transpose() * w * y;
-  }
-  // A parameter no step informs keeps its diagonal fit: a ridge toward it; the change prior as
-  // fit_endpoints has it.
-  const double ridge = 1e-9 * std::max(normal.trace(), 1e-300);
-  for (int p = 0; p < P; ++p) {
-    normal(p, p) += ridge, rhs(p) += ridge * fit.dry[p];
-    normal(P + p, P + p) += ridge, rhs(P + p) += ridge * fit.wet[p];
-    const double scale = series.change_scale[p];
-    if (scale > 0) {
-      const double prior = 1 / (scale * scale);
-      normal(p, p) += prior, normal(P + p, P + p) += prior;
-      normal(p, P + p) -= prior, normal(P + p, p) -= prior;
-    }
-  }
-  const Eigen::Matrix<double, 2 * P, 1> x = normal.ldlt().solve(rhs);
-  if (!x.allFinite()) return;
-  for (int p = 0; p < P; ++p) fit.dry[p] = x(p), fit.wet[p] = x(P + p);
-}
-
 // Alternations of the curves and the warps, at most; each lowers the sample's chi^2.
 constexpr int kMaxRounds = 60;
 

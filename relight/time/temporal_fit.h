@@ -139,11 +139,6 @@ struct StepFit {
   // against Oren-Nayar's sigma along albedo * A(sigma), both measured far better than their
   // parts. Empty: propagated from the parameters' own deviations.
   Image rendered_sigma;
-  // kInformationCount channels: the step's information (inverse covariance, model-error floors
-  // included) on the parameters as the curves follow them (albedo A(sigma) r, g, b, sigma, the
-  // peak k_s / m^2, 1/m), the upper triangle row by row: weighting a curve's misfit by it weighs
-  // it as the step's images do, couplings included. Empty: none (diagonal weights only).
-  Image information;
   int valid_lights = 0;
 };
 
@@ -160,7 +155,6 @@ enum RenderedParam : int {
   kRenderedPeak,
   kRenderedCount
 };
-inline constexpr int kInformationCount = kTemporalParamCount * (kTemporalParamCount + 1) / 2;
 
 // Channels of TemporalMaps::maps, in order.
 enum TemporalChannel : int {

@@ -52,9 +52,6 @@ struct Series {
   double t[kMaxSteps];
   double y[kMaxSteps][kTemporalParamCount];
   double w[kMaxSteps][kTemporalParamCount];  // 1 / sigma, 0 = no information.
-  // Each step's StepFit::information (upper triangle), when every used step has it.
-  bool has_information = false;
-  double information[kMaxSteps][kInformationCount];
   // set_change_scales (curves): per parameter the scale of a plausible change, twice the larger
   // of the range its informative steps span and 3 of their smallest deviations; a curve's wet -
   // dry carries the prior N(0, scale^2) so that where its steps barely see the curve move (the
@@ -117,10 +114,5 @@ struct CurveFit {
   double wet[kTemporalParamCount] = {}, dry[kTemporalParamCount] = {};
 };
 CurveFit fit_curve(const Series& series, const TemporalCurves& curves, double t_first, double span);
-// The endpoints of a curve fit at its warp again, weighted by each step's full information
-// (Series::information) instead of the parameters' own deviations: the misfit then weighs as in
-// the step's images. Leaves `fit` as it is without information or when the solve fails; chi2 is
-// kept (the model choice compares the diagonal chi^2 of every model).
-void couple_endpoints(const Series& series, const TemporalCurves& curves, CurveFit& fit);
 
 }  // namespace ls::relight::temporal_internal

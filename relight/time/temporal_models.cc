@@ -24,11 +24,11 @@ namespace ls::relight {
 namespace {
 
 using pixel::SolverStatus;
+using temporal_internal::clamp_param;
 using temporal_internal::kMaxSigma;
 using temporal_internal::kMaxSteps;
 using temporal_internal::kMinRoughness;
 using temporal_internal::kNoInformationSigma;
-using temporal_internal::clamp_param;
 using temporal_internal::Series;
 
 // ---------------------------------------------------------------------------------------------
@@ -427,7 +427,7 @@ bool unexplained(const float* m) {
 constexpr int kCurveParameters = 2 + 2 * kTemporalParamCount;
 // At most this many curve families, each learnt from at least kMinFamilySeries series of the
 // sample, shared among them by this many k-means rounds after each new one.
-constexpr int kMaxCurveFamilies = 4;
+constexpr int kMaxCurveFamilies = 6;
 constexpr size_t kMinFamilySeries = 10;
 constexpr int kFamilyRounds = 3;
 
@@ -521,9 +521,8 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
     const int flags =
         temporal_internal::gather_series(steps, i % width, i / width, series, /*curves=*/true);
     temporal_internal::set_change_scales(series);
-    FamilyFit best = best_family(series, out.curves, c);
+    const FamilyFit best = best_family(series, out.curves, c);
     const temporal_internal::CurveFit& f = best.fit;
-    temporal_internal::couple_endpoints(series, out.curves[size_t(best.family)], best.fit);
     const double n = double(series.steps * kTemporalParamCount);
     const double bic = f.chi2 + kCurveParameters * std::log(n);
     if (!(bic < best_bic[size_t(i)] - kCurveEvidence) ||
@@ -575,8 +574,7 @@ void to_rendered(const StepFit& s, int x, int y, double* value, double* weight) 
   const double sd_ks = s.sigma.at(x, y, kParamKs), sd_m = s.sigma.at(x, y, kParamRoughness);
   const double propagated =
       std::hypot(sd_ks / (m * m), sd_m < kNoInformationSigma ? 2 * ks * sd_m / (m * m * m) : 0.0);
-  set(kParamKs, ks / (m * m),
-      joint ? double(s.rendered_sigma.at(x, y, kRenderedPeak)) : propagated,
+  set(kParamKs, ks / (m * m), joint ? double(s.rendered_sigma.at(x, y, kRenderedPeak)) : propagated,
       kParamSigmaFloor[kParamKs] / (m * m));
 }
 
@@ -604,14 +602,7 @@ int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, i
       series.w[i][p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
     }
     if (curves) to_rendered(s, x, y, series.y[i], series.w[i]);
-    if (curves && !s.information.pixels.empty()) {
-      for (int k = 0; k < kInformationCount; ++k) {
-        series.information[i][k] = s.information.at(x, y, k);
-      }
-    }
   }
-  series.has_information = curves && series.steps > 0;
-  for (const StepFit& s : steps) series.has_information &= !s.information.pixels.empty();
   std::fill_n(series.change_scale, kTemporalParamCount, 0.0);
   return flags;
 }

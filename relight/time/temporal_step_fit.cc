@@ -132,8 +132,7 @@ StepResult solve_step(const StepPixel& d, const std::array<double, 6>& start, in
 // rendered: the deviations of what a render sees (StepFit::rendered_sigma) by the same covariance,
 // joint where the model fits both parts.
 std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit,
-                                  std::array<double, kRenderedCount>* rendered,
-                                  std::array<double, kInformationCount>* information) {
+                                  std::array<double, kRenderedCount>* rendered) {
   using Function = ceres::TinySolverAutoDiffFunction<StepCostPhysical, Eigen::Dynamic, 6>;
   const StepCostPhysical cost{&d};
   const Function function(cost);
@@ -143,7 +142,6 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit,
   std::array<double, 6> sigmas;
   sigmas.fill(kNoInformationSigma);
   rendered->fill(kNoInformationSigma);
-  information->fill(0.0);
   if (!function(fit.q.data(), residuals.data(), jacobian.data()) || !jacobian.allFinite()) {
     return sigmas;
   }
@@ -196,34 +194,6 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit,
   const double m = fit.q[kParamRoughness], ks = fit.q[kParamKs];
   (*rendered)[kRenderedPeak] =
       combined(kParamKs, kParamRoughness, 1 / (m * m), -2 * ks / (m * m * m));
-  // The information on y = (albedo A, sigma, k_s / m^2, 1/m): J_y = J_q dq/dy with albedo = y_c /
-  // A(sigma), k_s = y_peak / y_m^2, m = 1 / y_m; then the floors added to its covariance:
-  // W = (F^-1 + diag(floor^2))^-1 = F (I + diag(floor^2) F)^-1, F = J_y^T J_y / scale.
-  Eigen::Matrix<double, 6, 6> dq_dy = Eigen::Matrix<double, 6, 6>::Zero();
-  for (int c = 0; c < 3; ++c) {
-    dq_dy(c, c) = 1 / a;
-    dq_dy(c, kParamSigma) = -fit.q[size_t(c)] * a_prime / a;
-  }
-  dq_dy(kParamSigma, kParamSigma) = 1;
-  dq_dy(kParamKs, kParamKs) = m * m;
-  dq_dy(kParamKs, kParamRoughness) = -2 * ks * m;
-  dq_dy(kParamRoughness, kParamRoughness) = -m * m;
-  const Eigen::Matrix<double, 6, 6> f = dq_dy.transpose() * jtj * dq_dy / scale;
-  Eigen::Matrix<double, 6, 1> floor2;
-  for (int c = 0; c < 3; ++c) floor2(c) = kParamSigmaFloor[c] * a;
-  floor2(kParamSigma) = kParamSigmaFloor[kParamSigma];
-  floor2(kParamKs) = kParamSigmaFloor[kParamKs] / (m * m);
-  floor2(kParamRoughness) = kParamSigmaFloor[kParamRoughness] / (m * m);
-  floor2 = floor2.cwiseProduct(floor2);
-  Eigen::Matrix<double, 6, 6> w = f * (Eigen::Matrix<double, 6, 6>::Identity() +
-                                       floor2.asDiagonal() * f).inverse();
-  w = 0.5 * (w + w.transpose());
-  if (w.allFinite()) {
-    int k = 0;
-    for (int i = 0; i < 6; ++i) {
-      for (int j = i; j < 6; ++j) (*information)[size_t(k++)] = w(i, j);
-    }
-  }
   return sigmas;
 }
 
@@ -335,7 +305,6 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
   out.sigma = Image(width, height, kTemporalParamCount);
   out.flags = Image(width, height, 1);
   out.rendered_sigma = Image(width, height, kRenderedCount);
-  out.information = Image(width, height, kInformationCount);
   const capture::ValidLights valid = capture::valid_lights(field);
   out.valid_lights = int(valid.index.size());
   const NormalOptions& no = options.brdf.normals;
@@ -360,11 +329,7 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
         const StepResult best = fit_step_pixel(d, fo);
         if (!best.ok) continue;
         std::array<double, kRenderedCount> rendered{};
-        std::array<double, kInformationCount> information{};
-        const std::array<double, 6> sig = step_sigmas(d, best, &rendered, &information);
-        for (int k = 0; k < kInformationCount; ++k) {
-          out.information.at(x, y, k) = float(information[size_t(k)]);
-        }
+        const std::array<double, 6> sig = step_sigmas(d, best, &rendered);
         for (int r = 0; r < kRenderedCount; ++r) {
           out.rendered_sigma.at(x, y, r) = float(rendered[size_t(r)]);
         }
