@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "evaluation/chart.h"
+#include "evaluation/temporal_held_out.h"
 #include "lightstage/errors.h"
 #include "relight/fit/normals.h"
 #include "relight/time/temporal_fit.h"
@@ -31,6 +32,15 @@ std::string TemporalBenchOptions::validate() const {
            std::to_string(width) + " x " + std::to_string(height);
   }
   if (!(duration_s > 0)) return "bench temporal: duration: expected a positive number of seconds";
+  for (const int n : captured) {
+    if (n < 2 || n > lapse_steps) {
+      return "bench temporal: captured: expected 2.." + std::to_string(lapse_steps) + ", got " +
+             std::to_string(n);
+    }
+  }
+  if (lapse_steps < 2 || lapse_steps > 64) {
+    return "bench temporal: lapse steps: expected 2..64, got " + std::to_string(lapse_steps);
+  }
   return {};
 }
 
@@ -172,6 +182,52 @@ void write_charts(const TemporalBenchOptions& options, const std::vector<Tempora
               {step_time, temporal_time});
 }
 
+// The held-out part (see the header): one row per number of captured steps, its CSV and chart, and
+// the time-edit figure from the capture of every other step.
+std::vector<HeldOutBenchRow> run_held_out(const TemporalBenchOptions& options,
+                                          const ProgressFn& progress) {
+  const TimeLapse lapse = rise_and_fall_time_lapse(151, 32, 24, options.lapse_steps, 1200.0);
+  std::vector<HeldOutBenchRow> rows;
+  for (const int n : options.captured) {
+    const HeldOutScores s = score_held_out(lapse, evenly_spaced_steps(options.lapse_steps, n));
+    rows.push_back({n, total(s.curves).relative(), total(s.processes_only).relative(),
+                    total(s.linear).relative(), total(s.nearest).relative(),
+                    int(s.maps.curves.size())});
+    report(progress, "held-out steps", long(rows.size()), long(options.captured.size()),
+           std::to_string(n) + " captured");
+  }
+  std::ofstream csv(options.out / "temporal_held_out.csv");
+  if (!csv) throw InputError((options.out / "temporal_held_out.csv").string() + ": cannot write");
+  csv << "captured_steps,curves,processes_only,linear_interpolation,nearest_step,curve_families\n";
+  ChartSeries curves{"curves (and processes)", {}, {}, {}, true},
+      processes{"processes only", {}, {}, {}, true},
+      linear{"linear interpolation", {}, {}, {}, true},
+      nearest{"nearest captured step", {}, {}, {}, true};
+  for (const HeldOutBenchRow& r : rows) {
+    csv << r.captured << ',' << r.curves << ',' << r.processes_only << ',' << r.linear << ','
+        << r.nearest << ',' << r.curve_families << '\n';
+    for (auto [series, value] : {std::pair{&curves, r.curves},
+                                 {&processes, r.processes_only},
+                                 {&linear, r.linear},
+                                 {&nearest, r.nearest}}) {
+      series->x.push_back(r.captured);
+      series->y.push_back(value);
+    }
+  }
+  write_chart(options.out / "temporal_held_out_vs_steps.png",
+              {"Held-out time steps of the rise-and-fall scene: relative error vs steps captured",
+               "steps captured of " + std::to_string(options.lapse_steps) + " over 1200 s",
+               "relative RMS error", false},
+              {curves, processes, linear, nearest});
+  std::vector<capture::ReflectanceField> every_other;
+  for (const int i : evenly_spaced_steps(options.lapse_steps, (options.lapse_steps + 1) / 2)) {
+    every_other.push_back(lapse.noisy[size_t(i)]);
+  }
+  write_time_edit_figure(options.out / "temporal_edits.png", lapse,
+                         relight::fit_temporal(every_other, {}));
+  return rows;
+}
+
 }  // namespace
 
 TemporalBenchSummary run_temporal_bench(const TemporalBenchOptions& options,
@@ -189,6 +245,7 @@ TemporalBenchSummary run_temporal_bench(const TemporalBenchOptions& options,
   summary.csv = options.out / "temporal.csv";
   write_csv(summary.csv, summary.rows);
   write_charts(options, summary.rows);
+  if (!options.captured.empty()) summary.held_out = run_held_out(options, progress);
   return summary;
 }
 

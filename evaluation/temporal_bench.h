@@ -3,7 +3,11 @@
 // simulator's time-varying scene as the number of time steps grows: fit time per pixel (per-step
 // BRDF fits and temporal model fits) and the error against ground truth (rendering at uncaptured
 // times, and the recovered rates). Writes temporal.csv, temporal_error_vs_steps.png and
-// temporal_time_vs_steps.png.
+// temporal_time_vs_steps.png. Then (issue 20) the rise-and-fall scene's time lapse
+// (evaluation/temporal_held_out.h) captured at a growing number of its steps: the error at the
+// steps held out of the curves, the processes alone, linear interpolation of the captured images
+// and the nearest captured image (temporal_held_out.csv, temporal_held_out_vs_steps.png), and a
+// time edit and an effect transfer on its curves over time (temporal_edits.png).
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -18,8 +22,19 @@ struct TemporalBenchOptions {
   int leds = 40;                            // LEDs on the Fibonacci dome.
   int width = 32;
   int height = 24;
-  double duration_s = 600;       // Scene seconds covered by the steps.
+  double duration_s = 600;  // Scene seconds covered by the steps.
+  // The held-out part: a time lapse of this many steps over 1200 s on a 151-LED dome, captured at
+  // each of these numbers of its steps (evenly spread); empty: left out.
+  int lapse_steps = 25;
+  std::vector<int> captured{3, 4, 5, 7, 9, 13};
   std::string validate() const;  // Empty when valid.
+};
+
+struct HeldOutBenchRow {
+  int captured = 0;
+  // Relative RMS at the steps held out, both varying materials together.
+  double curves = 0, processes_only = 0, linear = 0, nearest = 0;
+  int curve_families = 0;
 };
 
 struct TemporalBenchRow {
@@ -34,6 +49,7 @@ struct TemporalBenchRow {
 
 struct TemporalBenchSummary {
   std::vector<TemporalBenchRow> rows;
+  std::vector<HeldOutBenchRow> held_out;
   std::filesystem::path csv;  // temporal.csv; the charts beside it.
 };
 

@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <functional>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "lightstage/errors.h"
 #include "relight/time/temporal_render.h"
@@ -127,6 +129,89 @@ HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& cap
         out.nearest);
   }
   return out;
+}
+
+std::vector<int> evenly_spaced_steps(int steps, int count) {
+  std::vector<int> out;
+  for (int i = 0; i < count; ++i) {
+    const int step = count > 1 ? int(std::lround(double(i) * (steps - 1) / (count - 1))) : 0;
+    if (out.empty() || step != out.back()) out.push_back(step);
+  }
+  return out;
+}
+
+namespace {
+
+// Pixels of the material named `name` (1) in a mask the size of the camera.
+relight::TemporalSelection material_mask(const TimeLapse& lapse, const std::string& name) {
+  relight::TemporalSelection s;
+  s.mask.assign(size_t(lapse.stage.camera.width) * lapse.stage.camera.height, 0);
+  for (const sim::SurfaceHit& h : lapse.hits) {
+    if (h.hit && h.material_index >= 0 &&
+        lapse.scene.materials[size_t(h.material_index)].name == name) {
+      s.mask[size_t(h.pixel_y) * lapse.stage.camera.width + h.pixel_x] = 1;
+    }
+  }
+  return s;
+}
+
+}  // namespace
+
+void write_time_edit_figure(const std::filesystem::path& png, const TimeLapse& lapse,
+                            const relight::TemporalMaps& maps, int columns) {
+  relight::TemporalEdits faster{"bench: slab x2", {}},
+      transfer{"bench: metal takes the slab's", {}};
+  relight::TemporalEdit edit;
+  edit.select = material_mask(lapse, "stone-slab");
+  edit.rate_scale = 2;
+  faster.edits.push_back(edit);
+  relight::TemporalEdit take;
+  take.select = material_mask(lapse, "corroding-metal");
+  take.transfer_from = material_mask(lapse, "stone-slab");
+  transfer.edits.push_back(take);
+  std::vector<relight::TemporalMaps> rows = {maps, maps, maps};
+  relight::apply_temporal_edits(faster, rows[1]);
+  relight::apply_temporal_edits(transfer, rows[2]);
+  const char* labels[] = {"fitted", "slab x2 speed", "metal takes slab's curve"};
+  const int w = maps.maps.width, h = maps.maps.height;
+  Image grid(w * columns, h * int(rows.size()), 3);
+  const Eigen::Vector3d light = Eigen::Vector3d(0.3, 0.45, 0.84).normalized();
+  const double t0 = maps.first_time_s(), t1 = maps.last_time_s();
+  for (size_t r = 0; r < rows.size(); ++r) {
+    for (int col = 0; col < columns; ++col) {
+      const double t = t0 + (t1 - t0) * col / std::max(1, columns - 1);
+      const Image frame = relight::render_temporal(
+          rows[r], t, relight::LightingForModels::directional(light, Eigen::Vector3d(1, 1, 1)));
+      for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+          for (int c = 0; c < 3; ++c) grid.at(col * w + x, int(r) * h + y, c) = frame.at(x, y, c);
+        }
+      }
+    }
+  }
+  // The renders as one preview, then enlarged with a label per row and a time per column.
+  const std::filesystem::path raw = png.string() + ".grid.png";
+  write_png_preview(raw, grid, auto_exposure_stops(grid));
+  const cv::Mat small = cv::imread(raw.string(), cv::IMREAD_COLOR);
+  std::filesystem::remove(raw);
+  if (small.empty()) throw InputError(raw.string() + ": cannot read the figure back");
+  constexpr int kScale = 6, kLeft = 200, kTop = 30;
+  cv::Mat big;
+  cv::resize(small, big, {}, kScale, kScale, cv::INTER_NEAREST);
+  cv::Mat figure(big.rows + kTop, big.cols + kLeft, CV_8UC3, cv::Scalar(255, 255, 255));
+  big.copyTo(figure(cv::Rect(kLeft, kTop, big.cols, big.rows)));
+  const cv::Scalar black(0, 0, 0);
+  for (size_t r = 0; r < rows.size(); ++r) {
+    cv::putText(figure, labels[r], {8, kTop + int(r) * h * kScale + h * kScale / 2},
+                cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1, cv::LINE_AA);
+  }
+  for (int col = 0; col < columns; ++col) {
+    const double t = t0 + (t1 - t0) * col / std::max(1, columns - 1);
+    cv::putText(figure, std::to_string(int(std::lround(t))) + " s",
+                {kLeft + col * w * kScale + 8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1,
+                cv::LINE_AA);
+  }
+  if (!cv::imwrite(png.string(), figure)) throw InputError(png.string() + ": cannot write");
 }
 
 }  // namespace ls::evaluation

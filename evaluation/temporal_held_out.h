@@ -9,6 +9,7 @@
 // Error: relative RMS sqrt(sum (model - truth)^2 / sum truth^2) over a material's pixels and the
 // LEDs that reach them (n . l > 0 and no cast shadow: a shadow is in the images and in no model,
 // so what is compared is what the models model), every channel.
+#include <filesystem>
 #include <map>
 #include <string>
 #include <vector>
@@ -56,5 +57,14 @@ struct HeldOutScores {
 // Fits the steps `captured` (indices into the time lapse, increasing, at least two, the first and
 // the last step among them) and scores every other step.
 HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured);
+
+// `count` steps of `steps`, evenly spread, the first and the last among them.
+std::vector<int> evenly_spaced_steps(int steps, int count);
+
+// A time edit and an effect transfer on the time lapse's curve-modelled materials, as a labelled
+// grid of renders under one light at `columns` times over the lapse: the fitted maps; the stone
+// slab's process twice as fast (rate_scale 2); the metal sphere taking the slab's curve (transfer).
+void write_time_edit_figure(const std::filesystem::path& png, const TimeLapse& lapse,
+                            const relight::TemporalMaps& maps, int columns = 7);
 
 }  // namespace ls::evaluation

@@ -103,6 +103,18 @@ void print_temporal(const evaluation::TemporalBenchSummary& summary) {
   }
   std::fprintf(stderr, "wrote %s, temporal_error_vs_steps.png, temporal_time_vs_steps.png\n",
                summary.csv.c_str());
+  if (summary.held_out.empty()) return;
+  std::printf(
+      "\nrise-and-fall scene, error at the steps held out (relative RMS):\n%9s %9s %15s %9s %9s "
+      "%9s\n",
+      "captured", "curves", "processes only", "linear", "nearest", "families");
+  for (const evaluation::HeldOutBenchRow& r : summary.held_out) {
+    std::printf("%9d %9.4f %15.4f %9.4f %9.4f %9d\n", r.captured, r.curves, r.processes_only,
+                r.linear, r.nearest, r.curve_families);
+  }
+  std::fprintf(stderr,
+               "wrote temporal_held_out.csv, temporal_held_out_vs_steps.png, "
+               "temporal_edits.png\n");
 }
 
 void print_compact(const evaluation::CompactBenchSummary& summary) {
@@ -226,7 +238,10 @@ void add_temporal(CLI::App& bench) {
       "temporal",
       "Time-varying BRDF fits on the simulator's time-varying scene as the number of time steps "
       "grows: fit time per pixel and error against ground truth (render at uncaptured times, "
-      "recovered rates). Writes temporal.csv and two charts.");
+      "recovered rates). Writes temporal.csv and two charts. Then the rise-and-fall scene's time "
+      "lapse captured at a growing number of its steps: error at the steps held out for the "
+      "curves, the processes alone, linear interpolation and the nearest step (CSV + chart), and "
+      "a time edit and an effect transfer over time (temporal_edits.png).");
   cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
   cmd->add_option("--steps", args->steps, "Numbers of time steps.")
       ->delimiter(',')
@@ -239,6 +254,12 @@ void add_temporal(CLI::App& bench) {
   cmd->add_option("--height", args->height, "Image height.")->check(CLI::Range(4, 1024));
   cmd->add_option("--duration", args->duration_s, "Scene seconds covered by the steps.")
       ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cmd->add_option("--captured", args->captured,
+                  "Numbers of the time lapse's steps captured for the held-out part (empty: "
+                  "leave it out).")
+      ->delimiter(',')
+      ->check(CLI::Range(2, 64))
       ->capture_default_str();
   cmd->callback(
       [args] { print_temporal(evaluation::run_temporal_bench(*args, progress_printer(false))); });

@@ -150,5 +150,72 @@ TemporalCurves learn_curves(const std::vector<Series>& sample, double t_first, d
   return curves;
 }
 
+// At most this many curve families, each learnt from at least kMinFamilySeries series of the
+// sample, shared among them by this many k-means rounds after each new one.
+constexpr int kMaxCurveFamilies = 6;
+constexpr int kFamilyRounds = 3;
+
+FamilyFit best_family(const Series& series, const std::vector<TemporalCurves>& families,
+                      double t_first, double span) {
+  FamilyFit best;
+  for (size_t f = 0; f < families.size(); ++f) {
+    const CurveFit fit = fit_curve(series, families[f], t_first, span);
+    if (fit.chi2 < best.fit.chi2) best = {int(f), fit};
+  }
+  return best;
+}
+
+// The curve families of the sample (TemporalCurves): a first one from every series; while at least
+// kMinFamilySeries series stay unexplained (reduced chi^2 above kUnexplainedResidual under their
+// best family), a new family from those, then the series shared among the families by rounds of
+// assignment (each to its best family) and learning (each family from its own series).
+std::vector<TemporalCurves> learn_families(const std::vector<Series>& sample, int knots,
+                                           double t_first, double span) {
+  std::vector<TemporalCurves> families = {learn_curves(sample, t_first, span, knots)};
+  std::vector<FamilyFit> fits(sample.size());
+  const auto assign = [&] {
+    tbb::parallel_for(size_t(0), sample.size(),
+                      [&](size_t i) { fits[i] = best_family(sample[i], families, t_first, span); });
+  };
+  const auto members = [&](int family, bool only_unexplained) {
+    std::vector<Series> out;
+    for (size_t i = 0; i < sample.size(); ++i) {
+      const double dof = std::max(1, sample[i].steps * kTemporalParamCount - kCurveParameters);
+      if (only_unexplained ? fits[i].fit.chi2 > kUnexplainedResidual * dof
+                           : fits[i].family == family) {
+        out.push_back(sample[i]);
+      }
+    }
+    return out;
+  };
+  assign();
+  while (families.size() < size_t(kMaxCurveFamilies)) {
+    const std::vector<Series> unexplained_series = members(-1, true);
+    if (unexplained_series.size() < kMinFamilySeries) break;
+    families.push_back(learn_curves(unexplained_series, t_first, span, knots));
+    for (int round = 0; round < kFamilyRounds; ++round) {
+      assign();
+      for (size_t f = 0; f < families.size(); ++f) {
+        const std::vector<Series> own = members(int(f), false);
+        if (own.size() < kMinFamilySeries) continue;
+        families[f] = learn_curves(own, t_first, span, knots, &families[f]);
+      }
+    }
+    assign();
+    if (members(int(families.size()) - 1, false).size() < kMinFamilySeries) {
+      families.pop_back();  // The new family explains too few: the others do as well.
+      break;
+    }
+  }
+  return families;
+}
+
 }  // namespace temporal_internal
+
+const TemporalCurves* TemporalMaps::curves_at(int x, int y) const {
+  if (model(x, y) != TemporalModel::kCurve) return nullptr;
+  const int family = int(maps.at(x, y, kTCurve));
+  return family >= 0 && family < int(curves.size()) ? &curves[size_t(family)] : nullptr;
+}
+
 }  // namespace ls::relight

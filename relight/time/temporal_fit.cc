@@ -114,7 +114,7 @@ const std::vector<std::string>& temporal_channel_names() {
       n.push_back(std::string("wet.") + temporal_param_name(p));
     for (int p = 0; p < kTemporalParamCount; ++p)
       n.push_back(std::string("dry.") + temporal_param_name(p));
-    for (const char* c : {"confidence", "residual", "steps_used", "flags", "curve"}) {
+    for (const char* c : {"confidence", "residual", "steps_used", "flags", "curve", "curve_seen"}) {
       n.push_back(c);
     }
     return n;

@@ -171,6 +171,10 @@ enum TemporalChannel : int {
   kTStepsUsed,  // Usable steps at this pixel.
   kTFlags,      // TemporalFlag bits.
   kTCurve,      // kCurve: the curve family (TemporalMaps::curves) it follows; 0 otherwise.
+  // kCurve: the curve position tau its last captured step reached (from its first's on, its steps
+  // saw the curve up to here). Renders hold tau within what the steps saw: a time edit that
+  // speeds the pixel up holds its last seen state rather than making up one it never showed.
+  kTCurveSeen,
   kTemporalChannelCount,
 };
 const std::vector<std::string>& temporal_channel_names();

@@ -115,4 +115,23 @@ struct CurveFit {
 };
 CurveFit fit_curve(const Series& series, const TemporalCurves& curves, double t_first, double span);
 
+// A series no model explains leaves a reduced chi^2 above this (the per-step parameters carry
+// their own uncertainties and a floor for model error, so a right model leaves about 1; the
+// simulator's paint, an exponential, leaves up to 3 on a few pixels).
+inline constexpr double kUnexplainedResidual = 4;
+// A curve's parameters: rate, onset, wet and dry of each parameter (the exponential's count).
+inline constexpr int kCurveParameters = 2 + 2 * kTemporalParamCount;
+// A curve family is learnt from at least this many series.
+inline constexpr size_t kMinFamilySeries = 10;
+
+// Curve families (TemporalCurves, one per way of changing) and a series' best one by chi^2.
+struct FamilyFit {
+  int family = 0;
+  CurveFit fit;
+};
+FamilyFit best_family(const Series& series, const std::vector<TemporalCurves>& families,
+                      double t_first, double span);
+std::vector<TemporalCurves> learn_families(const std::vector<Series>& sample, int knots,
+                                           double t_first, double span);
+
 }  // namespace ls::relight::temporal_internal

@@ -86,7 +86,8 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
       with_steps.push_back("step." + std::to_string(i) + "." + temporal_param_name(p));
     }
   }
-  // 'curve' and the step channels are optional ('curve' is 0 in files before curve families).
+  // 'curve', 'curve_seen' and the step channels are optional: files before curve families read as
+  // one family whose pixels saw all of it (curve_seen 1).
   NamedChannelFile file = read_named_channels(path, with_steps, "temporal maps",
                                               "'lightstage fit --time'", /*exact=*/false,
                                               /*required=*/kTCurve);
@@ -157,9 +158,11 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
   }
   out.maps = Image(width, height, kTemporalChannelCount);
   out.maps.channel_names = names;
+  const bool has_seen = std::find(in_file.begin(), in_file.end(), "curve_seen") != in_file.end();
   for (size_t i = 0; i < out.maps.num_pixels(); ++i) {
-    std::copy_n(&file.image.pixels[i * size_t(file.image.channels)], kTemporalChannelCount,
-                &out.maps.pixels[i * size_t(kTemporalChannelCount)]);
+    float* to = &out.maps.pixels[i * size_t(kTemporalChannelCount)];
+    std::copy_n(&file.image.pixels[i * size_t(file.image.channels)], kTemporalChannelCount, to);
+    if (!has_seen) to[kTCurveSeen] = 1;
   }
   TemporalSummary& summary = out.summary;
   summary.pixels = width * height;

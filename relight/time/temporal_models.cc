@@ -25,10 +25,13 @@ namespace {
 
 using pixel::SolverStatus;
 using temporal_internal::clamp_param;
+using temporal_internal::kCurveParameters;
 using temporal_internal::kMaxSigma;
 using temporal_internal::kMaxSteps;
+using temporal_internal::kMinFamilySeries;
 using temporal_internal::kMinRoughness;
 using temporal_internal::kNoInformationSigma;
+using temporal_internal::kUnexplainedResidual;
 using temporal_internal::Series;
 
 // ---------------------------------------------------------------------------------------------
@@ -414,84 +417,11 @@ constexpr size_t kCurveSample = 1500;
 // learnt from every process of the scene together and fits any of them a little by chance.
 constexpr double kCurveEvidence = 6;
 
-// A pixel that no process explains: its best leaves a reduced chi^2 above kUnexplainedResidual (the
-// per-step parameters carry their own uncertainties and a floor for model error, so a right model
-// leaves about 1; the simulator's paint, an exponential, leaves up to 3 on a few pixels), or ran
-// away.
-constexpr double kUnexplainedResidual = 4;
+// A pixel that no process explains: its best leaves a reduced chi^2 above kUnexplainedResidual, or
+// ran away.
 bool unexplained(const float* m) {
   return m[kTStepsUsed] >= 5 &&
          (m[kTResidual] > kUnexplainedResidual || (int(m[kTFlags]) & kTemporalDegenerate) != 0);
-}
-
-constexpr int kCurveParameters = 2 + 2 * kTemporalParamCount;
-// At most this many curve families, each learnt from at least kMinFamilySeries series of the
-// sample, shared among them by this many k-means rounds after each new one.
-constexpr int kMaxCurveFamilies = 6;
-constexpr size_t kMinFamilySeries = 10;
-constexpr int kFamilyRounds = 3;
-
-// The best family of one series by chi^2.
-struct FamilyFit {
-  int family = 0;
-  temporal_internal::CurveFit fit;
-};
-FamilyFit best_family(const Series& series, const std::vector<TemporalCurves>& families,
-                      const PixelContext& c) {
-  FamilyFit best;
-  for (size_t f = 0; f < families.size(); ++f) {
-    const temporal_internal::CurveFit fit =
-        temporal_internal::fit_curve(series, families[f], c.t_first, c.span);
-    if (fit.chi2 < best.fit.chi2) best = {int(f), fit};
-  }
-  return best;
-}
-
-// The curve families of the sample (TemporalCurves): a first one from every series; while at least
-// kMinFamilySeries series stay unexplained (reduced chi^2 above kUnexplainedResidual under their
-// best family), a new family from those, then the series shared among the families by rounds of
-// assignment (each to its best family) and learning (each family from its own series).
-std::vector<TemporalCurves> learn_families(const std::vector<Series>& sample, int knots,
-                                           const PixelContext& c) {
-  std::vector<TemporalCurves> families = {
-      temporal_internal::learn_curves(sample, c.t_first, c.span, knots)};
-  std::vector<FamilyFit> fits(sample.size());
-  const auto assign = [&] {
-    tbb::parallel_for(size_t(0), sample.size(),
-                      [&](size_t i) { fits[i] = best_family(sample[i], families, c); });
-  };
-  const auto members = [&](int family, bool only_unexplained) {
-    std::vector<Series> out;
-    for (size_t i = 0; i < sample.size(); ++i) {
-      const double dof = std::max(1, sample[i].steps * kTemporalParamCount - kCurveParameters);
-      if (only_unexplained ? fits[i].fit.chi2 > kUnexplainedResidual * dof
-                           : fits[i].family == family) {
-        out.push_back(sample[i]);
-      }
-    }
-    return out;
-  };
-  assign();
-  while (families.size() < size_t(kMaxCurveFamilies)) {
-    const std::vector<Series> unexplained_series = members(-1, true);
-    if (unexplained_series.size() < kMinFamilySeries) break;
-    families.push_back(
-        temporal_internal::learn_curves(unexplained_series, c.t_first, c.span, knots));
-    for (int round = 0; round < kFamilyRounds; ++round) {
-      assign();
-      for (size_t f = 0; f < families.size(); ++f) {
-        const std::vector<Series> own = members(int(f), false);
-        if (own.size() < kMinFamilySeries) continue;
-        families[f] = temporal_internal::learn_curves(own, c.t_first, c.span, knots, &families[f]);
-      }
-    }
-    assign();
-    if (members(int(families.size()) - 1, false).size() < kMinFamilySeries) {
-      families.pop_back();  // The new family explains too few: the others do as well.
-      break;
-    }
-  }
-  return families;
 }
 
 void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
@@ -513,7 +443,7 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
     temporal_internal::set_change_scales(series);
   }
   const int knots = std::clamp(int(steps.size()) + 3, 5, 16);
-  out.curves = learn_families(sample, knots, c);
+  out.curves = temporal_internal::learn_families(sample, knots, c.t_first, c.span);
   tbb::parallel_for(0, pixels, [&](int i) {
     float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
     if (!std::isfinite(best_bic[size_t(i)]) || !unexplained(m)) return;
@@ -521,7 +451,8 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
     const int flags =
         temporal_internal::gather_series(steps, i % width, i / width, series, /*curves=*/true);
     temporal_internal::set_change_scales(series);
-    const FamilyFit best = best_family(series, out.curves, c);
+    const temporal_internal::FamilyFit best =
+        temporal_internal::best_family(series, out.curves, c.t_first, c.span);
     const temporal_internal::CurveFit& f = best.fit;
     const double n = double(series.steps * kTemporalParamCount);
     const double bic = f.chi2 + kCurveParameters * std::log(n);
@@ -530,6 +461,7 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
       return;
     }
     m[kTCurve] = float(best.family);
+    m[kTCurveSeen] = float(f.rate * (c.t_first + c.span - f.onset));
     m[kTModel] = float(TemporalModel::kCurve);
     m[kTRate] = float(f.rate);
     m[kTOnset] = float(f.onset);
@@ -548,83 +480,6 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
 }
 
 }  // namespace
-
-namespace {
-
-// One step's albedo and k_s of pixel (x, y) as a render sees them (RenderedParam) in y and their
-// weights w (1 / sigma): the step's joint deviations where it has them, else propagated from the
-// parameters' own (no covariance: wider), floored at the parameters' floors.
-void to_rendered(const StepFit& s, int x, int y, double* value, double* weight) {
-  const bool joint = !s.rendered_sigma.pixels.empty();
-  const auto set = [&](int p, double v, double sd, double floor) {
-    sd = std::max(sd, floor);
-    value[p] = v;
-    weight[p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
-  };
-  const double sigma = s.value.at(x, y, kParamSigma), sd_sigma = s.sigma.at(x, y, kParamSigma);
-  const double s2 = sigma * sigma, a = brdf::oren_nayar_a(sigma);
-  const double a_prime = -0.33 * sigma / ((s2 + 0.33) * (s2 + 0.33));
-  for (int c = 0; c < 3; ++c) {
-    const double albedo = s.value.at(x, y, c), sd = s.sigma.at(x, y, c);
-    const double propagated = std::hypot(a * sd, albedo * a_prime * sd_sigma);
-    set(c, albedo * a, joint ? double(s.rendered_sigma.at(x, y, c)) : propagated,
-        kParamSigmaFloor[c] * a);
-  }
-  const double ks = s.value.at(x, y, kParamKs), m = s.value.at(x, y, kParamRoughness);
-  const double sd_ks = s.sigma.at(x, y, kParamKs), sd_m = s.sigma.at(x, y, kParamRoughness);
-  const double propagated =
-      std::hypot(sd_ks / (m * m), sd_m < kNoInformationSigma ? 2 * ks * sd_m / (m * m * m) : 0.0);
-  set(kParamKs, ks / (m * m), joint ? double(s.rendered_sigma.at(x, y, kRenderedPeak)) : propagated,
-      kParamSigmaFloor[kParamKs] / (m * m));
-}
-
-}  // namespace
-
-int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, int y,
-                                     Series& series, bool curves) {
-  int flags = 0;
-  series.steps = 0;
-  for (const StepFit& s : steps) {
-    if (!(s.sigma.at(x, y, 0) > 0)) {
-      flags |= kStepDropped;
-      continue;
-    }
-    if (!s.flags.pixels.empty()) flags |= int(s.flags.at(x, y, 0)) & kTemporalNotConverged;
-    const int i = series.steps++;
-    series.t[i] = s.time_s;
-    for (int p = 0; p < kTemporalParamCount; ++p) {
-      double v = s.value.at(x, y, p), sd = s.sigma.at(x, y, p);
-      if (p == kParamRoughness) {  // Fitted as 1/m: sigma(1/m) = sigma(m) / m^2.
-        sd = sd / (v * v);
-        v = 1 / v;
-      }
-      series.y[i][p] = v;
-      series.w[i][p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
-    }
-    if (curves) to_rendered(s, x, y, series.y[i], series.w[i]);
-  }
-  std::fill_n(series.change_scale, kTemporalParamCount, 0.0);
-  return flags;
-}
-
-void temporal_internal::set_change_scales(Series& series) {
-  for (int p = 0; p < kTemporalParamCount; ++p) {
-    double lo = HUGE_VAL, hi = -HUGE_VAL, smallest_sigma = HUGE_VAL;
-    for (int i = 0; i < series.steps; ++i) {
-      if (!(series.w[i][p] > 0)) continue;
-      lo = std::min(lo, series.y[i][p]);
-      hi = std::max(hi, series.y[i][p]);
-      smallest_sigma = std::min(smallest_sigma, 1 / series.w[i][p]);
-    }
-    series.change_scale[p] = hi >= lo ? 2 * std::max(hi - lo, 3 * smallest_sigma) : 0.0;
-  }
-}
-
-const TemporalCurves* TemporalMaps::curves_at(int x, int y) const {
-  if (model(x, y) != TemporalModel::kCurve) return nullptr;
-  const int family = int(maps.at(x, y, kTCurve));
-  return family >= 0 && family < int(curves.size()) ? &curves[size_t(family)] : nullptr;
-}
 
 double temporal_value(TemporalModel model, double rate, double onset, double wet, double dry,
                       double t, const TemporalCurves* curves, int p) {

@@ -22,9 +22,14 @@ using temporal_internal::to_fitted_space;
 // A pixel's BRDF parameters q at time t. A process follows the BRDF's parameters (the roughness
 // harmonic: 1/m follows the process); a curve its own space (temporal_fit.h), its endpoints stored
 // in it.
-void params_at(const float* m, double t, const TemporalCurves* curves, double* q) {
+void params_at(const float* m, double t, double first_time_s, const TemporalCurves* curves,
+               double* q) {
   const TemporalModel model = TemporalModel(int(m[kTModel]));
   const bool curve = model == TemporalModel::kCurve;
+  if (curve && m[kTRate] > 0) {  // Within what the steps saw (kTCurveSeen).
+    const double seen_until = double(m[kTOnset]) + double(m[kTCurveSeen]) / m[kTRate];
+    t = std::clamp(t, first_time_s, std::max(first_time_s, seen_until));
+  }
   for (int p = 0; p < kTemporalParamCount; ++p) {
     double wet = m[kTWet + p], dry = m[kTDry + p];
     const bool reciprocal = p == kParamRoughness && !curve;
@@ -118,7 +123,7 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
           q[p] = clamp_param(p, maps.step_values.at(x, y, nearest_step * kTemporalParamCount + p));
         }
       } else {
-        params_at(m, time_s, maps.curves_at(x, y), q);
+        params_at(m, time_s, maps.first_time_s(), maps.curves_at(x, y), q);
       }
       for (int c = 0; c < 3; ++c) {
         o[kMapNormalX + c] = m[kTNormalX + c];
@@ -205,7 +210,8 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
     // The source process, summarised once before anything changes.
     TemporalModel source_model = TemporalModel::kNone;
     double source_rate = 0, source_onset = first;
-    int source_family = 0;  // kCurve: the family most of the source's curve pixels follow.
+    int source_family = 0;   // kCurve: the family most of the source's curve pixels follow.
+    double source_seen = 1;  // kCurve: the median of their kTCurveSeen.
     double change[kTemporalParamCount] = {};
     if (edit.transfer_from) {
       int votes[kTemporalModelCount] = {};
@@ -224,13 +230,14 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
                          "process, got none");
       }
       source_model = TemporalModel(best);
-      std::vector<double> rates, onsets, changes[kTemporalParamCount];
+      std::vector<double> rates, onsets, seen, changes[kTemporalParamCount];
       for (int y = 0; y < height; ++y) {
         for (int x = 0; x < width; ++x) {
           if (!selected(*edit.transfer_from, maps, x, y) || maps.model(x, y) != source_model) {
             continue;
           }
           rates.push_back(maps.at(x, y, kTRate));
+          seen.push_back(maps.at(x, y, kTCurveSeen));
           onsets.push_back(maps.at(x, y, kTOnset));
           for (int p = 0; p < kTemporalParamCount; ++p) {
             const double wet = maps.at(x, y, kTWet + p), dry = maps.at(x, y, kTDry + p);
@@ -257,6 +264,7 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
             int(std::max_element(family_votes.begin(), family_votes.end()) - family_votes.begin());
       }
       source_rate = median(rates);
+      source_seen = median(seen);
       source_onset = median(onsets);
       for (int p = 0; p < kTemporalParamCount; ++p) change[p] = median(changes[p]);
     }
@@ -280,12 +288,16 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
           }
           m[kTModel] = float(source_model);
           m[kTCurve] = float(source_family);
+          m[kTCurveSeen] = float(source_seen);
           m[kTRate] = float(source_rate);
           m[kTOnset] = float(source_onset);
           for (int p = 0; p < kTemporalParamCount; ++p) {
             const double dry = m[kTDry + p];
             const double wet = p <= kParamAlbedoB ? dry * change[p] : dry + change[p];
-            m[kTWet + p] = float(clamp_param(p, wet));
+            // Within the parameter's bounds in the space the endpoints are in (a curve's: 1/m).
+            m[kTWet + p] = float(to_curve && p == kParamRoughness
+                                     ? std::clamp(wet, 1.0, 1 / temporal_internal::kMinRoughness)
+                                     : clamp_param(p, wet));
           }
         }
         if (edit.rate_scale != 1.0 && maps.model(x, y) != TemporalModel::kConstant) {

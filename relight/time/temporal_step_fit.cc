@@ -344,4 +344,75 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
   return out;
 }
 
+namespace {
+
+// One step's albedo and k_s of pixel (x, y) as a render sees them (RenderedParam) in y and their
+// weights w (1 / sigma): the step's joint deviations where it has them, else propagated from the
+// parameters' own (no covariance: wider), floored at the parameters' floors.
+void to_rendered(const StepFit& s, int x, int y, double* value, double* weight) {
+  const bool joint = !s.rendered_sigma.pixels.empty();
+  const auto set = [&](int p, double v, double sd, double floor) {
+    sd = std::max(sd, floor);
+    value[p] = v;
+    weight[p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
+  };
+  const double sigma = s.value.at(x, y, kParamSigma), sd_sigma = s.sigma.at(x, y, kParamSigma);
+  const double s2 = sigma * sigma, a = brdf::oren_nayar_a(sigma);
+  const double a_prime = -0.33 * sigma / ((s2 + 0.33) * (s2 + 0.33));
+  for (int c = 0; c < 3; ++c) {
+    const double albedo = s.value.at(x, y, c), sd = s.sigma.at(x, y, c);
+    const double propagated = std::hypot(a * sd, albedo * a_prime * sd_sigma);
+    set(c, albedo * a, joint ? double(s.rendered_sigma.at(x, y, c)) : propagated,
+        kParamSigmaFloor[c] * a);
+  }
+  const double ks = s.value.at(x, y, kParamKs), m = s.value.at(x, y, kParamRoughness);
+  const double sd_ks = s.sigma.at(x, y, kParamKs), sd_m = s.sigma.at(x, y, kParamRoughness);
+  const double propagated =
+      std::hypot(sd_ks / (m * m), sd_m < kNoInformationSigma ? 2 * ks * sd_m / (m * m * m) : 0.0);
+  set(kParamKs, ks / (m * m), joint ? double(s.rendered_sigma.at(x, y, kRenderedPeak)) : propagated,
+      kParamSigmaFloor[kParamKs] / (m * m));
+}
+
+}  // namespace
+
+int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, int y,
+                                     Series& series, bool curves) {
+  int flags = 0;
+  series.steps = 0;
+  for (const StepFit& s : steps) {
+    if (!(s.sigma.at(x, y, 0) > 0)) {
+      flags |= kStepDropped;
+      continue;
+    }
+    if (!s.flags.pixels.empty()) flags |= int(s.flags.at(x, y, 0)) & kTemporalNotConverged;
+    const int i = series.steps++;
+    series.t[i] = s.time_s;
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      double v = s.value.at(x, y, p), sd = s.sigma.at(x, y, p);
+      if (p == kParamRoughness) {  // Fitted as 1/m: sigma(1/m) = sigma(m) / m^2.
+        sd = sd / (v * v);
+        v = 1 / v;
+      }
+      series.y[i][p] = v;
+      series.w[i][p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
+    }
+    if (curves) to_rendered(s, x, y, series.y[i], series.w[i]);
+  }
+  std::fill_n(series.change_scale, kTemporalParamCount, 0.0);
+  return flags;
+}
+
+void temporal_internal::set_change_scales(Series& series) {
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    double lo = HUGE_VAL, hi = -HUGE_VAL, smallest_sigma = HUGE_VAL;
+    for (int i = 0; i < series.steps; ++i) {
+      if (!(series.w[i][p] > 0)) continue;
+      lo = std::min(lo, series.y[i][p]);
+      hi = std::max(hi, series.y[i][p]);
+      smallest_sigma = std::min(smallest_sigma, 1 / series.w[i][p]);
+    }
+    series.change_scale[p] = hi >= lo ? 2 * std::max(hi - lo, 3 * smallest_sigma) : 0.0;
+  }
+}
+
 }  // namespace ls::relight
