@@ -90,6 +90,7 @@ HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& cap
                      std::to_string(steps - 1) + ", at least two");
   }
   std::vector<capture::ReflectanceField> fields;
+  fields.reserve(captured.size());
   for (const int i : captured) fields.push_back(lapse.noisy[size_t(i)]);
   const relight::TemporalFitOptions options;
   HeldOutScores out;

@@ -60,6 +60,7 @@ NormalMap normals_from(const std::vector<const capture::ReflectanceField*>& sort
 std::vector<const capture::ReflectanceField*> by_time(
     const std::vector<capture::ReflectanceField>& steps) {
   std::vector<const capture::ReflectanceField*> order;
+  order.reserve(steps.size());
   for (const auto& f : steps) order.push_back(&f);
   std::stable_sort(order.begin(), order.end(),
                    [](auto* a, auto* b) { return a->scene_time_s < b->scene_time_s; });
