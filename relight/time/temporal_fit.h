@@ -207,8 +207,10 @@ struct TemporalSummary {
 // given every pixel's warp and endpoints, then each pixel's warp by a grid with its endpoints
 // linear); a further family is learnt from the pixels the families so far leave unexplained, and
 // the pixels are then shared among the families (each learnt again from its own) as in k-means.
-// Offered to every pixel beside the parametric processes: BIC chooses, with the same parameter
-// count as the exponential (rate, onset, wet and dry of six parameters).
+// Offered to the pixels no process explains and to those whose process misses the albedo a
+// render sees (albedo A(sigma), where the steps' fits trade one against the other); BIC chooses
+// by strong evidence (6), with the same parameter count as the exponential (rate, onset, wet and
+// dry of six parameters), so a process the data follow keeps the pixel.
 struct TemporalCurves {
   std::vector<std::vector<double>> knots;  // kTemporalParamCount curves, or none.
   bool empty() const { return knots.empty(); }

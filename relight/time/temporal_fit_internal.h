@@ -45,6 +45,13 @@ inline void from_fitted_space(double* y) {
   y[kParamRoughness] = m;
 }
 
+// A pixel's BRDF parameters q at time t from its temporal maps channels m (clamped to their
+// bounds). A process follows the BRDF's parameters (the roughness harmonic: 1/m follows it); a
+// curve its own space (temporal_fit.h), its endpoints stored in it, and holds what its steps saw
+// (kTCurveSeen; before the first step, first_time_s).
+void params_at(const float* m, double t, double first_time_s, const TemporalCurves* curves,
+               double* q);
+
 // One pixel's per-step parameters over its usable steps (gather_series).
 inline constexpr int kMaxSteps = 64;
 struct Series {

@@ -424,6 +424,34 @@ bool unexplained(const float* m) {
          (m[kTResidual] > kUnexplainedResidual || (int(m[kTFlags]) & kTemporalDegenerate) != 0);
 }
 
+// A process misses the albedo a render sees where it leaves a chi^2 above this per albedo sample
+// there (7 sigma rms: the simulator's paint and dust, whose steps' fits switch between Lambert and
+// Oren-Nayar at a few pixels, stay below it on all but a few; the corroding metal's one such pixel
+// is far above).
+constexpr double kMissedAlbedoChi2 = 50;
+
+// A process's course at a series' steps (in the curves' space): the chi^2 of its albedo channels
+// (returned) and its BIC over every parameter (*bic).
+double process_in_curve_space(const Series& series, const float* m, double first_time_s,
+                              double* bic) {
+  const TemporalModel model = TemporalModel(int(m[kTModel]));
+  double albedo_chi2 = 0, chi2 = 0;
+  for (int i = 0; i < series.steps; ++i) {
+    double q[kTemporalParamCount];
+    temporal_internal::params_at(m, series.t[i], first_time_s, nullptr, q);
+    temporal_internal::to_fitted_space(q);
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      const double r = (q[p] - series.y[i][p]) * series.w[i][p];
+      chi2 += r * r;
+      if (p <= kParamAlbedoB) albedo_chi2 += r * r;
+    }
+  }
+  const int k = model == TemporalModel::kDust ? 2 + num_endpoint_params(TemporalModel::kDust)
+                                              : kCurveParameters;
+  *bic = chi2 + k * std::log(double(series.steps * kTemporalParamCount));
+  return albedo_chi2;
+}
+
 void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
                   const std::vector<double>& best_bic, TemporalMaps& out) {
   const int width = out.maps.width, pixels = width * out.maps.height;
@@ -446,17 +474,28 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
   out.curves = temporal_internal::learn_families(sample, knots, c.t_first, c.span);
   tbb::parallel_for(0, pixels, [&](int i) {
     float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
-    if (!std::isfinite(best_bic[size_t(i)]) || !unexplained(m)) return;
+    const TemporalModel model = TemporalModel(int(m[kTModel]));
+    const bool process = model == TemporalModel::kExponential || model == TemporalModel::kSigmoid ||
+                         model == TemporalModel::kDust;
+    if (!std::isfinite(best_bic[size_t(i)]) || !(process || unexplained(m))) return;
     thread_local Series series;
     const int flags =
         temporal_internal::gather_series(steps, i % width, i / width, series, /*curves=*/true);
     temporal_internal::set_change_scales(series);
+    // A process that follows each parameter can still miss the albedo a render sees, albedo
+    // A(sigma), where the steps' fits trade the one against the other: such a pixel is offered the
+    // curves too, against its process's BIC in the curves' space.
+    double current_bic = best_bic[size_t(i)];
+    if (!unexplained(m)) {
+      const double albedo_chi2 = process_in_curve_space(series, m, c.t_first, &current_bic);
+      if (!(albedo_chi2 > kMissedAlbedoChi2 * 3 * series.steps)) return;
+    }
     const temporal_internal::FamilyFit best =
         temporal_internal::best_family(series, out.curves, c.t_first, c.span);
     const temporal_internal::CurveFit& f = best.fit;
     const double n = double(series.steps * kTemporalParamCount);
     const double bic = f.chi2 + kCurveParameters * std::log(n);
-    if (!(bic < best_bic[size_t(i)] - kCurveEvidence) ||
+    if (!(bic < current_bic - kCurveEvidence) ||
         curve_runs_away(series, f, out.curves[size_t(best.family)])) {
       return;
     }
@@ -473,13 +512,39 @@ void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
       m[kTDry + p] = float(f.dry[p]);
     }
     // The BIC weight of the curve against the process it replaces.
-    m[kTConfidence] = float(1 / (1 + std::exp(-0.5 * (best_bic[size_t(i)] - bic))));
+    m[kTConfidence] = float(1 / (1 + std::exp(-0.5 * (current_bic - bic))));
     m[kTResidual] = float(f.chi2 / std::max(1.0, n - kCurveParameters));
     m[kTFlags] = float(flags);
   });
 }
 
 }  // namespace
+
+void temporal_internal::params_at(const float* m, double t, double first_time_s,
+                                  const TemporalCurves* curves, double* q) {
+  const TemporalModel model = TemporalModel(int(m[kTModel]));
+  const bool curve = model == TemporalModel::kCurve;
+  if (curve && m[kTRate] > 0) {  // Within what the steps saw (kTCurveSeen).
+    const double seen_until = double(m[kTOnset]) + double(m[kTCurveSeen]) / m[kTRate];
+    t = std::clamp(t, first_time_s, std::max(first_time_s, seen_until));
+  }
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    double wet = m[kTWet + p], dry = m[kTDry + p];
+    const bool reciprocal = p == kParamRoughness && !curve;
+    if (reciprocal) {
+      wet = 1 / std::max(wet, kMinRoughness);
+      dry = 1 / std::max(dry, kMinRoughness);
+    }
+    double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, curves, p);
+    if (!std::isfinite(v)) v = dry;
+    q[p] = reciprocal ? (v > 0 ? 1 / v : 1.0) : v;
+  }
+  if (curve) {
+    temporal_internal::from_fitted_space(q);
+  } else {
+    for (int p = 0; p < kTemporalParamCount; ++p) q[p] = clamp_param(p, q[p]);
+  }
+}
 
 double temporal_value(TemporalModel model, double rate, double onset, double wet, double dry,
                       double t, const TemporalCurves* curves, int p) {

@@ -17,36 +17,8 @@ namespace {
 using temporal_internal::clamp_param;
 using temporal_internal::from_fitted_space;
 using temporal_internal::kMinRoughness;
+using temporal_internal::params_at;
 using temporal_internal::to_fitted_space;
-
-// A pixel's BRDF parameters q at time t. A process follows the BRDF's parameters (the roughness
-// harmonic: 1/m follows the process); a curve its own space (temporal_fit.h), its endpoints stored
-// in it.
-void params_at(const float* m, double t, double first_time_s, const TemporalCurves* curves,
-               double* q) {
-  const TemporalModel model = TemporalModel(int(m[kTModel]));
-  const bool curve = model == TemporalModel::kCurve;
-  if (curve && m[kTRate] > 0) {  // Within what the steps saw (kTCurveSeen).
-    const double seen_until = double(m[kTOnset]) + double(m[kTCurveSeen]) / m[kTRate];
-    t = std::clamp(t, first_time_s, std::max(first_time_s, seen_until));
-  }
-  for (int p = 0; p < kTemporalParamCount; ++p) {
-    double wet = m[kTWet + p], dry = m[kTDry + p];
-    const bool reciprocal = p == kParamRoughness && !curve;
-    if (reciprocal) {
-      wet = 1 / std::max(wet, kMinRoughness);
-      dry = 1 / std::max(dry, kMinRoughness);
-    }
-    double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, curves, p);
-    if (!std::isfinite(v)) v = dry;
-    q[p] = reciprocal ? (v > 0 ? 1 / v : 1.0) : v;
-  }
-  if (curve) {
-    from_fitted_space(q);
-  } else {
-    for (int p = 0; p < kTemporalParamCount; ++p) q[p] = clamp_param(p, q[p]);
-  }
-}
 
 TemporalModel read_temporal_model_name(const JsonReader& r) {
   const std::string name = r.one_of({"constant", "exponential", "sigmoid", "dust", "curve"});
@@ -295,9 +267,9 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
             const double dry = m[kTDry + p];
             const double wet = p <= kParamAlbedoB ? dry * change[p] : dry + change[p];
             // Within the parameter's bounds in the space the endpoints are in (a curve's: 1/m).
-            m[kTWet + p] = float(to_curve && p == kParamRoughness
-                                     ? std::clamp(wet, 1.0, 1 / temporal_internal::kMinRoughness)
-                                     : clamp_param(p, wet));
+            m[kTWet + p] =
+                float(to_curve && p == kParamRoughness ? std::clamp(wet, 1.0, 1 / kMinRoughness)
+                                                       : clamp_param(p, wet));
           }
         }
         if (edit.rate_scale != 1.0 && maps.model(x, y) != TemporalModel::kConstant) {
