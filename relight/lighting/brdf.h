@@ -49,6 +49,12 @@ T oren_nayar_a(const T& sigma) {
   const T s2 = sigma * sigma;
   return T(1) - T(0.5) * s2 / (s2 + T(0.33));
 }
+// dA/dsigma = -0.33 sigma / (sigma^2 + 0.33)^2.
+template <class T>
+T oren_nayar_a_slope(const T& sigma) {
+  const T d = sigma * sigma + T(0.33);
+  return T(-0.33) * sigma / (d * d);
+}
 template <class T>
 T oren_nayar(const Geometry<T>& g, const T& sigma) {
   if (!g.above()) return T(0);

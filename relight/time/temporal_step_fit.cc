@@ -184,9 +184,9 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit,
     return std::isfinite(v) && v > 0 ? std::min(std::sqrt(v), kNoInformationSigma)
                                      : kNoInformationSigma;
   };
-  // d(albedo A(sigma)) = A d albedo + albedo A'(sigma) d sigma, A' = -0.33 sigma / (s^2 + 0.33)^2.
-  const double sigma = fit.q[kParamSigma], s2 = sigma * sigma;
-  const double a = brdf::oren_nayar_a(sigma), a_prime = -0.33 * sigma / ((s2 + 0.33) * (s2 + 0.33));
+  // d(albedo A(sigma)) = A d albedo + albedo A'(sigma) d sigma.
+  const double sigma = fit.q[kParamSigma];
+  const double a = brdf::oren_nayar_a(sigma), a_prime = brdf::oren_nayar_a_slope(sigma);
   for (int c = 0; c < 3; ++c) {
     (*rendered)[size_t(c)] = combined(c, kParamSigma, a, fit.q[size_t(c)] * a_prime);
   }
@@ -357,8 +357,7 @@ void to_rendered(const StepFit& s, int x, int y, double* value, double* weight) 
     weight[p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
   };
   const double sigma = s.value.at(x, y, kParamSigma), sd_sigma = s.sigma.at(x, y, kParamSigma);
-  const double s2 = sigma * sigma, a = brdf::oren_nayar_a(sigma);
-  const double a_prime = -0.33 * sigma / ((s2 + 0.33) * (s2 + 0.33));
+  const double a = brdf::oren_nayar_a(sigma), a_prime = brdf::oren_nayar_a_slope(sigma);
   for (int c = 0; c < 3; ++c) {
     const double albedo = s.value.at(x, y, c), sd = s.sigma.at(x, y, c);
     const double propagated = std::hypot(a * sd, albedo * a_prime * sd_sigma);
