@@ -93,9 +93,13 @@ int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
               options.out.c_str(), summary.width, summary.height, summary.step_times_s.size(),
               summary.step_times_s.front(), summary.step_times_s.back(), s.fitted, s.flagged);
   for (int m = 1; m < relight::kTemporalModelCount; ++m) {
-    std::printf("  %-12s %8d pixels (%.1f%% of fitted)\n",
+    std::printf("  %-12s %8d pixels (%.1f%% of fitted)",
                 relight::to_string(relight::TemporalModel(m)), s.per_model[m],
                 s.fitted > 0 ? 100.0 * s.per_model[m] / s.fitted : 0.0);
+    if (relight::TemporalModel(m) == relight::TemporalModel::kCurve && s.curve_families > 0) {
+      std::printf(", %d curve families", s.curve_families);
+    }
+    std::printf("\n");
   }
   std::printf(
       "  flagged: %d faster than sampling, %d too few steps, %d with a dropped step, %d degenerate "

@@ -189,6 +189,7 @@ struct TemporalSummary {
   int step_dropped = 0;
   int not_converged = 0;        // Fitted pixels flagged kTemporalNotConverged.
   int degenerate = 0;           // Fitted pixels flagged kTemporalDegenerate.
+  int curve_families = 0;       // TemporalMaps::curves.size().
   double seconds_steps = 0;     // Per-step BRDF fits.
   double seconds_temporal = 0;  // Temporal model fits.
   std::string to_string() const;

@@ -166,6 +166,7 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
   }
   TemporalSummary& summary = out.summary;
   summary.pixels = width * height;
+  summary.curve_families = int(out.curves.size());
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       for (int c = 0; c < kTemporalChannelCount; ++c) {

@@ -635,6 +635,7 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     if (flags & kTemporalDegenerate) degenerate.push_back(i);
   }
   summary.degenerate = int(degenerate.size());
+  summary.curve_families = int(out.curves.size());
   if (!degenerate.empty()) out.step_values = step_values_of(steps, degenerate, width, height);
   summary.seconds_temporal =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
