@@ -44,9 +44,23 @@ constexpr double kOnsetShares[] = {-0.5, -0.35, -0.2, -0.1, 0.0, 0.1, 0.2, 0.35,
 
 double chi2_at(const Series& s, const TemporalCurves& curves, double rate, double onset,
                CurveFit* out) {
-  double chi2 = 0, shape[kMaxSteps];
+  // Every parameter's curve at the steps' tau: the knots' weights are the same for all of them.
+  double shapes[kTemporalParamCount][kMaxSteps];
+  const int n = int(curves.knots[0].size());
+  for (int i = 0; i < s.steps; ++i) {
+    double w[4];
+    const int first = TemporalCurves::weights(rate * (s.t[i] - onset), n, w);
+    int at[4];
+    for (int j = 0; j < 4; ++j) at[j] = std::clamp(first + j, 0, n - 1);
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      const std::vector<double>& c = curves.knots[size_t(p)];
+      shapes[p][i] = w[0] * c[size_t(at[0])] + w[1] * c[size_t(at[1])] + w[2] * c[size_t(at[2])] +
+                     w[3] * c[size_t(at[3])];
+    }
+  }
+  double chi2 = 0;
   for (int p = 0; p < kTemporalParamCount; ++p) {
-    for (int i = 0; i < s.steps; ++i) shape[i] = curves.at(p, rate * (s.t[i] - onset));
+    const double* shape = shapes[p];
     double wet = 0, dry = 0;
     chi2 += fit_endpoints(s, p, shape, &wet, &dry);
     if (out) out->wet[p] = wet, out->dry[p] = dry;

@@ -99,7 +99,11 @@ inline double fit_endpoints(const Series& series, int p, const double* shape, do
   a(1, 1) += ridge;
   a(0, 1) -= ridge;
   a(1, 0) -= ridge;
-  const Eigen::Vector2d x = a.ldlt().solve(b);
+  // The 2x2 solve in closed form (the ridge keeps it positive definite).
+  const double det = a(0, 0) * a(1, 1) - a(0, 1) * a(1, 0);
+  const Eigen::Vector2d x = det > 0 ? Eigen::Vector2d((a(1, 1) * b(0) - a(0, 1) * b(1)) / det,
+                                                      (a(0, 0) * b(1) - a(1, 0) * b(0)) / det)
+                                    : Eigen::Vector2d(a.ldlt().solve(b));
   *dry = std::isfinite(x(0)) ? x(0) : 0;
   *wet = std::isfinite(x(1)) ? x(1) : *dry;
   double chi2 = prior * (*wet - *dry) * (*wet - *dry);
