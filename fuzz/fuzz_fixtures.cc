@@ -126,9 +126,20 @@ relight::TemporalMaps small_temporal_maps() {
     }
   }
   maps.step_times_s = {0.0, 30.0, 60.0, 90.0};
-  // The curves of the kCurve pixels: up and down for the albedo, down for the rest.
-  maps.curves.knots.assign(kTemporalParamCount, {1.0, 0.6, 0.2, 0.0});
-  for (int c = 0; c < 3; ++c) maps.curves.knots[size_t(c)] = {0.0, 1.0, 0.4, 0.1};
+  // Two curve families for the kCurve pixels (every other one follows the second): up and down
+  // for the albedo, down for the rest; the second with a curve that rises.
+  TemporalCurves first, second;
+  first.knots.assign(kTemporalParamCount, {1.0, 0.6, 0.2, 0.0});
+  for (int c = 0; c < 3; ++c) first.knots[size_t(c)] = {0.0, 1.0, 0.4, 0.1};
+  second.knots.assign(kTemporalParamCount, {0.0, 0.3, 0.7, 1.0});
+  maps.curves = {first, second};
+  for (int y = 0; y < kFixtureHeight; ++y) {
+    for (int x = 0; x < kFixtureWidth; ++x) {
+      if (maps.model(x, y) != TemporalModel::kCurve) continue;
+      maps.maps.at(x, y, kTCurve) = float(x % 2);
+      maps.maps.at(x, y, kTCurveSeen) = 0.8f;
+    }
+  }
   maps.noise = {1e-5, 2e-4};
   maps.noise_source = "fixture";
   return maps;
