@@ -15,7 +15,6 @@ namespace ls::relight {
 namespace {
 
 using temporal_internal::clamp_param;
-using temporal_internal::from_fitted_space;
 using temporal_internal::kMinRoughness;
 using temporal_internal::params_at;
 using temporal_internal::to_fitted_space;
@@ -173,6 +172,24 @@ TemporalEdits read_temporal_edits(const std::filesystem::path& path, int width, 
   return parse_temporal_edits(text.str(), path.string(), path.parent_path(), width, height);
 }
 
+namespace {
+
+// Pixel (x, y)'s end state, in the curves' space when `curve_space` (temporal_fit.h), else the
+// BRDF's: a process's dry endpoint (where it settles), a curve's state at the last captured step
+// (its dry endpoint is where its curve bottoms, which it may never reach).
+void end_state(const TemporalMaps& maps, int x, int y, bool curve_space, double* q) {
+  const float* m = &maps.maps.pixels[(size_t(y) * maps.maps.width + x) * kTemporalChannelCount];
+  const bool curve = maps.model(x, y) == TemporalModel::kCurve;
+  if (curve) {
+    params_at(m, maps.last_time_s(), maps.first_time_s(), maps.curves_at(x, y), q);
+  } else {
+    std::copy_n(m + kTDry, kTemporalParamCount, q);
+  }
+  if (curve_space) to_fitted_space(q);
+}
+
+}  // namespace
+
 std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& maps) {
   const int width = maps.maps.width, height = maps.maps.height;
   const double first = maps.first_time_s();
@@ -184,7 +201,7 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
     double source_rate = 0, source_onset = first;
     int source_family = 0;   // kCurve: the family most of the source's curve pixels follow.
     double source_seen = 1;  // kCurve: the median of their kTCurveSeen.
-    double change[kTemporalParamCount] = {};
+    double change_dry[kTemporalParamCount] = {}, change_wet[kTemporalParamCount] = {};
     if (edit.transfer_from) {
       int votes[kTemporalModelCount] = {};
       for (int y = 0; y < height; ++y) {
@@ -202,7 +219,8 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
                          "process, got none");
       }
       source_model = TemporalModel(best);
-      std::vector<double> rates, onsets, seen, changes[kTemporalParamCount];
+      std::vector<double> rates, onsets, seen, to_dry[kTemporalParamCount],
+          to_wet[kTemporalParamCount];
       for (int y = 0; y < height; ++y) {
         for (int x = 0; x < width; ++x) {
           if (!selected(*edit.transfer_from, maps, x, y) || maps.model(x, y) != source_model) {
@@ -211,12 +229,17 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
           rates.push_back(maps.at(x, y, kTRate));
           seen.push_back(maps.at(x, y, kTCurveSeen));
           onsets.push_back(maps.at(x, y, kTOnset));
+          // The source's endpoints against its own end state (ratios for the albedo).
+          double end[kTemporalParamCount];
+          end_state(maps, x, y, source_model == TemporalModel::kCurve, end);
           for (int p = 0; p < kTemporalParamCount; ++p) {
             const double wet = maps.at(x, y, kTWet + p), dry = maps.at(x, y, kTDry + p);
             if (p <= kParamAlbedoB) {
-              changes[p].push_back(dry > 1e-4 ? wet / dry : 1.0);
+              to_dry[p].push_back(end[p] > 1e-4 ? dry / end[p] : 1.0);
+              to_wet[p].push_back(end[p] > 1e-4 ? wet / end[p] : 1.0);
             } else {
-              changes[p].push_back(wet - dry);
+              to_dry[p].push_back(dry - end[p]);
+              to_wet[p].push_back(wet - end[p]);
             }
           }
         }
@@ -238,7 +261,10 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
       source_rate = median(rates);
       source_seen = median(seen);
       source_onset = median(onsets);
-      for (int p = 0; p < kTemporalParamCount; ++p) change[p] = median(changes[p]);
+      for (int p = 0; p < kTemporalParamCount; ++p) {
+        change_dry[p] = median(to_dry[p]);
+        change_wet[p] = median(to_wet[p]);
+      }
     }
     int count = 0;
     for (int y = 0; y < height; ++y) {
@@ -246,30 +272,26 @@ std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& 
         if (!selected(edit.select, maps, x, y)) continue;
         float* m = &maps.maps.at(x, y, 0);
         if (edit.transfer_from) {
-          // A curve's endpoints are in its own space (temporal_fit.h), a process's not.
+          // The target's own end state, moved as the source moves from its own.
           const bool to_curve = source_model == TemporalModel::kCurve;
-          if (to_curve != (maps.model(x, y) == TemporalModel::kCurve)) {
-            double q[kTemporalParamCount];
-            std::copy_n(m + kTDry, kTemporalParamCount, q);
-            if (to_curve) {
-              to_fitted_space(q);
-            } else {
-              from_fitted_space(q);
-            }
-            std::copy_n(q, kTemporalParamCount, m + kTDry);
-          }
+          double base[kTemporalParamCount];
+          end_state(maps, x, y, to_curve, base);
           m[kTModel] = float(source_model);
           m[kTCurve] = float(source_family);
           m[kTCurveSeen] = float(source_seen);
           m[kTRate] = float(source_rate);
           m[kTOnset] = float(source_onset);
           for (int p = 0; p < kTemporalParamCount; ++p) {
-            const double dry = m[kTDry + p];
-            const double wet = p <= kParamAlbedoB ? dry * change[p] : dry + change[p];
+            const bool ratio = p <= kParamAlbedoB;
+            const double dry = ratio ? base[p] * change_dry[p] : base[p] + change_dry[p];
+            const double wet = ratio ? base[p] * change_wet[p] : base[p] + change_wet[p];
             // Within the parameter's bounds in the space the endpoints are in (a curve's: 1/m).
-            m[kTWet + p] =
-                float(to_curve && p == kParamRoughness ? std::clamp(wet, 1.0, 1 / kMinRoughness)
-                                                       : clamp_param(p, wet));
+            const auto bounded = [&](double v) {
+              return float(to_curve && p == kParamRoughness ? std::clamp(v, 1.0, 1 / kMinRoughness)
+                                                            : clamp_param(p, v));
+            };
+            m[kTDry + p] = bounded(dry);
+            m[kTWet + p] = bounded(wet);
           }
         }
         if (edit.rate_scale != 1.0 && maps.model(x, y) != TemporalModel::kConstant) {

@@ -18,11 +18,13 @@
 //     ]
 //   }
 // Transfer: the source region's process (the model that most of its fitted pixels chose, and for
-// curves the family most of those follow; rate and onset: medians over those pixels) with its
-// normalised change per parameter (median of wet/dry for the albedo channels, median of wet - dry
-// for sigma, k_s, roughness) is applied to each target pixel's own dry parameters: wet = dry x
-// ratio (albedo), dry + difference (others), clamped to bounds. A source region with no varying
-// pixel is an InputError naming the edit.
+// curves the family most of those follow; rate and onset: medians over those pixels) takes its
+// endpoints relative to its own end state (a process's dry parameters, a curve's state at the last
+// captured step), medians over those pixels (ratios for the albedo channels, differences for
+// sigma, k_s, roughness) to each target pixel's own end state: the target moves from
+// where it ends as the source moves from where it ends; clamped to bounds. (For a process source
+// its end state is its dry endpoint: dry = the target's, wet = dry x wet/dry or dry + wet - dry.)
+// A source region with no varying pixel is an InputError naming the edit.
 #include <filesystem>
 #include <optional>
 #include <string>
