@@ -1,5 +1,6 @@
 // Data-driven temporal curves (relight/time/temporal_fit.h, TemporalCurves): evaluation, learning
-// from a sample of pixels, and one pixel's warp and endpoints under them.
+// from a sample of pixels, one pixel's warp and endpoints under them, the families, offering them
+// to the pixels (after the processes, temporal_models.cc), and any model's parameters at a time.
 #include <tbb/parallel_for.h>
 
 #include <Eigen/Cholesky>
@@ -222,6 +223,162 @@ std::vector<TemporalCurves> learn_families(const std::vector<Series>& sample, in
     }
   }
   return families;
+}
+
+namespace {
+
+// A curve's endpoints are where it peaks and bottoms, which a pixel that sees part of the curve
+// need not reach: what must stay near the data is the curve over the steps that measure each
+// parameter (sampled at four times the steps; a parameter the step does not constrain, the
+// roughness of a lobe with k_s = 0, leaves the curve free there), by the processes' margin
+// (ParamRange::margin).
+bool curve_runs_away(const Series& series, const CurveFit& f, const TemporalCurves& curves) {
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    const ParamRange r = range_of(series, p);
+    if (!r.informed()) continue;  // No information on this parameter.
+    const int samples = 4 * series.steps;
+    for (int j = 0; j <= samples; ++j) {
+      const double t = r.t0 + (r.t1 - r.t0) * j / samples;
+      const double at = f.dry[p] + (f.wet[p] - f.dry[p]) * curves.at(p, f.rate * (t - f.onset));
+      if (at < r.lo - r.margin() || at > r.hi + r.margin()) return true;
+    }
+  }
+  return false;
+}
+
+// The data-driven curves (TemporalCurves): learnt from up to kCurveSample pixels that no process
+// explains, then offered to those pixels; one takes its curve where the curve's BIC (rate, onset,
+// wet and dry: the exponential's count) is lower than its process's by kCurveEvidence and its
+// endpoints stay near its data. A pixel a process explains keeps it.
+constexpr size_t kCurveSample = 1500;
+// The curve must win by strong evidence (a BIC difference above 6, Kass and Raftery 1995): a
+// process the data follow keeps its model, whose rate and onset mean something; the curve is
+// learnt from every process of the scene together and fits any of them a little by chance.
+constexpr double kCurveEvidence = 6;
+
+// A pixel that no process explains: its best leaves a reduced chi^2 above kUnexplainedResidual, or
+// ran away.
+bool unexplained(const float* m) {
+  return m[kTStepsUsed] >= 5 &&
+         (m[kTResidual] > kUnexplainedResidual || (int(m[kTFlags]) & kTemporalDegenerate) != 0);
+}
+
+// A process misses the albedo a render sees where it leaves a chi^2 above this per albedo sample
+// there (7 sigma rms: the simulator's paint and dust, whose steps' fits switch between Lambert and
+// Oren-Nayar at a few pixels, stay below it on all but a few; the corroding metal's one such pixel
+// is far above).
+constexpr double kMissedAlbedoChi2 = 50;
+
+// A process's course at a series' steps (in the curves' space): the chi^2 of its albedo channels
+// (returned) and its BIC over every parameter (*bic).
+double process_in_curve_space(const Series& series, const float* m, double first_time_s,
+                              double* bic) {
+  const TemporalModel model = TemporalModel(int(m[kTModel]));
+  double albedo_chi2 = 0, chi2 = 0;
+  for (int i = 0; i < series.steps; ++i) {
+    double q[kTemporalParamCount];
+    params_at(m, series.t[i], first_time_s, nullptr, q);
+    to_fitted_space(q);
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      const double r = (q[p] - series.y[i][p]) * series.w[i][p];
+      chi2 += r * r;
+      if (p <= kParamAlbedoB) albedo_chi2 += r * r;
+    }
+  }
+  const int k = model == TemporalModel::kDust ? 2 + num_endpoint_params(TemporalModel::kDust)
+                                              : kCurveParameters;
+  *bic = chi2 + k * std::log(double(series.steps * kTemporalParamCount));
+  return albedo_chi2;
+}
+
+}  // namespace
+
+void offer_curves(const std::vector<StepFit>& steps, double t_first, double span,
+                  const std::vector<double>& best_bic, TemporalMaps& out) {
+  const int width = out.maps.width, pixels = width * out.maps.height;
+  std::vector<int> changing;
+  for (int i = 0; i < pixels; ++i) {
+    const float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
+    const int model = int(m[kTModel]);
+    if (model > int(TemporalModel::kNone) && unexplained(m)) changing.push_back(i);
+  }
+  if (changing.size() < kMinFamilySeries) return;
+  std::vector<Series> sample;
+  const size_t stride = (changing.size() + kCurveSample - 1) / kCurveSample;
+  for (size_t j = 0; j < changing.size(); j += stride) {
+    Series& series = sample.emplace_back();
+    gather_series(steps, changing[j] % width, changing[j] / width, series,
+                  /*curves=*/true);
+  }
+  const int knots = std::clamp(int(steps.size()) + 3, 5, 16);
+  out.curves = learn_families(sample, knots, t_first, span);
+  tbb::parallel_for(0, pixels, [&](int i) {
+    float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
+    const TemporalModel model = TemporalModel(int(m[kTModel]));
+    const bool process = model == TemporalModel::kExponential || model == TemporalModel::kSigmoid ||
+                         model == TemporalModel::kDust;
+    if (!std::isfinite(best_bic[size_t(i)]) || !(process || unexplained(m))) return;
+    thread_local Series series;
+    const int flags = gather_series(steps, i % width, i / width, series, /*curves=*/true);
+    // A process that follows each parameter can still miss the albedo a render sees, albedo
+    // A(sigma), where the steps' fits trade the one against the other: such a pixel is offered the
+    // curves too, against its process's BIC in the curves' space.
+    double current_bic = best_bic[size_t(i)];
+    if (!unexplained(m)) {
+      const double albedo_chi2 = process_in_curve_space(series, m, t_first, &current_bic);
+      if (!(albedo_chi2 > kMissedAlbedoChi2 * 3 * series.steps)) return;
+    }
+    const FamilyFit best = best_family(series, out.curves, t_first, span);
+    const CurveFit& f = best.fit;
+    const double n = double(series.steps * kTemporalParamCount);
+    const double bic = f.chi2 + kCurveParameters * std::log(n);
+    if (!(bic < current_bic - kCurveEvidence) ||
+        curve_runs_away(series, f, out.curves[size_t(best.family)])) {
+      return;
+    }
+    m[kTCurve] = float(best.family);
+    m[kTCurveSeen] = float(f.rate * (t_first + span - f.onset));
+    m[kTModel] = float(TemporalModel::kCurve);
+    m[kTRate] = float(f.rate);
+    m[kTOnset] = float(f.onset);
+    // In the curves' space (temporal_fit.h) and not clamped: where the curve bottoms or peaks
+    // may lie beyond a parameter's bound that the curve never reaches over the span (renders
+    // clamp the value at each time).
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      m[kTWet + p] = float(f.wet[p]);
+      m[kTDry + p] = float(f.dry[p]);
+    }
+    // The BIC weight of the curve against the process it replaces.
+    m[kTConfidence] = float(1 / (1 + std::exp(-0.5 * (current_bic - bic))));
+    m[kTResidual] = float(f.chi2 / std::max(1.0, n - kCurveParameters));
+    m[kTFlags] = float(flags);
+  });
+}
+
+void params_at(const float* m, double t, double first_time_s, const TemporalCurves* curves,
+               double* q) {
+  const TemporalModel model = TemporalModel(int(m[kTModel]));
+  const bool curve = model == TemporalModel::kCurve;
+  if (curve && m[kTRate] > 0) {  // Within what the steps saw (kTCurveSeen).
+    const double seen_until = double(m[kTOnset]) + double(m[kTCurveSeen]) / m[kTRate];
+    t = std::clamp(t, first_time_s, std::max(first_time_s, seen_until));
+  }
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    double wet = m[kTWet + p], dry = m[kTDry + p];
+    const bool reciprocal = p == kParamRoughness && !curve;
+    if (reciprocal) {
+      wet = 1 / std::max(wet, kMinRoughness);
+      dry = 1 / std::max(dry, kMinRoughness);
+    }
+    double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, curves, p);
+    if (!std::isfinite(v)) v = dry;
+    q[p] = reciprocal ? (v > 0 ? 1 / v : 1.0) : v;
+  }
+  if (curve) {
+    from_fitted_space(q);
+  } else {
+    for (int p = 0; p < kTemporalParamCount; ++p) q[p] = clamp_param(p, q[p]);
+  }
 }
 
 }  // namespace temporal_internal

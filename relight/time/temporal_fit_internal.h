@@ -59,7 +59,7 @@ struct Series {
   double t[kMaxSteps];
   double y[kMaxSteps][kTemporalParamCount];
   double w[kMaxSteps][kTemporalParamCount];  // 1 / sigma, 0 = no information.
-  // set_change_scales (curves): per parameter the scale of a plausible change, twice the larger
+  // gather_series(curves): per parameter the scale of a plausible change, twice the larger
   // of the range its informative steps span and 3 of their smallest deviations; a curve's wet -
   // dry carries the prior N(0, scale^2) so that where its steps barely see the curve move (the
   // roughness where k_s is 0 at most steps) its endpoints stay near the data rather than run to
@@ -72,8 +72,33 @@ struct Series {
 // roughness as 1/m), or with `curves` in the curves' (to_fitted_space).
 int gather_series(const std::vector<StepFit>& steps, int x, int y, Series& series,
                   bool curves = false);
-// Sets series.change_scale (the curves' prior on wet - dry).
-void set_change_scales(Series& series);
+// What a series' informative steps (weight > 0) show of parameter p: the range of its values,
+// their largest and smallest deviations and the times they span. informed() false: none.
+struct ParamRange {
+  double lo = HUGE_VAL, hi = -HUGE_VAL, largest_sigma = 0, smallest_sigma = HUGE_VAL;
+  double t0 = HUGE_VAL, t1 = -HUGE_VAL;
+  bool informed() const { return hi >= lo; }
+  // How far beyond the range a model may go before it has run away from the data.
+  double margin() const { return (hi - lo) + 3 * largest_sigma; }
+};
+inline ParamRange range_of(const Series& series, int p) {
+  ParamRange r;
+  for (int i = 0; i < series.steps; ++i) {
+    if (!(series.w[i][p] > 0)) continue;
+    r.lo = std::min(r.lo, series.y[i][p]);
+    r.hi = std::max(r.hi, series.y[i][p]);
+    r.largest_sigma = std::max(r.largest_sigma, 1 / series.w[i][p]);
+    r.smallest_sigma = std::min(r.smallest_sigma, 1 / series.w[i][p]);
+    r.t0 = std::min(r.t0, series.t[i]);
+    r.t1 = std::max(r.t1, series.t[i]);
+  }
+  return r;
+}
+
+// Endpoints a dust fit has besides rate and onset (others: wet and dry of every parameter).
+inline constexpr int num_endpoint_params(TemporalModel model) {
+  return model == TemporalModel::kDust ? 9 : 2 * kTemporalParamCount;
+}
 
 // Parameter p's endpoints given its shape s[i] at the series' steps: p_i = dry + (wet - dry) s_i by
 // weighted least squares (a tiny ridge pulls wet toward dry where s is the same at every step);
@@ -144,5 +169,11 @@ FamilyFit best_family(const Series& series, const std::vector<TemporalCurves>& f
                       double t_first, double span);
 std::vector<TemporalCurves> learn_families(const std::vector<Series>& sample, int knots,
                                            double t_first, double span);
+
+// The curves (temporal_curves.cc): learnt from the pixels of `out` that no process explains and
+// written where they win (see TemporalCurves); best_bic: each pixel's chosen model's BIC
+// (infinite where none was fitted).
+void offer_curves(const std::vector<StepFit>& steps, double t_first, double span,
+                  const std::vector<double>& best_bic, TemporalMaps& out);
 
 }  // namespace ls::relight::temporal_internal

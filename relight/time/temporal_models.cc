@@ -25,13 +25,11 @@ namespace {
 
 using pixel::SolverStatus;
 using temporal_internal::clamp_param;
-using temporal_internal::kCurveParameters;
 using temporal_internal::kMaxSigma;
 using temporal_internal::kMaxSteps;
-using temporal_internal::kMinFamilySeries;
 using temporal_internal::kMinRoughness;
 using temporal_internal::kNoInformationSigma;
-using temporal_internal::kUnexplainedResidual;
+using temporal_internal::num_endpoint_params;
 using temporal_internal::Series;
 
 // ---------------------------------------------------------------------------------------------
@@ -102,10 +100,6 @@ double solve_endpoints(TemporalModel model, const Series& s, double rate, double
     }
   }
   return chi2;
-}
-
-constexpr int num_endpoint_params(TemporalModel model) {
-  return model == TemporalModel::kDust ? 9 : 2 * kTemporalParamCount;
 }
 
 // x = [u_rate, u_onset, endpoints...]; endpoints in parameter order, wet then dry for a moving
@@ -249,45 +243,10 @@ struct PixelContext {
 // series' values by more than that range and 3 sigma.
 bool endpoints_run_away(const Series& series, const double* wet, const double* dry) {
   for (int p = 0; p < kTemporalParamCount; ++p) {
-    double lo = HUGE_VAL, hi = -HUGE_VAL, largest_sigma = 0;
-    for (int i = 0; i < series.steps; ++i) {
-      if (!(series.w[i][p] > 0)) continue;
-      lo = std::min(lo, series.y[i][p]);
-      hi = std::max(hi, series.y[i][p]);
-      largest_sigma = std::max(largest_sigma, 1 / series.w[i][p]);
-    }
-    if (!(hi >= lo)) continue;  // No information on this parameter.
-    const double margin = (hi - lo) + 3 * largest_sigma;
+    const temporal_internal::ParamRange r = temporal_internal::range_of(series, p);
+    if (!r.informed()) continue;  // No information on this parameter.
     for (const double end : {wet[p], dry[p]}) {
-      if (end < lo - margin || end > hi + margin) return true;
-    }
-  }
-  return false;
-}
-
-// A curve's endpoints are where it peaks and bottoms, which a pixel that sees part of the curve
-// need not reach: what must stay near the data is the curve over the steps that measure each
-// parameter (sampled at four times the steps; a parameter the step does not constrain, the
-// roughness of a lobe with k_s = 0, leaves the curve free there), by the same margin as above.
-bool curve_runs_away(const Series& series, const temporal_internal::CurveFit& f,
-                     const TemporalCurves& curves) {
-  for (int p = 0; p < kTemporalParamCount; ++p) {
-    double lo = HUGE_VAL, hi = -HUGE_VAL, largest_sigma = 0, t0 = HUGE_VAL, t1 = -HUGE_VAL;
-    for (int i = 0; i < series.steps; ++i) {
-      if (!(series.w[i][p] > 0)) continue;
-      lo = std::min(lo, series.y[i][p]);
-      hi = std::max(hi, series.y[i][p]);
-      largest_sigma = std::max(largest_sigma, 1 / series.w[i][p]);
-      t0 = std::min(t0, series.t[i]);
-      t1 = std::max(t1, series.t[i]);
-    }
-    if (!(hi >= lo)) continue;  // No information on this parameter.
-    const double margin = (hi - lo) + 3 * largest_sigma;
-    const int samples = 4 * series.steps;
-    for (int j = 0; j <= samples; ++j) {
-      const double t = t0 + (t1 - t0) * j / samples;
-      const double at = f.dry[p] + (f.wet[p] - f.dry[p]) * curves.at(p, f.rate * (t - f.onset));
-      if (at < lo - margin || at > hi + margin) return true;
+      if (end < r.lo - r.margin() || end > r.hi + r.margin()) return true;
     }
   }
   return false;
@@ -407,144 +366,7 @@ Image step_values_of(const std::vector<StepFit>& steps, const std::vector<int>& 
   return out;
 }
 
-// The data-driven curves (TemporalCurves): learnt from up to kCurveSample pixels that no process
-// explains, then offered to those pixels; one takes its curve where the curve's BIC (rate, onset,
-// wet and dry: the exponential's count) is lower than its process's by kCurveEvidence and its
-// endpoints stay near its data. A pixel a process explains keeps it.
-constexpr size_t kCurveSample = 1500;
-// The curve must win by strong evidence (a BIC difference above 6, Kass and Raftery 1995): a
-// process the data follow keeps its model, whose rate and onset mean something; the curve is
-// learnt from every process of the scene together and fits any of them a little by chance.
-constexpr double kCurveEvidence = 6;
-
-// A pixel that no process explains: its best leaves a reduced chi^2 above kUnexplainedResidual, or
-// ran away.
-bool unexplained(const float* m) {
-  return m[kTStepsUsed] >= 5 &&
-         (m[kTResidual] > kUnexplainedResidual || (int(m[kTFlags]) & kTemporalDegenerate) != 0);
-}
-
-// A process misses the albedo a render sees where it leaves a chi^2 above this per albedo sample
-// there (7 sigma rms: the simulator's paint and dust, whose steps' fits switch between Lambert and
-// Oren-Nayar at a few pixels, stay below it on all but a few; the corroding metal's one such pixel
-// is far above).
-constexpr double kMissedAlbedoChi2 = 50;
-
-// A process's course at a series' steps (in the curves' space): the chi^2 of its albedo channels
-// (returned) and its BIC over every parameter (*bic).
-double process_in_curve_space(const Series& series, const float* m, double first_time_s,
-                              double* bic) {
-  const TemporalModel model = TemporalModel(int(m[kTModel]));
-  double albedo_chi2 = 0, chi2 = 0;
-  for (int i = 0; i < series.steps; ++i) {
-    double q[kTemporalParamCount];
-    temporal_internal::params_at(m, series.t[i], first_time_s, nullptr, q);
-    temporal_internal::to_fitted_space(q);
-    for (int p = 0; p < kTemporalParamCount; ++p) {
-      const double r = (q[p] - series.y[i][p]) * series.w[i][p];
-      chi2 += r * r;
-      if (p <= kParamAlbedoB) albedo_chi2 += r * r;
-    }
-  }
-  const int k = model == TemporalModel::kDust ? 2 + num_endpoint_params(TemporalModel::kDust)
-                                              : kCurveParameters;
-  *bic = chi2 + k * std::log(double(series.steps * kTemporalParamCount));
-  return albedo_chi2;
-}
-
-void offer_curves(const std::vector<StepFit>& steps, const PixelContext& c,
-                  const std::vector<double>& best_bic, TemporalMaps& out) {
-  const int width = out.maps.width, pixels = width * out.maps.height;
-  std::vector<int> changing;
-  for (int i = 0; i < pixels; ++i) {
-    const float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
-    const int model = int(m[kTModel]);
-    if (model > int(TemporalModel::kNone) && unexplained(m)) changing.push_back(i);
-  }
-  if (changing.size() < kMinFamilySeries) return;
-  std::vector<Series> sample;
-  const size_t stride = (changing.size() + kCurveSample - 1) / kCurveSample;
-  for (size_t j = 0; j < changing.size(); j += stride) {
-    Series& series = sample.emplace_back();
-    temporal_internal::gather_series(steps, changing[j] % width, changing[j] / width, series,
-                                     /*curves=*/true);
-    temporal_internal::set_change_scales(series);
-  }
-  const int knots = std::clamp(int(steps.size()) + 3, 5, 16);
-  out.curves = temporal_internal::learn_families(sample, knots, c.t_first, c.span);
-  tbb::parallel_for(0, pixels, [&](int i) {
-    float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
-    const TemporalModel model = TemporalModel(int(m[kTModel]));
-    const bool process = model == TemporalModel::kExponential || model == TemporalModel::kSigmoid ||
-                         model == TemporalModel::kDust;
-    if (!std::isfinite(best_bic[size_t(i)]) || !(process || unexplained(m))) return;
-    thread_local Series series;
-    const int flags =
-        temporal_internal::gather_series(steps, i % width, i / width, series, /*curves=*/true);
-    temporal_internal::set_change_scales(series);
-    // A process that follows each parameter can still miss the albedo a render sees, albedo
-    // A(sigma), where the steps' fits trade the one against the other: such a pixel is offered the
-    // curves too, against its process's BIC in the curves' space.
-    double current_bic = best_bic[size_t(i)];
-    if (!unexplained(m)) {
-      const double albedo_chi2 = process_in_curve_space(series, m, c.t_first, &current_bic);
-      if (!(albedo_chi2 > kMissedAlbedoChi2 * 3 * series.steps)) return;
-    }
-    const temporal_internal::FamilyFit best =
-        temporal_internal::best_family(series, out.curves, c.t_first, c.span);
-    const temporal_internal::CurveFit& f = best.fit;
-    const double n = double(series.steps * kTemporalParamCount);
-    const double bic = f.chi2 + kCurveParameters * std::log(n);
-    if (!(bic < current_bic - kCurveEvidence) ||
-        curve_runs_away(series, f, out.curves[size_t(best.family)])) {
-      return;
-    }
-    m[kTCurve] = float(best.family);
-    m[kTCurveSeen] = float(f.rate * (c.t_first + c.span - f.onset));
-    m[kTModel] = float(TemporalModel::kCurve);
-    m[kTRate] = float(f.rate);
-    m[kTOnset] = float(f.onset);
-    // In the curves' space (temporal_fit.h) and not clamped: where the curve bottoms or peaks
-    // may lie beyond a parameter's bound that the curve never reaches over the span (renders
-    // clamp the value at each time).
-    for (int p = 0; p < kTemporalParamCount; ++p) {
-      m[kTWet + p] = float(f.wet[p]);
-      m[kTDry + p] = float(f.dry[p]);
-    }
-    // The BIC weight of the curve against the process it replaces.
-    m[kTConfidence] = float(1 / (1 + std::exp(-0.5 * (current_bic - bic))));
-    m[kTResidual] = float(f.chi2 / std::max(1.0, n - kCurveParameters));
-    m[kTFlags] = float(flags);
-  });
-}
-
 }  // namespace
-
-void temporal_internal::params_at(const float* m, double t, double first_time_s,
-                                  const TemporalCurves* curves, double* q) {
-  const TemporalModel model = TemporalModel(int(m[kTModel]));
-  const bool curve = model == TemporalModel::kCurve;
-  if (curve && m[kTRate] > 0) {  // Within what the steps saw (kTCurveSeen).
-    const double seen_until = double(m[kTOnset]) + double(m[kTCurveSeen]) / m[kTRate];
-    t = std::clamp(t, first_time_s, std::max(first_time_s, seen_until));
-  }
-  for (int p = 0; p < kTemporalParamCount; ++p) {
-    double wet = m[kTWet + p], dry = m[kTDry + p];
-    const bool reciprocal = p == kParamRoughness && !curve;
-    if (reciprocal) {
-      wet = 1 / std::max(wet, kMinRoughness);
-      dry = 1 / std::max(dry, kMinRoughness);
-    }
-    double v = temporal_value(model, m[kTRate], m[kTOnset], wet, dry, t, curves, p);
-    if (!std::isfinite(v)) v = dry;
-    q[p] = reciprocal ? (v > 0 ? 1 / v : 1.0) : v;
-  }
-  if (curve) {
-    temporal_internal::from_fitted_space(q);
-  } else {
-    for (int p = 0; p < kTemporalParamCount; ++p) q[p] = clamp_param(p, q[p]);
-  }
-}
 
 double temporal_value(TemporalModel model, double rate, double onset, double wet, double dry,
                       double t, const TemporalCurves* curves, int p) {
@@ -620,7 +442,9 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     summary.fitted += local.fitted;
     summary.flagged += local.flagged;
   });
-  if (options.fit_curves && span > 0) offer_curves(steps, context, best_bic, out);
+  if (options.fit_curves && span > 0) {
+    temporal_internal::offer_curves(steps, t_first, span, best_bic, out);
+  }
   // The counts of the models and flags as they stand, and the per-step fits of the degenerate.
   std::vector<int> degenerate;
   for (int i = 0; i < width * height; ++i) {

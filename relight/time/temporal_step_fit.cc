@@ -397,21 +397,12 @@ int temporal_internal::gather_series(const std::vector<StepFit>& steps, int x, i
     }
     if (curves) to_rendered(s, x, y, series.y[i], series.w[i]);
   }
-  std::fill_n(series.change_scale, kTemporalParamCount, 0.0);
-  return flags;
-}
-
-void temporal_internal::set_change_scales(Series& series) {
   for (int p = 0; p < kTemporalParamCount; ++p) {
-    double lo = HUGE_VAL, hi = -HUGE_VAL, smallest_sigma = HUGE_VAL;
-    for (int i = 0; i < series.steps; ++i) {
-      if (!(series.w[i][p] > 0)) continue;
-      lo = std::min(lo, series.y[i][p]);
-      hi = std::max(hi, series.y[i][p]);
-      smallest_sigma = std::min(smallest_sigma, 1 / series.w[i][p]);
-    }
-    series.change_scale[p] = hi >= lo ? 2 * std::max(hi - lo, 3 * smallest_sigma) : 0.0;
+    const temporal_internal::ParamRange r = temporal_internal::range_of(series, p);
+    series.change_scale[p] =
+        curves && r.informed() ? 2 * std::max(r.hi - r.lo, 3 * r.smallest_sigma) : 0.0;
   }
+  return flags;
 }
 
 }  // namespace ls::relight
