@@ -7,6 +7,7 @@
 #include <ImfInputFile.h>
 #include <ImfTiledInputFile.h>
 #include <fcntl.h>
+#include <sys/mman.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
@@ -15,6 +16,7 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <exception>
 #include <unordered_map>
 
@@ -49,28 +51,69 @@ struct ExrBandReader::File {
   // Uncompressed scanlines of float channels hold, per row, each channel's row in turn: read as
   // they are, without OpenEXR's per-value conversion.
   bool raw = false;
-  // Raw files only: rows are chunks of a known size at the end of the file, so the next band's
-  // bytes can be asked of the kernel (read ahead while this band is used).
+  // Raw files only: rows are chunks of a known size at the end of the file (a chunk: its row as an
+  // int32, its byte count as an int32, the row's bytes), so the next band's bytes can be asked of
+  // the kernel (read ahead while this band is used) and the rows copied straight out of the page
+  // cache through a mapping of the file, in parallel: a stream's read copies twice, on one thread.
   int advise_fd = -1;
   std::uintmax_t file_bytes = 0;
   int height = 0;
+  const char* mapped = nullptr;  // The whole file, read only; null where it could not be mapped.
   ~File() {
+    if (mapped != nullptr) ::munmap(const_cast<char*>(mapped), file_bytes);
     if (advise_fd >= 0) ::close(advise_fd);
   }
+  std::uintmax_t chunk_bytes() const {
+    return 8 + std::uintmax_t(width) * channels.size() * sizeof(float);
+  }
+  std::uintmax_t chunk_offset(int y) const {
+    return file_bytes - std::uintmax_t(height - y) * chunk_bytes();
+  }
+  // Whether row y's chunk lies where chunk_offset says, with its row and byte count.
+  bool chunk_in_place(int y) const {
+    std::int32_t row = 0, bytes = 0;
+    std::memcpy(&row, mapped + chunk_offset(y), 4);  // OpenEXR is little-endian, as x86 is.
+    std::memcpy(&bytes, mapped + chunk_offset(y) + 4, 4);
+    return row == y + min_y && std::uintmax_t(bytes) + 8 == chunk_bytes();
+  }
+  void map_rows();
   // Starts reading rows [y0, y1) into the page cache.
   void read_ahead(int y0, int y1) const {
     if (advise_fd < 0 || y0 >= y1) return;
-    const std::uintmax_t chunk = 8 + std::uintmax_t(width) * channels.size() * sizeof(float);
-    const std::uintmax_t first = file_bytes - std::uintmax_t(height - y0) * chunk;
-    posix_fadvise(advise_fd, off_t(first), off_t(std::uintmax_t(y1 - y0) * chunk),
-                  POSIX_FADV_WILLNEED);
+    posix_fadvise(advise_fd, off_t(chunk_offset(y0)),
+                  off_t(std::uintmax_t(y1 - y0) * chunk_bytes()), POSIX_FADV_WILLNEED);
   }
   int step = 1;        // Tile height (1: scanlines).
   int piece_rows = 1;  // Rows read at a time (whole tiles where the file is tiled).
-  // Rows [a, b) into `planar` as [row][channel][x]; InputError naming the file and rows.
-  void read_piece(int a, int b);
+  // Rows [a, b) into `planar` as [row][channel][x]; InputError naming the file and rows, or (with
+  // check_finite) when a value is not finite.
+  void read_piece(int a, int b, bool check_finite);
+  // The same from the mapping: each row copied and checked in one pass, rows in parallel.
+  void copy_mapped_piece(int a, int b, bool check_finite);
+  void read_unmapped_piece(int a, int b);  // Through OpenEXR: raw bytes or slices.
   std::vector<float> planar;  // One piece: [row][channel][x], as an uncompressed file holds it.
 };
+
+namespace {
+
+bool any_not_finite(const float* values, std::size_t count) {
+  int not_finite = 0;
+  for (std::size_t i = 0; i < count; ++i) not_finite |= int(!std::isfinite(values[i]));
+  return not_finite != 0;
+}
+
+}  // namespace
+
+void ExrBandReader::File::map_rows() {
+  if (file_bytes < std::uintmax_t(height) * chunk_bytes()) return;  // Not what it says: OpenEXR's.
+  void* at = ::mmap(nullptr, file_bytes, PROT_READ, MAP_SHARED, advise_fd, 0);
+  if (at == MAP_FAILED) return;
+  mapped = static_cast<const char*>(at);
+  if (!chunk_in_place(0) || !chunk_in_place(height - 1)) {  // A line offset table elsewhere.
+    ::munmap(at, file_bytes);
+    mapped = nullptr;
+  }
+}
 
 ExrBandReader::ExrBandReader(const std::filesystem::path& path,
                              const std::vector<std::string>& channels,
@@ -108,6 +151,7 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
     std::error_code error;
     f.file_bytes = std::filesystem::file_size(path, error);
     if (!error) f.advise_fd = ::open(f.name.c_str(), O_RDONLY | O_CLOEXEC);
+    if (f.advise_fd >= 0) f.map_rows();
   }
   constexpr std::size_t kPieceBytes = std::size_t(8) << 20;
   const std::size_t row_bytes = std::size_t(f.width) * f.channels.size() * sizeof(float);
@@ -130,7 +174,7 @@ void ExrBandReader::read(int y0, int y1, float* dst) {
   std::atomic<bool> non_finite{false};
   for (int a = y0; a < y1; a += piece_rows) {
     const int b = std::min(y1, a + piece_rows);
-    f.read_piece(a, b);
+    f.read_piece(a, b, false);  // The transposition checks.
     // [row][channel][x] to pixel-major, a block of pixels of one row at a time (it stays in cache
     // across the channels).
     float* out = dst + std::size_t(a - y0) * row_values;
@@ -159,30 +203,55 @@ void ExrBandReader::read(int y0, int y1, float* dst) {
 
 void ExrBandReader::read_planar(int y0, int y1, const PlanarVisitor& visit) {
   File& f = *file_;
-  const std::size_t values_per_row = std::size_t(f.width) * f.channels.size();
   f.read_ahead(y0, std::min(y1, y0 + f.piece_rows));
   for (int a = y0; a < y1; a += f.piece_rows) {
     const int b = std::min(y1, a + f.piece_rows);
-    f.read_piece(a, b);
+    f.read_piece(a, b, true);
     f.read_ahead(b, std::min(y1, b + f.piece_rows));  // While this piece is used.
-    std::atomic<bool> non_finite{false};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, f.planar.size(), values_per_row),
-                      [&](const auto& r) {
-                        int not_finite = 0;
-                        for (std::size_t i = r.begin(); i < r.end(); ++i) {
-                          not_finite |= int(!std::isfinite(f.planar[i]));
-                        }
-                        if (not_finite != 0) non_finite = true;
-                      });
-    if (non_finite) throw InputError(f.name + ": the reflectance field holds non-finite values");
     visit(PlanarRows{f.planar.data(), a, b - a, f.width, f.to_pixel_index});
   }
 }
 
-void ExrBandReader::File::read_piece(int a, int b) {
+void ExrBandReader::File::copy_mapped_piece(int a, int b, bool check_finite) {
+  const std::size_t row_values = std::size_t(width) * channels.size();
+  std::atomic<int> bad_row{-1};
+  std::atomic<bool> non_finite{false};
+  tbb::parallel_for(a, b, [&](int y) {
+    if (!chunk_in_place(y)) {
+      bad_row = y;
+      return;
+    }
+    float* row = planar.data() + std::size_t(y - a) * row_values;
+    std::memcpy(row, mapped + chunk_offset(y) + 8, row_values * sizeof(float));
+    if (check_finite && any_not_finite(row, row_values)) non_finite = true;
+  });
+  if (bad_row >= 0) {
+    throw InputError(name + ": row " + std::to_string(bad_row.load()) +
+                     ": its chunk is not where the file's uncompressed rows put it (damaged?)");
+  }
+  if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
+}
+
+void ExrBandReader::File::read_piece(int a, int b, bool check_finite) {
+  const std::size_t row_values = std::size_t(width) * channels.size();
+  planar.resize(std::size_t(b - a) * row_values);
+  if (mapped != nullptr) {
+    copy_mapped_piece(a, b, check_finite);
+    return;
+  }
+  read_unmapped_piece(a, b);
+  if (!check_finite) return;
+  std::atomic<bool> non_finite{false};
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, planar.size(), row_values),
+                    [&](const auto& r) {
+                      if (any_not_finite(planar.data() + r.begin(), r.size())) non_finite = true;
+                    });
+  if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
+}
+
+void ExrBandReader::File::read_unmapped_piece(int a, int b) {
   const std::size_t row_values = std::size_t(width) * channels.size();
   const int num_channels = int(channels.size());
-  planar.resize(std::size_t(b - a) * row_values);
   try {
     if (raw) {
       for (int y = a; y < b; ++y) {

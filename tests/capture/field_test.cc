@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <random>
@@ -244,6 +245,47 @@ TEST(Field, ReadValidatesAndNamesTheFile) {
   const std::string ok = (dir / "ok.exr").string();
   write_plain_exr(ok, {"led004.R", "led004.G", "led004.B"}, one_light);
   EXPECT_EQ(read_field(ok).at(1, 1, 0, 2), 1.0f);
+}
+
+// Uncompressed fields are read from a mapping of the file, row chunks where the format puts them
+// (each: its row, its byte count, its values): a chunk out of place or a value that is not finite
+// is refused naming the file, never read as another row's values.
+TEST(Field, MappedRowsOutOfPlaceOrNotFiniteAreRefusedByName) {
+  ls::testing::TempDir dir;
+  const ReflectanceField field = random_field(16, 9, 3, 3);
+  const std::filesystem::path path = dir / "field.exr";
+  write_field(path, field);
+  const auto file_bytes = std::filesystem::file_size(path);
+  const std::uintmax_t chunk = 8 + 16 * 9 * sizeof(float);  // 16 pixels x 9 channels.
+  const auto patch = [&](const std::filesystem::path& to, std::uintmax_t at, const void* bytes,
+                         std::size_t count) {
+    std::filesystem::copy_file(path, to);
+    std::fstream f(to, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(std::streamoff(at));
+    f.write(static_cast<const char*>(bytes), std::streamsize(count));
+  };
+  const auto planar_error = [](const std::filesystem::path& p) {
+    try {
+      FieldStream stream(p);
+      stream.read_rows_planar(0, stream.height(), [](const PlanarRows&) {});
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("read");
+  };
+  // Row 4 of 9 claims to be row 5.
+  const std::int32_t wrong_row = 5;
+  patch(dir / "moved.exr", file_bytes - 5 * chunk, &wrong_row, 4);
+  EXPECT_THAT(planar_error(dir / "moved.exr"), HasSubstr((dir / "moved.exr").string()));
+  EXPECT_THAT(planar_error(dir / "moved.exr"), HasSubstr("row 4"));
+  EXPECT_THAT(read_error(dir / "moved.exr"), HasSubstr("row 4"));
+  // A NaN in row 6.
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  patch(dir / "nan.exr", file_bytes - 3 * chunk + 8 + 20, &nan, 4);
+  EXPECT_THAT(planar_error(dir / "nan.exr"), HasSubstr("non-finite"));
+  EXPECT_THAT(read_error(dir / "nan.exr"), HasSubstr("non-finite"));
+  // Untouched, the same file reads as written.
+  expect_same(field, read_field(path));
 }
 
 TEST(Field, MemoryRefusal) {
