@@ -23,8 +23,10 @@ struct ScaleBenchOptions {
   int runs = 3;                       // Each step's repeats (medians reported).
   std::size_t memory_bytes = std::size_t(256) << 20;  // --memory of every step.
   int fit_max_size =
-      1024;           // Larger fields are not fitted (the maps, 25 floats a pixel, are whole).
-  bool mpi = true;    // 1 and 2 ranks at the smallest size, when mpiexec is on PATH.
+      1024;  // Larger fields are not fitted (the maps, 25 floats a pixel, are whole).
+  // 1 and 2 ranks at the largest fitted size (the start-up and the maps' writing, which no rank
+  // count shortens, weigh least there), when mpiexec is on PATH.
+  bool mpi = true;
   bool keep = false;  // Keep the sessions and fields (otherwise removed after each size).
   // One exposure (the bracket's middle one) instead of the dome's three: a third of the frames'
   // disk and capture time, for the largest sizes.
@@ -56,6 +58,7 @@ struct ScaleMpiModel {
 struct ScaleBenchSummary {
   std::vector<ScaleBenchRow> rows;
   ScaleMpiModel mpi;          // Empty (ranks empty) when not run.
+  int mpi_size = 0;           // The size it was measured at.
   std::string mpi_note;       // Why MPI was not measured.
   std::filesystem::path csv;  // scale.csv; scale_*.png beside it.
 };

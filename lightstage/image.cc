@@ -189,6 +189,7 @@ void write_png_preview(const fs::path& path, const Image& image, double exposure
     }
   }
   OIIO::ImageSpec spec(image.width, image.height, out_channels, OIIO::TypeDesc::UINT8);
+  spec.attribute("png:compressionLevel", 1);  // Previews: a job's last step, not its archive.
   write_with_oiio(path, spec, OIIO::TypeDesc::UINT8, bytes.data());
 }
 

@@ -298,10 +298,10 @@ void print_scale(const evaluation::ScaleBenchSummary& summary, std::size_t budge
     if (!summary.mpi_note.empty()) std::printf("MPI not measured: %s\n", summary.mpi_note.c_str());
   } else {
     std::printf(
-        "fit under MPI (one core a rank): 1 rank %.2f s, 2 ranks %.2f s (%.2fx); model "
+        "fit under MPI at %d² (one core a rank): 1 rank %.2f s, 2 ranks %.2f s (%.2fx); model "
         "%.2f s serial + %.2f s parallel, I/O floor %.2f s:",
-        m.one_rank_s, m.two_ranks_s, m.one_rank_s / m.two_ranks_s, m.serial_s, m.parallel_s,
-        m.io_floor_s);
+        summary.mpi_size, m.one_rank_s, m.two_ranks_s, m.one_rank_s / m.two_ranks_s, m.serial_s,
+        m.parallel_s, m.io_floor_s);
     for (size_t i = 0; i < m.ranks.size(); ++i)
       std::printf(" %d: %.2f s", m.ranks[i], m.model_s[i]);
     std::printf("\n");
