@@ -38,6 +38,10 @@ SpillFile::~SpillFile() {
 }
 
 void SpillFile::put(int light, const std::vector<float>& rgb) {
+  const float largest = largest_magnitude(rgb.data(), rgb.size());
+  float seen = largest_.load();
+  while (largest > seen && !largest_.compare_exchange_weak(seen, largest)) {
+  }
   for (int b = 0; b < bands(); ++b) {
     const std::size_t count = std::size_t(band_height(b)) * width_ * 3;
     const float* rows = rgb.data() + std::size_t(band_first_row(b)) * width_ * 3;
@@ -63,18 +67,30 @@ void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& 
   });
 }
 
-void SpillFile::write_field(const std::filesystem::path& out, const ReflectanceField& header,
-                            const ExrAttributes& attributes,
-                            const std::function<void(int done, int total)>& on_band) {
-  FieldWriter writer(out, header, attributes);
+FieldStorage SpillFile::write_field(const std::filesystem::path& out,
+                                    const ReflectanceField& header, const ExrAttributes& attributes,
+                                    const std::function<void(int done, int total)>& on_band,
+                                    StorageChoice choice, HalfCheck* check) {
+  FieldStorage storage;
+  if (choice != StorageChoice::kFloat) storage = {true, half_scale_for(largest_.load())};
   std::vector<float> scratch;
   ReflectanceField band = ReflectanceField::without_values(0, 0, header.lights());
-  for (int b = 0; b < bands(); ++b) {
-    read_band(b, scratch, band);
-    writer.write_rows(band_first_row(b), band);
-    if (on_band) on_band(b + 1, bands());
+  while (true) {
+    FieldWriter writer(out, header, attributes, 0, storage);
+    bool refused = false;  // Auto, and half too coarse for a band: float instead.
+    for (int b = 0; b < bands() && !refused; ++b) {
+      read_band(b, scratch, band);
+      writer.write_rows(band_first_row(b), band);
+      if (check && storage.half) *check = writer.half_check();
+      refused = choice == StorageChoice::kAuto && storage.half && !writer.half_check().passes();
+      if (on_band && !refused) on_band(b + 1, bands());
+    }
+    if (!refused) {
+      writer.finish();
+      return storage;
+    }
+    storage = {};
   }
-  writer.finish();
 }
 
 std::size_t SpillFile::offset(int band) const {

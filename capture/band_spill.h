@@ -3,6 +3,7 @@
 // LED-major frames into a pixel-major file (issue 14, capture/build_field.h): band b holds each
 // LED's rows of that band in turn, so an LED is written with one pwrite per band and a band is
 // read back with one pread. The file is removed when the SpillFile is destroyed.
+#include <atomic>
 #include <cstddef>
 #include <filesystem>
 #include <functional>
@@ -36,10 +37,14 @@ class SpillFile {
   // `scratch` holds the band as spilled.
   void read_band(int b, std::vector<float>& scratch, ReflectanceField& band);
   // Every band into the field file `out` (FieldWriter; header: its lights and attributes), band
-  // by band; on_band(done, total) after each.
-  void write_field(const std::filesystem::path& out, const ReflectanceField& header,
-                   const ExrAttributes& attributes,
-                   const std::function<void(int done, int total)>& on_band);
+  // by band; on_band(done, total) after each. Stored as `choice` asks (half scaled by the largest
+  // value put; auto: half, written again in float when a band fails check_half). Returns the
+  // storage written; *check, when given, the half check (half or auto).
+  FieldStorage write_field(const std::filesystem::path& out, const ReflectanceField& header,
+                           const ExrAttributes& attributes,
+                           const std::function<void(int done, int total)>& on_band,
+                           StorageChoice choice = StorageChoice::kFloat,
+                           HalfCheck* check = nullptr);
 
  private:
   std::size_t offset(int band) const;  // In floats.
@@ -50,6 +55,7 @@ class SpillFile {
   std::filesystem::path path_;
   int width_, height_, lights_, band_rows_;
   int fd_ = -1;
+  std::atomic<float> largest_{0};  // |value| over the images put (puts may run in parallel).
 };
 
 }  // namespace ls::capture

@@ -102,7 +102,10 @@ class FieldBuild {
     SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows);
     merge_brackets([&](int i, const std::vector<float>& rgb) { spill.put(i, rgb); });
     finish();
-    spill.write_field(out, header_, attributes, options_.on_band_written);
+    HalfCheck check;
+    sum_.storage = spill.write_field(out, header_, attributes, options_.on_band_written,
+                                     options_.storage, &check);
+    if (options_.storage != StorageChoice::kFloat) sum_.half_check = check;
   }
 
  private:
@@ -537,7 +540,13 @@ int build_field_file(const Session& session, const BuildOptions& options,
   const size_t band_budget = budget > banded.memory_bytes ? budget - banded.memory_bytes : 0;
   const int rows = int(std::clamp<size_t>(band_budget / (2 * row_bytes), 1, size_t(camera.height)));
   if (rows >= camera.height) {
-    write_field(out, build_field(session, options, summary), attributes);
+    BuildSummary local;
+    BuildSummary& sum = summary ? *summary : local;
+    const ReflectanceField field = build_field(session, options, &sum);
+    HalfCheck check;
+    sum.storage = choose_storage(field, options.storage, &check);
+    if (options.storage != StorageChoice::kFloat) sum.half_check = check;
+    write_field(out, field, attributes, 0, sum.storage);
     return camera.height;
   }
   return timed(session, banded, summary, [&](FieldBuild build) {

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +29,8 @@ struct BuildOptions {
   // and the bands written so far.
   std::size_t memory_bytes = 0;
   std::function<void(int done, int total)> on_band_written;
+  // build_field_file: how the file holds the values (capture/half_storage.h).
+  StorageChoice storage = StorageChoice::kFloat;
 };
 
 struct BuildSummary {
@@ -41,6 +44,8 @@ struct BuildSummary {
   std::string flat_field;     // The side car divided out; empty: none applied.
   int flat_field_lights = 0;  // LEDs it held a flat field for (the others are taken as uniform).
   int near_lights = 0;        // LEDs with positions, scaled to irradiance at the reference point.
+  FieldStorage storage;       // build_field_file: how the file holds the values,
+  std::optional<HalfCheck> half_check;  // and (half or auto storage) what half would cost.
 };
 
 ReflectanceField build_field(const Session& session, const BuildOptions& options,

@@ -20,6 +20,7 @@
 #include <exception>
 #include <unordered_map>
 
+#include "capture/half_storage.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -51,6 +52,8 @@ struct ExrBandReader::File {
   // Uncompressed scanlines of float channels hold, per row, each channel's row in turn: read as
   // they are, without OpenEXR's per-value conversion.
   bool raw = false;
+  int value_bytes = 4;    // Of the mapped rows' values: float, or half (converted here).
+  float value_scale = 1;  // The field's value = stored value x this (half storage's 1 / scale).
   // Raw files only: rows are chunks of a known size at the end of the file (a chunk: its row as an
   // int32, its byte count as an int32, the row's bytes), so the next band's bytes can be asked of
   // the kernel (read ahead while this band is used) and the rows copied straight out of the page
@@ -64,7 +67,7 @@ struct ExrBandReader::File {
     if (advise_fd >= 0) ::close(advise_fd);
   }
   std::uintmax_t chunk_bytes() const {
-    return 8 + std::uintmax_t(width) * channels.size() * sizeof(float);
+    return 8 + std::uintmax_t(width) * channels.size() * std::uintmax_t(value_bytes);
   }
   std::uintmax_t chunk_offset(int y) const {
     return file_bytes - std::uintmax_t(height - y) * chunk_bytes();
@@ -96,6 +99,10 @@ struct ExrBandReader::File {
 
 namespace {
 
+void scale_values(float* values, std::size_t count, float scale) {
+  for (std::size_t i = 0; i < count; ++i) values[i] *= scale;
+}
+
 bool any_not_finite(const float* values, std::size_t count) {
   int not_finite = 0;
   for (std::size_t i = 0; i < count; ++i) not_finite |= int(!std::isfinite(values[i]));
@@ -117,15 +124,16 @@ void ExrBandReader::File::map_rows() {
 
 ExrBandReader::ExrBandReader(const std::filesystem::path& path,
                              const std::vector<std::string>& channels,
-                             const std::vector<int>& to_pixel_index)
+                             const std::vector<int>& to_pixel_index, float value_scale)
     : file_(std::make_unique<File>()) {
   File& f = *file_;
+  f.value_scale = value_scale;
   f.name = path.string();
   f.in = open_exr<Imf::InputFile>(f.name);
   const Imf::Header& header = f.in->header();
   std::unordered_map<std::string, int> index;
   for (size_t i = 0; i < channels.size(); ++i) index[channels[i]] = to_pixel_index[i];
-  bool all_float = true;
+  bool all_float = true, all_half = true;
   std::size_t file_channels = 0;
   for (auto c = header.channels().begin(); c != header.channels().end(); ++c) {
     ++file_channels;
@@ -133,8 +141,9 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
     if (found == index.end()) continue;  // Not the field's (channel_layout checked what is).
     f.channels.emplace_back(c.name());
     f.to_pixel_index.push_back(found->second);
-    all_float = all_float && c.channel().type == Imf::FLOAT && c.channel().xSampling == 1 &&
-                c.channel().ySampling == 1;
+    const bool whole = c.channel().xSampling == 1 && c.channel().ySampling == 1;
+    all_float = all_float && c.channel().type == Imf::FLOAT && whole;
+    all_half = all_half && c.channel().type == Imf::HALF && whole;
   }
   if (f.channels.size() != channels.size()) {
     throw InputError(f.name +
@@ -144,10 +153,13 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
   f.width = window.max.x - window.min.x + 1;
   f.min_x = window.min.x;
   f.min_y = window.min.y;
-  f.raw = all_float && f.channels.size() == file_channels &&
-          header.compression() == Imf::NO_COMPRESSION && !header.hasTileDescription();
+  const bool uncompressed_rows = f.channels.size() == file_channels &&
+                                 header.compression() == Imf::NO_COMPRESSION &&
+                                 !header.hasTileDescription();
+  f.raw = all_float && uncompressed_rows;
+  f.value_bytes = all_half ? 2 : 4;
   f.height = window.max.y - window.min.y + 1;
-  if (f.raw && header.lineOrder() == Imf::INCREASING_Y) {
+  if ((all_float || all_half) && uncompressed_rows && header.lineOrder() == Imf::INCREASING_Y) {
     std::error_code error;
     f.file_bytes = std::filesystem::file_size(path, error);
     if (!error) f.advise_fd = ::open(f.name.c_str(), O_RDONLY | O_CLOEXEC);
@@ -222,9 +234,21 @@ void ExrBandReader::File::copy_mapped_piece(int a, int b, bool check_finite) {
       return;
     }
     float* row = planar.data() + std::size_t(y - a) * row_values;
-    std::memcpy(row, mapped + chunk_offset(y) + 8, row_values * sizeof(float));
+    const char* stored = mapped + chunk_offset(y) + 8;
+    if (value_bytes == 2) {
+      halves_to_floats(stored, row_values, value_scale, row);
+    } else {
+      std::memcpy(row, stored, row_values * sizeof(float));
+      if (value_scale != 1) scale_values(row, row_values, value_scale);
+    }
     if (check_finite && any_not_finite(row, row_values)) non_finite = true;
   });
+  // The piece's pages out of this process's mapping (they stay in the page cache): touched pages
+  // of a mapped file count as resident, and a pass over a field larger than memory must not.
+  const std::uintmax_t page = std::uintmax_t(::sysconf(_SC_PAGESIZE));
+  const std::uintmax_t first = chunk_offset(a) / page * page,
+                       end = chunk_offset(b - 1) + chunk_bytes();
+  ::madvise(const_cast<char*>(mapped) + first, end - first, MADV_DONTNEED);
   if (bad_row >= 0) {
     throw InputError(name + ": row " + std::to_string(bad_row.load()) +
                      ": its chunk is not where the file's uncompressed rows put it (damaged?)");
@@ -240,11 +264,13 @@ void ExrBandReader::File::read_piece(int a, int b, bool check_finite) {
     return;
   }
   read_unmapped_piece(a, b);
-  if (!check_finite) return;
+  if (!check_finite && value_scale == 1) return;
   std::atomic<bool> non_finite{false};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, planar.size(), row_values),
                     [&](const auto& r) {
-                      if (any_not_finite(planar.data() + r.begin(), r.size())) non_finite = true;
+                      float* values = planar.data() + r.begin();
+                      if (value_scale != 1) scale_values(values, r.size(), value_scale);
+                      if (check_finite && any_not_finite(values, r.size())) non_finite = true;
                     });
   if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
 }

@@ -3,7 +3,8 @@
 // pixel-major floats. OpenEXR stores each row channel by channel and, asked for interleaved pixels
 // (as OpenImageIO asks), converts value by value at the pixel's stride: more time than the rest
 // of a relighting. Here rows are read as the file holds them into a small buffer (at most 8 MiB
-// and a quarter of the rows asked for): uncompressed float rows as raw bytes, others through
+// and a quarter of the rows asked for): uncompressed float or half rows straight from a mapping
+// of the file (halves converted, F16C where the CPU has it), rows in parallel; others through
 // OpenEXR into the same [row][channel][x] layout; then transposed in blocks, in parallel.
 #include <filesystem>
 #include <functional>
@@ -26,9 +27,10 @@ using PlanarVisitor = std::function<void(const PlanarRows&)>;
 class ExrBandReader {
  public:
   // channels: the field's channel names; to_pixel_index[i]: where channel i goes in a pixel's
-  // values (a permutation of 0..channels-1).
+  // values (a permutation of 0..channels-1); value_scale: the field's value = the stored one x
+  // this (capture/half_storage.h). Float or half channels alike are read as floats.
   ExrBandReader(const std::filesystem::path& path, const std::vector<std::string>& channels,
-                const std::vector<int>& to_pixel_index);
+                const std::vector<int>& to_pixel_index, float value_scale = 1);
   ~ExrBandReader();
   ExrBandReader(const ExrBandReader&) = delete;
   ExrBandReader& operator=(const ExrBandReader&) = delete;

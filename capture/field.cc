@@ -125,12 +125,13 @@ void require_memory(std::size_t bytes, const std::string& what) {
 namespace {
 
 OIIO::ImageSpec field_spec(const std::string& name, const ReflectanceField& field,
-                           const ExrAttributes& attributes, int tile_size) {
+                           const ExrAttributes& attributes, int tile_size, FieldStorage storage) {
   if (field.width() <= 0 || field.height() <= 0 || field.num_lights() <= 0) {
     throw InputError(name + ": cannot write an empty reflectance field");
   }
   const int num_channels = 3 * field.num_lights();
-  OIIO::ImageSpec spec(field.width(), field.height(), num_channels, OIIO::TypeDesc::FLOAT);
+  OIIO::ImageSpec spec(field.width(), field.height(), num_channels,
+                       storage.half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
   spec.channelnames.clear();
   nlohmann::json lights = nlohmann::json::array();
   for (const FieldLight& light : field.lights()) {
@@ -168,6 +169,7 @@ OIIO::ImageSpec field_spec(const std::string& name, const ReflectanceField& fiel
     spec.attribute(kViewAttribute, view.dump());
   }
   for (const auto& [key, value] : attributes) spec.attribute(key, value);
+  if (storage.half) spec.attribute(kStorageAttribute, storage.to_json());
   // Uncompressed: ExrBandReader reads its rows as raw bytes, without OpenEXR's conversion value by
   // value. Relighting the 512x512 sim field (151 LEDs, 475 MB): 1034 MiB/s of file uncompressed
   // against 338 MiB/s with RLE, which saves nothing on noisy values (the demo field, with invalid
@@ -187,17 +189,21 @@ struct FieldWriter::File {
   std::filesystem::path path, temp;
   std::unique_ptr<OIIO::ImageOutput> out;
   int tile_size = 0;
+  FieldStorage storage;
+  HalfCheck half_check;               // Worst over the bands written (half storage).
+  std::vector<std::uint16_t> halves;  // Rows converted for writing (half storage).
   bool finished = false;
 };
 
 FieldWriter::FieldWriter(const std::filesystem::path& path, const ReflectanceField& header,
-                         const ExrAttributes& attributes, int tile_size)
+                         const ExrAttributes& attributes, int tile_size, FieldStorage storage)
     : file_(std::make_unique<File>()), width_(header.width()), height_(header.height()) {
   File& f = *file_;
   f.name = path.string();
   f.path = path;
   f.tile_size = tile_size;
-  const OIIO::ImageSpec spec = field_spec(f.name, header, attributes, tile_size);
+  f.storage = storage;
+  const OIIO::ImageSpec spec = field_spec(f.name, header, attributes, tile_size, storage);
   // Atomic: written beside the target under a temporary name, renamed over it by finish().
   f.temp = path;
   f.temp += ".tmp-" + std::to_string(::getpid()) + ".exr";
@@ -223,10 +229,29 @@ void FieldWriter::write_rows(int y0, const ReflectanceField& band) {
     throw std::logic_error(f.name +
                            ": FieldWriter::write_rows: rows out of order or not whole tiles");
   }
-  const bool ok =
-      f.tile_size > 0
-          ? f.out->write_tiles(0, width_, y0, y1, 0, 1, OIIO::TypeDesc::FLOAT, band.values().data())
-          : f.out->write_scanlines(y0, y1, 0, OIIO::TypeDesc::FLOAT, band.values().data());
+  bool ok = true;
+  if (f.storage.half) {
+    f.half_check.add(check_half(band, f.storage.scale));
+    // Whole tile rows, else pieces of about 8 MiB of halves.
+    const std::size_t row_values = std::size_t(width_) * 3 * band.num_lights();
+    const int piece = f.tile_size > 0
+                          ? band.height()
+                          : int(std::max<std::size_t>(1, (std::size_t(4) << 20) / row_values));
+    for (int a = 0; a < band.height() && ok; a += piece) {
+      const int b = std::min(band.height(), a + piece);
+      f.halves.resize(std::size_t(b - a) * row_values);
+      floats_to_halves(band.pixel(0, a), f.halves.size(), f.storage.scale, f.halves.data());
+      ok = f.tile_size > 0
+               ? f.out->write_tiles(0, width_, y0 + a, y0 + b, 0, 1, OIIO::TypeDesc::HALF,
+                                    f.halves.data())
+               : f.out->write_scanlines(y0 + a, y0 + b, 0, OIIO::TypeDesc::HALF, f.halves.data());
+    }
+  } else {
+    ok = f.tile_size > 0
+             ? f.out->write_tiles(0, width_, y0, y1, 0, 1, OIIO::TypeDesc::FLOAT,
+                                  band.values().data())
+             : f.out->write_scanlines(y0, y1, 0, OIIO::TypeDesc::FLOAT, band.values().data());
+  }
   if (!ok) {
     throw InputError(f.name + ": writing the reflectance field failed (rows " + std::to_string(y0) +
                      ".." + std::to_string(y1 - 1) + "): " + f.out->geterror());
@@ -254,9 +279,20 @@ void FieldWriter::finish() {
   }
 }
 
+const HalfCheck& FieldWriter::half_check() const { return file_->half_check; }
+
+FieldStorage choose_storage(const ReflectanceField& field, StorageChoice choice, HalfCheck* check) {
+  if (choice == StorageChoice::kFloat) return {};
+  const float scale = half_scale(field);
+  const HalfCheck half = check_half(field, scale);
+  if (check) *check = half;
+  if (choice == StorageChoice::kAuto && !half.passes()) return {};
+  return {true, scale};
+}
+
 void write_field(const std::filesystem::path& path, const ReflectanceField& field,
-                 const ExrAttributes& attributes, int tile_size) {
-  FieldWriter writer(path, field, attributes, tile_size);
+                 const ExrAttributes& attributes, int tile_size, FieldStorage storage) {
+  FieldWriter writer(path, field, attributes, tile_size, storage);
   writer.write_rows(0, field);
   writer.finish();
 }
@@ -471,8 +507,12 @@ FieldStream::FieldStream(const std::filesystem::path& path) : file_(std::make_un
                      std::string(kLightsAttribute) + "'");
   }
   std::vector<FieldLight> lights = parse_lights(f.name, lights_param->get_string());
-  f.pixels = std::make_unique<ExrBandReader>(path, spec.channelnames,
-                                             channel_layout(f.name, spec, lights));
+  if (const OIIO::ParamValue* storage = spec.find_attribute(kStorageAttribute);
+      storage != nullptr && storage->type() == OIIO::TypeDesc::STRING) {
+    storage_ = FieldStorage::parse(f.name, storage->get_string());
+  }
+  f.pixels = std::make_unique<ExrBandReader>(
+      path, spec.channelnames, channel_layout(f.name, spec, lights), 1.0f / storage_.scale);
   header_ = ReflectanceField::without_values(spec.width, spec.height, std::move(lights));
   header_.source = f.name;
   read_field_attributes(f.name, spec, header_);

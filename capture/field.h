@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "capture/exr_band_reader.h"
+#include "capture/half_storage.h"
 #include "lightstage/image.h"
 
 namespace ls::capture {
@@ -175,8 +176,14 @@ void require_memory(std::size_t bytes, const std::string& what);
 // options the field was built with).
 // tile_size > 0: a tiled EXR of tile_size^2 tiles, each holding every LED of its pixels, so a
 // region is read without the rest of its rows (issue 14); 0: scanlines.
+// storage: half values (capture/half_storage.h) or float, recorded in "lightstage:storage".
 void write_field(const std::filesystem::path& path, const ReflectanceField& field,
-                 const ExrAttributes& attributes = {}, int tile_size = 0);
+                 const ExrAttributes& attributes = {}, int tile_size = 0,
+                 FieldStorage storage = {});
+// The storage a choice gives this field: half where asked, or (auto) where check_half passes;
+// float otherwise. *check, when given: the check (half or auto; untouched for float).
+FieldStorage choose_storage(const ReflectanceField& field, StorageChoice choice,
+                            HalfCheck* check = nullptr);
 ReflectanceField read_field(const std::filesystem::path& path);
 
 // A field file written band by band, top to bottom (a field built or imported without holding it,
@@ -186,13 +193,15 @@ ReflectanceField read_field(const std::filesystem::path& path);
 class FieldWriter {
  public:
   FieldWriter(const std::filesystem::path& path, const ReflectanceField& header,
-              const ExrAttributes& attributes = {}, int tile_size = 0);
+              const ExrAttributes& attributes = {}, int tile_size = 0, FieldStorage storage = {});
   ~FieldWriter();
   FieldWriter(const FieldWriter&) = delete;
   FieldWriter& operator=(const FieldWriter&) = delete;
   // Rows [y0, y0 + band.height()): the next rows, whole tile rows where tiled.
   void write_rows(int y0, const ReflectanceField& band);
   void finish();
+  // Half storage: the worst check_half of the bands written so far.
+  const HalfCheck& half_check() const;
 
  private:
   struct File;
@@ -225,6 +234,8 @@ class FieldStream {
   int height() const { return header_.height(); }
   // The file's lights, noise, time and view, with no pixels.
   const ReflectanceField& header() const { return header_; }
+  // How the file holds its values (read back as floats either way).
+  const FieldStorage& storage() const { return storage_; }
   // The rows of a band that fits in `bytes` (reading adds a buffer of about 8 MiB), at least one
   // tile row (tiled files) or one row, whole tiles where the file is tiled.
   int rows_within(std::size_t bytes) const;
@@ -248,6 +259,7 @@ class FieldStream {
   struct File;
   std::unique_ptr<File> file_;
   ReflectanceField header_;
+  FieldStorage storage_;
 };
 
 }  // namespace ls::capture

@@ -348,17 +348,26 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
   SetImport set(std::move(job), options);
   const ReflectanceField& header = set.header();
   const int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory_bytes);
+  const StorageChoice choice = options.storage;
+  FieldStorage storage;
+  HalfCheck check;
   if (rows >= header.height()) {
-    write_field(out, read_whole(set, on_light), attributes);
+    const ReflectanceField field = read_whole(set, on_light);
+    storage = choose_storage(field, choice, &check);
+    write_field(out, field, attributes, 0, storage);
   } else {
     SpillFile spill(out, header.width(), header.height(), set.num_lights(), rows);
     set.read_images([&](int l, const std::vector<float>& rgb) {
       if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
       spill.put(l, rgb);
     });
-    spill.write_field(out, header, attributes, {});
+    storage = spill.write_field(out, header, attributes, {}, choice, &check);
   }
   set.summarise(summary);
+  if (summary) {
+    summary->storage = storage;
+    if (choice != StorageChoice::kFloat) summary->half_check = check;
+  }
   return rows;
 }
 

@@ -49,6 +49,8 @@ struct OlatImportOptions {
   double scene_time_s = 0.0;
   // Called as images finish, from worker threads but never two at a time.
   std::function<void(int done, int total)> on_progress;
+  // Imports into a file: how it holds the values (capture/half_storage.h).
+  StorageChoice storage = StorageChoice::kFloat;
 
   // Empty when valid; otherwise a sentence naming the option and its valid range.
   std::string validate() const;
@@ -69,6 +71,8 @@ struct OlatImportSummary {
   bool intensities_divided = false;         // DiLiGenT: light_intensities.txt divided out.
   std::vector<std::string> notes;           // E.g. image paths found by file name only.
   double seconds = 0.0;
+  FieldStorage storage;                 // Into a file: how it holds the values,
+  std::optional<HalfCheck> half_check;  // and (half or auto storage) what half would cost.
 };
 
 // Which format `source` is: an .lp file, a folder with exactly one .lp file, or a folder with

@@ -272,10 +272,10 @@ ScaleBenchSummary run_scale_bench(const ScaleBenchOptions& options, const Progre
       samples.add("read (cache)", {read_seconds(field), 0, {}});
       evict(field);
       samples.add("read (disk)", {read_seconds(field), 0, {}});
-      // Relighting holds no band: it has no --memory.
       const std::vector<std::string> relight = {
-          "relight", field.string(),           "--env",  options.env_map.string(),
-          "--out",   (dir / "relit").string(), "--quiet"};
+          "relight", field.string(),           "--env",    options.env_map.string(),
+          "--out",   (dir / "relit").string(), "--memory", budget,
+          "--quiet"};
       evict(field);
       relight_step("disk", relight);
       read_seconds(field);

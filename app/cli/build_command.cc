@@ -18,10 +18,12 @@ int build_field_file(const jobs::BuildJobOptions& options, bool quiet) {
                    summary.fields.size(), built.scene_time_s);
     }
     std::fprintf(stderr,
-                 "%s: %dx%d pixels x %d LEDs (%.1f MiB), response %s, %.3f%% samples saturated "
-                 "in every exposure, %.1f s\n",
+                 "%s: %dx%d pixels x %d LEDs (%.1f MiB as floats), response %s, %.3f%% samples "
+                 "saturated in every exposure, %.1f s\n",
                  built.file.c_str(), built.width, built.height, built.lights, built.mebibytes,
                  s.response_used.c_str(), 100.0 * s.saturated_fraction, s.seconds);
+    std::fprintf(stderr, "%s\n",
+                 storage_line(s.storage, s.half_check, built.file_mebibytes).c_str());
     if (built.band_rows < built.height) {
       std::fprintf(stderr, "built in bands of %d rows through a spill file beside it\n",
                    built.band_rows);
@@ -72,6 +74,12 @@ void add_build_command(CLI::App& app) {
                   "LED's image spilled to a file beside --out that needs the field's size free "
                   "(default: in memory when the field takes at most half of what is available, "
                   "else bands within that half).");
+  cmd->add_option("--storage", options->storage,
+                  "How the file holds the values: half floats (half the disk and the reading) "
+                  "where the field relit from them stays within 1e-3 of the floats, else floats "
+                  "(auto); or always half or float. Recorded in the file (lightstage:storage).")
+      ->check(CLI::IsMember({"auto", "half", "float"}))
+      ->capture_default_str();
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {

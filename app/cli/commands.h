@@ -3,6 +3,7 @@
 // the work in the libraries. Exit codes: 0 done, 1 usage, 2 bad input, 3 hardware fault,
 // 4 frames could not be saved (resumable), 130 interrupted (resumable).
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -37,6 +38,12 @@ void add_calibrate_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_import_command(CLI::App& app);
 void add_view_command(CLI::App& app);  // view_command.cc: the interactive viewer.
+
+// How a field file holds its values and why (capture/half_storage.h): the storage written, what
+// half costs (absent: float asked for) and the file's size.
+std::string storage_line(const capture::FieldStorage& storage,
+                         const std::optional<capture::HalfCheck>& half_check,
+                         double file_mebibytes);
 
 // Prints a job's progress on stderr, one bar per phase (lightstage/progress.h); silent when quiet.
 jobs::ProgressFn progress_printer(bool quiet);

@@ -38,6 +38,9 @@ int print_import(const fs::path& source, const fs::path& out,
       "wrote %s (%.1f MiB on disk, %.1f MiB as float in memory) and %s (light %d), %.2f s\n",
       out.c_str(), double(fs::file_size(out)) / (1 << 20), job.mebibytes, job.preview.c_str(),
       job.preview_light, summary.seconds);
+  std::printf("  %s\n", storage_line(summary.storage, summary.half_check,
+                                     double(fs::file_size(out)) / (1 << 20))
+                            .c_str());
   if (job.band_rows < summary.height) {
     std::printf("written in bands of %d rows through a spill file beside it\n", job.band_rows);
   }
@@ -109,18 +112,27 @@ void add_import_command(CLI::App& app) {
                   "Bytes of memory for the field: a larger one is written in bands of rows, each "
                   "image spilled to a file beside --out that needs the field's size free "
                   "(default: in memory when the field takes at most half of what is available).");
+  auto storage = std::make_shared<std::string>("auto");
+  cmd->add_option("--storage", *storage,
+                  "How the field file holds the values: half floats where the field relit from "
+                  "them stays within 1e-3 of the floats, else floats (auto); or always half or "
+                  "float.")
+      ->check(CLI::IsMember({"auto", "half", "float"}))
+      ->capture_default_str();
   cmd->add_flag("--quiet", *quiet, "No progress output.");
-  cmd->callback([options, sources, out, times, interval, quiet, linear, srgb, gamma, memory] {
-    if (*linear) options->transfer = capture::TransferCurve::kLinear;
-    if (*srgb) options->transfer = capture::TransferCurve::kSrgb;
-    if (gamma->count() > 0) options->transfer = capture::TransferCurve::kGamma;
-    if (jobs::series_sets(*sources).size() > 1 || times->size() > 1 || *interval > 0) {
-      print_series(*sources, *times, *interval, *out, *options, *memory, *quiet);
-      return;
-    }
-    if (!times->empty()) options->scene_time_s = times->front();
-    print_import(jobs::series_sets(*sources).front(), *out, *options, *memory, *quiet);
-  });
+  cmd->callback(
+      [options, sources, out, times, interval, quiet, linear, srgb, gamma, memory, storage] {
+        options->storage = capture::parse_storage_choice("--storage", *storage);
+        if (*linear) options->transfer = capture::TransferCurve::kLinear;
+        if (*srgb) options->transfer = capture::TransferCurve::kSrgb;
+        if (gamma->count() > 0) options->transfer = capture::TransferCurve::kGamma;
+        if (jobs::series_sets(*sources).size() > 1 || times->size() > 1 || *interval > 0) {
+          print_series(*sources, *times, *interval, *out, *options, *memory, *quiet);
+          return;
+        }
+        if (!times->empty()) options->scene_time_s = times->front();
+        print_import(jobs::series_sets(*sources).front(), *out, *options, *memory, *quiet);
+      });
 }
 
 }  // namespace ls::cli

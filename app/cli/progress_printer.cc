@@ -1,3 +1,4 @@
+#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -29,6 +30,21 @@ jobs::ProgressFn progress_printer(bool quiet) {
       state->bar->update(done, item);
     }
   };
+}
+
+std::string storage_line(const capture::FieldStorage& storage,
+                         const std::optional<capture::HalfCheck>& half_check,
+                         double file_mebibytes) {
+  char size[64];
+  std::snprintf(size, sizeof size, "%.1f MiB on disk", file_mebibytes);
+  if (!half_check) return std::string("stored in floats (--storage float): ") + size;
+  if (storage.half) {
+    char scale[48];
+    std::snprintf(scale, sizeof scale, " (x%g)", double(storage.scale));
+    return std::string("stored in half floats") + scale + ": " + size + "; " +
+           half_check->describe();
+  }
+  return std::string("stored in floats: ") + size + "; half would give " + half_check->describe();
 }
 
 }  // namespace ls::cli

@@ -88,7 +88,7 @@ void add_relight_command(CLI::App& app) {
                   "Bytes that rendering compact sources may hold (full-size images of the LEDs "
                   "around them); over it they are relit by the LED cells, with a note. Default: "
                   "half of the memory available. The field itself is read a few MiB at a time "
-                  "whatever its size.");
+                  "whatever its size; the sources' normals in bands within what they leave.");
   cmd->add_option("--coverage-deg", options->coverage_deg,
                   "Dome coverage radius around each LED, degrees (0: automatic).")
       ->capture_default_str();

@@ -16,6 +16,9 @@ std::string BuildJobOptions::validate() const {
   if (out.empty()) return "--out: give the field file (or, with --all-time-steps, a directory)";
   if (time_step < 0) return "--time-step: expected a step >= 0";
   if (all_time_steps && time_step != 0) return "--all-time-steps: drop --time-step";
+  if (storage != "auto" && storage != "half" && storage != "float") {
+    return "--storage: expected auto, half or float, got '" + storage + "'";
+  }
   return {};
 }
 
@@ -24,6 +27,7 @@ std::string BuildJobOptions::to_json() const {
   j["session"] = session_dir.string();
   j["time_step"] = time_step;
   j["all_time_steps"] = all_time_steps;
+  j["storage"] = storage;
   return j.dump();
 }
 
@@ -39,6 +43,7 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   capture::BuildOptions build;
   build.time_step = time_step;
   build.memory_bytes = options.memory_bytes;
+  build.storage = capture::parse_storage_choice("--storage", options.storage);
   build.on_progress = [&](int done, int total) { report(progress, "build", done, total); };
   build.on_band_written = [&](int done, int total) { report(progress, "write", done, total); };
   BuiltField result;
@@ -52,6 +57,7 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   result.lights = int(stage.leds.size());
   result.mebibytes =
       capture::ReflectanceField::bytes_for(result.width, result.height, result.lights) / 1048576.0;
+  result.file_mebibytes = double(fs::file_size(out)) / 1048576.0;
   for (int i : result.build.lights_missing) result.missing_led_ids.push_back(stage.leds[i].id);
   return result;
 }

@@ -17,6 +17,9 @@ struct BuildJobOptions {
   bool all_time_steps = false;
   // Bytes of memory for the field's values (capture::BuildOptions::memory_bytes; 0: default).
   std::size_t memory_bytes = 0;
+  // How the file holds its values: "auto" (half where its relit error allows, capture/
+  // half_storage.h), "half" or "float".
+  std::string storage = "auto";
   std::string validate() const;
   std::string to_json() const;  // Recorded in every field written (kOptionsAttribute).
 };
@@ -26,7 +29,8 @@ struct BuiltField {
   int time_step = 0;
   double scene_time_s = 0.0;
   int width = 0, height = 0, lights = 0;
-  double mebibytes = 0.0;
+  double mebibytes = 0.0;            // The field's values in memory (float).
+  double file_mebibytes = 0.0;       // The file (half storage: about half of that).
   int band_rows = 0;                 // Rows built at once: the height when built in memory.
   std::vector<int> missing_led_ids;  // Missing or dead LEDs, excluded from relighting.
   capture::BuildSummary build;

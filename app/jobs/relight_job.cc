@@ -208,18 +208,26 @@ struct Output {
 // for one source at 24 MP. When that is over options.memory_bytes (0: half the memory available),
 // the sources are relit by the LED cells with the rest of their maps instead, and the returned
 // line says why (empty when they fit).
-std::string fit_sources_in_memory(const RelightOptions& options,
-                                  const capture::ReflectanceField& header,
-                                  std::vector<Output>& outputs, std::set<int>& source_leds) {
-  if (source_leds.empty()) return {};
+std::size_t memory_given(const RelightOptions& options) {
+  return options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
+}
+
+std::size_t sources_bytes(const capture::ReflectanceField& header,
+                          const std::vector<Output>& outputs, std::size_t source_leds) {
   int triangles = 0;
   for (const Output& out : outputs) {
     for (const auto& source : out.lighting.sources) triangles += source.triangle.has_value();
   }
-  const std::size_t need = relight::FieldSources::bytes_needed(header.width(), header.height(),
-                                                               int(source_leds.size()), triangles);
-  const std::size_t may =
-      options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
+  return relight::FieldSources::bytes_needed(header.width(), header.height(), int(source_leds),
+                                             triangles);
+}
+
+std::string fit_sources_in_memory(const RelightOptions& options,
+                                  const capture::ReflectanceField& header,
+                                  std::vector<Output>& outputs, std::set<int>& source_leds) {
+  if (source_leds.empty()) return {};
+  const std::size_t need = sources_bytes(header, outputs, source_leds.size());
+  const std::size_t may = memory_given(options);
   if (need <= may) return {};
   MapRotations map_rotations(options);
   size_t i = 0;
@@ -279,7 +287,10 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
     // pass, in bands.
     const auto t0 = Clock::now();
     report(progress, "compact sources (normals)", 0, 1);
-    const relight::FieldSources sources(header, stream.bands(stream.band_rows(0)),
+    // Bands within what the sources' images leave of the memory given.
+    const std::size_t band_bytes =
+        memory_given(options) - sources_bytes(header, outputs, source_leds.size());
+    const relight::FieldSources sources(header, stream.bands(stream.rows_within(band_bytes)),
                                         {source_leds.begin(), source_leds.end()});
     for (Output& out : outputs) sources.add(out.lighting, out.relit);
     sources_ms = ms_between(t0, Clock::now());

@@ -22,26 +22,6 @@ bool has_f16c() {
   return (ecx & kF16cBit) != 0 && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
 }
 
-__attribute__((target("avx2,f16c"))) void to_half(const float* in, std::size_t count, float scale,
-                                                  std::uint16_t* out) {
-  const __m256 s = _mm256_set1_ps(scale);
-  std::size_t i = 0;
-  for (; i + 8 <= count; i += 8) {
-    const __m128i h =
-        _mm256_cvtps_ph(_mm256_mul_ps(_mm256_loadu_ps(in + i), s), _MM_FROUND_TO_NEAREST_INT);
-    _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i), h);
-  }
-  if (i < count) {  // The tail through an 8-wide buffer.
-    alignas(32) float tail[8] = {};
-    alignas(16) std::uint16_t halves[8];
-    std::copy(in + i, in + count, tail);
-    _mm_store_si128(
-        reinterpret_cast<__m128i*>(halves),
-        _mm256_cvtps_ph(_mm256_mul_ps(_mm256_load_ps(tail), s), _MM_FROUND_TO_NEAREST_INT));
-    std::copy(halves, halves + (count - i), out + i);
-  }
-}
-
 // One pixel's 3L values against E: lanes of 24 values (8 lights x RGB), so lane k holds channel
 // k % 3, as relight.cc's kernel does.
 __attribute__((target("avx2,f16c,fma"))) void shade_half(const std::uint16_t* values,
@@ -77,41 +57,6 @@ __attribute__((target("avx2,f16c,fma"))) void shade_half(const std::uint16_t* va
 
 }  // namespace
 
-float half_scale(const capture::ReflectanceField& field) {
-  float largest = 0;
-  for (float v : field.values()) largest = std::max(largest, std::abs(v));
-  return largest > 0 && std::isfinite(largest) ? std::ldexp(1.0f, 14 - std::ilogb(largest)) : 1.0f;
-}
-
-double half_relit_error(const capture::ReflectanceField& field, float scale) {
-  const std::size_t pixels = std::size_t(field.width()) * field.height();
-  const std::size_t step = std::max<std::size_t>(1, pixels / 4096);
-  const int lights = field.num_lights();
-  std::vector<double> abs_sum, error;
-  for (std::size_t i = 0; i < pixels; i += step) {
-    const float* v = field.values().data() + i * lights * 3;
-    for (int c = 0; c < 3; ++c) {
-      double exact = 0, rounded = 0, magnitude = 0;
-      for (int l = 0; l < lights; ++l) {
-        const float value = v[l * 3 + c];
-        exact += value;
-        magnitude += std::abs(value);
-        rounded += double(float(Eigen::half(value * scale))) / scale;
-      }
-      abs_sum.push_back(magnitude);
-      error.push_back(std::abs(rounded - exact));
-    }
-  }
-  const double largest = abs_sum.empty() ? 0 : *std::max_element(abs_sum.begin(), abs_sum.end());
-  double worst = 0;
-  for (std::size_t i = 0; i < abs_sum.size(); ++i) {
-    if (abs_sum[i] >= 1e-3 * largest && abs_sum[i] > 0) {
-      worst = std::max(worst, error[i] / abs_sum[i]);
-    }
-  }
-  return worst;
-}
-
 std::optional<HalfField> HalfField::of(const capture::ReflectanceField& field, double max_error,
                                        double* error) {
   if (!has_f16c()) {
@@ -130,7 +75,8 @@ std::optional<HalfField> HalfField::of(const capture::ReflectanceField& field, d
   half.values_.resize(field.values().size());
   const std::size_t row = std::size_t(field.width()) * field.num_lights() * 3;
   tbb::parallel_for(0, field.height(), [&](int y) {
-    to_half(field.values().data() + y * row, row, scale, half.values_.data() + y * row);
+    capture::floats_to_halves(field.values().data() + y * row, row, scale,
+                              half.values_.data() + y * row);
   });
   return half;
 }

@@ -10,18 +10,14 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/half_storage.h"
 #include "lightstage/image.h"
 
 namespace ls::relight {
 
-// The power of two that brings the field's largest |value| to 2^14 (1 for an all-zero field).
-float half_scale(const capture::ReflectanceField& field);
-
-// Worst relative error of half storage (values x scale) on a sample of ~4096 pixels relit under
-// equal weights: per channel |sum half(s v) / s - sum v| / sum |v|, over (pixel, channel) pairs
-// whose sum |v| is at least 1e-3 of the largest (darker ones are below display precision). The
-// viewer's shader sources use it too.
-double half_relit_error(const capture::ReflectanceField& field, float scale);
+// The viewer's check and scale, those of half storage in field files (capture/half_storage.h).
+using capture::half_relit_error;
+using capture::half_scale;
 
 class HalfField {
  public:
@@ -29,7 +25,8 @@ class HalfField {
   // and half_relit_error is at most max_error; else nullopt (*error, when given, says why: the
   // error, or -1 without F16C).
   static std::optional<HalfField> of(const capture::ReflectanceField& field,
-                                     double max_error = 1e-3, double* error = nullptr);
+                                     double max_error = capture::kHalfRelitTolerance,
+                                     double* error = nullptr);
 
   int width() const { return width_; }
   int height() const { return height_; }
