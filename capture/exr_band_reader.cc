@@ -236,18 +236,18 @@ void ExrBandReader::File::copy_mapped_piece(int a, int b, bool check_finite) {
     float* row = planar.data() + std::size_t(y - a) * row_values;
     const char* stored = mapped + chunk_offset(y) + 8;
     if (value_bytes == 2) {
-      halves_to_floats(stored, row_values, value_scale, row);
+      if (!halves_to_floats(stored, row_values, value_scale, row)) non_finite = true;
     } else {
       std::memcpy(row, stored, row_values * sizeof(float));
       if (value_scale != 1) scale_values(row, row_values, value_scale);
+      if (check_finite && any_not_finite(row, row_values)) non_finite = true;
     }
-    if (check_finite && any_not_finite(row, row_values)) non_finite = true;
   });
-  // The piece's pages out of this process's mapping (they stay in the page cache): touched pages
-  // of a mapped file count as resident, and a pass over a field larger than memory must not.
   const std::uintmax_t page = std::uintmax_t(::sysconf(_SC_PAGESIZE));
   const std::uintmax_t first = chunk_offset(a) / page * page,
                        end = chunk_offset(b - 1) + chunk_bytes();
+  // The piece's pages out of this process's mapping (they stay in the page cache): touched pages
+  // of a mapped file count as resident, and a pass over a field larger than memory must not.
   ::madvise(const_cast<char*>(mapped) + first, end - first, MADV_DONTNEED);
   if (bad_row >= 0) {
     throw InputError(name + ": row " + std::to_string(bad_row.load()) +

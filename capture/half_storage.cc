@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <vector>
 
@@ -40,19 +41,30 @@ __attribute__((target("avx2,f16c"))) void to_halves_f16c(const float* in, std::s
   for (; i < count; ++i) out[i] = Eigen::half(in[i] * scale).x;
 }
 
-__attribute__((target("avx2,f16c"))) void to_floats_f16c(const char* in, std::size_t count,
+// Whether every value converted is finite (checked in the same pass: |v| < infinity, false for
+// NaN).
+__attribute__((target("avx2,f16c"))) bool to_floats_f16c(const char* in, std::size_t count,
                                                          float inv_scale, float* out) {
   const __m256 s = _mm256_set1_ps(inv_scale);
+  const __m256 magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 infinity = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  __m256 finite = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
   std::size_t i = 0;
   for (; i + 8 <= count; i += 8) {
     const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + 2 * i));
-    _mm256_storeu_ps(out + i, _mm256_mul_ps(_mm256_cvtph_ps(h), s));
+    const __m256 v = _mm256_mul_ps(_mm256_cvtph_ps(h), s);
+    finite = _mm256_and_ps(finite,
+                           _mm256_cmp_ps(_mm256_and_ps(v, magnitude), infinity, _CMP_LT_OQ));
+    _mm256_storeu_ps(out + i, v);
   }
+  bool all_finite = _mm256_movemask_ps(finite) == 0xff;
   for (; i < count; ++i) {
     std::uint16_t bits = 0;
     std::memcpy(&bits, in + 2 * i, 2);
     out[i] = float(Eigen::numext::bit_cast<Eigen::half>(bits)) * inv_scale;
+    all_finite = all_finite && std::isfinite(out[i]);
   }
+  return all_finite;
 }
 
 }  // namespace
@@ -172,14 +184,17 @@ void floats_to_halves(const float* values, std::size_t count, float scale, std::
   for (std::size_t i = 0; i < count; ++i) halves[i] = Eigen::half(values[i] * scale).x;
 }
 
-void halves_to_floats(const void* halves, std::size_t count, float inv_scale, float* values) {
+bool halves_to_floats(const void* halves, std::size_t count, float inv_scale, float* values) {
   const char* bytes = static_cast<const char*>(halves);
   if (has_f16c()) return to_floats_f16c(bytes, count, inv_scale, values);
+  bool all_finite = true;
   for (std::size_t i = 0; i < count; ++i) {
     std::uint16_t bits = 0;
     std::memcpy(&bits, bytes + 2 * i, 2);
     values[i] = float(Eigen::numext::bit_cast<Eigen::half>(bits)) * inv_scale;
+    all_finite = all_finite && std::isfinite(values[i]);
   }
+  return all_finite;
 }
 
 }  // namespace ls::capture

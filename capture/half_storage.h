@@ -65,9 +65,10 @@ double half_relit_error(const ReflectanceField& field, float scale);
 // Both checks on the same sample (the noise ratio where field.noise is measured).
 HalfCheck check_half(const ReflectanceField& field, float scale);
 
-// count values times scale into halves, and back (times 1 / scale); F16C where the CPU has it.
-// `halves` need not be aligned (a mapped file's rows).
+// count values times scale into halves, and back (times 1 / scale; returns whether every value
+// is finite, checked in the same pass); F16C where the CPU has it. `halves` need not be aligned
+// (a mapped file's rows).
 void floats_to_halves(const float* values, std::size_t count, float scale, std::uint16_t* halves);
-void halves_to_floats(const void* halves, std::size_t count, float inv_scale, float* values);
+bool halves_to_floats(const void* halves, std::size_t count, float inv_scale, float* values);
 
 }  // namespace ls::capture
