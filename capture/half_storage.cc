@@ -53,8 +53,8 @@ __attribute__((target("avx2,f16c"))) bool to_floats_f16c(const char* in, std::si
   for (; i + 8 <= count; i += 8) {
     const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(in + 2 * i));
     const __m256 v = _mm256_mul_ps(_mm256_cvtph_ps(h), s);
-    finite = _mm256_and_ps(finite,
-                           _mm256_cmp_ps(_mm256_and_ps(v, magnitude), infinity, _CMP_LT_OQ));
+    finite =
+        _mm256_and_ps(finite, _mm256_cmp_ps(_mm256_and_ps(v, magnitude), infinity, _CMP_LT_OQ));
     _mm256_storeu_ps(out + i, v);
   }
   bool all_finite = _mm256_movemask_ps(finite) == 0xff;

@@ -74,12 +74,16 @@ void set_assignment_counts(const std::vector<long long>& counts, relight::ModelM
 
 }  // namespace
 
-int band_rows_for_ranks(int rows, int height, int alignment, const Ranks& ranks) {
-  if (ranks.size() == 1) return rows;
+int band_rows_for_ranks(int rows, int height, int alignment, int ranks) {
+  if (ranks == 1) return rows;
+  // As many bands as the memory needs, at least kBandsPerRank a rank, and a multiple of the ranks
+  // so that each rank fits as many (9 bands over 2 ranks kept one waiting a ninth of the fit).
   constexpr int kBandsPerRank = 4;
-  const int share = (height + kBandsPerRank * ranks.size() - 1) / (kBandsPerRank * ranks.size());
+  int bands = std::max((height + rows - 1) / rows, kBandsPerRank * ranks);
+  bands = (bands + ranks - 1) / ranks * ranks;
+  const int share = (height + bands - 1) / bands;
   const int aligned = (share + alignment - 1) / alignment * alignment;
-  return std::min(rows, std::max(alignment, aligned));
+  return std::max(alignment, std::min(rows, aligned));
 }
 
 relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,

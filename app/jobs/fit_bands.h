@@ -22,9 +22,9 @@ relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
                                 const Ranks& ranks, const ProgressFn& progress,
                                 BandFitTimes& times);
 
-// The band height for a fit split over `ranks` (at most `rows`, from the memory budget): several
-// bands a rank, so that round robin evens out bands that cost more (the object against the
-// background); whole tiles (`alignment` rows).
-int band_rows_for_ranks(int rows, int height, int alignment, const Ranks& ranks);
+// The band height for a fit split over `ranks` ranks (at most `rows`, from the memory budget):
+// several bands a rank, so that round robin evens out bands that cost more (the object against
+// the background), as many for each rank; whole tiles (`alignment` rows).
+int band_rows_for_ranks(int rows, int height, int alignment, int ranks);
 
 }  // namespace ls::jobs

@@ -114,7 +114,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   }
   const Ranks& ranks = Ranks::world();
   int rows = band_rows_for_ranks(stream.band_rows(options.memory_bytes), field.height(),
-                                 stream.row_alignment(), ranks);
+                                 stream.row_alignment(), ranks.size());
   auto start = Clock::now();
   relight::ModelMaps maps;
   BandFitTimes times;
