@@ -58,32 +58,54 @@ void commit_temp(const fs::path& tmp, const fs::path& path) {
   fsync_path(path.parent_path().empty() ? fs::path(".") : path.parent_path(), true);
 }
 
-// Writes bytes to a new file, checking every write and the fsync (a full disk fails here, not
-// silently later), then renames it over path.
-void write_bytes_atomic(const fs::path& path, const void* data, size_t size) {
-  const fs::path tmp = temp_sibling(path);
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  if (fd < 0) {
-    throw InputError(path.string() + ": cannot create file: " + std::strerror(errno));
-  }
+}  // namespace
+
+AtomicFileWriter::AtomicFileWriter(const fs::path& path) : path_(path), temp_(temp_sibling(path)) {
+  fd_ = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd_ < 0) throw InputError(path.string() + ": cannot create file: " + std::strerror(errno));
+}
+
+AtomicFileWriter::~AtomicFileWriter() {
+  if (fd_ < 0) return;
+  ::close(fd_);
+  std::error_code ec;
+  fs::remove(temp_, ec);
+}
+
+void AtomicFileWriter::write(const void* data, size_t size) {
+  LS_CHECK(fd_ >= 0, "AtomicFileWriter::write after commit");
   const char* bytes = static_cast<const char*>(data);
-  int error = 0;
-  for (size_t done = 0; done < size && error == 0;) {
-    const ssize_t n = ::write(fd, bytes + done, size - done);
+  for (size_t done = 0; done < size;) {
+    const ssize_t n = ::write(fd_, bytes + done, size - done);
     if (n > 0) {
       done += size_t(n);
     } else if (n < 0 && errno != EINTR) {
-      error = errno;
+      throw InputError(path_.string() + ": cannot write: " + std::strerror(errno));
     }
   }
-  if (error == 0 && ::fsync(fd) != 0) error = errno;
-  if (::close(fd) != 0 && error == 0) error = errno;
+}
+
+void AtomicFileWriter::commit() {
+  LS_CHECK(fd_ >= 0, "AtomicFileWriter::commit twice");
+  int error = ::fsync(fd_) != 0 ? errno : 0;
+  if (::close(fd_) != 0 && error == 0) error = errno;
+  fd_ = -1;
   if (error != 0) {
     std::error_code ec;
-    fs::remove(tmp, ec);
-    throw InputError(path.string() + ": cannot write: " + std::strerror(error));
+    fs::remove(temp_, ec);
+    throw InputError(path_.string() + ": cannot write: " + std::strerror(error));
   }
-  commit_temp(tmp, path);
+  commit_temp(temp_, path_);
+}
+
+namespace {
+
+// Writes bytes to a new file, checking every write and the fsync (a full disk fails here, not
+// silently later), then renames it over path.
+void write_bytes_atomic(const fs::path& path, const void* data, size_t size) {
+  AtomicFileWriter writer(path);
+  writer.write(data, size);
+  writer.commit();
 }
 
 // Encodes in memory, the format from path's extension: an encoder's own file writes do not all

@@ -77,4 +77,22 @@ uint32_t crc32_of(const void* data, size_t size);
 // Writes `contents` to `path` atomically (temp + fsync + rename). Throws InputError on failure.
 void write_file_atomic(const std::filesystem::path& path, const std::string& contents);
 
+// The same for a file written piece by piece (larger than memory): bytes go to a temporary
+// sibling, commit() makes it durable and renames it over `path`; destroyed before commit(), the
+// temporary file is removed, so no partial file is ever left at `path`. InputError naming the path
+// when a write fails (a full disk fails here, not silently later).
+class AtomicFileWriter {
+ public:
+  explicit AtomicFileWriter(const std::filesystem::path& path);
+  ~AtomicFileWriter();
+  AtomicFileWriter(const AtomicFileWriter&) = delete;
+  AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
+  void write(const void* data, size_t size);
+  void commit();
+
+ private:
+  std::filesystem::path path_, temp_;
+  int fd_ = -1;
+};
+
 }  // namespace ls

@@ -138,11 +138,18 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   }
   relight::RtiFitOptions rti_options;
   rti_basis(options.format, rti_options);
-  const relight::RtiField fit = relight::RtiField::fit(header, bands, rti_options);
-  relight::write_rti_file(options.out, relight::quantise(fit, options.gain));
-  summary.representation = fit.name();
-  summary.details = "from " + std::to_string(fit.lights_used) + " LEDs";
-  summary.bytes_per_pixel = fit.bytes_per_pixel();
+  relight::RtiWritten written;
+  if (rows > 0) {  // In bands: the coefficients through a file, not held.
+    written =
+        relight::write_rti_file_in_bands(options.out, header, bands, rti_options, options.gain);
+  } else {
+    const relight::RtiField fit = relight::RtiField::fit(header, bands, rti_options);
+    relight::write_rti_file(options.out, relight::quantise(fit, options.gain));
+    written = {fit.name(), fit.lights_used, fit.bytes_per_pixel()};
+  }
+  summary.representation = written.name;
+  summary.details = "from " + std::to_string(written.lights_used) + " LEDs";
+  summary.bytes_per_pixel = written.bytes_per_pixel;
   summary.output_bytes = fs::file_size(options.out);
   return summary;
 }

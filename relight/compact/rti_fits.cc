@@ -117,78 +117,91 @@ RtiField RtiField::fit(const capture::ReflectanceField& field, const RtiFitOptio
   return fit(field, capture::whole_field(field), options);
 }
 
-RtiField RtiField::fit(const capture::ReflectanceField& field, const capture::FieldBands& bands,
-                       const RtiFitOptions& options) {
+RtiFitter::RtiFitter(const capture::ReflectanceField& field, const RtiFitOptions& options)
+    : options_(options), terms_(rti_num_terms(options.basis)), width_(field.width()) {
   if (const std::string e = options.validate(); !e.empty()) {
     throw InputError(field.source + ": RTI fit options: " + e);
   }
-  const int terms = rti_num_terms(options.basis);
-  std::vector<int> used;
   for (int l = 0; l < field.num_lights(); ++l) {
     const auto& light = field.lights()[l];
-    if (light.valid && light.dir_in_stage.normalized().z() > options.min_dir_z) used.push_back(l);
+    if (light.valid && light.dir_in_stage.normalized().z() > options.min_dir_z) used_.push_back(l);
   }
-  if (int(used.size()) < terms) {
+  if (int(used_.size()) < terms_) {
     throw InputError(field.source + ": lights: " + to_string(options.basis) + " needs at least " +
-                     std::to_string(terms) + " valid LEDs in front of the image plane (z > " +
-                     std::to_string(options.min_dir_z) + "), got " + std::to_string(used.size()));
+                     std::to_string(terms_) + " valid LEDs in front of the image plane (z > " +
+                     std::to_string(options.min_dir_z) + "), got " + std::to_string(used_.size()));
   }
-  const int n = int(used.size());
-  Eigen::MatrixXd a(n, terms);
+  const int n = int(used_.size());
+  Eigen::MatrixXd a(n, terms_);
   for (int i = 0; i < n; ++i) {
     double t[kMaxRtiTerms];
-    rti_basis(options.basis, field.lights()[used[i]].dir_in_stage, t);
-    for (int j = 0; j < terms; ++j) a(i, j) = t[j];
+    rti_basis(options.basis, field.lights()[used_[i]].dir_in_stage, t);
+    for (int j = 0; j < terms_; ++j) a(i, j) = t[j];
   }
   Eigen::MatrixXd normal = a.transpose() * a;
   normal.diagonal().array() += options.ridge * normal.diagonal().mean();
-  const Eigen::MatrixXf pinv = normal.ldlt().solve(a.transpose()).cast<float>();  // T x n
-  const Eigen::MatrixXf design_f = a.cast<float>();
+  pinv_ = normal.ldlt().solve(a.transpose()).cast<float>();  // T x n
+  design_ = a.cast<float>();
+}
 
-  const int width = field.width(), height = field.height();
-  const int per_pixel = options.lrgb ? terms : 3 * terms;
-  std::vector<float> coefs(size_t(width) * height * per_pixel, 0.0f);
-  std::vector<float> colors(options.lrgb ? size_t(width) * height * 3 : 0, 0.0f);
-  std::vector<float> row_max(height, 0.0f);
-  bands([&](const capture::ReflectanceField& band) {
-    const int y0 = band.first_row();
-    tbb::parallel_for(
-        tbb::blocked_range<int>(y0, y0 + band.height()), [&](const tbb::blocked_range<int>& rows) {
-          Eigen::MatrixXf samples(n, 3);
-          Eigen::VectorXf lum(n), lum_fit(n);
-          for (int y = rows.begin(); y < rows.end(); ++y) {
-            for (int x = 0; x < width; ++x) {
-              const float* v = band.pixel(x, y - y0);
-              for (int i = 0; i < n; ++i) {
-                for (int c = 0; c < 3; ++c) samples(i, c) = v[3 * used[i] + c];
-              }
-              row_max[y] = std::max(row_max[y], samples.maxCoeff());
-              float* out = coefs.data() + (size_t(y) * width + x) * per_pixel;
-              if (!options.lrgb) {
-                const Eigen::MatrixXf c = pinv * samples;  // T x 3
-                for (int ch = 0; ch < 3; ++ch) {
-                  for (int j = 0; j < terms; ++j) out[ch * terms + j] = c(j, ch);
-                }
-                continue;
-              }
-              // LRGB: a polynomial for the luminance, then per channel the colour that best scales
-              // it.
-              lum = samples.rowwise().mean();
-              const Eigen::VectorXf a_lum = pinv * lum;
-              lum_fit = design_f * a_lum;
-              const float energy = lum_fit.squaredNorm();
-              for (int j = 0; j < terms; ++j) out[j] = a_lum(j);
-              float* color = colors.data() + (size_t(y) * width + x) * 3;
+float RtiFitter::fit_band(const capture::ReflectanceField& band, float* coefs,
+                          float* colors) const {
+  const int n = int(used_.size()), terms = terms_, width = width_;
+  const int per_pixel = coefficients_per_pixel();
+  std::vector<float> row_max(size_t(band.height()), 0.0f);
+  tbb::parallel_for(
+      tbb::blocked_range<int>(0, band.height()), [&](const tbb::blocked_range<int>& rows) {
+        Eigen::MatrixXf samples(n, 3);
+        Eigen::VectorXf lum(n), lum_fit(n);
+        for (int y = rows.begin(); y < rows.end(); ++y) {
+          for (int x = 0; x < width; ++x) {
+            const float* v = band.pixel(x, y);
+            for (int i = 0; i < n; ++i) {
+              for (int c = 0; c < 3; ++c) samples(i, c) = v[3 * used_[i] + c];
+            }
+            row_max[size_t(y)] = std::max(row_max[size_t(y)], samples.maxCoeff());
+            float* out = coefs + (size_t(y) * width + x) * per_pixel;
+            if (!options_.lrgb) {
+              const Eigen::MatrixXf c = pinv_ * samples;  // T x 3
               for (int ch = 0; ch < 3; ++ch) {
-                color[ch] = energy > 1e-30f ? samples.col(ch).dot(lum_fit) / energy : 0.0f;
+                for (int j = 0; j < terms; ++j) out[ch * terms + j] = c(j, ch);
               }
+              continue;
+            }
+            // LRGB: a polynomial for the luminance, then per channel the colour that best scales
+            // it.
+            lum = samples.rowwise().mean();
+            const Eigen::VectorXf a_lum = pinv_ * lum;
+            lum_fit = design_ * a_lum;
+            const float energy = lum_fit.squaredNorm();
+            for (int j = 0; j < terms; ++j) out[j] = a_lum(j);
+            float* color = colors + (size_t(y) * width + x) * 3;
+            for (int ch = 0; ch < 3; ++ch) {
+              color[ch] = energy > 1e-30f ? samples.col(ch).dot(lum_fit) / energy : 0.0f;
             }
           }
-        });
+        }
+      });
+  return row_max.empty() ? 0.0f : *std::max_element(row_max.begin(), row_max.end());
+}
+
+RtiField RtiField::fit(const capture::ReflectanceField& field, const capture::FieldBands& bands,
+                       const RtiFitOptions& options) {
+  const RtiFitter fitter(field, options);
+  const int width = field.width(), height = field.height();
+  const size_t per_pixel = size_t(fitter.coefficients_per_pixel());
+  std::vector<float> coefs(size_t(width) * height * per_pixel, 0.0f);
+  std::vector<float> colors(options.lrgb ? size_t(width) * height * 3 : 0, 0.0f);
+  float max_sample = 0;
+  bands([&](const capture::ReflectanceField& band) {
+    const size_t first = size_t(band.first_row()) * width;
+    max_sample =
+        std::max(max_sample, fitter.fit_band(band, coefs.data() + first * per_pixel,
+                                             options.lrgb ? colors.data() + first * 3 : nullptr));
   });
   RtiField out(options.basis, options.lrgb, width, height, std::move(coefs), std::move(colors));
-  out.lights_used = n;
-  out.max_sample_value = *std::max_element(row_max.begin(), row_max.end());
+  out.lights_used = fitter.lights_used();
+  out.max_sample_value = max_sample;
   return out;
 }
 

@@ -85,4 +85,24 @@ class RtiField : public CompactField {
   std::vector<float> colors_;
 };
 
+// RtiField::fit a band at a time into the caller's buffers, for a field larger than memory whose
+// coefficients go to disk as they are fitted (issue 14).
+class RtiFitter {
+ public:
+  // The field's lights; InputError as RtiField::fit for bad options or too few lights.
+  RtiFitter(const capture::ReflectanceField& field, const RtiFitOptions& options);
+  int lights_used() const { return int(used_.size()); }
+  int coefficients_per_pixel() const { return options_.lrgb ? terms_ : 3 * terms_; }
+  // The band's coefficients (and LRGB colours, 3 a pixel) into `coefs` (`colors`), its rows from
+  // 0; returns its largest sample.
+  float fit_band(const capture::ReflectanceField& band, float* coefs, float* colors) const;
+
+ private:
+  RtiFitOptions options_;
+  int terms_, width_;
+  std::vector<int> used_;   // The lights fitted.
+  Eigen::MatrixXf pinv_;    // T x used: the ridge-regularised least-squares solve.
+  Eigen::MatrixXf design_;  // used x T: the basis at the lights.
+};
+
 }  // namespace ls::relight

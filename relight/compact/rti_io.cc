@@ -1,5 +1,8 @@
 #include "relight/compact/rti_io.h"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -214,80 +217,103 @@ RtiFile decode_hsh(const std::string& bytes, const std::string& name) {
 
 }  // namespace
 
-RtiFile quantise(const RtiField& field, double gain) {
-  if (!(gain > 0)) gain = field.max_sample_value > 0 ? 1.0 / field.max_sample_value : 1.0;
-  RtiFile file;
-  file.width = field.width();
-  file.height = field.height();
-  file.terms = field.num_terms();
-  const size_t pixels = size_t(file.width) * file.height;
-  const int terms = file.terms;
-  const auto& coefs = field.coefficients();
-  if (field.basis() == RtiBasis::kPtm) {
-    file.format = field.lrgb() ? RtiFileFormat::kPtmLrgb : RtiFileFormat::kPtmRgb;
-    // Coefficients in 8-bit code units; LRGB moves each pixel's colour magnitude into L.
-    const int per_pixel = field.lrgb() ? 6 : 18;
-    std::vector<double> code(pixels * per_pixel);
-    std::vector<uint8_t> color_bytes(field.lrgb() ? pixels * 3 : 0);
-    for (size_t p = 0; p < pixels; ++p) {
-      if (!field.lrgb()) {
-        for (int k = 0; k < 18; ++k) code[p * 18 + k] = coefs[p * 18 + k] * gain * 255.0;
-        continue;
-      }
-      const float* color = field.colors().data() + p * 3;
-      const double m = std::max({color[0], color[1], color[2], 0.0f});
-      for (int c = 0; c < 3; ++c)
-        color_bytes[p * 3 + c] = m > 0 ? quantise_byte(255.0 * color[c] / m) : 0;
-      for (int j = 0; j < 6; ++j) code[p * 6 + j] = coefs[p * 6 + j] * m * gain * 255.0;
+RtiQuantiser::RtiQuantiser(RtiBasis basis, bool lrgb, int width, int height)
+    : basis_(basis), lrgb_(lrgb), width_(width), height_(height), terms_(rti_num_terms(basis)) {
+  lo_.assign(size_t(terms_), HUGE_VAL);
+  hi_.assign(size_t(terms_), -HUGE_VAL);
+}
+
+double RtiQuantiser::lrgb_magnitude(const float* color) {
+  return std::max({color[0], color[1], color[2], 0.0f});
+}
+
+void RtiQuantiser::add(const float* coefs, const float* colors, size_t pixels, float max_sample) {
+  max_sample_ = std::max(max_sample_, max_sample);
+  const int per_pixel = lrgb_ ? terms_ : 3 * terms_;
+  for (size_t p = 0; p < pixels; ++p) {
+    // LRGB moves each pixel's colour magnitude into L.
+    const double m = lrgb_ ? lrgb_magnitude(colors + p * 3) : 1.0;
+    for (int k = 0; k < per_pixel; ++k) {
+      const int j = k % terms_;
+      const double v = lrgb_ ? double(coefs[p * per_pixel + k]) * m : coefs[p * per_pixel + k];
+      lo_[size_t(j)] = std::min(lo_[size_t(j)], v);
+      hi_[size_t(j)] = std::max(hi_[size_t(j)], v);
     }
-    file.scale.assign(6, 1.0f);
-    file.bias.assign(6, 0.0f);
-    for (int j = 0; j < 6; ++j) {
-      double lo = 0, hi = 0;
-      for (size_t i = j; i < code.size(); i += 6) {
-        lo = std::min(lo, code[i]);
-        hi = std::max(hi, code[i]);
-      }
+  }
+}
+
+double RtiQuantiser::code(double v, double gain) const {
+  // In the files' units: PTM 8-bit codes, HSH white = 1. Monotone in v, so the extremes of the
+  // codes are the codes of the extremes (add() keeps those of v).
+  return basis_ == RtiBasis::kPtm ? v * gain * 255.0 : v * gain;
+}
+
+RtiFile RtiQuantiser::header(double gain) const {
+  if (!(gain > 0)) gain = max_sample_ > 0 ? 1.0 / max_sample_ : 1.0;
+  RtiFile file;
+  file.width = width_;
+  file.height = height_;
+  file.terms = terms_;
+  file.field_gain = gain;  // Informational for .ptm: encode_rti_file cannot store it there.
+  file.scale.assign(size_t(terms_), 1.0f);
+  file.bias.assign(size_t(terms_), 0.0f);
+  if (basis_ == RtiBasis::kPtm) {
+    file.format = lrgb_ ? RtiFileFormat::kPtmLrgb : RtiFileFormat::kPtmRgb;
+    for (size_t j = 0; j < 6; ++j) {
+      // [min(min_j, 0), max(max_j, 0)] onto an integer bias and 0..255.
+      const double lo = std::min(0.0, lo_[j] <= hi_[j] ? code(lo_[j], gain) : 0.0);
+      const double hi = std::max(0.0, lo_[j] <= hi_[j] ? code(hi_[j], gain) : 0.0);
       if (hi > lo) file.scale[j] = float((hi - lo) / 255.0);
       file.bias[j] = float(std::round(-lo / file.scale[j]));
     }
-    file.data.resize(pixels * file.bytes_per_pixel());
-    for (size_t p = 0; p < pixels; ++p) {
-      uint8_t* out = file.data.data() + p * file.bytes_per_pixel();
-      for (int k = 0; k < per_pixel; ++k) {
-        const int j = k % 6;
-        out[k] = quantise_byte(code[p * per_pixel + k] / file.scale[j] + file.bias[j]);
-      }
-      if (field.lrgb()) std::copy_n(color_bytes.data() + p * 3, 3, out + 6);
-    }
-    file.field_gain = gain;  // Informational: encode_rti_file cannot store it in a .ptm.
     return file;
   }
   file.format = RtiFileFormat::kHsh;
-  file.scale.assign(terms, 1.0f);
-  file.bias.assign(terms, 0.0f);
-  for (int j = 0; j < terms; ++j) {
-    double lo = HUGE_VAL, hi = -HUGE_VAL;
-    for (size_t p = 0; p < pixels; ++p) {
-      for (int c = 0; c < 3; ++c) {
-        const double v = coefs[p * 3 * terms + c * terms + j] * gain;
-        lo = std::min(lo, v);
-        hi = std::max(hi, v);
-      }
-    }
+  for (size_t j = 0; j < size_t(terms_); ++j) {
+    double lo = code(lo_[j], gain), hi = code(hi_[j], gain);
     if (!(lo <= hi)) lo = hi = 0;
     file.bias[j] = float(lo);
     file.scale[j] = hi > lo ? float(hi - lo) : 1.0f;
   }
-  file.data.resize(pixels * 3 * terms);
+  return file;
+}
+
+void RtiQuantiser::quantise(const RtiFile& header, const float* coefs, const float* colors,
+                            size_t pixels, uint8_t* bytes) const {
+  const double gain = header.field_gain;
+  const int per_pixel = lrgb_ ? terms_ : 3 * terms_;
   for (size_t p = 0; p < pixels; ++p) {
-    for (int k = 0; k < 3 * terms; ++k) {
-      const int j = k % terms;
-      const double v = coefs[p * 3 * terms + k] * gain;
-      file.data[p * 3 * terms + k] = quantise_byte((v - file.bias[j]) / file.scale[j] * 255.0);
+    uint8_t* out = bytes + p * size_t(header.bytes_per_pixel());
+    const float* coef = coefs + p * per_pixel;
+    if (basis_ != RtiBasis::kPtm) {
+      for (int k = 0; k < per_pixel; ++k) {
+        const int j = k % terms_;
+        const double v = coef[k] * gain;
+        out[k] = quantise_byte((v - header.bias[j]) / header.scale[j] * 255.0);
+      }
+      continue;
+    }
+    const float* color = lrgb_ ? colors + p * 3 : nullptr;
+    const double m = lrgb_ ? lrgb_magnitude(color) : 1.0;
+    for (int k = 0; k < per_pixel; ++k) {
+      const int j = k % 6;
+      const double v = lrgb_ ? double(coef[k]) * m : coef[k];
+      out[k] = quantise_byte(code(v, gain) / header.scale[j] + header.bias[j]);
+    }
+    for (int c = 0; lrgb_ && c < 3; ++c) {
+      out[6 + c] = m > 0 ? quantise_byte(255.0 * color[c] / m) : 0;
     }
   }
-  file.field_gain = gain;
+}
+
+RtiFile quantise(const RtiField& field, double gain) {
+  RtiQuantiser quantiser(field.basis(), field.lrgb(), field.width(), field.height());
+  const size_t pixels = size_t(field.width()) * field.height();
+  quantiser.add(field.coefficients().data(), field.colors().data(), pixels, field.max_sample_value);
+  RtiFile file = quantiser.header(gain);
+  file.data.resize(pixels * size_t(file.bytes_per_pixel()));
+  quantiser.quantise(file, field.coefficients().data(), field.colors().data(), pixels,
+                     file.data.data());
   return file;
 }
 
@@ -323,47 +349,60 @@ RtiField dequantise(const RtiFile& file) {
                   std::move(colors));
 }
 
-std::string encode_rti_file(const RtiFile& file) {
-  const int w = file.width, h = file.height;
-  LS_CHECK(file.data.size() == size_t(w) * h * file.bytes_per_pixel(), "RtiFile data size");
-  std::string out;
-  if (file.format == RtiFileFormat::kHsh) {
-    out += "#HSH1.2\n";
-    if (file.field_gain > 0) out += "#lightstage field_gain " + shortest(file.field_gain) + "\n";
-    out += "3\n" + std::to_string(w) + " " + std::to_string(h) + " 3\n" +
-           std::to_string(file.terms) + " 2 1\n";
-    out.append(reinterpret_cast<const char*>(file.scale.data()), 4 * file.terms);
-    out.append(reinterpret_cast<const char*>(file.bias.data()), 4 * file.terms);
+void encode_rti_rows(const RtiFile& header, const RtiRowFn& row, const RtiBytesFn& write) {
+  const int w = header.width, h = header.height;
+  const auto text = [&](const std::string& t) { write(t.data(), t.size()); };
+  std::vector<uint8_t> bytes(size_t(w) * header.bytes_per_pixel());
+  if (header.format == RtiFileFormat::kHsh) {
+    text("#HSH1.2\n");
+    if (header.field_gain > 0) text("#lightstage field_gain " + shortest(header.field_gain) + "\n");
+    text("3\n" + std::to_string(w) + " " + std::to_string(h) + " 3\n" +
+         std::to_string(header.terms) + " 2 1\n");
+    write(header.scale.data(), 4 * size_t(header.terms));
+    write(header.bias.data(), 4 * size_t(header.terms));
     // Rows top to bottom (unlike .ptm): the order RTIViewer's and relight's HSH loaders read.
-    out.append(reinterpret_cast<const char*>(file.data.data()), file.data.size());
-    return out;
-  }
-  const bool lrgb = file.format == RtiFileFormat::kPtmLrgb;
-  out += std::string("PTM_1.2\n") + (lrgb ? "PTM_FORMAT_LRGB\n" : "PTM_FORMAT_RGB\n") +
-         std::to_string(w) + "\n" + std::to_string(h) + "\n";
-  for (int j = 0; j < 6; ++j) out += shortest(file.scale[j]) + (j < 5 ? " " : "\n");
-  for (int j = 0; j < 6; ++j) out += std::to_string(int(file.bias[j])) + (j < 5 ? " " : "\n");
-  if (!lrgb) {
-    for (int c = 0; c < 3; ++c) {
-      for (int r = h - 1; r >= 0; --r) {
-        for (int x = 0; x < w; ++x) {
-          out.append(
-              reinterpret_cast<const char*>(file.data.data()) + (size_t(r) * w + x) * 18 + c * 6,
-              6);
-        }
-      }
+    for (int r = 0; r < h; ++r) {
+      row(r, bytes.data());
+      write(bytes.data(), bytes.size());
     }
-  } else {
-    for (int part = 0; part < 2; ++part) {
-      for (int r = h - 1; r >= 0; --r) {
-        for (int x = 0; x < w; ++x) {
-          out.append(reinterpret_cast<const char*>(file.data.data()) + (size_t(r) * w + x) * 9 +
-                         (part == 0 ? 0 : 6),
-                     part == 0 ? 6 : 3);
-        }
+    return;
+  }
+  const bool lrgb = header.format == RtiFileFormat::kPtmLrgb;
+  text(std::string("PTM_1.2\n") + (lrgb ? "PTM_FORMAT_LRGB\n" : "PTM_FORMAT_RGB\n") +
+       std::to_string(w) + "\n" + std::to_string(h) + "\n");
+  std::string line;
+  for (int j = 0; j < 6; ++j) line += shortest(header.scale[j]) + (j < 5 ? " " : "\n");
+  for (int j = 0; j < 6; ++j) line += std::to_string(int(header.bias[j])) + (j < 5 ? " " : "\n");
+  text(line);
+  // RGB: a block per colour of 6 coefficients a pixel; LRGB: the 6 luminance coefficients, then
+  // the 3 colour bytes; each block rows bottom to top.
+  const int per_pixel = header.bytes_per_pixel();
+  std::vector<uint8_t> block(size_t(w) * 6);
+  for (int part = 0; part < (lrgb ? 2 : 3); ++part) {
+    const int first = lrgb ? (part == 0 ? 0 : 6) : part * 6;
+    const int count = lrgb && part == 1 ? 3 : 6;
+    for (int r = h - 1; r >= 0; --r) {
+      row(r, bytes.data());
+      for (int x = 0; x < w; ++x) {
+        std::copy_n(bytes.data() + size_t(x) * per_pixel + first, count,
+                    block.data() + size_t(x) * count);
       }
+      write(block.data(), size_t(w) * count);
     }
   }
+}
+
+std::string encode_rti_file(const RtiFile& file) {
+  LS_CHECK(file.data.size() == size_t(file.width) * file.height * file.bytes_per_pixel(),
+           "RtiFile data size");
+  const size_t row_bytes = size_t(file.width) * file.bytes_per_pixel();
+  std::string out;
+  encode_rti_rows(
+      file,
+      [&](int y, uint8_t* bytes) {
+        std::copy_n(file.data.data() + size_t(y) * row_bytes, row_bytes, bytes);
+      },
+      [&](const void* data, size_t size) { out.append(static_cast<const char*>(data), size); });
   return out;
 }
 
@@ -383,6 +422,96 @@ RtiFile read_rti_file(const std::filesystem::path& path) {
   if (!in) throw InputError(path.string() + ": cannot open for reading");
   const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   return decode_rti_file(bytes, path.string());
+}
+
+namespace {
+
+// Rows of floats in a file beside `beside` (BESIDE.rows-PID), removed when destroyed: an image's
+// coefficients larger than memory, written once and read back row by row.
+class RowSpill {
+ public:
+  RowSpill(const std::filesystem::path& beside, size_t row_floats)
+      : path_(beside.string() + ".rows-" + std::to_string(::getpid())), row_floats_(row_floats) {
+    fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+    if (fd_ < 0) fail("cannot create");
+  }
+  ~RowSpill() {
+    ::close(fd_);
+    std::error_code ignored;
+    std::filesystem::remove(path_, ignored);
+  }
+  RowSpill(const RowSpill&) = delete;
+  RowSpill& operator=(const RowSpill&) = delete;
+  void write(int first_row, int rows, const float* values) {
+    transfer(::pwrite, const_cast<float*>(values), first_row, rows);
+  }
+  void read(int row, float* values) { transfer(::pread, values, row, 1); }
+
+ private:
+  template <class Io>
+  void transfer(Io io, float* values, int first_row, int rows) {
+    char* bytes = reinterpret_cast<char*>(values);
+    size_t left = size_t(rows) * row_floats_ * sizeof(float);
+    off_t at = off_t(size_t(first_row) * row_floats_ * sizeof(float));
+    while (left > 0) {
+      const ssize_t n = io(fd_, bytes, left, at);
+      if (n <= 0) fail(n == 0 ? "unexpected end" : "reading or writing");
+      bytes += n, left -= size_t(n), at += n;
+    }
+  }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw InputError(path_.string() + ": " + what + " (the coefficients of a field compressed in " +
+                     "bands are spilled beside the output: they need its size free there): " +
+                     std::strerror(errno));
+  }
+  std::filesystem::path path_;
+  size_t row_floats_;
+  int fd_ = -1;
+};
+
+}  // namespace
+
+RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
+                                   const capture::ReflectanceField& header,
+                                   const capture::FieldBands& bands, const RtiFitOptions& options,
+                                   double gain) {
+  const RtiFitter fitter(header, options);
+  const int width = header.width();
+  const size_t per_pixel = size_t(fitter.coefficients_per_pixel());
+  const size_t colors = options.lrgb ? 3 : 0;  // Per pixel, after a row's coefficients.
+  RowSpill spill(path, size_t(width) * (per_pixel + colors));
+  RtiQuantiser quantiser(options.basis, options.lrgb, width, header.height());
+  std::vector<float> coefs, band_colors, rows;
+  bands([&](const capture::ReflectanceField& band) {
+    const size_t pixels = size_t(band.width()) * band.height();
+    coefs.assign(pixels * per_pixel, 0.0f);
+    band_colors.assign(pixels * colors, 0.0f);
+    const float max_sample = fitter.fit_band(band, coefs.data(), band_colors.data());
+    quantiser.add(coefs.data(), band_colors.data(), pixels, max_sample);
+    // Each row: its coefficients, then its colours.
+    rows.resize(pixels * (per_pixel + colors));
+    for (int y = 0; y < band.height(); ++y) {
+      float* row = rows.data() + size_t(y) * width * (per_pixel + colors);
+      std::copy_n(coefs.data() + size_t(y) * width * per_pixel, width * per_pixel, row);
+      std::copy_n(band_colors.data() + size_t(y) * width * colors, width * colors,
+                  row + width * per_pixel);
+    }
+    spill.write(band.first_row(), band.height(), rows.data());
+  });
+  coefs = {}, band_colors = {}, rows = {};
+  const RtiFile file = quantiser.header(gain);
+  std::vector<float> row(size_t(width) * (per_pixel + colors));
+  AtomicFileWriter out(path);
+  encode_rti_rows(
+      file,
+      [&](int y, uint8_t* bytes) {
+        spill.read(y, row.data());
+        quantiser.quantise(file, row.data(), row.data() + width * per_pixel, size_t(width), bytes);
+      },
+      [&](const void* data, size_t size) { out.write(data, size); });
+  out.commit();
+  const RtiField shape(options.basis, options.lrgb, 0, 0, {}, {});
+  return {shape.name(), fitter.lights_used(), shape.bytes_per_pixel()};
 }
 
 }  // namespace ls::relight

@@ -25,6 +25,7 @@
 // [min(min_j, 0), max(max_j, 0)] onto integer bias and 0..255; HSH [min_j, max_j] onto 0..255.
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -50,14 +51,57 @@ struct RtiFile {
 
 // Field -> file. gain: display units (white = 1) per field unit; <= 0: 1 / max_sample_value.
 RtiFile quantise(const RtiField& field, double gain = 0.0);
+
+// quantise in two steps, so that a field fitted band by band (larger than memory, issue 14) is
+// quantised byte for byte as the whole: add() every band's coefficients (the ranges), then
+// header() (scales, biases, gain; no data) and quantise() each band's pixels.
+class RtiQuantiser {
+ public:
+  RtiQuantiser(RtiBasis basis, bool lrgb, int width, int height);
+  // `pixels` pixels' coefficients (and LRGB colours) as RtiField holds them; their largest sample.
+  void add(const float* coefs, const float* colors, size_t pixels, float max_sample);
+  RtiFile header(double gain = 0.0) const;
+  // Into `bytes` as RtiFile::data lays them out.
+  void quantise(const RtiFile& header, const float* coefs, const float* colors, size_t pixels,
+                uint8_t* bytes) const;
+
+ private:
+  static double lrgb_magnitude(const float* color);
+  double code(double v, double gain) const;
+  RtiBasis basis_;
+  bool lrgb_;
+  int width_, height_, terms_;
+  std::vector<double> lo_, hi_;  // Per term, of the coefficients (LRGB: times the magnitude).
+  float max_sample_ = 0;
+};
 // File -> field, in field units when the file records its gain, else in display units (white 1).
 RtiField dequantise(const RtiFile& file);
 
 // Exact byte (de)serialisation. decode throws InputError "<name>: <field>: expected X, got Y".
 std::string encode_rti_file(const RtiFile& file);
+// The same bytes from `header` (data unused) and its rows, for a file larger than memory: row(y,
+// bytes) fills row y as RtiFile::data lays it out (asked top to bottom for .rti; for .ptm bottom to
+// top once per block: 3 times RGB, twice LRGB); write(data, size) takes the bytes in file order.
+using RtiRowFn = std::function<void(int y, uint8_t* bytes)>;
+using RtiBytesFn = std::function<void(const void* data, size_t size)>;
+void encode_rti_rows(const RtiFile& header, const RtiRowFn& row, const RtiBytesFn& write);
 RtiFile decode_rti_file(const std::string& bytes, const std::string& name);
 
 void write_rti_file(const std::filesystem::path& path, const RtiFile& file);  // Atomic.
+
+// write_rti_file(path, quantise(RtiField::fit(header, bands, options), gain)) byte for byte, for
+// a field larger than memory (issue 14): each band's coefficients spilled to a file beside `path`
+// (removed after), then quantised and written row by row: it holds a band's coefficients, not the
+// image's.
+struct RtiWritten {
+  std::string name;  // RtiField::name().
+  int lights_used = 0;
+  double bytes_per_pixel = 0;
+};
+RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
+                                   const capture::ReflectanceField& header,
+                                   const capture::FieldBands& bands, const RtiFitOptions& options,
+                                   double gain = 0.0);
 RtiFile read_rti_file(const std::filesystem::path& path);
 
 }  // namespace ls::relight
