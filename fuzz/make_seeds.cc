@@ -41,6 +41,10 @@ void exr_seeds(const fs::path& out, const fs::path& scratch) {
   write_seed(out, "field_exr_fuzz", "scanlines", fuzz::describe_exr(scratch / "field.exr"));
   capture::write_field(scratch / "tiled.exr", field, {}, /*tile_size=*/2);
   write_seed(out, "field_exr_fuzz", "tiled", fuzz::describe_exr(scratch / "tiled.exr"));
+  // Half storage: its rows read from the mapping, its lightstage:storage attribute parsed.
+  capture::write_field(scratch / "half.exr", field, {}, 0,
+                       capture::choose_storage(field, capture::StorageChoice::kHalf));
+  write_seed(out, "field_exr_fuzz", "half", fuzz::describe_exr(scratch / "half.exr"));
 
   relight::write_model_maps(scratch / "maps.exr", fuzz::small_model_maps());
   write_seed(out, "model_maps_fuzz", "materials", fuzz::describe_exr(scratch / "maps.exr"));
