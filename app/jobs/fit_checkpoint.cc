@@ -173,7 +173,10 @@ void BandCheckpoints::save(int y0, const relight::NormalMap& normals,
   if (!maps.shadows.empty()) copy_channels(shadows, 0, band, first, shadows.channels);
   const nlohmann::json info = {{"summary", summary_json(maps.summary)},
                                {"normals_flagged", normals.flagged_pixels}};
-  write_exr(file(y0), band, ExrPixelType::kFloat, {{kBandAttribute, info.dump()}});
+  // Uncompressed: a checkpoint lives for one run, and under MPI rank 0 reads every other rank's
+  // while they wait (zip cost a second of that at 1024²).
+  write_exr(file(y0), band, ExrPixelType::kFloat,
+            {{kBandAttribute, info.dump()}, {"compression", "none"}});
 }
 
 void BandCheckpoints::remove() const {
