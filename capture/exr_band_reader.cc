@@ -94,6 +94,11 @@ struct ExrBandReader::File {
   // The same from the mapping: each row copied and checked in one pass, rows in parallel.
   void copy_mapped_piece(int a, int b, bool check_finite);
   void read_unmapped_piece(int a, int b);  // Through OpenEXR: raw bytes or slices.
+  // Mapped rows [a, b) left in place: their chunks checked (InputError as above).
+  void check_mapped_chunks(int a, int b) const;
+  void drop_mapped(int a, int b) const;  // Rows [a, b)'s pages out of the mapping.
+  // InputError naming the file: a row whose chunk is out of place (>= 0), or non-finite values.
+  void refuse_damage(int bad_row, bool non_finite) const;
   std::vector<float> planar;  // One piece: [row][channel][x], as an uncompressed file holds it.
 };
 
@@ -215,13 +220,50 @@ void ExrBandReader::read(int y0, int y1, float* dst) {
 
 void ExrBandReader::read_planar(int y0, int y1, const PlanarVisitor& visit) {
   File& f = *file_;
+  // Mapped half rows go to the consumer as they are: converting them first would write and read
+  // again twice their bytes.
+  const bool halves_in_place = f.mapped != nullptr && f.value_bytes == 2 && cpu_converts_halves();
   f.read_ahead(y0, std::min(y1, y0 + f.piece_rows));
   for (int a = y0; a < y1; a += f.piece_rows) {
     const int b = std::min(y1, a + f.piece_rows);
-    f.read_piece(a, b, true);
+    if (halves_in_place) {
+      f.check_mapped_chunks(a, b);
+    } else {
+      f.read_piece(a, b, true);
+    }
     f.read_ahead(b, std::min(y1, b + f.piece_rows));  // While this piece is used.
-    visit(PlanarRows{f.planar.data(), a, b - a, f.width, f.to_pixel_index});
+    if (halves_in_place) {
+      visit(PlanarRows{nullptr, a, b - a, f.width, f.to_pixel_index,
+                       f.mapped + f.chunk_offset(a) + 8, std::size_t(f.chunk_bytes()),
+                       f.value_scale, f.name});
+      f.drop_mapped(a, b);
+    } else {
+      visit(PlanarRows{f.planar.data(), a, b - a, f.width, f.to_pixel_index});
+    }
   }
+}
+
+void ExrBandReader::File::check_mapped_chunks(int a, int b) const {
+  for (int y = a; y < b; ++y) {
+    if (!chunk_in_place(y)) refuse_damage(y, false);
+  }
+}
+
+void ExrBandReader::File::refuse_damage(int bad_row, bool non_finite) const {
+  if (bad_row >= 0) {
+    throw InputError(name + ": row " + std::to_string(bad_row) +
+                     ": its chunk is not where the file's uncompressed rows put it (damaged?)");
+  }
+  if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
+}
+
+void ExrBandReader::File::drop_mapped(int a, int b) const {
+  // The piece's pages out of this process's mapping (they stay in the page cache): touched pages
+  // of a mapped file count as resident, and a pass over a field larger than memory must not.
+  const std::uintmax_t page = std::uintmax_t(::sysconf(_SC_PAGESIZE));
+  const std::uintmax_t first = chunk_offset(a) / page * page,
+                       end = chunk_offset(b - 1) + chunk_bytes();
+  ::madvise(const_cast<char*>(mapped) + first, end - first, MADV_DONTNEED);
 }
 
 void ExrBandReader::File::copy_mapped_piece(int a, int b, bool check_finite) {
@@ -243,17 +285,8 @@ void ExrBandReader::File::copy_mapped_piece(int a, int b, bool check_finite) {
       if (check_finite && any_not_finite(row, row_values)) non_finite = true;
     }
   });
-  const std::uintmax_t page = std::uintmax_t(::sysconf(_SC_PAGESIZE));
-  const std::uintmax_t first = chunk_offset(a) / page * page,
-                       end = chunk_offset(b - 1) + chunk_bytes();
-  // The piece's pages out of this process's mapping (they stay in the page cache): touched pages
-  // of a mapped file count as resident, and a pass over a field larger than memory must not.
-  ::madvise(const_cast<char*>(mapped) + first, end - first, MADV_DONTNEED);
-  if (bad_row >= 0) {
-    throw InputError(name + ": row " + std::to_string(bad_row.load()) +
-                     ": its chunk is not where the file's uncompressed rows put it (damaged?)");
-  }
-  if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
+  drop_mapped(a, b);
+  refuse_damage(bad_row, non_finite);
 }
 
 void ExrBandReader::File::read_piece(int a, int b, bool check_finite) {

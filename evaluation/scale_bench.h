@@ -24,8 +24,8 @@ struct ScaleBenchOptions {
   std::size_t memory_bytes = std::size_t(256) << 20;  // --memory of every step.
   int fit_max_size =
       1024;  // Larger fields are not fitted (the maps, 25 floats a pixel, are whole).
-  // 1 and 2 ranks at the largest fitted size (the start-up and the maps' writing, which no rank
-  // count shortens, weigh least there), when mpiexec is on PATH.
+  // 1 and 2 ranks at the largest fitted size (the nearest to a real capture), when mpiexec is on
+  // PATH.
   bool mpi = true;
   bool keep = false;  // Keep the sessions and fields (otherwise removed after each size).
   // One exposure (the bracket's middle one) instead of the dome's three: a third of the frames'

@@ -1,12 +1,16 @@
 #include "relight/lighting/relight.h"
 
+#include <immintrin.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
+#include <cmath>
 #include <string>
 #include <vector>
 
+#include "capture/half_storage.h"
 #include "lightstage/errors.h"
 
 namespace ls::relight {
@@ -36,6 +40,24 @@ inline void shade_pixel(const float* __restrict values, const float* __restrict 
   out_rgb[0] = r;
   out_rgb[1] = g;
   out_rgb[2] = b;
+}
+
+// lane[x] += (half x inv_scale) * w over a plane of halves (not aligned): the products and sums of
+// the float path after halves_to_floats, in the same order, so the same bits.
+__attribute__((target("avx2,f16c"))) void add_half_plane(const char* plane, std::size_t width,
+                                                         float inv_scale, float w, float* lane) {
+  const __m256 s = _mm256_set1_ps(inv_scale), weight = _mm256_set1_ps(w);
+  std::size_t x = 0;
+  for (; x + 8 <= width; x += 8) {
+    const __m128i h = _mm_loadu_si128(reinterpret_cast<const __m128i*>(plane + 2 * x));
+    const __m256 v = _mm256_mul_ps(_mm256_cvtph_ps(h), s);
+    _mm256_storeu_ps(lane + x, _mm256_add_ps(_mm256_loadu_ps(lane + x), _mm256_mul_ps(v, weight)));
+  }
+  for (; x < width; ++x) {
+    float v = 0;
+    capture::halves_to_floats(plane + 2 * x, 1, inv_scale, &v);
+    lane[x] += v * w;
+  }
 }
 
 }  // namespace
@@ -87,25 +109,42 @@ void relight_rows_into(const capture::PlanarRows& rows, std::span<const float> i
   std::vector<int> plane_of(size_t(count), 0);
   for (int c = 0; c < count; ++c) plane_of[size_t(rows.to_pixel_index[size_t(c)])] = c;
   const size_t width = size_t(rows.width);
+  std::atomic<bool> non_finite{false};
   tbb::parallel_for(0, rows.rows, [&](int row) {
     thread_local std::vector<float> acc;  // [lane][x]
     acc.assign(kChunk * width, 0.0f);
-    const float* planes = rows.values + size_t(row) * count * width;
-    for (int i = 0; i < count; ++i) {
-      const float* __restrict plane = planes + size_t(plane_of[size_t(i)]) * width;
-      float* __restrict lane = acc.data() + size_t(i % kChunk) * width;
-      const float w = irradiance_rgb[size_t(i)];
-      for (size_t x = 0; x < width; ++x) lane[x] += plane[x] * w;
+    if (rows.halves != nullptr) {  // The file's half rows, converted as they are summed.
+      const char* planes = rows.halves + size_t(row) * rows.half_row_bytes;
+      for (int i = 0; i < count; ++i) {
+        add_half_plane(planes + size_t(plane_of[size_t(i)]) * width * 2, width, rows.half_scale,
+                       irradiance_rgb[size_t(i)], acc.data() + size_t(i % kChunk) * width);
+      }
+    } else {
+      const float* planes = rows.values + size_t(row) * count * width;
+      for (int i = 0; i < count; ++i) {
+        const float* __restrict plane = planes + size_t(plane_of[size_t(i)]) * width;
+        float* __restrict lane = acc.data() + size_t(i % kChunk) * width;
+        const float w = irradiance_rgb[size_t(i)];
+        for (size_t x = 0; x < width; ++x) lane[x] += plane[x] * w;
+      }
     }
     float* out_row = out.pixels.data() + size_t(rows.first_row + row) * width * 3;
+    int not_finite = 0;
     for (size_t x = 0; x < width; ++x) {
       float rgb[3] = {0, 0, 0};
       for (int k = 0; k < kChunk; ++k) rgb[k % 3] += acc[size_t(k) * width + x];
       out_row[3 * x] = rgb[0];
       out_row[3 * x + 1] = rgb[1];
       out_row[3 * x + 2] = rgb[2];
+      not_finite |= int(!std::isfinite(rgb[0] + rgb[1] + rgb[2]));
     }
+    if (not_finite != 0) non_finite = true;
   });
+  // Halves come unchecked (PlanarRows): a value that is not finite makes every sum it enters not
+  // finite (inf x 0 and inf - inf are NaN), so the sums find it.
+  if (non_finite && rows.halves != nullptr) {
+    throw InputError(std::string(rows.source) + ": the reflectance field holds non-finite values");
+  }
 }
 
 Image relight(const capture::ReflectanceField& field, const LightWeights& weights) {

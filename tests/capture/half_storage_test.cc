@@ -8,6 +8,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <functional>
 #include <random>
 
 #include "capture/field.h"
@@ -111,6 +113,28 @@ TEST(HalfStorage, AutoKeepsFloatWhereHalfsRoundingIsNotWellBelowTheNoise) {
   EXPECT_THAT(check.describe(), HasSubstr("sigma of the noise"));
   EXPECT_TRUE(choose_storage(field, StorageChoice::kHalf).half);  // Asked for: given.
   EXPECT_FALSE(choose_storage(field, StorageChoice::kFloat).half);
+}
+
+// A NaN among the halves is refused when the rows are converted (rows left in place for a
+// consumer that converts as it sums are checked by it: RelightTest).
+TEST(HalfStorage, ANonFiniteHalfIsRefusedByName) {
+  ls::testing::TempDir dir;
+  const ReflectanceField field = radiance_field(16, 9, 3, 4);
+  const std::filesystem::path path = dir / "half.exr";
+  write_field(path, field, {}, 0, choose_storage(field, StorageChoice::kHalf));
+  // A NaN in row 6 of 9 (16 pixels x 9 channels of halves a row, after the chunk's 8 bytes).
+  const std::uint16_t nan = 0x7e00;
+  ls::testing::patch_from_end(path, 3 * (8 + 16 * 9 * 2) - 8 - 10, &nan, 2);
+  const auto error = [&](const std::function<void()>& read) {
+    try {
+      read();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("read");
+  };
+  EXPECT_THAT(error([&] { read_field(path); }),
+              HasSubstr(path.string() + ": the reflectance field holds non-finite values"));
 }
 
 TEST(HalfStorage, AStorageAttributeThatIsNotOneIsRefusedByName) {

@@ -8,8 +8,10 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <random>
 #include <sstream>
+#include <stdexcept>
 
 namespace ls::testing {
 
@@ -72,6 +74,14 @@ int run_command(const std::string& command, std::string* output) {
   const int status = pclose(pipe);
   if (output) *output = out;
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+void patch_from_end(const std::filesystem::path& path, std::uintmax_t offset, const void* bytes,
+                    std::size_t size) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekp(std::streamoff(std::filesystem::file_size(path) - offset));
+  f.write(static_cast<const char*>(bytes), std::streamsize(size));
+  if (!f) throw std::runtime_error(path.string() + ": cannot patch");
 }
 
 }  // namespace ls::testing

@@ -40,4 +40,8 @@ using ls::ImageError;
 // Runs a shell command, capturing stdout+stderr; returns the exit status.
 int run_command(const std::string& command, std::string* output);
 
+// Overwrites `size` bytes of the file at byte `offset` from its end (a damaged file).
+void patch_from_end(const std::filesystem::path& path, std::uintmax_t offset, const void* bytes,
+                    std::size_t size);
+
 }  // namespace ls::testing

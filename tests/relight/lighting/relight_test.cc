@@ -1,5 +1,6 @@
 #include "relight/lighting/relight.h"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -13,6 +14,7 @@
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "relight/lighting/half_relight.h"
+#include "tests/support/test_support.h"
 
 namespace {
 
@@ -158,6 +160,34 @@ TEST(RelightTest, RowsAsTheFileHoldsThemRelightToTheSameBytes) {
       });
       EXPECT_GE(pieces, lights == 151 ? 3 : 1);
       EXPECT_EQ(from_rows.pixels, in_memory.pixels) << lights << " lights, tile " << tile;
+    }
+    // A half field: its rows summed as the file holds them (converted as they are summed, where
+    // the CPU converts halves) give the bytes of the field read back as floats.
+    const std::filesystem::path half_file = dir / "half.exr";
+    ls::capture::write_field(half_file, field, {}, 0,
+                             ls::capture::choose_storage(field, ls::capture::StorageChoice::kHalf));
+    Image half_in_memory;
+    ls::relight::relight_into(ls::capture::read_field(half_file), weights, half_in_memory);
+    ls::capture::FieldStream half_stream(half_file);
+    Image half_rows(field.width(), field.height(), 3);
+    half_stream.read_rows_planar(0, field.height(), [&](const ls::capture::PlanarRows& rows) {
+      EXPECT_EQ(rows.halves != nullptr, ls::capture::cpu_converts_halves());
+      ls::relight::relight_rows_into(rows, weights, half_rows);
+    });
+    EXPECT_EQ(half_rows.pixels, half_in_memory.pixels) << lights << " lights, half";
+    EXPECT_NE(half_rows.pixels, in_memory.pixels);  // Half, not float.
+    // A NaN among them (in the last row, its 5th value) is found in the sums, and named.
+    const std::uint16_t nan = 0x7e00;
+    ls::testing::patch_from_end(half_file, size_t(field.width()) * 3 * lights * 2 - 8, &nan, 2);
+    ls::capture::FieldStream damaged(half_file);
+    try {
+      damaged.read_rows_planar(0, field.height(), [&](const ls::capture::PlanarRows& rows) {
+        ls::relight::relight_rows_into(rows, weights, half_rows);
+      });
+      ADD_FAILURE() << "a NaN relit";
+    } catch (const ls::InputError& e) {
+      EXPECT_THAT(e.what(), ::testing::HasSubstr(half_file.string() + ": the reflectance field "
+                                                                      "holds non-finite values"));
     }
   }
   std::filesystem::remove_all(dir);
