@@ -17,29 +17,6 @@
 
 namespace ls::capture {
 
-namespace {
-
-bool has_f16c() { return cpu_converts_halves(); }
-
-__attribute__((target("avx2"))) bool halves_finite_avx2(const char* in, std::size_t count) {
-  const __m256i exponent = _mm256_set1_epi16(0x7c00);
-  __m256i special = _mm256_setzero_si256();
-  std::size_t i = 0;
-  for (; i + 16 <= count; i += 16) {
-    const __m256i h = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(in + 2 * i));
-    special = _mm256_or_si256(special, _mm256_cmpeq_epi16(_mm256_and_si256(h, exponent), exponent));
-  }
-  bool finite = _mm256_testz_si256(special, special) != 0;
-  for (; i < count; ++i) {
-    std::uint16_t bits = 0;
-    std::memcpy(&bits, in + 2 * i, 2);
-    finite = finite && (bits & 0x7c00) != 0x7c00;
-  }
-  return finite;
-}
-
-}  // namespace
-
 bool cpu_converts_halves() {
   static const bool has = [] {
     unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
@@ -48,17 +25,6 @@ bool cpu_converts_halves() {
     return (ecx & kF16cBit) != 0 && __builtin_cpu_supports("avx2");
   }();
   return has;
-}
-
-bool halves_finite(const void* halves, std::size_t count) {
-  const char* bytes = static_cast<const char*>(halves);
-  if (cpu_converts_halves()) return halves_finite_avx2(bytes, count);
-  for (std::size_t i = 0; i < count; ++i) {
-    std::uint16_t bits = 0;
-    std::memcpy(&bits, bytes + 2 * i, 2);
-    if ((bits & 0x7c00) == 0x7c00) return false;
-  }
-  return true;
 }
 
 namespace {
@@ -214,13 +180,13 @@ HalfCheck check_half(const ReflectanceField& field, float scale) {
 }
 
 void floats_to_halves(const float* values, std::size_t count, float scale, std::uint16_t* halves) {
-  if (has_f16c()) return to_halves_f16c(values, count, scale, halves);
+  if (cpu_converts_halves()) return to_halves_f16c(values, count, scale, halves);
   for (std::size_t i = 0; i < count; ++i) halves[i] = Eigen::half(values[i] * scale).x;
 }
 
 bool halves_to_floats(const void* halves, std::size_t count, float inv_scale, float* values) {
   const char* bytes = static_cast<const char*>(halves);
-  if (has_f16c()) return to_floats_f16c(bytes, count, inv_scale, values);
+  if (cpu_converts_halves()) return to_floats_f16c(bytes, count, inv_scale, values);
   bool all_finite = true;
   for (std::size_t i = 0; i < count; ++i) {
     std::uint16_t bits = 0;

@@ -72,7 +72,5 @@ void floats_to_halves(const float* values, std::size_t count, float scale, std::
 bool halves_to_floats(const void* halves, std::size_t count, float inv_scale, float* values);
 // Whether this CPU converts halves in hardware (F16C, with AVX2).
 bool cpu_converts_halves();
-// Whether none of `count` halves (not aligned) is infinite or NaN (all exponent bits set).
-bool halves_finite(const void* halves, std::size_t count);
 
 }  // namespace ls::capture
