@@ -80,6 +80,7 @@ FieldStorage SpillFile::write_field(const std::filesystem::path& out,
     bool refused = false;  // Auto, and half too coarse for a band: float instead.
     for (int b = 0; b < bands() && !refused; ++b) {
       read_band(b, scratch, band);
+      copy_attributes(header, band);  // Its noise: the half check holds the rounding against it.
       writer.write_rows(band_first_row(b), band);
       if (check && storage.half) *check = writer.half_check();
       refused = choice == StorageChoice::kAuto && storage.half && !writer.half_check().passes();

@@ -12,6 +12,7 @@
 #include <functional>
 #include <random>
 
+#include "capture/band_spill.h"
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "tests/support/test_support.h"
@@ -135,6 +136,36 @@ TEST(HalfStorage, ANonFiniteHalfIsRefusedByName) {
   };
   EXPECT_THAT(error([&] { read_field(path); }),
               HasSubstr(path.string() + ": the reflectance field holds non-finite values"));
+}
+
+// Built in bands through a spill (a field larger than memory), the same choice as in memory: the
+// bands carry the field's measured noise to the check.
+TEST(HalfStorage, BandsThroughASpillAreCheckedAgainstTheFieldsNoise) {
+  ls::testing::TempDir dir;
+  ReflectanceField field = radiance_field(16, 12, 4, 5, 1.2f);
+  for (const double read_variance : {2.5e-8, 1e-20}) {  // The camera's; far below half's rounding.
+    field.noise = {.read_variance = read_variance,
+                   .shot_variance_per_unit = read_variance * 2e3,
+                   .measured = true};
+    SpillFile spill(dir / "field.exr", 16, 12, 4, /*band_rows=*/5);
+    for (int l = 0; l < 4; ++l) {
+      std::vector<float> rgb(16 * 12 * 3);
+      for (int y = 0; y < 12; ++y) {
+        for (int x = 0; x < 16; ++x) {
+          for (int c = 0; c < 3; ++c) rgb[size_t((y * 16 + x) * 3 + c)] = field.at(x, y, l, c);
+        }
+      }
+      spill.put(l, rgb);
+    }
+    ReflectanceField header = ReflectanceField::without_values(16, 12, field.lights());
+    header.noise = field.noise;
+    HalfCheck check;
+    const FieldStorage banded =
+        spill.write_field(dir / "field.exr", header, {}, {}, StorageChoice::kAuto, &check);
+    EXPECT_EQ(banded.half, choose_storage(field, StorageChoice::kAuto).half) << read_variance;
+    EXPECT_EQ(banded.half, read_variance > 1e-10) << check.describe();
+    EXPECT_EQ(FieldStream(dir / "field.exr").storage().half, banded.half);
+  }
 }
 
 TEST(HalfStorage, AStorageAttributeThatIsNotOneIsRefusedByName) {
