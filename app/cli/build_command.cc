@@ -76,8 +76,9 @@ void add_build_command(CLI::App& app) {
                   "else bands within that half).");
   cmd->add_option("--storage", options->storage,
                   "How the file holds the values: half floats (half the disk and the reading) "
-                  "where the field relit from them stays within 1e-3 of the floats, else floats "
-                  "(auto); or always half or float. Recorded in the file (lightstage:storage).")
+                  "where the field relit from them stays within 1e-3 of the floats and their "
+                  "rounding within 0.25 sigma of the field's measured noise, else floats (auto); "
+                  "or always half or float. Recorded in the file (lightstage:storage).")
       ->check(CLI::IsMember({"auto", "half", "float"}))
       ->capture_default_str();
   cmd->add_flag("--quiet", *quiet, "No progress output.");

@@ -115,8 +115,8 @@ void add_import_command(CLI::App& app) {
   auto storage = std::make_shared<std::string>("auto");
   cmd->add_option("--storage", *storage,
                   "How the field file holds the values: half floats where the field relit from "
-                  "them stays within 1e-3 of the floats, else floats (auto); or always half or "
-                  "float.")
+                  "them stays within 1e-3 of the floats (and their rounding within 0.25 sigma of "
+                  "a measured noise), else floats (auto); or always half or float.")
       ->check(CLI::IsMember({"auto", "half", "float"}))
       ->capture_default_str();
   cmd->add_flag("--quiet", *quiet, "No progress output.");

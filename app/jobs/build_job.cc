@@ -16,8 +16,10 @@ std::string BuildJobOptions::validate() const {
   if (out.empty()) return "--out: give the field file (or, with --all-time-steps, a directory)";
   if (time_step < 0) return "--time-step: expected a step >= 0";
   if (all_time_steps && time_step != 0) return "--all-time-steps: drop --time-step";
-  if (storage != "auto" && storage != "half" && storage != "float") {
-    return "--storage: expected auto, half or float, got '" + storage + "'";
+  try {
+    capture::parse_storage_choice("--storage", storage);
+  } catch (const InputError& e) {
+    return e.what();
   }
   return {};
 }

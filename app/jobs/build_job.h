@@ -17,8 +17,8 @@ struct BuildJobOptions {
   bool all_time_steps = false;
   // Bytes of memory for the field's values (capture::BuildOptions::memory_bytes; 0: default).
   std::size_t memory_bytes = 0;
-  // How the file holds its values: "auto" (half where its relit error allows, capture/
-  // half_storage.h), "half" or "float".
+  // How the file holds its values: "auto" (half where capture::check_half passes,
+  // capture/half_storage.h), "half" or "float".
   std::string storage = "auto";
   std::string validate() const;
   std::string to_json() const;  // Recorded in every field written (kOptionsAttribute).
