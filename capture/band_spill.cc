@@ -1,12 +1,9 @@
 #include "capture/band_spill.h"
 
-#include <fcntl.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
-#include <cstring>
 
 #include "lightstage/errors.h"
 
@@ -22,20 +19,12 @@ int spill_band_rows(int width, int height, int num_lights, std::size_t memory_by
 
 SpillFile::SpillFile(const std::filesystem::path& field_file, int width, int height, int num_lights,
                      int band_rows)
-    : path_(field_file.string() + ".spill-" + std::to_string(::getpid())),
-      width_(width),
+    : width_(width),
       height_(height),
       lights_(num_lights),
-      band_rows_(band_rows) {
-  fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
-  if (fd_ < 0) fail("cannot create the build's spill file");
-}
-
-SpillFile::~SpillFile() {
-  ::close(fd_);
-  std::error_code ignored;
-  std::filesystem::remove(path_, ignored);
-}
+      band_rows_(band_rows),
+      file_(field_file.string() + ".spill-" + std::to_string(::getpid()),
+            "a field built in bands needs free space for the whole field beside it") {}
 
 void SpillFile::put(int light, const std::vector<float>& rgb) {
   const float largest = largest_magnitude(rgb.data(), rgb.size());
@@ -45,14 +34,14 @@ void SpillFile::put(int light, const std::vector<float>& rgb) {
   for (int b = 0; b < bands(); ++b) {
     const std::size_t count = std::size_t(band_height(b)) * width_ * 3;
     const float* rows = rgb.data() + std::size_t(band_first_row(b)) * width_ * 3;
-    transfer(::pwrite, const_cast<float*>(rows), count, offset(b) + std::size_t(light) * count);
+    file_.write(rows, count, offset(b) + std::size_t(light) * count);
   }
 }
 
 void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& band) {
   const std::size_t per_light = std::size_t(band_height(b)) * width_ * 3;
   scratch.resize(per_light * std::size_t(lights_));
-  transfer(::pread, scratch.data(), scratch.size(), offset(b));
+  file_.read(scratch.data(), scratch.size(), offset(b));
   if (band.width() != width_ || band.height() != band_height(b)) {
     band = ReflectanceField(width_, band_height(b), band.lights());
   }
@@ -77,14 +66,19 @@ FieldStorage SpillFile::write_field(const std::filesystem::path& out,
   ReflectanceField band = ReflectanceField::without_values(0, 0, header.lights());
   while (true) {
     FieldWriter writer(out, header, attributes, 0, storage);
+    HalfCheck worst;       // Over the bands written.
     bool refused = false;  // Auto, and half too coarse for a band: float instead.
-    for (int b = 0; b < bands() && !refused; ++b) {
+    for (int b = 0; b < bands(); ++b) {
       read_band(b, scratch, band);
-      copy_attributes(header, band);  // Its noise: the half check holds the rounding against it.
+      if (storage.half) {
+        copy_attributes(header, band);  // Its noise: the check holds the rounding against it.
+        worst.add(check_half(band, storage.scale));
+        if (check) *check = worst;
+        refused = choice == StorageChoice::kAuto && !worst.passes();
+      }
+      if (refused) break;
       writer.write_rows(band_first_row(b), band);
-      if (check && storage.half) *check = writer.half_check();
-      refused = choice == StorageChoice::kAuto && storage.half && !writer.half_check().passes();
-      if (on_band && !refused) on_band(b + 1, bands());
+      if (on_band) on_band(b + 1, bands());
     }
     if (!refused) {
       writer.finish();
@@ -96,25 +90,6 @@ FieldStorage SpillFile::write_field(const std::filesystem::path& out,
 
 std::size_t SpillFile::offset(int band) const {
   return std::size_t(band_first_row(band)) * width_ * 3 * std::size_t(lights_);
-}
-
-template <class Io>
-void SpillFile::transfer(Io io, float* data, std::size_t count, std::size_t at) {
-  char* bytes = reinterpret_cast<char*>(data);
-  std::size_t left = count * sizeof(float);
-  off_t position = off_t(at * sizeof(float));
-  while (left > 0) {
-    const ssize_t n = io(fd_, bytes, left, position);
-    if (n == 0) fail("unexpected end of the build's spill file", false);
-    if (n < 0) fail("reading or writing the build's spill file");
-    bytes += n, left -= std::size_t(n), position += n;
-  }
-}
-
-void SpillFile::fail(const std::string& what, bool with_errno) const {
-  throw InputError(path_.string() + ": " + what +
-                   (with_errno ? std::string(": ") + std::strerror(errno) : "") +
-                   " (a field built in bands needs free space for the whole field beside it)");
 }
 
 }  // namespace ls::capture

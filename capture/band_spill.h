@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "lightstage/scratch_file.h"
 
 namespace ls::capture {
 
@@ -24,7 +25,6 @@ class SpillFile {
   // Beside `field_file` (OUT.spill-PID).
   SpillFile(const std::filesystem::path& field_file, int width, int height, int num_lights,
             int band_rows);
-  ~SpillFile();
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
 
@@ -48,13 +48,9 @@ class SpillFile {
 
  private:
   std::size_t offset(int band) const;  // In floats.
-  template <class Io>
-  void transfer(Io io, float* data, std::size_t count, std::size_t at);
-  [[noreturn]] void fail(const std::string& what, bool with_errno = true) const;
 
-  std::filesystem::path path_;
   int width_, height_, lights_, band_rows_;
-  int fd_ = -1;
+  ScratchFile file_;
   std::atomic<float> largest_{0};  // |value| over the images put (puts may run in parallel).
 };
 

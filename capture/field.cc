@@ -190,7 +190,6 @@ struct FieldWriter::File {
   std::unique_ptr<OIIO::ImageOutput> out;
   int tile_size = 0;
   FieldStorage storage;
-  HalfCheck half_check;               // Worst over the bands written (half storage).
   std::vector<std::uint16_t> halves;  // Rows converted for writing (half storage).
   bool finished = false;
 };
@@ -231,7 +230,6 @@ void FieldWriter::write_rows(int y0, const ReflectanceField& band) {
   }
   bool ok = true;
   if (f.storage.half) {
-    f.half_check.add(check_half(band, f.storage.scale));
     // Whole tile rows, else pieces of about 8 MiB of halves.
     const std::size_t row_values = std::size_t(width_) * 3 * band.num_lights();
     const int piece = f.tile_size > 0
@@ -278,8 +276,6 @@ void FieldWriter::finish() {
     throw InputError(f.name + ": cannot rename the temporary file into place: " + ec.message());
   }
 }
-
-const HalfCheck& FieldWriter::half_check() const { return file_->half_check; }
 
 FieldStorage choose_storage(const ReflectanceField& field, StorageChoice choice, HalfCheck* check) {
   if (choice == StorageChoice::kFloat) return {};

@@ -200,8 +200,6 @@ class FieldWriter {
   // Rows [y0, y0 + band.height()): the next rows, whole tile rows where tiled.
   void write_rows(int y0, const ReflectanceField& band);
   void finish();
-  // Half storage: the worst check_half of the bands written so far.
-  const HalfCheck& half_check() const;
 
  private:
   struct File;

@@ -1,6 +1,5 @@
 #include "relight/compact/rti_io.h"
 
-#include <fcntl.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -13,6 +12,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/scratch_file.h"
 
 namespace ls::relight {
 
@@ -424,53 +424,6 @@ RtiFile read_rti_file(const std::filesystem::path& path) {
   return decode_rti_file(bytes, path.string());
 }
 
-namespace {
-
-// Rows of floats in a file beside `beside` (BESIDE.rows-PID), removed when destroyed: an image's
-// coefficients larger than memory, written once and read back row by row.
-class RowSpill {
- public:
-  RowSpill(const std::filesystem::path& beside, size_t row_floats)
-      : path_(beside.string() + ".rows-" + std::to_string(::getpid())), row_floats_(row_floats) {
-    fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
-    if (fd_ < 0) fail("cannot create");
-  }
-  ~RowSpill() {
-    ::close(fd_);
-    std::error_code ignored;
-    std::filesystem::remove(path_, ignored);
-  }
-  RowSpill(const RowSpill&) = delete;
-  RowSpill& operator=(const RowSpill&) = delete;
-  void write(int first_row, int rows, const float* values) {
-    transfer(::pwrite, const_cast<float*>(values), first_row, rows);
-  }
-  void read(int row, float* values) { transfer(::pread, values, row, 1); }
-
- private:
-  template <class Io>
-  void transfer(Io io, float* values, int first_row, int rows) {
-    char* bytes = reinterpret_cast<char*>(values);
-    size_t left = size_t(rows) * row_floats_ * sizeof(float);
-    off_t at = off_t(size_t(first_row) * row_floats_ * sizeof(float));
-    while (left > 0) {
-      const ssize_t n = io(fd_, bytes, left, at);
-      if (n <= 0) fail(n == 0 ? "unexpected end" : "reading or writing");
-      bytes += n, left -= size_t(n), at += n;
-    }
-  }
-  [[noreturn]] void fail(const std::string& what) const {
-    throw InputError(path_.string() + ": " + what + " (the coefficients of a field compressed in " +
-                     "bands are spilled beside the output: they need its size free there): " +
-                     std::strerror(errno));
-  }
-  std::filesystem::path path_;
-  size_t row_floats_;
-  int fd_ = -1;
-};
-
-}  // namespace
-
 RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
                                    const capture::ReflectanceField& header,
                                    const capture::FieldBands& bands, const RtiFitOptions& options,
@@ -479,7 +432,11 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
   const int width = header.width();
   const size_t per_pixel = size_t(fitter.coefficients_per_pixel());
   const size_t colors = options.lrgb ? 3 : 0;  // Per pixel, after a row's coefficients.
-  RowSpill spill(path, size_t(width) * (per_pixel + colors));
+  // Through a file: the image's coefficients are never held.
+  const size_t row_floats = size_t(width) * (per_pixel + colors);
+  ScratchFile spill(path.string() + ".rows-" + std::to_string(::getpid()),
+                    "the coefficients of a field compressed in bands are spilled beside the "
+                    "output: they need its size free there");
   RtiQuantiser quantiser(options.basis, options.lrgb, width, header.height());
   std::vector<float> coefs, band_colors, rows;
   bands([&](const capture::ReflectanceField& band) {
@@ -496,16 +453,16 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
       std::copy_n(band_colors.data() + size_t(y) * width * colors, width * colors,
                   row + width * per_pixel);
     }
-    spill.write(band.first_row(), band.height(), rows.data());
+    spill.write(rows.data(), rows.size(), size_t(band.first_row()) * row_floats);
   });
   coefs = {}, band_colors = {}, rows = {};
   const RtiFile file = quantiser.header(gain);
-  std::vector<float> row(size_t(width) * (per_pixel + colors));
+  std::vector<float> row(row_floats);
   AtomicFileWriter out(path);
   encode_rti_rows(
       file,
       [&](int y, uint8_t* bytes) {
-        spill.read(y, row.data());
+        spill.read(row.data(), row_floats, size_t(y) * row_floats);
         quantiser.quantise(file, row.data(), row.data() + width * per_pixel, size_t(width), bytes);
       },
       [&](const void* data, size_t size) { out.write(data, size); });

@@ -1,6 +1,5 @@
 #include "relight/lighting/half_relight.h"
 
-#include <cpuid.h>
 #include <immintrin.h>
 #include <tbb/parallel_for.h>
 
@@ -15,12 +14,8 @@ namespace ls::relight {
 
 namespace {
 
-bool has_f16c() {
-  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  if (!__get_cpuid(1, &eax, &ebx, &ecx, &edx)) return false;
-  constexpr unsigned kF16cBit = 1u << 29;  // CPUID.1:ECX.F16C
-  return (ecx & kF16cBit) != 0 && __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-}
+// The half kernel below also fuses multiply-adds.
+bool has_f16c() { return capture::cpu_converts_halves() && __builtin_cpu_supports("fma"); }
 
 // One pixel's 3L values against E: lanes of 24 values (8 lights x RGB), so lane k holds channel
 // k % 3, as relight.cc's kernel does.

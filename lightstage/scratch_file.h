@@ -1,0 +1,36 @@
+#pragma once
+// A temporary file of floats beside an output, written and read at float offsets, and removed when
+// destroyed: data larger than memory on its way into the output (a field built in bands: its LEDs'
+// images; an RTI file compressed in bands: its coefficients, issue 14).
+#include <cstddef>
+#include <filesystem>
+#include <string>
+
+namespace ls {
+
+class ScratchFile {
+ public:
+  // `needs`: what a failure means for the user, added to every error (e.g. "a field built in bands
+  // needs free space for the whole field beside it"). InputError naming the file when it cannot be
+  // created.
+  ScratchFile(std::filesystem::path path, std::string needs);
+  ~ScratchFile();
+  ScratchFile(const ScratchFile&) = delete;
+  ScratchFile& operator=(const ScratchFile&) = delete;
+
+  // `count` floats at float offset `at`; InputError naming the file on a failed or short transfer.
+  void write(const float* values, std::size_t count, std::size_t at);
+  void read(float* values, std::size_t count, std::size_t at);
+  const std::filesystem::path& path() const { return path_; }
+
+ private:
+  template <class Io>
+  void transfer(Io io, char* bytes, std::size_t count, std::size_t at);
+  [[noreturn]] void fail(const std::string& what, bool with_errno = true) const;
+
+  std::filesystem::path path_;
+  std::string needs_;
+  int fd_ = -1;
+};
+
+}  // namespace ls
