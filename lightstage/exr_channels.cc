@@ -73,8 +73,8 @@ NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std
   return out;
 }
 
-void write_channel_preview(const fs::path& path, const std::string& name, const Image& maps,
-                           int first, int channels, const std::function<float(float)>& transform) {
+Image channel_preview(const Image& maps, int first, int channels,
+                      const std::function<float(float)>& transform) {
   Image image(maps.width, maps.height, channels);
   for (size_t i = 0; i < maps.num_pixels(); ++i) {
     for (int c = 0; c < channels; ++c) {
@@ -82,9 +82,14 @@ void write_channel_preview(const fs::path& path, const std::string& name, const 
       image.pixels[i * channels + c] = std::isfinite(v) ? transform(v) : 0.0f;
     }
   }
+  return image;
+}
+
+void write_channel_preview(const fs::path& path, const std::string& name, const Image& maps,
+                           int first, int channels, const std::function<float(float)>& transform) {
   fs::path out = path;
   out.replace_extension(name + ".png");
-  write_png_preview(out, image);
+  write_png_preview(out, channel_preview(maps, first, channels, transform));
 }
 
 }  // namespace ls

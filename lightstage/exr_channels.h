@@ -30,6 +30,11 @@ NamedChannelFile read_named_channels(const std::filesystem::path& path,
 // be opened.
 std::vector<std::string> exr_channel_names(const std::filesystem::path& path);
 
+// Channels [first, first + channels) of `maps`, each value through `transform` (non-finite
+// values 0): a preview's values.
+Image channel_preview(const Image& maps, int first, int channels,
+                      const std::function<float(float)>& transform);
+
 // A PNG preview of channels [first, first + channels) of `maps` (the channels written to `path`),
 // each value through `transform` (non-finite values black), written beside `path` as
 // STEM.NAME.png.

@@ -85,6 +85,19 @@ void AtomicFileWriter::write(const void* data, size_t size) {
   }
 }
 
+void AtomicFileWriter::write_at(uint64_t offset, const void* data, size_t size) {
+  LS_CHECK(fd_ >= 0, "AtomicFileWriter::write_at after commit");
+  const char* bytes = static_cast<const char*>(data);
+  for (size_t done = 0; done < size;) {
+    const ssize_t n = ::pwrite(fd_, bytes + done, size - done, off_t(offset + done));
+    if (n > 0) {
+      done += size_t(n);
+    } else if (n < 0 && errno != EINTR) {
+      throw InputError(path_.string() + ": cannot write: " + std::strerror(errno));
+    }
+  }
+}
+
 void AtomicFileWriter::commit() {
   LS_CHECK(fd_ >= 0, "AtomicFileWriter::commit twice");
   int error = ::fsync(fd_) != 0 ? errno : 0;
@@ -171,17 +184,154 @@ Image read_image(const fs::path& path) {
   return image;
 }
 
-void write_exr(const fs::path& path, const Image& image, ExrPixelType type,
-               const ExrAttributes& attributes) {
-  LS_CHECK(image.pixels.size() == image.num_pixels() * image.channels, "image size mismatch");
-  OIIO::ImageSpec spec(image.width, image.height, image.channels,
-                       type == ExrPixelType::kHalf ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
-  if (!image.channel_names.empty()) {
-    LS_CHECK(int(image.channel_names.size()) == image.channels, "channel names mismatch");
-    spec.channelnames = image.channel_names;
+namespace {
+
+// write_exr's header: float, zip, the channel names (else OpenImageIO's R,G,B,A / Y).
+OIIO::ImageSpec exr_spec(int width, int height, int channels,
+                         const std::vector<std::string>& channel_names,
+                         const ExrAttributes& attributes) {
+  OIIO::ImageSpec spec(width, height, channels, OIIO::TypeDesc::FLOAT);
+  if (!channel_names.empty()) {
+    LS_CHECK(int(channel_names.size()) == channels, "channel names mismatch");
+    spec.channelnames = channel_names;
   }
   spec.attribute("compression", "zip");
   for (const auto& [name, value] : attributes) spec.attribute(name, value);
+  return spec;
+}
+
+// A preview's 8-bit sRGB values: RGB from the first three channels, else grey from the first.
+int preview_channels(int channels) { return channels >= 3 ? 3 : 1; }
+void encode_preview(const Image& image, double exposure_stops, std::vector<uint8_t>& bytes) {
+  const int out_channels = preview_channels(image.channels);
+  const float scale = float(std::exp2(exposure_stops));
+  bytes.resize(image.num_pixels() * size_t(out_channels));
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    for (int c = 0; c < out_channels; ++c) {
+      const float v = image.pixels[i * size_t(image.channels) + size_t(c)] * scale;
+      bytes[i * size_t(out_channels) + size_t(c)] =
+          uint8_t(std::lround(255.0f * srgb_encode(std::isfinite(v) ? v : 0)));
+    }
+  }
+}
+
+// OpenImageIO's output into an AtomicFileWriter (OpenEXR writes its rows in order, then comes
+// back to fill in its offset table). A failed write is kept for the caller, not thrown through
+// the encoder.
+class AtomicProxy final : public OIIO::Filesystem::IOProxy {
+ public:
+  explicit AtomicProxy(AtomicFileWriter& file) : IOProxy("", Write), file_(file) {}
+  const char* proxytype() const override { return "lightstage-atomic"; }
+  size_t write(const void* buf, size_t size) override {
+    const size_t written = pwrite(buf, size, m_pos);
+    m_pos += int64_t(written);
+    return written;
+  }
+  size_t pwrite(const void* buf, size_t size, int64_t offset) override {
+    if (!error_.empty()) return 0;
+    try {
+      file_.write_at(uint64_t(offset), buf, size);
+    } catch (const InputError& e) {
+      error_ = e.what();
+      return 0;
+    }
+    size_ = std::max(size_, uint64_t(offset) + size);
+    return size;
+  }
+  size_t size() const override { return size_t(size_); }
+  const std::string& error() const { return error_; }
+
+ private:
+  AtomicFileWriter& file_;
+  uint64_t size_ = 0;
+  std::string error_;
+};
+
+}  // namespace
+
+struct ImageRowWriter::Output {
+  explicit Output(const fs::path& p) : path(p), file(p), proxy(file) {}
+  fs::path path;
+  AtomicFileWriter file;
+  AtomicProxy proxy;
+  std::unique_ptr<OIIO::ImageOutput> out;  // Closed before the proxy and file go.
+  bool png = false;
+  int width = 0, height = 0, channels = 0, next_row = 0;
+  std::vector<uint8_t> bytes;
+
+  [[noreturn]] void fail(const std::string& what) const {
+    const std::string why = proxy.error().empty() ? out->geterror() : proxy.error();
+    throw InputError(path.string() + ": " + what + ": " + why);
+  }
+};
+
+ImageRowWriter::ImageRowWriter(const fs::path& path, int width, int height, int channels,
+                               const std::vector<std::string>& channel_names,
+                               const ExrAttributes& attributes) {
+  if (!path.parent_path().empty()) {
+    std::error_code ec;
+    fs::create_directories(path.parent_path(), ec);
+  }
+  output_ = std::make_unique<Output>(path);
+  Output& o = *output_;
+  o.png = path.extension() == ".png";
+  o.width = width, o.height = height, o.channels = channels;
+  OIIO::ImageSpec spec;
+  if (o.png) {
+    spec = OIIO::ImageSpec(width, height, preview_channels(channels), OIIO::TypeDesc::UINT8);
+    spec.attribute("png:compressionLevel", 1);  // Previews: a job's last step, not its archive.
+  } else {
+    spec = exr_spec(width, height, channels, channel_names, attributes);
+  }
+  o.out = OIIO::ImageOutput::create(path.string());
+  if (!o.out) throw InputError(path.string() + ": cannot write this format: " + OIIO::geterror());
+  if (!o.out->supports("ioproxy") || !o.out->set_ioproxy(&o.proxy) ||
+      !o.out->open(path.string(), spec)) {
+    o.fail("cannot start writing");
+  }
+}
+
+ImageRowWriter::~ImageRowWriter() = default;
+
+void ImageRowWriter::write_rows(const Image& rows, double exposure_stops) {
+  Output& o = *output_;
+  LS_CHECK(rows.width == o.width && rows.channels == o.channels &&
+               rows.pixels.size() == rows.num_pixels() * size_t(rows.channels) &&
+               o.next_row + rows.height <= o.height,
+           o.path.string() + ": ImageRowWriter::write_rows: rows of another shape");
+  const int y1 = o.next_row + rows.height;
+  bool ok;
+  if (o.png) {
+    encode_preview(rows, exposure_stops, o.bytes);
+    ok = o.out->write_scanlines(o.next_row, y1, 0, OIIO::TypeDesc::UINT8, o.bytes.data());
+  } else {
+    ok = o.out->write_scanlines(o.next_row, y1, 0, OIIO::TypeDesc::FLOAT, rows.pixels.data());
+  }
+  if (!ok) o.fail("cannot write rows " + std::to_string(o.next_row) + ".." + std::to_string(y1));
+  o.next_row = y1;
+}
+
+void ImageRowWriter::commit() {
+  Output& o = *output_;
+  LS_CHECK(o.next_row == o.height, o.path.string() + ": ImageRowWriter::commit before every row");
+  if (!o.out->close()) o.fail("encoding failed");
+  if (!o.proxy.error().empty()) o.fail("cannot write");
+  o.file.commit();
+}
+
+void write_exr(const fs::path& path, const Image& image, ExrPixelType type,
+               const ExrAttributes& attributes) {
+  LS_CHECK(image.pixels.size() == image.num_pixels() * image.channels, "image size mismatch");
+  if (type == ExrPixelType::kFloat) {
+    ImageRowWriter writer(path, image.width, image.height, image.channels, image.channel_names,
+                          attributes);
+    writer.write_rows(image);
+    writer.commit();
+    return;
+  }
+  OIIO::ImageSpec spec = exr_spec(image.width, image.height, image.channels, image.channel_names,
+                                  attributes);
+  spec.set_format(OIIO::TypeDesc::HALF);
   write_with_oiio(path, spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
 }
 
@@ -200,19 +350,9 @@ double auto_exposure_stops(const Image& image, double percentile) {
 }
 
 void write_png_preview(const fs::path& path, const Image& image, double exposure_stops) {
-  const int out_channels = image.channels >= 3 ? 3 : 1;
-  const float scale = float(std::exp2(exposure_stops));
-  std::vector<uint8_t> bytes(image.num_pixels() * out_channels);
-  for (size_t i = 0; i < image.num_pixels(); ++i) {
-    for (int c = 0; c < out_channels; ++c) {
-      const float v = image.pixels[i * image.channels + c] * scale;
-      bytes[i * out_channels + c] =
-          uint8_t(std::lround(255.0f * srgb_encode(std::isfinite(v) ? v : 0)));
-    }
-  }
-  OIIO::ImageSpec spec(image.width, image.height, out_channels, OIIO::TypeDesc::UINT8);
-  spec.attribute("png:compressionLevel", 1);  // Previews: a job's last step, not its archive.
-  write_with_oiio(path, spec, OIIO::TypeDesc::UINT8, bytes.data());
+  ImageRowWriter writer(path, image.width, image.height, image.channels);
+  writer.write_rows(image, exposure_stops);
+  writer.commit();
 }
 
 StoredFile write_raw_frame(const fs::path& path, const RawFrame& frame) {

@@ -3,6 +3,7 @@
 // exists only for previews. Row 0 is the top row. Image I/O libraries stay in image.cc.
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -88,11 +89,36 @@ class AtomicFileWriter {
   AtomicFileWriter(const AtomicFileWriter&) = delete;
   AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
   void write(const void* data, size_t size);
+  // At `offset` (a header's table filled in after the rows; the next write() is unaffected).
+  void write_at(uint64_t offset, const void* data, size_t size);
   void commit();
 
  private:
   std::filesystem::path path_, temp_;
   int fd_ = -1;
+};
+
+// An image written a band of rows at a time, top to bottom, never held whole (maps of a field
+// larger than memory, issue 14): the format from the extension, OpenEXR (float, zip, the
+// attributes in its header) as write_exr writes it, or an 8-bit PNG preview as write_png_preview
+// writes it (exposure 0), the same bytes. Atomic like AtomicFileWriter: nothing at `path` until
+// commit(); InputError naming the path when a write fails.
+class ImageRowWriter {
+ public:
+  ImageRowWriter(const std::filesystem::path& path, int width, int height, int channels,
+                 const std::vector<std::string>& channel_names = {},
+                 const ExrAttributes& attributes = {});
+  ~ImageRowWriter();
+  ImageRowWriter(const ImageRowWriter&) = delete;
+  ImageRowWriter& operator=(const ImageRowWriter&) = delete;
+  // The next rows: the image's width and channels, rows.height of them; a PNG's values times
+  // 2^exposure_stops.
+  void write_rows(const Image& rows, double exposure_stops = 0.0);
+  void commit();
+
+ private:
+  struct Output;
+  std::unique_ptr<Output> output_;
 };
 
 }  // namespace ls

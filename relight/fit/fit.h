@@ -38,6 +38,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -227,6 +228,28 @@ void measure_fit_shadows(const capture::ReflectanceField& field, const FitOption
 // .model.png (model / 4), .confidence.png, .residual.png (log10(1 + r) / 2), .flags.png.
 void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
                       const ExrAttributes& attributes = {});
+
+// The same file and previews written a band of rows at a time, top to bottom (a fit in bands of a
+// field larger than memory, issue 14): the same bytes as write_model_maps. `header` gives what
+// the file's header holds (noise, materials, the shadows' LEDs and words); its rows are unused.
+// Nothing is left at `path` before commit().
+class ModelMapsWriter {
+ public:
+  ModelMapsWriter(const std::filesystem::path& path, int width, int height,
+                  const ModelMaps& header, const ExrAttributes& attributes = {});
+  ~ModelMapsWriter();
+  ModelMapsWriter(const ModelMapsWriter&) = delete;
+  ModelMapsWriter& operator=(const ModelMapsWriter&) = delete;
+  // The next rows: band.maps and band.shadows of the same rows.
+  void write_rows(const ModelMaps& band);
+  void commit();
+
+ private:
+  struct Preview;
+  std::unique_ptr<ImageRowWriter> maps_;
+  std::vector<Preview> previews_;
+  bool shadows_ = false;
+};
 
 // Reads what write_model_maps wrote, bit-exactly (channels found by name, in any order). Validates
 // every channel: finite values, model in 0..4, flags an integer in 0..65535, unit normals and

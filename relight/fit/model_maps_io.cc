@@ -96,7 +96,7 @@ std::vector<Material> materials_from(const std::string& text, const std::string&
 
 // STEM.materials.png: each pixel in its main material's colour (hues a golden angle apart), a
 // per-pixel fit dark grey, no fit black.
-void write_material_preview(const std::filesystem::path& path, const Image& maps) {
+Image material_preview(const Image& maps) {
   Image image(maps.width, maps.height, 3);
   for (size_t i = 0; i < maps.num_pixels(); ++i) {
     const float* m = &maps.pixels[i * maps.channels];
@@ -114,9 +114,7 @@ void write_material_preview(const std::filesystem::path& path, const Image& maps
     }
     for (int c = 0; c < 3; ++c) image.pixels[i * 3 + c] = rgb[c];
   }
-  std::filesystem::path out = path;
-  out.replace_extension("materials.png");
-  write_png_preview(out, image);
+  return image;
 }
 
 nlohmann::json to_json(const std::vector<Eigen::Vector3f>& dirs) {
@@ -171,52 +169,89 @@ const std::vector<std::string>& model_map_channel_names() {
   return names;
 }
 
-void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
-                      const ExrAttributes& attributes) {
-  const Image& image = maps.maps;
+// A PNG preview beside the maps: its values from a band's maps.
+struct ModelMapsWriter::Preview {
+  std::function<Image(const Image& maps)> values;
+  std::unique_ptr<ImageRowWriter> file;
+};
+
+ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, int height,
+                                 const ModelMaps& header, const ExrAttributes& attributes) {
+  const nlohmann::json noise = {{"read_variance", header.noise.a},
+                                {"shot_variance_per_unit", header.noise.b},
+                                {"source", header.noise_source}};
+  const Image& shadows = header.shadows.words;
+  shadows_ = !header.shadows.empty();
+  std::vector<std::string> names = model_map_channel_names();
+  names.insert(names.end(), shadows.channel_names.begin(), shadows.channel_names.end());
+  ExrAttributes exr = attributes;
+  if (shadows_) {
+    exr.emplace_back(kShadowLedsAttribute, to_json(header.shadows.led_dirs_in_stage).dump());
+  }
+  exr.emplace_back(kFitNoiseAttribute, noise.dump());
+  if (!header.materials.empty()) {
+    exr.emplace_back(kMaterialsAttribute, to_json(header.materials).dump());
+  }
+  maps_ = std::make_unique<ImageRowWriter>(path, width, height, int(names.size()), names, exr);
+  const auto preview = [&](const std::string& name, int channels,
+                           std::function<Image(const Image&)> values) {
+    std::filesystem::path file = path;
+    file.replace_extension(name + ".png");
+    previews_.push_back(
+        {std::move(values), std::make_unique<ImageRowWriter>(file, width, height, channels)});
+  };
+  const auto channel = [&](const std::string& name, int first, int channels,
+                           const std::function<float(float)>& transform) {
+    preview(name, channels, [=](const Image& maps) {
+      return channel_preview(maps, first, channels, transform);
+    });
+  };
+  const auto identity = [](float v) { return v; };
+  channel("normal", kMapNormalX, 3, [](float v) { return 0.5f + 0.5f * v; });
+  channel("albedo", kMapAlbedoR, 3, identity);
+  channel("sigma", kMapSigma, 1, [](float v) { return float(v / (0.5 * kPi)); });
+  channel("ks", kMapKs, 1, identity);
+  channel("roughness", kMapRoughness, 1, identity);
+  channel("model", kMapModel, 1, [](float v) { return v / 4; });
+  channel("confidence", kMapConfidence, 1, identity);
+  channel("residual", kMapResidual, 1,
+          [](float v) { return std::log10(1 + std::max(v, 0.f)) / 2; });
+  channel("flags", kMapFlags, 1, [](float v) { return v / 511; });  // Bits up to 256.
+  if (!header.materials.empty()) preview("materials", 3, material_preview);
+}
+
+ModelMapsWriter::~ModelMapsWriter() = default;
+
+void ModelMapsWriter::write_rows(const ModelMaps& band) {
+  const Image& image = band.maps;
+  const Image& shadows = band.shadows.words;
   LS_CHECK(image.channels == kMapChannelCount &&
-               image.pixels.size() == image.num_pixels() * kMapChannelCount,
+               image.pixels.size() == image.num_pixels() * kMapChannelCount &&
+               band.shadows.empty() != shadows_,
            "model maps have " + std::to_string(image.channels) + " channels");
-  const nlohmann::json noise = {{"read_variance", maps.noise.a},
-                                {"shot_variance_per_unit", maps.noise.b},
-                                {"source", maps.noise_source}};
-  const Image& shadows = maps.shadows.words;
   Image named(image.width, image.height, image.channels + shadows.channels);
-  named.channel_names = model_map_channel_names();
-  named.channel_names.insert(named.channel_names.end(), shadows.channel_names.begin(),
-                             shadows.channel_names.end());
   for (size_t i = 0; i < image.num_pixels(); ++i) {
     float* out = &named.pixels[i * size_t(named.channels)];
     std::copy_n(&image.pixels[i * size_t(image.channels)], image.channels, out);
-    if (!maps.shadows.empty()) {
+    if (shadows_) {
       std::copy_n(&shadows.pixels[i * size_t(shadows.channels)], shadows.channels,
                   out + image.channels);
     }
   }
-  ExrAttributes header = attributes;
-  if (!maps.shadows.empty()) {
-    header.emplace_back(kShadowLedsAttribute, to_json(maps.shadows.led_dirs_in_stage).dump());
-  }
-  header.emplace_back(kFitNoiseAttribute, noise.dump());
-  if (!maps.materials.empty())
-    header.emplace_back(kMaterialsAttribute, to_json(maps.materials).dump());
-  write_exr(path, named, ExrPixelType::kFloat, header);
-  auto preview = [&](const std::string& name, int first, int channels,
-                     const std::function<float(float)>& transform) {
-    write_channel_preview(path, name, maps.maps, first, channels, transform);
-  };
-  auto identity = [](float v) { return v; };
-  preview("normal", kMapNormalX, 3, [](float v) { return 0.5f + 0.5f * v; });
-  preview("albedo", kMapAlbedoR, 3, identity);
-  preview("sigma", kMapSigma, 1, [](float v) { return v / (0.5 * kPi); });
-  preview("ks", kMapKs, 1, identity);
-  preview("roughness", kMapRoughness, 1, identity);
-  preview("model", kMapModel, 1, [](float v) { return v / 4; });
-  preview("confidence", kMapConfidence, 1, identity);
-  preview("residual", kMapResidual, 1,
-          [](float v) { return std::log10(1 + std::max(v, 0.f)) / 2; });
-  preview("flags", kMapFlags, 1, [](float v) { return v / 511; });  // Bits up to 256.
-  if (!maps.materials.empty()) write_material_preview(path, image);
+  maps_->write_rows(named);
+  for (Preview& preview : previews_) preview.file->write_rows(preview.values(image));
+}
+
+void ModelMapsWriter::commit() {
+  maps_->commit();
+  for (Preview& preview : previews_) preview.file->commit();
+}
+
+void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
+                      const ExrAttributes& attributes) {
+  ModelMapsWriter writer(path, maps.maps.width, maps.maps.height, maps, attributes);
+  writer.write_rows(maps);
+  writer.commit();
 }
 
 ModelMaps read_model_maps(const std::filesystem::path& path) {
