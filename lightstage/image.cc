@@ -329,8 +329,8 @@ void write_exr(const fs::path& path, const Image& image, ExrPixelType type,
     writer.commit();
     return;
   }
-  OIIO::ImageSpec spec = exr_spec(image.width, image.height, image.channels, image.channel_names,
-                                  attributes);
+  OIIO::ImageSpec spec =
+      exr_spec(image.width, image.height, image.channels, image.channel_names, attributes);
   spec.set_format(OIIO::TypeDesc::HALF);
   write_with_oiio(path, spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
 }

@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <chrono>
-#include <span>
+#include <optional>
 #include <vector>
 
+#include "lightstage/errors.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/normals.h"
 
@@ -13,21 +14,6 @@ namespace ls::jobs {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-// Rows [y0, y0 + band.height) of `frame` (sized and named after the first band when empty).
-void paste_rows(const Image& band, int y0, int frame_height, Image& frame) {
-  if (frame.pixels.empty()) {
-    frame = Image(band.width, frame_height, band.channels);
-    frame.channel_names = band.channel_names;
-  }
-  std::copy(band.pixels.begin(), band.pixels.end(),
-            frame.pixels.begin() + std::ptrdiff_t(y0) * band.width * band.channels);
-}
-
-std::span<float> rows_of(Image& image, int y0, int y1) {
-  const size_t row = size_t(image.width) * size_t(image.channels);
-  return {image.pixels.data() + size_t(y0) * row, size_t(y1 - y0) * row};
-}
 
 // Rank 0's basis materials on every rank: per material its model, albedo, sigma, k_s, roughness,
 // pixels and scene material, after the dispersion.
@@ -52,26 +38,6 @@ void broadcast(const Ranks& ranks, relight::BasisMaterials& basis) {
   }
 }
 
-// The counts that assigning materials changes: pixels per model, not converged, explained by
-// materials, and each material's pixels.
-std::vector<long long> assignment_counts(const relight::ModelMaps& maps) {
-  const relight::FitSummary& s = maps.summary;
-  std::vector<long long> counts(std::begin(s.per_model), std::end(s.per_model));
-  counts.push_back(s.not_converged);
-  counts.push_back(s.material_pixels);
-  for (const relight::Material& m : maps.materials) counts.push_back(m.pixels);
-  return counts;
-}
-
-void set_assignment_counts(const std::vector<long long>& counts, relight::ModelMaps& maps) {
-  relight::FitSummary& s = maps.summary;
-  size_t i = 0;
-  for (int& n : s.per_model) n = int(counts[i++]);
-  s.not_converged = int(counts[i++]);
-  s.material_pixels = int(counts[i++]);
-  for (relight::Material& m : maps.materials) m.pixels = int(counts[i++]);
-}
-
 }  // namespace
 
 int band_rows_for_ranks(int rows, int height, int alignment, int ranks) {
@@ -86,100 +52,191 @@ int band_rows_for_ranks(int rows, int height, int alignment, int ranks) {
   return std::max(alignment, std::min(rows, aligned));
 }
 
-relight::ModelMaps fit_in_bands(capture::FieldStream& stream, int rows,
-                                const relight::FitOptions& fit, const BandCheckpoints& checkpoints,
-                                const Ranks& ranks, const ProgressFn& progress,
-                                BandFitTimes& times) {
+namespace {
+
+// One band's checkpoint at a time, and the field's band rows.
+class Bands {
+ public:
+  Bands(capture::FieldStream& stream, int rows, const BandCheckpoints& checkpoints,
+        BandFitTimes& times)
+      : stream_(stream),
+        rows_(rows),
+        count_((stream.header().height() + rows - 1) / rows),
+        checkpoints_(checkpoints),
+        led_dirs_(relight::led_dirs_of(stream.header())),
+        times_(times) {}
+
+  int count() const { return count_; }
+  int first_row(int b) const { return b * rows_; }
+  int end_row(int b) const { return std::min(stream_.header().height(), (b + 1) * rows_); }
+
+  const capture::ReflectanceField& read_field(int b) {
+    const auto t0 = Clock::now();
+    stream_.read_rows(first_row(b), end_row(b), field_);
+    times_.read_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    return field_;
+  }
+  // The field's band given back once the last band is read (the maps' writer needs the room).
+  void release_field() { field_ = {}; }
+  bool load(int b, FitStage stage) {
+    return checkpoints_.load(first_row(b), led_dirs_, normals, maps, stage);
+  }
+  // A band every earlier step left in its checkpoint.
+  void load_finished(int b, FitStage stage) {
+    if (!load(b, stage)) {
+      throw InputError(checkpoints_.file(first_row(b), stage).string() +
+                       ": a finished band's checkpoint is missing or unreadable (removed while "
+                       "the fit ran?)");
+    }
+  }
+  void save(int b, FitStage stage) const { checkpoints_.save(first_row(b), normals, maps, stage); }
+  // The maps of every band as loaded from its checkpoints, in order.
+  relight::MapsBands maps_bands(FitStage stage) {
+    return [this, stage](const relight::MapsVisitor& visit) {
+      for (int b = 0; b < count_; ++b) load_finished(b, stage), visit(maps.maps, first_row(b));
+    };
+  }
+  // The field's rows on demand: the file's row (or tile row) holding y, read when not held.
+  relight::FieldRows field_rows() {
+    return [this](int y) -> const capture::ReflectanceField& {
+      if (field_.height() > 0 && y >= field_.first_row() &&
+          y < field_.first_row() + field_.height()) {
+        return field_;
+      }
+      const int alignment = stream_.row_alignment(), y0 = y / alignment * alignment;
+      const auto t0 = Clock::now();
+      stream_.read_rows(y0, std::min(stream_.header().height(), y0 + alignment), field_);
+      times_.read_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+      return field_;
+    };
+  }
+
+  relight::NormalMap normals;  // The band's, as loaded or fitted.
+  relight::ModelMaps maps;
+
+ private:
+  capture::FieldStream& stream_;
+  const int rows_, count_;
+  const BandCheckpoints& checkpoints_;
+  const std::vector<Eigen::Vector3f> led_dirs_;
+  BandFitTimes& times_;
+  capture::ReflectanceField field_;
+};
+
+// Writes the maps' `files` from the bands' checkpoints of `stage`; returns their summed summary.
+relight::FitSummary write_maps(Bands& bands, FitStage stage, const relight::ModelMaps& header,
+                               int width, int height, const std::filesystem::path& out,
+                               const ExrAttributes& attributes,
+                               relight::ModelMapsWriter::Files files, const ProgressFn& progress) {
+  relight::FitSummary summary;
+  std::optional<relight::ModelMapsWriter> writer;
+  for (int b = 0; b < bands.count(); ++b) {
+    bands.load_finished(b, stage);
+    relight::ModelMaps& maps = bands.maps;
+    summary.add(maps.summary);
+    if (!writer) {
+      relight::ModelMaps file = header;
+      file.shadows = maps.shadows;  // Its LEDs and words.
+      writer.emplace(out, width, height, file, attributes, files);
+    }
+    writer->write_rows(maps);
+    report(progress, "write maps (rows)", bands.end_row(b), height);
+  }
+  writer->commit();
+  return summary;
+}
+
+}  // namespace
+
+BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitOptions& fit,
+                     const BandCheckpoints& checkpoints, const Ranks& ranks,
+                     const std::filesystem::path& out, const ExrAttributes& attributes,
+                     const ProgressFn& progress, BandFitTimes& times) {
   const capture::ReflectanceField& header = stream.header();
-  const int height = header.height();
-  const int band_count = (height + rows - 1) / rows;
+  const int width = header.width(), height = header.height();
+  Bands bands(stream, rows, checkpoints, times);
   relight::FitOptions per_band = fit;
   per_band.materials = relight::FitMaterials::kPerPixel;
   per_band.progress = {};
-  relight::NormalMap normals;
-  relight::ModelMaps maps;
-  const std::vector<Eigen::Vector3f> led_dirs = relight::led_dirs_of(header);
-  maps.noise = fit.normals.noise;  // As fit_models records them.
-  maps.noise_source = fit.noise_source;
-  capture::ReflectanceField band;
-  // Where band b's rows end.
-  const auto end_of = [&](int b) { return std::min(height, (b + 1) * rows); };
-  const auto read = [&](int b) {
-    const auto t0 = Clock::now();
-    stream.read_rows(b * rows, end_of(b), band);
-    times.read_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
-  };
-  // Normals and per-pixel fits of band b: from its checkpoint when there is one (an earlier run's,
-  // or another rank's), else fitted here and kept.
-  const auto fit_band = [&](int b, bool own) {
-    const int y0 = b * rows, y1 = end_of(b);
-    relight::NormalMap band_normals;
-    relight::ModelMaps band_maps;
-    if (checkpoints.load(y0, led_dirs, band_normals, band_maps)) {
-      if (own) times.resumed_rows += y1 - y0;
-    } else {
-      read(b);
-      band_normals = relight::estimate_normals(band, fit.normals);
-      band_maps = relight::fit_models(band, band_normals, per_band);
-      checkpoints.save(y0, band_normals, band_maps);
-    }
-    paste_rows(band_normals.normal, y0, height, normals.normal);
-    paste_rows(band_normals.albedo, y0, height, normals.albedo);
-    paste_rows(band_normals.confidence, y0, height, normals.confidence);
-    paste_rows(band_normals.flags, y0, height, normals.flags);
-    normals.flagged_pixels += band_normals.flagged_pixels;
-    paste_rows(band_maps.maps, y0, height, maps.maps);
-    paste_rows(band_maps.shadows.words, y0, height, maps.shadows.words);
-    maps.shadows.led_dirs_in_stage = band_maps.shadows.led_dirs_in_stage;
-    maps.summary.add(band_maps.summary);
-  };
   long own_rows = 0, done_rows = 0;
-  for (int b = ranks.rank(); b < band_count; b += ranks.size()) {
-    own_rows += end_of(b) - b * rows;
+  for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+    own_rows += bands.end_row(b) - bands.first_row(b);
   }
-  for (int b = ranks.rank(); b < band_count; b += ranks.size()) {
-    fit_band(b, /*own=*/true);
-    done_rows += end_of(b) - b * rows;
-    report(progress, "fit (rows)", done_rows, own_rows);
+  // Each rank's bands: normals and per-pixel fits, from an earlier run's checkpoint when there
+  // is one, else fitted and kept.
+  for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+    const long band_rows = bands.end_row(b) - bands.first_row(b);
+    if (bands.load(b, FitStage::kPerPixel)) {
+      times.resumed_rows += int(band_rows);
+    } else {
+      const capture::ReflectanceField& band = bands.read_field(b);
+      bands.normals = relight::estimate_normals(band, fit.normals);
+      bands.maps = relight::fit_models(band, bands.normals, per_band);
+      bands.save(b, FitStage::kPerPixel);
+    }
+    report(progress, "fit (rows)", done_rows += band_rows, own_rows);
   }
-  ranks.barrier();  // Every band is in its checkpoint.
-  for (int b = 0; ranks.root() && b < band_count; ++b) {
-    if (!ranks.owns(b)) fit_band(b, /*own=*/false);
-  }
-  if (fit.materials != relight::FitMaterials::kBasis) return maps;
-
-  relight::BasisMaterials basis;
-  if (ranks.root()) {
-    const auto all_bands = [&](const relight::BandVisitor& visit) {
-      for (int b = 0; b < band_count; ++b) read(b), visit(band);
-    };
-    basis = relight::find_basis_materials(header, all_bands, maps, fit);
-  }
-  broadcast(ranks, basis);
-  if (basis.materials.empty()) return maps;
-  maps.materials = basis.materials;
-  maps.summary.materials = int(basis.materials.size());
-  const std::vector<long long> before = assignment_counts(maps);
-  for (int b = ranks.rank(); b < band_count; b += ranks.size()) {
-    read(b);
-    relight::assign_basis_materials(header, band, normals, basis, fit, maps);
-  }
-  // Rank 0 gathers the other ranks' rows of the maps and their changes to the counts.
-  std::vector<long long> change = assignment_counts(maps);
-  for (size_t i = 0; i < change.size(); ++i) change[i] -= before[i];
-  ranks.sum_to_root(change);
-  for (int b = 0; ranks.size() > 1 && b < band_count; ++b) {
-    for (Image* image : {&maps.maps, &maps.shadows.words}) {
-      const std::span<float> band_rows = rows_of(*image, b * rows, end_of(b));
-      if (ranks.root() && !ranks.owns(b)) ranks.receive(band_rows, ranks.owner(b));
-      if (!ranks.root() && ranks.owns(b)) ranks.send(band_rows, 0);
+  ranks.barrier();          // Every band is in its checkpoint.
+  relight::ModelMaps file;  // The maps file's header: noise (as fit_models records it), materials.
+  file.noise = fit.normals.noise;
+  file.noise_source = fit.noise_source;
+  BandFit result;
+  FitStage written = FitStage::kPerPixel;
+  if (fit.materials == relight::FitMaterials::kBasis) {
+    relight::BasisMaterials basis;
+    if (ranks.root()) {
+      basis = relight::find_basis_materials(header, bands.field_rows(),
+                                            bands.maps_bands(FitStage::kPerPixel), fit);
+    }
+    broadcast(ranks, basis);
+    if (!basis.materials.empty()) {
+      written = FitStage::kMaterials;
+      file.materials = basis.materials;  // Their pixels counted below, on rank 0.
+      done_rows = 0;
+      for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+        const bool resumed = bands.load(b, FitStage::kMaterials);
+        if (!resumed) {
+          bands.load_finished(b, FitStage::kPerPixel);
+          bands.maps.materials = basis.materials;
+          for (relight::Material& m : bands.maps.materials) m.pixels = 0;  // The band's own.
+          relight::assign_basis_materials(header, bands.read_field(b), bands.normals, basis, fit,
+                                          bands.maps, bands.first_row(b));
+          bands.save(b, FitStage::kMaterials);
+        }
+        done_rows += bands.end_row(b) - bands.first_row(b);
+        report(progress, "materials (rows)", done_rows, own_rows, resumed ? "resumed" : "");
+      }
+      ranks.barrier();
+      if (ranks.root()) {
+        // Each material's pixels: those of its pool fit and those assigned it, counted in the
+        // pass that groups the scene materials.
+        const relight::MapsBands assigned = [&](const relight::MapsVisitor& visit) {
+          for (int b = 0; b < bands.count(); ++b) {
+            bands.load_finished(b, FitStage::kMaterials);
+            for (size_t k = 0; k < file.materials.size(); ++k) {
+              file.materials[k].pixels += bands.maps.materials[k].pixels;
+            }
+            visit(bands.maps.maps, bands.first_row(b));
+          }
+        };
+        result.summary.scene_materials = relight::group_scene_materials(assigned, file.materials);
+      }
     }
   }
-  if (!ranks.root()) return maps;
-  for (size_t i = 0; i < change.size(); ++i) change[i] += before[i];
-  set_assignment_counts(change, maps);
-  maps.summary.scene_materials = relight::group_scene_materials(maps.maps, maps.materials);
-  return maps;
+  // Under MPI rank 1 writes the previews while rank 0 writes the maps.
+  using Files = relight::ModelMapsWriter::Files;
+  bands.release_field();
+  if (ranks.rank() == 1) {
+    (void)write_maps(bands, written, file, width, height, out, attributes, Files::kPreviews, {});
+  }
+  if (!ranks.root()) return result;
+  const int scene_materials = result.summary.scene_materials;
+  result.summary = write_maps(bands, written, file, width, height, out, attributes,
+                              ranks.size() > 1 ? Files::kMaps : Files::kMapsAndPreviews, progress);
+  result.summary.materials = int(file.materials.size());
+  result.summary.scene_materials = scene_materials;
+  result.materials = file.materials;
+  return result;
 }
 
 }  // namespace ls::jobs

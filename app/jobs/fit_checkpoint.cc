@@ -7,7 +7,6 @@
 #include <vector>
 
 #include "lightstage/errors.h"
-#include "lightstage/exr_channels.h"
 #include "lightstage/image.h"
 
 namespace ls::jobs {
@@ -16,7 +15,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr const char* kBandAttribute = "lightstage:fit_band";
+constexpr const char* kBandMagic = "lightstage fit band 1";
 
 // A band file's parts: the normal map's images (channels prefixed: the maps have an albedo and a
 // normal of their own), then the maps, with their channel names.
@@ -70,7 +69,8 @@ nlohmann::json summary_json(const relight::FitSummary& s) {
           {"per_model", s.per_model},
           {"discarded_nonfinite_fits", s.discarded_nonfinite_fits},
           {"discarded_implausible_lobes", s.discarded_implausible_lobes},
-          {"not_converged", s.not_converged}};
+          {"not_converged", s.not_converged},
+          {"material_pixels", s.material_pixels}};
 }
 
 relight::FitSummary summary_from(const nlohmann::json& j) {
@@ -84,6 +84,7 @@ relight::FitSummary summary_from(const nlohmann::json& j) {
   s.discarded_nonfinite_fits = j.at("discarded_nonfinite_fits").get<int>();
   s.discarded_implausible_lobes = j.at("discarded_implausible_lobes").get<int>();
   s.not_converged = j.at("not_converged").get<int>();
+  s.material_pixels = j.at("material_pixels").get<int>();
   return s;
 }
 
@@ -105,8 +106,9 @@ std::string fit_identity(const fs::path& field_file, const std::string& options_
 BandCheckpoints::BandCheckpoints(const fs::path& out, std::string identity)
     : dir_(out.string() + ".partial"), identity_(std::move(identity)) {}
 
-fs::path BandCheckpoints::file(int y0) const {
-  return dir_ / ("rows_" + std::to_string(y0) + ".exr");
+fs::path BandCheckpoints::file(int y0, FitStage stage) const {
+  return dir_ /
+         ((stage == FitStage::kPerPixel ? "rows_" : "materials_") + std::to_string(y0) + ".exr");
 }
 
 int BandCheckpoints::band_rows(int proposed) const {
@@ -124,26 +126,35 @@ int BandCheckpoints::band_rows(int proposed) const {
 }
 
 bool BandCheckpoints::load(int y0, const std::vector<Eigen::Vector3f>& led_dirs,
-                           relight::NormalMap& normals, relight::ModelMaps& maps) const {
-  if (!fs::exists(file(y0))) return false;
-  NamedChannelFile band;
-  const int shadow_words = relight::FitShadows::words_for(int(led_dirs.size()));
+                           relight::NormalMap& normals, relight::ModelMaps& maps,
+                           FitStage stage) const {
+  std::ifstream in(file(y0, stage), std::ios::binary);
+  if (!in) return false;
   std::vector<std::string> names = band_channel_names();
+  const int shadow_words = relight::FitShadows::words_for(int(led_dirs.size()));
   for (int w = 0; w < shadow_words; ++w) names.push_back("shadow." + std::to_string(w));
+  Image image;
   try {
-    band = read_named_channels(file(y0), names, "fit checkpoint", "'lightstage fit --memory'",
-                               /*exact=*/true, /*required=*/names.size());
-    const std::string* text = band.attribute(kBandAttribute);
-    if (!text) return false;
-    const nlohmann::json info = nlohmann::json::parse(*text);
+    std::string magic, header;
+    if (!std::getline(in, magic) || magic != kBandMagic || !std::getline(in, header)) return false;
+    const nlohmann::json info = nlohmann::json::parse(header);
+    if (info.at("channels").get<std::vector<std::string>>() != names) return false;
+    image = Image(info.at("width").get<int>(), info.at("height").get<int>(), int(names.size()));
+    const std::streamsize bytes = std::streamsize(image.pixels.size() * sizeof(float));
+    if (!in.read(reinterpret_cast<char*>(image.pixels.data()), bytes) ||
+        in.peek() != std::char_traits<char>::eof()) {
+      return false;  // Cut short or longer: fitted again.
+    }
     maps.summary = summary_from(info.at("summary"));
     normals.flagged_pixels = info.at("normals_flagged").get<int>();
-  } catch (const InputError&) {
-    return false;
+    const std::vector<int> material_pixels = info.at("material_pixels").get<std::vector<int>>();
+    maps.materials.assign(material_pixels.size(), {});
+    for (size_t k = 0; k < material_pixels.size(); ++k) {
+      maps.materials[k].pixels = material_pixels[k];
+    }
   } catch (const nlohmann::json::exception&) {
     return false;
   }
-  const Image& image = band.image;
   int first = 0;
   for (size_t k = 0; k < kParts.size(); ++k) {
     Image& part = *images_of(normals, maps)[k];
@@ -158,25 +169,33 @@ bool BandCheckpoints::load(int y0, const std::vector<Eigen::Vector3f>& led_dirs,
 }
 
 void BandCheckpoints::save(int y0, const relight::NormalMap& normals,
-                           const relight::ModelMaps& maps) const {
+                           const relight::ModelMaps& maps, FitStage stage) const {
   const Image& shadows = maps.shadows.words;
   Image band(maps.maps.width, maps.maps.height,
              int(band_channel_names().size()) + shadows.channels);
-  band.channel_names = band_channel_names();
-  band.channel_names.insert(band.channel_names.end(), shadows.channel_names.begin(),
-                            shadows.channel_names.end());
+  std::vector<std::string> names = band_channel_names();
+  names.insert(names.end(), shadows.channel_names.begin(), shadows.channel_names.end());
   int first = 0;
   for (size_t k = 0; k < kParts.size(); ++k) {
     copy_channels(*images_of(normals, maps)[k], 0, band, first, kParts[k].channels);
     first += kParts[k].channels;
   }
   if (!maps.shadows.empty()) copy_channels(shadows, 0, band, first, shadows.channels);
+  std::vector<int> material_pixels;
+  for (const relight::Material& m : maps.materials) material_pixels.push_back(m.pixels);
   const nlohmann::json info = {{"summary", summary_json(maps.summary)},
-                               {"normals_flagged", normals.flagged_pixels}};
-  // Uncompressed: a checkpoint lives for one run, and under MPI rank 0 reads every other rank's
-  // while they wait (zip cost a second of that at 1024²).
-  write_exr(file(y0), band, ExrPixelType::kFloat,
-            {{kBandAttribute, info.dump()}, {"compression", "none"}});
+                               {"normals_flagged", normals.flagged_pixels},
+                               {"material_pixels", material_pixels},
+                               {"width", band.width},
+                               {"height", band.height},
+                               {"channels", names}};
+  // Raw floats after a line of JSON: a checkpoint lives for one run and is read back by this
+  // program only, up to four times a band on rank 0 (OpenEXR's reader took 0.7 s a pass at 1024²).
+  AtomicFileWriter out(file(y0, stage));
+  const std::string header = std::string(kBandMagic) + "\n" + info.dump() + "\n";
+  out.write(header.data(), header.size());
+  out.write(band.pixels.data(), band.pixels.size() * sizeof(float));
+  out.commit();
 }
 
 void BandCheckpoints::remove() const {

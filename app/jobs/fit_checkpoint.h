@@ -2,8 +2,9 @@
 // The finished bands of a fit in bands of rows (lightstage fit --memory), kept beside the maps
 // (OUT.partial/) until the maps are written, so that a fit that is killed resumes from the bands it
 // finished. run.json holds the run's identity (field file, its size and time, options) and band
-// height; one EXR per band holds its normals and per-pixel maps as float (exact) and its summary
-// counts in an attribute, written atomically: a band is there whole or not at all.
+// height; one file per band holds its normals and per-pixel maps as raw floats (exact) after a
+// line of JSON (its size, channels and summary counts), written atomically: a band is there whole
+// or not at all.
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -12,6 +13,10 @@
 #include "relight/fit/normals.h"
 
 namespace ls::jobs {
+
+// A band's checkpoint after its per-pixel fits, or after basis materials were assigned to it
+// (its maps.materials then hold only its pixels' count per material).
+enum class FitStage { kPerPixel, kMaterials };
 
 class BandCheckpoints {
  public:
@@ -23,13 +28,14 @@ class BandCheckpoints {
   // The band of rows [y0, ...) when an earlier run finished it, or false (none, or unreadable:
   // the band is fitted again); led_dirs: the field's (relight::led_dirs_of), for its shadows.
   bool load(int y0, const std::vector<Eigen::Vector3f>& led_dirs, relight::NormalMap& normals,
-            relight::ModelMaps& maps) const;
-  void save(int y0, const relight::NormalMap& normals, const relight::ModelMaps& maps) const;
+            relight::ModelMaps& maps, FitStage stage = FitStage::kPerPixel) const;
+  void save(int y0, const relight::NormalMap& normals, const relight::ModelMaps& maps,
+            FitStage stage = FitStage::kPerPixel) const;
   // Once the maps are written.
   void remove() const;
+  std::filesystem::path file(int y0, FitStage stage) const;
 
  private:
-  std::filesystem::path file(int y0) const;
   std::filesystem::path dir_;
   std::string identity_;
 };

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <chrono>
 #include <nlohmann/json.hpp>
-#include <optional>
 
 #include "app/jobs/fit_bands.h"
 #include "app/jobs/fit_checkpoint.h"
@@ -116,16 +115,19 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   int rows = band_rows_for_ranks(stream.band_rows(options.memory_bytes), field.height(),
                                  stream.row_alignment(), ranks.size());
   auto start = Clock::now();
-  relight::ModelMaps maps;
+  const ExrAttributes attributes = {{kOptionsAttribute, options.to_json()}};
+  BandFit result;
   BandFitTimes times;
-  std::optional<BandCheckpoints> checkpoints;       // Fits in bands only.
   if (rows < field.height() || ranks.size() > 1) {  // Under MPI, only rank 0 writes.
-    checkpoints.emplace(options.out, fit_identity(options.field_file, options.to_json()));
+    BandCheckpoints checkpoints(options.out, fit_identity(options.field_file, options.to_json()));
     // Rank 0 decides (and may clear an earlier run's checkpoints); the others follow.
-    std::vector<double> decided = {double(ranks.root() ? checkpoints->band_rows(rows) : 0)};
+    std::vector<double> decided = {double(ranks.root() ? checkpoints.band_rows(rows) : 0)};
     ranks.broadcast(decided);
     rows = int(decided[0]);
-    maps = fit_in_bands(stream, rows, fit, *checkpoints, ranks, progress, times);
+    result = fit_in_bands(stream, rows, fit, checkpoints, ranks, options.out, attributes, progress,
+                          times);
+    ranks.barrier();  // Rank 0 has written the maps from every rank's checkpoints.
+    if (ranks.root()) checkpoints.remove();
   } else {
     capture::ReflectanceField whole;
     stream.read_rows(0, field.height(), whole);
@@ -134,10 +136,12 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
     const relight::NormalMap normals = relight::estimate_normals(whole, fit.normals);
     report(progress, "normals", 1, 1);
     fit.progress = [&](long done, long total) { report(progress, "fit", done, total); };
-    maps = relight::fit_models(whole, normals, fit);
+    const relight::ModelMaps maps = relight::fit_models(whole, normals, fit);
+    relight::write_model_maps(options.out, maps, attributes);
+    result = {maps.summary, maps.materials};
   }
-  FitJobSummary summary{maps.summary,
-                        maps.materials,
+  FitJobSummary summary{result.summary,
+                        result.materials,
                         field.width(),
                         field.height(),
                         fit.noise_source,
@@ -146,9 +150,6 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
                         rows};
   summary.resumed_rows = times.resumed_rows;
   summary.ranks = ranks.size();
-  if (!ranks.root()) return summary;  // Rank 0 writes the maps.
-  relight::write_model_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
-  if (checkpoints) checkpoints->remove();
   return summary;
 }
 

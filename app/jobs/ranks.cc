@@ -59,21 +59,6 @@ void Ranks::broadcast(std::vector<double>& values) const {
   MPI_Bcast(values.data(), int(count), MPI_DOUBLE, 0, MPI_COMM_WORLD);
 }
 
-void Ranks::sum_to_root(std::vector<long long>& values) const {
-  if (size_ == 1) return;
-  MPI_Reduce(root() ? MPI_IN_PLACE : values.data(), values.data(), int(values.size()),
-             MPI_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
-}
-
-void Ranks::send(std::span<const float> values, int to) const {
-  MPI_Send(values.data(), int(values.size()), MPI_FLOAT, to, 0, MPI_COMM_WORLD);
-}
-
-void Ranks::receive(std::span<float> values, int from) const {
-  MPI_Recv(values.data(), int(values.size()), MPI_FLOAT, from, 0, MPI_COMM_WORLD,
-           MPI_STATUS_IGNORE);
-}
-
 void Ranks::abort(int exit_code) const {
   if (mpi_started) MPI_Abort(MPI_COMM_WORLD, exit_code);
   std::exit(exit_code);
@@ -92,13 +77,6 @@ Ranks::Session::Session(int&, char**&) {
 Ranks::Session::~Session() = default;
 void Ranks::barrier() const {}
 void Ranks::broadcast(std::vector<double>&) const {}
-void Ranks::sum_to_root(std::vector<long long>&) const {}
-void Ranks::send(std::span<const float>, int) const {
-  throw InputError("no other process to send to (built without MPI)");
-}
-void Ranks::receive(std::span<float>, int) const {
-  throw InputError("no other process to receive from (built without MPI)");
-}
 void Ranks::abort(int exit_code) const { std::exit(exit_code); }
 
 #endif

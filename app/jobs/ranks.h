@@ -2,7 +2,6 @@
 // The processes of a run under MPI (mpirun, or srun under Slurm): `lightstage fit` splits its bands
 // of rows over them (issue 14). Without MPI, or started without a launcher, there is one process,
 // rank 0, and every call below is trivial. Built with MPI when CMake finds it (find_package(MPI)).
-#include <span>
 #include <vector>
 
 namespace ls::jobs {
@@ -23,10 +22,6 @@ class Ranks {
   void barrier() const;
   // Rank 0's values, on every rank (resized to rank 0's size).
   void broadcast(std::vector<double>& values) const;
-  // On rank 0: the sum of every rank's values (the same length on every rank); elsewhere unchanged.
-  void sum_to_root(std::vector<long long>& values) const;
-  void send(std::span<const float> values, int to) const;
-  void receive(std::span<float> values, int from) const;
   // Ends every rank's process with `exit_code`: one rank's error must not leave the others waiting.
   [[noreturn]] void abort(int exit_code) const;
 

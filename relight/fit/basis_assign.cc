@@ -233,7 +233,8 @@ bool write_blend(const Blend& blend, const Eigen::Vector3d& n, int residuals,
 // the summary's counts and the materials' pixels updated under `mutex`.
 void assign_band(const capture::ReflectanceField& band, const PixelGatherer& gather,
                  const NormalMap& normals, const std::vector<Material>& materials,
-                 double dispersion, const FitOptions& options, ModelMaps& maps, std::mutex& mutex) {
+                 double dispersion, const FitOptions& options, int maps_first_row, ModelMaps& maps,
+                 std::mutex& mutex) {
   Image& image = maps.maps;
   const int y0 = band.first_row();
   tbb::parallel_for(tbb::blocked_range<int>(0, band.height()), [&](const auto& rows) {
@@ -244,7 +245,7 @@ void assign_band(const capture::ReflectanceField& band, const PixelGatherer& gat
     for (int band_y = rows.begin(); band_y < rows.end(); ++band_y) {
       const int y = y0 + band_y;
       for (int x = 0; x < image.width; ++x) {
-        float* m = &image.at(x, y, 0);
+        float* m = &image.at(x, y - maps_first_row, 0);
         const FitModel own = FitModel(int(m[kMapModel]));
         if (own == FitModel::kNone) continue;
         const std::span<const pixel::Sample> samples = gather.gather(band, x, band_y, &shadowed);
@@ -257,7 +258,7 @@ void assign_band(const capture::ReflectanceField& band, const PixelGatherer& gat
         Blend blend = blend_of(at_fitted, materials, log_n);
         if (blend.material[0] >= 0 && materials[size_t(blend.material[0])].model != own) {
           // The own fit's normal is biased toward its own model: try the photometric-stereo one.
-          const Eigen::Vector3d n0 = pixel::normal_at(normals, x, y);
+          const Eigen::Vector3d n0 = pixel::normal_at(normals, x, y - maps_first_row);
           at_n0.reset(samples.data(), int(samples.size()), n0, view);
           const Blend blend_n0 = blend_of(at_n0, materials, log_n);
           if (blend_n0.chi2 < blend.chi2) blend = blend_n0, n = n0, terms = &at_n0;
@@ -296,12 +297,12 @@ void assign_band(const capture::ReflectanceField& band, const PixelGatherer& gat
 
 void assign_basis_materials(const capture::ReflectanceField& header,
                             const capture::ReflectanceField& band, const NormalMap& normals,
-                            const BasisMaterials& basis, const FitOptions& options,
-                            ModelMaps& maps) {
+                            const BasisMaterials& basis, const FitOptions& options, ModelMaps& maps,
+                            int maps_first_row) {
   std::mutex mutex;
   assign_band(band, PixelGatherer(header, options), normals, basis.materials, basis.dispersion,
-              options, maps, mutex);
-  measure_fit_shadows(band, options, /*maps_first_row=*/0, maps);  // Of the models they have now.
+              options, maps_first_row, maps, mutex);
+  measure_fit_shadows(band, options, maps_first_row, maps);  // Of the models they have now.
 }
 
 }  // namespace ls::relight

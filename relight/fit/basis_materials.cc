@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <numeric>
 #include <opencv2/core.hpp>
@@ -49,35 +50,81 @@ std::array<float, 5> features_of(const float* m) {
   return f;
 }
 
-// Step 1: the pixels to cluster, by cluster, and the scene's dispersion (MaterialFit).
+// A fitted pixel that step 1 may cluster: its place and its own fit's maps.
+struct Candidate {
+  size_t pixel = 0;  // y * width + x.
+  std::array<float, kMapChannelCount> maps{};
+};
+
+// Whether step 1 may cluster the pixel: its own fit has a model and no flag.
+bool fitted_cleanly(const float* m) { return m[kMapModel] != 0 && m[kMapFlags] == 0; }
+
+// A float's bits as an unsigned key in the floats' order (the median found by its bits).
+uint32_t order_key(float v) {
+  uint32_t bits;
+  std::memcpy(&bits, &v, sizeof bits);
+  return (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;
+}
+
+// The median residual of the cleanly fitted pixels (the element nth_element puts at n / 2) and
+// their number, in two passes over the maps' bands without holding a value per pixel: a
+// histogram of the keys' top 16 bits, then the values of the median's bucket.
+std::pair<float, size_t> median_residual(const MapsBands& bands) {
+  std::vector<size_t> histogram(size_t(1) << 16, 0);
+  size_t count = 0;
+  bands([&](const Image& maps, int) {
+    for (size_t i = 0; i < maps.num_pixels(); ++i) {
+      const float* m = &maps.pixels[i * size_t(maps.channels)];
+      if (fitted_cleanly(m)) ++histogram[order_key(m[kMapResidual]) >> 16], ++count;
+    }
+  });
+  if (count == 0) return {0.0f, 0};
+  size_t rank = count / 2, bucket = 0;
+  while (rank >= histogram[bucket]) rank -= histogram[bucket++];
+  std::vector<float> in_bucket;
+  in_bucket.reserve(histogram[bucket]);
+  bands([&](const Image& maps, int) {
+    for (size_t i = 0; i < maps.num_pixels(); ++i) {
+      const float* m = &maps.pixels[i * size_t(maps.channels)];
+      if (fitted_cleanly(m) && order_key(m[kMapResidual]) >> 16 == bucket) {
+        in_bucket.push_back(m[kMapResidual]);
+      }
+    }
+  });
+  std::nth_element(in_bucket.begin(), in_bucket.begin() + std::ptrdiff_t(rank), in_bucket.end());
+  return {in_bucket[rank], count};
+}
+
+// Step 1: the pixels to cluster, by cluster (indices into `pixels`), and the scene's dispersion
+// (MaterialFit).
 struct Segments {
+  std::vector<Candidate> pixels;
   std::vector<std::vector<int>> clusters;
   double dispersion = 1;
 };
-Segments over_segment(const ModelMaps& maps, int max_clusters) {
-  const Image& image = maps.maps;
-  std::vector<float> residuals;
-  for (size_t i = 0; i < image.num_pixels(); ++i) {
-    const float* m = &image.pixels[i * image.channels];
-    if (m[kMapModel] != 0 && m[kMapFlags] == 0) residuals.push_back(m[kMapResidual]);
-  }
-  if (residuals.empty()) return {};
-  std::nth_element(residuals.begin(), residuals.begin() + residuals.size() / 2, residuals.end());
+Segments over_segment(const MapsBands& bands, int max_clusters) {
+  const auto [median, fitted] = median_residual(bands);
+  if (fitted == 0) return {};
   Segments out;
-  out.dispersion = std::max(1.0, double(residuals[residuals.size() / 2]));
+  out.dispersion = std::max(1.0, double(median));
   const float cutoff = std::max(2.0f, float(kClusteredResidualFactor * out.dispersion));
-  std::vector<int> pixels;
   cv::Mat features(0, 5, CV_32F);
   // Every stride-th pixel: the clusters only seed the materials (step 4 assigns every pixel).
-  const size_t stride = std::max<size_t>(1, residuals.size() / kClusteredPixels);
-  for (size_t i = 0; i < image.num_pixels(); i += stride) {
-    const float* m = &image.pixels[i * image.channels];
-    if (m[kMapModel] == 0 || m[kMapFlags] != 0 || m[kMapResidual] > cutoff) continue;
-    const std::array<float, 5> f = features_of(m);
-    features.push_back(cv::Mat(1, 5, CV_32F, const_cast<float*>(f.data())));
-    pixels.push_back(int(i));
-  }
-  const int k = std::min(max_clusters, int(pixels.size()) / (4 * kMinClusterPixels));
+  const size_t stride = std::max<size_t>(1, fitted / kClusteredPixels);
+  bands([&](const Image& maps, int first_row) {
+    const size_t first = size_t(first_row) * size_t(maps.width);
+    for (size_t i = (first + stride - 1) / stride * stride - first; i < maps.num_pixels();
+         i += stride) {
+      const float* m = &maps.pixels[i * size_t(maps.channels)];
+      if (!fitted_cleanly(m) || m[kMapResidual] > cutoff) continue;
+      const std::array<float, 5> f = features_of(m);
+      features.push_back(cv::Mat(1, 5, CV_32F, const_cast<float*>(f.data())));
+      Candidate& pixel = out.pixels.emplace_back();
+      pixel.pixel = first + i;
+      std::copy_n(m, kMapChannelCount, pixel.maps.begin());
+    }
+  });
+  const int k = std::min(max_clusters, int(out.pixels.size()) / (4 * kMinClusterPixels));
   if (k < 1) return {};
   cv::Mat labels;
   cv::theRNG().state = 0x6c696768747374;  // k-means++ seeds: the same clusters every run.
@@ -85,8 +132,8 @@ Segments over_segment(const ModelMaps& maps, int max_clusters) {
              cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-4), 1,
              cv::KMEANS_PP_CENTERS);
   std::vector<std::vector<int>> clusters(static_cast<size_t>(k));
-  for (size_t j = 0; j < pixels.size(); ++j) {
-    clusters[size_t(labels.at<int>(int(j)))].push_back(pixels[j]);
+  for (size_t j = 0; j < out.pixels.size(); ++j) {
+    clusters[size_t(labels.at<int>(int(j)))].push_back(int(j));
   }
   std::erase_if(clusters, [](const std::vector<int>& c) { return c.size() < kMinClusterPixels; });
   out.clusters = std::move(clusters);
@@ -180,7 +227,11 @@ bool same_shape(const Material& a, const Material& b) {
 
 }  // namespace
 
-int group_scene_materials(const Image& image, std::vector<Material>& materials) {
+int group_scene_materials(const Image& maps, std::vector<Material>& materials) {
+  return group_scene_materials(whole_maps(maps), materials);
+}
+
+int group_scene_materials(const MapsBands& bands, std::vector<Material>& materials) {
   const size_t n = materials.size();
   std::vector<std::vector<long>> shared(n, std::vector<long>(n, 0));
   std::vector<long> boundary(n, 0);  // Neighbour pairs (4-connected) with another label.
@@ -191,13 +242,21 @@ int group_scene_materials(const Image& image, std::vector<Material>& materials) 
     if (a > 0 && b > 0)
       ++shared[size_t(a - 1)][size_t(b - 1)], ++shared[size_t(b - 1)][size_t(a - 1)];
   };
-  for (int y = 0; y < image.height; ++y) {
-    for (int x = 0; x < image.width; ++x) {
-      const int a = int(image.at(x, y, kMapMaterial));
-      if (x + 1 < image.width) count(a, int(image.at(x + 1, y, kMapMaterial)));
-      if (y + 1 < image.height) count(a, int(image.at(x, y + 1, kMapMaterial)));
+  std::vector<int> row_above;  // The previous band's last row, its materials.
+  bands([&](const Image& band, int) {
+    for (int y = 0; y < band.height; ++y) {
+      for (int x = 0; x < band.width; ++x) {
+        const int a = int(band.at(x, y, kMapMaterial));
+        if (x + 1 < band.width) count(a, int(band.at(x + 1, y, kMapMaterial)));
+        if (y > 0) count(int(band.at(x, y - 1, kMapMaterial)), a);
+        if (y == 0 && !row_above.empty()) count(row_above[size_t(x)], a);
+      }
     }
-  }
+    row_above.resize(size_t(band.width));
+    for (int x = 0; x < band.width && band.height > 0; ++x) {
+      row_above[size_t(x)] = int(band.at(x, band.height - 1, kMapMaterial));
+    }
+  });
   std::vector<size_t> root(n);
   std::iota(root.begin(), root.end(), size_t(0));
   const auto find = [&](size_t k) {
@@ -227,11 +286,9 @@ int group_scene_materials(const Image& image, std::vector<Material>& materials) 
   return scene_materials;
 }
 
-BasisMaterials find_basis_materials(const capture::ReflectanceField& header,
-                                    const FieldBands& bands, const ModelMaps& maps,
-                                    const FitOptions& options) {
-  const Image& image = maps.maps;
-  const int width = image.width;
+BasisMaterials find_basis_materials(const capture::ReflectanceField& header, const FieldRows& rows,
+                                    const MapsBands& maps, const FitOptions& options) {
+  const int width = header.width();
   const Segments segments = over_segment(maps, options.max_materials);
   const std::vector<std::vector<int>>& clusters = segments.clusters;
   if (clusters.empty()) return {};
@@ -239,31 +296,36 @@ BasisMaterials find_basis_materials(const capture::ReflectanceField& header,
   // Each cluster's pool: up to kPoolPixels of its pixels, evenly spread; each pool pixel stands
   // for `stride` of them.
   std::vector<PoolPixel> pool;
-  std::vector<int> pool_image_pixel;
+  std::vector<const Candidate*> pool_pixel;
   std::vector<Cluster> pooled(clusters.size());
   for (size_t k = 0; k < clusters.size(); ++k) {
     const size_t stride = (clusters[k].size() + kPoolPixels - 1) / kPoolPixels;
     for (size_t j = 0; j < clusters[k].size(); j += stride) {
       pooled[k].members.push_back(int(pool.size()));
       pool.emplace_back().scale = double(stride);
-      pool_image_pixel.push_back(clusters[k][j]);
+      pool_pixel.push_back(&segments.pixels[size_t(clusters[k][j])]);
     }
   }
-  // Band by band, the pool pixels in it.
-  bands([&](const capture::ReflectanceField& band) {
-    const int y0 = band.first_row(), y1 = y0 + band.height();
-    std::vector<size_t> here;
-    for (size_t p = 0; p < pool.size(); ++p) {
-      const int y = pool_image_pixel[p] / width;
-      if (y >= y0 && y < y1) here.push_back(p);
+  // Row by row (top to bottom: a band read serves its next rows), the pool pixels in it.
+  std::vector<size_t> by_row(pool.size());
+  std::iota(by_row.begin(), by_row.end(), size_t(0));
+  std::stable_sort(by_row.begin(), by_row.end(), [&](size_t a, size_t b) {
+    return pool_pixel[a]->pixel / size_t(width) < pool_pixel[b]->pixel / size_t(width);
+  });
+  for (size_t first = 0; first < by_row.size();) {
+    const int y = int(pool_pixel[by_row[first]]->pixel / size_t(width));
+    size_t last = first;
+    while (last < by_row.size() && int(pool_pixel[by_row[last]]->pixel / size_t(width)) == y) {
+      ++last;
     }
-    tbb::parallel_for(size_t(0), here.size(), [&](size_t j) {
-      const size_t p = here[j];
-      const int i = pool_image_pixel[p], x = i % width, y = i / width;
+    const capture::ReflectanceField& band = rows(y);
+    tbb::parallel_for(first, last, [&](size_t j) {
+      const size_t p = by_row[j];
+      const int x = int(pool_pixel[p]->pixel % size_t(width));
       PoolPixel& pixel = pool[p];
-      const float* m = &image.pixels[size_t(i) * image.channels];
+      const float* m = pool_pixel[p]->maps.data();
       pixel.own = FitModel(int(m[kMapModel]));
-      const std::span<const pixel::Sample> samples = gather.gather(band, x, y - y0);
+      const std::span<const pixel::Sample> samples = gather.gather(band, x, y - band.first_row());
       if (samples.empty()) pixel.scale = 0;
       pixel.terms.reset(samples.data(), int(samples.size()), fitted_normal(m), gather.view(x, y));
       for (int g = 0; g < kRoughnessGrid; ++g) {
@@ -271,7 +333,8 @@ BasisMaterials find_basis_materials(const capture::ReflectanceField& header,
             pixel.terms.sums(FitModel::kLambertTorranceSparrow, grid_roughness(g));
       }
     });
-  });
+    first = last;
+  }
   double residuals = 0, pixels = 0;
   for (const PoolPixel& p : pool) residuals += p.scale * 3 * p.terms.count(), pixels += p.scale;
   return {merge_materials(pool, std::move(pooled), options,
@@ -279,22 +342,15 @@ BasisMaterials find_basis_materials(const capture::ReflectanceField& header,
           segments.dispersion};
 }
 
-void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,
-                         const NormalMap& normals, const FitOptions& options, ModelMaps& maps) {
-  const BasisMaterials basis = find_basis_materials(header, bands, maps, options);
+void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap& normals,
+                         const FitOptions& options, ModelMaps& maps) {
+  const BasisMaterials basis =
+      find_basis_materials(field, whole_field_rows(field), whole_maps(maps.maps), options);
   if (basis.materials.empty()) return;
   maps.materials = basis.materials;
   maps.summary.materials = int(basis.materials.size());
-  bands([&](const capture::ReflectanceField& band) {
-    assign_basis_materials(header, band, normals, basis, options, maps);
-  });
+  assign_basis_materials(field, field, normals, basis, options, maps);
   maps.summary.scene_materials = group_scene_materials(maps.maps, maps.materials);
-}
-
-void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap& normals,
-                         const FitOptions& options, ModelMaps& maps) {
-  fit_basis_materials(
-      field, [&](const BandVisitor& visit) { visit(field); }, normals, options, maps);
 }
 
 }  // namespace ls::relight

@@ -47,31 +47,42 @@ namespace ls::relight {
 void fit_basis_materials(const capture::ReflectanceField& field, const NormalMap& normals,
                          const FitOptions& options, ModelMaps& maps);
 
-// The same for a field read in bands of rows (capture::FieldStream), in two passes: `bands`
-// calls its visitor with each band in turn (each knows its first_row()); `header` has the
-// field's lights and view.
-using capture::BandVisitor;
-using capture::FieldBands;
-void fit_basis_materials(const capture::ReflectanceField& header, const FieldBands& bands,
-                         const NormalMap& normals, const FitOptions& options, ModelMaps& maps);
+// A field's rows on demand: a field (or band of one) holding frame row y, which knows its
+// first_row(). whole_field_rows gives the field itself for every row.
+using FieldRows = std::function<const capture::ReflectanceField&(int y)>;
+inline FieldRows whole_field_rows(const capture::ReflectanceField& field) {
+  return [&field](int) -> const capture::ReflectanceField& { return field; };
+}
 
-// The steps apart, for a fit whose bands are assigned by several processes (lightstage fit under
-// MPI): steps 1-3 from the whole per-pixel maps and one pass of `bands` (find_basis_materials),
-// step 4 per band (assign_basis_materials), step 5 (group_scene_materials).
+// Model maps visited band by band, top to bottom: each band's rows of ModelMaps::maps and the
+// frame row of its first row (a fit in bands of a field larger than memory never holds them
+// whole). whole_maps visits one band, the maps themselves.
+using MapsVisitor = std::function<void(const Image& maps, int first_row)>;
+using MapsBands = std::function<void(const MapsVisitor& visit)>;
+inline MapsBands whole_maps(const Image& maps) {
+  return [&maps](const MapsVisitor& visit) { visit(maps, 0); };
+}
+
+// The steps apart, for a fit in bands whose maps are not held whole and whose bands may be
+// assigned by several processes (lightstage fit --memory, and under MPI): steps 1-3 from two
+// passes of the per-pixel maps and the rows of the pooled pixels (find_basis_materials; `header`
+// has the field's lights and view), step 4 per band
+// (assign_basis_materials), step 5 from one pass of the assigned maps (group_scene_materials).
 struct BasisMaterials {
   std::vector<Material> materials;  // Empty: no pixel fit well enough to form one.
   double dispersion = 0;            // The scene's median reduced chi^2 (the BIC's scale).
 };
-BasisMaterials find_basis_materials(const capture::ReflectanceField& header,
-                                    const FieldBands& bands, const ModelMaps& maps,
-                                    const FitOptions& options);
+BasisMaterials find_basis_materials(const capture::ReflectanceField& header, const FieldRows& rows,
+                                    const MapsBands& maps, const FitOptions& options);
 // Rewrites the band's rows of maps.maps with their blends of `basis`; adds the band's changes to
-// maps.summary's counts and to maps.materials' pixels (maps.materials: basis.materials).
+// maps.summary's counts and to maps.materials' pixels (maps.materials: basis.materials). The
+// maps and normals hold the frame's rows from maps_first_row on (0: the whole frame).
 void assign_basis_materials(const capture::ReflectanceField& header,
                             const capture::ReflectanceField& band, const NormalMap& normals,
-                            const BasisMaterials& basis, const FitOptions& options,
-                            ModelMaps& maps);
+                            const BasisMaterials& basis, const FitOptions& options, ModelMaps& maps,
+                            int maps_first_row = 0);
 // Sets every material's scene_material from the maps' material channel; returns their number.
+int group_scene_materials(const MapsBands& maps, std::vector<Material>& materials);
 int group_scene_materials(const Image& maps, std::vector<Material>& materials);
 
 }  // namespace ls::relight

@@ -235,8 +235,10 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
 // Nothing is left at `path` before commit().
 class ModelMapsWriter {
  public:
-  ModelMapsWriter(const std::filesystem::path& path, int width, int height,
-                  const ModelMaps& header, const ExrAttributes& attributes = {});
+  // Which files: both, or one of them (two processes share the work under MPI).
+  enum class Files { kMapsAndPreviews, kMaps, kPreviews };
+  ModelMapsWriter(const std::filesystem::path& path, int width, int height, const ModelMaps& header,
+                  const ExrAttributes& attributes = {}, Files files = Files::kMapsAndPreviews);
   ~ModelMapsWriter();
   ModelMapsWriter(const ModelMapsWriter&) = delete;
   ModelMapsWriter& operator=(const ModelMapsWriter&) = delete;

@@ -176,7 +176,8 @@ struct ModelMapsWriter::Preview {
 };
 
 ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, int height,
-                                 const ModelMaps& header, const ExrAttributes& attributes) {
+                                 const ModelMaps& header, const ExrAttributes& attributes,
+                                 Files files) {
   const nlohmann::json noise = {{"read_variance", header.noise.a},
                                 {"shot_variance_per_unit", header.noise.b},
                                 {"source", header.noise_source}};
@@ -192,7 +193,10 @@ ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, i
   if (!header.materials.empty()) {
     exr.emplace_back(kMaterialsAttribute, to_json(header.materials).dump());
   }
-  maps_ = std::make_unique<ImageRowWriter>(path, width, height, int(names.size()), names, exr);
+  if (files != Files::kPreviews) {
+    maps_ = std::make_unique<ImageRowWriter>(path, width, height, int(names.size()), names, exr);
+  }
+  if (files == Files::kMaps) return;
   const auto preview = [&](const std::string& name, int channels,
                            std::function<Image(const Image&)> values) {
     std::filesystem::path file = path;
@@ -202,9 +206,8 @@ ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, i
   };
   const auto channel = [&](const std::string& name, int first, int channels,
                            const std::function<float(float)>& transform) {
-    preview(name, channels, [=](const Image& maps) {
-      return channel_preview(maps, first, channels, transform);
-    });
+    preview(name, channels,
+            [=](const Image& maps) { return channel_preview(maps, first, channels, transform); });
   };
   const auto identity = [](float v) { return v; };
   channel("normal", kMapNormalX, 3, [](float v) { return 0.5f + 0.5f * v; });
@@ -229,21 +232,23 @@ void ModelMapsWriter::write_rows(const ModelMaps& band) {
                image.pixels.size() == image.num_pixels() * kMapChannelCount &&
                band.shadows.empty() != shadows_,
            "model maps have " + std::to_string(image.channels) + " channels");
-  Image named(image.width, image.height, image.channels + shadows.channels);
-  for (size_t i = 0; i < image.num_pixels(); ++i) {
-    float* out = &named.pixels[i * size_t(named.channels)];
-    std::copy_n(&image.pixels[i * size_t(image.channels)], image.channels, out);
-    if (shadows_) {
-      std::copy_n(&shadows.pixels[i * size_t(shadows.channels)], shadows.channels,
-                  out + image.channels);
+  if (maps_) {
+    Image named(image.width, image.height, image.channels + shadows.channels);
+    for (size_t i = 0; i < image.num_pixels(); ++i) {
+      float* out = &named.pixels[i * size_t(named.channels)];
+      std::copy_n(&image.pixels[i * size_t(image.channels)], image.channels, out);
+      if (shadows_) {
+        std::copy_n(&shadows.pixels[i * size_t(shadows.channels)], shadows.channels,
+                    out + image.channels);
+      }
     }
+    maps_->write_rows(named);
   }
-  maps_->write_rows(named);
   for (Preview& preview : previews_) preview.file->write_rows(preview.values(image));
 }
 
 void ModelMapsWriter::commit() {
-  maps_->commit();
+  if (maps_) maps_->commit();
   for (Preview& preview : previews_) preview.file->commit();
 }
 

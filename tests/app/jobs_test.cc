@@ -275,6 +275,28 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   EXPECT_EQ(resumed.resumed_rows % resumed.band_rows, 0);
   EXPECT_EQ(read_image(fit.out).pixels, read_image(dir / "whole.exr").pixels);
   EXPECT_FALSE(fs::exists(dir / "maps.exr.partial"));
+
+  // Stopped halfway through assigning the basis materials, it keeps the bands assigned too.
+  fs::remove(fit.out);
+  long assigned = 0;
+  EXPECT_THROW(
+      (void)jobs::fit(fit,
+                      [&](const std::string& phase, long done, long total, const std::string&) {
+                        if (phase == "materials (rows)" && 2 * done >= total) {
+                          assigned = done;
+                          throw Killed{};
+                        }
+                      }),
+      Killed);
+  ASSERT_GT(assigned, 0) << "the field has basis materials to assign";
+  long kept = 0;
+  const jobs::FitJobSummary again =
+      jobs::fit(fit, [&](const std::string& phase, long done, long, const std::string& item) {
+        if (phase == "materials (rows)" && item == "resumed") kept = done;
+      });
+  EXPECT_EQ(again.resumed_rows, field.height()) << "every band's per-pixel fit was kept";
+  EXPECT_EQ(kept, assigned);
+  EXPECT_EQ(read_image(fit.out).pixels, read_image(dir / "whole.exr").pixels);
 }
 
 TEST_F(Jobs, RelightRefusesBadOptionsBeforeWritingAnything) {
