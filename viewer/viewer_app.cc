@@ -417,6 +417,7 @@ void ViewerApp::handle_drop(const std::vector<std::string>& paths) {
   impl_->open_dropped(paths);
 }
 const std::string& ViewerApp::error_message() const { return impl_->error; }
+const std::string& ViewerApp::field_note() const { return impl_->field_note; }
 bool ViewerApp::frame() {
   make_current();
   return impl_->frame();

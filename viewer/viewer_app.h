@@ -32,6 +32,9 @@ class ViewerApp {
   void handle_drop(const std::vector<std::string>& paths);
   // The error shown in the window's banner (empty: none).
   const std::string& error_message() const;
+  // What the field shown is when it is not the file's (a field over --memory: reduced); empty
+  // otherwise.
+  const std::string& field_note() const;
 
   // Draws one frame (relight, tone map, panels) and swaps; returns false once the window is asked
   // to close.

@@ -65,6 +65,8 @@ struct ViewerApp::Impl {
   int time_steps = 1;
   std::filesystem::path loaded_session, loaded_field, loaded_models, loaded_pca;
   int loaded_time_step = -1;
+  // What the field shown is when it is not the file's (a field over --memory, reduced).
+  std::string field_note;
   std::optional<relight::ModelMaps> base_maps, edited_maps;
   std::optional<std::vector<ViewEdit>> edits_in_maps;
   std::optional<relight::PcaField> pca_from_file, pca_from_field;
@@ -128,6 +130,10 @@ struct ViewerApp::Impl {
   // Brings the loaded data in line with the state. InputError on a file that cannot be read;
   // what was loaded before stays.
   void load();
+  // The field file whole, or reduced to fit memory_bytes (capture/reduced_field.h), field_note
+  // saying so.
+  capture::ReflectanceField read_field_within(const std::filesystem::path& file,
+                                              std::size_t memory_bytes);
   void on_field_changed();
   const relight::ModelMaps& current_maps();
 

@@ -21,7 +21,9 @@
 #include <optional>
 
 #include "capture/build_field.h"
+#include "capture/reduced_field.h"
 #include "lightstage/errors.h"
+#include "lightstage/memory.h"
 #include "lightstage/session.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/model_edit.h"
@@ -106,6 +108,28 @@ void ViewerApp::Impl::set_leds_from_field() {
   strip_nearest_led.clear();
 }
 
+capture::ReflectanceField ViewerApp::Impl::read_field_within(const fs::path& file,
+                                                             std::size_t memory_bytes) {
+  capture::FieldStream stream(file);
+  const std::size_t budget = memory_bytes > 0 ? memory_bytes : available_memory_bytes() / 2;
+  const std::size_t bytes = capture::ReflectanceField::bytes_for(stream.width(), stream.height(),
+                                                                 stream.header().num_lights());
+  if (bytes <= budget) {
+    field_note.clear();
+    return capture::read_field(file);
+  }
+  // Half the budget for the reduced field, half for the band being read.
+  const int factor = capture::reduction_factor(stream.width(), stream.height(),
+                                               stream.header().num_lights(), budget / 2);
+  const auto mib = [](std::size_t b) { return std::to_string(b >> 20) + " MiB"; };
+  field_note = file.string() + ": " + mib(bytes) + " of values, over the " + mib(budget) +
+               " memory budget (--memory): shown at 1/" + std::to_string(factor) +
+               " resolution, each pixel the mean of " + std::to_string(factor) + "x" +
+               std::to_string(factor) + " (fits and `lightstage relight` read the whole field)";
+  std::fprintf(stderr, "%s\n", field_note.c_str());
+  return capture::read_reduced_field(stream, factor, budget / 2);
+}
+
 void ViewerApp::Impl::load() {
   if (!state.session_dir.empty() &&
       (state.session_dir != loaded_session || state.time_step != loaded_time_step)) {
@@ -118,13 +142,14 @@ void ViewerApp::Impl::load() {
     capture::BuildOptions options;
     options.time_step = state.time_step;
     field = capture::build_field(session, options);
+    field_note.clear();
     loaded_session = state.session_dir;
     loaded_time_step = state.time_step;
     loaded_field.clear();
     on_field_changed();
   }
   if (!state.field_file.empty() && state.field_file != loaded_field) {
-    capture::ReflectanceField read = capture::read_field(state.field_file);
+    capture::ReflectanceField read = read_field_within(state.field_file, state.memory_bytes);
     field = std::move(read);
     time_steps = 1;
     loaded_field = state.field_file;

@@ -225,6 +225,9 @@ void ViewerApp::Impl::source_section() {
     if (ImGui::SliderFloat("divider", &divider, 0, 1)) state.divider = divider;
     ImGui::Checkbox("difference", &state.difference);
   }
+  if (!field_note.empty() && state.source == Source::kField) {
+    ImGui::TextWrapped("%s", field_note.c_str());
+  }
   if (GpuSource* s = gpu_field.get(); s && state.source == Source::kField)
     ImGui::TextWrapped("%s", s->note().c_str());
 }

@@ -287,10 +287,10 @@ void add_compact(CLI::App& bench) {
 
 void print_scale(const evaluation::ScaleBenchSummary& summary, std::size_t budget) {
   std::printf("medians; every step's --memory %zu MiB\n", budget >> 20);
-  std::printf("%-6s %-5s %-16s %10s %10s %10s %12s\n", "size", "LEDs", "step", "seconds",
+  std::printf("%-6s %-5s %-20s %10s %10s %10s %12s\n", "size", "LEDs", "step", "seconds",
               "peak MiB", "field MiB", "per unit");
   for (const evaluation::ScaleBenchRow& r : summary.rows) {
-    std::printf("%-6d %-5d %-16s %10.2f %10.1f %10.1f %12.4g %s\n", r.size, r.leds, r.step.c_str(),
+    std::printf("%-6d %-5d %-20s %10.2f %10.1f %10.1f %12.4g %s\n", r.size, r.leds, r.step.c_str(),
                 r.seconds, r.peak_mib, r.field_mib, r.per_unit, r.unit.c_str());
   }
   const evaluation::ScaleMpiModel& m = summary.mpi;

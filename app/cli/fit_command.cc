@@ -148,7 +148,7 @@ void add_fit_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--memory", options->memory_bytes,
                   "Bytes of memory for the field: a larger one is fitted in bands of rows within "
-                  "them, read three times with basis materials (default: the whole field when it "
+                  "them, read twice with basis materials (default: the whole field when it "
                   "takes at most half of what is available, else bands within that half).");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {

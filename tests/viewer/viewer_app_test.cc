@@ -162,6 +162,7 @@ TEST(ViewState, CommandLineRoundTripsEveryField) {
   by_brush.specular_scale = 0.125;
   state.edits = {by_class, by_brush};
   state.time_step = 2;
+  state.memory_bytes = std::size_t(3) << 30;
   state.window_width = 1024;
   state.window_height = 700;
 
@@ -364,6 +365,42 @@ double flux_ratio(const Image& a, const Image& b) {
 // render's light (SH9 keeps the constant and linear terms of the irradiance, the split sum the
 // lobe's energy): flux ratio bound 1 +- 0.05 (to be measured). gpu_relight_test measures the method
 // itself.
+// A field over the memory budget opens at a reduced resolution and says so: relit, each pixel is
+// the mean of the full field's relit 2 x 2 block (relighting is linear in the field's values).
+TEST_F(ViewerApp_, AFieldOverTheMemoryBudgetOpensReducedAndSaysSo) {
+  ViewState state = initial_state();
+  state.models_file.clear();
+  state.memory_bytes = field_->bytes() / 2;  // Half of it for the reduced field: a quarter.
+  ViewerApp& app = fresh_app(state);
+  ASSERT_TRUE(app.frame());
+  EXPECT_EQ(app.error_message(), "");
+  EXPECT_NE(app.field_note().find("1/2 resolution"), std::string::npos) << app.field_note();
+  EXPECT_NE(app.field_note().find("--memory"), std::string::npos) << app.field_note();
+  const Image full = cpu_field(0);
+  Image blocks(full.width / 2, full.height / 2, 3);
+  for (int y = 0; y < blocks.height; ++y) {
+    for (int x = 0; x < blocks.width; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        blocks.at(x, y, c) =
+            0.25f * (full.at(2 * x, 2 * y, c) + full.at(2 * x + 1, 2 * y, c) +
+                     full.at(2 * x, 2 * y + 1, c) + full.at(2 * x + 1, 2 * y + 1, c));
+      }
+    }
+  }
+  const Image relit = app.relit_image();
+  ASSERT_EQ(relit.width, 32);
+  ASSERT_EQ(relit.height, 24);
+  const double error = max_relative_difference(relit, blocks);
+  std::cout << "reduced field vs CPU block means: max " << error << " of the peak\n";
+  EXPECT_LT(error, 2e-3);  // As the full field's: half floats on the GPU.
+
+  state.memory_bytes = 0;  // Half of what is available: the whole field.
+  ViewerApp& whole = fresh_app(state);
+  ASSERT_TRUE(whole.frame());
+  EXPECT_EQ(whole.field_note(), "");
+  EXPECT_EQ(whole.relit_image().width, 64);
+}
+
 TEST_F(ViewerApp_, ModelsUnderAnEnvironmentUseThePrefilteredEnvironment) {
   ViewState state = initial_state();
   state.source = Source::kModels;

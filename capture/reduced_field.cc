@@ -1,0 +1,66 @@
+#include "capture/reduced_field.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <numeric>
+#include <vector>
+
+#include "lightstage/errors.h"
+
+namespace ls::capture {
+
+int reduction_factor(int width, int height, int num_lights, std::size_t bytes) {
+  int factor = 1;
+  while (factor < std::max(width, height) &&
+         ReflectanceField::bytes_for((width + factor - 1) / factor, (height + factor - 1) / factor,
+                                     num_lights) > bytes) {
+    factor *= 2;
+  }
+  return factor;
+}
+
+ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t band_bytes,
+                                    const std::function<void(int done, int total)>& progress) {
+  LS_CHECK(factor >= 1, "reduced field: factor " + std::to_string(factor));
+  const ReflectanceField& header = stream.header();
+  const int width = header.width(), height = header.height();
+  const int out_width = (width + factor - 1) / factor, out_height = (height + factor - 1) / factor;
+  ReflectanceField out(out_width, out_height, header.lights());
+  copy_attributes(header, out);
+  out.noise.read_variance /= double(factor) * factor;
+  out.noise.shot_variance_per_unit /= double(factor) * factor;
+  const std::size_t values = std::size_t(header.num_lights()) * 3;
+  // Whole blocks of rows a band, and whole tile rows where the file is tiled.
+  const int alignment = std::lcm(factor, stream.row_alignment());
+  const int rows = std::max(alignment, stream.rows_within(band_bytes) / alignment * alignment);
+  ReflectanceField band;
+  for (int y0 = 0; y0 < height; y0 += rows) {
+    stream.read_rows(y0, std::min(height, y0 + rows), band);
+    const int block_rows = (band.height() + factor - 1) / factor;
+    tbb::parallel_for(tbb::blocked_range<int>(0, block_rows), [&](const auto& range) {
+      std::vector<double> sum(values);
+      for (int by = range.begin(); by < range.end(); ++by) {
+        const int ya = by * factor, yb = std::min(band.height(), ya + factor);
+        for (int bx = 0; bx < out_width; ++bx) {
+          const int xa = bx * factor, xb = std::min(width, xa + factor);
+          std::fill(sum.begin(), sum.end(), 0.0);
+          for (int y = ya; y < yb; ++y) {
+            for (int x = xa; x < xb; ++x) {
+              const float* v = band.pixel(x, y);
+              for (std::size_t i = 0; i < values; ++i) sum[i] += v[i];
+            }
+          }
+          const double n = double(yb - ya) * (xb - xa);
+          float* o = out.pixel(bx, y0 / factor + by);
+          for (std::size_t i = 0; i < values; ++i) o[i] = float(sum[i] / n);
+        }
+      }
+    });
+    if (progress) progress(band.first_row() + band.height(), height);
+  }
+  return out;
+}
+
+}  // namespace ls::capture

@@ -1,0 +1,25 @@
+#pragma once
+// A field larger than memory seen whole at a reduced resolution (the viewer, issue 14): each pixel
+// the mean of a factor x factor block of the file's pixels (blocks at the right and bottom edges
+// hold what is left). Radiance sums linearly, so a relit reduced field is the mean of the full
+// field's relit blocks; what depends on where a pixel is (the view, near-LED geometry) uses
+// normalised image coordinates and carries over. For viewing: the fits and the CLI's relighting
+// read the full field.
+#include <cstddef>
+#include <functional>
+
+#include "capture/field.h"
+
+namespace ls::capture {
+
+// The smallest power-of-two factor (1 when it fits) whose reduced field takes at most `bytes`.
+int reduction_factor(int width, int height, int num_lights, std::size_t bytes);
+
+// The file's field reduced by `factor`, read band by band (bands of at most band_bytes, whole
+// blocks of rows); progress(rows read, rows) after each band. Its noise is the mean's of factor^2
+// pixels: both variances divided by factor^2 (edge blocks, with fewer pixels, are a little
+// noisier than stated).
+ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t band_bytes,
+                                    const std::function<void(int done, int total)>& progress = {});
+
+}  // namespace ls::capture
