@@ -36,6 +36,7 @@ void add_devices_command(CLI::App& app);
 void add_check_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
+void add_normals_command(CLI::App& app);  // fit_command.cc
 void add_import_command(CLI::App& app);
 void add_view_command(CLI::App& app);  // view_command.cc: the interactive viewer.
 

@@ -1,4 +1,5 @@
-// lightstage fit: reflectance field -> per-pixel BRDF model maps (EXR + PNG previews).
+// lightstage fit: reflectance field -> per-pixel BRDF model maps (EXR + PNG previews); lightstage
+// normals: the photometric-stereo normals alone.
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -160,6 +161,46 @@ void add_fit_command(CLI::App& app) {
     } else {
       fit_field_file(*options, *quiet);
     }
+  });
+}
+
+}  // namespace ls::cli
+
+namespace ls::cli {
+
+void add_normals_command(CLI::App& app) {
+  auto options = std::make_shared<jobs::NormalsJobOptions>();
+  auto quiet = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand(
+      "normals",
+      "Photometric-stereo normals alone (no BRDF fit): normal, Lambertian albedo, confidence and "
+      "flags per pixel in one EXR, with PNG previews; read in bands within --memory.");
+  cmd->add_option("field", options->field_file, "Reflectance field (.exr).")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--out", options->out, "Normals file (.exr).")->required();
+  cmd->add_option("--method", options->method,
+                  "robust: iteratively reweighted, shadows and highlights left out; ls: least "
+                  "squares over the lit samples.")
+      ->check(CLI::IsMember({"robust", "ls"}))
+      ->capture_default_str();
+  cmd->add_option("--memory", options->memory_bytes,
+                  "Bytes of memory for the field: a larger one is read in bands of rows within "
+                  "them (default as fit).");
+  cmd->add_flag("--quiet", *quiet, "No progress output.");
+  cmd->callback([options, quiet] {
+    if (const std::string problem = options->validate(); !problem.empty()) {
+      throw CLI::ValidationError("normals", problem);
+    }
+    const jobs::NormalsJobSummary s = jobs::estimate_normals(*options, progress_printer(*quiet));
+    const long pixels = long(s.width) * s.height;
+    std::printf(
+        "%s: %dx%d normals, %ld flagged (%.1f%%: too few lit lights, ill-conditioned or "
+        "saturated)\n",
+        options->out.c_str(), s.width, s.height, s.flagged_pixels,
+        pixels > 0 ? 100.0 * double(s.flagged_pixels) / double(pixels) : 0.0);
+    std::printf("  %.2f s; noise: %s; read in bands of %d rows; peak memory %.1f MiB\n", s.seconds,
+                s.noise_source.c_str(), s.band_rows, double(peak_resident_bytes()) / (1 << 20));
   });
 }
 

@@ -48,6 +48,7 @@ int run(int argc, char** argv) {
   ls::cli::add_check_command(app);
   ls::cli::add_calibrate_command(app);
   ls::cli::add_fit_command(app);
+  ls::cli::add_normals_command(app);
   ls::cli::add_import_command(app);
   ls::cli::add_view_command(app);
   try {

@@ -2,13 +2,16 @@
 
 #include <algorithm>
 #include <chrono>
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <tuple>
 
 #include "app/jobs/fit_bands.h"
 #include "app/jobs/fit_checkpoint.h"
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "lightstage/errors.h"
+#include "lightstage/exr_channels.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/normals.h"
 
@@ -180,6 +183,91 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   TemporalFitJobSummary summary{maps.summary,      maps.maps.width,       maps.maps.height,
                                 maps.step_times_s, fit.brdf.noise_source, seconds_since(start)};
   relight::write_temporal_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
+  return summary;
+}
+
+std::string NormalsJobOptions::validate() const {
+  if (field_file.empty()) return "a field is required";
+  if (out.extension() != ".exr") {
+    return "--out: the normals are an OpenEXR file: give a path ending in .exr, got \"" +
+           out.string() + "\"";
+  }
+  if (method != "robust" && method != "ls") {
+    return "--method: expected robust or ls, got \"" + method + "\"";
+  }
+  return {};
+}
+
+NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const ProgressFn& progress) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("normals: " + problem);
+  }
+  capture::FieldStream stream(options.field_file);
+  const capture::ReflectanceField& header = stream.header();
+  relight::FitOptions fit;  // Its noise: the field's measured one, else the default (fit.h).
+  fit.use_noise_of(header);
+  relight::NormalOptions normal_options = fit.normals;
+  normal_options.method = options.method == "ls" ? relight::NormalMethod::kLeastSquares
+                                                 : relight::NormalMethod::kRobust;
+  if (const std::string error = normal_options.validate(); !error.empty()) {
+    throw InputError(options.field_file.string() + ": noise: " + error);
+  }
+  NormalsJobSummary summary;
+  summary.width = header.width(), summary.height = header.height();
+  summary.noise_source = fit.noise_source;
+  summary.band_rows = stream.band_rows(options.memory_bytes);
+  const std::vector<std::string> names = {"normal.x", "normal.y", "normal.z",   "albedo.r",
+                                          "albedo.g", "albedo.b", "confidence", "flags"};
+  const nlohmann::json noise = {{"read_variance", normal_options.noise.a},
+                                {"shot_variance_per_unit", normal_options.noise.b},
+                                {"source", fit.noise_source}};
+  const nlohmann::json recorded = {{"field", options.field_file.string()},
+                                   {"method", options.method}};
+  ImageRowWriter file(
+      options.out, header.width(), header.height(), int(names.size()), names,
+      {{kOptionsAttribute, recorded.dump()}, {"lightstage:fit_noise", noise.dump()}});
+  // Previews beside it, as the fit's: STEM.normal.png (0.5 + 0.5 n), .albedo.png, .confidence.png.
+  struct Preview {
+    int first, channels;
+    std::unique_ptr<ImageRowWriter> file;
+  };
+  std::vector<Preview> previews;
+  for (auto [name, first, channels] :
+       {std::tuple{"normal", 0, 3}, std::tuple{"albedo", 3, 3}, std::tuple{"confidence", 6, 1}}) {
+    fs::path png = options.out;
+    png.replace_extension(std::string(name) + ".png");
+    previews.push_back(
+        {first, channels,
+         std::make_unique<ImageRowWriter>(png, header.width(), header.height(), channels)});
+  }
+  const auto start = Clock::now();
+  double read_seconds = 0;
+  capture::ReflectanceField band;
+  for (int y0 = 0; y0 < header.height(); y0 += summary.band_rows) {
+    const auto read_start = Clock::now();
+    stream.read_rows(y0, std::min(header.height(), y0 + summary.band_rows), band);
+    read_seconds += seconds_since(read_start);
+    const relight::NormalMap normals = relight::estimate_normals(band, normal_options);
+    summary.flagged_pixels += normals.flagged_pixels;
+    Image rows(band.width(), band.height(), int(names.size()));
+    for (size_t i = 0; i < rows.num_pixels(); ++i) {
+      float* out = &rows.pixels[i * names.size()];
+      std::copy_n(&normals.normal.pixels[i * 3], 3, out);
+      std::copy_n(&normals.albedo.pixels[i * 3], 3, out + 3);
+      out[6] = normals.confidence.pixels[i];
+      out[7] = normals.flags.pixels[i];
+    }
+    file.write_rows(rows);
+    for (Preview& p : previews) {
+      const bool normal = p.first == 0;
+      p.file->write_rows(channel_preview(
+          rows, p.first, p.channels, [normal](float v) { return normal ? 0.5f + 0.5f * v : v; }));
+    }
+    report(progress, "normals (rows)", y0 + band.height(), header.height());
+  }
+  file.commit();
+  for (Preview& p : previews) p.file->commit();
+  summary.seconds = seconds_since(start) - read_seconds;
   return summary;
 }
 

@@ -20,7 +20,7 @@ struct FitJobOptions {
   std::string method = "robust";    // Photometric-stereo normals: "robust" or "ls".
   std::string materials = "basis";  // "basis" or "per-pixel" (relight::FitMaterials).
   // Bytes for the field (capture::FieldStream::band_rows; 0: the default there). A field larger
-  // is fitted in bands of rows, read three times with basis materials (fits, pool, blends).
+  // is fitted in bands of rows, read twice with basis materials (fits, blends).
   std::size_t memory_bytes = 0;
   std::string validate() const;
   std::string to_json() const;  // Recorded in the maps (kOptionsAttribute).
@@ -54,5 +54,27 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress = {},
                   const NoiseNoticeFn& noise_notice = {});
 TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const ProgressFn& progress = {},
                                     const NoiseNoticeFn& noise_notice = {});
+
+// lightstage normals: photometric-stereo normals alone (relight/fit/normals.h), with their
+// Lambertian albedo, confidence and flags, weighted by the field's measured noise; the field read
+// in bands within memory_bytes and the file written a band at a time, whatever its size.
+struct NormalsJobOptions {
+  std::filesystem::path field_file;
+  std::filesystem::path out;      // An EXR: normal.x/y/z, albedo.r/g/b, confidence, flags.
+  std::string method = "robust";  // "robust" or "ls".
+  std::size_t memory_bytes = 0;   // As FitJobOptions'.
+  std::string validate() const;
+};
+
+struct NormalsJobSummary {
+  int width = 0, height = 0;
+  long flagged_pixels = 0;
+  std::string noise_source;
+  double seconds = 0.0;
+  int band_rows = 0;
+};
+
+NormalsJobSummary estimate_normals(const NormalsJobOptions& options,
+                                   const ProgressFn& progress = {});
 
 }  // namespace ls::jobs

@@ -12,9 +12,12 @@
 
 #include "capture/field.h"
 #include "lightstage/controller/sequencer.h"
+#include "lightstage/exr_channels.h"
 #include "lightstage/image.h"
 #include "lightstage/session.h"
 #include "lightstage/stage.h"
+#include "relight/fit/fit.h"
+#include "relight/fit/normals.h"
 #include "sim/noisy_field.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
@@ -141,6 +144,53 @@ TEST(StreamedField, FitsInBandsGiveTheMapsOfTheWholeField) {
     const Image whole = read_image(dir / "whole.exr");
     EXPECT_EQ(whole.pixels, read_image(dir / "bands.exr").pixels) << materials;
     EXPECT_EQ(whole.width, 48);
+  }
+}
+
+// `lightstage normals` reads the field in bands and writes the photometric-stereo normals, albedo,
+// confidence and flags that relight/fit/normals.h estimates on the whole field, bit for bit.
+TEST(StreamedField, NormalsInBandsAreThoseOfTheWholeField) {
+  const testing::TempDir dir;
+  Stage stage = stage_with_directions(fibonacci_dome_directions(40, -11.5));
+  stage.camera.width = 40;
+  stage.camera.height = 36;
+  capture::FieldNoise noise;
+  noise.read_variance = 1e-6;
+  noise.shot_variance_per_unit = 1e-4;
+  noise.measured = true;
+  const capture::ReflectanceField field =
+      sim::render_noisy_field(stage, sim::default_scene(), noise, 5);
+  capture::write_field(dir / "field.exr", field);
+  const std::size_t row_bytes = 40 * 3 * field.lights().size() * sizeof(float);
+  const Measured run =
+      run_measured({"normals", (dir / "field.exr").string(), "--out",
+                    (dir / "normals.exr").string(), "--memory", std::to_string(5 * row_bytes)});
+  ASSERT_EQ(run.code, 0);
+  relight::FitOptions fit;
+  fit.use_noise_of(field);
+  const relight::NormalMap whole = relight::estimate_normals(field, fit.normals);
+  const NamedChannelFile file =
+      read_named_channels(dir / "normals.exr",
+                          {"normal.x", "normal.y", "normal.z", "albedo.r", "albedo.g", "albedo.b",
+                           "confidence", "flags"},
+                          "normals", "'lightstage normals'", /*exact=*/true);
+  ASSERT_EQ(file.image.width, 40);
+  ASSERT_EQ(file.image.height, 36);
+  int flagged = 0;
+  for (size_t i = 0; i < file.image.num_pixels(); ++i) {
+    const float* n = &file.image.pixels[i * 8];
+    for (int c = 0; c < 3; ++c) {
+      ASSERT_EQ(n[c], whole.normal.pixels[i * 3 + size_t(c)]) << "pixel " << i;
+      ASSERT_EQ(n[3 + c], whole.albedo.pixels[i * 3 + size_t(c)]) << "pixel " << i;
+    }
+    ASSERT_EQ(n[6], whole.confidence.pixels[i]) << "pixel " << i;
+    ASSERT_EQ(n[7], whole.flags.pixels[i]) << "pixel " << i;
+    flagged += n[7] != 0;
+  }
+  EXPECT_EQ(flagged, whole.flagged_pixels);
+  for (const char* preview :
+       {"normals.normal.png", "normals.albedo.png", "normals.confidence.png"}) {
+    EXPECT_TRUE(fs::exists(dir / preview)) << preview;
   }
 }
 
