@@ -32,6 +32,7 @@ void add_stage_command(CLI::App& app);
 void add_envmaps_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
 void add_compress_command(CLI::App& app);  // compact_command.cc
+void add_render_command(CLI::App& app);    // compact_command.cc
 void add_devices_command(CLI::App& app);
 void add_check_command(CLI::App& app);
 void add_calibrate_command(CLI::App& app);

@@ -1,7 +1,8 @@
 // lightstage compress FIELD --out OUT [--format F] [--rank k|auto] [--tile N] [--gain G]: writes
 // one compact representation (.ptm, .rti, or the PCA binary format of relight/compact/pca_field.h)
 // through the compress job (app/jobs/compress_job.h). FIELD is a field EXR, or an .lp capture (or a
-// folder holding one), imported directly. `lightstage bench compact` is in bench_command.cc.
+// folder holding one), imported directly. lightstage render COMPACT --light X Y Z | --env MAP:
+// relights one. `lightstage bench compact` is in bench_command.cc.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <memory>
@@ -55,6 +56,33 @@ void add_compress_command(CLI::App& app) {
         summary.raw_bytes_per_pixel);
     if (summary.band_rows > 0) std::printf("read in bands of %d rows\n", summary.band_rows);
     std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
+  });
+}
+
+void add_render_command(CLI::App& app) {
+  auto args = std::make_shared<jobs::RenderOptions>();
+  auto* render = app.add_subcommand(
+      "render",
+      "Relights a compact file (.ptm, .rti, or the lightstage PCA format) under one distant light "
+      "or an environment map: a linear EXR in field units and a PNG preview.");
+  render->add_option("compact", args->input, "Compact file.")->required()->check(CLI::ExistingFile);
+  render->add_option("--out", args->out, "Output image (.exr; a .png preview beside it).")
+      ->required();
+  render
+      ->add_option("--light", args->light,
+                   "X Y Z: direction toward the light, stage frame (+Y up, camera on +Z), unit "
+                   "irradiance at normal incidence.")
+      ->expected(3);
+  render->add_option("--env", args->environment, "Environment map (EXR/HDR) instead of --light.");
+  render->add_option("--rotate", args->rotation_deg, "Rotation of the map about +Y, degrees.")
+      ->capture_default_str();
+  render->callback([args] {
+    if (const std::string problem = args->validate(); !problem.empty()) {
+      throw CLI::ValidationError("render", problem);
+    }
+    const jobs::RenderSummary summary = jobs::render_compact(*args);
+    std::printf("%s: %dx%d, %s relit\n", args->out.c_str(), summary.width, summary.height,
+                summary.representation.c_str());
   });
 }
 

@@ -44,6 +44,7 @@ int run(int argc, char** argv) {
   ls::cli::add_envmaps_command(app);
   ls::cli::add_bench_command(app);
   ls::cli::add_compress_command(app);
+  ls::cli::add_render_command(app);
   ls::cli::add_devices_command(app);
   ls::cli::add_check_command(app);
   ls::cli::add_calibrate_command(app);

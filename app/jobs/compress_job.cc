@@ -1,8 +1,11 @@
 #include "app/jobs/compress_job.h"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cctype>
 #include <charconv>
+#include <cmath>
+#include <memory>
 #include <numeric>
 #include <optional>
 
@@ -12,6 +15,7 @@
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
+#include "relight/lighting/envmap.h"
 
 namespace ls::jobs {
 
@@ -152,6 +156,49 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   summary.bytes_per_pixel = written.bytes_per_pixel;
   summary.output_bytes = fs::file_size(options.out);
   return summary;
+}
+
+std::string RenderOptions::validate() const {
+  if (input.empty()) return "a compact file (.ptm, .rti or PCA) is required";
+  if (out.extension() != ".exr") {
+    return "--out: the render is an OpenEXR file (linear): give a path ending in .exr, got \"" +
+           out.string() + "\"";
+  }
+  if (light.empty() == environment.empty()) return "give either --light X Y Z or --env MAP";
+  if (!light.empty()) {
+    if (light.size() != 3) return "--light: expected X Y Z";
+    const Eigen::Vector3d dir(light[0], light[1], light[2]);
+    if (!dir.allFinite() || !(dir.norm() > 0)) return "--light: expected a non-zero direction";
+  }
+  if (!std::isfinite(rotation_deg)) return "--rotate: expected a number of degrees";
+  return {};
+}
+
+RenderSummary render_compact(const RenderOptions& options) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("render: " + problem);
+  }
+  const std::string ext = options.input.extension().string();
+  std::unique_ptr<relight::CompactField> field;
+  if (ext == ".ptm" || ext == ".rti") {
+    field = std::make_unique<relight::RtiField>(
+        relight::dequantise(relight::read_rti_file(options.input)));
+  } else {
+    field = std::make_unique<relight::PcaField>(relight::PcaField::read(options.input));
+  }
+  const relight::LightingForModels lights =
+      options.light.empty()
+          ? relight::LightingForModels::environment(
+                relight::EnvironmentMap::load(options.environment), options.rotation_deg)
+          : relight::LightingForModels::directional(
+                Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized(),
+                Eigen::Vector3d::Ones());
+  const Image image = field->relight(lights);
+  write_exr(options.out, image);
+  fs::path png = options.out;
+  png.replace_extension(".png");
+  write_png_preview(png, image, auto_exposure_stops(image));
+  return {field->name(), image.width, image.height};
 }
 
 }  // namespace ls::jobs

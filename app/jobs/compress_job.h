@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 #include "app/jobs/job.h"
 
@@ -35,5 +36,24 @@ struct CompressSummary {
 
 // Throws InputError for bad options or inputs; the output is written only on success.
 CompressSummary compress(const CompressOptions& options, const ProgressFn& progress = {});
+
+// lightstage render: a compact file (.ptm, .rti, or the lightstage PCA format) relit under one
+// distant light or an environment map: linear radiance in field units (the file's codes
+// dequantised), as OUT.exr with an auto-exposed OUT.png beside it.
+struct RenderOptions {
+  std::filesystem::path input;
+  std::filesystem::path out;          // .exr
+  std::vector<double> light;          // X Y Z toward the light, stage frame (+Y up); or
+  std::filesystem::path environment;  // an environment map (EXR/HDR) ...
+  double rotation_deg = 0.0;          // ... rotated about +Y.
+  std::string validate() const;
+};
+
+struct RenderSummary {
+  std::string representation;  // E.g. "hsh3", "ptm-lrgb", "pca k=12".
+  int width = 0, height = 0;
+};
+
+RenderSummary render_compact(const RenderOptions& options);
 
 }  // namespace ls::jobs

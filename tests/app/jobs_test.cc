@@ -4,13 +4,21 @@
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <functional>
+#include <iostream>
+
 #include "app/jobs/build_job.h"
 #include "app/jobs/capture_job.h"
+#include "app/jobs/compress_job.h"
 #include "app/jobs/fit_job.h"
 #include "app/jobs/relight_job.h"
 #include "capture/field.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
+#include "relight/compact/pca_field.h"
+#include "relight/compact/rti_fits.h"
+#include "relight/compact/rti_io.h"
 #include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
@@ -297,6 +305,65 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   EXPECT_EQ(again.resumed_rows, field.height()) << "every band's per-pixel fit was kept";
   EXPECT_EQ(kept, assigned);
   EXPECT_EQ(read_image(fit.out).pixels, read_image(dir / "whole.exr").pixels);
+}
+
+// `lightstage render` relights what `compress` wrote, as the library relights the file's decoded
+// coefficients (bit for bit), upright: under an LED's direction it is that LED's image, not the
+// image upside down.
+TEST_F(Jobs, RenderRelightsACompactFileUnderALightAsItsFormatHoldsIt) {
+  const testing::TempDir dir;
+  jobs::BuildJobOptions build;
+  build.session_dir = *dir_ / "session";
+  build.out = dir / "field.exr";
+  (void)jobs::build(build);
+  const capture::ReflectanceField field = capture::read_field(build.out);
+  const int led = field.num_lights() / 3;  // High on the dome: a lit, shaded image.
+  const Eigen::Vector3d dir_to_led = field.lights()[size_t(led)].dir_in_stage;
+  const auto rms = [](const Image& a, const std::function<float(int, int, int)>& b) {
+    double sum = 0;
+    for (int y = 0; y < a.height; ++y) {
+      for (int x = 0; x < a.width; ++x) {
+        for (int c = 0; c < 3; ++c) sum += std::pow(a.at(x, y, c) - b(x, y, c), 2);
+      }
+    }
+    return std::sqrt(sum / double(a.num_pixels() * 3));
+  };
+  for (const std::string format : {"hsh3", "ptm", "pca"}) {
+    jobs::CompressOptions compress;
+    compress.input = build.out;
+    compress.format = format;
+    compress.out = dir / (format == "pca" ? "field.lspca" : format == "ptm" ? "f.ptm" : "f.rti");
+    (void)jobs::compress(compress);
+    jobs::RenderOptions render;
+    render.input = compress.out;
+    render.out = dir / (format + ".exr");
+    render.light = {dir_to_led.x(), dir_to_led.y(), dir_to_led.z()};
+    const jobs::RenderSummary summary = jobs::render_compact(render);
+    EXPECT_EQ(summary.width, field.width()) << format;
+    const Image rendered = read_image(render.out);
+    EXPECT_TRUE(fs::exists(dir / (format + ".png"))) << format;
+    const Image expected =
+        format == "pca"
+            ? relight::PcaField::read(compress.out).relight_point(dir_to_led)
+            : relight::dequantise(relight::read_rti_file(compress.out)).relight_point(dir_to_led);
+    EXPECT_EQ(rendered.pixels, expected.pixels) << format;
+    const double upright =
+        rms(rendered, [&](int x, int y, int c) { return field.at(x, y, led, c); });
+    const double flipped = rms(
+        rendered, [&](int x, int y, int c) { return field.at(x, field.height() - 1 - y, led, c); });
+    std::cout << format << ": rms against the LED's image " << upright << ", upside down "
+              << flipped << "\n";
+    EXPECT_LT(upright, 0.5 * flipped) << format;
+  }
+  jobs::RenderOptions bad;
+  bad.input = dir / "f.rti";
+  bad.out = dir / "bad.exr";
+  bad.light = {0, 0, 0};
+  EXPECT_NE(input_error([&] { (void)jobs::render_compact(bad); }).find("--light"),
+            std::string::npos);
+  bad.light.clear();
+  EXPECT_NE(input_error([&] { (void)jobs::render_compact(bad); }).find("--env"), std::string::npos);
+  EXPECT_FALSE(fs::exists(bad.out));
 }
 
 TEST_F(Jobs, RelightRefusesBadOptionsBeforeWritingAnything) {
