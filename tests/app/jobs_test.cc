@@ -66,6 +66,14 @@ class Jobs : public ::testing::Test {
     delete summary_;
     delete dir_;
   }
+  // The fixture's session built into DIR/field.exr.
+  static fs::path built_field(const fs::path& dir) {
+    jobs::BuildJobOptions build;
+    build.session_dir = *dir_ / "session";
+    build.out = dir / "field.exr";
+    (void)jobs::build(build);
+    return build.out;
+  }
   static testing::TempDir* dir_;
   static jobs::CaptureJobSummary* summary_;
   static int planned_frames_;
@@ -256,15 +264,12 @@ TEST_F(Jobs, CompactSourcesOverTheMemoryGivenAreRelitByTheCellsAndSaySo) {
 // field; the finished bands are removed once the maps are written.
 TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   const testing::TempDir dir;
-  jobs::BuildJobOptions build;
-  build.session_dir = *dir_ / "session";
-  build.out = dir / "field.exr";
-  (void)jobs::build(build);
+  const fs::path field_file = built_field(dir.path());
   jobs::FitJobOptions fit;
-  fit.field_file = build.out;
+  fit.field_file = field_file;
   fit.out = dir / "whole.exr";
   (void)jobs::fit(fit);
-  const capture::ReflectanceField field = capture::read_field(build.out);
+  const capture::ReflectanceField field = capture::read_field(field_file);
   fit.out = dir / "maps.exr";
   fit.memory_bytes = 3 * 2 * std::size_t(field.width()) * field.num_lights() * 3 * sizeof(float);
   struct Killed {};
@@ -312,11 +317,8 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
 // image upside down.
 TEST_F(Jobs, RenderRelightsACompactFileUnderALightAsItsFormatHoldsIt) {
   const testing::TempDir dir;
-  jobs::BuildJobOptions build;
-  build.session_dir = *dir_ / "session";
-  build.out = dir / "field.exr";
-  (void)jobs::build(build);
-  const capture::ReflectanceField field = capture::read_field(build.out);
+  const fs::path field_file = built_field(dir.path());
+  const capture::ReflectanceField field = capture::read_field(field_file);
   const int led = field.num_lights() / 3;  // High on the dome: a lit, shaded image.
   const Eigen::Vector3d dir_to_led = field.lights()[size_t(led)].dir_in_stage;
   const auto rms = [](const Image& a, const std::function<float(int, int, int)>& b) {
@@ -330,7 +332,7 @@ TEST_F(Jobs, RenderRelightsACompactFileUnderALightAsItsFormatHoldsIt) {
   };
   for (const std::string format : {"hsh3", "ptm", "pca"}) {
     jobs::CompressOptions compress;
-    compress.input = build.out;
+    compress.input = field_file;
     compress.format = format;
     compress.out = dir / (format == "pca" ? "field.lspca" : format == "ptm" ? "f.ptm" : "f.rti");
     (void)jobs::compress(compress);

@@ -111,19 +111,25 @@ TEST(StreamedField, TiledAndScanlineBandsRelightBitIdentically) {
   EXPECT_EQ(capture::read_field(dir / "tiled.exr").values(), field.values());
 }
 
-// Fitted in bands of 7 rows, with basis materials (two more passes over the file: the materials'
-// pools, then every pixel's blend) and per pixel, the maps are the whole field's, byte for byte.
+// The simulated default scene under `leds` LEDs of a dome, with measured noise.
+capture::ReflectanceField noisy_sim_field(int leds, int width, int height) {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(leds, -11.5));
+  stage.camera.width = width;
+  stage.camera.height = height;
+  capture::FieldNoise noise;
+  noise.read_variance = 1e-6;
+  noise.shot_variance_per_unit = 1e-4;
+  noise.measured = true;
+  return sim::render_noisy_field(stage, sim::default_scene(), noise, 5);
+}
+
+// Fitted in bands of 7 rows, with basis materials (two more passes: the pooled pixels' rows, then
+// every pixel's blend) and per pixel, the maps are the whole field's, byte for byte.
 // The LEDs are near (positions and a view): a pixel sees them from where it is in the frame, not
 // in its band.
 TEST(StreamedField, FitsInBandsGiveTheMapsOfTheWholeField) {
   const testing::TempDir dir;
-  Stage stage = stage_with_directions(fibonacci_dome_directions(60, -11.5));
-  stage.camera.width = 48;
-  stage.camera.height = 40;
-  capture::FieldNoise noise;
-  noise.read_variance = 1e-6;
-  noise.shot_variance_per_unit = 1e-4;
-  capture::ReflectanceField field = sim::render_noisy_field(stage, sim::default_scene(), noise, 5);
+  capture::ReflectanceField field = noisy_sim_field(60, 48, 40);
   field.view = capture::FieldView{};
   for (capture::FieldLight& light : field.lights()) {
     light.position_in_stage = 2.0 * light.dir_in_stage.normalized();
@@ -151,15 +157,7 @@ TEST(StreamedField, FitsInBandsGiveTheMapsOfTheWholeField) {
 // confidence and flags that relight/fit/normals.h estimates on the whole field, bit for bit.
 TEST(StreamedField, NormalsInBandsAreThoseOfTheWholeField) {
   const testing::TempDir dir;
-  Stage stage = stage_with_directions(fibonacci_dome_directions(40, -11.5));
-  stage.camera.width = 40;
-  stage.camera.height = 36;
-  capture::FieldNoise noise;
-  noise.read_variance = 1e-6;
-  noise.shot_variance_per_unit = 1e-4;
-  noise.measured = true;
-  const capture::ReflectanceField field =
-      sim::render_noisy_field(stage, sim::default_scene(), noise, 5);
+  const capture::ReflectanceField field = noisy_sim_field(40, 40, 36);
   capture::write_field(dir / "field.exr", field);
   const std::size_t row_bytes = 40 * 3 * field.lights().size() * sizeof(float);
   const Measured run =
