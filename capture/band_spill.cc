@@ -18,24 +18,41 @@ int spill_band_rows(int width, int height, int num_lights, std::size_t memory_by
 }
 
 SpillFile::SpillFile(const std::filesystem::path& field_file, int width, int height, int num_lights,
-                     int band_rows)
+                     int band_rows, const std::filesystem::path& kept_at)
     : width_(width),
       height_(height),
       lights_(num_lights),
       band_rows_(band_rows),
-      file_(field_file.string() + ".spill-" + std::to_string(::getpid()),
-            "a field built in bands needs free space for the whole field beside it") {}
+      file_(kept_at.empty() ? std::filesystem::path(field_file.string() + ".spill-" +
+                                                    std::to_string(::getpid()))
+                            : kept_at,
+            "a field built in bands needs free space for the whole field beside it",
+            kept_at.empty() ? ScratchFile::Lifetime::kTemporary : ScratchFile::Lifetime::kKept) {}
 
-void SpillFile::put(int light, const std::vector<float>& rgb) {
+void SpillFile::count_largest(const std::vector<float>& rgb) {
   const float largest = largest_magnitude(rgb.data(), rgb.size());
   float seen = largest_.load();
   while (largest > seen && !largest_.compare_exchange_weak(seen, largest)) {
   }
+}
+
+void SpillFile::put(int light, const std::vector<float>& rgb) {
+  count_largest(rgb);
   for (int b = 0; b < bands(); ++b) {
     const std::size_t count = std::size_t(band_height(b)) * width_ * 3;
     const float* rows = rgb.data() + std::size_t(band_first_row(b)) * width_ * 3;
     file_.write(rows, count, offset(b) + std::size_t(light) * count);
   }
+}
+
+void SpillFile::reread(int light, std::vector<float>& rgb) {
+  rgb.resize(std::size_t(width_) * height_ * 3);
+  for (int b = 0; b < bands(); ++b) {
+    const std::size_t count = std::size_t(band_height(b)) * width_ * 3;
+    float* rows = rgb.data() + std::size_t(band_first_row(b)) * width_ * 3;
+    file_.read(rows, count, offset(b) + std::size_t(light) * count);
+  }
+  count_largest(rgb);
 }
 
 void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& band) {

@@ -2,7 +2,8 @@
 // LED images spilled to disk in bands of rows, so that a field larger than memory is built from
 // LED-major frames into a pixel-major file (issue 14, capture/build_field.h): band b holds each
 // LED's rows of that band in turn, so an LED is written with one pwrite per band and a band is
-// read back with one pread. The file is removed when the SpillFile is destroyed.
+// read back with one pread. The file is removed when the SpillFile is destroyed, unless it is kept
+// for a build that may be resumed (capture/build_checkpoint.h).
 #include <atomic>
 #include <cstddef>
 #include <filesystem>
@@ -22,9 +23,10 @@ int spill_band_rows(int width, int height, int num_lights, std::size_t memory_by
 
 class SpillFile {
  public:
-  // Beside `field_file` (OUT.spill-PID).
+  // Beside `field_file` (OUT.spill-PID), or, given `kept_at`, there and kept after (what an
+  // earlier run put there is read back by reread).
   SpillFile(const std::filesystem::path& field_file, int width, int height, int num_lights,
-            int band_rows);
+            int band_rows, const std::filesystem::path& kept_at = {});
   SpillFile(const SpillFile&) = delete;
   SpillFile& operator=(const SpillFile&) = delete;
 
@@ -33,6 +35,11 @@ class SpillFile {
   int band_height(int band) const { return std::min(band_rows_, height_ - band_first_row(band)); }
   // LED `light`'s image (width * height * 3 floats, row-major, RGB innermost).
   void put(int light, const std::vector<float>& rgb);
+  // LED `light`'s image as put wrote it (by this run or an earlier one: a resumed build), counted
+  // in the largest value as put counts it.
+  void reread(int light, std::vector<float>& rgb);
+  // Every LED put so far made durable (before a checkpoint says they are there).
+  void sync() { file_.sync(); }
   // Band b into `band` (resized to the band's rows), pixel-major as the field stores it;
   // `scratch` holds the band as spilled.
   void read_band(int b, std::vector<float>& scratch, ReflectanceField& band);
@@ -48,6 +55,7 @@ class SpillFile {
 
  private:
   std::size_t offset(int band) const;  // In floats.
+  void count_largest(const std::vector<float>& rgb);
 
   int width_, height_, lights_, band_rows_;
   ScratchFile file_;

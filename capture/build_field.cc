@@ -17,6 +17,7 @@
 #include <thread>
 
 #include "capture/band_spill.h"
+#include "capture/build_checkpoint.h"
 #include "capture/led_frames.h"
 #include "capture/light_calibration.h"
 #include "capture/noise_estimate.h"
@@ -95,17 +96,27 @@ class FieldBuild {
     return field;
   }
 
-  // The field written to `out` in bands of band_rows rows, through a spill file beside it.
-  void run_to_file(const std::filesystem::path& out, const ExrAttributes& attributes,
-                   int band_rows) {
+  // The field written to `out` in bands of band_rows rows (an earlier, killed run's, when it left
+  // a checkpoint), through a spill file kept beside it until the field is written: a killed build
+  // run again merges only the LEDs it had not finished.
+  // Returns the band height used.
+  int run_to_file(const std::filesystem::path& out, const ExrAttributes& attributes,
+                  int band_rows) {
     prepare();
-    SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows);
+    BuildCheckpoint checkpoint(out, session_, options_);
+    band_rows = checkpoint.band_rows(band_rows);
+    SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows,
+                    checkpoint.spill_path());
+    resume_.emplace(Resume{checkpoint, spill});
     merge_brackets([&](int i, const std::vector<float>& rgb) { spill.put(i, rgb); });
+    resume_.reset();
     finish();
     HalfCheck check;
     sum_.storage = spill.write_field(out, header_, attributes, options_.on_band_written,
                                      options_.storage, &check);
     if (options_.storage != StorageChoice::kFloat) sum_.half_check = check;
+    checkpoint.remove();
+    return band_rows;
   }
 
  private:
@@ -142,6 +153,7 @@ class FieldBuild {
   // After the merge: the summary's counts and the field's noise.
   void finish() {
     sum_.lights_used = int(std::count(usable_.begin(), usable_.end(), true));
+    sum_.resumed_lights = resumed_lights_.load();
     const double samples = double(sum_.lights_used) * camera_.width * camera_.height;
     sum_.saturated_fraction = samples > 0 ? double(saturated_pixels_.load()) / samples : 0.0;
     std::vector<TransferSample> transfer;  // In capture order: the same noise every build.
@@ -446,6 +458,25 @@ class FieldBuild {
     saturated_pixels_ += saturated;
     noise_samples_->take(i, rgb);
     sink(i, rgb);
+    if (resume_) {
+      resume_->spill.sync();  // The image is there before its record says so.
+      resume_->checkpoint.save(i, {saturated, transfer_[size_t(i)]});
+    }
+  }
+
+  // LED i from an earlier run's checkpoint, when it finished it: its image read back from the
+  // spill and counted as merge_led counts it. False: it must be merged.
+  bool resumed(int i) {
+    if (!resume_) return false;
+    const std::optional<BuildCheckpoint::Led> led = resume_->checkpoint.load(i);
+    if (!led) return false;
+    std::vector<float> rgb;
+    resume_->spill.reread(i, rgb);
+    saturated_pixels_ += led->saturated;
+    transfer_[size_t(i)] = led->transfer;
+    noise_samples_->take(i, rgb);
+    ++resumed_lights_;
+    return true;
   }
 
   // LEDs run in parallel (frame decoding is serial per file); the number in flight is bounded so
@@ -471,7 +502,7 @@ class FieldBuild {
     tbb::task_arena arena(max_in_flight);
     arena.execute([&] {
       tbb::parallel_for(0, num_lights, [&](int i) {
-        if (usable_[i]) merge_led(i, transfer_led[i], transfer_stride, sink);
+        if (usable_[i] && !resumed(i)) merge_led(i, transfer_led[i], transfer_stride, sink);
         report();
       });
     });
@@ -498,6 +529,13 @@ class FieldBuild {
   std::atomic<long long> saturated_pixels_{0};
   ReflectanceField header_;  // Lights, view, time and noise; no values.
   std::optional<FieldValueSamples> noise_samples_;
+  // A build in bands: where merged LEDs are kept for a later run, and what an earlier one kept.
+  struct Resume {
+    BuildCheckpoint& checkpoint;
+    SpillFile& spill;
+  };
+  std::optional<Resume> resume_;
+  std::atomic<int> resumed_lights_{0};
 };
 
 // Runs a build with the summary (the caller's or a local one) cleared, and times it.
@@ -549,10 +587,8 @@ int build_field_file(const Session& session, const BuildOptions& options,
     write_field(out, field, attributes, 0, sum.storage);
     return camera.height;
   }
-  return timed(session, banded, summary, [&](FieldBuild build) {
-    build.run_to_file(out, attributes, rows);
-    return rows;
-  });
+  return timed(session, banded, summary,
+               [&](FieldBuild build) { return build.run_to_file(out, attributes, rows); });
 }
 
 }  // namespace ls::capture

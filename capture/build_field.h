@@ -46,6 +46,9 @@ struct BuildSummary {
   int near_lights = 0;        // LEDs with positions, scaled to irradiance at the reference point.
   FieldStorage storage;       // build_field_file: how the file holds the values,
   std::optional<HalfCheck> half_check;  // and (half or auto storage) what half would cost.
+  // build_field_file in bands: LEDs whose merge an earlier, killed run had finished
+  // (capture/build_checkpoint.h).
+  int resumed_lights = 0;
 };
 
 ReflectanceField build_field(const Session& session, const BuildOptions& options,

@@ -10,14 +10,16 @@
 
 namespace ls {
 
-ScratchFile::ScratchFile(std::filesystem::path path, std::string needs)
-    : path_(std::move(path)), needs_(std::move(needs)) {
-  fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+ScratchFile::ScratchFile(std::filesystem::path path, std::string needs, Lifetime lifetime)
+    : path_(std::move(path)), needs_(std::move(needs)), lifetime_(lifetime) {
+  const int truncate = lifetime_ == Lifetime::kTemporary ? O_TRUNC : 0;
+  fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | truncate | O_CLOEXEC, 0600);
   if (fd_ < 0) fail("cannot create it");
 }
 
 ScratchFile::~ScratchFile() {
   if (fd_ >= 0) ::close(fd_);
+  if (lifetime_ == Lifetime::kKept) return;
   std::error_code ignored;
   std::filesystem::remove(path_, ignored);
 }
@@ -29,6 +31,10 @@ void ScratchFile::write(const float* values, std::size_t count, std::size_t at) 
 
 void ScratchFile::read(float* values, std::size_t count, std::size_t at) {
   transfer(::pread, reinterpret_cast<char*>(values), count, at);
+}
+
+void ScratchFile::sync() {
+  if (::fdatasync(fd_) != 0) fail("making it durable (fdatasync)");
 }
 
 template <class Io>

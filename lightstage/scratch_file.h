@@ -10,10 +10,14 @@ namespace ls {
 
 class ScratchFile {
  public:
+  // Temporary: created empty, removed when destroyed. Kept: what an earlier run wrote there is
+  // kept (a resumed build), and the file stays (its owner removes it once done with it).
+  enum class Lifetime { kTemporary, kKept };
   // `needs`: what a failure means for the user, added to every error (e.g. "a field built in bands
   // needs free space for the whole field beside it"). InputError naming the file when it cannot be
   // created.
-  ScratchFile(std::filesystem::path path, std::string needs);
+  ScratchFile(std::filesystem::path path, std::string needs,
+              Lifetime lifetime = Lifetime::kTemporary);
   ~ScratchFile();
   ScratchFile(const ScratchFile&) = delete;
   ScratchFile& operator=(const ScratchFile&) = delete;
@@ -21,6 +25,8 @@ class ScratchFile {
   // `count` floats at float offset `at`; InputError naming the file on a failed or short transfer.
   void write(const float* values, std::size_t count, std::size_t at);
   void read(float* values, std::size_t count, std::size_t at);
+  // What was written, made durable (fdatasync): before a record that says it is there.
+  void sync();
   const std::filesystem::path& path() const { return path_; }
 
  private:
@@ -30,6 +36,7 @@ class ScratchFile {
 
   std::filesystem::path path_;
   std::string needs_;
+  Lifetime lifetime_;
   int fd_ = -1;
 };
 

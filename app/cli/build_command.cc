@@ -25,8 +25,12 @@ int build_field_file(const jobs::BuildJobOptions& options, bool quiet) {
     std::fprintf(stderr, "%s\n",
                  storage_line(s.storage, s.half_check, built.file_mebibytes).c_str());
     if (built.band_rows < built.height) {
-      std::fprintf(stderr, "built in bands of %d rows through a spill file beside it\n",
+      std::fprintf(stderr, "built in bands of %d rows through a spill file beside it",
                    built.band_rows);
+      if (s.resumed_lights > 0) {
+        std::fprintf(stderr, " (%d LEDs' merges taken from an interrupted run)", s.resumed_lights);
+      }
+      std::fprintf(stderr, "\n");
     }
     if (!s.flat_field.empty()) {
       std::fprintf(stderr, "flat field applied to %d LEDs: %s\n", s.flat_field_lights,

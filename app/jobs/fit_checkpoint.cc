@@ -104,25 +104,11 @@ std::string fit_identity(const fs::path& field_file, const std::string& options_
 }
 
 BandCheckpoints::BandCheckpoints(const fs::path& out, std::string identity)
-    : dir_(out.string() + ".partial"), identity_(std::move(identity)) {}
+    : dir_(out, std::move(identity)) {}
 
 fs::path BandCheckpoints::file(int y0, FitStage stage) const {
-  return dir_ /
-         ((stage == FitStage::kPerPixel ? "rows_" : "materials_") + std::to_string(y0) + ".exr");
-}
-
-int BandCheckpoints::band_rows(int proposed) const {
-  const fs::path run = dir_ / "run.json";
-  try {
-    std::ifstream in(run);
-    const nlohmann::json j = nlohmann::json::parse(in);
-    if (j.at("identity").get<std::string>() == identity_) return j.at("rows").get<int>();
-  } catch (const std::exception&) {  // None, unreadable or another run's: start afresh.
-  }
-  remove();
-  fs::create_directories(dir_);
-  write_file_atomic(run, nlohmann::json{{"identity", identity_}, {"rows", proposed}}.dump());
-  return proposed;
+  return dir_.dir() /
+         ((stage == FitStage::kPerPixel ? "rows_" : "materials_") + std::to_string(y0) + ".band");
 }
 
 bool BandCheckpoints::load(int y0, const std::vector<Eigen::Vector3f>& led_dirs,
@@ -196,11 +182,6 @@ void BandCheckpoints::save(int y0, const relight::NormalMap& normals,
   out.write(header.data(), header.size());
   out.write(band.pixels.data(), band.pixels.size() * sizeof(float));
   out.commit();
-}
-
-void BandCheckpoints::remove() const {
-  std::error_code ignored;
-  fs::remove_all(dir_, ignored);
 }
 
 }  // namespace ls::jobs

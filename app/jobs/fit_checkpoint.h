@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lightstage/checkpoint_dir.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/normals.h"
 
@@ -24,7 +25,7 @@ class BandCheckpoints {
   BandCheckpoints(const std::filesystem::path& out, std::string identity);
   // The band height to fit with: an earlier run's with the same identity, so that its bands are
   // reused; otherwise `proposed`, recorded for a later run (an earlier run's bands are dropped).
-  int band_rows(int proposed) const;
+  int band_rows(int proposed) const { return dir_.band_rows(proposed); }
   // The band of rows [y0, ...) when an earlier run finished it, or false (none, or unreadable:
   // the band is fitted again); led_dirs: the field's (relight::led_dirs_of), for its shadows.
   bool load(int y0, const std::vector<Eigen::Vector3f>& led_dirs, relight::NormalMap& normals,
@@ -32,12 +33,11 @@ class BandCheckpoints {
   void save(int y0, const relight::NormalMap& normals, const relight::ModelMaps& maps,
             FitStage stage = FitStage::kPerPixel) const;
   // Once the maps are written.
-  void remove() const;
+  void remove() const { dir_.remove(); }
   std::filesystem::path file(int y0, FitStage stage) const;
 
  private:
-  std::filesystem::path dir_;
-  std::string identity_;
+  CheckpointDir dir_;
 };
 
 // The identity of a fit of field_file with these options (FitJobOptions::to_json; the memory

@@ -16,6 +16,7 @@
 #include "capture/field.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
+#include "lightstage/session.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
@@ -310,6 +311,41 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   EXPECT_EQ(again.resumed_rows, field.height()) << "every band's per-pixel fit was kept";
   EXPECT_EQ(kept, assigned);
   EXPECT_EQ(read_image(fit.out).pixels, read_image(dir / "whole.exr").pixels);
+}
+
+// A build in bands that is stopped halfway through merging the LEDs (as by a kill) resumes from
+// the LEDs it merged: it merges only the rest, and writes the bytes of an uninterrupted build;
+// the kept LEDs are removed once the field is written.
+TEST_F(Jobs, AnInterruptedBuildInBandsResumesFromTheLedsItMerged) {
+  const testing::TempDir dir;
+  const Stage stage = Session::open(*dir_ / "session").stage();
+  jobs::BuildJobOptions build;
+  build.session_dir = *dir_ / "session";
+  build.out = dir / "whole.exr";
+  (void)jobs::build(build);
+  // A budget for a few rows at a time: built in bands through the kept spill.
+  build.memory_bytes =
+      4 * capture::ReflectanceField::bytes_for(stage.camera.width, 6, int(stage.leds.size()));
+  build.out = dir / "field.exr";
+  struct Killed {};
+  EXPECT_THROW(
+      (void)jobs::build(build,
+                        [](const std::string& phase, long done, long total, const std::string&) {
+                          if (phase == "build" && 2 * done >= total) throw Killed{};
+                        }),
+      Killed);
+  EXPECT_FALSE(fs::exists(build.out));
+  ASSERT_TRUE(fs::exists(dir / "field.exr.partial" / "leds.spill"));
+  const jobs::BuildJobSummary resumed = jobs::build(build);
+  const jobs::BuiltField& built = resumed.fields.at(0);
+  ASSERT_LT(built.band_rows, built.height);
+  EXPECT_GT(built.build.resumed_lights, 0);
+  EXPECT_LT(built.build.resumed_lights, built.build.lights_used);
+  EXPECT_EQ(capture::read_field(build.out).values(),
+            capture::read_field(dir / "whole.exr").values());
+  EXPECT_EQ(capture::read_field(build.out).noise.read_variance,
+            capture::read_field(dir / "whole.exr").noise.read_variance);
+  EXPECT_FALSE(fs::exists(dir / "field.exr.partial"));
 }
 
 // `lightstage render` relights what `compress` wrote, as the library relights the file's decoded

@@ -327,14 +327,17 @@ TEST(BuildField, InBandsWithinAMemoryBudgetGivesTheFieldBuiltInMemory) {
   }
   EXPECT_THAT(left, ::testing::UnorderedElementsAre("s", "bands.exr"));
 
-  // Where the spill cannot be written, the build stops with the file named and leaves nothing.
+  // Where the spill cannot be written (beside the field, under a file), the build stops with the
+  // place named and writes nothing.
+  write_file_atomic(dir / "blocker", "a file, not a folder");
+  options.on_band_written = {};
   try {
-    build_field_file(c.session, options, dir / "absent" / "f.exr");
+    build_field_file(c.session, options, dir / "blocker" / "f.exr");
     ADD_FAILURE() << "expected an InputError";
   } catch (const InputError& e) {
-    EXPECT_THAT(e.what(), ::testing::HasSubstr("absent/f.exr.spill-"));
+    EXPECT_THAT(e.what(), ::testing::HasSubstr("blocker/f.exr.partial"));
   }
-  EXPECT_FALSE(std::filesystem::exists(dir / "absent"));
+  EXPECT_TRUE(std::filesystem::is_regular_file(dir / "blocker"));
 }
 
 // Issue 19: a session with no usable frames (its journal gone) is refused, naming the session,

@@ -1,0 +1,41 @@
+#include "lightstage/checkpoint_dir.h"
+
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <utility>
+
+#include "lightstage/errors.h"
+#include "lightstage/image.h"
+
+namespace ls {
+
+namespace fs = std::filesystem;
+
+CheckpointDir::CheckpointDir(const fs::path& out, std::string identity)
+    : dir_(out.string() + ".partial"), identity_(std::move(identity)) {}
+
+int CheckpointDir::band_rows(int proposed) const {
+  const fs::path run = dir_ / "run.json";
+  try {
+    std::ifstream in(run);
+    const nlohmann::json j = nlohmann::json::parse(in);
+    if (j.at("identity").get<std::string>() == identity_) return j.at("rows").get<int>();
+  } catch (const std::exception&) {  // None, unreadable or another run's: start afresh.
+  }
+  remove();
+  std::error_code error;
+  fs::create_directories(dir_, error);
+  if (error) {
+    throw InputError(dir_.string() + ": cannot create the folder that lets a killed run resume (" +
+                     error.message() + ")");
+  }
+  write_file_atomic(run, nlohmann::json{{"identity", identity_}, {"rows", proposed}}.dump());
+  return proposed;
+}
+
+void CheckpointDir::remove() const {
+  std::error_code ignored;
+  fs::remove_all(dir_, ignored);
+}
+
+}  // namespace ls
