@@ -33,6 +33,19 @@ int CheckpointDir::band_rows(int proposed) const {
   return proposed;
 }
 
+std::string input_identity(const fs::path& input, const std::string& options_json) {
+  std::error_code size_error, time_error;
+  const auto size = fs::file_size(input, size_error);
+  const auto time = fs::last_write_time(input, time_error).time_since_epoch().count();
+  nlohmann::json options = nlohmann::json::parse(options_json);
+  options.erase("memory_bytes");
+  return nlohmann::json{{"field", fs::absolute(input).string()},
+                        {"bytes", size_error ? 0 : size},
+                        {"time", time_error ? 0 : time},
+                        {"options", options}}
+      .dump();
+}
+
 void CheckpointDir::remove() const {
   std::error_code ignored;
   fs::remove_all(dir_, ignored);

@@ -23,4 +23,9 @@ class CheckpointDir {
   std::string identity_;
 };
 
+// The identity of a run over the file `input` with these options (a JSON object; its
+// "memory_bytes" left out: the budget only sets the band height, which run.json records): the
+// file's absolute path, size and modification time, and the options.
+std::string input_identity(const std::filesystem::path& input, const std::string& options_json);
+
 }  // namespace ls

@@ -54,7 +54,13 @@ void add_compress_command(CLI::App& app) {
         mib(summary.output_bytes), mib(summary.input_bytes),
         summary.input_bytes > 0 ? double(summary.output_bytes) / summary.input_bytes : 0.0,
         summary.raw_bytes_per_pixel);
-    if (summary.band_rows > 0) std::printf("read in bands of %d rows\n", summary.band_rows);
+    if (summary.band_rows > 0) {
+      std::printf("read in bands of %d rows", summary.band_rows);
+      if (summary.resumed_rows > 0) {
+        std::printf(" (%d rows' fits taken from an interrupted run)", summary.resumed_rows);
+      }
+      std::printf("\n");
+    }
     std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   });
 }

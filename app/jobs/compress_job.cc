@@ -6,11 +6,13 @@
 #include <charconv>
 #include <cmath>
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <numeric>
 #include <optional>
 
 #include "capture/field.h"
 #include "capture/olat_import.h"
+#include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
@@ -64,6 +66,16 @@ std::string CompressOptions::validate() const {
   return {};
 }
 
+std::string CompressOptions::to_json() const {
+  return nlohmann::json{{"input", input.string()},
+                        {"format", format},
+                        {"rank", rank},
+                        {"tile", tile},
+                        {"gain", gain},
+                        {"memory_bytes", memory_bytes}}
+      .dump();
+}
+
 // Bytes of the input on disk: an EXR's file, or the images of an .lp set (every JPEG, PNG or TIFF
 // in the folder of its .lp file and below).
 std::uintmax_t input_bytes(const fs::path& input) {
@@ -94,6 +106,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   const std::string ext = options.input.extension().string();
   capture::ReflectanceField whole;
   std::optional<capture::FieldStream> stream;
+  std::optional<CheckpointDir> checkpoint;
   capture::FieldBands bands;
   int rows = 0;
   if (ext == ".lp" || fs::is_directory(options.input)) {
@@ -108,6 +121,12 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
                                                     stream->width(), stream->height(), pca_options))
             : stream->row_alignment();
     rows = std::max(align, stream->band_rows(options.memory_bytes) / align * align);
+    if (rows < stream->height() && options.format != "pca") {
+      // RTI fits in bands are kept beside the output for a killed run to resume from (with the
+      // band height they were fitted in).
+      checkpoint.emplace(options.out, input_identity(options.input, options.to_json()));
+      rows = checkpoint->band_rows(rows);
+    }
     if (rows >= stream->height()) {
       report(progress, "read", 0, 1, options.input.filename());
       stream->read_rows(0, stream->height(), whole);
@@ -144,8 +163,9 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   rti_basis(options.format, rti_options);
   relight::RtiWritten written;
   if (rows > 0) {  // In bands: the coefficients through a file, not held.
-    written =
-        relight::write_rti_file_in_bands(options.out, header, bands, rti_options, options.gain);
+    written = relight::write_rti_file_in_bands(options.out, header, bands, rti_options,
+                                               options.gain, checkpoint->dir());
+    checkpoint->remove();
   } else {
     const relight::RtiField fit = relight::RtiField::fit(header, bands, rti_options);
     relight::write_rti_file(options.out, relight::quantise(fit, options.gain));
@@ -155,6 +175,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   summary.details = "from " + std::to_string(written.lights_used) + " LEDs";
   summary.bytes_per_pixel = written.bytes_per_pixel;
   summary.output_bytes = fs::file_size(options.out);
+  summary.resumed_rows = written.resumed_rows;
   return summary;
 }
 

@@ -22,6 +22,7 @@ struct CompressOptions {
   // times with the held-out rank rule). 0: FieldStream::band_rows' default. .lp sets are whole.
   std::size_t memory_bytes = 0;
   std::string validate() const;
+  std::string to_json() const;  // What a resumed run must share (CheckpointDir's identity).
 };
 
 struct CompressSummary {
@@ -31,7 +32,8 @@ struct CompressSummary {
   double raw_bytes_per_pixel = 0.0;  // The float field it came from, in memory.
   // On disk: the input (an EXR; an .lp set's images) and the file written.
   std::uintmax_t input_bytes = 0, output_bytes = 0;
-  int band_rows = 0;  // Rows read at once: the height when read whole.
+  int band_rows = 0;     // Rows read at once: the height when read whole.
+  int resumed_rows = 0;  // .ptm/.rti in bands: rows whose fits an earlier, killed run kept.
 };
 
 // Throws InputError for bad options or inputs; the output is written only on success.

@@ -90,19 +90,6 @@ relight::FitSummary summary_from(const nlohmann::json& j) {
 
 }  // namespace
 
-std::string fit_identity(const fs::path& field_file, const std::string& options_json) {
-  std::error_code size_error, time_error;
-  const auto size = fs::file_size(field_file, size_error);
-  const auto time = fs::last_write_time(field_file, time_error).time_since_epoch().count();
-  nlohmann::json options = nlohmann::json::parse(options_json);
-  options.erase("memory_bytes");
-  return nlohmann::json{{"field", fs::absolute(field_file).string()},
-                        {"bytes", size_error ? 0 : size},
-                        {"time", time_error ? 0 : time},
-                        {"options", options}}
-      .dump();
-}
-
 BandCheckpoints::BandCheckpoints(const fs::path& out, std::string identity)
     : dir_(out, std::move(identity)) {}
 

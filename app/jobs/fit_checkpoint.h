@@ -21,7 +21,7 @@ enum class FitStage { kPerPixel, kMaterials };
 
 class BandCheckpoints {
  public:
-  // identity: what must match for bands to be taken from an earlier run (fit_identity).
+  // identity: what must match for bands to be taken from an earlier run (input_identity).
   BandCheckpoints(const std::filesystem::path& out, std::string identity);
   // The band height to fit with: an earlier run's with the same identity, so that its bands are
   // reused; otherwise `proposed`, recorded for a later run (an earlier run's bands are dropped).
@@ -39,9 +39,5 @@ class BandCheckpoints {
  private:
   CheckpointDir dir_;
 };
-
-// The identity of a fit of field_file with these options (FitJobOptions::to_json; the memory
-// budget left out: it only sets the band height, which the checkpoints record).
-std::string fit_identity(const std::filesystem::path& field_file, const std::string& options_json);
 
 }  // namespace ls::jobs

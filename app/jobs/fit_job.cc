@@ -122,7 +122,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   BandFit result;
   BandFitTimes times;
   if (rows < field.height() || ranks.size() > 1) {  // Under MPI, only rank 0 writes.
-    BandCheckpoints checkpoints(options.out, fit_identity(options.field_file, options.to_json()));
+    BandCheckpoints checkpoints(options.out, input_identity(options.field_file, options.to_json()));
     // Rank 0 decides (and may clear an earlier run's checkpoints); the others follow.
     std::vector<double> decided = {double(ranks.root() ? checkpoints.band_rows(rows) : 0)};
     ranks.broadcast(decided);

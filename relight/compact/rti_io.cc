@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iterator>
 #include <sstream>
+#include <system_error>
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
@@ -424,36 +425,75 @@ RtiFile read_rti_file(const std::filesystem::path& path) {
   return decode_rti_file(bytes, path.string());
 }
 
+namespace {
+
+// A band's record in kept_dir: the largest sample of its fit, exactly (shortest round trip).
+std::filesystem::path band_record(const std::filesystem::path& kept_dir, int first_row) {
+  return kept_dir / ("band_" + std::to_string(first_row));
+}
+bool read_band_record(const std::filesystem::path& file, float& max_sample) {
+  std::ifstream in(file);
+  std::string text;
+  if (!(in >> text)) return false;
+  const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), max_sample);
+  return error == std::errc() && end == text.data() + text.size();
+}
+
+}  // namespace
+
 RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
                                    const capture::ReflectanceField& header,
                                    const capture::FieldBands& bands, const RtiFitOptions& options,
-                                   double gain) {
+                                   double gain, const std::filesystem::path& kept_dir) {
   const RtiFitter fitter(header, options);
   const int width = header.width();
   const size_t per_pixel = size_t(fitter.coefficients_per_pixel());
   const size_t colors = options.lrgb ? 3 : 0;  // Per pixel, after a row's coefficients.
   // Through a file: the image's coefficients are never held.
   const size_t row_floats = size_t(width) * (per_pixel + colors);
-  ScratchFile spill(path.string() + ".rows-" + std::to_string(::getpid()),
-                    "the coefficients of a field compressed in bands are spilled beside the "
-                    "output: they need its size free there");
+  const bool kept = !kept_dir.empty();
+  ScratchFile spill(
+      kept ? kept_dir / "coefficients.spill"
+           : std::filesystem::path(path.string() + ".rows-" + std::to_string(::getpid())),
+      "the coefficients of a field compressed in bands are spilled beside the "
+      "output: they need its size free there",
+      kept ? ScratchFile::Lifetime::kKept : ScratchFile::Lifetime::kTemporary);
   RtiQuantiser quantiser(options.basis, options.lrgb, width, header.height());
   std::vector<float> coefs, band_colors, rows;
+  RtiWritten written;
   bands([&](const capture::ReflectanceField& band) {
     const size_t pixels = size_t(band.width()) * band.height();
     coefs.assign(pixels * per_pixel, 0.0f);
     band_colors.assign(pixels * colors, 0.0f);
-    const float max_sample = fitter.fit_band(band, coefs.data(), band_colors.data());
-    quantiser.add(coefs.data(), band_colors.data(), pixels, max_sample);
-    // Each row: its coefficients, then its colours.
     rows.resize(pixels * (per_pixel + colors));
-    for (int y = 0; y < band.height(); ++y) {
-      float* row = rows.data() + size_t(y) * width * (per_pixel + colors);
-      std::copy_n(coefs.data() + size_t(y) * width * per_pixel, width * per_pixel, row);
-      std::copy_n(band_colors.data() + size_t(y) * width * colors, width * colors,
-                  row + width * per_pixel);
+    const size_t at = size_t(band.first_row()) * row_floats;
+    float max_sample = 0;
+    // Each row: its coefficients, then its colours.
+    const auto row = [&](int y) { return rows.data() + size_t(y) * width * (per_pixel + colors); };
+    if (kept && read_band_record(band_record(kept_dir, band.first_row()), max_sample)) {
+      spill.read(rows.data(), rows.size(), at);
+      for (int y = 0; y < band.height(); ++y) {
+        std::copy_n(row(y), width * per_pixel, coefs.data() + size_t(y) * width * per_pixel);
+        std::copy_n(row(y) + width * per_pixel, width * colors,
+                    band_colors.data() + size_t(y) * width * colors);
+      }
+      written.resumed_rows += band.height();
+    } else {
+      max_sample = fitter.fit_band(band, coefs.data(), band_colors.data());
+      for (int y = 0; y < band.height(); ++y) {
+        std::copy_n(coefs.data() + size_t(y) * width * per_pixel, width * per_pixel, row(y));
+        std::copy_n(band_colors.data() + size_t(y) * width * colors, width * colors,
+                    row(y) + width * per_pixel);
+      }
+      spill.write(rows.data(), rows.size(), at);
+      if (kept) {
+        spill.sync();  // The rows are there before their record says so.
+        char text[32];
+        const std::to_chars_result printed = std::to_chars(text, text + sizeof text, max_sample);
+        write_file_atomic(band_record(kept_dir, band.first_row()), std::string(text, printed.ptr));
+      }
     }
-    spill.write(rows.data(), rows.size(), size_t(band.first_row()) * row_floats);
+    quantiser.add(coefs.data(), band_colors.data(), pixels, max_sample);
   });
   coefs = {}, band_colors = {}, rows = {};
   const RtiFile file = quantiser.header(gain);
@@ -468,7 +508,10 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
       [&](const void* data, size_t size) { out.write(data, size); });
   out.commit();
   const RtiField shape(options.basis, options.lrgb, 0, 0, {}, {});
-  return {shape.name(), fitter.lights_used(), shape.bytes_per_pixel()};
+  written.name = shape.name();
+  written.lights_used = fitter.lights_used();
+  written.bytes_per_pixel = shape.bytes_per_pixel();
+  return written;
 }
 
 }  // namespace ls::relight

@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 #include <functional>
 #include <iostream>
+#include <iterator>
 
 #include "app/jobs/build_job.h"
 #include "app/jobs/capture_job.h"
@@ -346,6 +348,44 @@ TEST_F(Jobs, AnInterruptedBuildInBandsResumesFromTheLedsItMerged) {
   EXPECT_EQ(capture::read_field(build.out).noise.read_variance,
             capture::read_field(dir / "whole.exr").noise.read_variance);
   EXPECT_FALSE(fs::exists(dir / "field.exr.partial"));
+}
+
+// A compression to .rti in bands that is stopped halfway resumes from the bands it fitted, and
+// writes the bytes of an uninterrupted run.
+TEST_F(Jobs, AnInterruptedCompressInBandsResumesFromTheBandsItFitted) {
+  const testing::TempDir dir;
+  const fs::path field_file = built_field(dir.path());
+  const capture::ReflectanceField field = capture::read_field(field_file);
+  jobs::CompressOptions compress;
+  compress.input = field_file;
+  compress.format = "hsh3";
+  compress.out = dir / "whole.rti";
+  (void)jobs::compress(compress);
+  compress.out = dir / "bands.rti";
+  compress.memory_bytes =
+      5 * capture::ReflectanceField::bytes_for(field.width(), 4, field.num_lights());
+  struct Killed {};
+  EXPECT_THROW(
+      (void)jobs::compress(compress,
+                           [](const std::string& phase, long done, long total, const std::string&) {
+                             if (phase == "pass 1 (rows)" && 2 * done >= total) {
+                               throw Killed{};
+                             }
+                           }),
+      Killed);
+  EXPECT_FALSE(fs::exists(compress.out));
+  EXPECT_TRUE(fs::exists(dir / "bands.rti.partial" / "coefficients.spill"));
+  const jobs::CompressSummary resumed = jobs::compress(compress);
+  ASSERT_LT(resumed.band_rows, field.height());
+  ASSERT_GT(resumed.band_rows, 0);
+  EXPECT_GE(2 * resumed.resumed_rows, field.height());
+  EXPECT_LT(resumed.resumed_rows, field.height());
+  const auto bytes = [](const fs::path& f) {
+    std::ifstream in(f, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(bytes(compress.out), bytes(dir / "whole.rti"));
+  EXPECT_FALSE(fs::exists(dir / "bands.rti.partial"));
 }
 
 // `lightstage render` relights what `compress` wrote, as the library relights the file's decoded
