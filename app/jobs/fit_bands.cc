@@ -70,12 +70,7 @@ class Bands {
   int first_row(int b) const { return b * rows_; }
   int end_row(int b) const { return std::min(stream_.header().height(), (b + 1) * rows_); }
 
-  const capture::ReflectanceField& read_field(int b) {
-    const auto t0 = Clock::now();
-    stream_.read_rows(first_row(b), end_row(b), field_);
-    times_.read_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
-    return field_;
-  }
+  const capture::ReflectanceField& read_field(int b) { return read_rows(first_row(b), end_row(b)); }
   // The field's band given back once the last band is read (the maps' writer needs the room).
   void release_field() { field_ = {}; }
   bool load(int b, FitStage stage) {
@@ -104,10 +99,7 @@ class Bands {
         return field_;
       }
       const int alignment = stream_.row_alignment(), y0 = y / alignment * alignment;
-      const auto t0 = Clock::now();
-      stream_.read_rows(y0, std::min(stream_.header().height(), y0 + alignment), field_);
-      times_.read_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
-      return field_;
+      return read_rows(y0, std::min(stream_.header().height(), y0 + alignment));
     };
   }
 
@@ -115,6 +107,13 @@ class Bands {
   relight::ModelMaps maps;
 
  private:
+  const capture::ReflectanceField& read_rows(int y0, int y1) {
+    const auto t0 = Clock::now();
+    stream_.read_rows(y0, y1, field_);
+    times_.read_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    return field_;
+  }
+
   capture::FieldStream& stream_;
   const int rows_, count_;
   const BandCheckpoints& checkpoints_;
