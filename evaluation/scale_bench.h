@@ -22,8 +22,9 @@ struct ScaleBenchOptions {
   std::vector<int> sizes{512, 1024};  // Camera width = height.
   int runs = 3;                       // Each step's repeats (medians reported).
   std::size_t memory_bytes = std::size_t(256) << 20;  // --memory of every step.
-  int fit_max_size =
-      1024;  // Larger fields are not fitted (the maps, 25 floats a pixel, are whole).
+  // Larger fields are not fitted: a fit's time grows with the pixels (about 5 minutes a run at
+  // 4096² on 2 cores), and fits and MPI runs happen at every size up to it.
+  int fit_max_size = 1024;
   // 1 and 2 ranks at the largest fitted size (the nearest to a real capture), when mpiexec is on
   // PATH.
   bool mpi = true;

@@ -327,7 +327,8 @@ void add_scale(CLI::App& bench) {
   cmd->add_option("--memory", args->memory_bytes, "Bytes: every step's --memory.")
       ->capture_default_str();
   cmd->add_option("--fit-max-size", args->fit_max_size,
-                  "Larger sizes are not fitted (the maps, 25 floats a pixel, are held whole).")
+                  "Larger sizes are not fitted (a fit's time grows with the pixels); MPI runs at "
+                  "the largest size fitted.")
       ->capture_default_str();
   cmd->add_flag("!--no-mpi", args->mpi, "Skip the MPI fits.");
   cmd->add_flag("--keep", args->keep, "Keep each size's session and field.");
