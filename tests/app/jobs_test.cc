@@ -40,6 +40,17 @@ std::string exr_string_attribute(const fs::path& file, const std::string& name) 
   return p ? std::string(p->get_string()) : std::string();
 }
 
+// A job stopped as by a kill: its progress callback throws once `phase` is half done, and `at`
+// (when given) gets how far it was.
+struct Killed {};
+jobs::ProgressFn killed_halfway_through(const std::string& phase, long* at = nullptr) {
+  return [phase, at](const std::string& p, long done, long total, const std::string&) {
+    if (p != phase || 2 * done < total) return;
+    if (at) *at = done;
+    throw Killed{};
+  };
+}
+
 std::string input_error(const std::function<void()>& fn) {
   try {
     fn();
@@ -275,13 +286,7 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   const capture::ReflectanceField field = capture::read_field(field_file);
   fit.out = dir / "maps.exr";
   fit.memory_bytes = 3 * 2 * std::size_t(field.width()) * field.num_lights() * 3 * sizeof(float);
-  struct Killed {};
-  EXPECT_THROW(
-      (void)jobs::fit(fit,
-                      [](const std::string& phase, long done, long total, const std::string&) {
-                        if (phase == "fit (rows)" && 2 * done >= total) throw Killed{};
-                      }),
-      Killed);
+  EXPECT_THROW((void)jobs::fit(fit, killed_halfway_through("fit (rows)")), Killed);
   EXPECT_FALSE(fs::exists(fit.out));
   EXPECT_TRUE(fs::exists(dir / "maps.exr.partial"));
   const jobs::FitJobSummary resumed = jobs::fit(fit);
@@ -295,15 +300,7 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   // Stopped halfway through assigning the basis materials, it keeps the bands assigned too.
   fs::remove(fit.out);
   long assigned = 0;
-  EXPECT_THROW(
-      (void)jobs::fit(fit,
-                      [&](const std::string& phase, long done, long total, const std::string&) {
-                        if (phase == "materials (rows)" && 2 * done >= total) {
-                          assigned = done;
-                          throw Killed{};
-                        }
-                      }),
-      Killed);
+  EXPECT_THROW((void)jobs::fit(fit, killed_halfway_through("materials (rows)", &assigned)), Killed);
   ASSERT_GT(assigned, 0) << "the field has basis materials to assign";
   long kept = 0;
   const jobs::FitJobSummary again =
@@ -329,13 +326,7 @@ TEST_F(Jobs, AnInterruptedBuildInBandsResumesFromTheLedsItMerged) {
   build.memory_bytes =
       4 * capture::ReflectanceField::bytes_for(stage.camera.width, 6, int(stage.leds.size()));
   build.out = dir / "field.exr";
-  struct Killed {};
-  EXPECT_THROW(
-      (void)jobs::build(build,
-                        [](const std::string& phase, long done, long total, const std::string&) {
-                          if (phase == "build" && 2 * done >= total) throw Killed{};
-                        }),
-      Killed);
+  EXPECT_THROW((void)jobs::build(build, killed_halfway_through("build")), Killed);
   EXPECT_FALSE(fs::exists(build.out));
   ASSERT_TRUE(fs::exists(dir / "field.exr.partial" / "leds.spill"));
   const jobs::BuildJobSummary resumed = jobs::build(build);
@@ -364,15 +355,7 @@ TEST_F(Jobs, AnInterruptedCompressInBandsResumesFromTheBandsItFitted) {
   compress.out = dir / "bands.rti";
   compress.memory_bytes =
       5 * capture::ReflectanceField::bytes_for(field.width(), 4, field.num_lights());
-  struct Killed {};
-  EXPECT_THROW(
-      (void)jobs::compress(compress,
-                           [](const std::string& phase, long done, long total, const std::string&) {
-                             if (phase == "pass 1 (rows)" && 2 * done >= total) {
-                               throw Killed{};
-                             }
-                           }),
-      Killed);
+  EXPECT_THROW((void)jobs::compress(compress, killed_halfway_through("pass 1 (rows)")), Killed);
   EXPECT_FALSE(fs::exists(compress.out));
   EXPECT_TRUE(fs::exists(dir / "bands.rti.partial" / "coefficients.spill"));
   const jobs::CompressSummary resumed = jobs::compress(compress);
