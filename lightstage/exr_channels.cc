@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "lightstage/errors.h"
 
@@ -85,11 +86,26 @@ Image channel_preview(const Image& maps, int first, int channels,
   return image;
 }
 
+fs::path PreviewRowWriter::png_beside(fs::path path, const std::string& name) {
+  path.replace_extension(name + ".png");
+  return path;
+}
+
+PreviewRowWriter::PreviewRowWriter(const fs::path& path, const std::string& name, int width,
+                                   int height, int channels, Values values)
+    : values_(std::move(values)), file_(png_beside(path, name), width, height, channels) {}
+
+PreviewRowWriter::Values channel_values(int first, int channels,
+                                        std::function<float(float)> transform) {
+  return [=](const Image& maps) { return channel_preview(maps, first, channels, transform); };
+}
+
 void write_channel_preview(const fs::path& path, const std::string& name, const Image& maps,
                            int first, int channels, const std::function<float(float)>& transform) {
-  fs::path out = path;
-  out.replace_extension(name + ".png");
-  write_png_preview(out, channel_preview(maps, first, channels, transform));
+  PreviewRowWriter preview(path, name, maps.width, maps.height, channels,
+                           channel_values(first, channels, transform));
+  preview.write_rows(maps);
+  preview.commit();
 }
 
 }  // namespace ls

@@ -35,6 +35,26 @@ std::vector<std::string> exr_channel_names(const std::filesystem::path& path);
 Image channel_preview(const Image& maps, int first, int channels,
                       const std::function<float(float)>& transform);
 
+// A PNG preview beside `path` (STEM.NAME.png) of the maps written to `path`, written a band of
+// rows at a time as they are: each band's preview values from `values` (channel_values: some of
+// its channels through a transform).
+class PreviewRowWriter {
+ public:
+  using Values = std::function<Image(const Image& maps)>;
+  PreviewRowWriter(const std::filesystem::path& path, const std::string& name, int width,
+                   int height, int channels, Values values);
+  void write_rows(const Image& maps) { file_.write_rows(values_(maps)); }
+  void commit() { file_.commit(); }
+
+ private:
+  static std::filesystem::path png_beside(std::filesystem::path path, const std::string& name);
+  Values values_;
+  ImageRowWriter file_;
+};
+// channel_preview of channels [first, first + channels) through `transform`.
+PreviewRowWriter::Values channel_values(int first, int channels,
+                                        std::function<float(float)> transform);
+
 // A PNG preview of channels [first, first + channels) of `maps` (the channels written to `path`),
 // each value through `transform` (non-finite values black), written beside `path` as
 // STEM.NAME.png.

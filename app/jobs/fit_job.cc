@@ -227,18 +227,16 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
       options.out, header.width(), header.height(), int(names.size()), names,
       {{kOptionsAttribute, recorded.dump()}, {"lightstage:fit_noise", noise.dump()}});
   // Previews beside it, as the fit's: STEM.normal.png (0.5 + 0.5 n), .albedo.png, .confidence.png.
-  struct Preview {
-    int first, channels;
-    std::unique_ptr<ImageRowWriter> file;
-  };
-  std::vector<Preview> previews;
-  for (auto [name, first, channels] :
-       {std::tuple{"normal", 0, 3}, std::tuple{"albedo", 3, 3}, std::tuple{"confidence", 6, 1}}) {
-    fs::path png = options.out;
-    png.replace_extension(std::string(name) + ".png");
+  const auto identity = [](float v) { return v; };
+  std::vector<std::unique_ptr<PreviewRowWriter>> previews;
+  for (auto [name, first, channels, transform] :
+       {std::tuple{"normal", 0, 3,
+                   std::function<float(float)>([](float v) { return 0.5f + 0.5f * v; })},
+        std::tuple{"albedo", 3, 3, std::function<float(float)>(identity)},
+        std::tuple{"confidence", 6, 1, std::function<float(float)>(identity)}}) {
     previews.push_back(
-        {first, channels,
-         std::make_unique<ImageRowWriter>(png, header.width(), header.height(), channels)});
+        std::make_unique<PreviewRowWriter>(options.out, name, header.width(), header.height(),
+                                           channels, channel_values(first, channels, transform)));
   }
   const auto start = Clock::now();
   double read_seconds = 0;
@@ -258,15 +256,11 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
       out[7] = normals.flags.pixels[i];
     }
     file.write_rows(rows);
-    for (Preview& p : previews) {
-      const bool normal = p.first == 0;
-      p.file->write_rows(channel_preview(
-          rows, p.first, p.channels, [normal](float v) { return normal ? 0.5f + 0.5f * v : v; }));
-    }
+    for (auto& preview : previews) preview->write_rows(rows);
     report(progress, "normals (rows)", y0 + band.height(), header.height());
   }
   file.commit();
-  for (Preview& p : previews) p.file->commit();
+  for (auto& preview : previews) preview->commit();
   summary.seconds = seconds_since(start) - read_seconds;
   return summary;
 }

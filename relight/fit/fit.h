@@ -43,6 +43,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "lightstage/exr_channels.h"
 #include "lightstage/image.h"
 #include "relight/fit/fit_shadows.h"
 #include "relight/fit/normals.h"
@@ -247,9 +248,8 @@ class ModelMapsWriter {
   void commit();
 
  private:
-  struct Preview;
   std::unique_ptr<ImageRowWriter> maps_;
-  std::vector<Preview> previews_;
+  std::vector<std::unique_ptr<PreviewRowWriter>> previews_;
   bool shadows_ = false;
 };
 

@@ -169,12 +169,6 @@ const std::vector<std::string>& model_map_channel_names() {
   return names;
 }
 
-// A PNG preview beside the maps: its values from a band's maps.
-struct ModelMapsWriter::Preview {
-  std::function<Image(const Image& maps)> values;
-  std::unique_ptr<ImageRowWriter> file;
-};
-
 ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, int height,
                                  const ModelMaps& header, const ExrAttributes& attributes,
                                  Files files) {
@@ -197,17 +191,13 @@ ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, i
     maps_ = std::make_unique<ImageRowWriter>(path, width, height, int(names.size()), names, exr);
   }
   if (files == Files::kMaps) return;
-  const auto preview = [&](const std::string& name, int channels,
-                           std::function<Image(const Image&)> values) {
-    std::filesystem::path file = path;
-    file.replace_extension(name + ".png");
+  const auto preview = [&](const std::string& name, int channels, PreviewRowWriter::Values values) {
     previews_.push_back(
-        {std::move(values), std::make_unique<ImageRowWriter>(file, width, height, channels)});
+        std::make_unique<PreviewRowWriter>(path, name, width, height, channels, std::move(values)));
   };
   const auto channel = [&](const std::string& name, int first, int channels,
-                           const std::function<float(float)>& transform) {
-    preview(name, channels,
-            [=](const Image& maps) { return channel_preview(maps, first, channels, transform); });
+                           std::function<float(float)> transform) {
+    preview(name, channels, channel_values(first, channels, std::move(transform)));
   };
   const auto identity = [](float v) { return v; };
   channel("normal", kMapNormalX, 3, [](float v) { return 0.5f + 0.5f * v; });
@@ -244,12 +234,12 @@ void ModelMapsWriter::write_rows(const ModelMaps& band) {
     }
     maps_->write_rows(named);
   }
-  for (Preview& preview : previews_) preview.file->write_rows(preview.values(image));
+  for (auto& preview : previews_) preview->write_rows(image);
 }
 
 void ModelMapsWriter::commit() {
   if (maps_) maps_->commit();
-  for (Preview& preview : previews_) preview.file->commit();
+  for (auto& preview : previews_) preview->commit();
 }
 
 void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
