@@ -35,9 +35,8 @@ ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t
   // Whole blocks of rows a band, and whole tile rows where the file is tiled.
   const int alignment = std::lcm(factor, stream.row_alignment());
   const int rows = std::max(alignment, stream.rows_within(band_bytes) / alignment * alignment);
-  ReflectanceField band;
-  for (int y0 = 0; y0 < height; y0 += rows) {
-    stream.read_rows(y0, std::min(height, y0 + rows), band);
+  stream.bands(rows)([&](const ReflectanceField& band) {
+    const int y0 = band.first_row();
     const int block_rows = (band.height() + factor - 1) / factor;
     tbb::parallel_for(tbb::blocked_range<int>(0, block_rows), [&](const auto& range) {
       std::vector<double> sum(values);
@@ -58,8 +57,8 @@ ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t
         }
       }
     });
-    if (progress) progress(band.first_row() + band.height(), height);
-  }
+    if (progress) progress(y0 + band.height(), height);
+  });
   return out;
 }
 

@@ -3,8 +3,8 @@
 // holding the maps whole: normals and per-pixel fits band by band, each band kept in a checkpoint;
 // basis materials found from passes over the checkpoints and the field, assigned band by band
 // into checkpoints of their own; the maps written from those a band at a time. Under MPI the bands
-// are split over the ranks (Ranks::owns) and rank 0 writes the maps from every rank's
-// checkpoints: the same bytes as one process's.
+// are split over the ranks (round robin: neighbouring bands, which cost alike, go to different
+// ranks) and rank 0 writes the maps from every rank's checkpoints: the same bytes as one process's.
 #include <filesystem>
 #include <vector>
 

@@ -19,6 +19,19 @@ namespace ls::jobs {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+// --method of fit and normals: photometric stereo's, "robust" or "ls".
+std::string method_problem(const std::string& method) {
+  if (method == "robust" || method == "ls") return {};
+  return "--method: expected robust or ls, got \"" + method + "\"";
+}
+relight::NormalMethod normal_method(const std::string& method) {
+  return method == "ls" ? relight::NormalMethod::kLeastSquares : relight::NormalMethod::kRobust;
+}
+
+}  // namespace
+
 std::string FitJobOptions::validate() const {
   if (!time_inputs.empty() && !field_file.empty()) {
     return "give either a field or --time FIELDS..., not both";
@@ -31,9 +44,7 @@ std::string FitJobOptions::validate() const {
            "\"" +
            out.string() + "\"";
   }
-  if (method != "robust" && method != "ls") {
-    return "--method: expected robust or ls, got \"" + method + "\"";
-  }
+  if (std::string problem = method_problem(method); !problem.empty()) return problem;
   if (materials != "basis" && materials != "per-pixel") {
     return "--materials: expected basis or per-pixel, got \"" + materials + "\"";
   }
@@ -57,11 +68,6 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-relight::NormalMethod normal_method(const FitJobOptions& options) {
-  return options.method == "ls" ? relight::NormalMethod::kLeastSquares
-                                : relight::NormalMethod::kRobust;
 }
 
 void check(const FitJobOptions& options) {
@@ -104,7 +110,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   fit.fit_phong = options.phong;
   fit.materials = options.materials == "per-pixel" ? relight::FitMaterials::kPerPixel
                                                    : relight::FitMaterials::kBasis;
-  fit.normals.method = normal_method(options);
+  fit.normals.method = normal_method(options.method);
   // The noise model weights every residual and sets the shadow threshold: the field's own
   // measurement when it carries one; otherwise NoiseModel's defaults, which describe the simulated
   // 12-bit camera near mid exposure (and are ~3x conservative in sigma for its merged brackets,
@@ -167,7 +173,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
     report(progress, "read fields", long(fields.size()), long(files.size()), f.filename());
   }
   relight::TemporalFitOptions fit;
-  fit.brdf.normals.method = normal_method(options);
+  fit.brdf.normals.method = normal_method(options.method);
   // The noise of the first field that measured it (same camera for every step).
   fit.brdf.noise_source = "default NoiseModel (no field carries a measured noise)";
   const auto measured =
@@ -192,9 +198,7 @@ std::string NormalsJobOptions::validate() const {
     return "--out: the normals are an OpenEXR file: give a path ending in .exr, got \"" +
            out.string() + "\"";
   }
-  if (method != "robust" && method != "ls") {
-    return "--method: expected robust or ls, got \"" + method + "\"";
-  }
+  if (std::string problem = method_problem(method); !problem.empty()) return problem;
   return {};
 }
 
@@ -207,8 +211,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   relight::FitOptions fit;  // Its noise: the field's measured one, else the default (fit.h).
   fit.use_noise_of(header);
   relight::NormalOptions normal_options = fit.normals;
-  normal_options.method = options.method == "ls" ? relight::NormalMethod::kLeastSquares
-                                                 : relight::NormalMethod::kRobust;
+  normal_options.method = normal_method(options.method);
   if (const std::string error = normal_options.validate(); !error.empty()) {
     throw InputError(options.field_file.string() + ": noise: " + error);
   }

@@ -14,10 +14,6 @@ class Ranks {
   int rank() const { return rank_; }
   int size() const { return size_; }
   bool root() const { return rank_ == 0; }
-  // Whether band `index` of a split is this rank's (round robin: neighbouring bands, which cost
-  // alike, go to different ranks).
-  bool owns(int index) const { return index % size_ == rank_; }
-  int owner(int index) const { return index % size_; }
 
   void barrier() const;
   // Rank 0's values, on every rank (resized to rank 0's size).

@@ -1,7 +1,5 @@
 #include "relight/compact/rti_io.h"
 
-#include <unistd.h>
-
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -451,13 +449,10 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
   const size_t colors = options.lrgb ? 3 : 0;  // Per pixel, after a row's coefficients.
   // Through a file: the image's coefficients are never held.
   const size_t row_floats = size_t(width) * (per_pixel + colors);
-  const bool kept = !kept_dir.empty();
-  ScratchFile spill(
-      kept ? kept_dir / "coefficients.spill"
-           : std::filesystem::path(path.string() + ".rows-" + std::to_string(::getpid())),
-      "the coefficients of a field compressed in bands are spilled beside the "
-      "output: they need its size free there",
-      kept ? ScratchFile::Lifetime::kKept : ScratchFile::Lifetime::kTemporary);
+  ScratchFile spill(kept_dir / "coefficients.spill",
+                    "the coefficients of a field compressed in bands are spilled beside the "
+                    "output: they need its size free there",
+                    ScratchFile::Lifetime::kKept);
   RtiQuantiser quantiser(options.basis, options.lrgb, width, header.height());
   std::vector<float> coefs, band_colors, rows;
   RtiWritten written;
@@ -470,7 +465,7 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
     float max_sample = 0;
     // Each row: its coefficients, then its colours.
     const auto row = [&](int y) { return rows.data() + size_t(y) * width * (per_pixel + colors); };
-    if (kept && read_band_record(band_record(kept_dir, band.first_row()), max_sample)) {
+    if (read_band_record(band_record(kept_dir, band.first_row()), max_sample)) {
       spill.read(rows.data(), rows.size(), at);
       for (int y = 0; y < band.height(); ++y) {
         std::copy_n(row(y), width * per_pixel, coefs.data() + size_t(y) * width * per_pixel);
@@ -486,12 +481,10 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
                     row(y) + width * per_pixel);
       }
       spill.write(rows.data(), rows.size(), at);
-      if (kept) {
-        spill.sync();  // The rows are there before their record says so.
-        char text[32];
-        const std::to_chars_result printed = std::to_chars(text, text + sizeof text, max_sample);
-        write_file_atomic(band_record(kept_dir, band.first_row()), std::string(text, printed.ptr));
-      }
+      spill.sync();  // The rows are there before their record says so.
+      char text[32];
+      const std::to_chars_result printed = std::to_chars(text, text + sizeof text, max_sample);
+      write_file_atomic(band_record(kept_dir, band.first_row()), std::string(text, printed.ptr));
     }
     quantiser.add(coefs.data(), band_colors.data(), pixels, max_sample);
   });

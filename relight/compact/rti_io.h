@@ -90,11 +90,11 @@ RtiFile decode_rti_file(const std::string& bytes, const std::string& name);
 void write_rti_file(const std::filesystem::path& path, const RtiFile& file);  // Atomic.
 
 // write_rti_file(path, quantise(RtiField::fit(header, bands, options), gain)) byte for byte, for
-// a field larger than memory (issue 14): each band's coefficients spilled to a file beside `path`
-// (removed after), then quantised and written row by row: it holds a band's coefficients, not the
-// image's. Given `kept_dir` (a CheckpointDir's), the spill and a record of each band fitted are
-// kept there for a killed run to resume from: a band with a record is read back, not fitted (the
-// caller removes the folder once the file is written).
+// a field larger than memory (issue 14): each band's coefficients spilled to a file in `kept_dir`
+// (a CheckpointDir's, beside `path`), then quantised and written row by row: it holds a band's
+// coefficients, not the image's. The spill and a record of each band fitted stay there for a
+// killed run to resume from: a band with a record is read back, not fitted (the caller removes the
+// folder once the file is written).
 struct RtiWritten {
   std::string name;  // RtiField::name().
   int lights_used = 0;
@@ -104,7 +104,7 @@ struct RtiWritten {
 RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
                                    const capture::ReflectanceField& header,
                                    const capture::FieldBands& bands, const RtiFitOptions& options,
-                                   double gain = 0.0, const std::filesystem::path& kept_dir = {});
+                                   double gain, const std::filesystem::path& kept_dir);
 RtiFile read_rti_file(const std::filesystem::path& path);
 
 }  // namespace ls::relight

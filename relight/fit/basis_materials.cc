@@ -66,10 +66,15 @@ uint32_t order_key(float v) {
   return (bits & 0x80000000u) ? ~bits : bits | 0x80000000u;
 }
 
-// The median residual of the cleanly fitted pixels (the element nth_element puts at n / 2) and
-// their number, in two passes over the maps' bands without holding a value per pixel: a
-// histogram of the keys' top 16 bits, then the values of the median's bucket.
-std::pair<float, size_t> median_residual(const MapsBands& bands) {
+// The cleanly fitted pixels' median residual (the element nth_element puts at n / 2) and every
+// stride-th of them (the stride from their number: about kClusteredPixels), in two passes over the
+// maps' bands without holding a value per pixel: a histogram of the residuals' top 16 key bits;
+// then the values in the median's bucket, and the strided pixels.
+struct FittedPixels {
+  float median_residual = 0;
+  std::vector<Candidate> strided;  // Empty: no pixel fitted cleanly.
+};
+FittedPixels fitted_pixels(const MapsBands& bands) {
   std::vector<size_t> histogram(size_t(1) << 16, 0);
   size_t count = 0;
   bands([&](const Image& maps, int) {
@@ -78,21 +83,29 @@ std::pair<float, size_t> median_residual(const MapsBands& bands) {
       if (fitted_cleanly(m)) ++histogram[order_key(m[kMapResidual]) >> 16], ++count;
     }
   });
-  if (count == 0) return {0.0f, 0};
+  if (count == 0) return {};
   size_t rank = count / 2, bucket = 0;
   while (rank >= histogram[bucket]) rank -= histogram[bucket++];
   std::vector<float> in_bucket;
   in_bucket.reserve(histogram[bucket]);
-  bands([&](const Image& maps, int) {
+  FittedPixels out;
+  // Every stride-th pixel: the clusters only seed the materials (step 4 assigns every pixel).
+  const size_t stride = std::max<size_t>(1, count / kClusteredPixels);
+  bands([&](const Image& maps, int first_row) {
+    const size_t first = size_t(first_row) * size_t(maps.width);
     for (size_t i = 0; i < maps.num_pixels(); ++i) {
       const float* m = &maps.pixels[i * size_t(maps.channels)];
-      if (fitted_cleanly(m) && order_key(m[kMapResidual]) >> 16 == bucket) {
-        in_bucket.push_back(m[kMapResidual]);
-      }
+      if (!fitted_cleanly(m)) continue;
+      if (order_key(m[kMapResidual]) >> 16 == bucket) in_bucket.push_back(m[kMapResidual]);
+      if ((first + i) % stride != 0) continue;
+      Candidate& pixel = out.strided.emplace_back();
+      pixel.pixel = first + i;
+      std::copy_n(m, kMapChannelCount, pixel.maps.begin());
     }
   });
   std::nth_element(in_bucket.begin(), in_bucket.begin() + std::ptrdiff_t(rank), in_bucket.end());
-  return {in_bucket[rank], count};
+  out.median_residual = in_bucket[rank];
+  return out;
 }
 
 // Step 1: the pixels to cluster, by cluster (indices into `pixels`), and the scene's dispersion
@@ -103,27 +116,18 @@ struct Segments {
   double dispersion = 1;
 };
 Segments over_segment(const MapsBands& bands, int max_clusters) {
-  const auto [median, fitted] = median_residual(bands);
-  if (fitted == 0) return {};
+  FittedPixels fitted = fitted_pixels(bands);
+  if (fitted.strided.empty()) return {};
   Segments out;
-  out.dispersion = std::max(1.0, double(median));
+  out.dispersion = std::max(1.0, double(fitted.median_residual));
   const float cutoff = std::max(2.0f, float(kClusteredResidualFactor * out.dispersion));
   cv::Mat features(0, 5, CV_32F);
-  // Every stride-th pixel: the clusters only seed the materials (step 4 assigns every pixel).
-  const size_t stride = std::max<size_t>(1, fitted / kClusteredPixels);
-  bands([&](const Image& maps, int first_row) {
-    const size_t first = size_t(first_row) * size_t(maps.width);
-    for (size_t i = (first + stride - 1) / stride * stride - first; i < maps.num_pixels();
-         i += stride) {
-      const float* m = &maps.pixels[i * size_t(maps.channels)];
-      if (!fitted_cleanly(m) || m[kMapResidual] > cutoff) continue;
-      const std::array<float, 5> f = features_of(m);
-      features.push_back(cv::Mat(1, 5, CV_32F, const_cast<float*>(f.data())));
-      Candidate& pixel = out.pixels.emplace_back();
-      pixel.pixel = first + i;
-      std::copy_n(m, kMapChannelCount, pixel.maps.begin());
-    }
-  });
+  for (Candidate& pixel : fitted.strided) {
+    if (pixel.maps[kMapResidual] > cutoff) continue;
+    const std::array<float, 5> f = features_of(pixel.maps.data());
+    features.push_back(cv::Mat(1, 5, CV_32F, const_cast<float*>(f.data())));
+    out.pixels.push_back(pixel);
+  }
   const int k = std::min(max_clusters, int(out.pixels.size()) / (4 * kMinClusterPixels));
   if (k < 1) return {};
   cv::Mat labels;

@@ -110,6 +110,9 @@ void relight_rows_into(const capture::PlanarRows& rows, std::span<const float> i
   for (int c = 0; c < count; ++c) plane_of[size_t(rows.to_pixel_index[size_t(c)])] = c;
   const size_t width = size_t(rows.width);
   std::atomic<bool> non_finite{false};
+  // Halves come unchecked (PlanarRows): a value that is not finite makes every sum it enters not
+  // finite (inf x 0 and inf - inf are NaN), so the sums find it. Floats were checked as read.
+  const bool check_sums = rows.halves != nullptr;
   tbb::parallel_for(0, rows.rows, [&](int row) {
     thread_local std::vector<float> acc;  // [lane][x]
     acc.assign(kChunk * width, 0.0f);
@@ -136,13 +139,11 @@ void relight_rows_into(const capture::PlanarRows& rows, std::span<const float> i
       out_row[3 * x] = rgb[0];
       out_row[3 * x + 1] = rgb[1];
       out_row[3 * x + 2] = rgb[2];
-      not_finite |= int(!std::isfinite(rgb[0] + rgb[1] + rgb[2]));
+      if (check_sums) not_finite |= int(!std::isfinite(rgb[0] + rgb[1] + rgb[2]));
     }
     if (not_finite != 0) non_finite = true;
   });
-  // Halves come unchecked (PlanarRows): a value that is not finite makes every sum it enters not
-  // finite (inf x 0 and inf - inf are NaN), so the sums find it.
-  if (non_finite && rows.halves != nullptr) {
+  if (non_finite) {
     throw InputError(std::string(rows.source) + ": the reflectance field holds non-finite values");
   }
 }
