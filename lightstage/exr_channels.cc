@@ -96,7 +96,7 @@ PreviewRowWriter::PreviewRowWriter(const fs::path& path, const std::string& name
     : values_(std::move(values)), file_(png_beside(path, name), width, height, channels) {}
 
 PreviewRowWriter::Values channel_values(int first, int channels,
-                                        std::function<float(float)> transform) {
+                                        const std::function<float(float)>& transform) {
   return [=](const Image& maps) { return channel_preview(maps, first, channels, transform); };
 }
 

@@ -53,7 +53,7 @@ class PreviewRowWriter {
 };
 // channel_preview of channels [first, first + channels) through `transform`.
 PreviewRowWriter::Values channel_values(int first, int channels,
-                                        std::function<float(float)> transform);
+                                        const std::function<float(float)>& transform);
 
 // A PNG preview of channels [first, first + channels) of `maps` (the channels written to `path`),
 // each value through `transform` (non-finite values black), written beside `path` as

@@ -197,7 +197,7 @@ ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, i
   };
   const auto channel = [&](const std::string& name, int first, int channels,
                            std::function<float(float)> transform) {
-    preview(name, channels, channel_values(first, channels, std::move(transform)));
+    preview(name, channels, channel_values(first, channels, transform));
   };
   const auto identity = [](float v) { return v; };
   channel("normal", kMapNormalX, 3, [](float v) { return 0.5f + 0.5f * v; });
