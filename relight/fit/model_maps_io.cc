@@ -196,7 +196,7 @@ ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, i
         std::make_unique<PreviewRowWriter>(path, name, width, height, channels, std::move(values)));
   };
   const auto channel = [&](const std::string& name, int first, int channels,
-                           std::function<float(float)> transform) {
+                           const std::function<float(float)>& transform) {
     preview(name, channels, channel_values(first, channels, transform));
   };
   const auto identity = [](float v) { return v; };
