@@ -1,6 +1,5 @@
 #include "capture/build_checkpoint.h"
 
-#include <fstream>
 #include <nlohmann/json.hpp>
 #include <type_traits>
 
@@ -41,36 +40,22 @@ BuildCheckpoint::BuildCheckpoint(const fs::path& out, const Session& session,
     : dir_(out, identity_of(session, options)) {}
 
 std::optional<BuildCheckpoint::Led> BuildCheckpoint::load(int light) const {
-  std::ifstream in(led_file(dir_.dir(), light), std::ios::binary);
-  if (!in) return std::nullopt;
   Led led;
-  try {
-    std::string magic, header;
-    if (!std::getline(in, magic) || magic != kLedMagic || !std::getline(in, header)) {
-      return std::nullopt;
-    }
-    const nlohmann::json info = nlohmann::json::parse(header);
-    led.saturated = info.at("saturated").get<long long>();
-    led.transfer.resize(info.at("transfer").get<std::size_t>());
-  } catch (const nlohmann::json::exception&) {
-    return std::nullopt;
-  }
-  const auto bytes = std::streamsize(led.transfer.size() * sizeof(TransferSample));
-  if (!in.read(reinterpret_cast<char*>(led.transfer.data()), bytes) ||
-      in.peek() != std::char_traits<char>::eof()) {
-    return std::nullopt;  // Cut short or longer: merged again.
-  }
+  const bool read =
+      read_record(led_file(dir_.dir(), light), kLedMagic, [&](const nlohmann::json& info) {
+        led.saturated = info.at("saturated").get<long long>();
+        led.transfer.resize(info.at("transfer").get<std::size_t>());
+        return std::optional<std::vector<RecordTarget>>{
+            {{led.transfer.data(), led.transfer.size() * sizeof(TransferSample)}}};
+      });
+  if (!read) return std::nullopt;  // Missing, cut short or longer: merged again.
   return led;
 }
 
 void BuildCheckpoint::save(int light, const Led& led) const {
-  AtomicFileWriter out(led_file(dir_.dir(), light));
-  const std::string header =
-      std::string(kLedMagic) + "\n" +
-      nlohmann::json{{"saturated", led.saturated}, {"transfer", led.transfer.size()}}.dump() + "\n";
-  out.write(header.data(), header.size());
-  out.write(led.transfer.data(), led.transfer.size() * sizeof(TransferSample));
-  out.commit();
+  write_record(led_file(dir_.dir(), light), kLedMagic,
+               {{"saturated", led.saturated}, {"transfer", led.transfer.size()}},
+               {{led.transfer.data(), led.transfer.size() * sizeof(TransferSample)}});
 }
 
 }  // namespace ls::capture

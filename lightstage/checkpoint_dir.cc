@@ -46,6 +46,37 @@ std::string input_identity(const fs::path& input, const std::string& options_jso
       .dump();
 }
 
+void write_record(const fs::path& file, const std::string& magic, const nlohmann::json& info,
+                  const std::vector<RecordBytes>& blocks) {
+  AtomicFileWriter out(file);
+  const std::string header = magic + "\n" + info.dump() + "\n";
+  out.write(header.data(), header.size());
+  for (const RecordBytes& block : blocks) out.write(block.data, block.size);
+  out.commit();
+}
+
+bool read_record(
+    const fs::path& file, const std::string& magic,
+    const std::function<std::optional<std::vector<RecordTarget>>(const nlohmann::json& info)>&
+        place) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) return false;
+  std::vector<RecordTarget> targets;
+  try {
+    std::string line, header;
+    if (!std::getline(in, line) || line != magic || !std::getline(in, header)) return false;
+    std::optional<std::vector<RecordTarget>> placed = place(nlohmann::json::parse(header));
+    if (!placed) return false;
+    targets = std::move(*placed);
+  } catch (const nlohmann::json::exception&) {
+    return false;
+  }
+  for (const RecordTarget& target : targets) {
+    if (!in.read(static_cast<char*>(target.data), std::streamsize(target.size))) return false;
+  }
+  return in.peek() == std::char_traits<char>::eof();  // Cut short or longer: done again.
+}
+
 void CheckpointDir::remove() const {
   std::error_code ignored;
   fs::remove_all(dir_, ignored);

@@ -3,8 +3,13 @@
 // output is written, so that a run that is killed resumes from it (issue 14: fit's bands, build's
 // merged LEDs). run.json records the run's identity (what must match for the folder's contents to
 // be reused: input, its size and time, options) and its band height.
+#include <cstddef>
 #include <filesystem>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
+#include <vector>
 
 namespace ls {
 
@@ -22,6 +27,27 @@ class CheckpointDir {
   std::filesystem::path dir_;
   std::string identity_;
 };
+
+// A checkpoint record: a magic line, a line of JSON (what the bytes are), then raw bytes (exact
+// values; a checkpoint lives for one run and is read back by this program only), written
+// atomically: there whole or not at all.
+struct RecordBytes {
+  const void* data;
+  std::size_t size;
+};
+void write_record(const std::filesystem::path& file, const std::string& magic,
+                  const nlohmann::json& info, const std::vector<RecordBytes>& blocks);
+// Reads a record: `place(info)` says where its bytes go, or nullopt (or throws nlohmann's
+// exceptions) for an info it cannot use. False when the file is missing, of another magic, or its
+// info or bytes are not what `place` asked for: what it held is done again.
+struct RecordTarget {
+  void* data;
+  std::size_t size;
+};
+bool read_record(
+    const std::filesystem::path& file, const std::string& magic,
+    const std::function<std::optional<std::vector<RecordTarget>>(const nlohmann::json& info)>&
+        place);
 
 // The identity of a run over the file `input` with these options (a JSON object; its
 // "memory_bytes" left out: the budget only sets the band height, which run.json records): the

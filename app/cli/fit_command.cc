@@ -22,6 +22,20 @@ void print_noise(const std::string& source, const relight::NoiseModel& noise) {
   std::fprintf(stderr, "noise: %s: variance = %.3g + %.3g * v\n", source.c_str(), noise.a, noise.b);
 }
 
+// "read in bands of N rows split over R MPI ranks (...); peak memory M MiB".
+void print_bands(int band_rows, int height, int ranks, int resumed_rows) {
+  if (band_rows < height) {
+    std::printf("  read in bands of %d rows", band_rows);
+    if (ranks > 1) std::printf(" split over %d MPI ranks", ranks);
+    if (resumed_rows > 0)
+      std::printf(" (%d rows' fits taken from an interrupted run)", resumed_rows);
+    std::printf("; ");
+  } else {
+    std::printf("  ");
+  }
+  std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
+}
+
 }  // namespace
 
 int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
@@ -68,27 +82,20 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
               seconds > 0 ? s.pixels / seconds : 0.0, seconds > 0 ? s.fitted / seconds : 0.0);
   std::printf("  noise: %s, variance = %.3g + %.3g * v\n", summary.noise_source.c_str(),
               summary.noise.a, summary.noise.b);
-  if (summary.band_rows < summary.height) {
-    std::printf("  read in bands of %d rows", summary.band_rows);
-    if (summary.ranks > 1) std::printf(" split over %d MPI ranks", summary.ranks);
-    if (summary.resumed_rows > 0) {
-      std::printf(" (%d rows' fits taken from an interrupted run)", summary.resumed_rows);
-    }
-    std::printf("; ");
-  } else {
-    std::printf("  ");
-  }
-  std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
+  print_bands(summary.band_rows, summary.height, summary.ranks, summary.resumed_rows);
   return 0;
 }
 
 namespace {
 
 int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
+  // Under MPI rank 0 reports and prints; the others are silent.
+  quiet = quiet || !jobs::Ranks::world().root();
   const jobs::TemporalFitJobSummary summary = jobs::fit_over_time(
       options, progress_printer(quiet), [&](const std::string& source, const relight::NoiseModel&) {
         if (!quiet) std::fprintf(stderr, "time steps: noise: %s\n", source.c_str());
       });
+  if (!jobs::Ranks::world().root()) return 0;
   const relight::TemporalSummary& s = summary.fit;
   std::printf("%s: %dx%d pixels, %zu steps from %.1f s to %.1f s, %d fitted, %d flagged\n",
               options.out.c_str(), summary.width, summary.height, summary.step_times_s.size(),
@@ -109,6 +116,7 @@ int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
   std::printf("  %.2f s: per-step BRDF fits %.2f s, temporal fits %.2f s (%.1f us/pixel)\n",
               summary.seconds, s.seconds_steps, s.seconds_temporal,
               s.pixels > 0 ? 1e6 * s.seconds_temporal / s.pixels : 0.0);
+  print_bands(summary.band_rows, summary.height, summary.ranks, summary.resumed_rows);
   return 0;
 }
 
@@ -150,7 +158,8 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("--memory", options->memory_bytes,
                   "Bytes of memory for the field: a larger one is fitted in bands of rows within "
                   "them, read twice with basis materials (default: the whole field when it "
-                  "takes at most half of what is available, else bands within that half).");
+                  "takes at most half of what is available, else bands within that half). With "
+                  "--time: for every step's field and fits together.");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {

@@ -1,8 +1,8 @@
 #include "app/jobs/fit_checkpoint.h"
 
 #include <array>
-#include <fstream>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -101,33 +101,25 @@ fs::path BandCheckpoints::file(int y0, FitStage stage) const {
 bool BandCheckpoints::load(int y0, const std::vector<Eigen::Vector3f>& led_dirs,
                            relight::NormalMap& normals, relight::ModelMaps& maps,
                            FitStage stage) const {
-  std::ifstream in(file(y0, stage), std::ios::binary);
-  if (!in) return false;
   std::vector<std::string> names = band_channel_names();
   const int shadow_words = relight::FitShadows::words_for(int(led_dirs.size()));
   for (int w = 0; w < shadow_words; ++w) names.push_back("shadow." + std::to_string(w));
   Image image;
-  try {
-    std::string magic, header;
-    if (!std::getline(in, magic) || magic != kBandMagic || !std::getline(in, header)) return false;
-    const nlohmann::json info = nlohmann::json::parse(header);
-    if (info.at("channels").get<std::vector<std::string>>() != names) return false;
-    image = Image(info.at("width").get<int>(), info.at("height").get<int>(), int(names.size()));
-    const std::streamsize bytes = std::streamsize(image.pixels.size() * sizeof(float));
-    if (!in.read(reinterpret_cast<char*>(image.pixels.data()), bytes) ||
-        in.peek() != std::char_traits<char>::eof()) {
-      return false;  // Cut short or longer: fitted again.
-    }
-    maps.summary = summary_from(info.at("summary"));
-    normals.flagged_pixels = info.at("normals_flagged").get<int>();
-    const std::vector<int> material_pixels = info.at("material_pixels").get<std::vector<int>>();
-    maps.materials.assign(material_pixels.size(), {});
-    for (size_t k = 0; k < material_pixels.size(); ++k) {
-      maps.materials[k].pixels = material_pixels[k];
-    }
-  } catch (const nlohmann::json::exception&) {
-    return false;
-  }
+  const bool read = read_record(
+      file(y0, stage), kBandMagic,
+      [&](const nlohmann::json& info) -> std::optional<std::vector<RecordTarget>> {
+        if (info.at("channels").get<std::vector<std::string>>() != names) return std::nullopt;
+        image = Image(info.at("width").get<int>(), info.at("height").get<int>(), int(names.size()));
+        maps.summary = summary_from(info.at("summary"));
+        normals.flagged_pixels = info.at("normals_flagged").get<int>();
+        const std::vector<int> material_pixels = info.at("material_pixels").get<std::vector<int>>();
+        maps.materials.assign(material_pixels.size(), {});
+        for (size_t k = 0; k < material_pixels.size(); ++k) {
+          maps.materials[k].pixels = material_pixels[k];
+        }
+        return {{{image.pixels.data(), image.pixels.size() * sizeof(float)}}};
+      });
+  if (!read) return false;
   int first = 0;
   for (size_t k = 0; k < kParts.size(); ++k) {
     Image& part = *images_of(normals, maps)[k];
@@ -162,13 +154,10 @@ void BandCheckpoints::save(int y0, const relight::NormalMap& normals,
                                {"width", band.width},
                                {"height", band.height},
                                {"channels", names}};
-  // Raw floats after a line of JSON: a checkpoint lives for one run and is read back by this
-  // program only, up to four times a band on rank 0 (OpenEXR's reader took 0.7 s a pass at 1024²).
-  AtomicFileWriter out(file(y0, stage));
-  const std::string header = std::string(kBandMagic) + "\n" + info.dump() + "\n";
-  out.write(header.data(), header.size());
-  out.write(band.pixels.data(), band.pixels.size() * sizeof(float));
-  out.commit();
+  // A record, not an EXR: read up to four times a band on rank 0 (OpenEXR's reader took 0.7 s a
+  // pass at 1024²).
+  write_record(file(y0, stage), kBandMagic, info,
+               {{band.pixels.data(), band.pixels.size() * sizeof(float)}});
 }
 
 }  // namespace ls::jobs

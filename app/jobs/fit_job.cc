@@ -8,10 +8,12 @@
 
 #include "app/jobs/fit_bands.h"
 #include "app/jobs/fit_checkpoint.h"
+#include "app/jobs/fit_time_bands.h"
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
+#include "lightstage/memory.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/normals.h"
 
@@ -167,28 +169,81 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   check(options);
   if (options.time_inputs.empty()) throw InputError("fit: give the time-step fields (--time)");
   const std::vector<fs::path> files = expand_time_inputs(options.time_inputs);
-  std::vector<capture::ReflectanceField> fields;
+  // Every step opened (its header read), sorted by time.
+  std::vector<std::unique_ptr<capture::FieldStream>> steps;
+  std::vector<const capture::ReflectanceField*> headers;
   for (const fs::path& f : files) {
-    fields.push_back(capture::read_field(f));
-    report(progress, "read fields", long(fields.size()), long(files.size()), f.filename());
+    headers.push_back(&steps.emplace_back(std::make_unique<capture::FieldStream>(f))->header());
   }
   relight::TemporalFitOptions fit;
   fit.brdf.normals.method = normal_method(options.method);
   // The noise of the first field that measured it (same camera for every step).
   fit.brdf.noise_source = "default NoiseModel (no field carries a measured noise)";
-  const auto measured =
-      std::find_if(fields.begin(), fields.end(), [](const auto& f) { return f.noise.measured; });
-  if (measured != fields.end()) fit.brdf.use_noise_of(*measured);
+  const auto measured = std::find_if(steps.begin(), steps.end(),
+                                     [](const auto& s) { return s->header().noise.measured; });
+  if (measured != steps.end()) fit.brdf.use_noise_of((*measured)->header());
+  headers = relight::steps_by_time(headers);
+  std::sort(steps.begin(), steps.end(), [&](const auto& a, const auto& b) {
+    return std::find(headers.begin(), headers.end(), &a->header()) <
+           std::find(headers.begin(), headers.end(), &b->header());
+  });
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(files.front().string() + ": noise: " + error);
   }
   if (noise_notice) noise_notice(fit.brdf.noise_source, fit.brdf.normals.noise);
+  const capture::FieldStream& first = *steps.front();
+  const int width = first.width(), height = first.height();
+  // The whole series in memory when its fields and fits take at most the budget (by default half
+  // of what is available); else bands of rows within it.
+  const std::size_t budget =
+      options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
+  const std::size_t row_bytes = time_band_row_bytes(first, int(steps.size()));
+  const std::size_t whole_bytes =
+      std::size_t(height) * (row_bytes + steps.size() * capture::ReflectanceField::bytes_for(
+                                                            width, 1, first.header().num_lights()));
+  const Ranks& ranks = Ranks::world();
+  const int alignment = first.row_alignment();
+  int rows = whole_bytes <= budget ? height
+                                   : std::clamp(int(budget / row_bytes) / alignment * alignment,
+                                                alignment, std::max(alignment, height));
+  rows = band_rows_for_ranks(std::min(rows, height), height, alignment, ranks.size());
   const auto start = Clock::now();
-  fit.progress = [&](long done, long total) { report(progress, "fit over time", done, total); };
-  const relight::TemporalMaps maps = relight::fit_temporal(fields, fit);
-  TemporalFitJobSummary summary{maps.summary,      maps.maps.width,       maps.maps.height,
-                                maps.step_times_s, fit.brdf.noise_source, seconds_since(start)};
-  relight::write_temporal_maps(options.out, maps, {{kOptionsAttribute, options.to_json()}});
+  const ExrAttributes attributes = {{kOptionsAttribute, options.to_json()}};
+  TemporalFitJobSummary summary;
+  if (rows < height || ranks.size() > 1) {
+    nlohmann::json identity = nlohmann::json::array();
+    for (const fs::path& f : files) identity.push_back(input_identity(f, options.to_json()));
+    const CheckpointDir checkpoints(options.out, identity.dump());
+    // Rank 0 decides (and may clear an earlier run's checkpoints); the others follow.
+    std::vector<double> decided = {double(ranks.root() ? checkpoints.band_rows(rows) : 0)};
+    ranks.broadcast(decided);
+    rows = int(decided[0]);
+    const TimeBandFit result = fit_over_time_in_bands(steps, rows, fit, checkpoints, ranks,
+                                                      options.out, attributes, progress);
+    ranks.barrier();  // Rank 0 has written the maps from every rank's checkpoints.
+    if (ranks.root()) checkpoints.remove();
+    summary.fit = result.summary;
+    summary.resumed_rows = result.resumed_rows;
+  } else {
+    std::vector<capture::ReflectanceField> fields;
+    for (const auto& step : steps) {
+      capture::ReflectanceField& field = fields.emplace_back();
+      step->read_rows(0, height, field);
+      report(progress, "read fields", long(fields.size()), long(steps.size()),
+             fs::path(field.source).filename());
+    }
+    fit.progress = [&](long done, long total) { report(progress, "fit over time", done, total); };
+    const relight::TemporalMaps maps = relight::fit_temporal(fields, fit);
+    relight::write_temporal_maps(options.out, maps, attributes);
+    summary.fit = maps.summary;
+  }
+  summary.width = width;
+  summary.height = height;
+  for (const auto& step : steps) summary.step_times_s.push_back(step->header().scene_time_s);
+  summary.noise_source = fit.brdf.noise_source;
+  summary.seconds = seconds_since(start);
+  summary.band_rows = rows;
+  summary.ranks = ranks.size();
   return summary;
 }
 

@@ -20,7 +20,8 @@ struct FitJobOptions {
   std::string method = "robust";    // Photometric-stereo normals: "robust" or "ls".
   std::string materials = "basis";  // "basis" or "per-pixel" (relight::FitMaterials).
   // Bytes for the field (capture::FieldStream::band_rows; 0: the default there). A field larger
-  // is fitted in bands of rows, read twice with basis materials (fits, blends).
+  // is fitted in bands of rows, read twice with basis materials (fits, blends). --time: for every
+  // step's field and fits (fit_time_bands.h), by default half of what is available.
   std::size_t memory_bytes = 0;
   std::string validate() const;
   std::string to_json() const;  // Recorded in the maps (kOptionsAttribute).
@@ -44,6 +45,9 @@ struct TemporalFitJobSummary {
   std::vector<double> step_times_s;
   std::string noise_source;
   double seconds = 0.0;
+  int band_rows = 0;     // As FitJobSummary's.
+  int resumed_rows = 0;  // Rows whose processes an earlier, killed run had fitted.
+  int ranks = 1;
 };
 
 // Says which noise weighs the fit (before it starts); then the fit runs.

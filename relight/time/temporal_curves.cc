@@ -293,25 +293,65 @@ double process_in_curve_space(const Series& series, const float* m, double first
 
 }  // namespace
 
-void offer_curves(const std::vector<StepFit>& steps, double t_first, double span,
-                  const std::vector<double>& best_bic, TemporalMaps& out) {
+}  // namespace temporal_internal
+
+using temporal_internal::best_family;
+using temporal_internal::curve_runs_away;
+using temporal_internal::CurveFit;
+using temporal_internal::FamilyFit;
+using temporal_internal::gather_series;
+using temporal_internal::kCurveEvidence;
+using temporal_internal::kCurveParameters;
+using temporal_internal::kCurveSample;
+using temporal_internal::kMinFamilySeries;
+using temporal_internal::kMissedAlbedoChi2;
+using temporal_internal::learn_families;
+using temporal_internal::process_in_curve_space;
+using temporal_internal::Series;
+using temporal_internal::unexplained;
+
+namespace {
+
+bool curve_candidate(const float* m) {
+  return int(m[kTModel]) > int(TemporalModel::kNone) && unexplained(m);
+}
+
+}  // namespace
+
+CurveSample::CurveSample() = default;
+CurveSample::~CurveSample() = default;
+
+void CurveSample::count(const Image& maps) {
+  for (size_t i = 0; i < maps.num_pixels(); ++i) {
+    candidates_ += curve_candidate(&maps.pixels[i * kTemporalChannelCount]);
+  }
+}
+
+void CurveSample::gather(const std::vector<StepFit>& steps, const Image& maps) {
+  if (candidates_ < kMinFamilySeries) return;
+  const size_t stride = (candidates_ + kCurveSample - 1) / kCurveSample;
+  for (size_t i = 0; i < maps.num_pixels(); ++i) {
+    if (!curve_candidate(&maps.pixels[i * kTemporalChannelCount])) continue;
+    if (gathered_++ % stride != 0) continue;
+    gather_series(steps, int(i % size_t(maps.width)), int(i / size_t(maps.width)),
+                  series_.emplace_back(), /*curves=*/true);
+  }
+}
+
+std::vector<TemporalCurves> CurveSample::learn(const std::vector<double>& step_times) const {
+  if (series_.empty() || step_times.size() < 2) return {};
+  const double t_first = step_times.front(), span = step_times.back() - t_first;
+  if (!(span > 0)) return {};
+  const int knots = std::clamp(int(step_times.size()) + 3, 5, 16);
+  return learn_families(series_, knots, t_first, span);
+}
+
+void offer_temporal_curves(const std::vector<StepFit>& steps, const std::vector<double>& best_bic,
+                           const std::vector<TemporalCurves>& curves, TemporalMaps& out) {
+  out.curves = curves;
+  if (curves.empty()) return;
   const int width = out.maps.width, pixels = width * out.maps.height;
-  std::vector<int> changing;
-  for (int i = 0; i < pixels; ++i) {
-    const float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
-    const int model = int(m[kTModel]);
-    if (model > int(TemporalModel::kNone) && unexplained(m)) changing.push_back(i);
-  }
-  if (changing.size() < kMinFamilySeries) return;
-  std::vector<Series> sample;
-  const size_t stride = (changing.size() + kCurveSample - 1) / kCurveSample;
-  for (size_t j = 0; j < changing.size(); j += stride) {
-    Series& series = sample.emplace_back();
-    gather_series(steps, changing[j] % width, changing[j] / width, series,
-                  /*curves=*/true);
-  }
-  const int knots = std::clamp(int(steps.size()) + 3, 5, 16);
-  out.curves = learn_families(sample, knots, t_first, span);
+  const double t_first = out.first_time_s(), span = out.last_time_s() - t_first;
   tbb::parallel_for(0, pixels, [&](int i) {
     float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
     const TemporalModel model = TemporalModel(int(m[kTModel]));
@@ -354,6 +394,8 @@ void offer_curves(const std::vector<StepFit>& steps, double t_first, double span
     m[kTFlags] = float(flags);
   });
 }
+
+namespace temporal_internal {
 
 void params_at(const float* m, double t, double first_time_s, const TemporalCurves* curves,
                double* q) {

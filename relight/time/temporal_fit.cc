@@ -57,29 +57,12 @@ NormalMap normals_from(const std::vector<const capture::ReflectanceField*>& sort
   return normals;
 }
 
-std::vector<const capture::ReflectanceField*> by_time(
-    const std::vector<capture::ReflectanceField>& steps) {
-  std::vector<const capture::ReflectanceField*> order;
-  order.reserve(steps.size());
-  for (const auto& f : steps) order.push_back(&f);
-  std::stable_sort(order.begin(), order.end(),
-                   [](auto* a, auto* b) { return a->scene_time_s < b->scene_time_s; });
-  return order;
-}
-
-void check_same_layout(const std::vector<capture::ReflectanceField>& steps) {
-  if (steps.empty()) throw InputError("temporal fit: expected at least one field, got none");
-  const auto& a = steps[0];
-  for (const auto& f : steps) {
-    if (f.width() != a.width() || f.height() != a.height()) {
-      throw InputError(f.source + ": size: expected " + std::to_string(a.width()) + "x" +
-                       std::to_string(a.height()) + " (as " + a.source + "), got " +
-                       std::to_string(f.width()) + "x" + std::to_string(f.height()));
-    }
-    if (!std::isfinite(f.scene_time_s)) {
-      throw InputError(f.source + ": scene_time_s: expected a finite time");
-    }
-  }
+std::vector<const capture::ReflectanceField*> pointers_to(
+    const std::vector<capture::ReflectanceField>& fields) {
+  std::vector<const capture::ReflectanceField*> out;
+  out.reserve(fields.size());
+  for (const auto& f : fields) out.push_back(&f);
+  return out;
 }
 
 }  // namespace
@@ -145,10 +128,35 @@ std::string TemporalSummary::to_string() const {
   return s.str();
 }
 
+std::vector<const capture::ReflectanceField*> steps_by_time(
+    std::vector<const capture::ReflectanceField*> steps) {
+  if (steps.empty()) throw InputError("temporal fit: expected at least one field, got none");
+  const capture::ReflectanceField& a = *steps[0];
+  for (const capture::ReflectanceField* f : steps) {
+    if (f->width() != a.width() || f->height() != a.height()) {
+      throw InputError(f->source + ": size: expected " + std::to_string(a.width()) + "x" +
+                       std::to_string(a.height()) + " (as " + a.source + "), got " +
+                       std::to_string(f->width()) + "x" + std::to_string(f->height()));
+    }
+    if (!std::isfinite(f->scene_time_s)) {
+      throw InputError(f->source + ": scene_time_s: expected a finite time");
+    }
+  }
+  std::stable_sort(steps.begin(), steps.end(),
+                   [](auto* a, auto* b) { return a->scene_time_s < b->scene_time_s; });
+  for (size_t i = 1; i < steps.size(); ++i) {
+    if (steps[i]->scene_time_s == steps[i - 1]->scene_time_s) {
+      throw InputError(steps[i]->source + ": scene_time_s: expected a time different from " +
+                       steps[i - 1]->source + "'s, got both " +
+                       std::to_string(steps[i]->scene_time_s) + " s");
+    }
+  }
+  return steps;
+}
+
 NormalMap estimate_temporal_normals(const std::vector<capture::ReflectanceField>& steps,
                                     const TemporalFitOptions& options) {
-  check_same_layout(steps);
-  return normals_from(by_time(steps), options);
+  return normals_from(steps_by_time(pointers_to(steps)), options);
 }
 
 TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
@@ -156,15 +164,7 @@ TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
   if (const std::string error = options.validate(); !error.empty()) {
     throw InputError("temporal fit options: " + error);
   }
-  check_same_layout(input);
-  const std::vector<const capture::ReflectanceField*> order = by_time(input);
-  for (size_t i = 1; i < order.size(); ++i) {
-    if (order[i]->scene_time_s == order[i - 1]->scene_time_s) {
-      throw InputError(order[i]->source + ": scene_time_s: expected a time different from " +
-                       order[i - 1]->source + "'s, got both " +
-                       std::to_string(order[i]->scene_time_s) + " s");
-    }
-  }
+  const std::vector<const capture::ReflectanceField*> order = steps_by_time(pointers_to(input));
   const auto start_time = std::chrono::steady_clock::now();
   const NormalMap normals = normals_from(order, options);
   const long total_rows = long(order.size() + 1) * input[0].height();

@@ -32,10 +32,12 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "capture/field.h"
+#include "lightstage/exr_channels.h"
 #include "lightstage/image.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/normals.h"
@@ -241,6 +243,10 @@ struct TemporalMaps {
   TemporalModel model(int x, int y) const { return TemporalModel(int(maps.at(x, y, kTModel))); }
 };
 
+// The fields sorted by scene_time_s; InputError naming the file when their sizes differ, a time
+// is not finite or two share a time.
+std::vector<const capture::ReflectanceField*> steps_by_time(
+    std::vector<const capture::ReflectanceField*> steps);
 // The fixed normals: estimate_normals on the source the options name (steps in any order), then
 // refined by each pixel's BRDF fit (options.refine_normals).
 NormalMap estimate_temporal_normals(const std::vector<capture::ReflectanceField>& steps,
@@ -251,6 +257,43 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
 // Temporal models from per-step fits (sorted by time, at least one).
 TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const NormalMap& normals,
                                  const TemporalFitOptions& options);
+// Step 3 in pieces that also run on bands of rows (issue 14: `lightstage fit --time` on fields
+// larger than memory). All but the curves is per pixel; fit_temporal_models is these on one band:
+//   1. fit_temporal_processes on each band's per-step fits;
+//   2. a CurveSample: count() over every band's maps, then gather() over every band, in order,
+//      then learn() the curves (when options.fit_curves);
+//   3. offer_temporal_curves and count_temporal_models on each band.
+// The processes of the pixels of `steps` (a band or the whole image) chosen by BIC, each pixel's
+// BIC in best_bic (HUGE_VAL where none was fitted); summary: pixels, fitted, flagged.
+TemporalMaps fit_temporal_processes(const std::vector<StepFit>& steps, const NormalMap& normals,
+                                    const TemporalFitOptions& options,
+                                    std::vector<double>& best_bic);
+namespace temporal_internal {
+struct Series;
+}
+// The pixels the curves learn from: an evenly strided sample (at most 1500) of those no process
+// explains, in the order the bands are visited.
+class CurveSample {
+ public:
+  CurveSample();
+  ~CurveSample();
+  CurveSample(const CurveSample&) = delete;
+  CurveSample& operator=(const CurveSample&) = delete;
+  void count(const Image& maps);
+  void gather(const std::vector<StepFit>& steps, const Image& maps);
+  // The curve families; none when too few pixels are unexplained or the steps span no time.
+  std::vector<TemporalCurves> learn(const std::vector<double>& step_times) const;
+
+ private:
+  size_t candidates_ = 0, gathered_ = 0;
+  std::vector<temporal_internal::Series> series_;
+};
+// The curves offered to every pixel of `band` a process leaves unexplained (or whose process
+// misses the albedo a render sees), and written where they win; band.curves = curves.
+void offer_temporal_curves(const std::vector<StepFit>& steps, const std::vector<double>& best_bic,
+                           const std::vector<TemporalCurves>& curves, TemporalMaps& band);
+// The band's model and flag counts into its summary, and its degenerate pixels' step values.
+void count_temporal_models(const std::vector<StepFit>& steps, TemporalMaps& band);
 // All of it. Fields must share size and lights (same LED ids, in order); they are sorted by
 // scene_time_s, and two with the same time are an InputError.
 TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& steps,
@@ -266,6 +309,30 @@ double temporal_value(TemporalModel model, double rate, double onset, double wet
 // .dry_albedo.png, .confidence.png, .flags.png.
 void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps,
                          const ExrAttributes& attributes = {});
+// The same file and previews written a band of rows at a time, top to bottom (a fit in bands,
+// issue 14): the same bytes as write_temporal_maps. `header` gives what the file's header holds
+// (step times, noise, curves); step_values: whether the file has the step.I.<param> channels (a
+// band without degenerate pixels writes zeros there); max_rate: the largest kTRate of the maps,
+// for the rate preview. Nothing is left at `path` before commit().
+class TemporalMapsWriter {
+ public:
+  TemporalMapsWriter(const std::filesystem::path& path, int width, int height,
+                     const TemporalMaps& header, bool step_values, double max_rate,
+                     const ExrAttributes& attributes = {});
+  ~TemporalMapsWriter();
+  TemporalMapsWriter(const TemporalMapsWriter&) = delete;
+  TemporalMapsWriter& operator=(const TemporalMapsWriter&) = delete;
+  // The next rows: band.maps and band.step_values (or none) of the same rows.
+  void write_rows(const TemporalMaps& band);
+  void commit();
+
+ private:
+  int step_channels_;
+  std::unique_ptr<ImageRowWriter> maps_;
+  std::vector<std::unique_ptr<PreviewRowWriter>> previews_;
+};
+// The largest rate (kTRate) of temporal maps.
+double max_temporal_rate(const Image& maps);
 // Reads what write_temporal_maps wrote; InputErrors name the file and the channel.
 TemporalMaps read_temporal_maps(const std::filesystem::path& path);
 

@@ -170,10 +170,4 @@ FamilyFit best_family(const Series& series, const std::vector<TemporalCurves>& f
 std::vector<TemporalCurves> learn_families(const std::vector<Series>& sample, int knots,
                                            double t_first, double span);
 
-// The curves (temporal_curves.cc): learnt from the pixels of `out` that no process explains and
-// written where they win (see TemporalCurves); best_bic: each pixel's chosen model's BIC
-// (infinite where none was fitted).
-void offer_curves(const std::vector<StepFit>& steps, double t_first, double span,
-                  const std::vector<double>& best_bic, TemporalMaps& out);
-
 }  // namespace ls::relight::temporal_internal

@@ -18,59 +18,90 @@ constexpr const char* kTemporalAttribute = "lightstage:temporal";
 
 }  // namespace
 
-void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps,
-                         const ExrAttributes& attributes) {
-  const Image& image = maps.maps;
-  LS_CHECK(image.channels == kTemporalChannelCount &&
-               image.pixels.size() == image.num_pixels() * kTemporalChannelCount,
-           "temporal maps have " + std::to_string(image.channels) + " channels");
-  nlohmann::json meta = {{"step_times_s", maps.step_times_s},
-                         {"read_variance", maps.noise.a},
-                         {"shot_variance_per_unit", maps.noise.b},
-                         {"noise_source", maps.noise_source}};
-  if (!maps.curves.empty()) {
+TemporalMapsWriter::TemporalMapsWriter(const std::filesystem::path& path, int width, int height,
+                                       const TemporalMaps& header, bool step_values,
+                                       double max_rate, const ExrAttributes& attributes)
+    : step_channels_(step_values ? int(header.step_times_s.size()) * kTemporalParamCount : 0) {
+  nlohmann::json meta = {{"step_times_s", header.step_times_s},
+                         {"read_variance", header.noise.a},
+                         {"shot_variance_per_unit", header.noise.b},
+                         {"noise_source", header.noise_source}};
+  if (!header.curves.empty()) {
     nlohmann::json families = nlohmann::json::array();
-    for (const TemporalCurves& family : maps.curves) families.push_back(family.knots);
+    for (const TemporalCurves& family : header.curves) families.push_back(family.knots);
     meta["curve_families"] = families;
   }
-  const Image& steps = maps.step_values;
-  LS_CHECK(steps.pixels.empty() ||
-               (steps.width == image.width && steps.height == image.height &&
-                steps.channels == int(maps.step_times_s.size()) * kTemporalParamCount),
-           "temporal maps: step values do not fit the maps");
-  Image named(image.width, image.height, image.channels + steps.channels);
-  named.channel_names = temporal_channel_names();
-  named.channel_names.insert(named.channel_names.end(), steps.channel_names.begin(),
-                             steps.channel_names.end());
-  for (size_t i = 0; i < image.num_pixels(); ++i) {
-    float* to = &named.pixels[i * size_t(named.channels)];
-    std::copy_n(&image.pixels[i * size_t(image.channels)], image.channels, to);
-    if (steps.channels > 0) {
-      std::copy_n(&steps.pixels[i * size_t(steps.channels)], steps.channels, to + image.channels);
+  std::vector<std::string> names = temporal_channel_names();
+  for (int i = 0; i < step_channels_ / kTemporalParamCount; ++i) {
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      names.push_back("step." + std::to_string(i) + "." + temporal_param_name(p));
     }
   }
-  ExrAttributes header = attributes;
-  header.emplace_back(kTemporalAttribute, meta.dump());
-  write_exr(path, named, ExrPixelType::kFloat, header);
-  const double span = std::max(maps.last_time_s() - maps.first_time_s(), 1e-9);
-  double max_rate = 0;
-  for (size_t i = 0; i < image.num_pixels(); ++i) {
-    max_rate = std::max(max_rate, double(image.pixels[i * image.channels + kTRate]));
-  }
-  auto preview = [&](const std::string& name, int first, int channels,
-                     const std::function<float(float)>& transform) {
-    write_channel_preview(path, name, image, first, channels, transform);
+  ExrAttributes exr = attributes;
+  exr.emplace_back(kTemporalAttribute, meta.dump());
+  maps_ = std::make_unique<ImageRowWriter>(path, width, height, int(names.size()), names, exr);
+  const double first = header.first_time_s();
+  const double span = std::max(header.last_time_s() - first, 1e-9);
+  const auto preview = [&](const std::string& name, int channel, int channels,
+                           const std::function<float(float)>& transform) {
+    previews_.push_back(std::make_unique<PreviewRowWriter>(
+        path, name, width, height, channels, channel_values(channel, channels, transform)));
   };
-  auto identity = [](float v) { return v; };
+  const auto identity = [](float v) { return v; };
   preview("model", kTModel, 1, [](float v) { return v / (kTemporalModelCount - 1); });
-  preview("rate", kTRate, 1, [&](float v) { return max_rate > 0 ? v / max_rate : 0.0; });
-  preview("onset", kTOnset, 1, [&](float v) { return (v - maps.first_time_s()) / span; });
+  preview("rate", kTRate, 1, [max_rate](float v) { return max_rate > 0 ? v / max_rate : 0.0; });
+  preview("onset", kTOnset, 1, [first, span](float v) { return (v - first) / span; });
   preview("wet_albedo", kTWet, 3, identity);
   preview("dry_albedo", kTDry, 3, identity);
   preview("wet_ks", kTWet + int(kParamKs), 1, identity);
   preview("dry_ks", kTDry + int(kParamKs), 1, identity);
   preview("confidence", kTConfidence, 1, identity);
   preview("flags", kTFlags, 1, [](float v) { return v / 511; });  // Bits up to 256.
+}
+
+TemporalMapsWriter::~TemporalMapsWriter() = default;
+
+void TemporalMapsWriter::write_rows(const TemporalMaps& band) {
+  const Image& image = band.maps;
+  const Image& steps = band.step_values;
+  LS_CHECK(image.channels == kTemporalChannelCount &&
+               image.pixels.size() == image.num_pixels() * kTemporalChannelCount,
+           "temporal maps have " + std::to_string(image.channels) + " channels");
+  LS_CHECK(steps.pixels.empty() || (steps.width == image.width && steps.height == image.height &&
+                                    steps.channels == step_channels_),
+           "temporal maps: step values do not fit the maps");
+  Image named(image.width, image.height, image.channels + step_channels_);
+  for (size_t i = 0; i < image.num_pixels(); ++i) {
+    float* to = &named.pixels[i * size_t(named.channels)];
+    std::copy_n(&image.pixels[i * size_t(image.channels)], image.channels, to);
+    if (!steps.pixels.empty()) {
+      std::copy_n(&steps.pixels[i * size_t(steps.channels)], steps.channels, to + image.channels);
+    }
+  }
+  maps_->write_rows(named);
+  for (auto& preview : previews_) preview->write_rows(image);
+}
+
+void TemporalMapsWriter::commit() {
+  maps_->commit();
+  for (auto& preview : previews_) preview->commit();
+}
+
+double max_temporal_rate(const Image& maps) {
+  double max_rate = 0;
+  for (size_t i = 0; i < maps.num_pixels(); ++i) {
+    max_rate = std::max(max_rate, double(maps.pixels[i * size_t(maps.channels) + kTRate]));
+  }
+  return max_rate;
+}
+
+void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps,
+                         const ExrAttributes& attributes) {
+  TemporalMapsWriter writer(path, maps.maps.width, maps.maps.height, maps,
+                            !maps.step_values.pixels.empty(), max_temporal_rate(maps.maps),
+                            attributes);
+  writer.write_rows(maps);
+  writer.commit();
 }
 
 TemporalMaps read_temporal_maps(const std::filesystem::path& path) {

@@ -376,8 +376,9 @@ double temporal_value(TemporalModel model, double rate, double onset, double wet
   return dry + (wet - dry) * s;
 }
 
-TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const NormalMap& normals,
-                                 const TemporalFitOptions& options) {
+namespace {
+
+void check_steps(const std::vector<StepFit>& steps, const TemporalFitOptions& options) {
   if (const std::string error = options.validate(); !error.empty()) {
     throw InputError("temporal fit options: " + error);
   }
@@ -386,7 +387,14 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     throw InputError("temporal fit: expected at most " + std::to_string(kMaxSteps) +
                      " time steps, got " + std::to_string(steps.size()));
   }
-  const auto start_time = std::chrono::steady_clock::now();
+}
+
+}  // namespace
+
+TemporalMaps fit_temporal_processes(const std::vector<StepFit>& steps, const NormalMap& normals,
+                                    const TemporalFitOptions& options,
+                                    std::vector<double>& best_bic) {
+  check_steps(steps, options);
   const int width = normals.normal.width, height = normals.normal.height;
   TemporalMaps out;
   out.maps = Image(width, height, kTemporalChannelCount);
@@ -412,7 +420,7 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
   TemporalSummary& summary = out.summary;
   summary.pixels = width * height;
   std::mutex mutex;
-  std::vector<double> best_bic(size_t(width) * height, HUGE_VAL);
+  best_bic.assign(size_t(width) * height, HUGE_VAL);
   std::atomic<long> rows_done{0};
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
     TemporalSummary local;
@@ -442,13 +450,18 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     summary.fitted += local.fitted;
     summary.flagged += local.flagged;
   });
-  if (options.fit_curves && span > 0) {
-    temporal_internal::offer_curves(steps, t_first, span, best_bic, out);
-  }
-  // The counts of the models and flags as they stand, and the per-step fits of the degenerate.
+  return out;
+}
+
+void count_temporal_models(const std::vector<StepFit>& steps, TemporalMaps& band) {
+  const int width = band.maps.width, height = band.maps.height;
+  TemporalSummary& summary = band.summary;
+  std::fill(std::begin(summary.per_model), std::end(summary.per_model), 0);
+  summary.faster_than_sampling = summary.too_few_steps = summary.step_dropped = 0;
+  summary.not_converged = 0;
   std::vector<int> degenerate;
   for (int i = 0; i < width * height; ++i) {
-    const float* m = &out.maps.pixels[size_t(i) * kTemporalChannelCount];
+    const float* m = &band.maps.pixels[size_t(i) * kTemporalChannelCount];
     const int model = int(m[kTModel]), flags = int(m[kTFlags]);
     if (model == 0) continue;
     ++summary.per_model[model];
@@ -459,9 +472,24 @@ TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const Normal
     if (flags & kTemporalDegenerate) degenerate.push_back(i);
   }
   summary.degenerate = int(degenerate.size());
-  summary.curve_families = int(out.curves.size());
-  if (!degenerate.empty()) out.step_values = step_values_of(steps, degenerate, width, height);
-  summary.seconds_temporal =
+  summary.curve_families = int(band.curves.size());
+  band.step_values =
+      degenerate.empty() ? Image{} : step_values_of(steps, degenerate, width, height);
+}
+
+TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const NormalMap& normals,
+                                 const TemporalFitOptions& options) {
+  const auto start_time = std::chrono::steady_clock::now();
+  std::vector<double> best_bic;
+  TemporalMaps out = fit_temporal_processes(steps, normals, options, best_bic);
+  if (options.fit_curves) {
+    CurveSample sample;
+    sample.count(out.maps);
+    sample.gather(steps, out.maps);
+    offer_temporal_curves(steps, best_bic, sample.learn(out.step_times_s), out);
+  }
+  count_temporal_models(steps, out);
+  out.summary.seconds_temporal =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
   return out;
 }

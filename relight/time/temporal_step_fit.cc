@@ -309,7 +309,9 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
   out.valid_lights = int(valid.index.size());
   const NormalOptions& no = options.brdf.normals;
   const FitOptions& fo = options.brdf;
-  if (const std::string error = pixel::check_view_dirs(fo.view_dir_per_pixel, width, height);
+  // view_dir_per_pixel covers the frame: a band (field.first_row()) looks its rows up there.
+  if (const std::string error =
+          pixel::check_view_dirs(fo.view_dir_per_pixel, width, field.frame_height());
       !error.empty()) {
     throw InputError("temporal fit options: " + error);
   }
@@ -325,7 +327,7 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
         d.samples = samples.data();
         d.count = count;
         d.n = pixel::normal_at(normals, x, y);
-        d.wo = pixel::view_dir_at(fo.view_dir_per_pixel, size_t(y) * width + x);
+        d.wo = pixel::view_dir_at(fo.view_dir_per_pixel, size_t(field.first_row() + y) * width + x);
         const StepResult best = fit_step_pixel(d, fo);
         if (!best.ok) continue;
         std::array<double, kRenderedCount> rendered{};

@@ -1,6 +1,6 @@
-// `lightstage fit` under MPI (issue 14): `mpirun -n 2` splits the bands over two ranks and writes
-// the bytes of a one-process fit (but for the time in its header). Runs where CMake found MPI (CI
-// installs it); skipped with a message elsewhere.
+// `lightstage fit` and `fit --time` under MPI (issue 14): `mpirun -n 2` splits the bands over two
+// ranks and writes the bytes of a one-process fit (but for the time in its header). Runs where
+// CMake found MPI (CI installs it); skipped with a message elsewhere.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -15,6 +15,7 @@
 #include "lightstage/stage.h"
 #include "sim/noisy_field.h"
 #include "sim/scene.h"
+#include "tests/relight/time/time_fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace ls {
@@ -78,6 +79,35 @@ TEST(MpiFit, TwoRanksWriteTheBytesOfOneProcess) {
     EXPECT_TRUE(one == bytes_but_time(dir / "two.exr")) << materials;
     EXPECT_FALSE(fs::exists(dir / "two.exr.partial")) << "the checkpoints are removed";
   }
+}
+
+// fit --time: the bands of every step split over the ranks, the curves learnt on rank 0 from
+// every band's sample and sent to the others: the bytes of one process's fit.
+TEST(MpiFit, TimeSeriesTwoRanksWriteTheBytesOfOneProcess) {
+  if (std::string(LIGHTSTAGE_MPIEXEC).empty()) GTEST_SKIP() << "built without MPI";
+  const testing::TempDir dir;
+  Stage stage = stage_with_directions(fibonacci_dome_directions(40, -11.5));
+  stage.camera.width = 24;
+  stage.camera.height = 20;
+  const sim::Scene scene = sim::time_varying_scene();
+  fs::create_directories(dir / "fields");
+  int i = 0;
+  for (const double t : {0.0, 120.0, 300.0, 500.0, 800.0, 1200.0}) {
+    capture::write_field(dir / "fields" / ("field_t00" + std::to_string(i) + ".exr"),
+                         relight::time_testing::field_at(stage, scene, t, {}, 7 + i));
+    ++i;
+  }
+  const std::string cli = testing::cli_path().string();
+  const std::string fit = " fit --time '" + (dir / "fields").string() + "' --out ";
+  std::string one_out, two_out;
+  ASSERT_EQ(run(cli + fit + "'" + (dir / "one.exr").string() + "'", &one_out), 0);
+  ASSERT_EQ(run(mpirun_two() + cli + fit + "'" + (dir / "two.exr").string() + "'", &two_out), 0);
+  EXPECT_NE(two_out.find("split over 2 MPI ranks"), std::string::npos) << two_out;
+  EXPECT_NE(one_out.find(" curve "), std::string::npos) << one_out;
+  const std::string one = bytes_but_time(dir / "one.exr");
+  EXPECT_GT(one.size(), 24u * 20 * 4);
+  EXPECT_TRUE(one == bytes_but_time(dir / "two.exr"));
+  EXPECT_FALSE(fs::exists(dir / "two.exr.partial")) << "the checkpoints are removed";
 }
 
 // Every rank fits about as many rows (9 bands of 115 rows over 2 ranks left one idle a ninth of
