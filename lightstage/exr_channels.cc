@@ -19,17 +19,21 @@ const std::string* NamedChannelFile::attribute(const std::string& name) const {
   return nullptr;
 }
 
-std::vector<std::string> exr_channel_names(const fs::path& path) {
+ExrLayout exr_layout(const fs::path& path) {
   const std::string name = path.string();
   if (!fs::exists(path)) throw InputError(name + ": file not found");
   auto in = OIIO::ImageInput::open(name);
   if (!in) throw InputError(name + ": cannot read: " + OIIO::geterror());
-  return in->spec().channelnames;
+  return {in->spec().width, in->spec().height, in->spec().channelnames};
+}
+
+std::vector<std::string> exr_channel_names(const fs::path& path) {
+  return exr_layout(path).channel_names;
 }
 
 NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std::string>& names,
                                      const std::string& kind, const std::string& origin, bool exact,
-                                     size_t required) {
+                                     size_t required, int y0, int y1) {
   const std::string name = path.string();
   if (!fs::exists(path)) throw InputError(name + ": file not found");
   auto in = OIIO::ImageInput::open(name);
@@ -53,8 +57,15 @@ NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std
                      "), got " + std::to_string(spec.nchannels));
   }
   if (spec.width <= 0 || spec.height <= 0) throw InputError(name + ": image has no pixels");
-  Image raw(spec.width, spec.height, spec.nchannels);
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())) {
+  if (y1 < 0) y1 = spec.height;
+  LS_CHECK(0 <= y0 && y0 < y1 && y1 <= spec.height, "rows out of the image");
+  Image raw(spec.width, y1 - y0, spec.nchannels);
+  const bool read =
+      y1 - y0 == spec.height
+          ? in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())
+          : in->read_scanlines(0, 0, spec.y + y0, spec.y + y1, 0, 0, spec.nchannels,
+                               OIIO::TypeDesc::FLOAT, raw.pixels.data());
+  if (!read) {
     throw InputError(name + ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
   }
   NamedChannelFile out;
@@ -63,7 +74,7 @@ NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std
       out.attributes.emplace_back(p.name().string(), p.get_string());
   }
   in->close();
-  out.image = Image(spec.width, spec.height, count);
+  out.image = Image(spec.width, y1 - y0, count);
   out.image.channel_names = names;
   for (size_t i = 0; i < raw.num_pixels(); ++i) {
     for (int c = 0; c < count; ++c) {

@@ -21,13 +21,19 @@ struct NamedChannelFile {
   ExrAttributes attributes;
   const std::string* attribute(const std::string& name) const;  // Null when absent.
 };
+// Rows [y0, y1) only (y1 < 0: to the last) when given: a band of a file larger than memory.
 NamedChannelFile read_named_channels(const std::filesystem::path& path,
                                      const std::vector<std::string>& names, const std::string& kind,
                                      const std::string& origin, bool exact,
-                                     size_t required = SIZE_MAX);
+                                     size_t required = SIZE_MAX, int y0 = 0, int y1 = -1);
 
-// The channel names of an EXR as its header lists them; InputError naming the file when it cannot
-// be opened.
+// An EXR's size and channel names as its header lists them; InputError naming the file when it
+// cannot be opened.
+struct ExrLayout {
+  int width = 0, height = 0;
+  std::vector<std::string> channel_names;
+};
+ExrLayout exr_layout(const std::filesystem::path& path);
 std::vector<std::string> exr_channel_names(const std::filesystem::path& path);
 
 // Channels [first, first + channels) of `maps`, each value through `transform` (non-finite

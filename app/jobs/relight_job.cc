@@ -321,32 +321,50 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   }
 }
 
-// The fitted maps (edited when asked) rendered under each map; a field, when given too, fills the
-// pixels the fit flagged and bounds the models' light to the dome's coverage.
+// Rows [y0, y1) of an image.
+Image rows_of(const Image& image, int y0, int y1) {
+  Image band(image.width, y1 - y0, image.channels);
+  const std::size_t row = std::size_t(image.width) * image.channels;
+  std::copy_n(image.pixels.begin() + std::ptrdiff_t(y0 * row), (y1 - y0) * row,
+              band.pixels.begin());
+  return band;
+}
+
+// One render of the models: its lighting, the field relit under it for the flagged pixels (when
+// a field is given), the image and the time the render took.
+struct ModelOutput {
+  std::string name;
+  relight::LightingForModels lighting;
+  bool directional = false;                 // --light: no field fallback, no detail line.
+  std::string lights_note;                  // How the lighting was made (and its time).
+  std::vector<float> field_irradiance_rgb;  // The field's weights; empty: no fallback.
+  Image fallback, relit;
+  double render_ms = 0;
+};
+
+// The fitted maps (edited when asked) rendered under each map, read a band of rows at a time
+// whatever their size (each band rendered under every lighting before the next is read) into
+// full-size outputs; a field, when given too, is relit for the pixels the fit flagged in one pass
+// over its file, and bounds the models' light to the dome's coverage.
 void relight_models(const RelightOptions& options, RelightSummary& summary,
                     const ProgressFn& progress) {
-  relight::ModelMaps maps = relight::read_model_maps(options.models_file);
-  const int width = maps.maps.width, height = maps.maps.height;
+  const ExrLayout layout = exr_layout(options.models_file);
+  const int width = layout.width, height = layout.height;
+  std::optional<relight::ModelEdits> edits;
   if (!options.edits_file.empty()) {
-    const relight::ModelEdits edits = relight::read_model_edits(options.edits_file, width, height);
-    const std::vector<int> counts = relight::apply_model_edits(edits, maps);
-    for (size_t i = 0; i < counts.size(); ++i) {
-      summary.edit_reports.push_back(options.edits_file.filename().string() + ": edits[" +
-                                     std::to_string(i) + "] changed " + std::to_string(counts[i]) +
-                                     " pixels");
-    }
+    edits = relight::read_model_edits(options.edits_file, width, height);
   }
-  std::optional<capture::ReflectanceField> field;
+  std::optional<capture::FieldStream> field;
   FieldLights lights;
   if (!options.field_file.empty()) {
-    field = capture::read_field(options.field_file);
+    field.emplace(options.field_file);
     if (field->width() != width || field->height() != height) {
       throw InputError(options.field_file.string() + ": size: expected " + std::to_string(width) +
                        "x" + std::to_string(height) + " (the size of " +
                        options.models_file.string() + "), got " + std::to_string(field->width()) +
                        "x" + std::to_string(field->height()));
     }
-    lights = field_lights(*field);
+    lights = field_lights(field->header());
   }
   // With a field, the models get the light the field gets (the dome's coverage): the fit saw no
   // other, and a lobe aimed below the dome is not bounded by any measurement.
@@ -354,41 +372,99 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
   sampling.directions_width = options.directions_width;
   sampling.covered_by_leds = lights.dirs;
   sampling.coverage_radius_rad = coverage_rad(options);
-  RelitWriter writer(options, summary);
-  MapRotations map_rotations(options);
-  const long total = map_rotations.count() + (options.light_dir ? 1 : 0);
-  long done = 0;
+  std::vector<ModelOutput> outputs;
   if (options.light_dir) {
     // The field cannot be lit from an arbitrary direction: flagged pixels stay black here.
-    Image relit = relight::render_models(
-        maps, relight::LightingForModels::directional(*options.light_dir, Eigen::Vector3d::Ones()));
-    writer.write("light", relit);
-    report(progress, "relight", ++done, total, "light");
+    ModelOutput& out = outputs.emplace_back();
+    out.name = "light";
+    out.lighting =
+        relight::LightingForModels::directional(*options.light_dir, Eigen::Vector3d::Ones());
+    out.directional = true;
   }
-  Image fallback;
-  relight::ModelRenderOptions render;
+  MapRotations map_rotations(options);
   map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation,
                              const std::string& name) {
     const auto t0 = Clock::now();
-    const relight::LightingForModels lighting =
-        relight::LightingForModels::environment(map, rotation, sampling);
+    ModelOutput& out = outputs.emplace_back();
+    out.name = name;
+    out.lighting = relight::LightingForModels::environment(map, rotation, sampling);
     if (field) {
-      const relight::LightWeights weights = relight::integrate_environment(
-          map, lights.dirs, rotation, coverage_rad(options), lights.valid);
-      relight::relight_into(*field, weights.irradiance_rgb, fallback);
-      render.flagged_fallback = &fallback;
+      out.field_irradiance_rgb = relight::integrate_environment(map, lights.dirs, rotation,
+                                                                coverage_rad(options), lights.valid)
+                                     .irradiance_rgb;
+      out.fallback = Image(width, height, 3);
     }
-    const auto t1 = Clock::now();
-    Image relit = relight::render_models(maps, lighting, render);
-    const auto t2 = Clock::now();
-    char detail[160];
-    std::snprintf(detail, sizeof detail, "lights %.1f ms (%zu directions%s), model render %.1f ms",
-                  ms_between(t0, t1), lighting.dirs_in_stage.size(),
-                  field ? " within the dome; field for flagged pixels" : " over the sphere",
-                  ms_between(t1, t2));
-    writer.write(name, relit, detail, total_luma(lighting.irradiance_rgb));
-    report(progress, "relight", ++done, total, name);
+    char note[128];
+    std::snprintf(note, sizeof note, "lights %.1f ms (%zu directions%s)",
+                  ms_between(t0, Clock::now()), out.lighting.dirs_in_stage.size(),
+                  field ? " within the dome; field for flagged pixels" : " over the sphere");
+    out.lights_note = note;
   });
+  if (field) {
+    field->read_rows_planar(0, height, [&](const capture::PlanarRows& rows) {
+      for (ModelOutput& out : outputs) {
+        if (!out.field_irradiance_rgb.empty()) {
+          relight::relight_rows_into(rows, out.field_irradiance_rgb, out.fallback);
+        }
+      }
+    });
+  }
+  // Bands of maps within what the outputs leave of the memory given: a row of maps is read as
+  // the file's channels, then copied into the maps and the shadows.
+  std::size_t output_bytes = 0;
+  for (ModelOutput& out : outputs) {
+    out.relit = Image(width, height, 3);
+    output_bytes += (out.relit.pixels.size() + out.fallback.pixels.size()) * sizeof(float);
+  }
+  const std::size_t row_bytes =
+      std::size_t(width) * layout.channel_names.size() * 2 * sizeof(float);
+  const std::size_t may = memory_given(options);
+  const int rows = int(std::clamp<std::size_t>(
+      (may > output_bytes ? may - output_bytes : 0) / std::max<std::size_t>(row_bytes, 1), 16,
+      std::size_t(height)));
+  std::vector<int> edit_counts;
+  relight::ModelRenderOptions render;
+  for (int y0 = 0; y0 < height; y0 += rows) {
+    const int y1 = std::min(height, y0 + rows);
+    relight::ModelMaps band = relight::read_model_map_rows(options.models_file, y0, y1);
+    if (edits) {
+      const std::vector<int> counts = relight::apply_model_edits(*edits, band, y0);
+      edit_counts.resize(counts.size());
+      for (size_t i = 0; i < counts.size(); ++i) edit_counts[i] += counts[i];
+    }
+    Image fallback;
+    for (ModelOutput& out : outputs) {
+      const auto t0 = Clock::now();
+      render.flagged_fallback = nullptr;
+      if (!out.fallback.pixels.empty()) {
+        fallback = rows_of(out.fallback, y0, y1);
+        render.flagged_fallback = &fallback;
+      }
+      const Image relit = relight::render_models(band, out.lighting, render);
+      std::copy(relit.pixels.begin(), relit.pixels.end(),
+                out.relit.pixels.begin() + std::ptrdiff_t(y0) * width * 3);
+      out.render_ms += ms_between(t0, Clock::now());
+    }
+    if (y1 < height) report(progress, "render models (rows)", y1, height);
+  }
+  for (size_t i = 0; i < edit_counts.size(); ++i) {
+    summary.edit_reports.push_back(options.edits_file.filename().string() + ": edits[" +
+                                   std::to_string(i) + "] changed " +
+                                   std::to_string(edit_counts[i]) + " pixels");
+  }
+  RelitWriter writer(options, summary);
+  long done = 0;
+  for (ModelOutput& out : outputs) {
+    char detail[224];
+    std::snprintf(detail, sizeof detail, "%s, model render %.1f ms", out.lights_note.c_str(),
+                  out.render_ms);
+    if (out.directional) {
+      writer.write(out.name, out.relit);
+    } else {
+      writer.write(out.name, out.relit, detail, total_luma(out.lighting.irradiance_rgb));
+    }
+    report(progress, "relight", ++done, long(outputs.size()), out.name);
+  }
 }
 
 // The time-varying models of `lightstage fit --time` at the scene time (time edits from the edits

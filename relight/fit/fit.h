@@ -259,6 +259,9 @@ class ModelMapsWriter {
 // the file and the channel: "maps.exr: channel 'model': expected an integer in 0..4 at (3, 7),
 // got 9".
 ModelMaps read_model_maps(const std::filesystem::path& path);
+// Rows [y0, y1) of the file (y1 < 0: to the last), checked as above (errors give the file's
+// coordinates): a band of maps larger than memory; their summary counts the band's pixels.
+ModelMaps read_model_map_rows(const std::filesystem::path& path, int y0, int y1);
 
 // Channel names of ModelMaps::maps, indexed by MapChannel.
 const std::vector<std::string>& model_map_channel_names();

@@ -83,14 +83,15 @@ bool same_scene_material(const ModelMaps& maps, int a, int b) {
   return scene > 0 && scene == maps.materials[size_t(b - 1)].scene_material;
 }
 
-bool selected(const ModelSelection& s, const ModelMaps& maps, int x, int y) {
+// (x, y) of the maps, row first_row + y of the frame the selection's mask covers.
+bool selected(const ModelSelection& s, const ModelMaps& maps, int x, int y, int first_row) {
   const FitModel model = maps.model(x, y);
   if (model == FitModel::kNone) return false;
   if (s.model && model != *s.model) return false;
   if (s.material > 0 && !same_scene_material(maps, int(maps.at(x, y, kMapMaterial)), s.material)) {
     return false;
   }
-  if (!s.mask.empty() && !s.mask[size_t(y) * maps.maps.width + x]) return false;
+  if (!s.mask.empty() && !s.mask[size_t(first_row + y) * maps.maps.width + x]) return false;
   return true;
 }
 
@@ -181,7 +182,7 @@ ModelEdits read_model_edits(const std::filesystem::path& path, int width, int he
   return parse_model_edits(text.str(), path.string(), path.parent_path(), width, height);
 }
 
-std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps) {
+std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps, int first_row) {
   const int width = maps.maps.width, height = maps.maps.height;
   LS_CHECK(maps.maps.channels == kMapChannelCount, "model maps expected");
   std::vector<int> counts;
@@ -196,13 +197,14 @@ std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps) {
                        "].select.material: expected " + expected + ", got " +
                        std::to_string(e.select.material));
     }
-    LS_CHECK(e.select.mask.empty() || e.select.mask.size() == maps.maps.num_pixels(),
+    LS_CHECK(e.select.mask.empty() ||
+                 e.select.mask.size() >= (size_t(first_row) + height) * size_t(width),
              "mask of " + std::to_string(e.select.mask.size()) + " pixels for maps of " +
                  std::to_string(maps.maps.num_pixels()));
     int count = 0;
     for (int y = 0; y < height; ++y) {
       for (int x = 0; x < width; ++x) {
-        if (!selected(e.select, maps, x, y)) continue;
+        if (!selected(e.select, maps, x, y, first_row)) continue;
         apply_edit(e, &maps.maps.at(x, y, 0));
         ++count;
       }

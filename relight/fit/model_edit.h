@@ -97,7 +97,8 @@ std::vector<uint8_t> read_selection_mask(const JsonReader& mask_field,
                                          int height, std::filesystem::path* mask_file);
 
 // Applies the edits in order; returns the number of pixels each edit selected. An edit that selects
-// a material the maps do not have is an InputError naming the edit file and the field.
-std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps);
+// a material the maps do not have is an InputError naming the edit file and the field. `maps` may
+// be a band of rows (read_model_map_rows) starting at row first_row of the masks' frame.
+std::vector<int> apply_model_edits(const ModelEdits& edits, ModelMaps& maps, int first_row = 0);
 
 }  // namespace ls::relight

@@ -250,6 +250,10 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
 }
 
 ModelMaps read_model_maps(const std::filesystem::path& path) {
+  return read_model_map_rows(path, 0, -1);
+}
+
+ModelMaps read_model_map_rows(const std::filesystem::path& path, int y0, int y1) {
   const std::string name = path.string();
   const std::vector<std::string>& names = model_map_channel_names();
   std::vector<std::string> with_shadows = names;
@@ -258,9 +262,9 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
       with_shadows.push_back("shadow." + std::to_string(with_shadows.size() - names.size()));
     }
   }
-  NamedChannelFile file =
-      read_named_channels(path, with_shadows, "model maps", "'lightstage fit'", /*exact=*/true,
-                          /*required=*/kMapMaterial);  // Maps from before basis materials.
+  NamedChannelFile file = read_named_channels(
+      path, with_shadows, "model maps", "'lightstage fit'", /*exact=*/true,
+      /*required=*/kMapMaterial, y0, y1);  // kMapMaterial: maps from before basis materials.
   ModelMaps out;
   out.noise_source = "unknown (no '" + std::string(kFitNoiseAttribute) + "' attribute)";
   if (const std::string* noise = file.attribute(kFitNoiseAttribute)) {
@@ -318,7 +322,7 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
   summary.pixels = width * height;
   auto fail = [&](int channel, int x, int y, const std::string& expected) {
     char where[96];
-    std::snprintf(where, sizeof where, " at (%d, %d), got %.9g", x, y,
+    std::snprintf(where, sizeof where, " at (%d, %d), got %.9g", x, y0 + y,
                   double(out.maps.at(x, y, channel)));
     throw InputError(name + ": channel '" + names[channel] + "': expected " + expected + where);
   };

@@ -153,6 +153,46 @@ TEST(StreamedField, FitsInBandsGiveTheMapsOfTheWholeField) {
   }
 }
 
+// `lightstage relight --models` reads the maps a band of rows at a time (16 rows under a tiny
+// budget), with a mask edit (its rows found in the frame) and the field for the flagged pixels
+// (one pass over its file): the images of the maps rendered whole, byte for byte.
+TEST(StreamedField, ModelsRenderedInBandsAreTheWholeMapsRender) {
+  const testing::TempDir dir;
+  const capture::ReflectanceField field = noisy_sim_field(36, 40, 56);
+  capture::write_field(dir / "field.exr", field);
+  ASSERT_EQ(
+      run_measured({"fit", (dir / "field.exr").string(), "--out", (dir / "maps.exr").string()})
+          .code,
+      0);
+  Image mask(40, 56, 3);
+  for (int y = 20; y < 50; ++y) {
+    for (int x = 5; x < 30; ++x) mask.at(x, y, 0) = mask.at(x, y, 1) = mask.at(x, y, 2) = 1;
+  }
+  write_png_preview(dir / "mask.png", mask);
+  {
+    std::ofstream edits(dir / "edits.json");
+    edits << R"({"edits": [{"select": {"mask": "mask.png"}, "albedo_tint": [1, 0.2, 0.2]}]})";
+  }
+  const auto render = [&](const std::string& out, const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"relight",  (dir / "field.exr").string(),
+                                     "--models", (dir / "maps.exr").string(),
+                                     "--edits",  (dir / "edits.json").string(),
+                                     "--env",    write_map(dir.path()).string(),
+                                     "--light",  "0.3",
+                                     "0.2",      "0.93",
+                                     "--out",    (dir / out).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    ASSERT_EQ(run_measured(args).code, 0);
+  };
+  render("whole", {});
+  render("bands", {"--memory", "1"});
+  for (const std::string name : {"sky.exr", "light.exr"}) {
+    const Image whole = read_image(dir / "whole" / name);
+    EXPECT_EQ(whole.height, 56);
+    EXPECT_TRUE(whole.pixels == read_image(dir / "bands" / name).pixels) << name;
+  }
+}
+
 // `lightstage normals` reads the field in bands and writes the photometric-stereo normals, albedo,
 // confidence and flags that relight/fit/normals.h estimates on the whole field, bit for bit.
 TEST(StreamedField, NormalsInBandsAreThoseOfTheWholeField) {
