@@ -14,6 +14,8 @@
 #include "capture/olat_import.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
+#include "lightstage/scratch_file.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
@@ -47,6 +49,52 @@ bool rti_basis(const std::string& format, relight::RtiFitOptions& options) {
     return false;
   }
   return true;
+}
+
+// A PCA in bands, never holding its coefficients: the basis from the passes over the bands (kept
+// in the checkpoint: a rerun skips those passes), then each band's coefficients into a spill
+// beside the output (kept, with a record per band: a rerun projects only the bands not there),
+// then the file written from the spill. Returns the basis; `resumed_rows`: the rows a killed run
+// had projected.
+relight::PcaField pca_in_bands(capture::FieldStream& stream, int rows,
+                               const capture::FieldBands& bands, const relight::PcaOptions& options,
+                               const CheckpointDir& checkpoint, const fs::path& out,
+                               const ProgressFn& progress, relight::PcaSummary& summary,
+                               int& resumed_rows) {
+  const capture::ReflectanceField& header = stream.header();
+  const fs::path basis_file = checkpoint.dir() / "basis.record";
+  std::optional<relight::PcaField> pca =
+      relight::PcaField::load_basis(basis_file, header, &summary);
+  if (!pca) {
+    pca = relight::PcaField::build_basis(header, bands, options, &summary);
+    pca->save_basis(basis_file, summary);
+  }
+  const std::size_t row_floats = pca->coefficients_per_row();
+  ScratchFile spill(checkpoint.dir() / "coefficients.spill",
+                    "the coefficients of a field compressed in bands are spilled beside the "
+                    "output: they need its size free there",
+                    ScratchFile::Lifetime::kKept);
+  capture::ReflectanceField band;
+  std::vector<float> coefs;
+  for (int y0 = 0; y0 < header.height(); y0 += rows) {
+    const int y1 = std::min(header.height(), y0 + rows);
+    const fs::path record = checkpoint.dir() / ("band_" + std::to_string(y0));
+    const bool resumed = fs::exists(record);
+    if (resumed) {
+      resumed_rows += y1 - y0;
+    } else {
+      stream.read_rows(y0, y1, band);
+      coefs.resize(std::size_t(y1 - y0) * row_floats);
+      pca->project_band(band, coefs.data());
+      spill.write(coefs.data(), coefs.size(), std::size_t(y0) * row_floats);
+      spill.sync();  // The rows are there before their record says so.
+      write_file_atomic(record, "");
+    }
+    report(progress, "coefficients (rows)", y1, header.height(), resumed ? "resumed" : "");
+  }
+  pca->write(out,
+             [&](int y, float* row) { spill.read(row, row_floats, std::size_t(y) * row_floats); });
+  return *std::move(pca);
 }
 
 }  // namespace
@@ -121,9 +169,10 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
                                                     stream->width(), stream->height(), pca_options))
             : stream->row_alignment();
     rows = std::max(align, stream->band_rows(options.memory_bytes) / align * align);
-    if (rows < stream->height() && options.format != "pca") {
-      // RTI fits in bands are kept beside the output for a killed run to resume from (with the
-      // band height they were fitted in).
+    if (rows < stream->height()) {
+      // What a compression in bands finished is kept beside the output for a killed run to
+      // resume from (with the band height it was done in): the RTI fits' coefficients, or the
+      // PCA's basis and coefficients.
       checkpoint.emplace(options.out, input_identity(options.input, options.to_json()));
       rows = checkpoint->band_rows(rows);
     }
@@ -150,9 +199,15 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   summary.band_rows = rows;
   if (options.format == "pca") {
     relight::PcaSummary pca_summary;
-    const relight::PcaField pca =
-        relight::PcaField::build(header, bands, pca_options, &pca_summary);
-    pca.write(options.out);
+    relight::PcaField pca;
+    if (rows > 0) {
+      pca = pca_in_bands(*stream, rows, bands, pca_options, *checkpoint, options.out, progress,
+                         pca_summary, summary.resumed_rows);
+      checkpoint->remove();
+    } else {
+      pca = relight::PcaField::build(header, bands, pca_options, &pca_summary);
+      pca.write(options.out);
+    }
     summary.representation = pca.name();
     summary.details = pca_summary.to_string();
     summary.bytes_per_pixel = pca.bytes_per_pixel();

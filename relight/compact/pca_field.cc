@@ -14,6 +14,7 @@
 #include <mutex>
 #include <sstream>
 
+#include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "relight/lighting/light_cells.h"
@@ -303,6 +304,38 @@ int PcaField::band_alignment(int width, int height, const PcaOptions& options) {
 PcaField PcaField::build(const capture::ReflectanceField& field, const capture::FieldBands& bands,
                          const PcaOptions& options, PcaSummary* summary) {
   const auto t0 = std::chrono::steady_clock::now();
+  PcaSummary sum;
+  PcaField out = build_basis(field, bands, options, &sum);
+  out.coefs_.assign(size_t(out.width_) * out.height_ * out.rank_ * 3, 0.0f);
+  bands([&](const capture::ReflectanceField& band) {
+    out.project_band(band,
+                     out.coefs_.data() + size_t(band.first_row()) * out.coefficients_per_row());
+  });
+  sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (summary) *summary = sum;
+  return out;
+}
+
+void PcaField::project_band(const capture::ReflectanceField& band, float* coefs) const {
+  const int y0 = band.first_row(), num_lights = band.num_lights(), rank = rank_;
+  tbb::parallel_for(tbb::blocked_range<int>(y0, y0 + band.height()), [&](const auto& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < width_; ++x) {
+        const Eigen::MatrixXf& basis = bases_[tile_of(x, y)];
+        Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> v(
+            band.pixel(x, y - y0), num_lights, 3);
+        Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> c(
+            coefs + (size_t(y - y0) * width_ + x) * rank * 3, rank, 3);
+        c.noalias() = basis.transpose() * v;
+      }
+    }
+  });
+}
+
+PcaField PcaField::build_basis(const capture::ReflectanceField& field,
+                               const capture::FieldBands& bands, const PcaOptions& options,
+                               PcaSummary* summary) {
+  const auto t0 = std::chrono::steady_clock::now();
   if (const std::string e = options.validate(); !e.empty()) {
     throw InputError(field.source + ": PCA options: " + e);
   }
@@ -360,23 +393,6 @@ PcaField PcaField::build(const capture::ReflectanceField& field, const capture::
   out.rank_ = rank;
   for (const Spectrum& s : spectra) out.bases_.push_back(s.vectors.leftCols(rank).cast<float>());
 
-  // Coefficients: C = B^T V per pixel (V: L x 3).
-  out.coefs_.assign(size_t(width) * height * rank * 3, 0.0f);
-  bands([&](const capture::ReflectanceField& band) {
-    const int y0 = band.first_row();
-    tbb::parallel_for(tbb::blocked_range<int>(y0, y0 + band.height()), [&](const auto& rows) {
-      for (int y = rows.begin(); y < rows.end(); ++y) {
-        for (int x = 0; x < width; ++x) {
-          const Eigen::MatrixXf& basis = out.bases_[out.tile_of(x, y)];
-          Eigen::Map<const Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> v(
-              band.pixel(x, y - y0), num_lights, 3);
-          Eigen::Map<Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>> c(
-              out.coefs_.data() + (size_t(y) * width + x) * rank * 3, rank, 3);
-          c.noalias() = basis.transpose() * v;
-        }
-      }
-    });
-  });
   out.sigma_rad_ = options.rbf_sigma_rad;
   out.interpolator_ = LightInterpolator(out.led_dirs_, out.led_valid_, options.rbf_sigma_rad);
   out.sigma_rad_ = out.interpolator_.sigma_rad();
@@ -461,6 +477,13 @@ std::vector<float> PcaField::project_led_weights(const float* led_irradiance_rgb
 // tiles) the L x k basis as float32, column by column; per pixel (row-major, row 0 at the top)
 // k x 3 float32 coefficients, [j * 3 + c].
 void PcaField::write(const std::filesystem::path& path) const {
+  LS_CHECK(coefs_.size() == size_t(height_) * coefficients_per_row(), "PCA without coefficients");
+  write(path, [&](int y, float* row) {
+    std::copy_n(coefs_.data() + size_t(y) * coefficients_per_row(), coefficients_per_row(), row);
+  });
+}
+
+void PcaField::write(const std::filesystem::path& path, const CoefficientRows& rows) const {
   std::ostringstream out;
   out.write(kPcaMagic, sizeof(kPcaMagic) - 1);
   for (int v : {width_, height_, num_lights(), rank_, tile_size_}) write_pod<int32_t>(out, v);
@@ -472,8 +495,94 @@ void PcaField::write(const std::filesystem::path& path) const {
   for (const auto& basis : bases_) {
     out.write(reinterpret_cast<const char*>(basis.data()), basis.size() * sizeof(float));
   }
-  out.write(reinterpret_cast<const char*>(coefs_.data()), coefs_.size() * sizeof(float));
-  write_file_atomic(path, out.str());
+  AtomicFileWriter file(path);
+  const std::string header = out.str();
+  file.write(header.data(), header.size());
+  std::vector<float> row(coefficients_per_row());
+  for (int y = 0; y < height_; ++y) {
+    rows(y, row.data());
+    file.write(row.data(), row.size() * sizeof(float));
+  }
+  file.commit();
+}
+
+namespace {
+
+constexpr const char* kBasisMagic = "lightstage pca basis 1";
+
+}  // namespace
+
+void PcaField::save_basis(const std::filesystem::path& file, const PcaSummary& summary) const {
+  const nlohmann::json info = {{"width", width_},
+                               {"height", height_},
+                               {"lights", num_lights()},
+                               {"rank", rank_},
+                               {"tile_size", tile_size_},
+                               {"tiles", bases_.size()},
+                               {"sigma_rad", sigma_rad_},
+                               {"summary",
+                                {{"rank", summary.rank},
+                                 {"auto_rank", summary.auto_rank},
+                                 {"noise_variance", summary.noise_variance},
+                                 {"noise_measured", summary.noise_measured},
+                                 {"noise_method", summary.noise_method},
+                                 {"residual_ms", summary.residual_ms},
+                                 {"held_out_ms", summary.held_out_ms},
+                                 {"mean_square", summary.mean_square},
+                                 {"seconds", summary.seconds}}}};
+  std::vector<RecordBytes> blocks;
+  for (const Eigen::MatrixXf& basis : bases_) {
+    blocks.push_back({basis.data(), std::size_t(basis.size()) * sizeof(float)});
+  }
+  write_record(file, kBasisMagic, info, blocks);
+}
+
+std::optional<PcaField> PcaField::load_basis(const std::filesystem::path& file,
+                                             const capture::ReflectanceField& header,
+                                             PcaSummary* summary) {
+  PcaField out;
+  PcaSummary sum;
+  const auto place = [&](const nlohmann::json& info) -> std::optional<std::vector<RecordTarget>> {
+    out.width_ = info.at("width").get<int>();
+    out.height_ = info.at("height").get<int>();
+    out.rank_ = info.at("rank").get<int>();
+    out.tile_size_ = info.at("tile_size").get<int>();
+    out.sigma_rad_ = info.at("sigma_rad").get<double>();
+    if (out.width_ != header.width() || out.height_ != header.height() ||
+        info.at("lights").get<int>() != header.num_lights() || out.rank_ < 1 ||
+        out.rank_ > header.num_lights()) {
+      return std::nullopt;
+    }
+    const nlohmann::json& j = info.at("summary");
+    sum.rank = j.at("rank").get<int>();
+    sum.auto_rank = j.at("auto_rank").get<bool>();
+    sum.noise_variance = j.at("noise_variance").get<double>();
+    sum.noise_measured = j.at("noise_measured").get<bool>();
+    sum.noise_method = j.at("noise_method").get<std::string>();
+    sum.residual_ms = j.at("residual_ms").get<std::vector<double>>();
+    sum.held_out_ms = j.at("held_out_ms").get<std::vector<double>>();
+    sum.mean_square = j.at("mean_square").get<double>();
+    sum.seconds = j.at("seconds").get<double>();
+    out.bases_.assign(info.at("tiles").get<std::size_t>(),
+                      Eigen::MatrixXf(header.num_lights(), out.rank_));
+    std::vector<RecordTarget> targets;
+    for (Eigen::MatrixXf& basis : out.bases_) {
+      targets.push_back({basis.data(), std::size_t(basis.size()) * sizeof(float)});
+    }
+    return targets;
+  };
+  if (!read_record(file, kBasisMagic, place)) return std::nullopt;
+  if (out.bases_.size() !=
+      size_t(out.tile_size_ > 0 ? out.tiles_x() * ((out.height_ - 1) / out.tile_size_ + 1) : 1)) {
+    return std::nullopt;
+  }
+  for (const auto& light : header.lights()) {
+    out.led_dirs_.push_back(light.dir_in_stage);
+    out.led_valid_.push_back(light.valid);
+  }
+  out.interpolator_ = LightInterpolator(out.led_dirs_, out.led_valid_, out.sigma_rad_);
+  if (summary) *summary = sum;
+  return out;
 }
 
 PcaField PcaField::read(const std::filesystem::path& path) {

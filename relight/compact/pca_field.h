@@ -39,7 +39,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -148,6 +150,23 @@ class PcaField : public CompactField {
   static PcaField build(const capture::ReflectanceField& header, const capture::FieldBands& bands,
                         const PcaOptions& options, PcaSummary* summary = nullptr);
   static int band_alignment(int width, int height, const PcaOptions& options);
+  // build() but for the coefficients (every pass over the bands but the last): the bases and
+  // rank, for project_band to give the coefficients a band at a time (a field whose coefficients
+  // are larger than memory: write() them from a file).
+  static PcaField build_basis(const capture::ReflectanceField& header,
+                              const capture::FieldBands& bands, const PcaOptions& options,
+                              PcaSummary* summary = nullptr);
+  // The coefficients of a band's pixels, row-major (coefficients_per_row() floats a row), as
+  // build() computes them.
+  void project_band(const capture::ReflectanceField& band, float* coefs) const;
+  std::size_t coefficients_per_row() const { return std::size_t(width_) * rank_ * 3; }
+  // A basis (build_basis) kept with the summary of the passes that made it, as a checkpoint record
+  // (lightstage/checkpoint_dir.h): a killed compress resumes after those passes. load_basis:
+  // nullopt when the file is missing, unreadable or not a basis for `header`'s size and lights.
+  void save_basis(const std::filesystem::path& file, const PcaSummary& summary) const;
+  static std::optional<PcaField> load_basis(const std::filesystem::path& file,
+                                            const capture::ReflectanceField& header,
+                                            PcaSummary* summary);
 
   std::string name() const override;
   int width() const override { return width_; }
@@ -179,6 +198,11 @@ class PcaField : public CompactField {
   // Binary file (little-endian), documented in pca_field.cc: magic "LSPCA1\n", sizes, LED
   // directions and validity, the RBF sigma, the bases (float32) and coefficients (float32).
   void write(const std::filesystem::path& path) const;
+  // The same file with row y's coefficients from rows(y, row) (coefficients_per_row() floats),
+  // top to bottom: a basis from build_basis, its coefficients never held whole. Atomic: nothing
+  // is left at `path` when rows throws.
+  using CoefficientRows = std::function<void(int y, float* row)>;
+  void write(const std::filesystem::path& path, const CoefficientRows& rows) const;
   // InputError naming the file and the field on anything malformed.
   static PcaField read(const std::filesystem::path& path);
 

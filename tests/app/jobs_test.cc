@@ -341,34 +341,46 @@ TEST_F(Jobs, AnInterruptedBuildInBandsResumesFromTheLedsItMerged) {
   EXPECT_FALSE(fs::exists(dir / "field.exr.partial"));
 }
 
-// A compression to .rti in bands that is stopped halfway resumes from the bands it fitted, and
-// writes the bytes of an uninterrupted run.
+// A compression in bands that is stopped halfway resumes from the bands it finished, and writes
+// the bytes of an uninterrupted run: to .rti, from the bands it fitted; to PCA, from the basis
+// its first pass found and the bands it projected.
 TEST_F(Jobs, AnInterruptedCompressInBandsResumesFromTheBandsItFitted) {
   const testing::TempDir dir;
   const fs::path field_file = built_field(dir.path());
   const capture::ReflectanceField field = capture::read_field(field_file);
-  jobs::CompressOptions compress;
-  compress.input = field_file;
-  compress.format = "hsh3";
-  compress.out = dir / "whole.rti";
-  (void)jobs::compress(compress);
-  compress.out = dir / "bands.rti";
-  compress.memory_bytes =
-      5 * capture::ReflectanceField::bytes_for(field.width(), 4, field.num_lights());
-  EXPECT_THROW((void)jobs::compress(compress, killed_halfway_through("pass 1 (rows)")), Killed);
-  EXPECT_FALSE(fs::exists(compress.out));
-  EXPECT_TRUE(fs::exists(dir / "bands.rti.partial" / "coefficients.spill"));
-  const jobs::CompressSummary resumed = jobs::compress(compress);
-  ASSERT_LT(resumed.band_rows, field.height());
-  ASSERT_GT(resumed.band_rows, 0);
-  EXPECT_GE(2 * resumed.resumed_rows, field.height());
-  EXPECT_LT(resumed.resumed_rows, field.height());
   const auto bytes = [](const fs::path& f) {
     std::ifstream in(f, std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});
   };
-  EXPECT_EQ(bytes(compress.out), bytes(dir / "whole.rti"));
-  EXPECT_FALSE(fs::exists(dir / "bands.rti.partial"));
+  // PCA in tiles of 16 pixels: bands of whole tile rows (a global basis sums its Gram matrix over
+  // sub-bands of 64 rows at this width: one band).
+  for (const auto& [format, phase] :
+       {std::pair{"hsh3", "pass 1 (rows)"}, std::pair{"pca", "coefficients (rows)"}}) {
+    jobs::CompressOptions compress;
+    compress.input = field_file;
+    compress.format = format;
+    compress.tile = std::string(format) == "pca" ? 16 : 0;
+    compress.out = dir / (std::string("whole.") + format);
+    (void)jobs::compress(compress);
+    compress.out = dir / (std::string("bands.") + format);
+    compress.memory_bytes =
+        5 * capture::ReflectanceField::bytes_for(field.width(), 4, field.num_lights());
+    EXPECT_THROW((void)jobs::compress(compress, killed_halfway_through(phase)), Killed);
+    EXPECT_FALSE(fs::exists(compress.out));
+    EXPECT_TRUE(fs::exists(compress.out.string() + ".partial/coefficients.spill")) << format;
+    bool passes = false;  // PCA: the basis's pass over the field is not made again.
+    const jobs::CompressSummary resumed =
+        jobs::compress(compress, [&](const std::string& p, long, long, const std::string&) {
+          passes = passes || p == "pass 1 (rows)";
+        });
+    ASSERT_LT(resumed.band_rows, field.height());
+    ASSERT_GT(resumed.band_rows, 0);
+    EXPECT_GE(2 * resumed.resumed_rows, field.height());
+    EXPECT_LT(resumed.resumed_rows, field.height());
+    EXPECT_EQ(passes, std::string(format) != "pca") << format;
+    EXPECT_EQ(bytes(compress.out), bytes(dir / (std::string("whole.") + format))) << format;
+    EXPECT_FALSE(fs::exists(compress.out.string() + ".partial"));
+  }
 }
 
 // `lightstage render` relights what `compress` wrote, as the library relights the file's decoded
