@@ -103,12 +103,27 @@ class FieldBuild {
   int run_to_file(const std::filesystem::path& out, const ExrAttributes& attributes,
                   int band_rows) {
     prepare();
+    const BuildOptions::Split& split = options_.split;
     BuildCheckpoint checkpoint(out, session_, options_);
-    band_rows = checkpoint.band_rows(band_rows);
+    // Rank 0 decides the band height (clearing an earlier run's checkpoint of another identity)
+    // before the others read it.
+    if (split.rank == 0) band_rows = checkpoint.band_rows(band_rows);
+    if (split.size > 1) split.barrier();
+    if (split.rank != 0) band_rows = checkpoint.band_rows(band_rows);
     SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows,
                     checkpoint.spill_path());
     resume_.emplace(Resume{checkpoint, spill});
-    merge_brackets([&](int i, const std::vector<float>& rgb) { spill.put(i, rgb); });
+    const LedSink sink = [&](int i, const std::vector<float>& rgb) { spill.put(i, rgb); };
+    merge_brackets(sink, [&](int i) { return i % split.size == split.rank; });
+    if (split.size > 1) {
+      split.barrier();  // Every rank's LEDs are in the spill, with their records.
+      if (split.rank != 0) return band_rows;
+      // The other ranks' LEDs, from their records (merged here where one is missing); not
+      // counted as resumed.
+      const int resumed = resumed_lights_.load();
+      merge_brackets(sink, [&](int i) { return i % split.size != 0; });
+      resumed_lights_ = resumed;
+    }
     resume_.reset();
     finish();
     HalfCheck check;
@@ -481,7 +496,8 @@ class FieldBuild {
 
   // LEDs run in parallel (frame decoding is serial per file); the number in flight is bounded so
   // that frames of large cameras do not exhaust memory.
-  void merge_brackets(const LedSink& sink) {
+  // Only the LEDs `mine` takes, when given.
+  void merge_brackets(const LedSink& sink, const std::function<bool(int)>& mine = {}) {
     const int width = camera_.width, height = camera_.height;
     const size_t per_led_bytes = merge_bytes_per_led(camera_, num_exposures_);
     size_t spare = available_memory_bytes() / 2;
@@ -490,6 +506,8 @@ class FieldBuild {
         int(std::clamp<size_t>(spare / std::max<size_t>(per_led_bytes, 1), 1,
                                std::max(1u, std::thread::hardware_concurrency())));
     const int num_lights = int(order_.size());
+    int total = 0;
+    for (int i = 0; i < num_lights; ++i) total += !mine || mine(i);
     const std::vector<bool> transfer_led = transfer_leds();
     const int transfer_stride = std::max(1, width * height / kTransferPixelsPerLed);
     std::mutex progress_mutex;
@@ -497,11 +515,12 @@ class FieldBuild {
     auto report = [&] {
       if (!options_.on_progress) return;
       std::lock_guard<std::mutex> lock(progress_mutex);
-      options_.on_progress(++done, num_lights);
+      options_.on_progress(++done, total);
     };
     tbb::task_arena arena(max_in_flight);
     arena.execute([&] {
       tbb::parallel_for(0, num_lights, [&](int i) {
+        if (mine && !mine(i)) return;
         if (usable_[i] && !resumed(i)) merge_led(i, transfer_led[i], transfer_stride, sink);
         report();
       });
@@ -577,7 +596,7 @@ int build_field_file(const Session& session, const BuildOptions& options,
   banded.memory_bytes = per_led * in_flight;
   const size_t band_budget = budget > banded.memory_bytes ? budget - banded.memory_bytes : 0;
   const int rows = int(std::clamp<size_t>(band_budget / (2 * row_bytes), 1, size_t(camera.height)));
-  if (rows >= camera.height) {
+  if (rows >= camera.height && options.split.size == 1) {
     BuildSummary local;
     BuildSummary& sum = summary ? *summary : local;
     const ReflectanceField field = build_field(session, options, &sum);

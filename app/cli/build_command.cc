@@ -4,12 +4,16 @@
 #include <filesystem>
 
 #include "app/cli/commands.h"
+#include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
 
 namespace ls::cli {
 
 int build_field_file(const jobs::BuildJobOptions& options, bool quiet) {
-  const jobs::BuildJobSummary summary = jobs::build(options, progress_printer(quiet));
+  // Under MPI rank 0 reports (its own share of the LEDs, then the writing) and prints.
+  const bool root = jobs::Ranks::world().root();
+  const jobs::BuildJobSummary summary = jobs::build(options, progress_printer(quiet || !root));
+  if (!root) return 0;
   const bool several = summary.fields.size() > 1;
   for (const jobs::BuiltField& built : summary.fields) {
     const capture::BuildSummary& s = built.build;
@@ -24,9 +28,10 @@ int build_field_file(const jobs::BuildJobOptions& options, bool quiet) {
                  s.response_used.c_str(), 100.0 * s.saturated_fraction, s.seconds);
     std::fprintf(stderr, "%s\n",
                  storage_line(s.storage, s.half_check, built.file_mebibytes).c_str());
-    if (built.band_rows < built.height) {
+    if (built.band_rows < built.height || built.ranks > 1) {
       std::fprintf(stderr, "built in bands of %d rows through a spill file beside it",
                    built.band_rows);
+      if (built.ranks > 1) std::fprintf(stderr, ", LEDs merged by %d MPI ranks", built.ranks);
       if (s.resumed_lights > 0) {
         std::fprintf(stderr, " (%d LEDs' merges taken from an interrupted run)", s.resumed_lights);
       }
@@ -91,7 +96,9 @@ void add_build_command(CLI::App& app) {
       throw CLI::ValidationError("build", problem);
     }
     build_field_file(*options, *quiet);
-    std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
+    if (jobs::Ranks::world().root()) {
+      std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
+    }
   });
 }
 

@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <nlohmann/json.hpp>
 
+#include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
@@ -48,9 +49,13 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   build.storage = capture::parse_storage_choice("--storage", options.storage);
   build.on_progress = [&](int done, int total) { report(progress, "build", done, total); };
   build.on_band_written = [&](int done, int total) { report(progress, "write", done, total); };
+  const Ranks& ranks = Ranks::world();
+  build.split = {ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }};
   BuiltField result;
   result.band_rows = capture::build_field_file(
       session, build, out, {{kOptionsAttribute, options.to_json()}}, &result.build);
+  result.ranks = ranks.size();
+  if (!ranks.root()) return result;  // Rank 0 wrote the field.
   result.file = out;
   result.time_step = time_step;
   result.scene_time_s = stage.plan.step_time_s(time_step);

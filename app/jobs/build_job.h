@@ -29,9 +29,10 @@ struct BuiltField {
   int time_step = 0;
   double scene_time_s = 0.0;
   int width = 0, height = 0, lights = 0;
-  double mebibytes = 0.0;            // The field's values in memory (float).
-  double file_mebibytes = 0.0;       // The file (half storage: about half of that).
-  int band_rows = 0;                 // Rows built at once: the height when built in memory.
+  double mebibytes = 0.0;       // The field's values in memory (float).
+  double file_mebibytes = 0.0;  // The file (half storage: about half of that).
+  int band_rows = 0;            // Rows built at once: the height when built in memory.
+  int ranks = 1;  // Processes the LEDs' merges were split over (MPI); rank 0 wrote the field.
   std::vector<int> missing_led_ids;  // Missing or dead LEDs, excluded from relighting.
   capture::BuildSummary build;
 };

@@ -10,11 +10,15 @@
 #include <string>
 #include <vector>
 
+#include "app/jobs/capture_job.h"
 #include "app/jobs/fit_bands.h"
 #include "capture/field.h"
+#include "lightstage/backend_registry.h"
+#include "lightstage/image.h"
 #include "lightstage/stage.h"
 #include "sim/noisy_field.h"
 #include "sim/scene.h"
+#include "sim/sim_backend.h"
 #include "tests/relight/time/time_fixtures.h"
 #include "tests/support/test_support.h"
 
@@ -110,6 +114,37 @@ TEST(MpiFit, TimeSeriesTwoRanksWriteTheBytesOfOneProcess) {
   EXPECT_FALSE(fs::exists(dir / "two.exr.partial")) << "the checkpoints are removed";
 }
 
+// build: each rank merges its share of the LEDs into the spill beside the field (with their
+// records), rank 0 counts the others' as a resumed build does and writes the field: the bytes of
+// one process's build, in memory or in bands.
+TEST(MpiFit, BuildTwoRanksWriteTheBytesOfOneProcess) {
+  if (std::string(LIGHTSTAGE_MPIEXEC).empty()) GTEST_SKIP() << "built without MPI";
+  sim::register_backend(backend_registry());
+  const testing::TempDir dir;
+  Stage stage = default_stage();
+  stage.camera.width = 24;
+  stage.camera.height = 20;
+  write_file_atomic(dir / "stage.json", stage_to_json(stage));
+  jobs::CaptureOptions capture;
+  capture.stage_file = dir / "stage.json";
+  capture.session_dir = dir / "session";
+  (void)jobs::capture(capture);
+  const std::string build =
+      testing::cli_path().string() + " build '" + (dir / "session").string() + "' --out ";
+  for (const std::string memory : {"", " --memory 200000"}) {
+    std::string one_out, two_out;
+    ASSERT_EQ(run(build + "'" + (dir / "one.exr").string() + "'" + memory, &one_out), 0);
+    ASSERT_EQ(run(mpirun_two() + build + "'" + (dir / "two.exr").string() + "'" + memory, &two_out),
+              0);
+    EXPECT_NE(two_out.find("LEDs merged by 2 MPI ranks"), std::string::npos) << two_out;
+    EXPECT_EQ(two_out.find("taken from an interrupted run"), std::string::npos) << two_out;
+    const std::string one = bytes_but_time(dir / "one.exr");
+    EXPECT_GT(one.size(), 24u * 20 * 4);
+    EXPECT_TRUE(one == bytes_but_time(dir / "two.exr")) << memory;
+    EXPECT_FALSE(fs::exists(dir / "two.exr.partial")) << "the checkpoint is removed";
+  }
+}
+
 // Every rank fits about as many rows (9 bands of 115 rows over 2 ranks left one idle a ninth of
 // the fit), in at least 4 bands a rank, within the memory's band height and whole tiles.
 TEST(MpiFit, EveryRankGetsAsManyRows) {
@@ -144,7 +179,9 @@ TEST(MpiFit, OtherCommandsAreRefusedUnderMpi) {
                                      field.string() + "' --out '" + (dir / "relit").string() + "'",
                                  &out),
             0);
-  EXPECT_NE(out.find("only 'lightstage fit' splits its work"), std::string::npos) << out;
+  EXPECT_NE(out.find("only 'lightstage fit' and 'lightstage build' split their work"),
+            std::string::npos)
+      << out;
   EXPECT_FALSE(fs::exists(dir / "relit"));
 }
 
