@@ -3,6 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
 #include <atomic>
@@ -472,6 +473,9 @@ class FieldBuild {
     }
     saturated_pixels_ += saturated;
     noise_samples_->take(i, rgb);
+    // Another LED's failure (or a stop) cancels the merges in flight: their nested loops stop
+    // early, so the image is incomplete and must not be kept (a resumed build would take it).
+    if (tbb::is_current_task_group_canceling()) return;
     sink(i, rgb);
     if (resume_) {
       resume_->spill.sync();  // The image is there before its record says so.
