@@ -321,6 +321,18 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   }
 }
 
+// Rows of maps a band within what full-size outputs (output_bytes) leave of the memory given: a
+// row of maps is read as the file's channels, then copied into the maps.
+int map_band_rows(const RelightOptions& options, const ExrLayout& layout,
+                  std::size_t output_bytes) {
+  const std::size_t row_bytes =
+      std::size_t(layout.width) * layout.channel_names.size() * 2 * sizeof(float);
+  const std::size_t may = memory_given(options);
+  return int(std::clamp<std::size_t>(
+      (may > output_bytes ? may - output_bytes : 0) / std::max<std::size_t>(row_bytes, 1), 16,
+      std::size_t(layout.height)));
+}
+
 // Rows [y0, y1) of an image.
 Image rows_of(const Image& image, int y0, int y1) {
   Image band(image.width, y1 - y0, image.channels);
@@ -409,19 +421,12 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
       }
     });
   }
-  // Bands of maps within what the outputs leave of the memory given: a row of maps is read as
-  // the file's channels, then copied into the maps and the shadows.
   std::size_t output_bytes = 0;
   for (ModelOutput& out : outputs) {
     out.relit = Image(width, height, 3);
     output_bytes += (out.relit.pixels.size() + out.fallback.pixels.size()) * sizeof(float);
   }
-  const std::size_t row_bytes =
-      std::size_t(width) * layout.channel_names.size() * 2 * sizeof(float);
-  const std::size_t may = memory_given(options);
-  const int rows = int(std::clamp<std::size_t>(
-      (may > output_bytes ? may - output_bytes : 0) / std::max<std::size_t>(row_bytes, 1), 16,
-      std::size_t(height)));
+  const int rows = map_band_rows(options, layout, output_bytes);
   std::vector<int> edit_counts;
   relight::ModelRenderOptions render;
   for (int y0 = 0; y0 < height; y0 += rows) {
@@ -468,46 +473,83 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
 }
 
 // The time-varying models of `lightstage fit --time` at the scene time (time edits from the edits
-// file: relight/time/temporal_render.h), rendered as the models are.
+// file: relight/time/temporal_render.h), rendered as the models are: the maps read a band of rows
+// at a time (the edits' transfers summarised by passes over the bands first).
 void relight_temporal(const RelightOptions& options, RelightSummary& summary,
                       const ProgressFn& progress) {
-  relight::TemporalMaps maps = relight::read_temporal_maps(options.temporal_file);
-  if (!options.edits_file.empty()) {
-    const relight::TemporalEdits edits =
-        relight::read_temporal_edits(options.edits_file, maps.maps.width, maps.maps.height);
-    const std::vector<int> counts = relight::apply_temporal_edits(edits, maps);
-    for (size_t i = 0; i < counts.size(); ++i) {
-      summary.edit_reports.push_back(options.edits_file.filename().string() + ": time[" +
-                                     std::to_string(i) + "] changed " + std::to_string(counts[i]) +
-                                     " pixels");
-    }
-  }
-  summary.first_time_s = maps.first_time_s();
-  summary.last_time_s = maps.last_time_s();
+  const ExrLayout layout = exr_layout(options.temporal_file);
+  const int width = layout.width, height = layout.height;
   const double time_s = *options.time_s;
   relight::EnvironmentSampling sampling;
   sampling.directions_width = options.directions_width;
   char suffix[32];
   std::snprintf(suffix, sizeof suffix, "_t%.0fs", time_s);
-  RelitWriter writer(options, summary);
-  MapRotations map_rotations(options);
-  int extrapolated = 0;
+  std::vector<ModelOutput> outputs;
   if (options.light_dir) {
-    Image relit = relight::render_temporal(
-        maps, time_s,
-        relight::LightingForModels::directional(*options.light_dir, Eigen::Vector3d::Ones()), {},
-        &extrapolated);
-    writer.write(std::string("light") + suffix, relit);
+    ModelOutput& out = outputs.emplace_back();
+    out.name = std::string("light") + suffix;
+    out.lighting =
+        relight::LightingForModels::directional(*options.light_dir, Eigen::Vector3d::Ones());
   }
-  long done = 0;
+  MapRotations map_rotations(options);
   map_rotations.for_each(
       [&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
-        Image relit = relight::render_temporal(
-            maps, time_s, relight::LightingForModels::environment(map, rotation, sampling), {},
-            &extrapolated);
-        writer.write(name + suffix, relit);
-        report(progress, "relight at t", ++done, map_rotations.count(), name + suffix);
+        ModelOutput& out = outputs.emplace_back();
+        out.name = name + suffix;
+        out.lighting = relight::LightingForModels::environment(map, rotation, sampling);
       });
+  std::size_t output_bytes = 0;
+  for (ModelOutput& out : outputs) {
+    out.relit = Image(width, height, 3);
+    output_bytes += out.relit.pixels.size() * sizeof(float);
+  }
+  const int rows = map_band_rows(options, layout, output_bytes);
+  const relight::TemporalMapsBands bands =
+      [&](const std::function<void(relight::TemporalMaps&, int)>& visit) {
+        for (int y0 = 0; y0 < height; y0 += rows) {
+          relight::TemporalMaps band = relight::read_temporal_map_rows(options.temporal_file, y0,
+                                                                       std::min(height, y0 + rows));
+          visit(band, y0);
+        }
+      };
+  std::optional<relight::TemporalEdits> edits;
+  std::vector<std::optional<relight::TemporalTransfer>> transfers;
+  if (!options.edits_file.empty()) {
+    edits = relight::read_temporal_edits(options.edits_file, width, height);
+    transfers = relight::temporal_transfers(*edits, bands);
+  }
+  std::vector<int> edit_counts;
+  int extrapolated = 0;
+  bands([&](relight::TemporalMaps& band, int y0) {
+    summary.first_time_s = band.first_time_s();
+    summary.last_time_s = band.last_time_s();
+    if (edits) {
+      const std::vector<int> counts = relight::apply_temporal_edits(*edits, transfers, band, y0);
+      edit_counts.resize(counts.size());
+      for (size_t i = 0; i < counts.size(); ++i) edit_counts[i] += counts[i];
+    }
+    for (size_t o = 0; o < outputs.size(); ++o) {
+      int band_extrapolated = 0;
+      const Image relit =
+          relight::render_temporal(band, time_s, outputs[o].lighting, {}, &band_extrapolated);
+      std::copy(relit.pixels.begin(), relit.pixels.end(),
+                outputs[o].relit.pixels.begin() + std::ptrdiff_t(y0) * width * 3);
+      if (o == 0) extrapolated += band_extrapolated;  // The same pixels under every lighting.
+    }
+    const int y1 = y0 + band.maps.height;
+    if (y1 < height) report(progress, "render at t (rows)", y1, height);
+  });
+  for (size_t i = 0; i < edit_counts.size(); ++i) {
+    summary.edit_reports.push_back(options.edits_file.filename().string() + ": time[" +
+                                   std::to_string(i) + "] changed " +
+                                   std::to_string(edit_counts[i]) + " pixels");
+  }
+  RelitWriter writer(options, summary);
+  long done = 0;
+  for (ModelOutput& out : outputs) {
+    writer.write(out.name, out.relit);
+    report(progress, "relight at t", ++done, long(outputs.size()), out.name);
+  }
   summary.extrapolated_pixels = extrapolated;
 }
 

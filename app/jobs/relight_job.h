@@ -28,7 +28,8 @@ struct RelightOptions {
   // true direction with moving shadows (relight/lighting/source_render.h), the rest by LED cells.
   bool compact_sources = true;
   // What rendering them may hold (relight::FieldSources::bytes_needed); 0: half of the memory
-  // available. Over it they are relit by the cells, and the output's detail says so.
+  // available. Over it they are relit by the cells, and the output's detail says so. Models and
+  // temporal maps are read in bands of rows within what the full-size outputs leave of it.
   std::size_t memory_bytes = 0;
   int directions_width = 64;  // Models: lat-long grid the map is integrated on.
   std::filesystem::path out_dir;

@@ -335,5 +335,8 @@ class TemporalMapsWriter {
 double max_temporal_rate(const Image& maps);
 // Reads what write_temporal_maps wrote; InputErrors name the file and the channel.
 TemporalMaps read_temporal_maps(const std::filesystem::path& path);
+// Rows [y0, y1) of the file (y1 < 0: to the last), checked as above (errors give the file's
+// coordinates): a band of maps larger than memory; their summary counts the band's pixels.
+TemporalMaps read_temporal_map_rows(const std::filesystem::path& path, int y0, int y1);
 
 }  // namespace ls::relight

@@ -105,6 +105,10 @@ void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& 
 }
 
 TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
+  return read_temporal_map_rows(path, 0, -1);
+}
+
+TemporalMaps read_temporal_map_rows(const std::filesystem::path& path, int y0, int y1) {
   const std::string name = path.string();
   const std::vector<std::string>& names = temporal_channel_names();
   // The degenerate pixels' per-step fits, when the file has them: step.I.<param>.
@@ -121,7 +125,7 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
   // one family whose pixels saw all of it (curve_seen 1).
   NamedChannelFile file = read_named_channels(path, with_steps, "temporal maps",
                                               "'lightstage fit --time'", /*exact=*/false,
-                                              /*required=*/kTCurve);
+                                              /*required=*/kTCurve, y0, y1);
   TemporalMaps out;
   const std::string* meta = file.attribute(kTemporalAttribute);
   if (!meta) {
@@ -181,7 +185,7 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
         if (!std::isfinite(v)) {
           throw InputError(name + ": channel '" + out.step_values.channel_names[size_t(c)] +
                            "': expected a finite value at (" + std::to_string(i % width) + ", " +
-                           std::to_string(i / width) + ")");
+                           std::to_string(y0 + int(i / width)) + ")");
         }
         out.step_values.pixels[i * size_t(step_channels) + size_t(c)] = v;
       }
@@ -204,26 +208,26 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
         const float v = out.maps.at(x, y, c);
         if (!std::isfinite(v)) {
           throw InputError(name + ": channel '" + names[c] + "': expected a finite value at (" +
-                           std::to_string(x) + ", " + std::to_string(y) + ")");
+                           std::to_string(x) + ", " + std::to_string(y0 + y) + ")");
         }
       }
       const float model = out.maps.at(x, y, kTModel);
       if (!(model == std::floor(model) && model >= 0 && model < kTemporalModelCount)) {
         throw InputError(name + ": channel 'model': expected an integer in 0.." +
                          std::to_string(kTemporalModelCount - 1) + " at (" + std::to_string(x) +
-                         ", " + std::to_string(y) + "), got " + std::to_string(model));
+                         ", " + std::to_string(y0 + y) + "), got " + std::to_string(model));
       }
       const float flags = out.maps.at(x, y, kTFlags);
       if (!(flags == std::floor(flags) && flags >= 0)) {
         throw InputError(name + ": channel 'flags': expected a non-negative integer at (" +
-                         std::to_string(x) + ", " + std::to_string(y) + ")");
+                         std::to_string(x) + ", " + std::to_string(y0 + y) + ")");
       }
       const float family = out.maps.at(x, y, kTCurve);
       if (model == float(TemporalModel::kCurve) &&
           !(family == std::floor(family) && family >= 0 && family < float(out.curves.size()))) {
         throw InputError(name + ": channel 'curve': a curve at (" + std::to_string(x) + ", " +
-                         std::to_string(y) + ") of family " + std::to_string(family) + " but " +
-                         std::to_string(out.curves.size()) + " families in attribute '" +
+                         std::to_string(y0 + y) + ") of family " + std::to_string(family) +
+                         " but " + std::to_string(out.curves.size()) + " families in attribute '" +
                          kTemporalAttribute + "'");
       }
       if (model == 0) {

@@ -38,13 +38,14 @@ TemporalSelection read_selection(const JsonReader& r, const std::filesystem::pat
   return s;
 }
 
-bool selected(const TemporalSelection& s, const TemporalMaps& maps, int x, int y) {
+// (x, y) of the maps, row first_row + y of the frame the selection's mask covers.
+bool selected(const TemporalSelection& s, const TemporalMaps& maps, int x, int y, int first_row) {
   const TemporalModel model = maps.model(x, y);
   if (model == TemporalModel::kNone) return false;
   // A degenerate pixel renders from its per-step fits: it has no process to edit or to give.
   if ((int(maps.at(x, y, kTFlags)) & kTemporalDegenerate) != 0) return false;
   if (s.model && *s.model != model) return false;
-  if (!s.mask.empty() && !s.mask[size_t(y) * maps.maps.width + x]) return false;
+  if (!s.mask.empty() && !s.mask[size_t(first_row + y) * maps.maps.width + x]) return false;
   return true;
 }
 
@@ -190,120 +191,173 @@ void end_state(const TemporalMaps& maps, int x, int y, bool curve_space, double*
 
 }  // namespace
 
-std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& maps) {
-  const int width = maps.maps.width, height = maps.maps.height;
-  const double first = maps.first_time_s();
-  std::vector<int> counts;
+namespace {
+
+// What a transfer's source region shows, gathered over every band: first the votes for its
+// process (the varying one most of its pixels follow), then that process's values.
+struct SourceGather {
+  int votes[kTemporalModelCount] = {};
+  TemporalModel model = TemporalModel::kNone;
+  std::vector<double> rates, onsets, seen, to_dry[kTemporalParamCount], to_wet[kTemporalParamCount];
+  std::vector<int> family_votes;
+
+  void vote(const TemporalSelection& from, const TemporalMaps& band, int first_row) {
+    for (int y = 0; y < band.maps.height; ++y) {
+      for (int x = 0; x < band.maps.width; ++x) {
+        if (selected(from, band, x, y, first_row)) ++votes[int(band.model(x, y))];
+      }
+    }
+  }
+  // After every band voted: the source's process; false when it has no varying one.
+  bool choose() {
+    int best = 0;
+    for (int k = 2; k < kTemporalModelCount; ++k) {
+      if (votes[k] > votes[best]) best = k;
+    }
+    model = TemporalModel(best);
+    return best != 0;
+  }
+  void gather(const TemporalSelection& from, const TemporalMaps& band, int first_row) {
+    family_votes.resize(band.curves.size());
+    for (int y = 0; y < band.maps.height; ++y) {
+      for (int x = 0; x < band.maps.width; ++x) {
+        if (!selected(from, band, x, y, first_row) || band.model(x, y) != model) continue;
+        rates.push_back(band.at(x, y, kTRate));
+        seen.push_back(band.at(x, y, kTCurveSeen));
+        onsets.push_back(band.at(x, y, kTOnset));
+        // The source's endpoints against its own end state (ratios for the albedo).
+        double end[kTemporalParamCount];
+        end_state(band, x, y, model == TemporalModel::kCurve, end);
+        for (int p = 0; p < kTemporalParamCount; ++p) {
+          const double wet = band.at(x, y, kTWet + p), dry = band.at(x, y, kTDry + p);
+          if (p <= kParamAlbedoB) {
+            to_dry[p].push_back(end[p] > 1e-4 ? dry / end[p] : 1.0);
+            to_wet[p].push_back(end[p] > 1e-4 ? wet / end[p] : 1.0);
+          } else {
+            to_dry[p].push_back(dry - end[p]);
+            to_wet[p].push_back(wet - end[p]);
+          }
+        }
+        const int f = int(band.at(x, y, kTCurve));
+        if (model == TemporalModel::kCurve && f >= 0 && f < int(family_votes.size())) {
+          ++family_votes[size_t(f)];
+        }
+      }
+    }
+  }
+  TemporalTransfer transfer() const {
+    TemporalTransfer t;
+    t.model = model;
+    if (model == TemporalModel::kCurve && !family_votes.empty()) {
+      t.family =
+          int(std::max_element(family_votes.begin(), family_votes.end()) - family_votes.begin());
+    }
+    t.rate = median(rates);
+    t.seen = median(seen);
+    t.onset = median(onsets);
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      t.change_dry[p] = median(to_dry[p]);
+      t.change_wet[p] = median(to_wet[p]);
+    }
+    return t;
+  }
+};
+
+// Edit e on a band whose rows start at first_row of the frame; returns the pixels it changed.
+int apply_edit(const TemporalEdit& edit, const std::optional<TemporalTransfer>& source,
+               TemporalMaps& band, int first_row) {
+  const double first = band.first_time_s();
+  int count = 0;
+  for (int y = 0; y < band.maps.height; ++y) {
+    for (int x = 0; x < band.maps.width; ++x) {
+      if (!selected(edit.select, band, x, y, first_row)) continue;
+      float* m = &band.maps.at(x, y, 0);
+      if (source) {
+        // The target's own end state, moved as the source moves from its own.
+        const bool to_curve = source->model == TemporalModel::kCurve;
+        double base[kTemporalParamCount];
+        end_state(band, x, y, to_curve, base);
+        m[kTModel] = float(source->model);
+        m[kTCurve] = float(source->family);
+        m[kTCurveSeen] = float(source->seen);
+        m[kTRate] = float(source->rate);
+        m[kTOnset] = float(source->onset);
+        for (int p = 0; p < kTemporalParamCount; ++p) {
+          const bool ratio = p <= kParamAlbedoB;
+          const double dry =
+              ratio ? base[p] * source->change_dry[p] : base[p] + source->change_dry[p];
+          const double wet =
+              ratio ? base[p] * source->change_wet[p] : base[p] + source->change_wet[p];
+          // Within the parameter's bounds in the space the endpoints are in (a curve's: 1/m).
+          const auto bounded = [&](double v) {
+            return float(to_curve && p == kParamRoughness ? std::clamp(v, 1.0, 1 / kMinRoughness)
+                                                          : clamp_param(p, v));
+          };
+          m[kTDry + p] = bounded(dry);
+          m[kTWet + p] = bounded(wet);
+        }
+      }
+      if (edit.rate_scale != 1.0 && band.model(x, y) != TemporalModel::kConstant) {
+        m[kTRate] = float(m[kTRate] * edit.rate_scale);
+        m[kTOnset] = float(first + (m[kTOnset] - first) / edit.rate_scale);
+      }
+      ++count;
+    }
+  }
+  return count;
+}
+
+}  // namespace
+
+std::vector<std::optional<TemporalTransfer>> temporal_transfers(const TemporalEdits& edits,
+                                                                const TemporalMapsBands& bands) {
+  std::vector<std::optional<TemporalTransfer>> transfers;
   for (size_t e = 0; e < edits.edits.size(); ++e) {
     const TemporalEdit& edit = edits.edits[e];
-    // The source process, summarised once before anything changes.
-    TemporalModel source_model = TemporalModel::kNone;
-    double source_rate = 0, source_onset = first;
-    int source_family = 0;   // kCurve: the family most of the source's curve pixels follow.
-    double source_seen = 1;  // kCurve: the median of their kTCurveSeen.
-    double change_dry[kTemporalParamCount] = {}, change_wet[kTemporalParamCount] = {};
-    if (edit.transfer_from) {
-      int votes[kTemporalModelCount] = {};
-      for (int y = 0; y < height; ++y) {
-        for (int x = 0; x < width; ++x) {
-          if (selected(*edit.transfer_from, maps, x, y)) ++votes[int(maps.model(x, y))];
-        }
-      }
-      int best = 0;
-      for (int k = 2; k < kTemporalModelCount; ++k) {
-        if (votes[k] > votes[best]) best = k;
-      }
-      if (best == 0) {
-        throw InputError(edits.source + ": time[" + std::to_string(e) +
-                         "].transfer_from: expected a region with a varying (non-constant) "
-                         "process, got none");
-      }
-      source_model = TemporalModel(best);
-      std::vector<double> rates, onsets, seen, to_dry[kTemporalParamCount],
-          to_wet[kTemporalParamCount];
-      for (int y = 0; y < height; ++y) {
-        for (int x = 0; x < width; ++x) {
-          if (!selected(*edit.transfer_from, maps, x, y) || maps.model(x, y) != source_model) {
-            continue;
-          }
-          rates.push_back(maps.at(x, y, kTRate));
-          seen.push_back(maps.at(x, y, kTCurveSeen));
-          onsets.push_back(maps.at(x, y, kTOnset));
-          // The source's endpoints against its own end state (ratios for the albedo).
-          double end[kTemporalParamCount];
-          end_state(maps, x, y, source_model == TemporalModel::kCurve, end);
-          for (int p = 0; p < kTemporalParamCount; ++p) {
-            const double wet = maps.at(x, y, kTWet + p), dry = maps.at(x, y, kTDry + p);
-            if (p <= kParamAlbedoB) {
-              to_dry[p].push_back(end[p] > 1e-4 ? dry / end[p] : 1.0);
-              to_wet[p].push_back(end[p] > 1e-4 ? wet / end[p] : 1.0);
-            } else {
-              to_dry[p].push_back(dry - end[p]);
-              to_wet[p].push_back(wet - end[p]);
-            }
-          }
-        }
-      }
-      if (source_model == TemporalModel::kCurve) {
-        std::vector<int> family_votes(maps.curves.size());
-        for (int y = 0; y < height; ++y) {
-          for (int x = 0; x < width; ++x) {
-            const int f = int(maps.at(x, y, kTCurve));
-            if (selected(*edit.transfer_from, maps, x, y) && maps.model(x, y) == source_model &&
-                f >= 0 && f < int(family_votes.size())) {
-              ++family_votes[size_t(f)];
-            }
-          }
-        }
-        source_family =
-            int(std::max_element(family_votes.begin(), family_votes.end()) - family_votes.begin());
-      }
-      source_rate = median(rates);
-      source_seen = median(seen);
-      source_onset = median(onsets);
-      for (int p = 0; p < kTemporalParamCount; ++p) {
-        change_dry[p] = median(to_dry[p]);
-        change_wet[p] = median(to_wet[p]);
-      }
+    if (!edit.transfer_from) {
+      transfers.emplace_back();
+      continue;
     }
-    int count = 0;
-    for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x) {
-        if (!selected(edit.select, maps, x, y)) continue;
-        float* m = &maps.maps.at(x, y, 0);
-        if (edit.transfer_from) {
-          // The target's own end state, moved as the source moves from its own.
-          const bool to_curve = source_model == TemporalModel::kCurve;
-          double base[kTemporalParamCount];
-          end_state(maps, x, y, to_curve, base);
-          m[kTModel] = float(source_model);
-          m[kTCurve] = float(source_family);
-          m[kTCurveSeen] = float(source_seen);
-          m[kTRate] = float(source_rate);
-          m[kTOnset] = float(source_onset);
-          for (int p = 0; p < kTemporalParamCount; ++p) {
-            const bool ratio = p <= kParamAlbedoB;
-            const double dry = ratio ? base[p] * change_dry[p] : base[p] + change_dry[p];
-            const double wet = ratio ? base[p] * change_wet[p] : base[p] + change_wet[p];
-            // Within the parameter's bounds in the space the endpoints are in (a curve's: 1/m).
-            const auto bounded = [&](double v) {
-              return float(to_curve && p == kParamRoughness ? std::clamp(v, 1.0, 1 / kMinRoughness)
-                                                            : clamp_param(p, v));
-            };
-            m[kTDry + p] = bounded(dry);
-            m[kTWet + p] = bounded(wet);
-          }
+    // The source as the edits before this one left it.
+    const auto edited = [&](const std::function<void(const TemporalMaps&, int)>& visit) {
+      bands([&](TemporalMaps& band, int first_row) {
+        for (size_t before = 0; before < e; ++before) {
+          apply_edit(edits.edits[before], transfers[before], band, first_row);
         }
-        if (edit.rate_scale != 1.0 && maps.model(x, y) != TemporalModel::kConstant) {
-          m[kTRate] = float(m[kTRate] * edit.rate_scale);
-          m[kTOnset] = float(first + (m[kTOnset] - first) / edit.rate_scale);
-        }
-        ++count;
-      }
+        visit(band, first_row);
+      });
+    };
+    SourceGather source;
+    edited([&](const TemporalMaps& band, int y0) { source.vote(*edit.transfer_from, band, y0); });
+    if (!source.choose()) {
+      throw InputError(edits.source + ": time[" + std::to_string(e) +
+                       "].transfer_from: expected a region with a varying (non-constant) "
+                       "process, got none");
     }
-    counts.push_back(count);
+    edited([&](const TemporalMaps& band, int y0) { source.gather(*edit.transfer_from, band, y0); });
+    transfers.emplace_back(source.transfer());
+  }
+  return transfers;
+}
+
+std::vector<int> apply_temporal_edits(const TemporalEdits& edits,
+                                      const std::vector<std::optional<TemporalTransfer>>& transfers,
+                                      TemporalMaps& band, int first_row) {
+  LS_CHECK(transfers.size() == edits.edits.size(), "one transfer (or none) per edit");
+  std::vector<int> counts;
+  for (size_t e = 0; e < edits.edits.size(); ++e) {
+    counts.push_back(apply_edit(edits.edits[e], transfers[e], band, first_row));
   }
   return counts;
+}
+
+std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& maps) {
+  const std::vector<std::optional<TemporalTransfer>> transfers =
+      temporal_transfers(edits, [&](const std::function<void(TemporalMaps&, int)>& visit) {
+        TemporalMaps copy = maps;  // Each pass sees the maps as they came.
+        visit(copy, 0);
+      });
+  return apply_temporal_edits(edits, transfers, maps, 0);
 }
 
 }  // namespace ls::relight

@@ -26,6 +26,7 @@
 // its end state is its dry endpoint: dry = the target's, wet = dry x wet/dry or dry + wet - dry.)
 // A source region with no varying pixel is an InputError naming the edit.
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -74,5 +75,24 @@ TemporalEdits parse_temporal_edits(std::string_view json_text, const std::string
                                    const std::filesystem::path& base_dir, int width, int height);
 // Applies the edits in order; returns the number of pixels each edit changed.
 std::vector<int> apply_temporal_edits(const TemporalEdits& edits, TemporalMaps& maps);
+
+// The same on maps read in bands of rows (relight --temporal on maps larger than memory): what
+// each transfer takes from its source region (the medians of its varying process over the whole
+// maps, as the edits before it left them), from passes over every band; then each band edited.
+struct TemporalTransfer {
+  TemporalModel model = TemporalModel::kNone;
+  int family = 0;   // kCurve: the family most of the source's curve pixels follow.
+  double seen = 1;  // kCurve: the median of their kTCurveSeen.
+  double rate = 0, onset = 0;
+  double change_dry[kTemporalParamCount] = {}, change_wet[kTemporalParamCount] = {};
+};
+// Visits every band of the maps in order, read afresh (its rows start at first_row).
+using TemporalMapsBands =
+    std::function<void(const std::function<void(TemporalMaps& band, int first_row)>&)>;
+std::vector<std::optional<TemporalTransfer>> temporal_transfers(const TemporalEdits& edits,
+                                                                const TemporalMapsBands& bands);
+std::vector<int> apply_temporal_edits(const TemporalEdits& edits,
+                                      const std::vector<std::optional<TemporalTransfer>>& transfers,
+                                      TemporalMaps& band, int first_row);
 
 }  // namespace ls::relight

@@ -5,10 +5,12 @@
 
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
 #include "app/jobs/fit_job.h"
+#include "app/jobs/relight_job.h"
 #include "lightstage/image.h"
 #include "relight/time/temporal_fit.h"
 #include "sim/scene.h"
@@ -124,6 +126,47 @@ TEST_F(TemporalBands, AKilledFitResumesFromItsBands) {
     }
     EXPECT_TRUE(read_image(fit.out).pixels == read_image(*dir_ / "whole.exr").pixels) << phase;
     EXPECT_FALSE(fs::exists(*dir_ / "resumed.exr.partial"));
+  }
+}
+
+// `relight --temporal` reads the maps a band of rows at a time (16 rows under a tiny budget): its
+// time edits' transfers are summarised by passes over the bands, each band edited by its rows of
+// the masks: the images of the whole maps' render, byte for byte.
+TEST_F(TemporalBands, RelightAtATimeInBandsIsTheWholeMapsRender) {
+  Image mask(36, 30, 3);
+  for (int y = 10; y < 28; ++y) {
+    for (int x = 4; x < 30; ++x) mask.at(x, y, 0) = mask.at(x, y, 1) = mask.at(x, y, 2) = 1;
+  }
+  write_png_preview(*dir_ / "mask.png", mask);
+  {
+    std::ofstream edits(*dir_ / "time.json");
+    edits << R"({"time": [{"select": {"mask": "mask.png"}, "transfer_from": {"model": "dust"}},
+                          {"select": {"model": "exponential"}, "rate_scale": 2}]})";
+  }
+  Image sky(64, 32, 3, 0.2f);
+  for (int y = 0; y < 16; ++y) {
+    for (int x = 0; x < 64; ++x) sky.at(x, y, 0) = 1.0f + 0.05f * x;
+  }
+  write_exr(*dir_ / "sky.exr", sky);
+  const auto render = [&](const std::string& out, std::size_t memory_bytes) {
+    jobs::RelightOptions relight;
+    relight.temporal_file = *dir_ / "whole.exr";
+    relight.time_s = 400;
+    relight.edits_file = *dir_ / "time.json";
+    relight.maps = {*dir_ / "sky.exr"};
+    relight.light_dir = Eigen::Vector3d(0.3, 0.2, 0.93).normalized();
+    relight.memory_bytes = memory_bytes;
+    relight.out_dir = *dir_ / out;
+    return jobs::relight(relight);
+  };
+  const jobs::RelightSummary whole = render("at400_whole", 0);
+  const jobs::RelightSummary bands = render("at400_bands", 1);
+  ASSERT_EQ(whole.edit_reports, bands.edit_reports);
+  ASSERT_EQ(whole.images.size(), 2u);
+  EXPECT_NE(whole.edit_reports.at(0).find("changed"), std::string::npos);
+  for (size_t i = 0; i < whole.images.size(); ++i) {
+    EXPECT_TRUE(read_image(whole.images[i].exr).pixels == read_image(bands.images[i].exr).pixels)
+        << whole.images[i].label;
   }
 }
 
