@@ -172,6 +172,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   // Every step opened (its header read), sorted by time.
   std::vector<std::unique_ptr<capture::FieldStream>> steps;
   std::vector<const capture::ReflectanceField*> headers;
+  headers.reserve(files.size());
   for (const fs::path& f : files) {
     headers.push_back(&steps.emplace_back(std::make_unique<capture::FieldStream>(f))->header());
   }

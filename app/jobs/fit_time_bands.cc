@@ -275,7 +275,7 @@ std::size_t time_band_row_bytes(const capture::FieldStream& step, int steps) {
   constexpr int kStepChannels = 2 * relight::kTemporalParamCount + 1 + relight::kRenderedCount;
   const std::size_t fits_row =
       width * sizeof(float) *
-          (std::size_t(steps) * kStepChannels + 2 * relight::kTemporalChannelCount +
+          (std::size_t(steps) * kStepChannels + std::size_t(2) * relight::kTemporalChannelCount +
            relight::kMapChannelCount) +
       width * sizeof(double);
   return field_row * 5 / 4 + fits_row;  // The band, its reader's buffer (a quarter), the fits.
