@@ -104,25 +104,25 @@ class FieldBuild {
   int run_to_file(const std::filesystem::path& out, const ExrAttributes& attributes,
                   int band_rows) {
     prepare();
-    const BuildOptions::Split& split = options_.split;
+    const RankSplit& split = options_.split;
     BuildCheckpoint checkpoint(out, session_, options_);
     // Rank 0 decides the band height (clearing an earlier run's checkpoint of another identity)
     // before the others read it.
     if (split.rank == 0) band_rows = checkpoint.band_rows(band_rows);
-    if (split.size > 1) split.barrier();
+    if (split.split()) split.barrier();
     if (split.rank != 0) band_rows = checkpoint.band_rows(band_rows);
     SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows,
                     checkpoint.spill_path());
     resume_.emplace(Resume{checkpoint, spill});
     const LedSink sink = [&](int i, const std::vector<float>& rgb) { spill.put(i, rgb); };
-    merge_brackets(sink, [&](int i) { return i % split.size == split.rank; });
-    if (split.size > 1) {
+    merge_brackets(sink, [&](int i) { return split.mine(i); });
+    if (split.split()) {
       split.barrier();  // Every rank's LEDs are in the spill, with their records.
       if (split.rank != 0) return band_rows;
       // The other ranks' LEDs, from their records (merged here where one is missing); not
       // counted as resumed.
       const int resumed = resumed_lights_.load();
-      merge_brackets(sink, [&](int i) { return i % split.size != 0; });
+      merge_brackets(sink, [&](int i) { return !split.mine(i); });
       resumed_lights_ = resumed;
     }
     resume_.reset();
@@ -600,7 +600,7 @@ int build_field_file(const Session& session, const BuildOptions& options,
   banded.memory_bytes = per_led * in_flight;
   const size_t band_budget = budget > banded.memory_bytes ? budget - banded.memory_bytes : 0;
   const int rows = int(std::clamp<size_t>(band_budget / (2 * row_bytes), 1, size_t(camera.height)));
-  if (rows >= camera.height && options.split.size == 1) {
+  if (rows >= camera.height && !options.split.split()) {
     BuildSummary local;
     BuildSummary& sum = summary ? *summary : local;
     const ReflectanceField field = build_field(session, options, &sum);

@@ -16,6 +16,7 @@
 #include "capture/field.h"
 #include "capture/hdr_merge.h"
 #include "capture/noise_estimate.h"
+#include "lightstage/rank_split.h"
 #include "lightstage/session.h"
 
 namespace ls::capture {
@@ -31,14 +32,11 @@ struct BuildOptions {
   std::function<void(int done, int total)> on_band_written;
   // build_field_file: how the file holds the values (capture/half_storage.h).
   StorageChoice storage = StorageChoice::kFloat;
-  // build_field_file under MPI (app/jobs/ranks.h): this process, `rank` of `size`, merges the LEDs
-  // i with i % size == rank into the spill kept beside the field, waits at `barrier` for the
-  // others, and rank 0 (taking theirs from their records, as a resumed build does) writes the
-  // field; the others return once their LEDs are in. In bands whenever size > 1.
-  struct Split {
-    int rank = 0, size = 1;
-    std::function<void()> barrier;
-  } split;
+  // build_field_file under MPI: this process merges its share of the LEDs (RankSplit::mine)
+  // into the spill kept beside the field, waits at the barrier for the others, and rank 0 (taking
+  // theirs from their records, as a resumed build does) writes the field; the others return once
+  // their LEDs are in. In bands whenever split.
+  RankSplit split;
 };
 
 struct BuildSummary {

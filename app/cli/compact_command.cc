@@ -9,6 +9,7 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/compress_job.h"
+#include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
 
 namespace ls::cli {
@@ -39,6 +40,7 @@ void add_compress_command(CLI::App& app) {
   compress->callback([args] {
     // A bad --format or --rank is bad input (exit 2), as before options were validated here.
     const jobs::CompressSummary summary = jobs::compress(*args);
+    if (!jobs::Ranks::world().root()) return;  // Under MPI rank 0 wrote the file and prints.
     if (args->format == "pca") {
       std::printf("%s\n%s: %.1f bytes per pixel\n", summary.details.c_str(), args->out.c_str(),
                   summary.bytes_per_pixel);
@@ -56,6 +58,7 @@ void add_compress_command(CLI::App& app) {
         summary.raw_bytes_per_pixel);
     if (summary.band_rows > 0) {
       std::printf("read in bands of %d rows", summary.band_rows);
+      if (summary.ranks > 1) std::printf(" split over %d MPI ranks", summary.ranks);
       if (summary.resumed_rows > 0) {
         std::printf(" (%d rows' fits taken from an interrupted run)", summary.resumed_rows);
       }

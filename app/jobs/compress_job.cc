@@ -10,11 +10,14 @@
 #include <numeric>
 #include <optional>
 
+#include "app/jobs/fit_bands.h"
+#include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "capture/olat_import.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/rank_split.h"
 #include "lightstage/scratch_file.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
@@ -152,6 +155,17 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   // The field: an .lp set imported whole; an EXR in bands of rows when it is larger than the
   // memory for it (whole PCA tiles or Gram sub-bands per band: the same bytes as in memory).
   const std::string ext = options.input.extension().string();
+  // Under MPI the RTI fits split their bands over the ranks; the other formats run as one
+  // process (an .lp set is imported whole; a PCA's basis sums one Gram matrix over the field in
+  // order, which split sums would not give bit for bit).
+  const Ranks& ranks = Ranks::world();
+  if (ranks.size() > 1 &&
+      (options.format == "pca" || ext == ".lp" || fs::is_directory(options.input))) {
+    throw InputError(
+        "compress: under MPI only a field EXR to .ptm or .rti splits its bands over "
+        "the ranks; run --format pca, and .lp sets, as one process (without mpirun)");
+  }
+  const RankSplit split{ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }};
   capture::ReflectanceField whole;
   std::optional<capture::FieldStream> stream;
   std::optional<CheckpointDir> checkpoint;
@@ -169,25 +183,40 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
                                                     stream->width(), stream->height(), pca_options))
             : stream->row_alignment();
     rows = std::max(align, stream->band_rows(options.memory_bytes) / align * align);
-    if (rows < stream->height()) {
+    if (split.split()) rows = band_rows_for_ranks(rows, stream->height(), align, split.size);
+    if (rows < stream->height() || split.split()) {
       // What a compression in bands finished is kept beside the output for a killed run to
       // resume from (with the band height it was done in): the RTI fits' coefficients, or the
-      // PCA's basis and coefficients.
+      // PCA's basis and coefficients. Rank 0 decides the band height before the others read it.
       checkpoint.emplace(options.out, input_identity(options.input, options.to_json()));
-      rows = checkpoint->band_rows(rows);
+      std::vector<double> decided = {double(split.rank == 0 ? checkpoint->band_rows(rows) : 0)};
+      ranks.broadcast(decided);
+      rows = split.rank == 0 ? int(decided[0]) : checkpoint->band_rows(int(decided[0]));
     }
-    if (rows >= stream->height()) {
+    if (rows >= stream->height() && !split.split()) {
       report(progress, "read", 0, 1, options.input.filename());
       stream->read_rows(0, stream->height(), whole);
       report(progress, "read", 1, 1);
     } else {
-      // Each pass over the file shows its progress by rows.
-      bands = [&, read = stream->bands(rows), pass = 0](const capture::BandVisitor& visit) mutable {
+      // Each pass over the file shows its progress by rows. Under MPI a rank reads its own bands
+      // only (the others visited without values: write_rti_file_in_bands leaves them to theirs).
+      bands = [&, pass = 0](const capture::BandVisitor& visit) mutable {
         const std::string label = "pass " + std::to_string(++pass) + " (rows)";
-        read([&](const capture::ReflectanceField& band) {
-          visit(band);
-          report(progress, label, band.first_row() + band.height(), band.frame_height());
-        });
+        capture::ReflectanceField band;
+        const int height = stream->height();
+        for (int b = 0, y0 = 0; y0 < height; ++b, y0 += rows) {
+          const int y1 = std::min(height, y0 + rows);
+          if (split.mine(b)) {
+            stream->read_rows(y0, y1, band);
+            visit(band);
+          } else {
+            capture::ReflectanceField shell = capture::ReflectanceField::without_values(
+                stream->width(), y1 - y0, stream->header().lights());
+            shell.set_band(y0, height);
+            visit(shell);
+          }
+          report(progress, label, y1, height);
+        }
       };
     }
   }
@@ -219,7 +248,9 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   relight::RtiWritten written;
   if (rows > 0) {  // In bands: the coefficients through a file, not held.
     written = relight::write_rti_file_in_bands(options.out, header, bands, rti_options,
-                                               options.gain, checkpoint->dir());
+                                               options.gain, checkpoint->dir(), split);
+    summary.ranks = split.size;
+    if (split.rank != 0) return summary;  // Rank 0 wrote the file.
     checkpoint->remove();
   } else {
     const relight::RtiField fit = relight::RtiField::fit(header, bands, rti_options);

@@ -33,7 +33,8 @@ struct CompressSummary {
   // On disk: the input (an EXR; an .lp set's images) and the file written.
   std::uintmax_t input_bytes = 0, output_bytes = 0;
   int band_rows = 0;     // Rows read at once: the height when read whole.
-  int resumed_rows = 0;  // .ptm/.rti in bands: rows whose fits an earlier, killed run kept.
+  int resumed_rows = 0;  // In bands: rows an earlier, killed run finished.
+  int ranks = 1;         // .ptm/.rti: processes the bands were split over (MPI); rank 0 wrote.
 };
 
 // Throws InputError for bad options or inputs; the output is written only on success.

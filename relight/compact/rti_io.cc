@@ -442,7 +442,8 @@ bool read_band_record(const std::filesystem::path& file, float& max_sample) {
 RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
                                    const capture::ReflectanceField& header,
                                    const capture::FieldBands& bands, const RtiFitOptions& options,
-                                   double gain, const std::filesystem::path& kept_dir) {
+                                   double gain, const std::filesystem::path& kept_dir,
+                                   const RankSplit& split) {
   const RtiFitter fitter(header, options);
   const int width = header.width();
   const size_t per_pixel = size_t(fitter.coefficients_per_pixel());
@@ -456,7 +457,10 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
   RtiQuantiser quantiser(options.basis, options.lrgb, width, header.height());
   std::vector<float> coefs, band_colors, rows;
   RtiWritten written;
-  bands([&](const capture::ReflectanceField& band) {
+  std::vector<std::pair<int, int>> others;  // Other ranks' bands: first row, rows.
+  int index = 0;
+  // A band read back (an earlier run's, or another rank's: `fit` false), else fitted.
+  const auto take = [&](const capture::ReflectanceField& band, bool fit) {
     const size_t pixels = size_t(band.width()) * band.height();
     coefs.assign(pixels * per_pixel, 0.0f);
     band_colors.assign(pixels * colors, 0.0f);
@@ -472,7 +476,10 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
         std::copy_n(row(y) + width * per_pixel, width * colors,
                     band_colors.data() + size_t(y) * width * colors);
       }
-      written.resumed_rows += band.height();
+      if (fit) written.resumed_rows += band.height();
+    } else if (!fit) {  // Another rank's, which it did not leave.
+      throw InputError(band_record(kept_dir, band.first_row()).string() +
+                       ": the band's coefficients are missing (did its rank fail?)");
     } else {
       max_sample = fitter.fit_band(band, coefs.data(), band_colors.data());
       for (int y = 0; y < band.height(); ++y) {
@@ -487,7 +494,24 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
       write_file_atomic(band_record(kept_dir, band.first_row()), std::string(text, printed.ptr));
     }
     quantiser.add(coefs.data(), band_colors.data(), pixels, max_sample);
+  };
+  bands([&](const capture::ReflectanceField& band) {
+    if (split.mine(index++)) {
+      take(band, true);
+    } else {
+      others.emplace_back(band.first_row(), band.height());
+    }
   });
+  if (split.split()) {
+    split.barrier();  // Every rank's bands are in the spill, with their records.
+    if (split.rank != 0) return written;
+    for (const auto& [first_row, band_rows] : others) {
+      capture::ReflectanceField shell =
+          capture::ReflectanceField::without_values(width, band_rows, header.lights());
+      shell.set_band(first_row, header.height());
+      take(shell, false);
+    }
+  }
   coefs = {}, band_colors = {}, rows = {};
   const RtiFile file = quantiser.header(gain);
   std::vector<float> row(row_floats);

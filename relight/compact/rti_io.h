@@ -29,6 +29,7 @@
 #include <string>
 #include <vector>
 
+#include "lightstage/rank_split.h"
 #include "relight/compact/rti_fits.h"
 
 namespace ls::relight {
@@ -94,7 +95,9 @@ void write_rti_file(const std::filesystem::path& path, const RtiFile& file);  //
 // (a CheckpointDir's, beside `path`), then quantised and written row by row: it holds a band's
 // coefficients, not the image's. The spill and a record of each band fitted stay there for a
 // killed run to resume from: a band with a record is read back, not fitted (the caller removes the
-// folder once the file is written).
+// folder once the file is written). Under MPI (`split`) each rank fits its share of the bands (a
+// band not its own may be visited without its values), waits for the others, and rank 0 takes
+// theirs from their records and writes the file (the others return once their bands are in).
 struct RtiWritten {
   std::string name;  // RtiField::name().
   int lights_used = 0;
@@ -104,7 +107,8 @@ struct RtiWritten {
 RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
                                    const capture::ReflectanceField& header,
                                    const capture::FieldBands& bands, const RtiFitOptions& options,
-                                   double gain, const std::filesystem::path& kept_dir);
+                                   double gain, const std::filesystem::path& kept_dir,
+                                   const RankSplit& split = {});
 RtiFile read_rti_file(const std::filesystem::path& path);
 
 }  // namespace ls::relight

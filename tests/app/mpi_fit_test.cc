@@ -145,6 +145,39 @@ TEST(MpiFit, BuildTwoRanksWriteTheBytesOfOneProcess) {
   }
 }
 
+// compress to .ptm/.rti: each rank fits its share of the bands into the spill beside the output
+// (a record per band), rank 0 quantises every band and writes the file: the bytes of one process.
+// PCA is refused under MPI, by name.
+TEST(MpiFit, CompressTwoRanksWriteTheBytesOfOneProcess) {
+  if (std::string(LIGHTSTAGE_MPIEXEC).empty()) GTEST_SKIP() << "built without MPI";
+  const testing::TempDir dir;
+  const fs::path field = write_test_field(dir.path());
+  const std::string compress = testing::cli_path().string() + " compress '" + field.string() + "'";
+  for (const std::string format : {"hsh3", "ptm-lrgb"}) {
+    const std::string ext = format == "hsh3" ? ".rti" : ".ptm";
+    std::string one_out, two_out;
+    ASSERT_EQ(
+        run(compress + " --format " + format + " --out '" + (dir / ("one" + ext)).string() + "'",
+            &one_out),
+        0);
+    ASSERT_EQ(run(mpirun_two() + compress + " --format " + format + " --out '" +
+                      (dir / ("two" + ext)).string() + "'",
+                  &two_out),
+              0);
+    EXPECT_NE(two_out.find("split over 2 MPI ranks"), std::string::npos) << two_out;
+    const std::string one = bytes_but_time(dir / ("one" + ext));
+    EXPECT_GT(one.size(), 48u * 40);
+    EXPECT_TRUE(one == bytes_but_time(dir / ("two" + ext))) << format;
+    EXPECT_FALSE(fs::exists(dir / ("two" + ext + ".partial"))) << "the checkpoint is removed";
+  }
+  std::string out;
+  EXPECT_EQ(testing::run_command(mpirun_two() + compress + " --format pca --out '" +
+                                     (dir / "two.pca").string() + "'",
+                                 &out),
+            2);
+  EXPECT_NE(out.find("run --format pca, and .lp sets, as one process"), std::string::npos) << out;
+}
+
 // Every rank fits about as many rows (9 bands of 115 rows over 2 ranks left one idle a ninth of
 // the fit), in at least 4 bands a rank, within the memory's band height and whole tiles.
 TEST(MpiFit, EveryRankGetsAsManyRows) {
@@ -179,7 +212,7 @@ TEST(MpiFit, OtherCommandsAreRefusedUnderMpi) {
                                      field.string() + "' --out '" + (dir / "relit").string() + "'",
                                  &out),
             0);
-  EXPECT_NE(out.find("only 'lightstage fit' and 'lightstage build' split their work"),
+  EXPECT_NE(out.find("only 'lightstage fit', 'build' and 'compress' split their work"),
             std::string::npos)
       << out;
   EXPECT_FALSE(fs::exists(dir / "relit"));
