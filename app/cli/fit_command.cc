@@ -201,15 +201,21 @@ void add_normals_command(CLI::App& app) {
     if (const std::string problem = options->validate(); !problem.empty()) {
       throw CLI::ValidationError("normals", problem);
     }
-    const jobs::NormalsJobSummary s = jobs::estimate_normals(*options, progress_printer(*quiet));
+    // Under MPI rank 0 reports and prints; the others are silent.
+    const bool root = jobs::Ranks::world().root();
+    const jobs::NormalsJobSummary s =
+        jobs::estimate_normals(*options, progress_printer(*quiet || !root));
+    if (!root) return;
     const long pixels = long(s.width) * s.height;
     std::printf(
         "%s: %dx%d normals, %ld flagged (%.1f%%: too few lit lights, ill-conditioned or "
         "saturated)\n",
         options->out.c_str(), s.width, s.height, s.flagged_pixels,
         pixels > 0 ? 100.0 * double(s.flagged_pixels) / double(pixels) : 0.0);
-    std::printf("  %.2f s; noise: %s; read in bands of %d rows; peak memory %.1f MiB\n", s.seconds,
-                s.noise_source.c_str(), s.band_rows, double(peak_resident_bytes()) / (1 << 20));
+    std::printf("  %.2f s; noise: %s; read in bands of %d rows", s.seconds, s.noise_source.c_str(),
+                s.band_rows);
+    if (s.ranks > 1) std::printf(" split over %d MPI ranks", s.ranks);
+    std::printf("; peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   });
 }
 

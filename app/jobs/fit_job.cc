@@ -282,17 +282,22 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
                                 {"source", fit.noise_source}};
   const nlohmann::json recorded = {{"field", options.field_file.string()},
                                    {"method", options.method}};
-  ImageRowWriter file(
-      options.out, header.width(), header.height(), int(names.size()), names,
-      {{kOptionsAttribute, recorded.dump()}, {"lightstage:fit_noise", noise.dump()}});
+  // The file and its previews, on rank 0 under MPI.
+  std::optional<ImageRowWriter> file;
+  std::vector<std::unique_ptr<PreviewRowWriter>> previews;
+  if (Ranks::world().root()) {
+    file.emplace(options.out, header.width(), header.height(), int(names.size()), names,
+                 ExrAttributes{{kOptionsAttribute, recorded.dump()},
+                               {"lightstage:fit_noise", noise.dump()}});
+  }
   // Previews beside it, as the fit's: STEM.normal.png (0.5 + 0.5 n), .albedo.png, .confidence.png.
   const auto identity = [](float v) { return v; };
-  std::vector<std::unique_ptr<PreviewRowWriter>> previews;
   for (auto [name, first, channels, transform] :
        {std::tuple{"normal", 0, 3,
                    std::function<float(float)>([](float v) { return 0.5f + 0.5f * v; })},
         std::tuple{"albedo", 3, 3, std::function<float(float)>(identity)},
         std::tuple{"confidence", 6, 1, std::function<float(float)>(identity)}}) {
+    if (!file) break;
     previews.push_back(
         std::make_unique<PreviewRowWriter>(options.out, name, header.width(), header.height(),
                                            channels, channel_values(first, channels, transform)));
@@ -300,12 +305,12 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   const auto start = Clock::now();
   double read_seconds = 0;
   capture::ReflectanceField band;
-  for (int y0 = 0; y0 < header.height(); y0 += summary.band_rows) {
+  // Band [y0, y1)'s normals, albedo, confidence and flags, as the file holds them.
+  const auto estimate = [&](int y0, int y1) {
     const auto read_start = Clock::now();
-    stream.read_rows(y0, std::min(header.height(), y0 + summary.band_rows), band);
+    stream.read_rows(y0, y1, band);
     read_seconds += seconds_since(read_start);
     const relight::NormalMap normals = relight::estimate_normals(band, normal_options);
-    summary.flagged_pixels += normals.flagged_pixels;
     Image rows(band.width(), band.height(), int(names.size()));
     for (size_t i = 0; i < rows.num_pixels(); ++i) {
       float* out = &rows.pixels[i * names.size()];
@@ -314,11 +319,62 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
       out[6] = normals.confidence.pixels[i];
       out[7] = normals.flags.pixels[i];
     }
-    file.write_rows(rows);
+    return std::pair{rows, normals.flagged_pixels};
+  };
+  const auto write = [&](const Image& rows, long flagged, int y1) {
+    summary.flagged_pixels += flagged;
+    file->write_rows(rows);
     for (auto& preview : previews) preview->write_rows(rows);
-    report(progress, "normals (rows)", y0 + band.height(), header.height());
+    report(progress, "normals (rows)", y1, header.height());
+  };
+  const Ranks& ranks = Ranks::world();
+  const int height = header.height();
+  summary.ranks = ranks.size();
+  if (ranks.size() == 1) {
+    for (int y0 = 0; y0 < height; y0 += summary.band_rows) {
+      const int y1 = std::min(height, y0 + summary.band_rows);
+      const auto [rows, flagged] = estimate(y0, y1);
+      write(rows, flagged, y1);
+    }
+  } else {
+    // Under MPI each rank estimates its bands (round robin) into records beside the output;
+    // rank 0 writes the file from them in order.
+    summary.band_rows =
+        band_rows_for_ranks(summary.band_rows, height, stream.row_alignment(), ranks.size());
+    const CheckpointDir checkpoints(options.out,
+                                    input_identity(options.field_file, recorded.dump()));
+    std::vector<double> decided = {
+        double(ranks.root() ? checkpoints.band_rows(summary.band_rows) : 0)};
+    ranks.broadcast(decided);
+    summary.band_rows = int(decided[0]);
+    constexpr const char* kMagic = "lightstage normals band 1";
+    const auto record = [&](int y0) {
+      return checkpoints.dir() / ("normals_" + std::to_string(y0) + ".band");
+    };
+    for (int b = ranks.rank(), y0; (y0 = b * summary.band_rows) < height; b += ranks.size()) {
+      const auto [rows, flagged] = estimate(y0, std::min(height, y0 + summary.band_rows));
+      write_record(record(y0), kMagic, {{"flagged", flagged}},
+                   {{rows.pixels.data(), rows.pixels.size() * sizeof(float)}});
+    }
+    ranks.barrier();  // Every band is in its record.
+    if (!ranks.root()) return summary;
+    for (int y0 = 0; y0 < height; y0 += summary.band_rows) {
+      const int y1 = std::min(height, y0 + summary.band_rows);
+      Image rows(header.width(), y1 - y0, int(names.size()));
+      long flagged = 0;
+      if (!read_record(record(y0), kMagic, [&](const nlohmann::json& info) {
+            flagged = info.at("flagged").get<long>();
+            return std::optional<std::vector<RecordTarget>>{
+                {{rows.pixels.data(), rows.pixels.size() * sizeof(float)}}};
+          })) {
+        throw InputError(record(y0).string() +
+                         ": a band's normals are missing (did its rank fail?)");
+      }
+      write(rows, flagged, y1);
+    }
+    checkpoints.remove();
   }
-  file.commit();
+  file->commit();
   for (auto& preview : previews) preview->commit();
   summary.seconds = seconds_since(start) - read_seconds;
   return summary;

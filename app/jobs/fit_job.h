@@ -76,6 +76,7 @@ struct NormalsJobSummary {
   std::string noise_source;
   double seconds = 0.0;
   int band_rows = 0;
+  int ranks = 1;  // Processes the bands were split over (MPI); rank 0 wrote the file.
 };
 
 NormalsJobSummary estimate_normals(const NormalsJobOptions& options,

@@ -72,6 +72,15 @@ TEST(MpiFit, TwoRanksWriteTheBytesOfOneProcess) {
   const testing::TempDir dir;
   const fs::path field = write_test_field(dir.path());
   const std::string cli = testing::cli_path().string();
+  // `normals` too: its bands estimated by both ranks, written by rank 0.
+  std::string one_out, two_out;
+  const std::string normals = cli + " normals '" + field.string() + "' --out ";
+  ASSERT_EQ(run(normals + "'" + (dir / "n1.exr").string() + "'", &one_out), 0);
+  ASSERT_EQ(run(mpirun_two() + normals + "'" + (dir / "n2.exr").string() + "'", &two_out), 0);
+  EXPECT_NE(two_out.find("split over 2 MPI ranks"), std::string::npos) << two_out;
+  EXPECT_TRUE(bytes_but_time(dir / "n1.exr") == bytes_but_time(dir / "n2.exr"));
+  EXPECT_TRUE(bytes_but_time(dir / "n1.normal.png") == bytes_but_time(dir / "n2.normal.png"));
+  EXPECT_FALSE(fs::exists(dir / "n2.exr.partial"));
   for (const std::string materials : {"basis", "per-pixel"}) {
     const std::string fit = " fit '" + field.string() + "' --materials " + materials + " --out ";
     std::string one_out, two_out;
@@ -212,7 +221,7 @@ TEST(MpiFit, OtherCommandsAreRefusedUnderMpi) {
                                      field.string() + "' --out '" + (dir / "relit").string() + "'",
                                  &out),
             0);
-  EXPECT_NE(out.find("only 'lightstage fit', 'build' and 'compress' split their work"),
+  EXPECT_NE(out.find("only 'lightstage fit', 'normals', 'build' and 'compress' split their work"),
             std::string::npos)
       << out;
   EXPECT_FALSE(fs::exists(dir / "relit"));
