@@ -2,18 +2,23 @@
 
 #include <OpenImageIO/imageio.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <functional>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
+#include <optional>
 #include <tuple>
 
 #include "capture/band_spill.h"
+#include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -213,6 +218,11 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
 class SetImport {
  public:
   using LightSink = std::function<void(int light, const std::vector<float>& rgb)>;
+  // A light an earlier run (or another rank) kept: its image into rgb and its counts restored,
+  // or false (it is read from its file).
+  using KeptLight = std::function<bool(int light, std::vector<float>& rgb, long long& saturated)>;
+  // After a light's image went to the sink (not for kept ones): what a record of it holds.
+  using LightDone = std::function<void(int light, long long saturated)>;
 
   SetImport(OlatImageSet job, const OlatImportOptions& options)
       : start_(std::chrono::steady_clock::now()), job_(std::move(job)), options_(options) {
@@ -240,23 +250,38 @@ class SetImport {
   }
 
   int num_lights() const { return int(job_.lights.size()); }
+  const fs::path& source() const { return job_.source; }
   const ReflectanceField& header() const { return header_; }
   std::string what() const {
     return job_.source.string() + ": reflectance field " + size_text(width_, height_) + " with " +
            std::to_string(num_lights()) + " lights";
   }
 
-  // Every light's image to `sink` (from worker threads, one light at a time each).
-  void read_images(const LightSink& sink) {
+  // Every light's image to `sink` (from worker threads, one light at a time each); with `mine`,
+  // only the lights it takes; `kept` and `done`: see their types.
+  void read_images(const LightSink& sink, const std::function<bool(int)>& mine = {},
+                   const KeptLight& kept = {}, const LightDone& done_with = {}) {
     const Linearizer linearizer(job_.transfer, options_.gamma);
     std::atomic<int> done{0};
     std::mutex progress_mutex;
-    const int n = num_lights();
-    tbb::parallel_for(0, n, [&](int l) {
+    int n = 0;
+    for (int l = 0; l < num_lights(); ++l) n += !mine || mine(l);
+    tbb::parallel_for(0, num_lights(), [&](int l) {
+      if (mine && !mine(l)) return;
       std::vector<float> rgb;
-      saturated_ += import_image(job_, l, first_, linearizer, options_, width_, height_,
+      long long saturated = 0;
+      if (kept && kept(l, rgb, saturated)) {
+        saturated_ += saturated;
+        sink(l, rgb);
+      } else {
+        saturated = import_image(job_, l, first_, linearizer, options_, width_, height_,
                                  header_.lights()[size_t(l)], rgb);
-      sink(l, rgb);
+        saturated_ += saturated;
+        // Cancelled by another light's failure (or a stop): its image may be incomplete.
+        if (tbb::is_current_task_group_canceling()) return;
+        sink(l, rgb);
+        if (done_with) done_with(l, saturated);
+      }
       const int finished = ++done;
       if (options_.on_progress) {
         const std::lock_guard<std::mutex> lock(progress_mutex);
@@ -264,6 +289,8 @@ class SetImport {
       }
     });
   }
+  // Light l's saturation ceiling (as reading its image set it), and setting it back (a kept light).
+  FieldLight& light(int l) { return header_.lights()[size_t(l)]; }
 
   void summarise(OlatImportSummary* summary) {
     if (!summary) return;
@@ -344,27 +371,75 @@ ReflectanceField import_images(OlatImageSet job, const OlatImportOptions& option
 
 int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, const fs::path& out,
                           const ExrAttributes& attributes, std::size_t memory_bytes,
-                          const LightImageFn& on_light, OlatImportSummary* summary) {
+                          const LightImageFn& on_light, OlatImportSummary* summary,
+                          const RankSplit& split) {
   SetImport set(std::move(job), options);
   const ReflectanceField& header = set.header();
-  const int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory_bytes);
+  int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory_bytes);
+  std::atomic<int> resumed{0};
   const StorageChoice choice = options.storage;
   FieldStorage storage;
   HalfCheck check;
-  if (rows >= header.height()) {
+  if (rows >= header.height() && !split.split()) {
     const ReflectanceField field = read_whole(set, on_light);
     storage = choose_storage(field, choice, &check);
     write_field(out, field, attributes, 0, storage);
   } else {
-    SpillFile spill(out, header.width(), header.height(), set.num_lights(), rows);
-    set.read_images([&](int l, const std::vector<float>& rgb) {
+    // The spill and a record per light (its saturated samples and ceiling, written once its
+    // image is durable) are kept in OUT.partial/ until the field is written: a killed import
+    // resumes from the lights it read, and under MPI each rank reads its share of them.
+    nlohmann::json identity = nlohmann::json::object();
+    for (const auto& [key, value] : attributes) identity[key] = value;
+    const CheckpointDir checkpoint(out, input_identity(set.source(), identity.dump()));
+    int band_rows = split.rank == 0 ? checkpoint.band_rows(rows) : 0;
+    if (split.split())
+      split.barrier();  // Rank 0 decided the band height before the others read it.
+    if (split.rank != 0) band_rows = checkpoint.band_rows(rows);
+    SpillFile spill(out, header.width(), header.height(), set.num_lights(), band_rows,
+                    checkpoint.dir() / "lights.spill");
+    constexpr const char* kMagic = "lightstage import light 1";
+    const auto record = [&](int l) { return checkpoint.dir() / ("light_" + std::to_string(l)); };
+    const auto kept = [&](int l, std::vector<float>& rgb, long long& saturated) {
+      std::array<float, 3> ceiling{};
+      const bool read = read_record(record(l), kMagic, [&](const nlohmann::json& info) {
+        saturated = info.at("saturated").get<long long>();
+        return std::optional<std::vector<RecordTarget>>{
+            {{ceiling.data(), ceiling.size() * sizeof(float)}}};
+      });
+      if (!read) return false;
+      set.light(l).saturates_at = Eigen::Vector3f(ceiling[0], ceiling[1], ceiling[2]);
+      spill.reread(l, rgb);
+      ++resumed;
+      return true;
+    };
+    const auto done = [&](int l, long long saturated) {
+      spill.sync();  // The image is there before its record says so.
+      const Eigen::Vector3f& ceiling = set.light(l).saturates_at;
+      write_record(record(l), kMagic, {{"saturated", saturated}},
+                   {{ceiling.data(), 3 * sizeof(float)}});
+    };
+    const auto sink = [&](int l, const std::vector<float>& rgb) {
       if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
       spill.put(l, rgb);
-    });
+    };
+    set.read_images(
+        sink, [&](int l) { return split.mine(l); }, kept, done);
+    if (split.split()) {
+      split.barrier();  // Every rank's lights are in the spill, with their records.
+      if (split.rank != 0) return band_rows;
+      // The other ranks' lights, from their records (read here where one is missing).
+      const int own = resumed.load();
+      set.read_images(
+          sink, [&](int l) { return !split.mine(l); }, kept, done);
+      resumed = own;
+    }
     storage = spill.write_field(out, header, attributes, {}, choice, &check);
+    checkpoint.remove();
+    rows = band_rows;
   }
   set.summarise(summary);
   if (summary) {
+    summary->resumed_lights = resumed.load();
     summary->storage = storage;
     if (choice != StorageChoice::kFloat) summary->half_check = check;
   }

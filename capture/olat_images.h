@@ -11,6 +11,7 @@
 
 #include "capture/field.h"
 #include "capture/olat_import.h"
+#include "lightstage/rank_split.h"
 
 namespace ls::capture {
 
@@ -42,11 +43,15 @@ ReflectanceField import_images(OlatImageSet set, const OlatImportOptions& option
 // The same into the field file `out` (write_field's format), holding no more of the field than
 // memory_bytes at once (capture/band_spill.h: bands through a spill file beside `out` when the
 // field is larger; the same bytes either way). on_light (optional) sees each light's image.
+// In bands, the spill and a record per light are kept in OUT.partial/ until the field is written
+// (a killed import resumes from the lights it read; identity: the source and `attributes`), and
+// under MPI (`split`) each rank reads its share of the lights, rank 0 takes the others' from their
+// records and writes the field (the others return once theirs are in).
 // Returns the rows per band (the height: imported in memory).
 int import_images_to_file(OlatImageSet set, const OlatImportOptions& options,
                           const std::filesystem::path& out, const ExrAttributes& attributes,
                           std::size_t memory_bytes, const LightImageFn& on_light,
-                          OlatImportSummary* summary);
+                          OlatImportSummary* summary, const RankSplit& split = {});
 
 // Reads a mask image into set.mask (non-zero in any of the first three channels = object).
 void read_mask(const std::filesystem::path& mask_file, OlatImageSet& set);

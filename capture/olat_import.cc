@@ -440,9 +440,9 @@ ReflectanceField import_olat(const fs::path& source, const OlatImportOptions& op
 int import_olat_to_file(const fs::path& source, const OlatImportOptions& options,
                         const fs::path& out, const ExrAttributes& attributes,
                         std::size_t memory_bytes, const LightImageFn& on_light,
-                        OlatImportSummary* summary) {
+                        OlatImportSummary* summary, const RankSplit& split) {
   return import_images_to_file(read_set(source, options), options, out, attributes, memory_bytes,
-                               on_light, summary);
+                               on_light, summary, split);
 }
 
 }  // namespace ls::capture

@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "lightstage/rank_split.h"
 
 namespace ls::capture {
 
@@ -73,6 +74,7 @@ struct OlatImportSummary {
   double seconds = 0.0;
   FieldStorage storage;                 // Into a file: how it holds the values,
   std::optional<HalfCheck> half_check;  // and (half or auto storage) what half would cost.
+  int resumed_lights = 0;  // In bands: lights an earlier, killed import had read (kept).
 };
 
 // Which format `source` is: an .lp file, a folder with exactly one .lp file, or a folder with
@@ -97,10 +99,12 @@ using LightImageFn = std::function<void(int light, const Eigen::Vector3d& dir_in
 // more of the field than memory_bytes at once (0: the whole field when it takes at most half of
 // the memory available): bands through a spill file beside `out` when the field is larger
 // (capture/band_spill.h), the same bytes either way. on_light (optional) sees each light's image
-// as it is read. Returns the rows per band (the height: imported in memory).
+// as it is read. In bands a killed import resumes, and under MPI the lights are split over the
+// ranks (capture/olat_images.h: import_images_to_file). Returns the rows per band (the height:
+// imported in memory).
 int import_olat_to_file(const std::filesystem::path& source, const OlatImportOptions& options,
                         const std::filesystem::path& out, const ExrAttributes& attributes,
                         std::size_t memory_bytes, const LightImageFn& on_light = {},
-                        OlatImportSummary* summary = nullptr);
+                        OlatImportSummary* summary = nullptr, const RankSplit& split = {});
 
 }  // namespace ls::capture

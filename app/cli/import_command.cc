@@ -6,6 +6,7 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/import_job.h"
+#include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
 
 namespace ls::cli {
@@ -15,9 +16,15 @@ namespace fs = std::filesystem;
 
 int print_import(const fs::path& source, const fs::path& out,
                  const capture::OlatImportOptions& options, std::size_t memory_bytes, bool quiet) {
-  std::printf("%s: %s\n", source.c_str(), capture::to_string(capture::detect_olat_format(source)));
+  // Under MPI rank 0 reports and prints; the others are silent.
+  const bool root = jobs::Ranks::world().root();
+  if (root) {
+    std::printf("%s: %s\n", source.c_str(),
+                capture::to_string(capture::detect_olat_format(source)));
+  }
   const jobs::ImportJobSummary job =
-      jobs::import_set(source, out, options, memory_bytes, progress_printer(quiet));
+      jobs::import_set(source, out, options, memory_bytes, progress_printer(quiet || !root));
+  if (!root) return 0;
   const capture::OlatImportSummary& summary = job.import;
   std::printf("  %d images, %s, %dx%d", summary.images, summary.pixel_format.c_str(),
               summary.source_width, summary.source_height);
@@ -41,8 +48,13 @@ int print_import(const fs::path& source, const fs::path& out,
   std::printf("  %s\n", storage_line(summary.storage, summary.half_check,
                                      double(fs::file_size(out)) / (1 << 20))
                             .c_str());
-  if (job.band_rows < summary.height) {
-    std::printf("written in bands of %d rows through a spill file beside it\n", job.band_rows);
+  if (job.band_rows < summary.height || job.ranks > 1) {
+    std::printf("written in bands of %d rows through a spill file beside it", job.band_rows);
+    if (job.ranks > 1) std::printf(", the images read by %d MPI ranks", job.ranks);
+    if (summary.resumed_lights > 0) {
+      std::printf(" (%d images taken from an interrupted run)", summary.resumed_lights);
+    }
+    std::printf("\n");
   }
   std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   return 0;

@@ -6,6 +6,7 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 
+#include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
@@ -49,9 +50,12 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
       preview_rgb = rgb;
     }
   };
+  const Ranks& ranks = Ranks::world();
   summary.band_rows = capture::import_olat_to_file(
       source, options, out, {{kOptionsAttribute, options_json(source, options)}}, memory_bytes,
-      keep_frontal, &summary.import);
+      keep_frontal, &summary.import, {ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }});
+  summary.ranks = ranks.size();
+  if (!ranks.root()) return summary;  // Rank 0 wrote the field (and writes the preview).
   summary.lights = summary.import.images;
   summary.mebibytes = capture::ReflectanceField::bytes_for(summary.import.width,
                                                            summary.import.height, summary.lights) /

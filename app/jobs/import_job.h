@@ -19,6 +19,7 @@ struct ImportJobSummary {
   std::filesystem::path preview;  // FIELD.preview.png
   int preview_light = 0;          // Index of the light it shows.
   int band_rows = 0;              // Rows of the field written at once: its height when whole.
+  int ranks = 1;                  // Processes the lights were split over (MPI); rank 0 wrote.
 };
 
 // `options` as capture::import_olat takes them (validated there); memory_bytes as

@@ -187,6 +187,24 @@ TEST(MpiFit, CompressTwoRanksWriteTheBytesOfOneProcess) {
   EXPECT_NE(out.find("run --format pca, and .lp sets, as one process"), std::string::npos) << out;
 }
 
+// import: each rank reads its share of a real RTI set's images into the spill beside the field
+// (a record each), rank 0 takes the others' and writes the field: the bytes of one process.
+TEST(MpiFit, ImportTwoRanksWriteTheBytesOfOneProcess) {
+  if (std::string(LIGHTSTAGE_MPIEXEC).empty()) GTEST_SKIP() << "built without MPI";
+  const fs::path lp = testing::shared_data_dir() / "rti/loewenkopf_klein/dirs.lp";
+  if (!fs::exists(lp)) GTEST_SKIP() << lp << " is not here";
+  const testing::TempDir dir;
+  const std::string import = testing::cli_path().string() + " import '" + lp.string() +
+                             "' --max-size 48 --memory 20000 --out ";
+  std::string one_out, two_out;
+  ASSERT_EQ(run(import + "'" + (dir / "one.exr").string() + "'", &one_out), 0);
+  ASSERT_EQ(run(mpirun_two() + import + "'" + (dir / "two.exr").string() + "'", &two_out), 0);
+  EXPECT_NE(two_out.find("read by 2 MPI ranks"), std::string::npos) << two_out;
+  EXPECT_TRUE(bytes_but_time(dir / "one.exr") == bytes_but_time(dir / "two.exr"));
+  EXPECT_TRUE(bytes_but_time(dir / "one.preview.png") == bytes_but_time(dir / "two.preview.png"));
+  EXPECT_FALSE(fs::exists(dir / "two.exr.partial"));
+}
+
 // Every rank fits about as many rows (9 bands of 115 rows over 2 ranks left one idle a ninth of
 // the fit), in at least 4 bands a rank, within the memory's band height and whole tiles.
 TEST(MpiFit, EveryRankGetsAsManyRows) {
@@ -221,7 +239,7 @@ TEST(MpiFit, OtherCommandsAreRefusedUnderMpi) {
                                      field.string() + "' --out '" + (dir / "relit").string() + "'",
                                  &out),
             0);
-  EXPECT_NE(out.find("only 'lightstage fit', 'normals', 'build' and 'compress' split their work"),
+  EXPECT_NE(out.find("only 'lightstage fit', 'normals', 'build', 'compress' and 'import' split"),
             std::string::npos)
       << out;
   EXPECT_FALSE(fs::exists(dir / "relit"));

@@ -506,6 +506,45 @@ TEST(OlatImport, InBandsWithinAMemoryBudgetWritesTheFieldOfTheWholeImport) {
   EXPECT_THAT(left, ::testing::UnorderedElementsAre("sphere", "bands.exr"));
 }
 
+// Issue 14: an import in bands stopped halfway through reading the images (as by a kill) resumes
+// from the images it read (kept in OUT.partial/ with a record each): it reads only the rest, and
+// writes the field and the lights' ceilings of an uninterrupted import.
+TEST(OlatImport, AKilledImportInBandsResumesFromTheImagesItRead) {
+  ls::testing::TempDir tmp;
+  const SimSet set = render_sphere(40, 24);
+  write_diligent(set, tmp / "sphere", 9);
+  OlatImportOptions options;
+  const ReflectanceField whole = import_diligent(tmp / "sphere", options);
+  const std::size_t budget = 2 * ReflectanceField::bytes_for(40, 4, 24);  // Bands of 4 rows.
+  struct Killed {};
+  OlatImportOptions killed = options;
+  killed.on_progress = [](int done, int total) {
+    if (2 * done >= total) throw Killed{};
+  };
+  EXPECT_THROW((void)import_olat_to_file(tmp / "sphere", killed, tmp / "bands.exr", {}, budget),
+               Killed);
+  EXPECT_FALSE(fs::exists(tmp / "bands.exr"));
+  ASSERT_TRUE(fs::exists(tmp / "bands.exr.partial" / "lights.spill"));
+  OlatImportSummary summary;
+  std::vector<int> seen(24, 0);
+  std::mutex mutex;
+  const auto count = [&](int light, const Eigen::Vector3d&, const std::vector<float>&) {
+    const std::lock_guard lock(mutex);
+    ++seen[size_t(light)];
+  };
+  (void)import_olat_to_file(tmp / "sphere", options, tmp / "bands.exr", {}, budget, count,
+                            &summary);
+  EXPECT_GE(2 * summary.resumed_lights, 24);
+  EXPECT_LT(summary.resumed_lights, 24);
+  EXPECT_EQ(seen, std::vector<int>(24, 1)) << "kept images are seen too (the preview)";
+  const ReflectanceField banded = read_field(tmp / "bands.exr");
+  EXPECT_TRUE(banded.values() == whole.values());
+  for (int l = 0; l < whole.num_lights(); ++l) {
+    EXPECT_EQ(banded.lights()[l].saturates_at, whole.lights()[l].saturates_at);
+  }
+  EXPECT_FALSE(fs::exists(tmp / "bands.exr.partial"));
+}
+
 // --- .lp sets from the simulator: transfer curves
 // -------------------------------------------------
 
