@@ -11,8 +11,8 @@
 
 namespace {
 
-// Under MPI (several ranks), `fit`, `normals`, `build`, `compress` and `import` split their work;
-// any other command would run once per rank, each writing the same outputs: refused.
+// Under MPI (several ranks), `build`, `import`, `fit`, `normals`, `compress` and `relight` split
+// their work; any other command would run once per rank, each writing the same outputs: refused.
 void check_split_over_ranks(const CLI::App& app, int argc, char** argv) {
   const ls::jobs::Ranks& ranks = ls::jobs::Ranks::world();
   if (ranks.size() == 1) return;
@@ -20,15 +20,15 @@ void check_split_over_ranks(const CLI::App& app, int argc, char** argv) {
     const std::string arg = argv[i];
     if (arg.empty() || arg[0] == '-') continue;
     if (arg == "fit" || arg == "normals" || arg == "build" || arg == "compress" ||
-        arg == "import") {
+        arg == "import" || arg == "relight") {
       return;
     }
     const auto named = [&](const CLI::App* sub) { return sub->get_name() == arg; };
     if (app.get_subcommands(named).empty()) continue;
     throw ls::InputError(
         "'lightstage " + arg + "' runs as one process; under MPI (" + std::to_string(ranks.size()) +
-        " ranks) only 'lightstage fit', 'normals', 'build', 'compress' and 'import' split their "
-        "work over ranks");
+        " ranks) only 'lightstage build', 'import', 'fit', 'normals', 'compress' and 'relight' "
+        "split their work over ranks");
   }
 }
 

@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "app/cli/commands.h"
+#include "app/jobs/ranks.h"
 #include "app/jobs/relight_job.h"
 #include "lightstage/memory.h"
 #include "relight/time/temporal_fit.h"
@@ -13,7 +14,10 @@ namespace ls::cli {
 namespace fs = std::filesystem;
 
 jobs::RelightSummary relight_and_report(const jobs::RelightOptions& options, bool quiet) {
-  jobs::RelightSummary summary = jobs::relight(options, progress_printer(quiet));
+  // Under MPI rank 0 reports and prints; the others are silent.
+  const bool root = jobs::Ranks::world().root();
+  jobs::RelightSummary summary = jobs::relight(options, progress_printer(quiet || !root));
+  if (!root) return summary;
   if (!quiet) {
     for (const std::string& line : summary.edit_reports)
       std::fprintf(stderr, "  %s\n", line.c_str());
@@ -26,8 +30,10 @@ jobs::RelightSummary relight_and_report(const jobs::RelightOptions& options, boo
   std::printf("%zu images in %s; peak memory %.1f MiB\n", summary.images.size(),
               options.out_dir.c_str(), double(peak_resident_bytes()) / (1 << 20));
   if (summary.field_pass_s > 0) {
-    std::printf("field read and relit in %.3f s (%.0f MiB/s of its file)\n", summary.field_pass_s,
+    std::printf("field read and relit in %.3f s (%.0f MiB/s of its file)", summary.field_pass_s,
                 summary.field_file_bytes / (1 << 20) / summary.field_pass_s);
+    if (summary.ranks > 1) std::printf(", its bands split over %d MPI ranks", summary.ranks);
+    std::printf("\n");
   }
   if (!options.temporal_file.empty()) {
     const int extrapolated = summary.extrapolated_pixels;

@@ -7,10 +7,13 @@
 #include <set>
 
 #include "app/jobs/contact_sheet.h"
+#include "app/jobs/fit_bands.h"
+#include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/memory.h"
+#include "lightstage/scratch_file.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
 #include "relight/fit/source_relight.h"
@@ -245,6 +248,52 @@ std::string fit_sources_in_memory(const RelightOptions& options,
   return note;
 }
 
+// Under MPI: each rank relights its bands of rows (round robin) into its outputs and keeps those
+// rows in a spill beside the output folder; rank 0 reads the others' rows into its outputs (and
+// goes on: true). The other ranks return false once their rows are there.
+bool relight_split_over_ranks(const RelightOptions& options, capture::FieldStream& stream,
+                              const Ranks& ranks,
+                              const std::function<void(int y0, int y1)>& relight_rows,
+                              std::vector<Output>& outputs) {
+  const int width = stream.width(), height = stream.height();
+  const int rows = band_rows_for_ranks(height, height, stream.row_alignment(), ranks.size());
+  const fs::path dir = options.out_dir.string() + ".partial";
+  if (ranks.root()) {
+    std::error_code ignored;
+    fs::remove_all(dir, ignored);
+    fs::create_directories(dir);
+  }
+  ranks.barrier();  // The folder is there, empty.
+  ScratchFile spill(dir / "relit.spill",
+                    "the images relit under MPI are gathered through a file beside the output "
+                    "folder: it needs their size free there",
+                    ScratchFile::Lifetime::kKept);
+  const std::size_t row_floats = std::size_t(width) * 3;
+  const auto at = [&](std::size_t o, int y) { return (o * height + std::size_t(y)) * row_floats; };
+  for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
+    const int y1 = std::min(height, y0 + rows);
+    relight_rows(y0, y1);
+    for (std::size_t o = 0; o < outputs.size(); ++o) {
+      spill.write(&outputs[o].relit.pixels[std::size_t(y0) * row_floats],
+                  std::size_t(y1 - y0) * row_floats, at(o, y0));
+    }
+  }
+  spill.sync();
+  ranks.barrier();  // Every rank's rows are in the spill.
+  if (!ranks.root()) return false;
+  for (int b = 0, y0; (y0 = b * rows) < height; ++b) {
+    if (b % ranks.size() == 0) continue;  // Rank 0's own.
+    const int y1 = std::min(height, y0 + rows);
+    for (std::size_t o = 0; o < outputs.size(); ++o) {
+      spill.read(&outputs[o].relit.pixels[std::size_t(y0) * row_floats],
+                 std::size_t(y1 - y0) * row_floats, at(o, y0));
+    }
+  }
+  std::error_code ignored;
+  fs::remove_all(dir, ignored);
+  return true;
+}
+
 // The field relit under every map and rotation, read once a few MiB at a time (FieldStream's rows
 // as the file holds them) whatever its size: each piece is relit under every map before the next
 // is read, into full-size outputs (3 floats per pixel each).
@@ -270,16 +319,25 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   // The field's rows as the file holds them, in pieces of about 8 MiB: relighting sums over each
   // pixel's values, so it needs no pixel-major band (and no memory for one: --memory is moot).
   const auto pass_start = Clock::now();
-  stream.read_rows_planar(0, header.height(), [&](const capture::PlanarRows& rows) {
-    for (Output& out : outputs) {
-      const auto t0 = Clock::now();
-      relight::relight_rows_into(rows, out.lighting.weights.irradiance_rgb, out.relit);
-      out.relight_ms += ms_between(t0, Clock::now());
-    }
-    const int done = rows.first_row + rows.rows;
-    if (done < header.height()) report(progress, "relight (rows)", done, header.height());
-  });
+  const auto relight_rows = [&](int y0, int y1) {
+    stream.read_rows_planar(y0, y1, [&](const capture::PlanarRows& rows) {
+      for (Output& out : outputs) {
+        const auto t0 = Clock::now();
+        relight::relight_rows_into(rows, out.lighting.weights.irradiance_rgb, out.relit);
+        out.relight_ms += ms_between(t0, Clock::now());
+      }
+      const int done = rows.first_row + rows.rows;
+      if (done < header.height()) report(progress, "relight (rows)", done, header.height());
+    });
+  };
+  const Ranks& ranks = Ranks::world();
+  if (ranks.size() == 1) {
+    relight_rows(0, header.height());
+  } else if (!relight_split_over_ranks(options, stream, ranks, relight_rows, outputs)) {
+    return;  // Rank 0 writes the images.
+  }
   summary.field_pass_s = ms_between(pass_start, Clock::now()) / 1e3;
+  summary.ranks = ranks.size();
   summary.field_file_bytes = double(fs::file_size(options.field_file));
   double sources_ms = 0;
   if (!source_leds.empty()) {
@@ -561,6 +619,12 @@ RelightSummary relight(const RelightOptions& options, const ProgressFn& progress
   }
   RelightSummary summary;
   std::string title;
+  const Ranks& ranks = Ranks::world();
+  if (ranks.size() > 1 && (!options.models_file.empty() || !options.temporal_file.empty())) {
+    throw InputError(
+        "relight: under MPI only a field is relit with its bands split over the "
+        "ranks; run --models and --temporal as one process (without mpirun)");
+  }
   if (!options.temporal_file.empty()) {
     relight_temporal(options, summary, progress);
     title = "temporal: " + options.temporal_file.filename().string();
@@ -569,6 +633,7 @@ RelightSummary relight(const RelightOptions& options, const ProgressFn& progress
     title = "models: " + options.models_file.filename().string();
   } else {
     relight_field(options, summary, progress);
+    if (!ranks.root()) return summary;  // Rank 0 writes the images.
     title = "relit: " + options.field_file.filename().string();
   }
   if (!options.edits_file.empty()) title += " + " + options.edits_file.filename().string();

@@ -55,6 +55,7 @@ struct RelightSummary {
   // without the light weights and the writing; and the field file's bytes.
   double field_pass_s = 0.0;
   double field_file_bytes = 0.0;
+  int ranks = 1;  // A field relit under MPI: the processes its bands were split over.
 };
 
 // Throws InputError for bad options (validate()) or inputs, before out_dir is written.
