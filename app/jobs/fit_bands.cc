@@ -13,8 +13,6 @@ namespace ls::jobs {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
 // Rank 0's basis materials on every rank: per material its model, albedo, sigma, k_s, roughness,
 // pixels and scene material, after the dispersion.
 constexpr size_t kMaterialValues = 9;

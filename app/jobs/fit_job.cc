@@ -66,12 +66,6 @@ std::string FitJobOptions::to_json() const {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
 void check(const FitJobOptions& options) {
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("fit: " + problem);

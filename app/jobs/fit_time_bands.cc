@@ -17,12 +17,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
 // A band's checkpoint after its processes (its per-step fits, maps and BICs), or after the curves
 // were offered to it (its maps and the degenerate pixels' step values).
 enum class TimeStage { kProcesses, kCurves };

@@ -1,5 +1,6 @@
 #pragma once
 // What every job shares: progress reporting and the record of the options used.
+#include <chrono>
 #include <functional>
 #include <string>
 
@@ -13,6 +14,11 @@ using ProgressFn =
 inline void report(const ProgressFn& progress, const std::string& phase, long done, long total,
                    const std::string& item = {}) {
   if (progress) progress(phase, done, total, item);
+}
+
+using Clock = std::chrono::steady_clock;
+inline double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
 // EXR header attribute that records the options a job ran with (JSON), so every output says how

@@ -81,8 +81,6 @@ std::string RelightOptions::to_json() const {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
 double ms_between(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
@@ -391,6 +389,27 @@ int map_band_rows(const RelightOptions& options, const ExrLayout& layout,
       std::size_t(layout.height)));
 }
 
+// `band`'s rows into `image` from row y0 on (same width and channels).
+void paste_rows(const Image& band, Image& image, int y0) {
+  std::copy(band.pixels.begin(), band.pixels.end(),
+            image.pixels.begin() + std::ptrdiff_t(y0) * image.width * image.channels);
+}
+
+// Each edit's pixels changed, summed over the bands (`band`: one band's), and the report lines:
+// "FILE: KIND[I] changed N pixels".
+void add_counts(std::vector<int>& total, const std::vector<int>& band) {
+  total.resize(band.size());
+  for (size_t i = 0; i < band.size(); ++i) total[i] += band[i];
+}
+void report_edits(const fs::path& file, const char* kind, const std::vector<int>& counts,
+                  RelightSummary& summary) {
+  for (size_t i = 0; i < counts.size(); ++i) {
+    summary.edit_reports.push_back(file.filename().string() + ": " + kind + "[" +
+                                   std::to_string(i) + "] changed " + std::to_string(counts[i]) +
+                                   " pixels");
+  }
+}
+
 // Rows [y0, y1) of an image.
 Image rows_of(const Image& image, int y0, int y1) {
   Image band(image.width, y1 - y0, image.channels);
@@ -491,9 +510,7 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
     const int y1 = std::min(height, y0 + rows);
     relight::ModelMaps band = relight::read_model_map_rows(options.models_file, y0, y1);
     if (edits) {
-      const std::vector<int> counts = relight::apply_model_edits(*edits, band, y0);
-      edit_counts.resize(counts.size());
-      for (size_t i = 0; i < counts.size(); ++i) edit_counts[i] += counts[i];
+      add_counts(edit_counts, relight::apply_model_edits(*edits, band, y0));
     }
     Image fallback;
     for (ModelOutput& out : outputs) {
@@ -503,18 +520,12 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
         fallback = rows_of(out.fallback, y0, y1);
         render.flagged_fallback = &fallback;
       }
-      const Image relit = relight::render_models(band, out.lighting, render);
-      std::copy(relit.pixels.begin(), relit.pixels.end(),
-                out.relit.pixels.begin() + std::ptrdiff_t(y0) * width * 3);
+      paste_rows(relight::render_models(band, out.lighting, render), out.relit, y0);
       out.render_ms += ms_between(t0, Clock::now());
     }
     if (y1 < height) report(progress, "render models (rows)", y1, height);
   }
-  for (size_t i = 0; i < edit_counts.size(); ++i) {
-    summary.edit_reports.push_back(options.edits_file.filename().string() + ": edits[" +
-                                   std::to_string(i) + "] changed " +
-                                   std::to_string(edit_counts[i]) + " pixels");
-  }
+  report_edits(options.edits_file, "edits", edit_counts, summary);
   RelitWriter writer(options, summary);
   long done = 0;
   for (ModelOutput& out : outputs) {
@@ -582,26 +593,19 @@ void relight_temporal(const RelightOptions& options, RelightSummary& summary,
     summary.first_time_s = band.first_time_s();
     summary.last_time_s = band.last_time_s();
     if (edits) {
-      const std::vector<int> counts = relight::apply_temporal_edits(*edits, transfers, band, y0);
-      edit_counts.resize(counts.size());
-      for (size_t i = 0; i < counts.size(); ++i) edit_counts[i] += counts[i];
+      add_counts(edit_counts, relight::apply_temporal_edits(*edits, transfers, band, y0));
     }
     for (size_t o = 0; o < outputs.size(); ++o) {
       int band_extrapolated = 0;
       const Image relit =
           relight::render_temporal(band, time_s, outputs[o].lighting, {}, &band_extrapolated);
-      std::copy(relit.pixels.begin(), relit.pixels.end(),
-                outputs[o].relit.pixels.begin() + std::ptrdiff_t(y0) * width * 3);
+      paste_rows(relit, outputs[o].relit, y0);
       if (o == 0) extrapolated += band_extrapolated;  // The same pixels under every lighting.
     }
     const int y1 = y0 + band.maps.height;
     if (y1 < height) report(progress, "render at t (rows)", y1, height);
   });
-  for (size_t i = 0; i < edit_counts.size(); ++i) {
-    summary.edit_reports.push_back(options.edits_file.filename().string() + ": time[" +
-                                   std::to_string(i) + "] changed " +
-                                   std::to_string(edit_counts[i]) + " pixels");
-  }
+  report_edits(options.edits_file, "time", edit_counts, summary);
   RelitWriter writer(options, summary);
   long done = 0;
   for (ModelOutput& out : outputs) {
