@@ -40,6 +40,8 @@ class SpillFile {
   void reread(int light, std::vector<float>& rgb);
   // Every LED put so far made durable (before a checkpoint says they are there).
   void sync() { file_.sync(); }
+  // What other processes wrote since it was opened (MPI ranks on other nodes): ScratchFile::reopen.
+  void reopen() { file_.reopen(); }
   // Band b into `band` (resized to the band's rows), pixel-major as the field stores it;
   // `scratch` holds the band as spilled.
   void read_band(int b, std::vector<float>& scratch, ReflectanceField& band);

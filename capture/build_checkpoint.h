@@ -23,6 +23,7 @@ class BuildCheckpoint {
                   const BuildOptions& options);
   // The band height: an earlier run's (its spill is laid out by it), else `proposed`.
   int band_rows(int proposed) const { return dir_.band_rows(proposed); }
+  int recorded_rows() const { return dir_.recorded_rows(); }  // CheckpointDir's.
   std::filesystem::path spill_path() const { return dir_.dir() / "leds.spill"; }
 
   struct Led {

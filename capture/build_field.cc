@@ -110,7 +110,7 @@ class FieldBuild {
     // before the others read it.
     if (split.rank == 0) band_rows = checkpoint.band_rows(band_rows);
     if (split.split()) split.barrier();
-    if (split.rank != 0) band_rows = checkpoint.band_rows(band_rows);
+    if (split.rank != 0) band_rows = checkpoint.recorded_rows();
     SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows,
                     checkpoint.spill_path());
     resume_.emplace(Resume{checkpoint, spill});
@@ -119,6 +119,7 @@ class FieldBuild {
     if (split.split()) {
       split.barrier();  // Every rank's LEDs are in the spill, with their records.
       if (split.rank != 0) return band_rows;
+      spill.reopen();  // Their images as they wrote them (a file system shared between nodes).
       // The other ranks' LEDs, from their records (merged here where one is missing); not
       // counted as resumed.
       const int resumed = resumed_lights_.load();

@@ -218,8 +218,8 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
 class SetImport {
  public:
   using LightSink = std::function<void(int light, const std::vector<float>& rgb)>;
-  // A light an earlier run (or another rank) kept: its image into rgb and its counts restored,
-  // or false (it is read from its file).
+  // A light an earlier run (or another rank) kept: its image into rgb and its counts restored
+  // (not given to the sink: it is where the sink would put it), or false (read from its file).
   using KeptLight = std::function<bool(int light, std::vector<float>& rgb, long long& saturated)>;
   // After a light's image went to the sink (not for kept ones): what a record of it holds.
   using LightDone = std::function<void(int light, long long saturated)>;
@@ -251,6 +251,23 @@ class SetImport {
 
   int num_lights() const { return int(job_.lights.size()); }
   const fs::path& source() const { return job_.source; }
+  // What an import's result depends on beyond the source file and options: every image's (and
+  // the mask's) size and time, and the lights' intensities (a rewritten image is read again).
+  nlohmann::json identity() const {
+    nlohmann::json images = nlohmann::json::array();
+    const auto file = [](const fs::path& path) {
+      std::error_code size_error, time_error;
+      const auto size = fs::file_size(path, size_error);
+      const auto time = fs::last_write_time(path, time_error).time_since_epoch().count();
+      return nlohmann::json{path.string(), size_error ? 0 : size, time_error ? 0 : time};
+    };
+    for (const OlatLight& light : job_.lights) {
+      images.push_back({file(light.image), light.intensity_rgb.x(), light.intensity_rgb.y(),
+                        light.intensity_rgb.z()});
+    }
+    if (!job_.mask_name.empty()) images.push_back(file(job_.mask_name));
+    return images;
+  }
   const ReflectanceField& header() const { return header_; }
   std::string what() const {
     return job_.source.string() + ": reflectance field " + size_text(width_, height_) + " with " +
@@ -271,8 +288,7 @@ class SetImport {
       std::vector<float> rgb;
       long long saturated = 0;
       if (kept && kept(l, rgb, saturated)) {
-        saturated_ += saturated;
-        sink(l, rgb);
+        saturated_ += saturated;  // Already where the sink would put it.
       } else {
         saturated = import_image(job_, l, first_, linearizer, options_, width_, height_,
                                  header_.lights()[size_t(l)], rgb);
@@ -390,11 +406,12 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
     // resumes from the lights it read, and under MPI each rank reads its share of them.
     nlohmann::json identity = nlohmann::json::object();
     for (const auto& [key, value] : attributes) identity[key] = value;
+    identity["images"] = set.identity();
     const CheckpointDir checkpoint(out, input_identity(set.source(), identity.dump()));
     int band_rows = split.rank == 0 ? checkpoint.band_rows(rows) : 0;
     if (split.split())
       split.barrier();  // Rank 0 decided the band height before the others read it.
-    if (split.rank != 0) band_rows = checkpoint.band_rows(rows);
+    if (split.rank != 0) band_rows = checkpoint.recorded_rows();
     SpillFile spill(out, header.width(), header.height(), set.num_lights(), band_rows,
                     checkpoint.dir() / "lights.spill");
     constexpr const char* kMagic = "lightstage import light 1";
@@ -409,6 +426,7 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
       if (!read) return false;
       set.light(l).saturates_at = Eigen::Vector3f(ceiling[0], ceiling[1], ceiling[2]);
       spill.reread(l, rgb);
+      if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
       ++resumed;
       return true;
     };
@@ -427,6 +445,7 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
     if (split.split()) {
       split.barrier();  // Every rank's lights are in the spill, with their records.
       if (split.rank != 0) return band_rows;
+      spill.reopen();  // Their images as they wrote them (a file system shared between nodes).
       // The other ranks' lights, from their records (read here where one is missing).
       const int own = resumed.load();
       set.read_images(

@@ -14,22 +14,39 @@ namespace fs = std::filesystem;
 CheckpointDir::CheckpointDir(const fs::path& out, std::string identity)
     : dir_(out.string() + ".partial"), identity_(std::move(identity)) {}
 
-int CheckpointDir::band_rows(int proposed) const {
-  const fs::path run = dir_ / "run.json";
+namespace {
+
+// The rows run.json records for `identity`, if it does.
+std::optional<int> rows_recorded(const fs::path& dir, const std::string& identity) {
   try {
-    std::ifstream in(run);
+    std::ifstream in(dir / "run.json");
     const nlohmann::json j = nlohmann::json::parse(in);
-    if (j.at("identity").get<std::string>() == identity_) return j.at("rows").get<int>();
-  } catch (const std::exception&) {  // None, unreadable or another run's: start afresh.
+    if (j.at("identity").get<std::string>() == identity) return j.at("rows").get<int>();
+  } catch (const std::exception&) {  // None, unreadable or another run's.
   }
-  remove();
+  return std::nullopt;
+}
+
+}  // namespace
+
+int CheckpointDir::recorded_rows() const {
+  if (const std::optional<int> rows = rows_recorded(dir_, identity_)) return *rows;
+  throw InputError((dir_ / "run.json").string() +
+                   ": not there for this rank, or another run's (does every node see the output's "
+                   "folder, under the same path?)");
+}
+
+int CheckpointDir::band_rows(int proposed) const {
+  if (const std::optional<int> rows = rows_recorded(dir_, identity_)) return *rows;
+  remove();  // None, unreadable or another run's: start afresh.
   std::error_code error;
   fs::create_directories(dir_, error);
   if (error) {
     throw InputError(dir_.string() + ": cannot create the folder that lets a killed run resume (" +
                      error.message() + ")");
   }
-  write_file_atomic(run, nlohmann::json{{"identity", identity_}, {"rows", proposed}}.dump());
+  write_file_atomic(dir_ / "run.json",
+                    nlohmann::json{{"identity", identity_}, {"rows", proposed}}.dump());
   return proposed;
 }
 

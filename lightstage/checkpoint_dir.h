@@ -19,6 +19,10 @@ class CheckpointDir {
   // The band height to run with: an earlier run's with the same identity, so that what it left is
   // reused; otherwise `proposed`, recorded for a later run (an earlier run's contents are dropped).
   int band_rows(int proposed) const;
+  // The band height the folder records for this identity, without touching it (the other ranks
+  // of an MPI run, after rank 0's band_rows): InputError when it records none (an output folder
+  // that every node does not see?).
+  int recorded_rows() const;
   const std::filesystem::path& dir() const { return dir_; }
   // Once the output is written.
   void remove() const;

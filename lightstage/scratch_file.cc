@@ -33,6 +33,12 @@ void ScratchFile::read(float* values, std::size_t count, std::size_t at) {
   transfer(::pread, reinterpret_cast<char*>(values), count, at);
 }
 
+void ScratchFile::reopen() {
+  ::close(fd_);
+  fd_ = ::open(path_.c_str(), O_RDWR | O_CLOEXEC);
+  if (fd_ < 0) fail("cannot open it again");
+}
+
 void ScratchFile::sync() {
   if (::fdatasync(fd_) != 0) fail("making it durable (fdatasync)");
 }

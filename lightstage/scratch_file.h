@@ -27,6 +27,9 @@ class ScratchFile {
   void read(float* values, std::size_t count, std::size_t at);
   // What was written, made durable (fdatasync): before a record that says it is there.
   void sync();
+  // Closed and opened again: on a file system shared between nodes (NFS), what other processes
+  // wrote since is read, not pages this one cached before (close-to-open consistency).
+  void reopen();
   const std::filesystem::path& path() const { return path_; }
 
  private:

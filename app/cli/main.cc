@@ -70,6 +70,12 @@ int run(int argc, char** argv) {
   } catch (const ls::HardwareError& e) {
     std::fprintf(stderr, "hardware error: %s\n", e.what());
     return ls::cli::kExitHardwareError;
+  } catch (const std::exception& e) {  // Not one of ours: said (and, under MPI, ends every rank).
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return ls::cli::kExitInputError;
+  } catch (...) {
+    std::fprintf(stderr, "error: unknown exception\n");
+    return ls::cli::kExitInputError;
   }
   return 0;
 }
@@ -86,7 +92,7 @@ int main(int argc, char** argv) {
   } catch (const ls::InputError& e) {  // Started by mpirun, built without MPI.
     std::fprintf(stderr, "error: %s\n", e.what());
     return 1;
-  } catch (const std::exception& e) {  // Not one of ours: said, not a core dump.
+  } catch (const std::exception& e) {  // From MPI's start or end: said, not a core dump.
     std::fprintf(stderr, "error: %s\n", e.what());
     return ls::cli::kExitInputError;
   } catch (...) {

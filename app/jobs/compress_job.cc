@@ -69,6 +69,10 @@ relight::PcaField pca_in_bands(capture::FieldStream& stream, int rows,
   std::optional<relight::PcaField> pca =
       relight::PcaField::load_basis(basis_file, header, &summary);
   if (!pca) {
+    // Bands projected on another basis (one that could not be read back) are not kept.
+    for (const auto& entry : fs::directory_iterator(checkpoint.dir())) {
+      if (entry.path().filename().string().starts_with("band_")) fs::remove(entry.path());
+    }
     pca = relight::PcaField::build_basis(header, bands, options, &summary);
     pca->save_basis(basis_file, summary);
   }
@@ -191,7 +195,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
       checkpoint.emplace(options.out, input_identity(options.input, options.to_json()));
       std::vector<double> decided = {double(split.rank == 0 ? checkpoint->band_rows(rows) : 0)};
       ranks.broadcast(decided);
-      rows = split.rank == 0 ? int(decided[0]) : checkpoint->band_rows(int(decided[0]));
+      rows = int(decided[0]);
     }
     if (rows >= stream->height() && !split.split()) {
       report(progress, "read", 0, 1, options.input.filename());

@@ -192,7 +192,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   // of what is available); else bands of rows within it.
   const std::size_t budget =
       options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
-  const std::size_t row_bytes = time_band_row_bytes(first, int(steps.size()));
+  const std::size_t row_bytes = time_band_row_bytes(first, int(steps.size()), fit.normal_source);
   const std::size_t whole_bytes =
       std::size_t(height) * (row_bytes + steps.size() * capture::ReflectanceField::bytes_for(
                                                             width, 1, first.header().num_lights()));

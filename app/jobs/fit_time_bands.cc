@@ -263,7 +263,8 @@ void broadcast(const Ranks& ranks, std::vector<relight::TemporalCurves>& curves)
 
 }  // namespace
 
-std::size_t time_band_row_bytes(const capture::FieldStream& step, int steps) {
+std::size_t time_band_row_bytes(const capture::FieldStream& step, int steps,
+                                relight::NormalSource source) {
   const std::size_t width = std::size_t(step.width());
   const std::size_t field_row = width * 3 * std::size_t(step.header().num_lights()) * sizeof(float);
   constexpr int kStepChannels = 2 * relight::kTemporalParamCount + 1 + relight::kRenderedCount;
@@ -272,7 +273,11 @@ std::size_t time_band_row_bytes(const capture::FieldStream& step, int steps) {
           (std::size_t(steps) * kStepChannels + std::size_t(2) * relight::kTemporalChannelCount +
            relight::kMapChannelCount) +
       width * sizeof(double);
-  return field_row * 5 / 4 + fits_row;  // The band, its reader's buffer (a quarter), the fits.
+  // The band, its reader's buffer (a quarter), the fits; pooled normals hold every step's band
+  // and their copy side by side.
+  const std::size_t field_rows =
+      source == relight::NormalSource::kPooled ? 2 * std::size_t(steps) : 1;
+  return field_rows * field_row * 5 / 4 + fits_row;
 }
 
 TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::FieldStream>>& steps,

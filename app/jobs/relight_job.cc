@@ -257,9 +257,14 @@ bool relight_split_over_ranks(const RelightOptions& options, capture::FieldStrea
   const int rows = band_rows_for_ranks(height, height, stream.row_alignment(), ranks.size());
   const fs::path dir = options.out_dir.string() + ".partial";
   if (ranks.root()) {
-    std::error_code ignored;
-    fs::remove_all(dir, ignored);
-    fs::create_directories(dir);
+    std::error_code error;
+    fs::remove_all(dir, error);
+    fs::create_directories(dir, error);
+    if (error) {
+      throw InputError(dir.string() +
+                       ": cannot create the folder the ranks gather their rows in (" +
+                       error.message() + ")");
+    }
   }
   ranks.barrier();  // The folder is there, empty.
   ScratchFile spill(dir / "relit.spill",
@@ -279,6 +284,7 @@ bool relight_split_over_ranks(const RelightOptions& options, capture::FieldStrea
   spill.sync();
   ranks.barrier();  // Every rank's rows are in the spill.
   if (!ranks.root()) return false;
+  spill.reopen();  // Its pages as the others wrote them (a file system shared between nodes).
   for (int b = 0, y0; (y0 = b * rows) < height; ++b) {
     if (b % ranks.size() == 0) continue;  // Rank 0's own.
     const int y1 = std::min(height, y0 + rows);
@@ -384,9 +390,9 @@ int map_band_rows(const RelightOptions& options, const ExrLayout& layout,
   const std::size_t row_bytes =
       std::size_t(layout.width) * layout.channel_names.size() * 2 * sizeof(float);
   const std::size_t may = memory_given(options);
-  return int(std::clamp<std::size_t>(
-      (may > output_bytes ? may - output_bytes : 0) / std::max<std::size_t>(row_bytes, 1), 16,
-      std::size_t(layout.height)));
+  const std::size_t rows =
+      (may > output_bytes ? may - output_bytes : 0) / std::max<std::size_t>(row_bytes, 1);
+  return int(std::min<std::size_t>(std::size_t(layout.height), std::max<std::size_t>(16, rows)));
 }
 
 // `band`'s rows into `image` from row y0 on (same width and channels).

@@ -505,6 +505,7 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
   if (split.split()) {
     split.barrier();  // Every rank's bands are in the spill, with their records.
     if (split.rank != 0) return written;
+    spill.reopen();  // Their rows as they wrote them (a file system shared between nodes).
     for (const auto& [first_row, band_rows] : others) {
       capture::ReflectanceField shell =
           capture::ReflectanceField::without_values(width, band_rows, header.lights());
