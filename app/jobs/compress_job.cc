@@ -54,38 +54,107 @@ bool rti_basis(const std::string& format, relight::RtiFitOptions& options) {
   return true;
 }
 
+// Under MPI each rank finds the grams of its bands (PcaField::band_grams) and keeps them in a
+// record beside the output; rank 0 sums every band's in order (PcaGramBands).
+constexpr const char* kGramsMagic = "lightstage pca band grams 1";
+
+void save_grams(const fs::path& file, const relight::PcaBandGrams& band) {
+  std::vector<RecordBytes> blocks;
+  for (const Eigen::MatrixXd& g : band.grams) {
+    blocks.push_back({g.data(), std::size_t(g.size()) * sizeof(double)});
+  }
+  blocks.push_back({band.positive_sums.data(), band.positive_sums.size() * sizeof(double)});
+  write_record(file, kGramsMagic,
+               {{"first_row", band.first_row},
+                {"grams", band.grams.size()},
+                {"lights", band.grams.empty() ? 0 : band.grams[0].rows()},
+                {"units", band.positive_sums.size()}},
+               blocks);
+}
+
+relight::PcaBandGrams load_grams(const fs::path& file) {
+  relight::PcaBandGrams band;
+  const bool read = read_record(file, kGramsMagic, [&](const nlohmann::json& info) {
+    band.first_row = info.at("first_row").get<int>();
+    const auto lights = info.at("lights").get<Eigen::Index>();
+    band.grams.assign(info.at("grams").get<std::size_t>(), Eigen::MatrixXd(lights, lights));
+    band.positive_sums.resize(info.at("units").get<std::size_t>());
+    std::vector<RecordTarget> targets;
+    for (Eigen::MatrixXd& g : band.grams) {
+      targets.push_back({g.data(), std::size_t(g.size()) * sizeof(double)});
+    }
+    targets.push_back({band.positive_sums.data(), band.positive_sums.size() * sizeof(double)});
+    return std::optional<std::vector<RecordTarget>>{std::move(targets)};
+  });
+  if (!read) {
+    throw InputError(file.string() + ": a band's Gram matrices are missing (did its rank fail?)");
+  }
+  return band;
+}
+
 // A PCA in bands, never holding its coefficients: the basis from the passes over the bands (kept
 // in the checkpoint: a rerun skips those passes), then each band's coefficients into a spill
 // beside the output (kept, with a record per band: a rerun projects only the bands not there),
-// then the file written from the spill. Returns the basis; `resumed_rows`: the rows a killed run
-// had projected.
+// then the file written from the spill. Under MPI every rank makes the grams and coefficients of
+// its own bands; rank 0 finds the basis and writes the file (the others return once their bands
+// are in). Returns the basis; `resumed_rows`: the rows a killed run had projected.
 relight::PcaField pca_in_bands(capture::FieldStream& stream, int rows,
                                const capture::FieldBands& bands, const relight::PcaOptions& options,
                                const CheckpointDir& checkpoint, const fs::path& out,
-                               const ProgressFn& progress, relight::PcaSummary& summary,
-                               int& resumed_rows) {
+                               const ProgressFn& progress, const Ranks& ranks,
+                               relight::PcaSummary& summary, int& resumed_rows) {
   const capture::ReflectanceField& header = stream.header();
+  const int height = header.height();
   const fs::path basis_file = checkpoint.dir() / "basis.record";
-  std::optional<relight::PcaField> pca =
-      relight::PcaField::load_basis(basis_file, header, &summary);
-  if (!pca) {
+  const auto band_file = [&](const char* kind, int y0) {
+    return checkpoint.dir() / (kind + std::to_string(y0));
+  };
+  std::optional<relight::PcaField> pca;
+  if (ranks.root()) pca = relight::PcaField::load_basis(basis_file, header, &summary);
+  std::vector<double> have = {double(pca.has_value())};
+  if (ranks.root() && !pca) {
     // Bands projected on another basis (one that could not be read back) are not kept.
     for (const auto& entry : fs::directory_iterator(checkpoint.dir())) {
       if (entry.path().filename().string().starts_with("band_")) fs::remove(entry.path());
     }
+  }
+  ranks.broadcast(have);  // After rank 0 cleared what the others will write again.
+  capture::ReflectanceField band;
+  if (have[0] == 0 && ranks.size() == 1) {
     pca = relight::PcaField::build_basis(header, bands, options, &summary);
     pca->save_basis(basis_file, summary);
+  } else if (have[0] == 0) {
+    if (options.rank_rule == relight::PcaRankRule::kHeldOutLights) {
+      throw InputError(
+          "compress: the held-out rank rule reads the whole field on one process: "
+          "run it without mpirun");
+    }
+    for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
+      stream.read_rows(y0, std::min(height, y0 + rows), band);
+      save_grams(band_file("grams_", y0), relight::PcaField::band_grams(band, options.tile_size));
+    }
+    ranks.barrier();  // Every band's grams are in their records.
+    if (ranks.root()) {
+      const relight::PcaGramBands grams =
+          [&](const std::function<void(const relight::PcaBandGrams&)>& visit) {
+            for (int y0 = 0; y0 < height; y0 += rows) visit(load_grams(band_file("grams_", y0)));
+          };
+      pca = relight::PcaField::build_basis(header, grams, bands, options, &summary);
+      pca->save_basis(basis_file, summary);
+    }
   }
+  ranks.barrier();  // The basis is in its record.
+  if (!pca) pca = relight::PcaField::load_basis(basis_file, header, nullptr);
+  if (!pca) throw InputError(basis_file.string() + ": rank 0's basis cannot be read here");
   const std::size_t row_floats = pca->coefficients_per_row();
   ScratchFile spill(checkpoint.dir() / "coefficients.spill",
                     "the coefficients of a field compressed in bands are spilled beside the "
                     "output: they need its size free there",
                     ScratchFile::Lifetime::kKept);
-  capture::ReflectanceField band;
   std::vector<float> coefs;
-  for (int y0 = 0; y0 < header.height(); y0 += rows) {
-    const int y1 = std::min(header.height(), y0 + rows);
-    const fs::path record = checkpoint.dir() / ("band_" + std::to_string(y0));
+  for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
+    const int y1 = std::min(height, y0 + rows);
+    const fs::path record = band_file("band_", y0);
     const bool resumed = fs::exists(record);
     if (resumed) {
       resumed_rows += y1 - y0;
@@ -97,8 +166,11 @@ relight::PcaField pca_in_bands(capture::FieldStream& stream, int rows,
       spill.sync();  // The rows are there before their record says so.
       write_file_atomic(record, "");
     }
-    report(progress, "coefficients (rows)", y1, header.height(), resumed ? "resumed" : "");
+    report(progress, "coefficients (rows)", y1, height, resumed ? "resumed" : "");
   }
+  ranks.barrier();  // Every band's coefficients are in the spill.
+  if (!ranks.root()) return *std::move(pca);
+  spill.reopen();  // The others' rows as they wrote them (a file system shared between nodes).
   pca->write(out,
              [&](int y, float* row) { spill.read(row, row_floats, std::size_t(y) * row_floats); });
   return *std::move(pca);
@@ -159,15 +231,13 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   // The field: an .lp set imported whole; an EXR in bands of rows when it is larger than the
   // memory for it (whole PCA tiles or Gram sub-bands per band: the same bytes as in memory).
   const std::string ext = options.input.extension().string();
-  // Under MPI the RTI fits split their bands over the ranks; the other formats run as one
-  // process (an .lp set is imported whole; a PCA's basis sums one Gram matrix over the field in
-  // order, which split sums would not give bit for bit).
+  // Under MPI a field's bands are split over the ranks (an .lp set is imported whole: it runs as
+  // one process).
   const Ranks& ranks = Ranks::world();
-  if (ranks.size() > 1 &&
-      (options.format == "pca" || ext == ".lp" || fs::is_directory(options.input))) {
+  if (ranks.size() > 1 && (ext == ".lp" || fs::is_directory(options.input))) {
     throw InputError(
-        "compress: under MPI only a field EXR to .ptm or .rti splits its bands over "
-        "the ranks; run --format pca, and .lp sets, as one process (without mpirun)");
+        "compress: under MPI only a field EXR splits its bands over the ranks; "
+        "compress .lp sets as one process (without mpirun), or import them first");
   }
   const RankSplit split{ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }};
   capture::ReflectanceField whole;
@@ -235,7 +305,9 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
     relight::PcaField pca;
     if (rows > 0) {
       pca = pca_in_bands(*stream, rows, bands, pca_options, *checkpoint, options.out, progress,
-                         pca_summary, summary.resumed_rows);
+                         ranks, pca_summary, summary.resumed_rows);
+      summary.ranks = ranks.size();
+      if (!ranks.root()) return summary;  // Rank 0 wrote the file.
       checkpoint->remove();
     } else {
       pca = relight::PcaField::build(header, bands, pca_options, &pca_summary);

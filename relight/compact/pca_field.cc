@@ -197,37 +197,63 @@ namespace {
 // 4096 pixels, a power of two so that bands of a tiled file's tile rows hold whole sub-bands.
 int gram_rows(int width) { return int(std::bit_floor(unsigned(std::max(1, 4096 / width)))); }
 
-// Gram matrices per tile of tile_size pixels (0: one, summed over sub-bands of gram_rows), added
-// band by band (each band whole tile rows or whole sub-bands: PcaField::band_alignment), and the
-// sum of the positive values (for the noise floor).
+// The positive values of rows [y0, y1) of a band, summed in order (the noise floor's).
+double positive_sum_of(const capture::ReflectanceField& band, int y0, int y1) {
+  double sum = 0;
+  const std::size_t row = std::size_t(band.width()) * 3 * band.num_lights();
+  for (std::size_t i = std::size_t(y0) * row; i < std::size_t(y1) * row; ++i) {
+    const float v = band.values()[i];
+    sum += v > 0 ? v : 0;
+  }
+  return sum;
+}
+
+}  // namespace
+
+PcaBandGrams PcaField::band_grams(const capture::ReflectanceField& band, int tile_size) {
+  const int width = band.width(), height = band.frame_height(), y0 = band.first_row();
+  const int y1 = y0 + band.height();
+  const bool tiles = tile_size > 0 && tile_size < std::max(width, height);
+  const int unit = tiles ? tile_size : gram_rows(width);  // Rows of a sub-band or tile row.
+  const int units = (band.height() + unit - 1) / unit;
+  PcaBandGrams out;
+  out.first_row = y0;
+  const int tiles_x = tiles ? (width + tile_size - 1) / tile_size : 1;
+  out.grams.resize(std::size_t(units) * tiles_x);
+  out.positive_sums.resize(std::size_t(units));
+  tbb::parallel_for(0, int(out.grams.size()), [&](int g) {
+    const int u = g / tiles_x, x0 = (g % tiles_x) * tile_size * tiles;
+    const int x1 = tiles ? std::min(width, x0 + tile_size) : width;
+    out.grams[std::size_t(g)] =
+        gram_of_rect(band, x0, u * unit, x1, std::min(y1 - y0, (u + 1) * unit));
+  });
+  for (int u = 0; u < units; ++u) {
+    out.positive_sums[std::size_t(u)] =
+        positive_sum_of(band, u * unit, std::min(y1 - y0, (u + 1) * unit));
+  }
+  return out;
+}
+
+namespace {
+
+// Gram matrices per tile of tile_size pixels (0: one, the sum of every sub-band's in order) from
+// every band's grams, in band order, and the sum of the positive values (for the noise floor).
 std::vector<Eigen::MatrixXd> tile_gram_matrices(const capture::ReflectanceField& header,
-                                                const capture::FieldBands& bands, int tile_size,
+                                                const PcaGramBands& grams, int tile_size,
                                                 int tiles_x, int tiles_y, double* positive_sum) {
-  const int width = header.width(), height = header.height(), num_lights = header.num_lights();
+  const int num_lights = header.num_lights();
   std::vector<Eigen::MatrixXd> tile_grams(size_t(tiles_x) * tiles_y);
   if (tile_size == 0) tile_grams[0] = Eigen::MatrixXd::Zero(num_lights, num_lights);
   *positive_sum = 0;
-  bands([&](const capture::ReflectanceField& band) {
-    const int y0 = band.first_row(), y1 = y0 + band.height();
+  grams([&](const PcaBandGrams& band) {
     if (tile_size > 0) {
-      const int row0 = y0 / tile_size, rows = (y1 - y0 + tile_size - 1) / tile_size;
-      tbb::parallel_for(row0 * tiles_x, (row0 + rows) * tiles_x, [&](int t) {
-        const int x0 = (t % tiles_x) * tile_size, ty0 = (t / tiles_x) * tile_size;
-        tile_grams[size_t(t)] = gram_of_rect(band, x0, ty0 - y0, std::min(width, x0 + tile_size),
-                                             std::min(height, ty0 + tile_size) - y0);
-      });
+      const size_t first = size_t(band.first_row / tile_size) * tiles_x;
+      for (size_t g = 0; g < band.grams.size(); ++g) tile_grams[first + g] = band.grams[g];
     } else {
-      const int sub = gram_rows(width);
-      const int subs = (band.height() + sub - 1) / sub;
-      std::vector<Eigen::MatrixXd> sub_grams(static_cast<size_t>(subs));
-      tbb::parallel_for(0, subs, [&](int b) {
-        sub_grams[size_t(b)] =
-            gram_of_rect(band, 0, b * sub, width, std::min(band.height(), (b + 1) * sub));
-      });
-      for (const auto& g : sub_grams) tile_grams[0] += g;
+      for (const auto& g : band.grams) tile_grams[0] += g;
     }
     if (header.noise.measured) {
-      for (float v : band.values()) *positive_sum += v > 0 ? v : 0;
+      for (const double p : band.positive_sums) *positive_sum += p;
     }
   });
   return tile_grams;
@@ -335,6 +361,18 @@ void PcaField::project_band(const capture::ReflectanceField& band, float* coefs)
 PcaField PcaField::build_basis(const capture::ReflectanceField& field,
                                const capture::FieldBands& bands, const PcaOptions& options,
                                PcaSummary* summary) {
+  const int tile_size = options.tile_size;
+  return build_basis(
+      field,
+      [&](const std::function<void(const PcaBandGrams&)>& visit) {
+        bands([&](const capture::ReflectanceField& band) { visit(band_grams(band, tile_size)); });
+      },
+      bands, options, summary);
+}
+
+PcaField PcaField::build_basis(const capture::ReflectanceField& field, const PcaGramBands& grams,
+                               const capture::FieldBands& bands, const PcaOptions& options,
+                               PcaSummary* summary) {
   const auto t0 = std::chrono::steady_clock::now();
   if (const std::string e = options.validate(); !e.empty()) {
     throw InputError(field.source + ": PCA options: " + e);
@@ -361,7 +399,7 @@ PcaField PcaField::build_basis(const capture::ReflectanceField& field,
   const int ty = out.tile_size_ > 0 ? (height + out.tile_size_ - 1) / out.tile_size_ : 1;
   double positive_sum = 0;
   const std::vector<Eigen::MatrixXd> tile_grams =
-      tile_gram_matrices(field, bands, out.tile_size_, tx, ty, &positive_sum);
+      tile_gram_matrices(field, grams, out.tile_size_, tx, ty, &positive_sum);
   Eigen::MatrixXd global_gram = Eigen::MatrixXd::Zero(num_lights, num_lights);
   for (const auto& g : tile_grams) global_gram += g;
   const Spectrum global = eigen_descending(global_gram);

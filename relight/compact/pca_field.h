@@ -138,6 +138,18 @@ struct PcaSummary {
   std::string to_string() const;
 };
 
+// One band's share of the pass that finds a PCA's basis: in a global basis the Gram matrix of
+// each of its sub-bands (PcaField::band_alignment rows), in tiles those of its tiles (whole tile
+// rows, row-major); and the sum of its positive values per sub-band or tile row (the noise floor).
+// Summed in band order they give the whole field's, whichever process made each band's (MPI).
+struct PcaBandGrams {
+  int first_row = 0;
+  std::vector<Eigen::MatrixXd> grams;
+  std::vector<double> positive_sums;
+};
+// Visits every band's grams in order.
+using PcaGramBands = std::function<void(const std::function<void(const PcaBandGrams&)>&)>;
+
 class PcaField : public CompactField {
  public:
   PcaField() = default;
@@ -156,6 +168,14 @@ class PcaField : public CompactField {
   static PcaField build_basis(const capture::ReflectanceField& header,
                               const capture::FieldBands& bands, const PcaOptions& options,
                               PcaSummary* summary = nullptr);
+  // The same from every band's grams (made by this process or others); `bands` is read only for
+  // the held-out rank rule.
+  static PcaField build_basis(const capture::ReflectanceField& header, const PcaGramBands& grams,
+                              const capture::FieldBands& bands, const PcaOptions& options,
+                              PcaSummary* summary = nullptr);
+  // A band's grams: the band (rows of a field, whole sub-bands or tile rows as band_alignment
+  // gives them) and the tile size asked (PcaOptions::tile_size).
+  static PcaBandGrams band_grams(const capture::ReflectanceField& band, int tile_size);
   // The coefficients of a band's pixels, row-major (coefficients_per_row() floats a row), as
   // build() computes them.
   void project_band(const capture::ReflectanceField& band, float* coefs) const;
