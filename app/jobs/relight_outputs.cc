@@ -1,0 +1,77 @@
+#include "app/jobs/relight_outputs.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <utility>
+
+#include "lightstage/memory.h"
+
+namespace ls::jobs {
+
+namespace fs = std::filesystem;
+
+double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+std::string output_name(const fs::path& map_path, double rotation, bool several_rotations,
+                        std::set<std::string>& used_names) {
+  std::string name = map_path.stem().string();
+  if (used_names.count(name)) name = map_path.parent_path().filename().string() + "_" + name;
+  if (several_rotations || rotation != 0.0) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "_rot%03d", int(std::lround(rotation)));
+    name += buf;
+  }
+  used_names.insert(name);
+  return name;
+}
+
+// A preview is exposed by its own highlights (auto_exposure_stops), but never more than
+// kDarkSceneStops brighter than a white Lambertian surface that all of the light reaches at normal
+// incidence (radiance sum E / pi at 0.9): a scene that a map leaves dark (lit from behind the
+// backdrop) reads as dark, not as its noise amplified to full scale.
+constexpr double kDarkSceneStops = 2;
+
+double preview_exposure(const Image& relit, double light_luma) {
+  const double own = auto_exposure_stops(relit);
+  if (!(light_luma > 0) || !std::isfinite(light_luma)) return own;
+  return std::min(own, -std::log2(light_luma / M_PI / 0.9) + kDarkSceneStops);
+}
+
+double luma(const Eigen::Vector3d& rgb) {
+  return 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
+}
+
+double total_luma(const std::vector<Eigen::Vector3f>& irradiance_rgb) {
+  double sum = 0;
+  for (const Eigen::Vector3f& e : irradiance_rgb) sum += luma(e.cast<double>());
+  return sum;
+}
+
+// RGB triplets, one per light (LightWeights::irradiance_rgb).
+double total_luma(const std::vector<float>& irradiance_rgb) {
+  double sum = 0;
+  for (size_t i = 0; i + 2 < irradiance_rgb.size(); i += 3) {
+    sum += luma(Eigen::Vector3d(irradiance_rgb[i], irradiance_rgb[i + 1], irradiance_rgb[i + 2]));
+  }
+  return sum;
+}
+
+FieldLights field_lights(const capture::ReflectanceField& field) {
+  FieldLights out;
+  for (const auto& light : field.lights()) {
+    out.dirs.push_back(light.dir_in_stage);
+    out.valid.push_back(light.valid);
+  }
+  return out;
+}
+
+double coverage_rad(const RelightOptions& options) { return options.coverage_deg * M_PI / 180.0; }
+
+std::size_t memory_given(const RelightOptions& options) {
+  return options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
+}
+
+}  // namespace ls::jobs

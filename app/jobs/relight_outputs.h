@@ -1,0 +1,101 @@
+#pragma once
+// What lightstage relight's renders share (app/jobs/relight_job.cc: fields; relight_models.cc:
+// fitted and time-varying models): the maps and rotations in output order, the writer of the
+// images, the field's lights and the memory the run may hold. Internal to the jobs library.
+#include <Eigen/Core>
+#include <chrono>
+#include <filesystem>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "app/jobs/job.h"
+#include "app/jobs/relight_job.h"
+#include "capture/field.h"
+#include "lightstage/image.h"
+#include "relight/lighting/envmap.h"
+
+namespace ls::jobs {
+
+double ms_between(Clock::time_point a, Clock::time_point b);
+
+// Output name of a map and rotation: the map's stem, its folder when two maps share a stem, and
+// the rotation when there is one.
+std::string output_name(const std::filesystem::path& map_path, double rotation,
+                        bool several_rotations, std::set<std::string>& used_names);
+
+// Walks the maps and rotations in output order, loading each map once.
+class MapRotations {
+ public:
+  // Every map is read once here, so that a bad one stops the run before any image is written.
+  explicit MapRotations(const RelightOptions& options) : options_(options) {
+    for (const std::filesystem::path& map_path : options_.maps)
+      relight::EnvironmentMap::load(map_path);
+  }
+  long count() const { return long(options_.maps.size() * options_.rotations_deg.size()); }
+  template <typename Fn>  // fn(map, rotation_deg, output name)
+  void for_each(Fn&& fn) {
+    for (const std::filesystem::path& map_path : options_.maps) {
+      const relight::EnvironmentMap map = relight::EnvironmentMap::load(map_path);
+      for (double rotation : options_.rotations_deg) {
+        fn(map, rotation,
+           output_name(map_path, rotation, options_.rotations_deg.size() > 1, used_names_));
+      }
+    }
+  }
+
+ private:
+  const RelightOptions& options_;
+  std::set<std::string> used_names_;  // Maps from different folders may share a file name.
+};
+
+// The PNG preview's exposure (preview_exposure in relight_outputs.cc), and the luminance of a
+// lighting's irradiance (per light, at normal incidence).
+double preview_exposure(const Image& relit, double light_luma);
+double luma(const Eigen::Vector3d& rgb);  // Rec. 709.
+double total_luma(const std::vector<Eigen::Vector3f>& irradiance_rgb);
+double total_luma(const std::vector<float>& irradiance_rgb);  // RGB triplets, one per light.
+
+class RelitWriter {
+ public:
+  RelitWriter(const RelightOptions& options, RelightSummary& summary)
+      : options_(options), summary_(summary), attributes_{{kOptionsAttribute, options.to_json()}} {}
+  // The output directory is made with the first image: a run that fails before leaves none.
+  // light_luma: the lighting's total irradiance (luminance, at normal incidence), for the PNG's
+  // exposure (preview_exposure); 0 when unknown.
+  void write(const std::string& name, Image& relit, std::string detail = {},
+             double light_luma = 0) {
+    std::filesystem::create_directories(options_.out_dir);
+    relit.channel_names = {"R", "G", "B"};
+    RelitImage out{options_.out_dir / (name + ".exr"), options_.out_dir / (name + ".png"), name,
+                   std::move(detail)};
+    write_exr(out.exr, relit, ExrPixelType::kFloat, attributes_);
+    write_png_preview(out.png, relit,
+                      options_.exposure_stops.value_or(preview_exposure(relit, light_luma)));
+    summary_.images.push_back(std::move(out));
+  }
+
+ private:
+  const RelightOptions& options_;
+  RelightSummary& summary_;
+  ExrAttributes attributes_;
+};
+
+struct FieldLights {
+  std::vector<Eigen::Vector3d> dirs;
+  std::vector<bool> valid;
+};
+FieldLights field_lights(const capture::ReflectanceField& field);
+double coverage_rad(const RelightOptions& options);
+// What the run may hold: options.memory_bytes, or (0) half of the memory available.
+std::size_t memory_given(const RelightOptions& options);
+
+// The fitted models (relight --models) and the time-varying ones (--temporal), rendered a band
+// of maps at a time (relight_models.cc).
+void relight_models(const RelightOptions& options, RelightSummary& summary,
+                    const ProgressFn& progress);
+void relight_temporal(const RelightOptions& options, RelightSummary& summary,
+                      const ProgressFn& progress);
+
+}  // namespace ls::jobs
