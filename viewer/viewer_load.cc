@@ -141,8 +141,25 @@ void ViewerApp::Impl::load() {
     }
     capture::BuildOptions options;
     options.time_step = state.time_step;
-    field = capture::build_field(session, options);
-    field_note.clear();
+    const CameraSpec& camera = session.stage().camera;
+    const std::size_t budget =
+        state.memory_bytes > 0 ? state.memory_bytes : available_memory_bytes() / 2;
+    if (capture::ReflectanceField::bytes_for(camera.width, camera.height,
+                                             int(session.stage().leds.size())) <= budget) {
+      field = capture::build_field(session, options);
+      field_note.clear();
+    } else {
+      // Larger than the budget: built in bands into a file beside the session (as `lightstage
+      // build` does), opened reduced (read_field_within says so), then removed.
+      const fs::path file = state.session_dir.string() + ".view_t" +
+                            std::to_string(state.time_step) + ".exr";
+      options.memory_bytes = budget;
+      capture::build_field_file(session, options, file, {});
+      capture::ReflectanceField reduced = read_field_within(file, state.memory_bytes);
+      field = std::move(reduced);
+      std::error_code ignored;
+      fs::remove(file, ignored);
+    }
     loaded_session = state.session_dir;
     loaded_time_step = state.time_step;
     loaded_field.clear();

@@ -528,6 +528,17 @@ TEST_F(ViewerApp_, ASessionWithTimeStepsIsBuiltPerStep) {
   // A step the session does not have is bad input, and the view stays at step 1.
   EXPECT_THROW(app.apply(parse_one(R"({"action": "time", "step": 2})")), InputError);
   EXPECT_EQ(app.state().time_step, 1);
+  // A session whose field is over the memory budget is built in bands into a file beside it,
+  // opened reduced (and says so), and the file removed.
+  state.memory_bytes = field.bytes() / 2;
+  ViewerApp& reduced = fresh_app(state);
+  reduced.handle_drop({session_dir.string()});
+  ASSERT_EQ(reduced.error_message(), "");
+  reduced.frame();
+  EXPECT_NE(reduced.field_note().find("1/2 resolution"), std::string::npos)
+      << reduced.field_note();
+  EXPECT_EQ(reduced.relit_image().width, 12);
+  EXPECT_FALSE(fs::exists(session_dir.string() + ".view_t0.exr"));
 }
 
 TEST_F(ViewerApp_, ViewCommandRunsAScriptAndSavesAScreenshot) {
