@@ -14,7 +14,6 @@
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/memory.h"
-#include "lightstage/scratch_file.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
 #include "relight/fit/source_relight.h"
@@ -129,58 +128,6 @@ std::string fit_sources_in_memory(const RelightOptions& options,
   return note;
 }
 
-// Under MPI: each rank relights its bands of rows (round robin) into its outputs and keeps those
-// rows in a spill beside the output folder; rank 0 reads the others' rows into its outputs (and
-// goes on: true). The other ranks return false once their rows are there.
-bool relight_split_over_ranks(const RelightOptions& options, capture::FieldStream& stream,
-                              const Ranks& ranks,
-                              const std::function<void(int y0, int y1)>& relight_rows,
-                              std::vector<Output>& outputs) {
-  const int width = stream.width(), height = stream.height();
-  const int rows = band_rows_for_ranks(height, height, stream.row_alignment(), ranks.size());
-  const fs::path dir = options.out_dir.string() + ".partial";
-  if (ranks.root()) {
-    std::error_code error;
-    fs::remove_all(dir, error);
-    fs::create_directories(dir, error);
-    if (error) {
-      throw InputError(dir.string() +
-                       ": cannot create the folder the ranks gather their rows in (" +
-                       error.message() + ")");
-    }
-  }
-  ranks.barrier();  // The folder is there, empty.
-  ScratchFile spill(dir / "relit.spill",
-                    "the images relit under MPI are gathered through a file beside the output "
-                    "folder: it needs their size free there",
-                    ScratchFile::Lifetime::kKept);
-  const std::size_t row_floats = std::size_t(width) * 3;
-  const auto at = [&](std::size_t o, int y) { return (o * height + std::size_t(y)) * row_floats; };
-  for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
-    const int y1 = std::min(height, y0 + rows);
-    relight_rows(y0, y1);
-    for (std::size_t o = 0; o < outputs.size(); ++o) {
-      spill.write(&outputs[o].relit.pixels[std::size_t(y0) * row_floats],
-                  std::size_t(y1 - y0) * row_floats, at(o, y0));
-    }
-  }
-  spill.sync();
-  ranks.barrier();  // Every rank's rows are in the spill.
-  if (!ranks.root()) return false;
-  spill.reopen();  // Its pages as the others wrote them (a file system shared between nodes).
-  for (int b = 0, y0; (y0 = b * rows) < height; ++b) {
-    if (b % ranks.size() == 0) continue;  // Rank 0's own.
-    const int y1 = std::min(height, y0 + rows);
-    for (std::size_t o = 0; o < outputs.size(); ++o) {
-      spill.read(&outputs[o].relit.pixels[std::size_t(y0) * row_floats],
-                 std::size_t(y1 - y0) * row_floats, at(o, y0));
-    }
-  }
-  std::error_code ignored;
-  fs::remove_all(dir, ignored);
-  return true;
-}
-
 // The field relit under every map and rotation, read once a few MiB at a time (FieldStream's rows
 // as the file holds them) whatever its size: each piece is relit under every map before the next
 // is read, into full-size outputs (3 floats per pixel each).
@@ -220,8 +167,17 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   const Ranks& ranks = Ranks::world();
   if (ranks.size() == 1) {
     relight_rows(0, header.height());
-  } else if (!relight_split_over_ranks(options, stream, ranks, relight_rows, outputs)) {
-    return;  // Rank 0 writes the images.
+  } else {
+    // Each rank relights its bands (round robin); rank 0 gathers the others' rows.
+    const int rows =
+        band_rows_for_ranks(header.height(), header.height(), stream.row_alignment(), ranks.size());
+    for (int b = ranks.rank(), y0; (y0 = b * rows) < header.height(); b += ranks.size()) {
+      relight_rows(y0, std::min(header.height(), y0 + rows));
+    }
+    std::vector<Image*> images;
+    for (Output& out : outputs) images.push_back(&out.relit);
+    std::vector<long> no_counts;
+    if (!gather_rows_over_ranks(options, ranks, rows, images, no_counts)) return;
   }
   summary.field_pass_s = ms_between(pass_start, Clock::now()) / 1e3;
   summary.ranks = ranks.size();
@@ -275,11 +231,6 @@ RelightSummary relight(const RelightOptions& options, const ProgressFn& progress
   RelightSummary summary;
   std::string title;
   const Ranks& ranks = Ranks::world();
-  if (ranks.size() > 1 && (!options.models_file.empty() || !options.temporal_file.empty())) {
-    throw InputError(
-        "relight: under MPI only a field is relit with its bands split over the "
-        "ranks; run --models and --temporal as one process (without mpirun)");
-  }
   if (!options.temporal_file.empty()) {
     relight_temporal(options, summary, progress);
     title = "temporal: " + options.temporal_file.filename().string();
@@ -288,9 +239,9 @@ RelightSummary relight(const RelightOptions& options, const ProgressFn& progress
     title = "models: " + options.models_file.filename().string();
   } else {
     relight_field(options, summary, progress);
-    if (!ranks.root()) return summary;  // Rank 0 writes the images.
     title = "relit: " + options.field_file.filename().string();
   }
+  if (!ranks.root()) return summary;  // Under MPI rank 0 wrote the images.
   if (!options.edits_file.empty()) title += " + " + options.edits_file.filename().string();
   std::vector<Preview> previews;
   for (const RelitImage& image : summary.images) previews.push_back({image.png, image.label});

@@ -5,6 +5,7 @@
 #include <functional>
 #include <optional>
 
+#include "app/jobs/fit_bands.h"
 #include "app/jobs/relight_outputs.h"
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
@@ -60,6 +61,37 @@ Image rows_of(const Image& image, int y0, int y1) {
   std::copy_n(image.pixels.begin() + std::ptrdiff_t(y0 * row), (y1 - y0) * row,
               band.pixels.begin());
   return band;
+}
+
+// The band height under MPI: at most a band per rank four times over (fit_bands.h), so that
+// every rank renders some.
+int split_rows(int rows, int height, const Ranks& ranks) {
+  return ranks.size() > 1 ? std::min(rows, band_rows_for_ranks(height, height, 1, ranks.size()))
+                          : rows;
+}
+
+// The bands of `rows` rows this process renders: every band, or under MPI its own (round robin).
+template <class Fn>
+void for_own_bands(const Ranks& ranks, int height, int rows, Fn&& render) {
+  for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
+    render(y0, std::min(height, y0 + rows));
+  }
+}
+
+// Under MPI the outputs' rows and the counts (each edit's pixels, then `extra`) gathered on rank
+// 0 (gather_rows_over_ranks); true on rank 0 (and without MPI), false on the others.
+template <class Outputs>
+bool gathered(const RelightOptions& options, const Ranks& ranks, int rows, Outputs& outputs,
+              std::vector<int>& edit_counts, int* extra = nullptr) {
+  if (ranks.size() == 1) return true;
+  std::vector<Image*> images;
+  for (auto& out : outputs) images.push_back(&out.relit);
+  std::vector<long> counts(edit_counts.begin(), edit_counts.end());
+  if (extra) counts.push_back(*extra);
+  if (!gather_rows_over_ranks(options, ranks, rows, images, counts)) return false;
+  std::copy_n(counts.begin(), edit_counts.size(), edit_counts.begin());
+  if (extra) *extra = int(counts.back());
+  return true;
 }
 
 // One render of the models: its lighting, the field relit under it for the flagged pixels (when
@@ -134,25 +166,27 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
                   field ? " within the dome; field for flagged pixels" : " over the sphere");
     out.lights_note = note;
   });
-  if (field) {
-    field->read_rows_planar(0, height, [&](const capture::PlanarRows& rows) {
-      for (ModelOutput& out : outputs) {
-        if (!out.field_irradiance_rgb.empty()) {
-          relight::relight_rows_into(rows, out.field_irradiance_rgb, out.fallback);
-        }
-      }
-    });
-  }
   std::size_t output_bytes = 0;
   for (ModelOutput& out : outputs) {
     out.relit = Image(width, height, 3);
     output_bytes += (out.relit.pixels.size() + out.fallback.pixels.size()) * sizeof(float);
   }
-  const int rows = map_band_rows(options, layout, output_bytes);
-  std::vector<int> edit_counts;
+  const Ranks& ranks = Ranks::world();
+  const int rows = split_rows(map_band_rows(options, layout, output_bytes), height, ranks);
+  if (field) {  // The field under every map for the flagged pixels of this process's bands.
+    for_own_bands(ranks, height, ranks.size() > 1 ? rows : height, [&](int y0, int y1) {
+      field->read_rows_planar(y0, y1, [&](const capture::PlanarRows& piece) {
+        for (ModelOutput& out : outputs) {
+          if (!out.field_irradiance_rgb.empty()) {
+            relight::relight_rows_into(piece, out.field_irradiance_rgb, out.fallback);
+          }
+        }
+      });
+    });
+  }
+  std::vector<int> edit_counts(edits ? edits->edits.size() : 0, 0);
   relight::ModelRenderOptions render;
-  for (int y0 = 0; y0 < height; y0 += rows) {
-    const int y1 = std::min(height, y0 + rows);
+  for_own_bands(ranks, height, rows, [&](int y0, int y1) {
     relight::ModelMaps band = relight::read_model_map_rows(options.models_file, y0, y1);
     if (edits) {
       add_counts(edit_counts, relight::apply_model_edits(*edits, band, y0));
@@ -169,7 +203,9 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
       out.render_ms += ms_between(t0, Clock::now());
     }
     if (y1 < height) report(progress, "render models (rows)", y1, height);
-  }
+  });
+  if (!gathered(options, ranks, rows, outputs, edit_counts)) return;  // Rank 0 writes.
+  summary.ranks = ranks.size();
   report_edits(options.edits_file, "edits", edit_counts, summary);
   RelitWriter writer(options, summary);
   long done = 0;
@@ -217,7 +253,8 @@ void relight_temporal(const RelightOptions& options, RelightSummary& summary,
     out.relit = Image(width, height, 3);
     output_bytes += out.relit.pixels.size() * sizeof(float);
   }
-  const int rows = map_band_rows(options, layout, output_bytes);
+  const Ranks& ranks = Ranks::world();
+  const int rows = split_rows(map_band_rows(options, layout, output_bytes), height, ranks);
   const relight::TemporalMapsBands bands =
       [&](const std::function<void(relight::TemporalMaps&, int)>& visit) {
         for (int y0 = 0; y0 < height; y0 += rows) {
@@ -232,9 +269,10 @@ void relight_temporal(const RelightOptions& options, RelightSummary& summary,
     edits = relight::read_temporal_edits(options.edits_file, width, height);
     transfers = relight::temporal_transfers(*edits, bands);
   }
-  std::vector<int> edit_counts;
+  std::vector<int> edit_counts(edits ? edits->edits.size() : 0, 0);
   int extrapolated = 0;
-  bands([&](relight::TemporalMaps& band, int y0) {
+  for_own_bands(ranks, height, rows, [&](int y0, int y1) {
+    relight::TemporalMaps band = relight::read_temporal_map_rows(options.temporal_file, y0, y1);
     summary.first_time_s = band.first_time_s();
     summary.last_time_s = band.last_time_s();
     if (edits) {
@@ -247,9 +285,10 @@ void relight_temporal(const RelightOptions& options, RelightSummary& summary,
       paste_rows(relit, outputs[o].relit, y0);
       if (o == 0) extrapolated += band_extrapolated;  // The same pixels under every lighting.
     }
-    const int y1 = y0 + band.maps.height;
     if (y1 < height) report(progress, "render at t (rows)", y1, height);
   });
+  if (!gathered(options, ranks, rows, outputs, edit_counts, &extrapolated)) return;
+  summary.ranks = ranks.size();
   report_edits(options.edits_file, "time", edit_counts, summary);
   RelitWriter writer(options, summary);
   long done = 0;

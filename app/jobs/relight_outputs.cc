@@ -3,9 +3,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <utility>
 
+#include "lightstage/checkpoint_dir.h"
+#include "lightstage/errors.h"
 #include "lightstage/memory.h"
+#include "lightstage/scratch_file.h"
 
 namespace ls::jobs {
 
@@ -72,6 +77,65 @@ double coverage_rad(const RelightOptions& options) { return options.coverage_deg
 
 std::size_t memory_given(const RelightOptions& options) {
   return options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
+}
+
+bool gather_rows_over_ranks(const RelightOptions& options, const Ranks& ranks, int rows,
+                            const std::vector<Image*>& images, std::vector<long>& counts) {
+  const fs::path dir = options.out_dir.string() + ".partial";
+  // Rank 0 makes the folder (empty) while the others wait, then each rank writes its rows.
+  if (ranks.root()) {
+    std::error_code error;
+    fs::remove_all(dir, error);
+    fs::create_directories(dir, error);
+    if (error) {
+      throw InputError(dir.string() +
+                       ": cannot create the folder the ranks gather their rows in (" +
+                       error.message() + ")");
+    }
+  }
+  ranks.barrier();
+  ScratchFile spill(dir / "relit.spill",
+                    "the images relit under MPI are gathered through a file beside the output "
+                    "folder: it needs their size free there",
+                    ScratchFile::Lifetime::kKept);
+  const int height = images.empty() ? 0 : images[0]->height;
+  const auto at = [&](std::size_t i, int y) {
+    return (i * std::size_t(height) + std::size_t(y)) * images[i]->width * images[i]->channels;
+  };
+  const auto transfer = [&](int y0, bool write) {
+    const int y1 = std::min(height, y0 + rows);
+    for (std::size_t i = 0; i < images.size(); ++i) {
+      float* first = &images[i]->pixels[at(0, y0)];
+      const std::size_t count = at(0, y1) - at(0, y0);
+      write ? spill.write(first, count, at(i, y0)) : spill.read(first, count, at(i, y0));
+    }
+  };
+  for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) transfer(y0, true);
+  spill.sync();
+  write_record(dir / ("counts_" + std::to_string(ranks.rank())), "lightstage relight counts 1",
+               {{"counts", counts}}, {});
+  ranks.barrier();  // Every rank's rows and counts are there.
+  if (!ranks.root()) return false;
+  spill.reopen();  // The others' rows as they wrote them (a file system shared between nodes).
+  for (int b = 0, y0; (y0 = b * rows) < height; ++b) {
+    if (b % ranks.size() != 0) transfer(y0, false);
+  }
+  for (int r = 1; r < ranks.size(); ++r) {
+    std::vector<long> theirs;
+    const bool read =
+        read_record(dir / ("counts_" + std::to_string(r)), "lightstage relight counts 1",
+                    [&](const nlohmann::json& info) {
+                      theirs = info.at("counts").get<std::vector<long>>();
+                      return std::optional<std::vector<RecordTarget>>(std::vector<RecordTarget>{});
+                    });
+    if (!read || theirs.size() != counts.size()) {
+      throw InputError(dir.string() + ": rank " + std::to_string(r) + "'s counts are missing");
+    }
+    for (std::size_t i = 0; i < counts.size(); ++i) counts[i] += theirs[i];
+  }
+  std::error_code ignored;
+  fs::remove_all(dir, ignored);
+  return true;
 }
 
 }  // namespace ls::jobs

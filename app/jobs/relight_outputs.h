@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "app/jobs/job.h"
+#include "app/jobs/ranks.h"
 #include "app/jobs/relight_job.h"
 #include "capture/field.h"
 #include "lightstage/image.h"
@@ -90,6 +91,13 @@ FieldLights field_lights(const capture::ReflectanceField& field);
 double coverage_rad(const RelightOptions& options);
 // What the run may hold: options.memory_bytes, or (0) half of the memory available.
 std::size_t memory_given(const RelightOptions& options);
+
+// Under MPI, after each rank rendered its bands of `rows` rows (band b on rank b % ranks) into
+// full-size `images`: the rows gathered on rank 0 through a spill beside the output folder, and
+// each rank's `counts` (pixels an edit changed, ...) summed into rank 0's. True on rank 0; the
+// others return false once their rows are there.
+bool gather_rows_over_ranks(const RelightOptions& options, const Ranks& ranks, int rows,
+                            const std::vector<Image*>& images, std::vector<long>& counts);
 
 // The fitted models (relight --models) and the time-varying ones (--temporal), rendered a band
 // of maps at a time (relight_models.cc).

@@ -121,6 +121,18 @@ TEST(MpiFit, TimeSeriesTwoRanksWriteTheBytesOfOneProcess) {
   EXPECT_GT(one.size(), 24u * 20 * 4);
   EXPECT_TRUE(one == bytes_but_time(dir / "two.exr"));
   EXPECT_FALSE(fs::exists(dir / "two.exr.partial")) << "the checkpoints are removed";
+  // Rendered at a time, each rank its bands of the maps: the images and the extrapolated count.
+  const std::string at = cli + " relight --temporal '" + (dir / "one.exr").string() +
+                         "' --time 1500 --light 0.3 0.2 0.93 --out ";
+  ASSERT_EQ(run(at + "'" + (dir / "t1").string() + "'", &one_out), 0);
+  ASSERT_EQ(run(mpirun_two() + at + "'" + (dir / "t2").string() + "'", &two_out), 0);
+  EXPECT_TRUE(bytes_but_time(dir / "t1" / "light_t1500s.exr") ==
+              bytes_but_time(dir / "t2" / "light_t1500s.exr"));
+  const auto extrapolated = [](const std::string& out) {
+    return out.substr(out.find("EXTRAPOLATED"),
+                      out.find("varying pixels") - out.find("EXTRAPOLATED"));
+  };
+  EXPECT_EQ(extrapolated(one_out), extrapolated(two_out)) << one_out << two_out;
 }
 
 // build: each rank merges its share of the LEDs into the spill beside the field (with their
@@ -238,8 +250,8 @@ TEST(MpiFit, OtherCommandsAreRefusedUnderMpi) {
   EXPECT_FALSE(fs::exists(dir / "stage.json"));
 }
 
-// relight: each rank relights its bands of the field under every map, rank 0 gathers the rows
-// and writes the images: the bytes of one process. Models are refused under MPI, by name.
+// relight: each rank relights its bands of the field (or renders its bands of the fitted maps)
+// under every map, rank 0 gathers the rows and writes the images: the bytes of one process.
 TEST(MpiFit, RelightTwoRanksWriteTheBytesOfOneProcess) {
   if (std::string(LIGHTSTAGE_MPIEXEC).empty()) GTEST_SKIP() << "built without MPI";
   const testing::TempDir dir;
@@ -259,13 +271,20 @@ TEST(MpiFit, RelightTwoRanksWriteTheBytesOfOneProcess) {
     EXPECT_TRUE(bytes_but_time(dir / "one" / name) == bytes_but_time(dir / "two" / name)) << name;
   }
   EXPECT_FALSE(fs::exists(dir / "two.partial"));
-  std::string out;
-  EXPECT_EQ(testing::run_command(mpirun_two() + testing::cli_path().string() +
-                                     " relight --models '" + field.string() + "' --light 0 0 1 " +
-                                     "--out '" + (dir / "m").string() + "'",
-                                 &out),
-            2);
-  EXPECT_NE(out.find("run --models and --temporal as one process"), std::string::npos) << out;
+  // The fitted models too (the field fills their flagged pixels), each rank its bands of maps.
+  ASSERT_EQ(run(testing::cli_path().string() + " fit '" + field.string() + "' --out '" +
+                    (dir / "maps.exr").string() + "'",
+                &one_out),
+            0);
+  const std::string models = testing::cli_path().string() + " relight '" + field.string() +
+                             "' --models '" + (dir / "maps.exr").string() + "' --env '" +
+                             (dir / "sky.exr").string() + "' --light 0.3 0.2 0.93 --out ";
+  ASSERT_EQ(run(models + "'" + (dir / "m1").string() + "'", &one_out), 0);
+  ASSERT_EQ(run(mpirun_two() + models + "'" + (dir / "m2").string() + "'", &two_out), 0);
+  for (const std::string name : {"sky.exr", "light.exr"}) {
+    EXPECT_TRUE(bytes_but_time(dir / "m1" / name) == bytes_but_time(dir / "m2" / name)) << name;
+  }
+  EXPECT_FALSE(fs::exists(dir / "m2.partial"));
 }
 
 }  // namespace
