@@ -151,8 +151,8 @@ void ViewerApp::Impl::load() {
     } else {
       // Larger than the budget: built in bands into a file beside the session (as `lightstage
       // build` does), opened reduced (read_field_within says so), then removed.
-      const fs::path file = state.session_dir.string() + ".view_t" +
-                            std::to_string(state.time_step) + ".exr";
+      const fs::path file =
+          state.session_dir.string() + ".view_t" + std::to_string(state.time_step) + ".exr";
       options.memory_bytes = budget;
       capture::build_field_file(session, options, file, {});
       capture::ReflectanceField reduced = read_field_within(file, state.memory_bytes);

@@ -175,6 +175,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
       relight_rows(y0, std::min(header.height(), y0 + rows));
     }
     std::vector<Image*> images;
+    images.reserve(outputs.size());
     for (Output& out : outputs) images.push_back(&out.relit);
     std::vector<long> no_counts;
     if (!gather_rows_over_ranks(options, ranks, rows, images, no_counts)) return;

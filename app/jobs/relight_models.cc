@@ -85,6 +85,7 @@ bool gathered(const RelightOptions& options, const Ranks& ranks, int rows, Outpu
               std::vector<int>& edit_counts, int* extra = nullptr) {
   if (ranks.size() == 1) return true;
   std::vector<Image*> images;
+  images.reserve(outputs.size());
   for (auto& out : outputs) images.push_back(&out.relit);
   std::vector<long> counts(edit_counts.begin(), edit_counts.end());
   if (extra) counts.push_back(*extra);

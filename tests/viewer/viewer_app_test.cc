@@ -535,8 +535,7 @@ TEST_F(ViewerApp_, ASessionWithTimeStepsIsBuiltPerStep) {
   reduced.handle_drop({session_dir.string()});
   ASSERT_EQ(reduced.error_message(), "");
   reduced.frame();
-  EXPECT_NE(reduced.field_note().find("1/2 resolution"), std::string::npos)
-      << reduced.field_note();
+  EXPECT_NE(reduced.field_note().find("1/2 resolution"), std::string::npos) << reduced.field_note();
   EXPECT_EQ(reduced.relit_image().width, 12);
   EXPECT_FALSE(fs::exists(session_dir.string() + ".view_t0.exr"));
 }
