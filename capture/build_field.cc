@@ -184,46 +184,22 @@ class FieldBuild {
     header_.noise = estimate_noise(transfer);
   }
 
-  // FieldNoise from the dark-frame read noise and photon transfer (noise_estimate.h), propagated
-  // through the merge at the median LED irradiance (the field stores one model for all LEDs).
+  // FieldNoise from the dark-frame read noise and photon transfer, at the LEDs' median
+  // irradiance (capture/noise_estimate.h).
   FieldNoise estimate_noise(const std::vector<TransferSample>& transfer) {
-    SensorNoise& sensor = sensor_;
-    BuildSummary* summary = &sum_;
-    summary->sensor_noise = sensor;
-    if (!sensor.read_measured) {
-      summary->warnings.push_back(
-          "noise not measured: needs at least 2 dark frames in every exposure step "
-          "(plan.dark_frames)"
-          "; the fits will use their default noise model");
-      return {};
-    }
-    std::string method = "read: dark-frame pairs";
-    sensor.shot_measured = solve_shot_per_level(transfer, noise_steps_, sensor.read_variance,
-                                                &sensor.shot_per_level, &sensor.transfer_samples);
-    if (sensor.shot_measured) {
-      method += "; shot: photon transfer over bracket pairs";
-    } else if (camera_.backend == "sim" && camera_.simulated.full_well_e > 0) {
-      sensor.shot_per_level = 1.0 / camera_.simulated.full_well_e;
-      method += "; shot: simulated sensor's full well (no usable bracket pair)";
-    } else {
-      summary->warnings.push_back(
-          "noise not measured: no pair of exposure steps left enough well-exposed samples for "
-          "photon transfer; the fits will use their default noise model");
-      return {};
-    }
     std::vector<double> irradiance;
     for (size_t i = 0; i < order_.size(); ++i) {
       if (!usable_[i]) continue;
       const Eigen::Vector3d e = stage_.leds[order_[i]].irradiance_rgb();
       irradiance.insert(irradiance.end(), {e.x(), e.y(), e.z()});
     }
-    if (irradiance.empty()) return {};
-    std::nth_element(irradiance.begin(), irradiance.begin() + irradiance.size() / 2,
-                     irradiance.end());
-    const double median_irradiance = irradiance[irradiance.size() / 2];
-    summary->sensor_noise = sensor;
-    MergeNoiseModel model{noise_steps_, options_.merge, camera_.radiometric_scale};
-    return fit_field_noise(sensor, model, median_irradiance, noise_samples_->values(), method);
+    sum_.sensor_noise = sensor_;  // As measured before photon transfer, unless it succeeds.
+    const FieldNoise noise = estimate_build_noise(
+        sensor_, transfer, {noise_steps_, options_.merge, camera_.radiometric_scale},
+        camera_.backend == "sim" ? camera_.simulated.full_well_e : 0.0, std::move(irradiance),
+        noise_samples_->values(), sum_.warnings);
+    if (noise.measured) sum_.sensor_noise = sensor_;
+    return noise;
   }
 
   // This time step's frames: dark frames per exposure step, each LED's bracket.

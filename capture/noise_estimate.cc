@@ -308,4 +308,36 @@ void FieldValueSamples::take(int light, const std::vector<float>& rgb) {
   for (const Pick& p : by_light_[size_t(light)]) values_[p.slot] = rgb[p.offset];
 }
 
+FieldNoise estimate_build_noise(SensorNoise& sensor, const std::vector<TransferSample>& transfer,
+                                const MergeNoiseModel& model, double simulated_full_well_e,
+                                std::vector<double> led_irradiance,
+                                const std::vector<float>& field_values,
+                                std::vector<std::string>& warnings) {
+  if (!sensor.read_measured) {
+    warnings.push_back(
+        "noise not measured: needs at least 2 dark frames in every exposure step "
+        "(plan.dark_frames); the fits will use their default noise model");
+    return {};
+  }
+  std::string method = "read: dark-frame pairs";
+  sensor.shot_measured = solve_shot_per_level(transfer, model.steps, sensor.read_variance,
+                                              &sensor.shot_per_level, &sensor.transfer_samples);
+  if (sensor.shot_measured) {
+    method += "; shot: photon transfer over bracket pairs";
+  } else if (simulated_full_well_e > 0) {
+    sensor.shot_per_level = 1.0 / simulated_full_well_e;
+    method += "; shot: simulated sensor's full well (no usable bracket pair)";
+  } else {
+    warnings.push_back(
+        "noise not measured: no pair of exposure steps left enough well-exposed samples for "
+        "photon transfer; the fits will use their default noise model");
+    return {};
+  }
+  if (led_irradiance.empty()) return {};
+  std::nth_element(led_irradiance.begin(), led_irradiance.begin() + led_irradiance.size() / 2,
+                   led_irradiance.end());
+  const double median_irradiance = led_irradiance[led_irradiance.size() / 2];
+  return fit_field_noise(sensor, model, median_irradiance, field_values, method);
+}
+
 }  // namespace ls::capture

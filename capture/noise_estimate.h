@@ -100,6 +100,17 @@ FieldNoise fit_field_noise(const SensorNoise& sensor, const MergeNoiseModel& mod
                            double irradiance, const std::vector<float>& values,
                            const std::string& method);
 
+// A build's FieldNoise: the dark-frame read noise (sensor.read_measured) with the shot term from
+// photon transfer over the bracket pairs (else a simulated sensor's full well, when given > 0),
+// propagated through the merge at the median of the LEDs' irradiance (the field stores one model
+// for all LEDs) by fit_field_noise on the field's sampled values. `sensor` gains the shot term;
+// a noise that cannot be measured is the default FieldNoise, with a warning saying why.
+FieldNoise estimate_build_noise(SensorNoise& sensor, const std::vector<TransferSample>& transfer,
+                                const MergeNoiseModel& model, double simulated_full_well_e,
+                                std::vector<double> led_irradiance,
+                                const std::vector<float>& field_values,
+                                std::vector<std::string>& warnings);
+
 // The field values the noise fit samples: `count` at random positions of the field's
 // layout (random rather than strided: a stride could fall in step with the 3 * lights layout),
 // taken as each LED is merged, so that no pass over the whole field is needed.
