@@ -194,7 +194,7 @@ class FieldBuild {
       irradiance.insert(irradiance.end(), {e.x(), e.y(), e.z()});
     }
     sum_.sensor_noise = sensor_;  // As measured before photon transfer, unless it succeeds.
-    const FieldNoise noise = estimate_build_noise(
+    FieldNoise noise = estimate_build_noise(
         sensor_, transfer, {noise_steps_, options_.merge, camera_.radiometric_scale},
         camera_.backend == "sim" ? camera_.simulated.full_well_e : 0.0, std::move(irradiance),
         noise_samples_->values(), sum_.warnings);

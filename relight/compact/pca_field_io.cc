@@ -161,8 +161,9 @@ PcaField PcaField::read(const std::filesystem::path& path) {
   out.rank_ = read_pod<int32_t>(in, file, "rank");
   out.tile_size_ = read_pod<int32_t>(in, file, "tile_size");
   auto check = [&](bool ok, const std::string& field, const std::string& what, long long got) {
-    if (!ok)
+    if (!ok) {
       throw InputError(file + ": " + field + ": expected " + what + ", got " + std::to_string(got));
+    }
   };
   check(out.width_ > 0 && out.width_ <= 65536, "width", "1..65536", out.width_);
   check(out.height_ > 0 && out.height_ <= 65536, "height", "1..65536", out.height_);
@@ -200,18 +201,21 @@ PcaField PcaField::read(const std::filesystem::path& path) {
   for (int64_t t = 0; t < tiles; ++t) {
     Eigen::MatrixXf basis(lights, out.rank_);
     in.read(reinterpret_cast<char*>(basis.data()), basis.size() * sizeof(float));
-    if (!in)
+    if (!in) {
       throw InputError(file + ": basis[" + std::to_string(t) + "]: expected " +
                        std::to_string(basis.size()) + " floats, got end of file");
-    if (!basis.allFinite())
+    }
+    if (!basis.allFinite()) {
       throw InputError(file + ": basis[" + std::to_string(t) + "]: expected finite values");
+    }
     out.bases_.push_back(std::move(basis));
   }
   out.coefs_.resize(size_t(out.width_) * out.height_ * out.rank_ * 3);
   in.read(reinterpret_cast<char*>(out.coefs_.data()), out.coefs_.size() * sizeof(float));
-  if (!in)
+  if (!in) {
     throw InputError(file + ": coefficients: expected " + std::to_string(out.coefs_.size()) +
                      " floats, got end of file");
+  }
   for (float v : out.coefs_) {
     if (!std::isfinite(v)) throw InputError(file + ": coefficients: expected finite values");
   }
