@@ -1,8 +1,9 @@
 // Sequencer overhead per frame: the time run_capture spends on anything but waiting for the camera
 // (switching LEDs, planning, writing and journaling each frame durably, the dead-LED check), with
 // Aravis' in-process fake camera (the real Aravis API path, no network) and with the simulated
-// stage. Counters: overhead_ms (per frame, not in Camera::capture), camera_ms (per frame, inside
-// it), frames (per capture).
+// stage (its frames unchecked, /0, and checked on arrival, /1: what the checks cost). Counters:
+// overhead_ms (per frame, not in Camera::capture), camera_ms (per frame, inside it), frames (per
+// capture), fps, and fps_vs_camera (the fake's own rate: its trigger poll).
 #include <benchmark/benchmark.h>
 #include <unistd.h>
 
@@ -68,12 +69,14 @@ ls::Stage bench_stage(const std::string& backend) {
 }
 
 // One full capture per iteration into a fresh session.
+// camera_fps: the camera's own frame rate, when it sets one (0: not known).
 void run_sessions(benchmark::State& state, const ls::Stage& stage, ls::LightController& lights,
-                  ls::Camera& camera) {
+                  ls::Camera& camera, bool verify_frames, double camera_fps = 0) {
   const fs::path root = fs::temp_directory_path() / ("ls_bench_seq_" + std::to_string(::getpid()));
   TimedCamera timed(camera);
   ls::SequencerOptions options;
   options.sleep = [](double) {};
+  options.verify_frames = verify_frames;
   double total_s = 0;
   long frames = 0;
   int run = 0;
@@ -94,23 +97,27 @@ void run_sessions(benchmark::State& state, const ls::Stage& stage, ls::LightCont
   state.counters["frames"] = double(frames) / double(state.iterations());
   state.counters["overhead_ms"] = 1e3 * (total_s - timed.seconds) / double(frames);
   state.counters["camera_ms"] = 1e3 * timed.seconds / double(frames);
+  state.counters["fps"] = double(frames) / total_s;
+  if (camera_fps > 0) state.counters["fps_vs_camera"] = double(frames) / total_s / camera_fps;
 }
 
 void BM_SequencerOverhead_AravisFake(benchmark::State& state) {
   const ls::Stage stage = bench_stage("aravis");
   ls::AravisCamera camera(stage.camera);
-  camera.set_fake_trigger_frequency(200);  // 5 ms per frame.
+  constexpr double kCameraFps = 200;  // The fake delivers a frame per trigger poll: 5 ms.
+  camera.set_fake_trigger_frequency(kCameraFps);
   NullLights lights(int(stage.leds.size()));
-  run_sessions(state, stage, lights, camera);
+  // Unchecked: the fake draws a test pattern, whatever the LEDs do.
+  run_sessions(state, stage, lights, camera, /*verify_frames=*/false, kCameraFps);
 }
 BENCHMARK(BM_SequencerOverhead_AravisFake)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 void BM_SequencerOverhead_Sim(benchmark::State& state) {
   const ls::Stage stage = bench_stage("sim");
   ls::sim::SimStage sim(stage, ls::sim::default_scene(), /*seed=*/1);
-  run_sessions(state, stage, sim.lights(), sim.camera());
+  run_sessions(state, stage, sim.lights(), sim.camera(), state.range(0) != 0);
 }
-BENCHMARK(BM_SequencerOverhead_Sim)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_SequencerOverhead_Sim)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 }  // namespace
 

@@ -27,7 +27,8 @@ std::string identity_of(const Session& session, const BuildOptions& options) {
                         {"frames", frames},
                         {"time_step", options.time_step},
                         {"saturation_level", options.merge.saturation_level},
-                        {"floor_level", options.merge.floor_level}}
+                        {"floor_level", options.merge.floor_level},
+                        {"correct_drift", options.correct_drift}}
       .dump();
 }
 

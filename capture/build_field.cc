@@ -22,6 +22,7 @@
 #include "capture/led_frames.h"
 #include "capture/light_calibration.h"
 #include "capture/noise_estimate.h"
+#include "capture/reference_drift.h"
 #include "capture/response.h"
 #include "lightstage/errors.h"
 
@@ -151,6 +152,8 @@ class FieldBuild {
                        "): nothing to build a field from");
     }
     choose_response();
+    drift_ = build_drift(session_, options_.time_step, *response_, options_.correct_drift,
+                         &sum_.warnings);
     read_flat_fields();
     header_.source = where_;
     header_.view = FieldView{camera_.fov_y_deg, camera_.distance_m, camera_.ortho_height_m,
@@ -437,13 +440,14 @@ class FieldBuild {
                                               options_.merge, transfer_stride);
     }
     const int in_channels = camera_.channels + 1;
+    const float drift = drift_ ? float(drift_->output_at_led(i)) : 1.0f;
     std::vector<float> gain;
     pixel_gain(header_, i, &gain);
     std::vector<float> rgb(size_t(width) * height * 3);  // In field units.
     long long saturated = 0;
     for (size_t p = 0; p < size_t(width) * height; ++p) {
       const float* m = &merged.pixels[p * in_channels];
-      const float g = gain.empty() ? 1.0f : gain[p];
+      const float g = (gain.empty() ? 1.0f : gain[p]) / drift;
       for (int c = 0; c < 3; ++c)
         rgb[3 * p + c] = m[camera_.channels == 1 ? 0 : c] * scale_[i][c] * g;
       saturated += m[in_channels - 1] == 0.0f;
@@ -520,6 +524,7 @@ class FieldBuild {
   std::vector<std::vector<FrameKey>> dark_keys_;
   std::vector<bool> usable_;
   std::optional<ResponseCurve> response_;
+  std::optional<ReferenceDrift> drift_;  // Divided out (BuildOptions::correct_drift).
   std::optional<FlatFieldMaps> flat_;
   std::vector<std::optional<Image>> darks_;
   std::vector<NoiseStep> noise_steps_;

@@ -24,6 +24,9 @@ namespace ls::capture {
 struct BuildOptions {
   int time_step = 0;
   MergeOptions merge;
+  // Divide each LED's image by the dome's output drift while it was shot, measured on the plan's
+  // reference LED (capture/reference_drift.h). Drift beyond 0.5% is reported either way.
+  bool correct_drift = false;
   std::function<void(int done, int total)> on_progress;  // LEDs merged.
   // build_field_file: the most memory the field's values take at once (bands of rows; 0: the
   // whole field when it takes at most half of the memory available, else bands within that half),

@@ -3,6 +3,7 @@
 // these; the sequencer cannot tell them apart.
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "lightstage/image.h"
 
@@ -14,6 +15,11 @@ class LightController {
   virtual ~LightController() = default;
   virtual int num_lights() const = 0;
   virtual void set_light(int led_index, bool on) = 0;  // Throws HardwareError.
+  // Lights several LEDs at once, LED l for the share level[l] (0..1) of every moment: on/off lines
+  // switched in a period far shorter than the exposure, or a dimmable driver's level. What the
+  // dome plays an environment map with (`lightstage play`); all_off() ends it. Throws
+  // HardwareError when the controller cannot (the default).
+  virtual void set_levels(const std::vector<double>& level);
   // Must not throw: it runs on every exit path, including signal handling and errors.
   virtual void all_off() noexcept = 0;
 };

@@ -102,6 +102,7 @@ std::string FrameKey::name(const Stage& stage) const {
   } else {
     std::snprintf(buf, sizeof buf, "t%03d_led%03d_e%d", time_step, stage.leds[led_index].id,
                   exposure_index);
+    if (repeat > 0) std::snprintf(buf + std::strlen(buf), 16, "_ref%d", repeat);
   }
   return buf;
 }
@@ -124,8 +125,19 @@ std::vector<PlannedFrame> plan_frames(const Stage& stage) {
     for (int e = 0; e < steps; ++e) {
       for (int r = 0; r < stage.plan.dark_frames; ++r) add(-1, e, r);
     }
-    for (int led : order) {
-      for (int e = 0; e < steps; ++e) add(led, e, 0);
+    // The reference LED's shots: before LED 0, N, 2N, ... of the order, and after the last.
+    const int reference = stage.led_index(stage.plan.reference_led);
+    int shot = 0;
+    for (size_t j = 0; j < order.size(); ++j) {
+      if (reference >= 0 && j % size_t(stage.plan.reference_every) == 0) {
+        ++shot;
+        for (int e = 0; e < steps; ++e) add(reference, e, shot);
+      }
+      for (int e = 0; e < steps; ++e) add(order[j], e, 0);
+    }
+    if (reference >= 0) {
+      ++shot;
+      for (int e = 0; e < steps; ++e) add(reference, e, shot);
     }
   }
   return plan;
@@ -250,6 +262,9 @@ Session Session::open(const fs::path& dir) {
     // Valid JSON of the wrong shape, or naming a step, LED or exposure the plan has not, is a
     // damaged journal: say where, never abort.
     const JournalLine in{j, journal_path.string() + ":" + std::to_string(line_no), s.stage_};
+    const int max_repeat = std::max({s.stage_.plan.dark_frames,
+                                     s.stage_.plan.reference_shots(int(s.stage_.leds.size())), 1}) -
+                           1;
     try {
       if (j.contains("led_signal")) {
         s.led_signals_[{in.step("t"), in.led("led_signal")}] = j["fraction"].get<double>();
@@ -260,6 +275,14 @@ Session Session::open(const fs::path& dir) {
                                            j["interval_s"].get<double>()};
         continue;
       }
+      if (j.contains("frame_problem")) {
+        const FrameKey key{in.step("t"), in.int_in("led", -1, int(s.stage_.leds.size()) - 1),
+                           in.int_in("e", 0, int(s.stage_.camera.bracket.size()) - 1),
+                           in.int_in("r", 0, max_repeat)};
+        s.frame_problems_.push_back(
+            {key, j["attempt"].get<int>(), j["frame_problem"].get<std::string>()});
+        continue;
+      }
       if (j.contains("dead_led")) {
         s.dead_leds_[in.led("dead_led")] = j.value("reason", "");
         continue;
@@ -267,7 +290,7 @@ Session Session::open(const fs::path& dir) {
       FrameRecord rec;
       const int led = in.int_in("led", -1, int(s.stage_.leds.size()) - 1);
       rec.key = {in.step("t"), led, in.int_in("e", 0, int(s.stage_.camera.bracket.size()) - 1),
-                 in.int_in("r", 0, std::max(s.stage_.plan.dark_frames, 1) - 1)};
+                 in.int_in("r", 0, max_repeat)};
       rec.file = j["file"].get<std::string>();
       rec.exposure_s = j["exposure_s"].get<double>();
       rec.gain = j["gain"].get<double>();
@@ -285,10 +308,11 @@ Session Session::open(const fs::path& dir) {
       }
       s.frames_[rec.key] = rec;
     } catch (const json::exception& e) {
-      throw InputError(journal_path.string() + ":" + std::to_string(line_no) +
-                       ": expected a frame {t, led, e, r, file, exposure_s, gain, scene_time_s, "
-                       "at, bytes, crc32}, an led_signal, an overrun or a dead_led: " +
-                       e.what());
+      throw InputError(
+          journal_path.string() + ":" + std::to_string(line_no) +
+          ": expected a frame {t, led, e, r, file, exposure_s, gain, scene_time_s, "
+          "at, bytes, crc32}, an led_signal, an overrun, a frame_problem or a dead_led: " +
+          e.what());
     }
   }
   return s;
@@ -394,6 +418,19 @@ void Session::record_time_step_overrun(const TimeStepOverrun& overrun) {
   overruns_[overrun.time_step] = overrun;
 }
 
+void Session::record_frame_problem(const FrameProblem& problem) {
+  const FrameKey& k = problem.key;
+  append_journal(json{{"frame_problem", problem.problem},
+                      {"t", k.time_step},
+                      {"led", k.led_index},
+                      {"e", k.exposure_index},
+                      {"r", k.repeat},
+                      {"attempt", problem.attempt}}
+                     .dump() +
+                 "\n");
+  frame_problems_.push_back(problem);
+}
+
 void Session::write_manifest(const std::string& status) const {
   json overruns = json::array();
   for (const auto& [step, o] : overruns_) {
@@ -405,6 +442,11 @@ void Session::write_manifest(const std::string& status) const {
   json dead = json::array();
   for (const auto& [index, reason] : dead_leds_) {
     dead.push_back({{"led_index", index}, {"led_id", stage_.leds[index].id}, {"reason", reason}});
+  }
+  json problems = json::array();
+  for (const FrameProblem& p : frame_problems_) {
+    problems.push_back(
+        {{"frame", p.key.name(stage_)}, {"attempt", p.attempt}, {"problem", p.problem}});
   }
   const size_t planned = plan_frames(stage_).size();
   const json doc = {{"format", kFormat},
@@ -418,6 +460,7 @@ void Session::write_manifest(const std::string& status) const {
                     {"journal", kJournal},
                     {"dead_leds", dead},
                     {"time_step_overruns", overruns},
+                    {"frame_problems", problems},
                     {"stage", json::parse(stage_to_json(stage_))}};
   write_file_atomic(dir_ / kManifest, doc.dump(2) + "\n");
 }

@@ -21,10 +21,13 @@ struct FrameKey {
   int time_step = 0;
   int led_index = -1;
   int exposure_index = 0;
-  int repeat = 0;  // Dark frames are repeated; lit frames have repeat 0.
+  // Dark frames are repeated; lit frames have repeat 0, but the reference LED's drift shots
+  // (CapturePlan::reference_led), repeats 1, 2, ...
+  int repeat = 0;
 
   bool is_dark() const { return led_index < 0; }
-  std::string name(const Stage& stage) const;  // e.g. "t000_led042_e1" or "t000_dark_e1_r0"
+  // e.g. "t000_led042_e1", "t000_led042_e1_ref2" or "t000_dark_e1_r0"
+  std::string name(const Stage& stage) const;
   auto operator<=>(const FrameKey&) const = default;
 };
 
@@ -60,6 +63,13 @@ struct TimeStepOverrun {
   int time_step = 0;
   double capture_s = 0.0;   // Wall-clock time from its first frame to its last, this run.
   double interval_s = 0.0;  // What the plan allowed: CapturePlan::step_interval_s.
+};
+
+// A frame that failed its check on arrival (controller/frame_checks.h) and was shot again.
+struct FrameProblem {
+  FrameKey key;
+  int attempt = 0;  // 0 for the first shot.
+  std::string problem;
 };
 
 struct SessionInfo {
@@ -127,6 +137,10 @@ class Session {
   const std::map<int, TimeStepOverrun>& time_step_overruns() const { return overruns_; }
   void record_time_step_overrun(const TimeStepOverrun& overrun);
 
+  // Frames rejected on arrival, journaled and listed in the manifest ("frame_problems"), in order.
+  const std::vector<FrameProblem>& frame_problems() const { return frame_problems_; }
+  void record_frame_problem(const FrameProblem& problem);
+
   // Rewrites the manifest with the given status ("capturing", "interrupted", "complete", ...).
   void write_manifest(const std::string& status) const;
 
@@ -141,6 +155,7 @@ class Session {
   std::map<int, std::string> dead_leds_;
   std::map<std::pair<int, int>, double> led_signals_;  // (time step, LED index) -> signal.
   std::map<int, TimeStepOverrun> overruns_;            // By time step.
+  std::vector<FrameProblem> frame_problems_;
 };
 
 }  // namespace ls

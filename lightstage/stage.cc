@@ -126,7 +126,8 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
 }
 
 CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds) {
-  r.expect_object({"led_order", "dark_frames", "settle_s", "time_steps", "interval_s", "times_s"});
+  r.expect_object({"led_order", "dark_frames", "settle_s", "time_steps", "interval_s", "times_s",
+                   "reference_led", "reference_every"});
   CapturePlan plan;
   if (r.has("led_order")) {
     const JsonReader order = r["led_order"];
@@ -139,6 +140,14 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds) {
       plan.led_order.push_back(id);
     }
   }
+  if (r.has("reference_led")) {
+    plan.reference_led = r["reference_led"].integer_in(0, 1 << 20);
+    if (std::none_of(leds.begin(), leds.end(),
+                     [&](const Led& led) { return led.id == plan.reference_led; })) {
+      r["reference_led"].fail("the id of an LED in \"leds\"");
+    }
+  }
+  if (r.has("reference_every")) plan.reference_every = r["reference_every"].integer_in(1, 100000);
   if (r.has("dark_frames")) plan.dark_frames = r["dark_frames"].integer_in(1, 64);
   if (r.has("settle_s")) plan.settle_s = r["settle_s"].number_in(0, 60, "(seconds)");
   if (r.has("time_steps")) plan.time_steps = r["time_steps"].integer_in(1, 100000);
@@ -197,6 +206,11 @@ json vec_json(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z(
 double CapturePlan::step_time_s(int t) const {
   if (!times_s.empty()) return times_s.at(size_t(t));
   return t * interval_s;
+}
+
+int CapturePlan::reference_shots(int leds) const {
+  if (reference_led < 0) return 0;
+  return (leds + reference_every - 1) / reference_every + 1;  // Every N LEDs, and after the last.
 }
 
 double CapturePlan::step_interval_s(int t) const {
@@ -334,6 +348,10 @@ std::string stage_to_json(const Stage& stage) {
     plan["times_s"] = stage.plan.times_s;
   }
   if (!stage.plan.led_order.empty()) plan["led_order"] = stage.plan.led_order;
+  if (stage.plan.reference_led >= 0) {
+    plan["reference_led"] = stage.plan.reference_led;
+    plan["reference_every"] = stage.plan.reference_every;
+  }
   json doc = {{"name", stage.name},
               {"coverage_radius_deg", stage.coverage_radius_deg},
               {"leds", leds},

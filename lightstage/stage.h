@@ -81,6 +81,14 @@ struct CapturePlan {
   // Or the scene time of each step (seconds, >= 0, increasing); when set, time_steps is its size
   // and interval_s is not used.
   std::vector<double> times_s;
+  // Drift watch: the reference LED (an id; -1 none) is shot again, its whole bracket, before the
+  // first LED of every time step, after every `reference_every` LEDs and after the last (frame
+  // repeats 1, 2, ... of that LED). Its output over those shots tells how the dome's output (or
+  // the camera's gain) drifted; `lightstage build --correct-drift` divides it out.
+  int reference_led = -1;
+  int reference_every = 20;
+  // Reference shots per time step (0 without a reference LED), for `leds` LEDs in the order.
+  int reference_shots(int leds) const;
 
   // Scene time of time step t, seconds: times_s[t], or t * interval_s.
   double step_time_s(int t) const;

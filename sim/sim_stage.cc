@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <optional>
 #include <set>
 #include <string>
@@ -273,8 +274,14 @@ struct SimStage::State {
   std::vector<uint64_t> last_used;  // Per LED, a use counter.
   uint64_t uses = 0;
   std::vector<bool> on, dead;
+  std::vector<double> level;  // Share of the time each lit LED is on (set_levels; else 1).
   std::multiset<uint64_t> timeout_keys;
-  int timeout_after = -1;  // Negative: off.
+  int timeout_after = -1;                                           // Negative: off.
+  std::map<uint64_t, std::pair<SimStage::FrameFault, int>> faults;  // Key -> fault, shots left.
+  std::vector<uint16_t> last_pixels;  // The previous frame, kept while faults are pending.
+  int stuck_led = -1;
+  double drift_per_frame = 0.0;
+  int drift_start_frame = 0;
   int frames_delivered = 0;
 
   class Lights final : public LightController {
@@ -288,8 +295,28 @@ struct SimStage::State {
                             std::to_string(num_lights()) + ")");
       }
       s_.on[led_index] = on;
+      s_.level[led_index] = 1.0;
     }
-    void all_off() noexcept override { std::fill(s_.on.begin(), s_.on.end(), false); }
+    void set_levels(const std::vector<double>& level) override {
+      if (level.size() != s_.on.size()) {
+        throw HardwareError("sim:" + s_.stage.name +
+                            ": set_levels: " + std::to_string(level.size()) + " levels for " +
+                            std::to_string(s_.on.size()) + " LEDs");
+      }
+      for (size_t l = 0; l < level.size(); ++l) {
+        if (!(level[l] >= 0 && level[l] <= 1)) {
+          throw HardwareError("sim:" + s_.stage.name + ": set_levels: LED index " +
+                              std::to_string(l) + ": expected a level in [0, 1], got " +
+                              std::to_string(level[l]));
+        }
+        s_.level[l] = level[l];
+        s_.on[l] = level[l] > 0;
+      }
+    }
+    void all_off() noexcept override {
+      std::fill(s_.on.begin(), s_.on.end(), false);
+      std::fill(s_.level.begin(), s_.level.end(), 1.0);
+    }
 
    private:
     State& s_;
@@ -358,6 +385,24 @@ struct SimStage::State {
     return *one_light[led];
   }
 
+  // A stale or torn frame takes the previous frame's pixels (all, or the rows from half the height
+  // down); the previous frame is kept only while faults are pending.
+  void apply_buffer_fault(std::optional<SimStage::FrameFault> fault, std::vector<uint16_t>& pixels,
+                          size_t row_values) {
+    if (last_pixels.size() == pixels.size()) {
+      if (fault == SimStage::FrameFault::kStale) pixels = last_pixels;
+      if (fault == SimStage::FrameFault::kTorn) {
+        const size_t from = pixels.size() / row_values / 2 * row_values;
+        std::copy(last_pixels.begin() + long(from), last_pixels.end(), pixels.begin() + long(from));
+      }
+    }
+    if (faults.empty()) {
+      last_pixels.clear();
+    } else {
+      last_pixels = pixels;
+    }
+  }
+
   CapturedFrame capture(const FrameRequest& request) {
     const std::string camera_name = "sim:" + stage.name;
     if (auto it = timeout_keys.find(request.sequence_key); it != timeout_keys.end()) {
@@ -392,13 +437,22 @@ struct SimStage::State {
     const auto exposure_ends =
         std::chrono::steady_clock::now() + std::chrono::duration<double>(request.exposure_s);
 
+    std::optional<SimStage::FrameFault> fault;
+    if (auto it = faults.find(request.sequence_key); it != faults.end()) {
+      fault = it->second.first;
+      if (--it->second.second <= 0) faults.erase(it);
+    }
     // Radiance: the sum of the lit LEDs' one-light images times their RGB irradiance.
     std::vector<const float*> sources;
     std::vector<Eigen::Vector3f> weights;
-    for (size_t l = 0; l < stage.leds.size(); ++l) {
-      if (!on[l] || dead[l]) continue;
-      sources.push_back(one_light_image(int(l)).pixels.data());
-      weights.push_back(stage.leds[l].irradiance_rgb().cast<float>());
+    const size_t n_leds = stage.leds.size();
+    for (size_t l = 0; l < n_leds; ++l) {
+      if ((!on[l] && int(l) != stuck_led) || dead[l]) continue;
+      const size_t lit = fault == SimStage::FrameFault::kWrongLed ? (l + 1) % n_leds : l;
+      sources.push_back(one_light_image(int(lit)).pixels.data());
+      const double drift = 1.0 + drift_per_frame * (frames_delivered - drift_start_frame);
+      const double share = int(l) == stuck_led && !on[l] ? 1.0 : level[l];
+      weights.push_back((share * drift * stage.leds[lit].irradiance_rgb()).cast<float>());
     }
 
     const SimulatedSensor& sensor = cam_spec.simulated;
@@ -449,6 +503,7 @@ struct SimStage::State {
         }
       }
     });
+    apply_buffer_fault(fault, frame.raw.pixels, size_t(w) * out_channels);
     if (sensor.real_time) std::this_thread::sleep_until(exposure_ends);
     ++frames_delivered;
     return frame;
@@ -473,6 +528,7 @@ SimStage::SimStage(Stage stage, Scene scene, uint64_t seed) : state_(std::make_u
   state_->one_light.resize(leds);
   state_->last_used.resize(leds, 0);
   state_->on.assign(leds, false);
+  state_->level.assign(leds, 1.0);
   state_->dead.assign(leds, false);
 }
 
@@ -512,6 +568,31 @@ void SimStage::inject_timeouts(std::vector<uint64_t> sequence_keys) {
 void SimStage::inject_timeout_after(int frames) {
   state_->timeout_after = frames;
   state_->frames_delivered = 0;
+}
+
+void SimStage::inject_frame_fault(uint64_t sequence_key, FrameFault fault, int shots) {
+  state_->faults[sequence_key] = {fault, shots};
+}
+
+void SimStage::set_output_drift(double per_frame) {
+  state_->drift_per_frame = per_frame;
+  state_->drift_start_frame = state_->frames_delivered;
+}
+
+void SimStage::perturb_led(int led_index, double intensity_factor,
+                           const Eigen::Vector3d& dir_in_stage) {
+  LS_CHECK(led_index >= 0 && led_index < int(state_->stage.leds.size()),
+           "LED index " + std::to_string(led_index) + " out of range");
+  Led& led = state_->stage.leds[size_t(led_index)];
+  led.intensity *= intensity_factor;
+  led.dir_in_stage = dir_in_stage.normalized();
+  state_->one_light[size_t(led_index)].reset();
+}
+
+void SimStage::set_stuck_led(int led_index) {
+  LS_CHECK(led_index < int(state_->stage.leds.size()),
+           "LED index " + std::to_string(led_index) + " out of range");
+  state_->stuck_led = led_index;
 }
 
 void SimStage::set_dead_led(int led_index, bool dead) {

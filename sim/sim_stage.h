@@ -76,6 +76,21 @@ class SimStage {
   void inject_timeouts(std::vector<uint64_t> sequence_keys);
   void inject_timeout_after(int frames);
   void set_dead_led(int led_index, bool dead);
+  // Frame faults for the capture's checks, on the frame whose sequence key is given, for its first
+  // `shots` shots: kStale delivers the previous frame again (an earlier trigger's buffer), kTorn
+  // the previous frame's rows from half the height down (a partial transfer), kWrongLed the frame
+  // lit by the next LED (index + 1) instead of the one switched on.
+  enum class FrameFault { kStale, kTorn, kWrongLed };
+  void inject_frame_fault(uint64_t sequence_key, FrameFault fault, int shots = 1);
+  // The dome's output drifting: every LED's irradiance times (1 + per_frame * frames delivered
+  // since this call), as LEDs warming up or a sagging supply do.
+  void set_output_drift(double per_frame);
+  // The physical dome changed after calibration (an LED dimmed, knocked or remounted): LED
+  // `led_index` now gives intensity_factor times its irradiance, from dir_in_stage. The stage
+  // passed in, and any field built before, still describe it as it was.
+  void perturb_led(int led_index, double intensity_factor, const Eigen::Vector3d& dir_in_stage);
+  // An LED lit whatever the controller says (a stuck driver); -1 for none.
+  void set_stuck_led(int led_index);
 
  private:
   struct State;

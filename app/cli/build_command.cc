@@ -90,6 +90,10 @@ void add_build_command(CLI::App& app) {
                   "or always half or float. Recorded in the file (lightstage:storage).")
       ->check(CLI::IsMember({"auto", "half", "float"}))
       ->capture_default_str();
+  cmd->add_flag("--correct-drift", options->correct_drift,
+                "Divide each LED's image by the dome's output drift while it was shot, measured "
+                "on the stage plan's reference LED (plan.reference_led, shot again every "
+                "plan.reference_every LEDs). Drift beyond 0.5% is reported either way.");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {

@@ -85,9 +85,13 @@ int capture_session(const jobs::CaptureOptions& options, bool quiet) {
   const CaptureSummary& summary = job.capture;
   std::fprintf(stderr,
                "%s: %d frames captured this run, %d already present, %d camera retries, "
-               "%.1f s\n",
+               "%d frames shot again after failing their check, %.1f s\n",
                options.session_dir.c_str(), summary.frames_captured, summary.frames_already_present,
-               summary.camera_retries, summary.seconds);
+               summary.camera_retries, summary.frames_reshot, summary.seconds);
+  for (const std::string& problem : job.frame_problems) {
+    std::fprintf(stderr, "warning: %s\n", problem.c_str());
+  }
+  for (const std::string& drift : job.drift) std::fprintf(stderr, "warning: %s\n", drift.c_str());
   for (size_t i = 0; i < summary.overruns.size(); ++i) {
     const TimeStepOverrun& o = summary.overruns[i];
     std::fprintf(stderr,
@@ -107,6 +111,9 @@ int capture_session(const jobs::CaptureOptions& options, bool quiet) {
       return kExitInterrupted;
     case CaptureSummary::Status::kCameraFailed:
       std::fprintf(stderr, "camera failure: %s\n", summary.message.c_str());
+      return kExitHardwareError;
+    case CaptureSummary::Status::kDarkFramesLit:
+      std::fprintf(stderr, "dark frames show light: %s\n", summary.message.c_str());
       return kExitHardwareError;
     case CaptureSummary::Status::kWriteFailed:
       std::fprintf(stderr, "storage failure: %s\nresume with: lightstage capture --resume %s\n",
@@ -136,6 +143,12 @@ void add_capture_command(CLI::App& app) {
   out->excludes(resume);
   cmd->add_option("--seed", options->seed, "Noise seed of the simulated camera.")
       ->capture_default_str();
+  cmd->add_flag(
+      "--no-frame-checks", [options](int64_t) { options->verify_frames = false; },
+      "Save frames unchecked. By default each frame is checked on arrival (dark frames "
+      "dark, a bracket's frames consistent with each other) and a bad one shot again; "
+      "turn this off only for a camera whose frames do not follow the LEDs, such as "
+      "Aravis' test-pattern Fake_1.");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet, resume] {
     options->resume = resume->count() > 0;

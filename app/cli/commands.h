@@ -35,6 +35,7 @@ void add_compress_command(CLI::App& app);  // compact_command.cc
 void add_render_command(CLI::App& app);    // compact_command.cc
 void add_devices_command(CLI::App& app);
 void add_check_command(CLI::App& app);
+void add_play_command(CLI::App& app);  // play_command.cc: the superposition check.
 void add_calibrate_command(CLI::App& app);
 void add_fit_command(CLI::App& app);
 void add_normals_command(CLI::App& app);  // fit_command.cc

@@ -51,6 +51,7 @@ int run(int argc, char** argv) {
   ls::cli::add_render_command(app);
   ls::cli::add_devices_command(app);
   ls::cli::add_check_command(app);
+  ls::cli::add_play_command(app);
   ls::cli::add_calibrate_command(app);
   ls::cli::add_fit_command(app);
   ls::cli::add_normals_command(app);

@@ -31,6 +31,7 @@ std::string BuildJobOptions::to_json() const {
   j["time_step"] = time_step;
   j["all_time_steps"] = all_time_steps;
   j["storage"] = storage;
+  j["correct_drift"] = correct_drift;
   return j.dump();
 }
 
@@ -46,6 +47,7 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   capture::BuildOptions build;
   build.time_step = time_step;
   build.memory_bytes = options.memory_bytes;
+  build.correct_drift = options.correct_drift;
   build.storage = capture::parse_storage_choice("--storage", options.storage);
   build.on_progress = [&](int done, int total) { report(progress, "build", done, total); };
   build.on_band_written = [&](int done, int total) { report(progress, "write", done, total); };

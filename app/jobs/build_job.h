@@ -20,6 +20,7 @@ struct BuildJobOptions {
   // How the file holds its values: "auto" (half where capture::check_half passes,
   // capture/half_storage.h), "half" or "float".
   std::string storage = "auto";
+  bool correct_drift = false;  // capture::BuildOptions::correct_drift.
   std::string validate() const;
   std::string to_json() const;  // Recorded in every field written (kOptionsAttribute).
 };

@@ -1,7 +1,11 @@
 #include "app/jobs/capture_job.h"
 
+#include <memory>
 #include <optional>
+#include <set>
 
+#include "capture/reference_drift.h"
+#include "capture/response.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
@@ -29,6 +33,24 @@ void check_calibration_files(const Stage& stage) {
 void collect_dead_leds(const Session& session, CaptureJobSummary& summary) {
   for (const auto& [index, reason] : session.dead_leds()) {
     summary.dead_leds.emplace_back(session.stage().leds[size_t(index)].id, reason);
+  }
+}
+
+// The drift the reference LED measured over each time step captured whole (a response still to
+// be recovered is taken as linear: drift is a ratio of like signals, and a monotone response
+// changes it little).
+void report_drift(const Session& session, CaptureJobSummary& summary) {
+  const Stage& stage = session.stage();
+  if (stage.plan.reference_led < 0) return;
+  const CameraResponse& spec = stage.camera.response;
+  const capture::ResponseCurve response =
+      spec.kind == CameraResponse::Kind::kRecover
+          ? capture::ResponseCurve::linear(stage.camera.bit_depth, stage.camera.channels)
+          : capture::ResponseCurve::from_spec(spec, stage.camera.bit_depth, stage.camera.channels);
+  std::set<int> unfinished;
+  for (const PlannedFrame& f : session.missing_frames()) unfinished.insert(f.key.time_step);
+  for (int t = 0; t < stage.plan.time_steps; ++t) {
+    if (!unfinished.count(t)) capture::build_drift(session, t, response, false, &summary.drift);
   }
 }
 
@@ -104,10 +126,25 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   sequencer.wait_for_time_steps = !devices.simulated_time;
   sequencer.stop_requested = callbacks.stop_requested;
   sequencer.on_progress = callbacks.on_progress;
+  sequencer.verify_frames = options.verify_frames;
+  // The bracket check compares frames in linear units: a response table is read here (the
+  // sequencer knows linear and gamma responses itself; one still to recover leaves it unchecked).
+  if (stage.camera.response.kind == CameraResponse::Kind::kTable) {
+    auto curve = std::make_shared<const capture::ResponseCurve>(capture::ResponseCurve::from_spec(
+        stage.camera.response, stage.camera.bit_depth, stage.camera.channels));
+    sequencer.to_linear = [curve](int dn, int c) { return double(curve->to_linear(dn, c)); };
+  }
+  const size_t problems_before = session->frame_problems().size();
   if (callbacks.on_start) callbacks.on_start(summary, int(plan_frames(stage).size()));
   summary.capture = run_capture(*session, *devices.lights, *devices.camera, sequencer);
   for (const TimeStepOverrun& o : summary.capture.overruns) {
     summary.overrun_step_times_s.push_back(stage.plan.step_time_s(o.time_step));
+  }
+  report_drift(*session, summary);
+  for (size_t k = problems_before; k < session->frame_problems().size(); ++k) {
+    const FrameProblem& p = session->frame_problems()[k];
+    summary.frame_problems.push_back(p.key.name(stage) + " (shot " + std::to_string(p.attempt + 1) +
+                                     "): " + p.problem);
   }
   collect_dead_leds(*session, summary);
   return summary;

@@ -18,6 +18,9 @@ struct CaptureOptions {
   std::filesystem::path session_dir;
   bool resume = false;  // Complete session_dir (its own stage and back-end) instead of creating it.
   uint64_t seed = 1;    // Noise seed of a simulated camera.
+  // Check each frame on arrival and shoot bad ones again (SequencerOptions::verify_frames); off
+  // for a camera whose frames do not follow the LEDs (a test pattern, as Aravis' Fake_1 draws).
+  bool verify_frames = true;
   // Empty when the options make sense, else what is wrong, in the CLI's words.
   std::string validate() const;
 };
@@ -30,6 +33,10 @@ struct CaptureJobSummary {
   CaptureSummary capture;  // This run (sequencer summary).
   std::vector<std::pair<int, std::string>> dead_leds;  // LED id, why it was flagged.
   std::vector<double> overrun_step_times_s;            // Scene time of each overrun step.
+  std::vector<std::string> frame_problems;  // Frames rejected on arrival this run: name, why.
+  // The reference LED's drift over each time step captured whole (capture/reference_drift.h),
+  // where it exceeds 0.5%.
+  std::vector<std::string> drift;
 };
 
 struct CaptureCallbacks {

@@ -56,6 +56,10 @@ void FrameWriter::mark_dead_led(int led_index, const std::string& reason) {
   enqueue(DeadLedJob{led_index, reason}, 64 + reason.size());
 }
 
+void FrameWriter::record_frame_problem(const FrameProblem& problem) {
+  enqueue(problem, 64 + problem.problem.size());
+}
+
 void FrameWriter::flush() {
   std::unique_lock lock(mutex_);
   changed_.wait(lock, [&] { return queue_.empty() && !busy_; });
@@ -91,6 +95,8 @@ void FrameWriter::run() {
             session_.record_led_signal(signal->time_step, signal->led_index, signal->fraction);
           } else if (auto* dead = std::get_if<DeadLedJob>(&job)) {
             session_.mark_dead_led(dead->led_index, dead->reason);
+          } else if (auto* problem = std::get_if<FrameProblem>(&job)) {
+            session_.record_frame_problem(*problem);
           }
         }
         session_.journal_frames(written);

@@ -39,6 +39,7 @@ class FrameWriter {
   void write(const PlannedFrame& planned, CapturedFrame frame);
   void record_led_signal(int time_step, int led_index, double fraction_of_full_scale);
   void mark_dead_led(int led_index, const std::string& reason);
+  void record_frame_problem(const FrameProblem& problem);
 
   // Waits until everything queued is in the session; throws the writer's first error.
   void flush();
@@ -56,7 +57,7 @@ class FrameWriter {
     int led_index;
     std::string reason;
   };
-  using Job = std::variant<FrameJob, SignalJob, DeadLedJob>;
+  using Job = std::variant<FrameJob, SignalJob, DeadLedJob, FrameProblem>;
 
   void enqueue(Job job, std::size_t bytes);
   void run();

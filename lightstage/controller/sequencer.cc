@@ -4,12 +4,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <map>
 #include <optional>
 #include <sstream>
 #include <thread>
 
+#include "lightstage/controller/frame_checks.h"
 #include "lightstage/controller/frame_writer.h"
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
@@ -203,8 +205,31 @@ void judge_saved_steps(Session& session, DarkCache& darks, const LedNeighbours& 
   }
 }
 
+// The camera's response inverted when the stage gives it without a file (linear, gamma); empty
+// otherwise (a table file, a response still to be recovered from the frames).
+DnToLinear response_inverse(const CameraSpec& camera) {
+  const double max_dn = double((1u << camera.bit_depth) - 1u);
+  switch (camera.response.kind) {
+    case CameraResponse::Kind::kLinear:
+      return [max_dn](int dn, int) { return dn / max_dn; };
+    case CameraResponse::Kind::kGamma: {
+      const double gamma = camera.response.gamma;
+      return [max_dn, gamma](int dn, int) { return std::pow(dn / max_dn, gamma); };
+    }
+    case CameraResponse::Kind::kTable:
+    case CameraResponse::Kind::kRecover:
+      break;
+  }
+  return {};
+}
+
 // The camera gave no frame after its retries: the capture stops, resumable.
 struct CameraGaveUp {
+  std::string message;
+};
+
+// Dark frames kept showing light after their re-shoots: the capture stops, resumable.
+struct DarkFramesLit {
   std::string message;
 };
 
@@ -229,6 +254,7 @@ class CaptureRun {
           .count();
     };
     summary_.frames_already_present = total_ - int(missing_.size());
+    to_linear_ = options.to_linear ? options.to_linear : response_inverse(stage_.camera);
   }
 
   CaptureSummary run() {
@@ -241,14 +267,15 @@ class CaptureRun {
     session_.write_manifest("capturing");
     AllOffGuard guard(lights_);
     try {
-      // Frames of one LED (or the dark frames of one time step) form a group: the LED goes on
-      // once, the whole bracket is exposed, and it goes off before the next group.
+      // Frames of one LED's bracket (or the dark frames of one time step) form a group: the LED
+      // goes on once, the whole bracket is exposed, and it goes off before the next group.
       for (size_t i = 0; i < missing_.size();) {
         const int t = missing_[i].key.time_step;
         const int led = missing_[i].key.led_index;
         size_t end = i;
         while (end < missing_.size() && missing_[end].key.time_step == t &&
-               missing_[end].key.led_index == led) {
+               missing_[end].key.led_index == led &&
+               (led < 0 || missing_[end].key.repeat == missing_[i].key.repeat)) {
           ++end;
         }
         if (t != current_step_) begin_step(t);
@@ -268,6 +295,8 @@ class CaptureRun {
       if (current_step_ >= 0) end_step(current_step_);
     } catch (const CameraGaveUp& e) {
       return finish(CaptureSummary::Status::kCameraFailed, e.message);
+    } catch (const DarkFramesLit& e) {
+      return finish(CaptureSummary::Status::kDarkFramesLit, e.message);
     } catch (const InputError& e) {
       // Only the frame writer throws InputError here: the disk is full or not writable.
       return finish(CaptureSummary::Status::kWriteFailed, cannot_save(e.what()));
@@ -317,7 +346,8 @@ class CaptureRun {
     const char* state = status == CaptureSummary::Status::kComplete       ? "complete"
                         : status == CaptureSummary::Status::kInterrupted  ? "interrupted"
                         : status == CaptureSummary::Status::kCameraFailed ? "camera-failed"
-                                                                          : "write-failed";
+                        : status == CaptureSummary::Status::kWriteFailed  ? "write-failed"
+                                                                          : "dark-frames-lit";
     try {
       session_.write_manifest(state);
     } catch (const std::exception& e) {
@@ -373,7 +403,72 @@ class CaptureRun {
     }
   }
 
-  // The frames missing_[i, end) of one LED (or the darks of one time step).
+  // A dark frame, checked for light and shot again while it shows some (frame_checks.h).
+  CapturedFrame capture_dark(const PlannedFrame& planned) {
+    for (int attempt = 0;; ++attempt) {
+      CapturedFrame frame = capture_with_retries(planned);
+      if (!options_.verify_frames) return frame;
+      std::string problem = dark_frame_problem(frame.raw, options_.dark_frame_light_threshold);
+      if (problem.empty()) return frame;
+      writer_->record_frame_problem({planned.key, attempt, problem});
+      if (attempt >= options_.frame_reshoots) {
+        throw DarkFramesLit{"dark frame " + planned.key.name(stage_) + " after " +
+                            std::to_string(attempt + 1) + " shots: " + problem +
+                            "; all LEDs are off and every frame taken is saved; check the LED "
+                            "lines and the room, then resume with --resume"};
+      }
+      ++summary_.frames_reshot;
+      lights_.all_off();  // Again: a line that did not switch off.
+    }
+  }
+
+  // Checks the bracket of one LED (frames of missing_[i, ...)) and shoots again the frames that
+  // disagree with the others. The problem left after the re-shoots, or "" when they agree.
+  std::string verify_bracket(size_t i, std::vector<CapturedFrame>& frames, DarkCache& darks) {
+    for (int attempt = 0;; ++attempt) {
+      const std::vector<std::string> problems = bracket_check(i, frames, darks);
+      std::string last;
+      for (size_t k = 0; k < frames.size(); ++k) {
+        if (problems[k].empty()) continue;
+        writer_->record_frame_problem({missing_[i + k].key, attempt, problems[k]});
+        last = missing_[i + k].key.name(stage_) + ": " + problems[k];
+      }
+      if (last.empty() || attempt >= options_.frame_reshoots) return last;
+      for (size_t k = 0; k < frames.size(); ++k) {
+        if (problems[k].empty()) continue;
+        frames[k] = capture_with_retries(missing_[i + k]);
+        ++summary_.frames_reshot;
+      }
+    }
+  }
+
+  // What is wrong with each of the frames of one LED's bracket (missing_[i, ...)); see
+  // bracket_problems. All "" when frames are not checked.
+  std::vector<std::string> bracket_check(size_t i, const std::vector<CapturedFrame>& frames,
+                                         DarkCache& darks) {
+    if (!options_.verify_frames || !to_linear_) return std::vector<std::string>(frames.size());
+    std::vector<BracketFrame> bracket;
+    for (size_t k = 0; k < frames.size(); ++k) {
+      const FrameKey& key = missing_[i + k].key;
+      bracket.push_back({&frames[k].raw, frames[k].exposure_s, frames[k].gain,
+                         darks.get(key.time_step, key.exposure_index), key.exposure_index});
+    }
+    return bracket_problems(bracket, to_linear_);
+  }
+
+  // The group's frames taken before the camera gave up or a dark frame stayed lit: the darks
+  // (checked one by one) and those of an LED's frames that agree with each other, or the only one.
+  void save_partial_group(size_t i, std::vector<CapturedFrame>& frames, DarkCache& darks) {
+    const std::vector<std::string> problems = missing_[i].key.led_index >= 0
+                                                  ? bracket_check(i, frames, darks)
+                                                  : std::vector<std::string>(frames.size());
+    for (size_t k = 0; k < frames.size(); ++k) {
+      if (problems[k].empty()) writer_->write(missing_[i + k], std::move(frames[k]));
+    }
+  }
+
+  // The frames missing_[i, end) of one LED (or the darks of one time step), checked before they
+  // are saved.
   void capture_group(size_t i, size_t end, DarkCache& darks) {
     const int t = missing_[i].key.time_step;
     const int led = missing_[i].key.led_index;
@@ -381,10 +476,26 @@ class CaptureRun {
       lights_.set_light(led, true);
       if (stage_.plan.settle_s > 0) sleep_(stage_.plan.settle_s);
     }
+    std::vector<CapturedFrame> frames;
+    std::string still_bad;  // What an LED's bracket shows after its re-shoots.
+    try {
+      for (size_t k = i; k < end; ++k) {
+        frames.push_back(led >= 0 ? capture_with_retries(missing_[k]) : capture_dark(missing_[k]));
+        if (options_.on_progress) {
+          options_.on_progress({summary_.frames_already_present + frames_taken_ + int(k - i) + 1,
+                                total_, missing_[k].key.name(stage_)});
+        }
+      }
+      if (led >= 0) still_bad = verify_bracket(i, frames, darks);
+    } catch (...) {
+      save_partial_group(i, frames, darks);  // Nothing captured is lost.
+      throw;
+    }
+    if (led >= 0) lights_.set_light(led, false);
     double brightest = 0.0;
     for (size_t k = i; k < end; ++k) {
       const PlannedFrame& planned = missing_[k];
-      CapturedFrame frame = capture_with_retries(planned);
+      CapturedFrame& frame = frames[k - i];
       if (led >= 0) {
         if (const auto* dark = darks.get(t, planned.key.exposure_index)) {
           brightest = std::max(brightest, bright_signal_fraction(frame.raw, *dark));
@@ -395,17 +506,19 @@ class CaptureRun {
         darks.add(planned.key, frame.raw);
       }
       writer_->write(planned, std::move(frame));
-      ++frames_taken_;
-      if (options_.on_progress) {
-        options_.on_progress(
-            {summary_.frames_already_present + frames_taken_, total_, planned.key.name(stage_)});
-      }
     }
-    if (led >= 0) {
-      lights_.set_light(led, false);
-      // Only a whole bracket taken in this run tells how bright the LED is; a split one is
-      // judged from its saved frames (judge_step).
-      if (end - i == stage_.camera.bracket.size()) writer_->record_led_signal(t, led, brightest);
+    frames_taken_ += int(end - i);
+    if (led < 0) return;
+    if (!still_bad.empty()) {
+      // Kept (the plan completes) but left out of the field, as a dead LED is.
+      writer_->mark_dead_led(led, "time step " + std::to_string(t) + ": its bracket still " +
+                                      "disagrees after " + std::to_string(options_.frame_reshoots) +
+                                      " re-shoots: " + still_bad);
+    }
+    // Only a whole bracket taken in this run tells how bright the LED is; a split one is
+    // judged from its saved frames (judge_step).
+    if (end - i == stage_.camera.bracket.size() && missing_[i].key.repeat == 0) {
+      writer_->record_led_signal(t, led, brightest);
     }
   }
 
@@ -419,6 +532,7 @@ class CaptureRun {
   const int total_;
   std::function<void(double)> sleep_;
   std::function<double()> clock_s_;
+  DnToLinear to_linear_;  // Empty: the response is not known, and brackets are not checked.
   CaptureSummary summary_;
   std::optional<FrameWriter> writer_;
   int frames_taken_ = 0;

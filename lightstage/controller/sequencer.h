@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "lightstage/controller/frame_checks.h"
 #include "lightstage/hardware.h"
 #include "lightstage/session.h"
 
@@ -32,6 +33,18 @@ struct SequencerOptions {
   // LED of a time step is captured, and again on resume (judge_captured_steps); the capture
   // continues.
   double dead_led_threshold = 0.002;
+  // Frames are checked as they arrive (frame_checks.h), before they are saved, and a bad one is
+  // shot again, at most frame_reshoots times: a dark frame with light in it, a frame that
+  // disagrees with the rest of its LED's bracket. Each rejection is journaled
+  // (Session::frame_problems) and counted. An LED whose bracket still disagrees after its
+  // re-shoots is marked dead (its frames kept, left out of the field); a dark frame still lit
+  // stops the capture (kDarkFramesLit), resumable once the room is dark.
+  bool verify_frames = true;
+  int frame_reshoots = 2;
+  double dark_frame_light_threshold = 0.01;  // Of full scale; see dark_frame_problem.
+  // The camera's response inverted, for the bracket check. Empty: the stage's own when it needs no
+  // file (linear, gamma); with a table file or a response still to recover, brackets go unchecked.
+  DnToLinear to_linear;
   // Sleeps for plan.settle_s and inter-step waits; tests replace it to run instantly.
   std::function<void(double seconds)> sleep;
   // Time steps in real time (hardware, or the simulator's camera.simulated.real_time): the first
@@ -46,12 +59,14 @@ struct SequencerOptions {
 
 struct CaptureSummary {
   // kWriteFailed: a frame could not be saved (disk full, directory gone or not writable).
-  enum class Status { kComplete, kInterrupted, kCameraFailed, kWriteFailed };
+  // kDarkFramesLit: dark frames kept showing light (an LED stuck on, room light).
+  enum class Status { kComplete, kInterrupted, kCameraFailed, kWriteFailed, kDarkFramesLit };
   Status status = Status::kComplete;
   int frames_captured = 0;  // This run, saved in the session.
   int frames_already_present = 0;
   int camera_retries = 0;
-  std::string message;  // Why it stopped, for the operator.
+  int frames_reshot = 0;  // Frames shot again because their check failed (SequencerOptions).
+  std::string message;    // Why it stopped, for the operator.
   double seconds = 0.0;
   // Time steps completed in this run whose capture took longer than the plan's interval to the
   // next step (also journaled in the session and listed in its manifest).
