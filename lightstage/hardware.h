@@ -20,6 +20,9 @@ class LightController {
   // dome plays an environment map with (`lightstage play`); all_off() ends it. Throws
   // HardwareError when the controller cannot (the default).
   virtual void set_levels(const std::vector<double>& level);
+  // The period of that modulation (software PWM), 0 when continuous: an exposure must span many
+  // periods (1/N of a period is the error of a level over N of them).
+  virtual double level_period_s() const { return 0.0; }
   // Must not throw: it runs on every exit path, including signal handling and errors.
   virtual void all_off() noexcept = 0;
 };

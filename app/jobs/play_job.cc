@@ -124,7 +124,17 @@ class Player {
           (stage_level[size_t(led)] * stage_.leds[size_t(led)].irradiance_rgb()).cast<float>();
     }
     *relit = relight::relight_played(field_, weight);
-    const double exposure_s = exposure_for(relit->radiance, stage_.camera);
+    double exposure_s = exposure_for(relit->radiance, stage_.camera);
+    // Modulated lights (software PWM) need the shortest exposure to span 50 periods (a level is
+    // then right to 2% of a period): the levels are lowered instead, the same light per exposure.
+    const double shortest_s = 50 * lights_.level_period_s();
+    if (exposure_s / 16 < shortest_s) {
+      const float dim = float(exposure_s / 16 / shortest_s);
+      for (double& l : stage_level) l *= dim;
+      for (Eigen::Vector3f& w : weight) w *= dim;
+      *relit = relight::relight_played(field_, weight);
+      exposure_s = 16 * shortest_s;
+    }
     // Keys far above any capture's (session.cc: sequence_key), one range per pattern.
     const uint64_t key_base = (uint64_t(1) << 62) + uint64_t(result_.patterns) * 1024;
     *photo = capture::shoot_played_photo(stage_, lights_, camera_, response_, stage_level,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <gpiod.hpp>
 #include <map>
@@ -57,6 +58,7 @@ GpioLights::~GpioLights() {
 }
 
 void GpioLights::set_light(int led_index, bool on) {
+  stop_pwm();
   LS_CHECK(led_index >= 0 && led_index < num_lights(),
            "LED index " + std::to_string(led_index) + " of " + std::to_string(num_lights()));
   Line& l = leds_[led_index];
@@ -70,6 +72,7 @@ void GpioLights::set_light(int led_index, bool on) {
 }
 
 void GpioLights::all_off() noexcept {
+  stop_pwm();
   for (size_t i = 0; i < leds_.size(); ++i) {
     Line& l = leds_[i];
     if (l.handle < 0) continue;  // Never requested (constructor failed before it).
@@ -83,6 +86,72 @@ void GpioLights::all_off() noexcept {
       }
     } catch (...) {
     }
+  }
+}
+
+std::vector<PwmEvent> pwm_period_events(const std::vector<double>& level, double period_s) {
+  std::vector<PwmEvent> events;
+  for (size_t l = 0; l < level.size(); ++l) {
+    if (level[l] > 0) events.push_back({0.0, int(l), true});
+  }
+  for (size_t l = 0; l < level.size(); ++l) {
+    if (level[l] > 0 && level[l] < 1) events.push_back({level[l] * period_s, int(l), false});
+  }
+  std::stable_sort(events.begin(), events.end(),
+                   [](const PwmEvent& a, const PwmEvent& b) { return a.at_s < b.at_s; });
+  return events;
+}
+
+void GpioLights::set_pwm_period(double seconds) {
+  LS_CHECK(seconds > 0, "PWM period " + std::to_string(seconds));
+  pwm_period_s_ = seconds;
+}
+
+void GpioLights::set_levels(const std::vector<double>& level) {
+  stop_pwm();
+  if (int(level.size()) != num_lights()) {
+    throw HardwareError("GPIO lights: " + std::to_string(level.size()) + " levels for " +
+                        std::to_string(num_lights()) + " LEDs");
+  }
+  for (size_t l = 0; l < level.size(); ++l) {
+    if (!(level[l] >= 0 && level[l] <= 1)) {
+      throw HardwareError(describe(int(l)) + ": expected a level in [0, 1], got " +
+                          std::to_string(level[l]));
+    }
+  }
+  pwm_stop_ = false;
+  pwm_ = std::thread(&GpioLights::run_pwm, this, pwm_period_events(level, pwm_period_s_));
+}
+
+// The PWM thread: the events of each period at their times, periods back to back on the clock
+// (not after the last event), so that sleeping late does not stretch the period.
+void GpioLights::run_pwm(std::vector<PwmEvent> events) {
+  using Clock = std::chrono::steady_clock;
+  const auto period =
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(pwm_period_s_));
+  try {
+    for (auto start = Clock::now(); !pwm_stop_; start += period) {
+      for (const PwmEvent& e : events) {
+        std::this_thread::sleep_until(start + std::chrono::duration_cast<Clock::duration>(
+                                                  std::chrono::duration<double>(e.at_s)));
+        if (pwm_stop_) return;
+        Line& l = leds_[size_t(e.led)];
+        driver_->set_level(l.handle, level_for(l, e.on));
+        l.on = e.on;
+      }
+      std::this_thread::sleep_until(start + period);
+    }
+  } catch (const std::exception& e) {
+    last_error_ = std::string("software PWM stopped: ") + e.what();  // all_off() follows.
+  }
+}
+
+void GpioLights::stop_pwm() noexcept {
+  if (!pwm_.joinable()) return;
+  pwm_stop_ = true;
+  try {
+    pwm_.join();
+  } catch (...) {
   }
 }
 

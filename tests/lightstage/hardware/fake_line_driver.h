@@ -1,5 +1,6 @@
 #pragma once
 // A GPIO line driver that records levels, for testing GpioLights without a GPIO chip.
+#include <atomic>
 #include <map>
 #include <set>
 #include <string>
@@ -18,6 +19,7 @@ struct FakeGpio {
   std::map<std::pair<std::string, int>, bool> level;  // Requested lines and their level.
   std::set<int> failing_handles;                      // set_level throws for these.
   int releases = 0;
+  std::atomic<int> sets{0};  // set_level calls (software PWM runs them on its own thread).
 };
 
 class FakeLineDriver : public GpioLineDriver {
@@ -37,6 +39,7 @@ class FakeLineDriver : public GpioLineDriver {
   void set_level(int handle, bool high) override {
     if (gpio_.failing_handles.count(handle)) throw HardwareError("EIO");
     gpio_.level[handles_.at(handle)] = high;
+    ++gpio_.sets;
   }
   void release_all() noexcept override {
     for (const auto& key : handles_) gpio_.level.erase(key);

@@ -1,6 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <memory>
+#include <thread>
 
 #include "lightstage/errors.h"
 #include "lightstage/hardware/gpiod_lights.h"
@@ -148,6 +150,43 @@ TEST(GpiodDriver, MissingChipIsAClearHardwareError) {
 }
 
 TEST(GpiodDriver, ListingChipsNeverThrows) { EXPECT_NO_THROW(list_gpio_chips()); }
+
+TEST(GpioPwm, OnePeriodSwitchesEachLitLedOnAtTheStartAndOffAtItsLevel) {
+  const std::vector<PwmEvent> events = pwm_period_events({0.0, 0.25, 1.0, 0.5}, 0.01);
+  ASSERT_EQ(events.size(), 5u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(events[size_t(k)].at_s, 0.0);
+    EXPECT_TRUE(events[size_t(k)].on);
+  }
+  EXPECT_EQ(events[3].led, 1);  // Off at a quarter period.
+  EXPECT_DOUBLE_EQ(events[3].at_s, 0.0025);
+  EXPECT_FALSE(events[3].on);
+  EXPECT_EQ(events[4].led, 3);
+  EXPECT_DOUBLE_EQ(events[4].at_s, 0.005);
+}
+
+TEST(GpioPwm, LevelsRunOnTheirThreadUntilAllOffLeavesEveryLineOff) {
+  FakeGpio gpio;
+  GpioLights lights(GpioStage(), std::make_unique<FakeLineDriver>(gpio));
+  lights.set_pwm_period(0.002);
+  EXPECT_DOUBLE_EQ(lights.level_period_s(), 0.002);
+  lights.set_levels({0.5, 1.0, 0.0});
+  // Wait (at most 10 s, on a loaded machine) until LED 10 has been switched several times.
+  for (int waited = 0; gpio.sets < 8 && waited < 10000; ++waited) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  EXPECT_GE(gpio.sets.load(), 8);
+  lights.all_off();
+  EXPECT_FALSE(Level(gpio, 4));
+  EXPECT_TRUE(Level(gpio, 5));   // Active-low: off is high.
+  EXPECT_FALSE(Level(gpio, 6));  // Level 0: never on.
+  EXPECT_EQ(lights.count_on(), 0);
+  const int after = gpio.sets;
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  EXPECT_EQ(gpio.sets.load(), after);  // The thread is gone.
+  EXPECT_THROW(lights.set_levels({0.5, 2.0, 0.0}), HardwareError);
+  EXPECT_THROW(lights.set_levels({0.5}), HardwareError);
+}
 
 }  // namespace
 }  // namespace ls
