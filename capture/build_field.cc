@@ -140,7 +140,7 @@ class FieldBuild {
  private:
   // Everything before the merge: the frames, lights, response, flat fields, darks and scales.
   void prepare() {
-    index_frames();
+    brackets_ = index_led_frames(session_, options_.time_step, order_, &dark_keys_);
     header_ = ReflectanceField::without_values(camera_.width, camera_.height, field_lights());
     if (std::find(usable_.begin(), usable_.end(), true) == usable_.end()) {
       const std::filesystem::path frames = session_.dir() / "frames";
@@ -160,7 +160,9 @@ class FieldBuild {
                              stage_.calibration.reference_z_m};
     for (size_t i = 0; i < order_.size(); ++i) {
       if (usable_[i]) {
-        header_.scene_time_s = brackets_[i].records[0]->scene_time_s;
+        for (const FrameRecord* record : brackets_[i].records) {
+          if (record) header_.scene_time_s = record->scene_time_s;
+        }
         break;
       }
     }
@@ -203,30 +205,6 @@ class FieldBuild {
         noise_samples_->values(), sum_.warnings);
     if (noise.measured) sum_.sensor_noise = sensor_;
     return noise;
-  }
-
-  // This time step's frames: dark frames per exposure step, each LED's bracket.
-  void index_frames() {
-    std::map<int, size_t> position_of_led;
-    brackets_.resize(order_.size());
-    for (size_t i = 0; i < order_.size(); ++i) {
-      brackets_[i].led_index = order_[i];
-      brackets_[i].records.assign(num_exposures_, nullptr);
-      position_of_led[order_[i]] = i;
-    }
-    dark_keys_.resize(num_exposures_);
-    for (const auto& [key, record] : session_.frames()) {
-      if (key.time_step != options_.time_step) continue;
-      if (key.exposure_index < 0 || key.exposure_index >= num_exposures_) continue;
-      if (key.is_dark()) {
-        dark_keys_[key.exposure_index].push_back(key);
-      } else if (key.repeat == 0) {
-        auto it = position_of_led.find(key.led_index);
-        if (it != position_of_led.end()) {
-          brackets_[it->second].records[key.exposure_index] = &record;
-        }
-      }
-    }
   }
 
   std::vector<FieldLight> field_lights() {
@@ -380,12 +358,13 @@ class FieldBuild {
       // value, (linear - dark) / (exposure * gain) with linear >= saturation_level (hdr_merge.h),
       // so no clipped sample lies below (saturation_level - dark level) / (exposure * gain) of
       // that step.
-      int shortest = 0;
+      int shortest = -1;  // Of the frames this LED was shot at.
       auto exposure_gain = [&](int e) {
         return brackets_[i].records[e]->exposure_s * brackets_[i].records[e]->gain;
       };
-      for (int e = 1; e < num_exposures_; ++e) {
-        if (exposure_gain(e) < exposure_gain(shortest)) shortest = e;
+      for (int e = 0; e < num_exposures_; ++e) {
+        if (brackets_[i].records[e] && (shortest < 0 || exposure_gain(e) < exposure_gain(shortest)))
+          shortest = e;
       }
       const double ceiling = (options_.merge.saturation_level - noise_steps_[shortest].dark_level) /
                              exposure_gain(shortest);
@@ -407,7 +386,7 @@ class FieldBuild {
     std::vector<bool> transfer_led(order_.size(), false);
     std::vector<int> candidates;
     for (size_t i = 0; i < order_.size(); ++i) {
-      if (usable_[i]) candidates.push_back(int(i));
+      if (usable_[i] && brackets_[i].full()) candidates.push_back(int(i));
     }
     const size_t picks = std::min<size_t>(candidates.size(), kTransferLeds);
     for (size_t p = 0; p < picks; ++p) {
@@ -420,13 +399,14 @@ class FieldBuild {
   void merge_led(int i, bool with_transfer, int transfer_stride, const LedSink& sink) {
     const int width = camera_.width, height = camera_.height;
     std::vector<RawFrame> raw(num_exposures_);
-    std::vector<BracketFrame> bracket(num_exposures_);
+    std::vector<BracketFrame> bracket;  // The steps this LED was shot at.
     for (int e = 0; e < num_exposures_; ++e) {
+      if (!brackets_[i].records[e]) continue;
       const FrameRecord& record = *brackets_[i].records[e];
       raw[e] = session_.load_frame(record.key);
       check_size(raw[e], record.key);
-      bracket[e] =
-          BracketFrame{&raw[e], darks_[e] ? &*darks_[e] : nullptr, record.exposure_s, record.gain};
+      bracket.push_back(
+          BracketFrame{&raw[e], darks_[e] ? &*darks_[e] : nullptr, record.exposure_s, record.gain});
     }
     const Image merged = merge_bracket(bracket, *response_, options_.merge);
     if (with_transfer) {

@@ -1,5 +1,6 @@
 #include "capture/led_frames.h"
 
+#include <map>
 #include <utility>
 
 #include "lightstage/errors.h"
@@ -13,6 +14,37 @@ constexpr int kRecoveryLeds = 3;
 
 }  // namespace
 
+std::vector<LedFrames> index_led_frames(const Session& session, int time_step,
+                                        const std::vector<int>& order,
+                                        std::vector<std::vector<FrameKey>>* dark_keys) {
+  const Stage& stage = session.stage();
+  const size_t steps = stage.camera.bracket.size();
+  std::map<int, size_t> position_of_led;
+  std::vector<LedFrames> brackets(order.size());
+  for (size_t i = 0; i < order.size(); ++i) {
+    brackets[i].led_index = order[i];
+    brackets[i].records.assign(steps, nullptr);
+    brackets[i].planned.assign(steps, false);
+    for (const int e : stage.exposures_of(order[i])) brackets[i].planned[size_t(e)] = true;
+    position_of_led[order[i]] = i;
+  }
+  dark_keys->assign(steps, {});
+  for (const auto& [key, record] : session.frames()) {
+    if (key.time_step != time_step) continue;
+    if (key.exposure_index < 0 || size_t(key.exposure_index) >= steps) continue;
+    const size_t e = size_t(key.exposure_index);
+    if (key.is_dark()) {
+      (*dark_keys)[e].push_back(key);
+    } else if (key.repeat == 0) {  // Not the reference LED's drift shots.
+      auto it = position_of_led.find(key.led_index);
+      if (it != position_of_led.end() && brackets[it->second].planned[e]) {
+        brackets[it->second].records[e] = &record;
+      }
+    }
+  }
+  return brackets;
+}
+
 ResponseCurve recover_from_session(const Session& session, const std::vector<LedFrames>& brackets,
                                    const std::vector<bool>& usable) {
   const Stage& stage = session.stage();
@@ -20,7 +52,7 @@ ResponseCurve recover_from_session(const Session& session, const std::vector<Led
   // what the camera sees) with the highest calibrated irradiance.
   std::vector<std::pair<double, size_t>> scored;
   for (size_t i = 0; i < brackets.size(); ++i) {
-    if (!usable[i]) continue;
+    if (!usable[i] || !brackets[i].full()) continue;
     const Led& led = stage.leds[brackets[i].led_index];
     const double facing = std::max(0.05, led.dir_in_stage.z());
     scored.push_back({-led.irradiance_rgb().mean() * facing, i});

@@ -133,7 +133,7 @@ std::vector<PlannedFrame> plan_frames(const Stage& stage) {
         ++shot;
         for (int e = 0; e < steps; ++e) add(reference, e, shot);
       }
-      for (int e = 0; e < steps; ++e) add(order[j], e, 0);
+      for (const int e : stage.exposures_of(order[j])) add(order[j], e, 0);
     }
     if (reference >= 0) {
       ++shot;

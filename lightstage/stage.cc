@@ -125,9 +125,9 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
   return cam;
 }
 
-CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds) {
+CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds, int bracket_steps) {
   r.expect_object({"led_order", "dark_frames", "settle_s", "time_steps", "interval_s", "times_s",
-                   "reference_led", "reference_every"});
+                   "reference_led", "reference_every", "led_exposures"});
   CapturePlan plan;
   if (r.has("led_order")) {
     const JsonReader order = r["led_order"];
@@ -148,6 +148,24 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds) {
     }
   }
   if (r.has("reference_every")) plan.reference_every = r["reference_every"].integer_in(1, 100000);
+  if (r.has("led_exposures")) {
+    const JsonReader list = r["led_exposures"];
+    for (size_t i = 0; i < list.size(); ++i) {
+      const JsonReader entry = list[i];
+      entry.expect_object({"led", "exposures"});
+      const int id = entry["led"].integer_in(0, 1 << 20);
+      if (std::none_of(leds.begin(), leds.end(), [&](const Led& led) { return led.id == id; })) {
+        entry["led"].fail("the id of an LED in \"leds\"");
+      }
+      const JsonReader steps = entry["exposures"];
+      if (steps.size() == 0) steps.fail("at least one bracket step");
+      std::vector<int>& chosen = plan.led_exposures[id];
+      for (size_t k = 0; k < steps.size(); ++k) {
+        chosen.push_back(steps[k].integer_in(0, bracket_steps - 1));
+        if (k > 0 && chosen[k] <= chosen[k - 1]) steps[k].fail("bracket steps in increasing order");
+      }
+    }
+  }
   if (r.has("dark_frames")) plan.dark_frames = r["dark_frames"].integer_in(1, 64);
   if (r.has("settle_s")) plan.settle_s = r["settle_s"].number_in(0, 60, "(seconds)");
   if (r.has("time_steps")) plan.time_steps = r["time_steps"].integer_in(1, 100000);
@@ -235,6 +253,16 @@ std::vector<int> Stage::capture_order() const {
   return order;
 }
 
+std::vector<int> Stage::exposures_of(int led_index) const {
+  if (auto it = plan.led_exposures.find(leds.at(size_t(led_index)).id);
+      it != plan.led_exposures.end()) {
+    return it->second;
+  }
+  std::vector<int> all(camera.bracket.size());
+  for (size_t e = 0; e < all.size(); ++e) all[e] = int(e);
+  return all;
+}
+
 std::vector<Eigen::Vector3d> Stage::led_directions() const {
   std::vector<Eigen::Vector3d> dirs;
   dirs.reserve(leds.size());
@@ -269,7 +297,9 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
   }
   if (r.has("camera")) stage.camera = parse_camera(r["camera"], base_dir);
   if (stage.camera.bracket.empty()) stage.camera.bracket = default_stage().camera.bracket;
-  if (r.has("plan")) stage.plan = parse_plan(r["plan"], stage.leds);
+  if (r.has("plan")) {
+    stage.plan = parse_plan(r["plan"], stage.leds, int(stage.camera.bracket.size()));
+  }
   if (r.has("calibration")) stage.calibration = parse_calibration(r["calibration"], base_dir);
   if (r.has("coverage_radius_deg")) {
     stage.coverage_radius_deg = r["coverage_radius_deg"].number_in(0, 180, "(0 = automatic)");
@@ -348,6 +378,13 @@ std::string stage_to_json(const Stage& stage) {
     plan["times_s"] = stage.plan.times_s;
   }
   if (!stage.plan.led_order.empty()) plan["led_order"] = stage.plan.led_order;
+  if (!stage.plan.led_exposures.empty()) {
+    json chosen = json::array();
+    for (const auto& [id, steps] : stage.plan.led_exposures) {
+      chosen.push_back({{"led", id}, {"exposures", steps}});
+    }
+    plan["led_exposures"] = chosen;
+  }
   if (stage.plan.reference_led >= 0) {
     plan["reference_led"] = stage.plan.reference_led;
     plan["reference_every"] = stage.plan.reference_every;

@@ -4,6 +4,7 @@
 // stage centre at the origin. An LED direction is the unit vector from the origin toward the LED.
 #include <Eigen/Core>
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -87,6 +88,11 @@ struct CapturePlan {
   // the camera's gain) drifted; `lightstage build --correct-drift` divides it out.
   int reference_led = -1;
   int reference_every = 20;
+  // Exposures chosen per LED (by LED id: indices into camera.bracket, ascending), e.g. by
+  // choose_led_exposures from an earlier session: the fewest that cover the scene's range under
+  // that LED. An LED not listed is shot at the whole bracket. Stage file: "led_exposures":
+  // [{"led": 12, "exposures": [0, 1]}, ...].
+  std::map<int, std::vector<int>> led_exposures;
   // Reference shots per time step (0 without a reference LED), for `leds` LEDs in the order.
   int reference_shots(int leds) const;
 
@@ -120,6 +126,8 @@ struct Stage {
 
   int led_index(int id) const;             // Index into leds, or -1.
   std::vector<int> capture_order() const;  // Indices into leds, in plan order.
+  // The bracket steps LED `led_index` is shot at (plan.led_exposures, else all), ascending.
+  std::vector<int> exposures_of(int led_index) const;
   std::vector<Eigen::Vector3d> led_directions() const;
 };
 

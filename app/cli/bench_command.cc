@@ -14,6 +14,7 @@
 #include "app/cli/commands.h"
 #include "app/jobs/contact_sheet.h"
 #include "evaluation/compact_bench.h"
+#include "evaluation/exposure_bench.h"
 #include "evaluation/fit_bench.h"
 #include "evaluation/fit_sweeps_bench.h"
 #include "evaluation/led_bench.h"
@@ -162,6 +163,36 @@ void add_sun(CLI::App& bench) {
                  summary.sources_setup_ms);
     std::fprintf(stderr, "wrote %s, sun_sweep.png, sun_turn.png, sun_error_vs_time.png\n",
                  summary.csv.c_str());
+  });
+}
+
+void add_exposures(CLI::App& bench) {
+  auto args = std::make_shared<evaluation::ExposureBenchOptions>();
+  args->hdr_scene = std::filesystem::path(LIGHTSTAGE_DATA_DIR) / "scenes" / "hdr.json";
+  auto* cmd = bench.add_subcommand(
+      "exposures",
+      "Exposures chosen per LED from an earlier session (capture --exposures-from) against the "
+      "whole bracket, on the demo scene and a high-dynamic-range one (a near-mirror sphere "
+      "beside a dark cloth): LED frames, exposure and capture time, field error against truth.");
+  cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
+  cmd->add_option("--resolution", args->resolution, "Camera width and height.")
+      ->capture_default_str();
+  cmd->add_option("--camera-fps", args->camera_fps,
+                  "The camera's read-out rate: a frame takes at least 1/fps.")
+      ->capture_default_str();
+  cmd->callback([args] {
+    const evaluation::ExposureBenchSummary summary =
+        evaluation::run_exposure_bench(*args, progress_printer(false));
+    std::printf("%-6s %-14s %10s %11s %10s %11s %9s\n", "scene", "plan", "LED frames", "exposure s",
+                "capture s", "median err", "p90 err");
+    for (const evaluation::ExposureBenchRow& r : summary.rows) {
+      for (const auto& [plan, o] : {std::pair{"whole bracket", r.whole}, {"chosen", r.chosen}}) {
+        std::printf("%-6s %-14s %10d %11.2f %10.2f %10.2f%% %8.2f%%\n", r.scene.c_str(), plan,
+                    o.led_frames, o.exposure_s, o.capture_s, 100 * o.median_error,
+                    100 * o.p90_error);
+      }
+    }
+    std::fprintf(stderr, "wrote %s and exposures_error_vs_time.png\n", summary.csv.c_str());
   });
 }
 
@@ -350,6 +381,7 @@ void add_bench_command(CLI::App& app) {
   bench->require_subcommand(1);
   add_leds(*bench);
   add_sun(*bench);
+  add_exposures(*bench);
   add_fit_sweeps(*bench);
   add_fit(*bench);
   add_temporal(*bench);

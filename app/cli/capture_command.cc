@@ -67,6 +67,13 @@ int capture_session(const jobs::CaptureOptions& options, bool quiet) {
                    options.session_dir.c_str(), before.frames_present_before,
                    before.frames_missing_before);
     }
+    if (before.led_frames_full > 0) {
+      std::fprintf(stderr,
+                   "exposures chosen per LED from %s: %d LED frames per time step instead of %d, "
+                   "%.2f s of exposure instead of %.2f s\n",
+                   options.exposures_from.c_str(), before.led_frames_chosen, before.led_frames_full,
+                   before.exposure_s_chosen, before.exposure_s_full);
+    }
     progress.emplace("capture", long(total_frames), quiet);
   };
   callbacks.on_progress = [&](const CaptureProgress& p) { progress->update(p.done, p.current); };
@@ -143,6 +150,11 @@ void add_capture_command(CLI::App& app) {
   out->excludes(resume);
   cmd->add_option("--seed", options->seed, "Noise seed of the simulated camera.")
       ->capture_default_str();
+  cmd->add_option("--exposures-from", options->exposures_from,
+                  "An earlier session of the same stage and scene: each LED is shot only at the "
+                  "bracket steps that were the best exposure of its pixels there (fewer frames, "
+                  "the same field within its noise).")
+      ->check(CLI::ExistingDirectory);
   cmd->add_flag(
       "--no-frame-checks", [options](int64_t) { options->verify_frames = false; },
       "Save frames unchecked. By default each frame is checked on arrival (dark frames "

@@ -4,6 +4,7 @@
 #include <optional>
 #include <set>
 
+#include "capture/exposure_choice.h"
 #include "capture/reference_drift.h"
 #include "capture/response.h"
 #include "lightstage/backend_registry.h"
@@ -54,12 +55,36 @@ void report_drift(const Session& session, CaptureJobSummary& summary) {
   }
 }
 
+// Each LED's exposures from an earlier session of the same stage: the bracket steps that keep
+// every pixel's best exposure there.
+void choose_exposures(const fs::path& previous_dir, Stage& stage, CaptureJobSummary& summary) {
+  const Session previous = Session::open(previous_dir);
+  const Stage& before = previous.stage();
+  if (before.leds.size() != stage.leds.size() ||
+      before.camera.bracket.size() != stage.camera.bracket.size() ||
+      before.camera.width != stage.camera.width || before.camera.height != stage.camera.height) {
+    throw InputError(previous_dir.string() +
+                     ": --exposures-from needs a session of the same stage (LEDs, bracket, "
+                     "camera size) as " +
+                     stage.source);
+  }
+  const capture::ExposureChoice choice = capture::choose_led_exposures(previous);
+  stage.plan.led_exposures = choice.led_exposures;
+  summary.led_frames_full = choice.frames_before;
+  summary.led_frames_chosen = choice.frames_after;
+  summary.exposure_s_full = choice.exposure_s_before;
+  summary.exposure_s_chosen = choice.exposure_s_after;
+}
+
 }  // namespace
 
 std::string CaptureOptions::validate() const {
   if (session_dir.empty()) return "give --out DIR (new session) or --resume DIR";
   if (resume && !stage_file.empty()) return "--resume uses the session's own stage: drop --stage";
   if (resume && !scene_file.empty()) return "--resume uses the session's own scene: drop --scene";
+  if (resume && !exposures_from.empty()) {
+    return "--resume keeps the session's own exposures: drop --exposures-from";
+  }
   return {};
 }
 
@@ -96,8 +121,8 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
     }
     devices = backend.open({session->stage(), input_file, session->info().seed});
   } else {
-    const Stage stage =
-        options.stage_file.empty() ? default_stage() : load_stage(options.stage_file);
+    Stage stage = options.stage_file.empty() ? default_stage() : load_stage(options.stage_file);
+    if (!options.exposures_from.empty()) choose_exposures(options.exposures_from, stage, summary);
     check_calibration_files(stage);
     const Backend& backend = backend_registry().find(stage.camera.backend, stage.source);
     if (!options.scene_file.empty() && backend.input_file_name.empty()) {

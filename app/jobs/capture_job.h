@@ -21,6 +21,9 @@ struct CaptureOptions {
   // Check each frame on arrival and shoot bad ones again (SequencerOptions::verify_frames); off
   // for a camera whose frames do not follow the LEDs (a test pattern, as Aravis' Fake_1 draws).
   bool verify_frames = true;
+  // A new session's exposures chosen per LED from this earlier session of the same scene and
+  // stage (capture/exposure_choice.h); empty: every LED at the whole bracket.
+  std::filesystem::path exposures_from;
   // Empty when the options make sense, else what is wrong, in the CLI's words.
   std::string validate() const;
 };
@@ -37,6 +40,10 @@ struct CaptureJobSummary {
   // The reference LED's drift over each time step captured whole (capture/reference_drift.h),
   // where it exceeds 0.5%.
   std::vector<std::string> drift;
+  // With exposures_from: LED frames per time step and their summed exposure, whole bracket
+  // against chosen.
+  int led_frames_full = 0, led_frames_chosen = 0;
+  double exposure_s_full = 0, exposure_s_chosen = 0;
 };
 
 struct CaptureCallbacks {

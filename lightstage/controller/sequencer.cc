@@ -144,7 +144,7 @@ class LedNeighbours {
 bool step_captured(const Session& session, int t) {
   const Stage& stage = session.stage();
   for (int led = 0; led < int(stage.leds.size()); ++led) {
-    for (int e = 0; e < int(stage.camera.bracket.size()); ++e) {
+    for (const int e : stage.exposures_of(led)) {
       if (!session.frames().count({t, led, e, 0})) return false;
     }
   }
@@ -155,7 +155,7 @@ bool step_captured(const Session& session, int t) {
 // bracket was split between runs, or whose signal line a kill cut off.
 double saved_signal(const Session& session, DarkCache& darks, int t, int led) {
   double brightest = 0.0;
-  for (int e = 0; e < int(session.stage().camera.bracket.size()); ++e) {
+  for (const int e : session.stage().exposures_of(led)) {
     const std::vector<float>* dark = darks.get(t, e);
     if (!dark) return 1.0;  // No dark reference: cannot judge.
     brightest =
@@ -517,7 +517,7 @@ class CaptureRun {
     }
     // Only a whole bracket taken in this run tells how bright the LED is; a split one is
     // judged from its saved frames (judge_step).
-    if (end - i == stage_.camera.bracket.size() && missing_[i].key.repeat == 0) {
+    if (end - i == stage_.exposures_of(led).size() && missing_[i].key.repeat == 0) {
       writer_->record_led_signal(t, led, brightest);
     }
   }
