@@ -1,6 +1,7 @@
 #pragma once
 // Checks of frames as they arrive (issue 17): what a frame should look like, judged before it is
-// saved, so that the sequencer can shoot it again. Pure functions of the frames; the sequencer acts.
+// saved, so that the sequencer can shoot it again. Pure functions of the frames; the sequencer
+// acts.
 #include <functional>
 #include <string>
 #include <vector>
@@ -30,12 +31,12 @@ struct BracketFrame {
 // The frames of one LED's bracket must agree once each is made linear, dark-subtracted and divided
 // by its exposure times gain: the same light, longer. Each pair is compared over a 16 x 16 grid of
 // regions (unsaturated values of a strided sample); a region disagrees when the mean difference is
-// beyond 5 standard errors (its noise), 10% of the signal and 2 DN of the shorter exposure. A pair disagrees when at
-// least 2% of the regions that hold signal (and at least two) do. A frame is bad when it disagrees
-// with every other frame of the bracket (with two frames, both are). What this catches: a torn or
-// partial frame, a stale frame (the previous trigger's), a frame from another LED, a wrong exposure.
-// Returns one entry per frame, "" for a good one; all "" when the bracket cannot be judged (fewer
-// than two frames, no dark reference, frames of different sizes).
+// beyond 5 standard errors (its noise), 10% of the signal and 2 DN of the shorter exposure. A pair
+// disagrees when at least 2% of the regions that hold signal (and at least two) do. A frame is bad
+// when it disagrees with every other frame of the bracket (with two frames, both are). What this
+// catches: a torn or partial frame, a stale frame (the previous trigger's), a frame from another
+// LED, a wrong exposure. Returns one entry per frame, "" for a good one; all "" when the bracket
+// cannot be judged (fewer than two frames, no dark reference, frames of different sizes).
 std::vector<std::string> bracket_problems(const std::vector<BracketFrame>& frames,
                                           const DnToLinear& to_linear);
 
