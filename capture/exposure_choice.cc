@@ -32,6 +32,7 @@ ExposureChoice choose_led_exposures(const Session& previous, int time_step, doub
     return previous.load_frame(key);
   };
   std::vector<Image> darks;  // Linear, per step.
+  darks.reserve(size_t(steps));
   for (int e = 0; e < steps; ++e) {
     std::vector<RawFrame> frames;
     for (int r = 0; r < stage.plan.dark_frames; ++r) {
@@ -40,6 +41,7 @@ ExposureChoice choose_led_exposures(const Session& previous, int time_step, doub
       }
     }
     std::vector<const RawFrame*> pointers;
+    pointers.reserve(frames.size());
     for (const RawFrame& f : frames) pointers.push_back(&f);
     darks.push_back(pointers.empty() ? Image() : mean_dark(pointers, response));
   }
@@ -57,6 +59,7 @@ ExposureChoice choose_led_exposures(const Session& previous, int time_step, doub
   tbb::parallel_for(size_t(0), order.size(), [&](size_t i) {
     const int led = order[i];
     std::vector<RawFrame> frames;
+    frames.reserve(size_t(steps));
     for (int e = 0; e < steps; ++e) frames.push_back(load({time_step, led, e, 0}));
     const size_t values = frames[0].pixels.size();
     const size_t stride = std::max<size_t>(1, values / kMaxSamples);

@@ -48,6 +48,7 @@ PlayedPhoto shoot_played_photo(const Stage& stage, LightController& lights, Came
     for (size_t e = 0; e < steps; ++e) {
       for (int s = 0; s < kShots; ++s) lit[e].push_back(camera.capture(request(e, s)));
     }
+    lights.verify_levels();  // The pattern held through every lit frame.
     lights.all_off();
     for (size_t e = 0; e < steps; ++e) {
       for (int r = 0; r < kDarkFrames; ++r) dark[e].push_back(camera.capture(request(e, 8 + r)));

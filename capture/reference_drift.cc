@@ -73,11 +73,14 @@ std::optional<ReferenceDrift> measure_reference_drift(const Session& session, in
       if (session.frames().count(key)) darks.push_back(session.load_frame(key));
     }
     std::vector<const RawFrame*> dark_pointers;
+    dark_pointers.reserve(darks.size());
     for (const RawFrame& d : darks) dark_pointers.push_back(&d);
     const Image dark = dark_pointers.empty() ? Image() : mean_dark(dark_pointers, response);
     std::vector<RawFrame> frames;
-    for (int k = 0; k < shots; ++k)
+    frames.reserve(size_t(shots));
+    for (int k = 0; k < shots; ++k) {
       frames.push_back(load(session, {time_step, reference, e, k + 1}));
+    }
     const RawFrame& first = frames[0];
     const double saturated = kSaturatedFraction * first.max_value();
     std::vector<double> signal(size_t(shots), 0.0);

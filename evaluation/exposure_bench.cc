@@ -62,9 +62,10 @@ ExposurePlanOutcome capture_and_measure(const fs::path& dir, const Stage& stage,
         }
       }
     }
-    if (t2 > 0)
+    if (t2 > 0) {
       errors.push_back(
           {std::sqrt(t2 / (3.0 * field.width() * field.height())), std::sqrt(d2 / t2)});
+    }
   }
   double brightest = 0;
   for (const auto& [rms, e] : errors) brightest = std::max(brightest, rms);

@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "lightstage/errors.h"
+#include "lightstage/session.h"
 
 namespace ls {
 
@@ -43,6 +44,16 @@ std::vector<std::string> BackendRegistry::names() const {
 BackendRegistry& backend_registry() {
   static BackendRegistry registry;
   return registry;
+}
+
+OpenedBackend open_session_backend(const Session& session) {
+  const Backend& backend = backend_registry().find(session.info().backend, session.stage().source);
+  std::filesystem::path input_file;
+  if (!backend.input_file_name.empty() &&
+      std::filesystem::exists(session.dir() / backend.input_file_name)) {
+    input_file = session.dir() / backend.input_file_name;
+  }
+  return backend.open({session.stage(), input_file, session.info().seed});
 }
 
 }  // namespace ls

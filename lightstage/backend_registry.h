@@ -57,4 +57,9 @@ class BackendRegistry {
 // The process's registry, filled by the app at start-up (app/cli/register_backends.h).
 BackendRegistry& backend_registry();
 
+class Session;
+// The devices of an existing session, as a resumed capture and `play` open them: its back-end,
+// its stage, its seed and its own copy of the back-end's input file (the simulated stage's scene).
+OpenedBackend open_session_backend(const Session& session);
+
 }  // namespace ls

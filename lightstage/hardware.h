@@ -23,6 +23,9 @@ class LightController {
   // The period of that modulation (software PWM), 0 when continuous: an exposure must span many
   // periods (1/N of a period is the error of a level over N of them).
   virtual double level_period_s() const { return 0.0; }
+  // Throws HardwareError when the lights failed on their own since set_levels (a PWM thread's line
+  // error: every LED is then off); nothing otherwise.
+  virtual void verify_levels() {}
   // Must not throw: it runs on every exit path, including signal handling and errors.
   virtual void all_off() noexcept = 0;
 };

@@ -262,9 +262,10 @@ Session Session::open(const fs::path& dir) {
     // Valid JSON of the wrong shape, or naming a step, LED or exposure the plan has not, is a
     // damaged journal: say where, never abort.
     const JournalLine in{j, journal_path.string() + ":" + std::to_string(line_no), s.stage_};
-    const int max_repeat = std::max({s.stage_.plan.dark_frames,
-                                     s.stage_.plan.reference_shots(int(s.stage_.leds.size())), 1}) -
-                           1;
+    // Dark frames are repeats 0 .. dark_frames - 1; the reference LED's shots 1 .. shots.
+    const int max_repeat =
+        std::max(s.stage_.plan.dark_frames - 1,
+                 s.stage_.plan.reference_shots(int(s.stage_.capture_order().size())));
     try {
       if (j.contains("led_signal")) {
         s.led_signals_[{in.step("t"), in.led("led_signal")}] = j["fraction"].get<double>();

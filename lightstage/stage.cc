@@ -148,6 +148,13 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds, int br
     }
   }
   if (r.has("reference_every")) plan.reference_every = r["reference_every"].integer_in(1, 100000);
+  // A frame's plan key holds 8 bits of repeat (session.cc: sequence_key).
+  if (plan.reference_shots(int(leds.size())) > 255) {
+    (r.has("reference_every") ? r["reference_every"] : r["reference_led"])
+        .fail("a reference_every of at least " + std::to_string((int(leds.size()) + 253) / 254) +
+              " for " + std::to_string(leds.size()) +
+              " LEDs: at most 255 reference shots per time step");
+  }
   if (r.has("led_exposures")) {
     const JsonReader list = r["led_exposures"];
     for (size_t i = 0; i < list.size(); ++i) {
@@ -157,6 +164,7 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds, int br
       if (std::none_of(leds.begin(), leds.end(), [&](const Led& led) { return led.id == id; })) {
         entry["led"].fail("the id of an LED in \"leds\"");
       }
+      if (plan.led_exposures.count(id)) entry["led"].fail("each LED once (this one repeats)");
       const JsonReader steps = entry["exposures"];
       if (steps.size() == 0) steps.fail("at least one bracket step");
       std::vector<int>& chosen = plan.led_exposures[id];

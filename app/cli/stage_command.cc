@@ -7,6 +7,7 @@
 
 #include "app/cli/commands.h"
 #include "lightstage/image.h"
+#include "lightstage/session.h"
 #include "lightstage/stage.h"
 #include "relight/lighting/light_cells.h"
 #include "sim/envmaps.h"
@@ -52,9 +53,7 @@ void add_stage_command(CLI::App& app) {
                 c.channels, c.bit_depth);
     for (const auto& s : c.bracket) std::printf(" %gs@x%g", s.exposure_s, s.gain);
     std::printf("\n  plan: %d dark frames per step, %d time step(s), %zu frames in all\n",
-                stage.plan.dark_frames, stage.plan.time_steps,
-                size_t(stage.plan.time_steps) *
-                    (c.bracket.size() * (stage.plan.dark_frames + stage.leds.size())));
+                stage.plan.dark_frames, stage.plan.time_steps, plan_frames(stage).size());
   });
 }
 

@@ -60,13 +60,26 @@ void report_drift(const Session& session, CaptureJobSummary& summary) {
 void choose_exposures(const fs::path& previous_dir, Stage& stage, CaptureJobSummary& summary) {
   const Session previous = Session::open(previous_dir);
   const Stage& before = previous.stage();
-  if (before.leds.size() != stage.leds.size() ||
-      before.camera.bracket.size() != stage.camera.bracket.size() ||
-      before.camera.width != stage.camera.width || before.camera.height != stage.camera.height) {
+  bool same = before.leds.size() == stage.leds.size() &&
+              before.camera.bracket.size() == stage.camera.bracket.size() &&
+              before.camera.width == stage.camera.width &&
+              before.camera.height == stage.camera.height;
+  for (size_t i = 0; same && i < stage.leds.size(); ++i)
+    same = before.leds[i].id == stage.leds[i].id;
+  for (size_t e = 0; same && e < stage.camera.bracket.size(); ++e) {
+    same = before.camera.bracket[e].exposure_s == stage.camera.bracket[e].exposure_s &&
+           before.camera.bracket[e].gain == stage.camera.bracket[e].gain;
+  }
+  if (!same) {
     throw InputError(previous_dir.string() +
-                     ": --exposures-from needs a session of the same stage (LEDs, bracket, "
-                     "camera size) as " +
+                     ": --exposures-from needs a session of the same stage (LED ids, bracket "
+                     "exposures and gains, camera size) as " +
                      stage.source);
+  }
+  if (stage.camera.response.kind == CameraResponse::Kind::kRecover) {
+    throw InputError(stage.source +
+                     ": camera.response: --exposures-from needs the response given (linear, "
+                     "gamma or a table): recovering it needs every LED's whole bracket");
   }
   const capture::ExposureChoice choice = capture::choose_led_exposures(previous);
   stage.plan.led_exposures = choice.led_exposures;
@@ -112,14 +125,7 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
       collect_dead_leds(*session, summary);
       return summary;
     }
-    const Backend& backend =
-        backend_registry().find(session->info().backend, session->stage().source);
-    fs::path input_file;
-    if (!backend.input_file_name.empty() &&
-        fs::exists(options.session_dir / backend.input_file_name)) {
-      input_file = options.session_dir / backend.input_file_name;
-    }
-    devices = backend.open({session->stage(), input_file, session->info().seed});
+    devices = open_session_backend(*session);
   } else {
     Stage stage = options.stage_file.empty() ? default_stage() : load_stage(options.stage_file);
     if (!options.exposures_from.empty()) choose_exposures(options.exposures_from, stage, summary);

@@ -5,7 +5,9 @@
 #include <cstdio>
 #include <functional>
 #include <nlohmann/json.hpp>
+#include <optional>
 
+#include "capture/light_calibration.h"
 #include "capture/played_photo.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
@@ -18,6 +20,9 @@ namespace ls::jobs {
 namespace fs = std::filesystem;
 
 namespace {
+
+// Software PWM: shorter on-times than this each period are lost in the timer's jitter.
+constexpr double kMinOnTimeS = 100e-6;
 
 double luminance(const Eigen::Vector3d& rgb) {
   return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
@@ -43,7 +48,25 @@ class Player {
         camera_(camera),
         options_(options),
         progress_(progress),
-        response_(response_of(stage)) {}
+        response_(response_of(stage)) {
+    if (!stage.calibration.flat_field.empty()) {
+      flat_ = capture::read_flat_field(stage.calibration.flat_field, stage);
+    }
+    // What the build divided each light's image by (build_field.h): a near LED's falloff from the
+    // reference point, the LED's flat field.
+    pixel_gain_ = [this](int light, int x, int y) {
+      const capture::FieldLight& l = field_.lights()[size_t(light)];
+      const int w = field_.width(), h = field_.height();
+      double gain = 1.0;
+      if (l.position_in_stage && field_.view) {
+        gain = (*l.position_in_stage - capture::reference_point(*field_.view, w, h, x, y))
+                   .squaredNorm() /
+               l.position_in_stage->squaredNorm();
+      }
+      if (flat_) gain /= flat_->at(l.led_id, x, y, w, h);
+      return float(gain);
+    };
+  }
 
   PlayResult run() {
     const relight::EnvironmentMap map = relight::EnvironmentMap::load(options_.env_map);
@@ -81,14 +104,19 @@ class Player {
     result_.agrees = !result_.check.disagrees(options_.gain_tolerance);
     if (!options_.out_dir.empty()) write_outputs(photo, relit);
     if (!options_.locate) return result_;
-    const std::vector<int> order = dome_order(all);
     const size_t group = options_.audit_group_size > 0 ? size_t(options_.audit_group_size) : 0;
-    if (group == 0 || group >= order.size()) {
-      if (!result_.agrees) locate(order, result_.check);
+    if (group == 0) {
+      if (!result_.agrees) locate(dome_order(all), result_.check);
       return result_;
     }
+    std::vector<int> every;  // The audit tests every LED of the field, used by the map or not.
+    every.reserve(valid.size());
+    for (size_t i = 0; i < valid.size(); ++i) {
+      if (valid[i]) every.push_back(int(i));
+    }
+    const std::vector<int> order = dome_order(every);
     // The audit lights each LED fully, whatever its share of the map: every LED is tested.
-    std::fill(level_.begin(), level_.end(), 1.0);
+    for (size_t i = 0; i < level_.size(); ++i) level_[i] = valid[i] ? 1.0 : 0.0;
     for (size_t start = 0; start < order.size(); start += group) {
       const std::vector<int> part(order.begin() + long(start),
                                   order.begin() + long(std::min(order.size(), start + group)));
@@ -123,17 +151,34 @@ class Player {
       weight[size_t(i)] =
           (stage_level[size_t(led)] * stage_.leds[size_t(led)].irradiance_rgb()).cast<float>();
     }
-    *relit = relight::relight_played(field_, weight);
+    *relit = relight::relight_played(field_, weight, pixel_gain_);
     double exposure_s = exposure_for(relit->radiance, stage_.camera);
     // Modulated lights (software PWM) need the shortest exposure to span 50 periods (a level is
     // then right to 2% of a period): the levels are lowered instead, the same light per exposure.
-    const double shortest_s = 50 * lights_.level_period_s();
-    if (exposure_s / 16 < shortest_s) {
-      const float dim = float(exposure_s / 16 / shortest_s);
-      for (double& l : stage_level) l *= dim;
-      for (Eigen::Vector3f& w : weight) w *= dim;
-      *relit = relight::relight_played(field_, weight);
-      exposure_s = 16 * shortest_s;
+    const double period_s = lights_.level_period_s();
+    if (period_s > 0) {
+      const double dim = std::min(1.0, exposure_s / 16 / (50 * period_s));
+      exposure_s = std::max(exposure_s, 16 * 50 * period_s);
+      // An LED on for less than the timer's resolution each period is not played, nor relit.
+      int played = 0;
+      for (const int i : subset) {
+        const size_t led = size_t(stage_.led_index(field_.lights()[size_t(i)].led_id));
+        stage_level[led] *= dim;
+        weight[size_t(i)] *= float(dim);
+        if (stage_level[led] * period_s < kMinOnTimeS) {
+          stage_level[led] = 0;
+          weight[size_t(i)].setZero();
+        }
+        played += stage_level[led] > 0;
+      }
+      if (played == 0) {
+        throw HardwareError(
+            "play: the scene is too bright for software PWM: each LED would be "
+            "on for less than " +
+            std::to_string(kMinOnTimeS * 1e6) +
+            " us a period; lower the camera's gain or stop the lens down");
+      }
+      *relit = relight::relight_played(field_, weight, pixel_gain_);
     }
     // Keys far above any capture's (session.cc: sequence_key), one range per pattern.
     const uint64_t key_base = (uint64_t(1) << 62) + uint64_t(result_.patterns) * 1024;
@@ -178,6 +223,7 @@ class Player {
     }
     if (!any) {
       std::vector<int> ids;
+      ids.reserve(group.size());
       for (const int i : group) ids.push_back(field_.lights()[size_t(i)].led_id);
       result_.unresolved_groups.push_back(ids);
     }
@@ -210,6 +256,8 @@ class Player {
   const PlayOptions& options_;
   const ProgressFn& progress_;
   const capture::ResponseCurve response_;
+  std::optional<capture::FlatFieldMaps> flat_;
+  relight::PixelGain pixel_gain_;
   std::vector<double> level_;  // Per field light: its share of the map, the brightest 1.
   PlayResult result_;
 };
@@ -263,13 +311,7 @@ PlayResult play_map(const Stage& stage, const capture::ReflectanceField& field,
 PlayResult play_session(const PlaySessionOptions& options, const ProgressFn& progress) {
   const Session session = Session::open(options.session_dir);
   const capture::ReflectanceField field = capture::read_field(options.field);
-  const Backend& backend = backend_registry().find(session.info().backend, session.stage().source);
-  fs::path input_file;
-  if (!backend.input_file_name.empty() &&
-      fs::exists(options.session_dir / backend.input_file_name)) {
-    input_file = options.session_dir / backend.input_file_name;
-  }
-  const OpenedBackend devices = backend.open({session.stage(), input_file, session.info().seed});
+  const OpenedBackend devices = open_session_backend(session);
   return play_map(session.stage(), field, *devices.lights, *devices.camera, options.play, progress);
 }
 

@@ -14,9 +14,11 @@ namespace ls {
 // (capture/response.h). Empty: the camera is taken as linear (DN / full scale).
 using DnToLinear = std::function<double(int dn, int channel)>;
 
-// Light in a dark frame (an LED stuck on, room light): the frame's 99.9th percentile exceeds its
-// median by more than max_fraction of full scale (over a strided sample of at most ~64k values).
-// "" when the frame is dark.
+// Light in a dark frame (an LED stuck on, light through a gap): over a 16 x 16 grid of regions
+// (a strided sample of at most ~64k pixels), the brightest region's mean exceeds the median
+// region's by more than max_fraction of full scale. Hot pixels, isolated, hardly move a region's
+// mean; light spread evenly over the whole view is not told from a higher black level. "" when
+// the frame is dark.
 std::string dark_frame_problem(const RawFrame& frame, double max_fraction);
 
 // One frame of an LED's bracket, with the time step's mean dark frame at its exposure (DN).

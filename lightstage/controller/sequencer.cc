@@ -488,7 +488,11 @@ class CaptureRun {
       }
       if (led >= 0) still_bad = verify_bracket(i, frames, darks);
     } catch (...) {
-      save_partial_group(i, frames, darks);  // Nothing captured is lost.
+      try {
+        save_partial_group(i, frames, darks);  // Nothing captured is lost.
+      } catch (...) {
+        // The disk refused them too: the first failure is the one to report.
+      }
       throw;
     }
     if (led >= 0) lights_.set_light(led, false);

@@ -89,19 +89,6 @@ void GpioLights::all_off() noexcept {
   }
 }
 
-std::vector<PwmEvent> pwm_period_events(const std::vector<double>& level, double period_s) {
-  std::vector<PwmEvent> events;
-  for (size_t l = 0; l < level.size(); ++l) {
-    if (level[l] > 0) events.push_back({0.0, int(l), true});
-  }
-  for (size_t l = 0; l < level.size(); ++l) {
-    if (level[l] > 0 && level[l] < 1) events.push_back({level[l] * period_s, int(l), false});
-  }
-  std::stable_sort(events.begin(), events.end(),
-                   [](const PwmEvent& a, const PwmEvent& b) { return a.at_s < b.at_s; });
-  return events;
-}
-
 void GpioLights::set_pwm_period(double seconds) {
   LS_CHECK(seconds > 0, "PWM period " + std::to_string(seconds));
   pwm_period_s_ = seconds;
@@ -120,38 +107,73 @@ void GpioLights::set_levels(const std::vector<double>& level) {
     }
   }
   pwm_stop_ = false;
-  pwm_ = std::thread(&GpioLights::run_pwm, this, pwm_period_events(level, pwm_period_s_));
+  pwm_failed_ = false;
+  pwm_ = std::thread(&GpioLights::run_pwm, this, level);
 }
 
-// The PWM thread: the events of each period at their times, periods back to back on the clock
-// (not after the last event), so that sleeping late does not stretch the period.
-void GpioLights::run_pwm(std::vector<PwmEvent> events) {
+void GpioLights::verify_levels() {
+  if (pwm_failed_) throw HardwareError(pwm_error_);
+}
+
+// The PWM thread. Each period: the lit LEDs' lines on, one after another, each one's time noted;
+// then each off level * period after its own on (switching takes time: timed from the period's
+// start, the last lines switched on would be short-changed). Periods follow each other on the
+// clock, not after the last event, so that a late wake-up does not stretch them.
+void GpioLights::run_pwm(const std::vector<double>& level) {
   using Clock = std::chrono::steady_clock;
-  const auto period =
-      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(pwm_period_s_));
+  const auto seconds = [](double s) {
+    return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+  };
+  const auto period = seconds(pwm_period_s_);
+  std::vector<std::pair<Clock::time_point, int>> offs;  // When each LED goes off, this period.
   try {
     for (auto start = Clock::now(); !pwm_stop_; start += period) {
-      for (const PwmEvent& e : events) {
-        std::this_thread::sleep_until(start + std::chrono::duration_cast<Clock::duration>(
-                                                  std::chrono::duration<double>(e.at_s)));
-        if (pwm_stop_) return;
-        Line& l = leds_[size_t(e.led)];
-        driver_->set_level(l.handle, level_for(l, e.on));
-        l.on = e.on;
+      offs.clear();
+      for (size_t led = 0; led < level.size(); ++led) {
+        if (!(level[led] > 0)) continue;
+        Line& l = leds_[led];
+        driver_->set_level(l.handle, level_for(l, true));
+        l.on = true;
+        if (level[led] < 1) {
+          offs.emplace_back(Clock::now() + seconds(level[led] * pwm_period_s_), int(led));
+        }
+      }
+      std::sort(offs.begin(), offs.end());
+      for (const auto& [when, led] : offs) {
+        std::this_thread::sleep_until(when);
+        Line& l = leds_[size_t(led)];
+        driver_->set_level(l.handle, level_for(l, false));
+        l.on = false;
       }
       std::this_thread::sleep_until(start + period);
     }
   } catch (const std::exception& e) {
-    last_error_ = std::string("software PWM stopped: ") + e.what();  // all_off() follows.
+    pwm_error_ = std::string("GPIO lights: software PWM stopped: ") + e.what();
+    pwm_failed_ = true;      // After the message: verify_levels reads it once this is set.
+    for (Line& l : leds_) {  // Every line off, as far as they still switch.
+      try {
+        driver_->set_level(l.handle, level_for(l, false));
+        l.on = false;
+      } catch (...) {
+      }
+    }
   }
 }
 
+// Ends the PWM thread and leaves every line off (the next pattern starts from dark).
 void GpioLights::stop_pwm() noexcept {
   if (!pwm_.joinable()) return;
   pwm_stop_ = true;
   try {
     pwm_.join();
   } catch (...) {
+  }
+  for (Line& l : leds_) {
+    try {
+      driver_->set_level(l.handle, level_for(l, false));
+      l.on = false;
+    } catch (...) {
+    }
   }
 }
 

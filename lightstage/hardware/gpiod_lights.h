@@ -30,16 +30,6 @@ class GpioLineDriver {
 // The libgpiod 1.6 driver. `consumer` is the name other programs (gpioinfo) see on the lines.
 std::unique_ptr<GpioLineDriver> make_gpiod_line_driver(const std::string& consumer = "lightstage");
 
-// One period of software PWM: at `at_s` seconds after the period's start, LED `led` goes on or off.
-// Every LED with a level in (0, 1) goes on at 0 and off at level * period, in time order; a level
-// of 1 stays on (one event at 0), 0 stays off (none).
-struct PwmEvent {
-  double at_s = 0.0;
-  int led = 0;
-  bool on = false;
-};
-std::vector<PwmEvent> pwm_period_events(const std::vector<double>& level, double period_s);
-
 class GpioLights : public LightController {
  public:
   // Requests every LED's line once, all driven off. Throws InputError when the stage file gives an
@@ -52,12 +42,14 @@ class GpioLights : public LightController {
 
   int num_lights() const override { return int(leds_.size()); }
   void set_light(int led_index, bool on) override;
-  // Software PWM: every period the lines of the LEDs with a level > 0 go on together and each goes
-  // off after level * period (pwm_period_events), on a thread of its own until set_light,
-  // set_levels or all_off. Timing rests on the kernel's sleeps (tens of microseconds of jitter):
-  // over an exposure of N periods a level is right to about 1/N of a period.
+  // Software PWM: every period the lines of the LEDs with a level > 0 go on one after another and
+  // each goes off level * period after it actually went on, on a thread
+  // of its own until set_light, set_levels or all_off (which leave every line off first). Timing
+  // rests on the kernel's sleeps (tens of microseconds of jitter). Every lit LED is on at once for
+  // part of each period: the supply must carry them together.
   void set_levels(const std::vector<double>& level) override;
   double level_period_s() const override { return pwm_period_s_; }
+  void verify_levels() override;        // HardwareError when the PWM thread failed (all lines off).
   void set_pwm_period(double seconds);  // Default 10 ms.
   // Drives every line to its off level; keeps going past failures (remembered in last_error()).
   void all_off() noexcept override;
@@ -79,13 +71,15 @@ class GpioLights : public LightController {
   };
   bool level_for(const Line& l, bool on) const { return on != l.active_low; }
   void stop_pwm() noexcept;
-  void run_pwm(std::vector<PwmEvent> events);
+  void run_pwm(const std::vector<double>& level);
 
   std::unique_ptr<GpioLineDriver> driver_;
   std::vector<Line> leds_;
   std::string last_error_;
   double pwm_period_s_ = 0.01;
   std::atomic<bool> pwm_stop_{false};
+  std::atomic<bool> pwm_failed_{false};
+  std::string pwm_error_;  // Written by the thread before pwm_failed_, read after it.
   std::thread pwm_;
 };
 

@@ -17,7 +17,8 @@ constexpr double kLitSigmas = 20.0;
 }  // namespace
 
 PlayedRelit relight_played(const capture::ReflectanceField& field,
-                           const std::vector<Eigen::Vector3f>& weight_rgb) {
+                           const std::vector<Eigen::Vector3f>& weight_rgb,
+                           const PixelGain& pixel_gain) {
   LS_CHECK(int(weight_rgb.size()) == field.num_lights(), "one weight per field light");
   const int w = field.width(), h = field.height(), n = field.num_lights();
   const capture::FieldNoise& noise = field.noise;
@@ -30,11 +31,13 @@ PlayedRelit relight_played(const capture::ReflectanceField& field,
         for (int l = 0; l < n; ++l) {
           const Eigen::Vector3f& weight = weight_rgb[size_t(l)];
           if (weight.maxCoeff() <= 0) continue;
-          const float* rgb = values + 3 * l;
+          const float* rgb = values + 3 * size_t(l);
           if (capture::is_saturated(field.lights()[size_t(l)], rgb)) out.usable.at(x, y, 0) = 0.0f;
+          const double scale = pixel_gain ? 1.0 / pixel_gain(l, x, y) : 1.0;
           for (int c = 0; c < 3; ++c) {
-            sum[c] += double(weight[c]) * rgb[c];
-            variance[c] += double(weight[c]) * weight[c] *
+            const double w = weight[c] * scale;
+            sum[c] += w * rgb[c];
+            variance[c] += w * w *
                            (noise.read_variance +
                             noise.shot_variance_per_unit * std::max(0.0, double(rgb[c])));
           }
@@ -101,7 +104,11 @@ SuperpositionCheck compare_played(const capture::PlayedPhoto& photo, const Playe
       ++check.blocks;
     }
   }
-  if (values == 0 || check.blocks == 0 || !(ref_sq > 0)) return check;  // Nothing lit: no test.
+  // Nothing lit, or nothing with noise to judge against: no test.
+  if (values == 0 || check.blocks == 0 || !(ref_sq > 0) || z_scores.empty()) {
+    check.blocks = 0;
+    return check;
+  }
   const double rmse = std::sqrt(sum_sq / double(values));
   check.relative_rmse = rmse / std::sqrt(ref_sq / double(values));
   check.psnr_db = 20 * std::log10(peak / std::max(rmse, 1e-30));

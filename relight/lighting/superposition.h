@@ -5,6 +5,7 @@
 // field was captured (an LED dimmed, knocked or failed).
 #include <Eigen/Core>
 #include <cmath>
+#include <functional>
 #include <vector>
 
 #include "capture/field.h"
@@ -13,13 +14,18 @@
 namespace ls::relight {
 
 // The field relit with each light's RGB irradiance `weight_rgb` (one per field light; radiance =
-// sum_l weight_l * R_l(x)), its variance from the field's noise model, and where it can be
-// trusted (1 channel: 0 where a weighted light is saturated in the field).
+// sum_l weight_l * R_l(x) / gain_l(x)), its variance from the field's noise model, and where it
+// can be trusted (1 channel: 0 where a weighted light is saturated in the field). gain_l(x) is
+// what the build divided the light's image by at pixel x (a near LED's falloff to the reference
+// point, its flat field: build_field.h), so that the relit field holds the light the camera saw;
+// `pixel_gain` (light, x, y) gives it, empty: 1.
 struct PlayedRelit {
   Image radiance, variance, usable;
 };
+using PixelGain = std::function<float(int light, int x, int y)>;
 PlayedRelit relight_played(const capture::ReflectanceField& field,
-                           const std::vector<Eigen::Vector3f>& weight_rgb);
+                           const std::vector<Eigen::Vector3f>& weight_rgb,
+                           const PixelGain& pixel_gain = {});
 
 struct SuperpositionCheck {
   double psnr_db = 0;        // Photograph against the relit field, peak the relit's maximum.

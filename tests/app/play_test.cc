@@ -104,5 +104,34 @@ TEST_F(Play, AnLedMovedByThreeDegreesIsFoundAndNamed) {
   std::printf("%s (%d patterns)\n", result.suspects[0].describe().c_str(), result.patterns);
 }
 
+TEST(PlayCommand, ChecksASessionAndWritesItsReport) {
+  testing::TempDir tmp;
+  const std::string cli = testing::cli_path().string();
+  const std::string stage =
+      (std::filesystem::path(LIGHTSTAGE_SOURCE_DIR) / "data/stages/small_dome.json").string();
+  const std::string s = (tmp / "s").string(), f = (tmp / "f.exr").string();
+  std::string output;
+  ASSERT_EQ(
+      testing::run_command(cli + " capture --quiet --stage " + stage + " --out " + s, &output), 0)
+      << output;
+  ASSERT_EQ(testing::run_command(cli + " build --quiet " + s + " --out " + f, &output), 0)
+      << output;
+  const std::string play = cli + " play " + s + " --field " + f + " --env " +
+                           (kMaps / "sky_sun.exr").string() + " --out " + (tmp / "p").string();
+  EXPECT_EQ(testing::run_command(play, &output), 0) << output;
+  EXPECT_NE(output.find("the dome reproduces the field"), std::string::npos) << output;
+  for (const char* file : {"photo.exr", "relit.exr", "compare.png", "report.json"}) {
+    EXPECT_TRUE(std::filesystem::exists(tmp / "p" / file)) << file;
+  }
+  // A file that is no field is refused, naming it: exit 2, nothing played.
+  const std::string not_a_field = (kMaps / "sky_sun.exr").string();
+  EXPECT_EQ(testing::run_command(cli + " play " + s + " --field " + not_a_field + " --env " +
+                                     not_a_field + " --out " + (tmp / "q").string(),
+                                 &output),
+            2)
+      << output;
+  EXPECT_NE(output.find("not a reflectance field"), std::string::npos) << output;
+}
+
 }  // namespace
 }  // namespace ls::jobs

@@ -67,8 +67,12 @@ TEST(ReferenceDrift, TheReferenceShotsMeasureTheInjectedDriftAndTheBuildDividesI
   ASSERT_EQ(run_capture(session, sim.lights(), sim.camera(), instant).status,
             CaptureSummary::Status::kComplete);
 
+  // The session as a later command sees it: reopened from its journal.
+  const Session reopened = Session::open(tmp / "s");
+  EXPECT_TRUE(reopened.complete());
+  EXPECT_EQ(reopened.frames().size(), session.frames().size());
   const auto drift =
-      measure_reference_drift(session, 0, ResponseCurve::linear(stage.camera.bit_depth, 3));
+      measure_reference_drift(reopened, 0, ResponseCurve::linear(stage.camera.bit_depth, 3));
   ASSERT_TRUE(drift.has_value());
   ASSERT_EQ(drift->output.size(), 5u);
   EXPECT_EQ(drift->positions, (std::vector<double>{0, 10, 20, 30, 40}));
@@ -89,10 +93,10 @@ TEST(ReferenceDrift, TheReferenceShotsMeasureTheInjectedDriftAndTheBuildDividesI
   EXPECT_GT(drift->largest_change(), 0.03);
 
   BuildSummary plain_summary, corrected_summary;
-  const ReflectanceField plain = build_field(session, {}, &plain_summary);
+  const ReflectanceField plain = build_field(reopened, {}, &plain_summary);
   BuildOptions correct;
   correct.correct_drift = true;
-  const ReflectanceField corrected = build_field(session, correct, &corrected_summary);
+  const ReflectanceField corrected = build_field(reopened, correct, &corrected_summary);
   ASSERT_FALSE(plain_summary.warnings.empty());
   EXPECT_NE(plain_summary.warnings.back().find("not corrected"), std::string::npos);
   EXPECT_NE(corrected_summary.warnings.back().find("divided out"), std::string::npos);

@@ -151,20 +151,6 @@ TEST(GpiodDriver, MissingChipIsAClearHardwareError) {
 
 TEST(GpiodDriver, ListingChipsNeverThrows) { EXPECT_NO_THROW(list_gpio_chips()); }
 
-TEST(GpioPwm, OnePeriodSwitchesEachLitLedOnAtTheStartAndOffAtItsLevel) {
-  const std::vector<PwmEvent> events = pwm_period_events({0.0, 0.25, 1.0, 0.5}, 0.01);
-  ASSERT_EQ(events.size(), 5u);
-  for (int k = 0; k < 3; ++k) {
-    EXPECT_EQ(events[size_t(k)].at_s, 0.0);
-    EXPECT_TRUE(events[size_t(k)].on);
-  }
-  EXPECT_EQ(events[3].led, 1);  // Off at a quarter period.
-  EXPECT_DOUBLE_EQ(events[3].at_s, 0.0025);
-  EXPECT_FALSE(events[3].on);
-  EXPECT_EQ(events[4].led, 3);
-  EXPECT_DOUBLE_EQ(events[4].at_s, 0.005);
-}
-
 TEST(GpioPwm, LevelsRunOnTheirThreadUntilAllOffLeavesEveryLineOff) {
   FakeGpio gpio;
   GpioLights lights(GpioStage(), std::make_unique<FakeLineDriver>(gpio));
@@ -184,8 +170,34 @@ TEST(GpioPwm, LevelsRunOnTheirThreadUntilAllOffLeavesEveryLineOff) {
   const int after = gpio.sets;
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   EXPECT_EQ(gpio.sets.load(), after);  // The thread is gone.
+  EXPECT_NO_THROW(lights.verify_levels());
+  // A new pattern starts from dark: LED 10, on in the old one and off in this, is off.
+  lights.set_levels({0.0, 0.0, 1.0});
+  lights.set_light(1, false);  // Ends the pattern, every line off, then switches one line.
+  EXPECT_FALSE(Level(gpio, 4));
+  EXPECT_FALSE(Level(gpio, 6));
   EXPECT_THROW(lights.set_levels({0.5, 2.0, 0.0}), HardwareError);
   EXPECT_THROW(lights.set_levels({0.5}), HardwareError);
+}
+
+TEST(GpioPwm, ALineThatFailsStopsThePatternSaysSoAndLeavesTheOthersOff) {
+  FakeGpio gpio;
+  GpioLights lights(GpioStage(), std::make_unique<FakeLineDriver>(gpio));
+  lights.set_pwm_period(0.002);
+  gpio.failing_handles = {2};
+  lights.set_levels({1.0, 0.5, 1.0});
+  for (int waited = 0; waited < 10000; ++waited) {  // At most 10 s on a loaded machine.
+    try {
+      lights.verify_levels();
+    } catch (const HardwareError&) {
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  }
+  EXPECT_THROW(lights.verify_levels(), HardwareError);
+  EXPECT_FALSE(Level(gpio, 4));
+  EXPECT_TRUE(Level(gpio, 5));  // Active-low: off.
+  lights.all_off();
 }
 
 }  // namespace
