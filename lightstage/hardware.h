@@ -48,10 +48,21 @@ struct FrameRequest {
   double scene_time_s = 0.0;  // Plan time of this frame (the simulator renders the scene then).
 };
 
+// When a frame was taken, for the record: host times in nanoseconds since the Unix epoch
+// (CLOCK_REALTIME), the camera's own clock as it stamps its frames. 0: not known.
+struct FrameTiming {
+  int64_t led_on_ns = 0;     // Its LED switched on (0 for a dark frame),
+  int64_t requested_ns = 0;  // the frame asked of the camera (the software trigger),
+  int64_t delivered_ns = 0;  // the frame received,
+  int64_t led_off_ns = 0;    // its LED switched off: a lit frame lies within [on, off].
+  uint64_t sensor_ns = 0;    // The camera's timestamp of the frame (GenICam: its exposure).
+};
+
 struct CapturedFrame {
   RawFrame raw;
   double exposure_s = 0.0;  // As reported by the camera after the request.
   double gain = 1.0;
+  FrameTiming timing;  // The camera sets sensor_ns; the sequencer the host times.
 };
 
 class Camera {

@@ -297,6 +297,12 @@ Session Session::open(const fs::path& dir) {
       rec.gain = j["gain"].get<double>();
       rec.scene_time_s = j["scene_time_s"].get<double>();
       rec.captured_at = j["at"].get<std::string>();
+      if (j.contains("timing")) {
+        const json& t = j["timing"];
+        rec.timing = {t.value("led_on_ns", int64_t(0)), t.value("requested_ns", int64_t(0)),
+                      t.value("delivered_ns", int64_t(0)), t.value("led_off_ns", int64_t(0)),
+                      t.value("sensor_ns", uint64_t(0))};
+      }
       if (j.contains("crc32")) {
         rec.bytes = in.unsigned_at_most("bytes", std::numeric_limits<uint64_t>::max());
         rec.crc32 = uint32_t(in.unsigned_at_most("crc32", std::numeric_limits<uint32_t>::max()));
@@ -355,6 +361,7 @@ FrameRecord Session::write_frame_file(const PlannedFrame& planned,
   rec.gain = frame.gain;
   rec.scene_time_s = planned.request.scene_time_s;
   rec.captured_at = utc_now_iso8601();
+  rec.timing = frame.timing;
   RawFrame raw = frame.raw;
   raw.bit_depth = stage_.camera.bit_depth;
   // Durable (fsync'ed and renamed) before it is journaled.
@@ -377,7 +384,13 @@ void Session::journal_frames(const std::vector<FrameRecord>& records) {
                   {"scene_time_s", rec.scene_time_s},
                   {"at", rec.captured_at},
                   {"bytes", rec.bytes},
-                  {"crc32", rec.crc32}}
+                  {"crc32", rec.crc32},
+                  {"timing",
+                   {{"led_on_ns", rec.timing.led_on_ns},
+                    {"requested_ns", rec.timing.requested_ns},
+                    {"delivered_ns", rec.timing.delivered_ns},
+                    {"led_off_ns", rec.timing.led_off_ns},
+                    {"sensor_ns", rec.timing.sensor_ns}}}}
                  .dump() +
              "\n";
   }

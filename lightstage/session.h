@@ -49,6 +49,7 @@ struct FrameRecord {
   // The file as written (journals before issue 19 have neither: bytes = 0).
   uint64_t bytes = 0;
   uint32_t crc32 = 0;
+  FrameTiming timing;  // Journaled as "timing" (absent in older journals: all 0).
 };
 
 // What Session::verify_frames found: frames whose files are not what was saved.

@@ -205,6 +205,13 @@ void judge_saved_steps(Session& session, DarkCache& darks, const LedNeighbours& 
   }
 }
 
+// Host time for FrameTiming: nanoseconds since the Unix epoch.
+int64_t unix_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 // The camera's response inverted when the stage gives it without a file (linear, gamma); empty
 // otherwise (a table file, a response still to be recovered from the frames).
 DnToLinear response_inverse(const CameraSpec& camera) {
@@ -388,7 +395,12 @@ class CaptureRun {
   CapturedFrame capture_with_retries(const PlannedFrame& planned) {
     for (int attempt = 0;; ++attempt) {
       try {
-        return camera_.capture(planned.request);
+        const int64_t requested_ns = unix_ns();
+        CapturedFrame frame = camera_.capture(planned.request);
+        frame.timing.requested_ns = requested_ns;
+        frame.timing.delivered_ns = unix_ns();
+        frame.timing.led_on_ns = led_on_ns_;
+        return frame;
       } catch (const CameraTimeout& e) {
         if (attempt >= stage_.camera.retries) {
           lights_.all_off();
@@ -472,8 +484,10 @@ class CaptureRun {
   void capture_group(size_t i, size_t end, DarkCache& darks) {
     const int t = missing_[i].key.time_step;
     const int led = missing_[i].key.led_index;
+    led_on_ns_ = 0;
     if (led >= 0) {
       lights_.set_light(led, true);
+      led_on_ns_ = unix_ns();
       if (stage_.plan.settle_s > 0) sleep_(stage_.plan.settle_s);
     }
     std::vector<CapturedFrame> frames;
@@ -495,7 +509,11 @@ class CaptureRun {
       }
       throw;
     }
-    if (led >= 0) lights_.set_light(led, false);
+    if (led >= 0) {
+      lights_.set_light(led, false);
+      const int64_t led_off_ns = unix_ns();
+      for (CapturedFrame& frame : frames) frame.timing.led_off_ns = led_off_ns;
+    }
     double brightest = 0.0;
     for (size_t k = i; k < end; ++k) {
       const PlannedFrame& planned = missing_[k];
@@ -536,7 +554,8 @@ class CaptureRun {
   const int total_;
   std::function<void(double)> sleep_;
   std::function<double()> clock_s_;
-  DnToLinear to_linear_;  // Empty: the response is not known, and brackets are not checked.
+  DnToLinear to_linear_;   // Empty: the response is not known, and brackets are not checked.
+  int64_t led_on_ns_ = 0;  // When the LED of the group being captured went on (FrameTiming).
   CaptureSummary summary_;
   std::optional<FrameWriter> writer_;
   int frames_taken_ = 0;

@@ -330,6 +330,7 @@ struct AravisCamera::Impl {
         arv_stream_push_buffer(stream, buffer);
         throw;
       }
+      frame.timing.sensor_ns = arv_buffer_get_timestamp(buffer);
       arv_stream_push_buffer(stream, buffer);
       frame.exposure_s = exposure_us_actual * 1e-6;
       frame.gain = gain_actual;

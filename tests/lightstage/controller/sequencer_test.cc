@@ -50,6 +50,32 @@ TEST(Sequencer, CapturesEveryPlannedFrameWithExactlyTheRightLedOn) {
   EXPECT_TRUE(session.dead_leds().empty());
 }
 
+TEST(Sequencer, EachFrameIsJournaledWithWhenItsLedWasOnAndWhenItWasTaken) {
+  testing::TempDir tmp;
+  const Stage stage = SmallStage();
+  {
+    Session session = Session::create(tmp / "s", stage, {});
+    FakeLights lights(int(stage.leds.size()));
+    FakeCamera camera(lights);
+    ASSERT_EQ(run_capture(session, lights, camera, Instant()).status,
+              CaptureSummary::Status::kComplete);
+  }
+  const Session session = Session::open(tmp / "s");  // As journaled.
+  for (const auto& [key, record] : session.frames()) {
+    const FrameTiming& t = record.timing;
+    EXPECT_GT(t.requested_ns, 0) << key.name(stage);
+    EXPECT_LE(t.requested_ns, t.delivered_ns) << key.name(stage);
+    if (key.is_dark()) {
+      EXPECT_EQ(t.led_on_ns, 0) << key.name(stage);
+      continue;
+    }
+    // A lit frame was asked for and received while its LED was on.
+    EXPECT_GT(t.led_on_ns, 0) << key.name(stage);
+    EXPECT_LE(t.led_on_ns, t.requested_ns) << key.name(stage);
+    EXPECT_LE(t.delivered_ns, t.led_off_ns) << key.name(stage);
+  }
+}
+
 TEST(Sequencer, StopRequestLeavesLedsOffAndResumeCompletesOnlyWhatIsMissing) {
   testing::TempDir tmp;
   const Stage stage = SmallStage();

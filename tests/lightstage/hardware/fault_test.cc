@@ -63,6 +63,9 @@ TEST(HardwareFaults, FullCaptureOnTheAravisFake) {
   EXPECT_EQ(f.height, 24);
   const auto& rec = session.frames().at({0, 2, 1, 0});
   EXPECT_NEAR(rec.exposure_s, 0.004, 1e-7);  // The camera's read-back value is journaled.
+  // The camera's own timestamp of each frame is journaled too, in the order they were taken.
+  EXPECT_GT(rec.timing.sensor_ns, 0u);
+  EXPECT_LT(session.frames().at({0, 2, 0, 0}).timing.sensor_ns, rec.timing.sensor_ns);
 }
 
 class Unplug : public ::testing::TestWithParam<UnpluggableCamera::Failure> {};
