@@ -10,4 +10,18 @@ void LightController::set_levels(const std::vector<double>& /*level*/) {
       "(to play an environment map, a driver with PWM or timed switching is needed)");
 }
 
+void LightController::check_levels(const std::vector<double>& level, int num_lights,
+                                   const std::string& who) {
+  if (int(level.size()) != num_lights) {
+    throw HardwareError(who + ": set_levels: " + std::to_string(level.size()) + " levels for " +
+                        std::to_string(num_lights) + " LEDs");
+  }
+  for (size_t l = 0; l < level.size(); ++l) {
+    if (!(level[l] >= 0 && level[l] <= 1)) {
+      throw HardwareError(who + ": set_levels: LED index " + std::to_string(l) +
+                          ": expected a level in [0, 1], got " + std::to_string(level[l]));
+    }
+  }
+}
+
 }  // namespace ls

@@ -20,6 +20,10 @@ class LightController {
   // dome plays an environment map with (`lightstage play`); all_off() ends it. Throws
   // HardwareError when the controller cannot (the default).
   virtual void set_levels(const std::vector<double>& level);
+  // What implementations check first: one level per LED, each in [0, 1]; HardwareError naming
+  // `who` and the LED index otherwise.
+  static void check_levels(const std::vector<double>& level, int num_lights,
+                           const std::string& who);
   // The period of that modulation (software PWM), 0 when continuous: an exposure must span many
   // periods (1/N of a period is the error of a level over N of them).
   virtual double level_period_s() const { return 0.0; }

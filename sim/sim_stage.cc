@@ -298,17 +298,8 @@ struct SimStage::State {
       s_.level[led_index] = 1.0;
     }
     void set_levels(const std::vector<double>& level) override {
-      if (level.size() != s_.on.size()) {
-        throw HardwareError("sim:" + s_.stage.name +
-                            ": set_levels: " + std::to_string(level.size()) + " levels for " +
-                            std::to_string(s_.on.size()) + " LEDs");
-      }
+      check_levels(level, num_lights(), "sim:" + s_.stage.name);
       for (size_t l = 0; l < level.size(); ++l) {
-        if (!(level[l] >= 0 && level[l] <= 1)) {
-          throw HardwareError("sim:" + s_.stage.name + ": set_levels: LED index " +
-                              std::to_string(l) + ": expected a level in [0, 1], got " +
-                              std::to_string(level[l]));
-        }
         s_.level[l] = level[l];
         s_.on[l] = level[l] > 0;
       }

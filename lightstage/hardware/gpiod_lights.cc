@@ -96,16 +96,7 @@ void GpioLights::set_pwm_period(double seconds) {
 
 void GpioLights::set_levels(const std::vector<double>& level) {
   stop_pwm();
-  if (int(level.size()) != num_lights()) {
-    throw HardwareError("GPIO lights: " + std::to_string(level.size()) + " levels for " +
-                        std::to_string(num_lights()) + " LEDs");
-  }
-  for (size_t l = 0; l < level.size(); ++l) {
-    if (!(level[l] >= 0 && level[l] <= 1)) {
-      throw HardwareError(describe(int(l)) + ": expected a level in [0, 1], got " +
-                          std::to_string(level[l]));
-    }
-  }
+  check_levels(level, num_lights(), "GPIO lights");
   pwm_stop_ = false;
   pwm_failed_ = false;
   pwm_ = std::thread(&GpioLights::run_pwm, this, level);
