@@ -133,7 +133,7 @@ TEST_F(Bracket, WithoutADarkReferenceNothingIsJudged) {
 TEST(DarkFrame, NoiseAndHotPixelsAreDarkAndAStuckLedIsNot) {
   RawFrame dark = Expose(0.0, 1, 1.0, nullptr);
   EXPECT_EQ(dark_frame_problem(dark, 0.01), "");
-  // 0.5% of the pixels hot (at 10% of full scale, 40 times the dark level), as a long exposure on
+  // 0.5% of the pixels hot (at 10% of full scale, ten times the black level), as a long exposure on
   // a warm sensor shows: more than the 0.1% a percentile of the pixels would let pass.
   for (size_t p = 0; p < dark.pixels.size(); p += 200) dark.pixels[p] = dark.max_value() / 10;
   EXPECT_EQ(dark_frame_problem(dark, 0.01), "");
