@@ -4,6 +4,7 @@
 
 #include <algorithm>
 
+#include "capture/led_frames.h"
 #include "capture/response.h"
 #include "lightstage/errors.h"
 
@@ -19,10 +20,7 @@ ExposureChoice choose_led_exposures(const Session& previous, int time_step, doub
                                     const MergeOptions& merge) {
   const Stage& stage = previous.stage();
   const CameraSpec& camera = stage.camera;
-  const ResponseCurve response =
-      camera.response.kind == CameraResponse::Kind::kRecover
-          ? ResponseCurve::linear(camera.bit_depth, camera.channels)
-          : ResponseCurve::from_spec(camera.response, camera.bit_depth, camera.channels);
+  const ResponseCurve response = ResponseCurve::given_or_linear(camera);
   const int steps = int(camera.bracket.size());
   auto load = [&](const FrameKey& key) {
     if (!previous.frames().count(key)) {
@@ -33,18 +31,8 @@ ExposureChoice choose_led_exposures(const Session& previous, int time_step, doub
   };
   std::vector<Image> darks;  // Linear, per step.
   darks.reserve(size_t(steps));
-  for (int e = 0; e < steps; ++e) {
-    std::vector<RawFrame> frames;
-    for (int r = 0; r < stage.plan.dark_frames; ++r) {
-      if (previous.frames().count({time_step, -1, e, r})) {
-        frames.push_back(previous.load_frame({time_step, -1, e, r}));
-      }
-    }
-    std::vector<const RawFrame*> pointers;
-    pointers.reserve(frames.size());
-    for (const RawFrame& f : frames) pointers.push_back(&f);
-    darks.push_back(pointers.empty() ? Image() : mean_dark(pointers, response));
-  }
+  for (int e = 0; e < steps; ++e)
+    darks.push_back(session_mean_dark(previous, time_step, e, response));
   // Steps from the shortest exposure (times gain) to the longest.
   std::vector<int> by_length(static_cast<size_t>(steps));
   for (int e = 0; e < steps; ++e) by_length[size_t(e)] = e;

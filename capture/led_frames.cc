@@ -3,6 +3,7 @@
 #include <map>
 #include <utility>
 
+#include "capture/hdr_merge.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -43,6 +44,19 @@ std::vector<LedFrames> index_led_frames(const Session& session, int time_step,
     }
   }
   return brackets;
+}
+
+Image session_mean_dark(const Session& session, int time_step, int exposure_index,
+                        const ResponseCurve& response) {
+  std::vector<RawFrame> frames;
+  for (int r = 0; r < session.stage().plan.dark_frames; ++r) {
+    const FrameKey key{time_step, -1, exposure_index, r};
+    if (session.frames().count(key)) frames.push_back(session.load_frame(key));
+  }
+  std::vector<const RawFrame*> pointers;
+  pointers.reserve(frames.size());
+  for (const RawFrame& f : frames) pointers.push_back(&f);
+  return pointers.empty() ? Image() : mean_dark(pointers, response);
 }
 
 ResponseCurve recover_from_session(const Session& session, const std::vector<LedFrames>& brackets,

@@ -34,6 +34,11 @@ std::vector<LedFrames> index_led_frames(const Session& session, int time_step,
                                         const std::vector<int>& order,
                                         std::vector<std::vector<FrameKey>>* dark_keys);
 
+// The linear mean of time step t's dark frames at bracket step e (hdr_merge.h mean_dark); an empty
+// image when the session has none.
+Image session_mean_dark(const Session& session, int time_step, int exposure_index,
+                        const ResponseCurve& response);
+
 // The response recovered (kRecover) from the brackets of the few brightest usable LEDs, their
 // frames side by side; InputError when no LED has a complete bracket.
 ResponseCurve recover_from_session(const Session& session, const std::vector<LedFrames>& brackets,

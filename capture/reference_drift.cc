@@ -4,7 +4,7 @@
 #include <cmath>
 #include <cstdio>
 
-#include "capture/hdr_merge.h"
+#include "capture/led_frames.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -67,15 +67,7 @@ std::optional<ReferenceDrift> measure_reference_drift(const Session& session, in
   }
   std::vector<double> best;  // Each shot's signal on the bracket step with the most of it.
   for (int e = 0; e < int(stage.camera.bracket.size()); ++e) {
-    std::vector<RawFrame> darks;
-    for (int r = 0; r < stage.plan.dark_frames; ++r) {
-      const FrameKey key{time_step, -1, e, r};
-      if (session.frames().count(key)) darks.push_back(session.load_frame(key));
-    }
-    std::vector<const RawFrame*> dark_pointers;
-    dark_pointers.reserve(darks.size());
-    for (const RawFrame& d : darks) dark_pointers.push_back(&d);
-    const Image dark = dark_pointers.empty() ? Image() : mean_dark(dark_pointers, response);
+    const Image dark = session_mean_dark(session, time_step, e, response);
     std::vector<RawFrame> frames;
     frames.reserve(size_t(shots));
     for (int k = 0; k < shots; ++k) {

@@ -182,6 +182,13 @@ ResponseCurve ResponseCurve::gamma(double gamma, int bit_depth, int channels) {
   return ResponseCurve(bit_depth, channels, std::move(lut));
 }
 
+ResponseCurve ResponseCurve::given_or_linear(const CameraSpec& camera) {
+  if (camera.response.kind == CameraResponse::Kind::kRecover) {
+    return linear(camera.bit_depth, camera.channels);
+  }
+  return from_spec(camera.response, camera.bit_depth, camera.channels);
+}
+
 ResponseCurve ResponseCurve::from_spec(const CameraResponse& spec, int bit_depth, int channels) {
   switch (spec.kind) {
     case CameraResponse::Kind::kLinear:

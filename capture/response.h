@@ -15,6 +15,10 @@ class ResponseCurve {
   static ResponseCurve gamma(double gamma, int bit_depth, int channels);  // DN/max = x^(1/gamma)
   // From CameraResponse (linear, gamma or table file). kRecover needs data: see recover_response.
   static ResponseCurve from_spec(const CameraResponse& spec, int bit_depth, int channels);
+  // The camera's given response, or linear for one still to be recovered: for measures that are
+  // ratios of like signals (drift, each pixel's best exposure), which a monotone response hardly
+  // changes.
+  static ResponseCurve given_or_linear(const CameraSpec& camera);
 
   int bit_depth() const { return bit_depth_; }
   int channels() const { return channels_; }

@@ -266,6 +266,12 @@ Session Session::open(const fs::path& dir) {
     const int max_repeat =
         std::max(s.stage_.plan.dark_frames - 1,
                  s.stage_.plan.reference_shots(int(s.stage_.capture_order().size())));
+    // The frame a line names: {t, led, e, r}, each within the plan.
+    const auto frame_key = [&] {
+      return FrameKey{in.step("t"), in.int_in("led", -1, int(s.stage_.leds.size()) - 1),
+                      in.int_in("e", 0, int(s.stage_.camera.bracket.size()) - 1),
+                      in.int_in("r", 0, max_repeat)};
+    };
     try {
       if (j.contains("led_signal")) {
         s.led_signals_[{in.step("t"), in.led("led_signal")}] = j["fraction"].get<double>();
@@ -277,11 +283,8 @@ Session Session::open(const fs::path& dir) {
         continue;
       }
       if (j.contains("frame_problem")) {
-        const FrameKey key{in.step("t"), in.int_in("led", -1, int(s.stage_.leds.size()) - 1),
-                           in.int_in("e", 0, int(s.stage_.camera.bracket.size()) - 1),
-                           in.int_in("r", 0, max_repeat)};
         s.frame_problems_.push_back(
-            {key, j["attempt"].get<int>(), j["frame_problem"].get<std::string>()});
+            {frame_key(), j["attempt"].get<int>(), j["frame_problem"].get<std::string>()});
         continue;
       }
       if (j.contains("dead_led")) {
@@ -289,9 +292,7 @@ Session Session::open(const fs::path& dir) {
         continue;
       }
       FrameRecord rec;
-      const int led = in.int_in("led", -1, int(s.stage_.leds.size()) - 1);
-      rec.key = {in.step("t"), led, in.int_in("e", 0, int(s.stage_.camera.bracket.size()) - 1),
-                 in.int_in("r", 0, max_repeat)};
+      rec.key = frame_key();
       rec.file = j["file"].get<std::string>();
       rec.exposure_s = j["exposure_s"].get<double>();
       rec.gain = j["gain"].get<double>();

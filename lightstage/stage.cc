@@ -129,23 +129,25 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds, int br
   r.expect_object({"led_order", "dark_frames", "settle_s", "time_steps", "interval_s", "times_s",
                    "reference_led", "reference_every", "led_exposures"});
   CapturePlan plan;
+  std::set<int> known;  // The LED ids the plan may name.
+  for (const auto& led : leds) known.insert(led.id);
+  // The id of an LED in "leds" at `field`.
+  const auto led_id = [&](const JsonReader& field) {
+    const int id = field.integer_in(0, 1 << 20);
+    if (!known.count(id)) field.fail("the id of an LED in \"leds\"");
+    return id;
+  };
   if (r.has("led_order")) {
     const JsonReader order = r["led_order"];
-    std::set<int> known, seen;
-    for (const auto& led : leds) known.insert(led.id);
+    std::set<int> seen;
     for (size_t i = 0; i < order.size(); ++i) {
-      const int id = order[i].integer_in(0, 1 << 20);
-      if (!known.count(id)) order[i].fail("the id of an LED in \"leds\"");
+      const int id = led_id(order[i]);
       if (!seen.insert(id).second) order[i].fail("each LED id once (this one repeats)");
       plan.led_order.push_back(id);
     }
   }
   if (r.has("reference_led")) {
-    plan.reference_led = r["reference_led"].integer_in(0, 1 << 20);
-    if (std::none_of(leds.begin(), leds.end(),
-                     [&](const Led& led) { return led.id == plan.reference_led; })) {
-      r["reference_led"].fail("the id of an LED in \"leds\"");
-    }
+    plan.reference_led = led_id(r["reference_led"]);
   }
   if (r.has("reference_every")) plan.reference_every = r["reference_every"].integer_in(1, 100000);
   // A frame's plan key holds 8 bits of repeat (session.cc: sequence_key).
@@ -160,10 +162,7 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds, int br
     for (size_t i = 0; i < list.size(); ++i) {
       const JsonReader entry = list[i];
       entry.expect_object({"led", "exposures"});
-      const int id = entry["led"].integer_in(0, 1 << 20);
-      if (std::none_of(leds.begin(), leds.end(), [&](const Led& led) { return led.id == id; })) {
-        entry["led"].fail("the id of an LED in \"leds\"");
-      }
+      const int id = led_id(entry["led"]);
       if (plan.led_exposures.count(id)) entry["led"].fail("each LED once (this one repeats)");
       const JsonReader steps = entry["exposures"];
       if (steps.size() == 0) steps.fail("at least one bracket step");

@@ -37,21 +37,17 @@ void collect_dead_leds(const Session& session, CaptureJobSummary& summary) {
   }
 }
 
-// The drift the reference LED measured over each time step captured whole (a response still to
-// be recovered is taken as linear: drift is a ratio of like signals, and a monotone response
-// changes it little).
-void report_drift(const Session& session, CaptureJobSummary& summary) {
+// The drift the reference LED measured over each time step this run finished (`unfinished`:
+// the steps with frames missing before it), so that a resume reads no step's shots again.
+void report_drift(const Session& session, const std::set<int>& unfinished,
+                  CaptureJobSummary& summary) {
   const Stage& stage = session.stage();
   if (stage.plan.reference_led < 0) return;
-  const CameraResponse& spec = stage.camera.response;
-  const capture::ResponseCurve response =
-      spec.kind == CameraResponse::Kind::kRecover
-          ? capture::ResponseCurve::linear(stage.camera.bit_depth, stage.camera.channels)
-          : capture::ResponseCurve::from_spec(spec, stage.camera.bit_depth, stage.camera.channels);
-  std::set<int> unfinished;
-  for (const PlannedFrame& f : session.missing_frames()) unfinished.insert(f.key.time_step);
-  for (int t = 0; t < stage.plan.time_steps; ++t) {
-    if (!unfinished.count(t)) capture::build_drift(session, t, response, false, &summary.drift);
+  const auto response = capture::ResponseCurve::given_or_linear(stage.camera);
+  std::set<int> still_missing;
+  for (const PlannedFrame& f : session.missing_frames()) still_missing.insert(f.key.time_step);
+  for (const int t : unfinished) {
+    if (!still_missing.count(t)) capture::build_drift(session, t, response, false, &summary.drift);
   }
 }
 
@@ -150,6 +146,8 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   }
 
   const Stage& stage = session->stage();
+  std::set<int> unfinished;  // Time steps with frames missing before this run.
+  for (const PlannedFrame& f : session->missing_frames()) unfinished.insert(f.key.time_step);
   SequencerOptions sequencer;
   // A simulated clock needs no settling time and renders each time step at its plan time; in
   // real time the capture waits for each step's start as the hardware does.
@@ -171,7 +169,7 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   for (const TimeStepOverrun& o : summary.capture.overruns) {
     summary.overrun_step_times_s.push_back(stage.plan.step_time_s(o.time_step));
   }
-  report_drift(*session, summary);
+  report_drift(*session, unfinished, summary);
   for (size_t k = problems_before; k < session->frame_problems().size(); ++k) {
     const FrameProblem& p = session->frame_problems()[k];
     summary.frame_problems.push_back(p.key.name(stage) + " (shot " + std::to_string(p.attempt + 1) +

@@ -6,12 +6,14 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
+#include <tuple>
 
 #include "capture/light_calibration.h"
 #include "capture/played_photo.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
+#include "relight/fit/pixel_solver.h"
 #include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 
@@ -25,7 +27,8 @@ namespace {
 constexpr double kMinOnTimeS = 100e-6;
 
 double luminance(const Eigen::Vector3d& rgb) {
-  return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+  return relight::pixel::kLuma[0] * rgb[0] + relight::pixel::kLuma[1] * rgb[1] +
+         relight::pixel::kLuma[2] * rgb[2];
 }
 
 // The longest exposure that puts the relit field's brightest values (99.9th percentile) at 70%
@@ -161,13 +164,15 @@ class Player {
       exposure_s = std::max(exposure_s, 16 * 50 * period_s);
       // An LED on for less than the timer's resolution each period is not played, nor relit.
       int played = 0;
+      bool dropped = false;
       for (const int i : subset) {
         const size_t led = size_t(stage_.led_index(field_.lights()[size_t(i)].led_id));
         stage_level[led] *= dim;
         weight[size_t(i)] *= float(dim);
-        if (stage_level[led] * period_s < kMinOnTimeS) {
+        if (stage_level[led] > 0 && stage_level[led] * period_s < kMinOnTimeS) {
           stage_level[led] = 0;
           weight[size_t(i)].setZero();
+          dropped = true;
         }
         played += stage_level[led] > 0;
       }
@@ -178,7 +183,12 @@ class Player {
             std::to_string(kMinOnTimeS * 1e6) +
             " us a period; lower the camera's gain or stop the lens down");
       }
-      *relit = relight::relight_played(field_, weight, pixel_gain_);
+      if (dropped) {
+        *relit = relight::relight_played(field_, weight, pixel_gain_);
+      } else {  // The same lights, dimmer: the relit field scales.
+        for (float& v : relit->radiance.pixels) v *= float(dim);
+        for (float& v : relit->variance.pixels) v *= float(dim * dim);
+      }
     }
     // Keys far above any capture's (session.cc: sequence_key), one range per pattern.
     const uint64_t key_base = (uint64_t(1) << 62) + uint64_t(result_.patterns) * 1024;
@@ -191,14 +201,19 @@ class Player {
   }
 
   // Field lights in rings of 20 degrees of elevation, each by azimuth: runs of neighbours.
-  std::vector<int> dome_order(std::vector<int> lights) const {
-    auto key = [&](int i) {
+  std::vector<int> dome_order(const std::vector<int>& lights) const {
+    std::vector<std::tuple<int, double, int>> keyed;  // (ring, azimuth, light)
+    keyed.reserve(lights.size());
+    for (const int i : lights) {
       const Eigen::Vector3d& d = field_.lights()[size_t(i)].dir_in_stage;
       const int ring = int(std::floor(std::asin(std::clamp(d.y(), -1.0, 1.0)) * 180 / M_PI / 20));
-      return std::make_pair(ring, std::atan2(d.x(), d.z()));
-    };
-    std::sort(lights.begin(), lights.end(), [&](int a, int b) { return key(a) < key(b); });
-    return lights;
+      keyed.emplace_back(ring, std::atan2(d.x(), d.z()), i);
+    }
+    std::sort(keyed.begin(), keyed.end());
+    std::vector<int> ordered;
+    ordered.reserve(keyed.size());
+    for (const auto& [ring, azimuth, i] : keyed) ordered.push_back(i);
+    return ordered;
   }
 
   // Bisects `group`, whose check disagreed, down to the LEDs that do: each half played alone.

@@ -72,7 +72,11 @@ void GpioLights::set_light(int led_index, bool on) {
 }
 
 void GpioLights::all_off() noexcept {
-  stop_pwm();
+  if (!stop_pwm()) drive_all_off(&last_error_);
+}
+
+// Every requested line to its off level, past failures (the last one kept in *error, if given).
+void GpioLights::drive_all_off(std::string* error) noexcept {
   for (size_t i = 0; i < leds_.size(); ++i) {
     Line& l = leds_[i];
     if (l.handle < 0) continue;  // Never requested (constructor failed before it).
@@ -81,7 +85,7 @@ void GpioLights::all_off() noexcept {
       l.on = false;
     } catch (const std::exception& e) {
       try {
-        last_error_ = describe(int(i)) + ": cannot switch off: " + e.what();
+        if (error) *error = describe(int(i)) + ": cannot switch off: " + e.what();
       } catch (...) {
       }
     } catch (...) {
@@ -141,31 +145,21 @@ void GpioLights::run_pwm(const std::vector<double>& level) {
   } catch (const std::exception& e) {
     pwm_error_ = std::string("GPIO lights: software PWM stopped: ") + e.what();
     pwm_failed_ = true;      // After the message: verify_levels reads it once this is set.
-    for (Line& l : leds_) {  // Every line off, as far as they still switch.
-      try {
-        driver_->set_level(l.handle, level_for(l, false));
-        l.on = false;
-      } catch (...) {
-      }
-    }
+    drive_all_off(nullptr);  // As far as the lines still switch.
   }
 }
 
-// Ends the PWM thread and leaves every line off (the next pattern starts from dark).
-void GpioLights::stop_pwm() noexcept {
-  if (!pwm_.joinable()) return;
+// Ends the PWM thread and leaves every line off (the next pattern starts from dark). False when
+// no pattern was running (nothing done).
+bool GpioLights::stop_pwm() noexcept {
+  if (!pwm_.joinable()) return false;
   pwm_stop_ = true;
   try {
     pwm_.join();
   } catch (...) {
   }
-  for (Line& l : leds_) {
-    try {
-      driver_->set_level(l.handle, level_for(l, false));
-      l.on = false;
-    } catch (...) {
-    }
-  }
+  drive_all_off(&last_error_);
+  return true;
 }
 
 int GpioLights::count_on() const {

@@ -70,7 +70,8 @@ class GpioLights : public LightController {
     bool on = false;
   };
   bool level_for(const Line& l, bool on) const { return on != l.active_low; }
-  void stop_pwm() noexcept;
+  bool stop_pwm() noexcept;
+  void drive_all_off(std::string* error) noexcept;
   void run_pwm(const std::vector<double>& level);
 
   std::unique_ptr<GpioLineDriver> driver_;
