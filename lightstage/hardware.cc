@@ -1,6 +1,7 @@
 #include "lightstage/hardware.h"
 
 #include "lightstage/errors.h"
+#include "lightstage/stage.h"
 
 namespace ls {
 
@@ -8,6 +9,21 @@ void LightController::set_levels(const std::vector<double>& /*level*/) {
   throw HardwareError(
       "this light controller switches LEDs only on or off: it cannot light several at set levels "
       "(to play an environment map, a driver with PWM or timed switching is needed)");
+}
+
+void LightController::pulse_trigger() {
+  throw HardwareError(
+      "camera.sync.trigger \"line\": this light controller has no output wired to the camera's "
+      "trigger input");
+}
+
+void Camera::set_trigger_line(std::function<void()> /*pulse*/) {
+  throw HardwareError("camera.sync.trigger \"line\": camera " + info().id +
+                      " takes no trigger line (use \"software\")");
+}
+
+void wire_trigger(const CameraSpec& spec, LightController& lights, Camera& camera) {
+  if (spec.sync.line_triggered()) camera.set_trigger_line([&lights] { lights.pulse_trigger(); });
 }
 
 void LightController::check_levels(const std::vector<double>& level, int num_lights,

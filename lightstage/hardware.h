@@ -2,12 +2,15 @@
 // The hardware seen by the sequencer. Back-ends (simulated stage, libgpiod, Aravis) implement
 // these; the sequencer cannot tell them apart.
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
 #include "lightstage/image.h"
 
 namespace ls {
+
+struct CameraSpec;
 
 // Switches LEDs. Indices are positions in Stage::leds.
 class LightController {
@@ -30,6 +33,9 @@ class LightController {
   // Throws HardwareError when the lights failed on their own since set_levels (a PWM thread's line
   // error: every LED is then off); nothing otherwise.
   virtual void verify_levels() {}
+  // Pulses the output wired to the camera's trigger input (camera.sync.trigger "line"), rising
+  // edge first. Throws HardwareError when the controller has no such line (the default).
+  virtual void pulse_trigger();
   // Must not throw: it runs on every exit path, including signal handling and errors.
   virtual void all_off() noexcept = 0;
 };
@@ -75,6 +81,14 @@ class Camera {
   virtual CameraInfo info() const = 0;
   // Throws CameraTimeout when no frame arrives in time, HardwareError for other faults.
   virtual CapturedFrame capture(const FrameRequest& request) = 0;
+  // camera.sync.trigger "line": capture() arms the camera for its frame and calls `pulse` (the
+  // controller pulsing the line wired to the camera's trigger input) instead of triggering by
+  // software. Throws HardwareError when the camera takes no trigger line (the default).
+  virtual void set_trigger_line(std::function<void()> pulse);
 };
+
+// Wires the camera's trigger to the controller's trigger line when the spec asks for it
+// (camera.sync.trigger "line"); nothing otherwise. Both must outlive the capture.
+void wire_trigger(const CameraSpec& spec, LightController& lights, Camera& camera);
 
 }  // namespace ls

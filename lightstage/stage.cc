@@ -69,10 +69,29 @@ CameraResponse parse_response(const JsonReader& r, const fs::path& base_dir) {
   return response;
 }
 
+CameraSync parse_sync(const JsonReader& r) {
+  r.expect_object({"trigger", "input", "gpio", "pulse_us", "exposure_active_output"});
+  CameraSync sync;
+  if (r.has("trigger")) sync.trigger = r["trigger"].one_of({"software", "line"});
+  if (r.has("input")) sync.input = r["input"].string();
+  if (r.has("gpio")) {
+    const JsonReader g = r["gpio"];
+    g.expect_object({"chip", "line"});
+    sync.gpio_chip = g["chip"].string();
+    sync.gpio_line = g["line"].integer_in(0, 4095);
+  }
+  if (r.has("pulse_us")) sync.pulse_s = 1e-6 * r["pulse_us"].number_in(1, 1e5, "(microseconds)");
+  if (r.has("exposure_active_output")) {
+    sync.exposure_active_output = r["exposure_active_output"].string();
+  }
+  if (sync.input.empty()) r["input"].fail("the camera's trigger input, e.g. \"Line0\"");
+  return sync;
+}
+
 CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
   r.expect_object({"backend", "device", "width", "height", "channels", "bit_depth", "bracket",
                    "response", "radiometric_scale", "fov_y_deg", "distance_m", "ortho_height_m",
-                   "timeout_s", "retries", "simulated_sensor"});
+                   "timeout_s", "retries", "sync", "simulated_sensor"});
   CameraSpec cam;
   if (r.has("backend")) cam.backend = r["backend"].one_of({"sim", "aravis", "v4l2"});
   if (r.has("device")) cam.device_id = r["device"].string();
@@ -103,6 +122,7 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
   if (r.has("ortho_height_m")) cam.ortho_height_m = r["ortho_height_m"].positive("(metres)");
   if (r.has("timeout_s")) cam.timeout_s = r["timeout_s"].positive("(seconds)");
   if (r.has("retries")) cam.retries = r["retries"].integer_in(0, 100);
+  if (r.has("sync")) cam.sync = parse_sync(r["sync"]);
   if (r.has("simulated_sensor")) {
     const JsonReader s = r["simulated_sensor"];
     s.expect_object({"full_well_e", "read_noise_e", "dark_current_e_per_s", "black_level",
@@ -370,6 +390,11 @@ std::string stage_to_json(const Stage& stage) {
                  {"ortho_height_m", c.ortho_height_m},
                  {"timeout_s", c.timeout_s},
                  {"retries", c.retries},
+                 {"sync",
+                  {{"trigger", c.sync.trigger},
+                   {"input", c.sync.input},
+                   {"pulse_us", c.sync.pulse_s * 1e6},
+                   {"exposure_active_output", c.sync.exposure_active_output}}},
                  {"simulated_sensor",
                   {{"full_well_e", c.simulated.full_well_e},
                    {"read_noise_e", c.simulated.read_noise_e},
@@ -377,6 +402,9 @@ std::string stage_to_json(const Stage& stage) {
                    {"black_level", c.simulated.black_level},
                    {"real_time", c.simulated.real_time},
                    {"dead_leds", c.simulated.dead_led_ids}}}};
+  if (c.sync.gpio_line >= 0) {
+    camera["sync"]["gpio"] = {{"chip", c.sync.gpio_chip}, {"line", c.sync.gpio_line}};
+  }
   json plan = {{"dark_frames", stage.plan.dark_frames}, {"settle_s", stage.plan.settle_s}};
   if (stage.plan.times_s.empty()) {
     plan["time_steps"] = stage.plan.time_steps;

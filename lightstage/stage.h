@@ -52,6 +52,23 @@ struct SimulatedSensor {
   std::vector<int> dead_led_ids;
 };
 
+// How the controller and the camera keep time (README, "Synchronisation"). The wiring each mode
+// expects is the README's; the simulator and Aravis' fake camera stand in for it in the tests.
+struct CameraSync {
+  // "software": the camera is triggered over its link. "line": the controller pulses its output
+  // gpio_chip/gpio_line for pulse_s, wired to the camera's trigger input `input` (rising edge).
+  std::string trigger = "software";
+  std::string input = "Line0";
+  std::string gpio_chip;
+  int gpio_line = -1;
+  double pulse_s = 1e-4;
+  // A camera output (e.g. "Line1") set to ExposureActive, wired to the LED drivers' enable: an LED
+  // lights only while the controller selects it and the sensor integrates. "": none (an LED is lit
+  // from before its bracket to after it).
+  std::string exposure_active_output;
+  bool line_triggered() const { return trigger == "line"; }
+};
+
 struct CameraSpec {
   std::string backend = "sim";  // sim | aravis | v4l2
   std::string device_id;        // Back-end specific (Aravis id, /dev/videoN).
@@ -70,6 +87,7 @@ struct CameraSpec {
   double ortho_height_m = 2.4;  // Orthographic: height of the view at the origin.
   double timeout_s = 5.0;       // One frame; then CameraTimeout.
   int retries = 2;              // Retries of a timed-out frame before the session stops.
+  CameraSync sync;
   SimulatedSensor simulated;
 };
 

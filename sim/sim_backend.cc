@@ -28,6 +28,7 @@ void register_backend(BackendRegistry& registry) {
     opened.lights = std::shared_ptr<LightController>(stage, &stage->lights());
     opened.camera = std::shared_ptr<Camera>(stage, &stage->camera());
     opened.simulated_time = !request.stage.camera.simulated.real_time;
+    wire_trigger(request.stage.camera, *opened.lights, *opened.camera);
     return opened;
   };
   registry.add(std::move(backend));

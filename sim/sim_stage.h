@@ -91,6 +91,8 @@ class SimStage {
   void perturb_led(int led_index, double intensity_factor, const Eigen::Vector3d& dir_in_stage);
   // An LED lit whatever the controller says (a stuck driver); -1 for none.
   void set_stuck_led(int led_index);
+  // camera.sync.trigger "line": the controller's pulses no longer reach the camera's input.
+  void set_trigger_wire_broken(bool broken);
 
  private:
   struct State;

@@ -502,6 +502,11 @@ class CaptureRun {
       }
       if (led >= 0) still_bad = verify_bracket(i, frames, darks);
     } catch (...) {
+      if (led >= 0) {
+        lights_.all_off();
+        const int64_t led_off_ns = unix_ns();
+        for (CapturedFrame& frame : frames) frame.timing.led_off_ns = led_off_ns;
+      }
       try {
         save_partial_group(i, frames, darks);  // Nothing captured is lost.
       } catch (...) {

@@ -213,8 +213,15 @@ struct AravisCamera::Impl {
     }
     arv_camera_set_acquisition_mode(camera, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
     check(error, id, "setting continuous acquisition");
-    arv_camera_set_trigger(camera, "Software", &error);
-    check(error, id, "setting the software trigger");
+    // FrameStart, rising edge (arv_camera_set_trigger), from software or the input line wired to
+    // the controller's trigger output.
+    const CameraSync& sync = spec.sync;
+    arv_camera_set_trigger(camera, sync.line_triggered() ? sync.input.c_str() : "Software", &error);
+    check(error, id,
+          sync.line_triggered()
+              ? "setting the trigger to input " + sync.input + " (camera.sync.input)"
+              : std::string("setting the software trigger"));
+    if (!sync.exposure_active_output.empty()) output_exposure_active(sync.exposure_active_output);
 
     if (arv_camera_is_gv_device(camera)) {
       arv_camera_gv_auto_packet_size(camera, nullptr);
@@ -242,6 +249,26 @@ struct AravisCamera::Impl {
     info.height = spec.height;
     info.channels = spec.channels;
     info.bit_depth = genicam_format_bit_depth(format);
+  }
+
+  // camera.sync.exposure_active_output: that line drives the LED drivers' enable while the sensor
+  // integrates (SFNC digital I/O: LineSelector, LineMode, LineSource).
+  void output_exposure_active(const std::string& line) {
+    const std::string what = "camera.sync.exposure_active_output \"" + line + "\": ";
+    for (const char* feature : {"LineSelector", "LineMode", "LineSource"}) {
+      if (!arv_camera_is_feature_available(camera, feature, nullptr)) {
+        throw HardwareError("camera " + id + ": " + what + "the camera has no " + feature +
+                            " feature (GenICam digital I/O), so it cannot gate the LEDs; leave " +
+                            "exposure_active_output out to light each LED around its bracket");
+      }
+    }
+    GError* error = nullptr;
+    arv_camera_set_string(camera, "LineSelector", line.c_str(), &error);
+    check(error, id, what + "selecting the line");
+    arv_camera_set_string(camera, "LineMode", "Output", &error);
+    check(error, id, what + "setting LineMode Output");
+    arv_camera_set_string(camera, "LineSource", "ExposureActive", &error);
+    check(error, id, what + "setting LineSource ExposureActive");
   }
 
   void apply(const FrameRequest& r) {
@@ -285,6 +312,20 @@ struct AravisCamera::Impl {
     check(error, id, "restarting acquisition after a timeout");
   }
 
+  void trigger() {
+    if (spec.sync.line_triggered()) {
+      if (!pulse_trigger_line) {
+        throw HardwareError("camera " + id + ": camera.sync.trigger \"line\" and no trigger " +
+                            "line wired to it (wire_trigger)");
+      }
+      pulse_trigger_line();
+      return;
+    }
+    GError* error = nullptr;
+    arv_camera_software_trigger(camera, &error);
+    check(error, id, "software trigger");
+  }
+
   CapturedFrame capture(const FrameRequest& r) {
     if (control_lost) throw HardwareError("camera " + id + ": control connection lost");
     apply(r);
@@ -292,9 +333,7 @@ struct AravisCamera::Impl {
     while (ArvBuffer* stale = arv_stream_try_pop_buffer(stream)) {
       arv_stream_push_buffer(stream, stale);
     }
-    GError* error = nullptr;
-    arv_camera_software_trigger(camera, &error);
-    check(error, id, "software trigger");
+    trigger();
     using clock = std::chrono::steady_clock;
     const auto deadline =
         clock::now() + std::chrono::duration<double>(spec.timeout_s + exposure_us_actual * 1e-6);
@@ -307,24 +346,34 @@ struct AravisCamera::Impl {
         if (control_lost) throw HardwareError("camera " + id + ": control connection lost");
         restart_acquisition();
         throw CameraTimeout("camera " + id + ": no frame within " + std::to_string(spec.timeout_s) +
-                            " s (camera.timeout_s) after a software trigger");
+                            " s (camera.timeout_s) after " +
+                            (spec.sync.line_triggered()
+                                 ? "pulsing the trigger line: check the wire from camera.sync.gpio "
+                                   "to the camera's input " +
+                                       spec.sync.input
+                                 : std::string("a software trigger")));
       }
-      if (arv_buffer_get_status(buffer) != ARV_BUFFER_STATUS_SUCCESS) {
+      const bool complete = arv_buffer_get_status(buffer) == ARV_BUFFER_STATUS_SUCCESS;
+      const int w = arv_buffer_get_image_width(buffer);
+      const int h = arv_buffer_get_image_height(buffer);
+      if (complete && (w != spec.width || h != spec.height)) {
+        arv_stream_push_buffer(stream, buffer);
+        throw HardwareError("camera " + id + ": delivered a " + std::to_string(w) + "x" +
+                            std::to_string(h) + " frame, expected " + std::to_string(spec.width) +
+                            "x" + std::to_string(spec.height));
+      }
+      size_t size = 0;
+      const void* data = arv_buffer_get_image_data(buffer, &size);
+      // Packets lost, or a payload cut short (a torn transfer): that frame is gone, ask again.
+      const size_t payload_bytes = size_t(w) * h * ((genicam_format_bit_depth(format) + 7) / 8);
+      if (!complete || size < payload_bytes) {
         ++incomplete;
         arv_stream_push_buffer(stream, buffer);
+        trigger();
         continue;
       }
       CapturedFrame frame;
       try {
-        size_t size = 0;
-        const void* data = arv_buffer_get_image_data(buffer, &size);
-        const int w = arv_buffer_get_image_width(buffer);
-        const int h = arv_buffer_get_image_height(buffer);
-        if (w != spec.width || h != spec.height) {
-          throw HardwareError("camera " + id + ": delivered a " + std::to_string(w) + "x" +
-                              std::to_string(h) + " frame, expected " + std::to_string(spec.width) +
-                              "x" + std::to_string(spec.height));
-        }
         frame.raw = decode_genicam_image(data, size, format, w, h);
       } catch (...) {
         arv_stream_push_buffer(stream, buffer);
@@ -339,6 +388,7 @@ struct AravisCamera::Impl {
   }
 
   int n_buffers = 4;
+  std::function<void()> pulse_trigger_line;  // camera.sync.trigger "line"; empty: software.
 };
 
 AravisCamera::AravisCamera(const CameraSpec& spec, const AravisOptions& options)
@@ -375,6 +425,21 @@ void AravisCamera::set_feature(const std::string& name, const std::string& value
   GError* error = nullptr;
   arv_camera_set_string(impl_->camera, name.c_str(), value.c_str(), &error);
   check(error, impl_->id, "setting " + name + " to " + value);
+}
+
+std::string AravisCamera::feature(const std::string& name) const {
+  GError* error = nullptr;
+  const char* value = arv_camera_get_string(impl_->camera, name.c_str(), &error);
+  check(error, impl_->id, "reading " + name);
+  return value ? value : "";
+}
+
+void AravisCamera::set_trigger_line(std::function<void()> pulse) {
+  if (!impl_->spec.sync.line_triggered()) {
+    throw HardwareError("camera " + impl_->id + ": set for a software trigger, not a line " +
+                        "(camera.sync.trigger)");
+  }
+  impl_->pulse_trigger_line = std::move(pulse);
 }
 
 void AravisCamera::execute_command(const std::string& name) {

@@ -20,7 +20,8 @@ struct AravisOptions {
 };
 
 // A camera opened by CameraSpec::device_id, set to the spec's size and pixel format (mono for 1
-// channel, a Bayer pattern demosaiced to RGB for 3; 8 to 16 bits), software-triggered. Exposure and
+// channel, a Bayer pattern demosaiced to RGB for 3; 8 to 16 bits), triggered by software or by an
+// input line (camera.sync), an output line at ExposureActive when asked for. Exposure and
 // gain are set per request and read back; the frame reports what the camera actually used. Gain is
 // linear (1 = native) and maps to the camera's Gain feature in dB (SFNC). Throws InputError for an
 // empty device id, HardwareError when the camera cannot be opened or configured.
@@ -35,12 +36,16 @@ class AravisCamera : public Camera {
   // Throws CameraTimeout when no complete frame arrives within spec.timeout_s (plus the exposure),
   // HardwareError when the camera refuses a setting or its control connection is lost.
   CapturedFrame capture(const FrameRequest& request) override;
+  // camera.sync.trigger "line": the camera is armed for each frame and `pulse` fires its trigger
+  // input (the controller's line); the camera was set to that input when opened.
+  void set_trigger_line(std::function<void()> pulse) override;
 
   std::string pixel_format() const;
   int incomplete_frames() const;  // Frames dropped as incomplete since opening.
   // Sets any GenICam feature from its string form (enumerations included), e.g. ("TriggerSource",
   // "Line1") to expose on a hardware trigger line. Throws HardwareError naming the feature.
   void set_feature(const std::string& name, const std::string& value);
+  std::string feature(const std::string& name) const;  // A feature's string form.
   // Executes a GenICam command feature (e.g. "AcquisitionStop"). Throws HardwareError.
   void execute_command(const std::string& name);
   // In-process fake camera only: how often it polls its software trigger (Aravis default 25 Hz).

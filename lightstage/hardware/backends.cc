@@ -39,9 +39,17 @@ std::unique_ptr<Camera> open_camera(const CameraSpec& spec, const std::string& s
 
 Hardware open_hardware(const Stage& stage) {
   if (!is_hardware_backend(stage.camera.backend)) throw unknown_backend(stage.camera, stage.source);
+  const CameraSync& sync = stage.camera.sync;
+  if (stage.camera.backend != "aravis" &&
+      (sync.line_triggered() || !sync.exposure_active_output.empty())) {
+    throw InputError(stage.source + ": camera.sync: a trigger line or an exposure-active output " +
+                     "needs a GenICam camera (camera.backend \"aravis\"), got camera.backend \"" +
+                     stage.camera.backend + "\"");
+  }
   Hardware hw;
   hw.lights = open_gpio_lights(stage);
   hw.camera = open_camera(stage.camera, stage.source);
+  wire_trigger(stage.camera, *hw.lights, *hw.camera);
   return hw;
 }
 

@@ -40,16 +40,52 @@ GpioLights::GpioLights(const Stage& stage, std::unique_ptr<GpioLineDriver> drive
     }
     leds_.push_back({led.id, led.gpio_chip, led.gpio_line, led.active_low, -1, false});
   }
-  for (size_t i = 0; i < leds_.size(); ++i) {
-    Line& l = leds_[i];
+  const CameraSync& sync = stage.camera.sync;
+  if (sync.line_triggered()) {
+    const std::string field = stage.source + ": camera.sync.gpio";
+    if (sync.gpio_chip.empty() || sync.gpio_line < 0) {
+      throw InputError(field + ": expected the GPIO chip and line wired to the camera's trigger " +
+                       "input " + sync.input + " (camera.sync.trigger \"line\"), got none");
+    }
+    if (auto it = owner.find({sync.gpio_chip, sync.gpio_line}); it != owner.end()) {
+      throw InputError(field + ": " + sync.gpio_chip + " line " + std::to_string(sync.gpio_line) +
+                       " is already used by LED " + std::to_string(it->second));
+    }
+    trigger_ = {-1, sync.gpio_chip, sync.gpio_line, false, -1, false};
+    trigger_pulse_s_ = sync.pulse_s;
+  }
+  for (size_t i = 0; i <= leds_.size(); ++i) {
+    Line& l = i < leds_.size() ? leds_[i] : trigger_;
+    if (l.line < 0) continue;  // No trigger line.
     try {
       l.handle = driver_->request_output(l.chip, l.line, level_for(l, /*on=*/false));
     } catch (const HardwareError& e) {
       all_off();
       driver_->release_all();
-      throw HardwareError(describe(int(i)) + ": " + e.what());
+      throw HardwareError((i < leds_.size() ? describe(int(i)) : describe_trigger()) + ": " +
+                          e.what());
     }
   }
+}
+
+void GpioLights::pulse_trigger() {
+  if (trigger_.handle < 0) LightController::pulse_trigger();  // Throws: not line-triggered.
+  try {
+    driver_->set_level(trigger_.handle, true);
+    std::this_thread::sleep_for(std::chrono::duration<double>(trigger_pulse_s_));
+    driver_->set_level(trigger_.handle, false);
+  } catch (const HardwareError& e) {
+    try {
+      driver_->set_level(trigger_.handle, false);
+    } catch (const HardwareError&) {
+      // The line is gone: the first failure is the one to report.
+    }
+    throw HardwareError(describe_trigger() + ": cannot pulse: " + e.what());
+  }
+}
+
+std::string GpioLights::describe_trigger() const {
+  return "trigger line (" + trigger_.chip + " line " + std::to_string(trigger_.line) + ")";
 }
 
 GpioLights::~GpioLights() {

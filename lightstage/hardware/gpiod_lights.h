@@ -49,7 +49,9 @@ class GpioLights : public LightController {
   // part of each period: the supply must carry them together.
   void set_levels(const std::vector<double>& level) override;
   double level_period_s() const override { return pwm_period_s_; }
-  void verify_levels() override;        // HardwareError when the PWM thread failed (all lines off).
+  void verify_levels() override;  // HardwareError when the PWM thread failed (all lines off).
+  // camera.sync.trigger "line": the trigger line (camera.sync.gpio) high for camera.sync.pulse_s.
+  void pulse_trigger() override;
   void set_pwm_period(double seconds);  // Default 10 ms.
   // Drives every line to its off level; keeps going past failures (remembered in last_error()).
   void all_off() noexcept override;
@@ -59,6 +61,7 @@ class GpioLights : public LightController {
   const std::string& last_error() const { return last_error_; }
   // "LED 12 (gpiochip0 line 4, active-low)", for messages and `lightstage check`.
   std::string describe(int led_index) const;
+  std::string describe_trigger() const;  // "trigger line (gpiochip0 line 17)".
 
  private:
   struct Line {
@@ -76,6 +79,8 @@ class GpioLights : public LightController {
 
   std::unique_ptr<GpioLineDriver> driver_;
   std::vector<Line> leds_;
+  Line trigger_;  // Wired to the camera's trigger input; handle -1 when not line-triggered.
+  double trigger_pulse_s_ = 0.0;
   std::string last_error_;
   double pwm_period_s_ = 0.01;
   std::atomic<bool> pwm_stop_{false};

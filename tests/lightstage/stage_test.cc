@@ -81,7 +81,15 @@ TEST(Stage, JsonRoundTripPreservesEverything) {
   stage.camera.response.gamma = 2.2;
   stage.plan.time_steps = 3;
   stage.plan.led_order = {2, 1, 0};
+  stage.camera.sync = {"line", "Line2", "gpiochip1", 23, 2.5e-4, "Line1"};
   const Stage back = parse_stage(stage_to_json(stage), "roundtrip.json");
+  EXPECT_EQ(back.camera.sync.trigger, "line");
+  EXPECT_EQ(back.camera.sync.input, "Line2");
+  EXPECT_EQ(back.camera.sync.gpio_chip, "gpiochip1");
+  EXPECT_EQ(back.camera.sync.gpio_line, 23);
+  EXPECT_NEAR(back.camera.sync.pulse_s, 2.5e-4, 1e-15);
+  EXPECT_EQ(back.camera.sync.exposure_active_output, "Line1");
+  EXPECT_EQ(parse_stage(stage_to_json(default_stage()), "d.json").camera.sync.gpio_line, -1);
   ASSERT_EQ(back.leds.size(), stage.leds.size());
   for (size_t i = 0; i < stage.leds.size(); ++i) {
     EXPECT_EQ(back.leds[i].id, stage.leds[i].id);
@@ -134,6 +142,15 @@ TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
   ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10}, "plan": {"led_order": [99]}})",
                    {"plan.led_order[0]", "id of an LED"});
   ExpectStageError(R"({"layout": {"type": "geodesic"}})", {"layout.frequency", "missing"});
+  ExpectStageError(
+      R"({"layout": {"type": "fibonacci", "count": 10}, "camera": {"sync": {"trigger": "hw"}}})",
+      {"camera.sync.trigger", "\"line\""});
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
+                       "camera": {"sync": {"gpio": {"chip": "gpiochip0", "line": -3}}}})",
+                   {"camera.sync.gpio.line", "-3"});
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
+                       "camera": {"sync": {"pulse_us": 0}}})",
+                   {"camera.sync.pulse_us", "microseconds"});
 }
 
 TEST(Stage, LoadStageNamesAMissingFile) {

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "lightstage/controller/sequencer.h"
+#include "lightstage/errors.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
 #include "tests/support/test_support.h"
@@ -127,6 +128,41 @@ TEST_F(FrameFaults, AStuckLedStopsTheCaptureAtTheDarkFramesAndAResumeCompletesIt
   EXPECT_EQ(resumed.status, CaptureSummary::Status::kComplete);
   Capture("clean");
   ExpectSameFrames("clean", "stuck");
+}
+
+// camera.sync.trigger "line": the simulator's controller pulses its trigger line and its camera
+// exposes on the edge it sees. The frames are those of a software trigger; a wire that breaks in
+// the middle stops the capture with the frames taken saved, and a resume after the repair ends it.
+TEST_F(FrameFaults, ALineTriggeredCaptureMatchesTheSoftwareOneAndABrokenWireStopsItResumably) {
+  stage_.leds.resize(12);
+  SimStage software(stage_, sim::default_scene(), 7);
+  Session plain = Session::create(tmp_ / "software", stage_, {});
+  ASSERT_EQ(run_capture(plain, software.lights(), software.camera(), Instant()).status,
+            CaptureSummary::Status::kComplete);
+
+  Stage wired = stage_;
+  wired.camera.sync.trigger = "line";
+  SimStage sim(wired, sim::default_scene(), 7);
+  EXPECT_THROW(software.camera().set_trigger_line([] {}), HardwareError);  // Not line-triggered.
+  EXPECT_THROW(software.lights().pulse_trigger(), HardwareError);
+  wire_trigger(wired.camera, sim.lights(), sim.camera());
+  SequencerOptions options = Instant();
+  options.on_progress = [&](const CaptureProgress& p) {
+    if (p.done == 20) sim.set_trigger_wire_broken(true);
+  };
+  Session session = Session::create(tmp_ / "line", wired, {});
+  const CaptureSummary broken = run_capture(session, sim.lights(), sim.camera(), options);
+  EXPECT_EQ(broken.status, CaptureSummary::Status::kCameraFailed);
+  EXPECT_NE(broken.message.find("trigger line was pulsed and the camera saw no edge"),
+            std::string::npos)
+      << broken.message;
+  EXPECT_GE(Session::open(tmp_ / "line").frames().size(), 20u);  // Nothing taken is lost.
+
+  sim.set_trigger_wire_broken(false);
+  Session again = Session::open(tmp_ / "line");
+  EXPECT_EQ(run_capture(again, sim.lights(), sim.camera(), Instant()).status,
+            CaptureSummary::Status::kComplete);
+  ExpectSameFrames("software", "line");
 }
 
 }  // namespace

@@ -2,13 +2,23 @@
 // network (ids starting with "Fake_" enable only the Fake interface).
 #include "lightstage/hardware/aravis_camera.h"
 
+#include <arv.h>
 #include <gtest/gtest.h>
 
 #include <chrono>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "lightstage/errors.h"
+#include "lightstage/hardware/gpiod_lights.h"
+#include "tests/lightstage/hardware/fake_line_driver.h"
+#include "tests/support/test_support.h"
 
 namespace ls {
 namespace {
@@ -117,6 +127,118 @@ TEST(AravisFake, NoFrameInTimeIsACameraTimeoutAndTheNextFrameStillComes) {
   camera.set_feature("TriggerSource", "Software");
   EXPECT_THROW(camera.set_feature("NoSuchFeature", "1"), HardwareError);
   EXPECT_THROW(camera.execute_command("NoSuchCommand"), HardwareError);
+}
+
+// camera.sync.trigger "line": the camera is set to start a frame on its input's rising edge, and
+// every frame asks the controller for one pulse. (Aravis' in-process fake streams at its trigger
+// frequency whatever its trigger does; that frames wait for the pulse is shown over GigE Vision,
+// gige_fake_test.cc.)
+TEST(AravisFake, LineTriggerSetsTheInputAndEveryFramePulsesTheControllersLineOnce) {
+  CameraSpec spec = FakeSpec(1, 8);
+  spec.sync.trigger = "line";
+  AravisCamera camera(spec);
+  camera.set_fake_trigger_frequency(1000);
+  EXPECT_EQ(camera.feature("TriggerSelector"), "FrameStart");
+  EXPECT_EQ(camera.feature("TriggerMode"), "On");
+  EXPECT_EQ(camera.feature("TriggerSource"), "Line0");
+  EXPECT_EQ(camera.feature("TriggerActivation"), "RisingEdge");
+  try {
+    camera.capture({});
+    FAIL() << "line-triggered, and no line wired";
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find("no trigger line wired"), std::string::npos) << e.what();
+  }
+  Stage stage = stage_with_directions(fibonacci_dome_directions(1, 0));
+  stage.leds[0].gpio_chip = stage.camera.sync.gpio_chip = "gpiochip0";
+  stage.leds[0].gpio_line = 4;
+  stage.camera.sync.trigger = "line";
+  stage.camera.sync.gpio_line = 9;
+  testing::FakeGpio gpio;
+  GpioLights lights(stage, std::make_unique<testing::FakeLineDriver>(gpio));
+  int rising = 0;
+  gpio.wire = [&](const std::pair<std::string, int>& line, bool high) {
+    rising += line.second == 9 && high;
+  };
+  wire_trigger(spec, lights, camera);
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_EQ(camera.capture({}).raw.width, 64);
+    EXPECT_EQ(rising, i + 1);
+  }
+  gpio.wire = nullptr;
+  CameraSpec software = FakeSpec(1, 8);
+  EXPECT_THROW(AravisCamera(software).set_trigger_line([] {}), HardwareError);
+}
+
+// Aravis' fake camera description with SFNC digital I/O added (LineSelector, and LineMode and
+// LineSource per line), as a camera with an exposure-active output has. Its registers lie at
+// 0x8000, which the fake leaves free.
+std::filesystem::path FakeDescriptionWithDigitalIo(const std::filesystem::path& file) {
+  arv_enable_interface("Fake");
+  ArvCamera* stock = arv_camera_new("Fake_1", nullptr);
+  if (stock == nullptr) return {};
+  size_t size = 0;
+  const char* text = arv_device_get_genicam_xml(arv_camera_get_device(stock), &size);
+  std::string xml(text != nullptr ? text : "", text != nullptr ? size : 0);
+  g_object_unref(stock);
+  auto reg = [](const std::string& name, const std::string& address, bool per_line) {
+    return "<IntReg Name=\"" + name + "\" NameSpace=\"Custom\"><Address>" + address + "</Address>" +
+           (per_line ? "<pIndex Offset=\"0x4\">LineSelectorRegister</pIndex>" : "") +
+           "<Length>4</Length><AccessMode>RW</AccessMode><pPort>Device</pPort>"
+           "<Sign>Unsigned</Sign><Endianess>BigEndian</Endianess></IntReg>\n";
+  };
+  auto enumeration = [](const std::string& name, const std::string& first,
+                        const std::string& second) {
+    return "<Enumeration Name=\"" + name + "\" NameSpace=\"Standard\"><EnumEntry Name=\"" + first +
+           "\" NameSpace=\"Standard\"><Value>0</Value></EnumEntry><EnumEntry Name=\"" + second +
+           "\" NameSpace=\"Standard\"><Value>1</Value></EnumEntry><pValue>" + name +
+           "Register</pValue></Enumeration>\n";
+  };
+  const std::string io =
+      enumeration("LineSelector", "Line0", "Line1") + reg("LineSelectorRegister", "0x8000", false) +
+      enumeration("LineMode", "Input", "Output") + reg("LineModeRegister", "0x8010", true) +
+      enumeration("LineSource", "Off", "ExposureActive") +
+      reg("LineSourceRegister", "0x8020", true);
+  const size_t end = xml.rfind("</RegisterDescription>");
+  if (end == std::string::npos) return {};
+  xml.insert(end, io);
+  std::ofstream(file) << xml;
+  return file;
+}
+
+// camera.sync.exposure_active_output: the named output is set to ExposureActive; a camera without
+// GenICam digital I/O (Aravis' stock fake) is refused with the field and the feature named.
+TEST(AravisFake, ExposureActiveOutputIsSetOnTheNamedLineOrRefusedWhereTheCameraHasNone) {
+  CameraSpec spec = FakeSpec(1, 8);
+  spec.sync.exposure_active_output = "Line1";
+  try {
+    AravisCamera camera(spec);
+    FAIL() << "the stock fake has no digital I/O";
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "camera.sync.exposure_active_output \"Line1\": the camera has no LineSelector"),
+              std::string::npos)
+        << e.what();
+  }
+  ls::testing::TempDir tmp;
+  const std::string description = FakeDescriptionWithDigitalIo(tmp / "fake-io.xml").string();
+  ASSERT_FALSE(description.empty());
+  arv_set_fake_camera_genicam_filename(description.c_str());  // Read when the fake is created.
+  std::unique_ptr<AravisCamera> camera;
+  try {
+    camera = std::make_unique<AravisCamera>(spec);
+  } catch (...) {
+    arv_set_fake_camera_genicam_filename(nullptr);
+    throw;
+  }
+  arv_set_fake_camera_genicam_filename(nullptr);
+  camera->set_fake_trigger_frequency(1000);
+  EXPECT_EQ(camera->feature("LineSelector"), "Line1");
+  EXPECT_EQ(camera->feature("LineMode"), "Output");
+  EXPECT_EQ(camera->feature("LineSource"), "ExposureActive");
+  EXPECT_EQ(camera->capture({}).raw.width, 64);
+  camera->set_feature("LineSelector", "Line0");
+  EXPECT_EQ(camera->feature("LineMode"), "Input");  // Only the named line.
+  EXPECT_EQ(camera->feature("LineSource"), "Off");
 }
 
 TEST(AravisFake, UnavailableFormatOrSizeIsAHardwareErrorSayingWhatIsOffered) {

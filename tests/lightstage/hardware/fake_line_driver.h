@@ -1,6 +1,7 @@
 #pragma once
 // A GPIO line driver that records levels, for testing GpioLights without a GPIO chip.
 #include <atomic>
+#include <functional>
 #include <map>
 #include <set>
 #include <string>
@@ -20,6 +21,8 @@ struct FakeGpio {
   std::set<int> failing_handles;                      // set_level throws for these.
   int releases = 0;
   std::atomic<int> sets{0};  // set_level calls (software PWM runs them on its own thread).
+  // Called on every set_level with the line and its new level: what is wired to the line.
+  std::function<void(const std::pair<std::string, int>& line, bool high)> wire;
 };
 
 class FakeLineDriver : public GpioLineDriver {
@@ -40,6 +43,7 @@ class FakeLineDriver : public GpioLineDriver {
     if (gpio_.failing_handles.count(handle)) throw HardwareError("EIO");
     gpio_.level[handles_.at(handle)] = high;
     ++gpio_.sets;
+    if (gpio_.wire) gpio_.wire(handles_.at(handle), high);
   }
   void release_all() noexcept override {
     for (const auto& key : handles_) gpio_.level.erase(key);

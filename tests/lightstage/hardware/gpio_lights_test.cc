@@ -3,6 +3,8 @@
 #include <chrono>
 #include <memory>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include "lightstage/errors.h"
 #include "lightstage/hardware/gpiod_lights.h"
@@ -132,6 +134,51 @@ TEST(GpioLights, StageWithoutLinesOrWithSharedLinesIsAnInputError) {
     FAIL();
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("already used by LED 10"), std::string::npos) << e.what();
+  }
+}
+
+// camera.sync.trigger "line": the trigger line is requested low with the LEDs, and each pulse
+// is one rising edge followed by the line low again, pulse_s later.
+TEST(GpioLights, TriggerLinePulsesOnceARisingEdgeAndIsCheckedLikeAnLedLine) {
+  FakeGpio gpio;
+  Stage stage = GpioStage();
+  stage.camera.sync.trigger = "line";
+  stage.camera.sync.pulse_s = 2e-3;
+  try {
+    GpioLights lights(stage, std::make_unique<FakeLineDriver>(gpio));
+    FAIL() << "no trigger line given";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("stage.json: camera.sync.gpio"), std::string::npos)
+        << e.what();
+  }
+  stage.camera.sync.gpio_chip = "gpiochip0";
+  stage.camera.sync.gpio_line = 5;  // LED 11's.
+  EXPECT_THROW(GpioLights(stage, std::make_unique<FakeLineDriver>(gpio)), InputError);
+  stage.camera.sync.gpio_line = 40;
+  ExpectHardwareError(gpio, stage, "trigger line (gpiochip0 line 40)");
+
+  stage.camera.sync.gpio_line = 9;
+  GpioLights lights(stage, std::make_unique<FakeLineDriver>(gpio));
+  EXPECT_FALSE(Level(gpio, 9));
+  std::vector<std::pair<bool, std::chrono::steady_clock::time_point>> edges;
+  gpio.wire = [&](const std::pair<std::string, int>& line, bool high) {
+    if (line.second == 9) edges.emplace_back(high, std::chrono::steady_clock::now());
+  };
+  lights.pulse_trigger();
+  ASSERT_EQ(edges.size(), 2u);
+  EXPECT_TRUE(edges[0].first);
+  EXPECT_FALSE(edges[1].first);
+  EXPECT_GE(edges[1].second - edges[0].second, std::chrono::milliseconds(2));
+  EXPECT_EQ(lights.count_on(), 0);  // No LED moved.
+  gpio.wire = nullptr;
+  gpio.failing_handles.insert(3);  // The trigger line's handle, after the three LEDs'.
+  try {
+    lights.pulse_trigger();
+    FAIL() << "expected HardwareError";
+  } catch (const HardwareError& e) {
+    EXPECT_NE(std::string(e.what()).find("trigger line (gpiochip0 line 9): cannot pulse"),
+              std::string::npos)
+        << e.what();
   }
 }
 
