@@ -448,13 +448,26 @@ void AravisCamera::execute_command(const std::string& name) {
   check(error, impl_->id, "executing " + name);
 }
 
+namespace {
+
+ArvFakeCamera* in_process_fake(ArvCamera* camera, const std::string& id) {
+  ArvDevice* device = arv_camera_get_device(camera);
+  if (!ARV_IS_FAKE_DEVICE(device))
+    throw HardwareError("camera " + id + ": not the Aravis fake camera");
+  return arv_fake_device_get_fake_camera(ARV_FAKE_DEVICE(device));
+}
+
+}  // namespace
+
 void AravisCamera::set_fake_trigger_frequency(double hz) {
-  ArvDevice* device = arv_camera_get_device(impl_->camera);
-  if (!ARV_IS_FAKE_DEVICE(device)) {
-    throw HardwareError("camera " + impl_->id + ": not the Aravis fake camera");
-  }
-  arv_fake_camera_set_trigger_frequency(arv_fake_device_get_fake_camera(ARV_FAKE_DEVICE(device)),
-                                        hz);
+  arv_fake_camera_set_trigger_frequency(in_process_fake(impl_->camera, impl_->id), hz);
+}
+
+void AravisCamera::set_fake_frames_empty(bool empty) {
+  // The in-process fake sends the bytes its fill pattern reports, which only its own pattern does.
+  ArvFakeCameraFillPattern nothing = [](ArvBuffer*, void*, guint32, guint32, ArvPixelFormat) {};
+  arv_fake_camera_set_fill_pattern(in_process_fake(impl_->camera, impl_->id),
+                                   empty ? nothing : nullptr, nullptr);
 }
 
 std::vector<AravisDeviceInfo> discover_aravis_cameras() {

@@ -50,6 +50,9 @@ class AravisCamera : public Camera {
   void execute_command(const std::string& name);
   // In-process fake camera only: how often it polls its software trigger (Aravis default 25 Hz).
   void set_fake_trigger_frequency(double hz);
+  // In-process fake camera only: its frames arrive empty, though marked complete (a transfer cut
+  // short), until called again with false.
+  void set_fake_frames_empty(bool empty);
 
  private:
   struct Impl;

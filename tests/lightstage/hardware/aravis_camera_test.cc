@@ -241,6 +241,21 @@ TEST(AravisFake, ExposureActiveOutputIsSetOnTheNamedLineOrRefusedWhereTheCameraH
   EXPECT_EQ(camera->feature("LineSource"), "Off");
 }
 
+// Frames whose payload arrives empty (a torn transfer marked complete) are counted and asked for
+// again, not taken for a broken camera: when none comes whole in time it is a timeout, and the
+// next whole frame is delivered.
+TEST(AravisFake, EmptyPayloadsAreAskedForAgainThenTimeOutRecoverably) {
+  CameraSpec spec = FakeSpec(1, 8);
+  spec.timeout_s = 0.2;
+  AravisCamera camera(spec);
+  camera.set_fake_trigger_frequency(1000);
+  camera.set_fake_frames_empty(true);
+  EXPECT_THROW(camera.capture({}), CameraTimeout);
+  EXPECT_GE(camera.incomplete_frames(), 2) << "each empty frame asked for again";
+  camera.set_fake_frames_empty(false);
+  EXPECT_EQ(camera.capture({}).raw.width, 64);
+}
+
 TEST(AravisFake, UnavailableFormatOrSizeIsAHardwareErrorSayingWhatIsOffered) {
   try {
     AravisCamera camera(FakeSpec(1, 12));

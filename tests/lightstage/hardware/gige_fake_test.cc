@@ -246,10 +246,7 @@ class SimulatedSceneOnTheFake {
     arv_fake_camera_set_fill_pattern(fake_, nullptr, nullptr);
     gpio_.wire = nullptr;
   }
-  // The fake sends as many bytes as its last pattern filled, which only its own pattern sets: one
-  // frame of it first, then the simulator's.
-  void start_drawing(AravisCamera& camera) {
-    camera.capture({});
+  void start_drawing() {
     arv_fake_camera_set_fill_pattern(fake_, &SimulatedSceneOnTheFake::fill, this);
   }
   enum class Fault { kWrongLed, kTorn, kStale };
@@ -288,12 +285,12 @@ class SimulatedSceneOnTheFake {
       sim_.inject_frame_fault(request.sequence_key, sim::SimStage::FrameFault::kWrongLed);
     }
     const CapturedFrame frame = sim_.camera().capture(request);
-    size_t size = 0;
-    auto* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, &size)));
+    // The fake calls its pattern only with a buffer that holds a whole frame (and sends it whole).
+    auto* data = static_cast<uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, nullptr)));
     // Torn: only the top half arrives new, the rest is the previous frame's.
     const size_t drawn =
         fault == Fault::kTorn ? frame.raw.pixels.size() / 2 : frame.raw.pixels.size();
-    for (size_t i = 0; i < drawn && 2 * i + 1 < size; ++i) {
+    for (size_t i = 0; i < drawn; ++i) {
       data[2 * i] = uint8_t(frame.raw.pixels[i] & 0xff);  // Mono16, little-endian.
       data[2 * i + 1] = uint8_t(frame.raw.pixels[i] >> 8);
     }
@@ -339,7 +336,7 @@ TEST_F(GigeFake, FramesDrawnBySimulatorFaultsAreCaughtShotAgainAndJournaled) {
   GpioLights lights(stage, std::make_unique<testing::FakeLineDriver>(gpio));
   SimulatedSceneOnTheFake scene(stage, fake_, gpio);
   AravisCamera camera(stage.camera);
-  scene.start_drawing(camera);
+  scene.start_drawing();
   SequencerOptions options;
   options.sleep = [](double) {};
   Session clean = Session::create(tmp / "clean", stage, {});
@@ -372,7 +369,7 @@ TEST_F(GigeFake, DriftOfTheLedsIsMeasuredFromTheReferenceLedThroughTheFake) {
   GpioLights lights(stage, std::make_unique<testing::FakeLineDriver>(gpio));
   SimulatedSceneOnTheFake scene(stage, fake_, gpio);
   AravisCamera camera(stage.camera);
-  scene.start_drawing(camera);
+  scene.start_drawing();
   SequencerOptions options;
   options.sleep = [](double) {};
   const capture::ResponseCurve response = capture::ResponseCurve::given_or_linear(stage.camera);
