@@ -17,7 +17,7 @@ void LightController::pulse_trigger() {
       "trigger input");
 }
 
-void Camera::set_trigger_line(std::function<void()> /*pulse*/) {
+void Camera::set_trigger_line(const std::function<void()>& /*pulse*/) {
   throw HardwareError("camera.sync.trigger \"line\": camera " + info().id +
                       " takes no trigger line (use \"software\")");
 }

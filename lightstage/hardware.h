@@ -84,7 +84,7 @@ class Camera {
   // camera.sync.trigger "line": capture() arms the camera for its frame and calls `pulse` (the
   // controller pulsing the line wired to the camera's trigger input) instead of triggering by
   // software. Throws HardwareError when the camera takes no trigger line (the default).
-  virtual void set_trigger_line(std::function<void()> pulse);
+  virtual void set_trigger_line(const std::function<void()>& pulse);
 };
 
 // Wires the camera's trigger to the controller's trigger line when the spec asks for it

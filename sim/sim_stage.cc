@@ -134,9 +134,9 @@ struct SimStage::State {
               c.channels,
               c.bit_depth};
     }
-    void set_trigger_line(std::function<void()> pulse) override {
+    void set_trigger_line(const std::function<void()>& pulse) override {
       if (!s_.stage.camera.sync.line_triggered()) Camera::set_trigger_line(pulse);  // Throws.
-      pulse_ = std::move(pulse);
+      pulse_ = pulse;
     }
     CapturedFrame capture(const FrameRequest& request) override {
       if (pulse_) {  // Exposes on the edge its trigger input sees.

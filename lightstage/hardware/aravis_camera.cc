@@ -434,12 +434,12 @@ std::string AravisCamera::feature(const std::string& name) const {
   return value ? value : "";
 }
 
-void AravisCamera::set_trigger_line(std::function<void()> pulse) {
+void AravisCamera::set_trigger_line(const std::function<void()>& pulse) {
   if (!impl_->spec.sync.line_triggered()) {
     throw HardwareError("camera " + impl_->id + ": set for a software trigger, not a line " +
                         "(camera.sync.trigger)");
   }
-  impl_->pulse_trigger_line = std::move(pulse);
+  impl_->pulse_trigger_line = pulse;
 }
 
 void AravisCamera::execute_command(const std::string& name) {

@@ -38,7 +38,7 @@ class AravisCamera : public Camera {
   CapturedFrame capture(const FrameRequest& request) override;
   // camera.sync.trigger "line": the camera is armed for each frame and `pulse` fires its trigger
   // input (the controller's line); the camera was set to that input when opened.
-  void set_trigger_line(std::function<void()> pulse) override;
+  void set_trigger_line(const std::function<void()>& pulse) override;
 
   std::string pixel_format() const;
   int incomplete_frames() const;  // Frames dropped as incomplete since opening.
