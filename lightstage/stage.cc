@@ -80,11 +80,15 @@ CameraSync parse_sync(const JsonReader& r) {
     sync.gpio_chip = g["chip"].string();
     sync.gpio_line = g["line"].integer_in(0, 4095);
   }
-  if (r.has("pulse_us")) sync.pulse_s = 1e-6 * r["pulse_us"].number_in(1, 1e5, "(microseconds)");
+  if (r.has("pulse_us")) sync.pulse_us = r["pulse_us"].number_in(1, 1e5, "(microseconds)");
   if (r.has("exposure_active_output")) {
     sync.exposure_active_output = r["exposure_active_output"].string();
   }
   if (sync.input.empty()) r["input"].fail("the camera's trigger input, e.g. \"Line0\"");
+  if (sync.line_triggered() && sync.exposure_active_output == sync.input) {
+    r["exposure_active_output"].fail("an output line other than the trigger input \"" + sync.input +
+                                     "\"");
+  }
   return sync;
 }
 
@@ -393,7 +397,7 @@ std::string stage_to_json(const Stage& stage) {
                  {"sync",
                   {{"trigger", c.sync.trigger},
                    {"input", c.sync.input},
-                   {"pulse_us", c.sync.pulse_s * 1e6},
+                   {"pulse_us", c.sync.pulse_us},
                    {"exposure_active_output", c.sync.exposure_active_output}}},
                  {"simulated_sensor",
                   {{"full_well_e", c.simulated.full_well_e},

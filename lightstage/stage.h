@@ -56,12 +56,12 @@ struct SimulatedSensor {
 // expects is the README's; the simulator and Aravis' fake camera stand in for it in the tests.
 struct CameraSync {
   // "software": the camera is triggered over its link. "line": the controller pulses its output
-  // gpio_chip/gpio_line for pulse_s, wired to the camera's trigger input `input` (rising edge).
+  // gpio_chip/gpio_line for pulse_us, wired to the camera's trigger input `input` (rising edge).
   std::string trigger = "software";
   std::string input = "Line0";
   std::string gpio_chip;
   int gpio_line = -1;
-  double pulse_s = 1e-4;
+  double pulse_us = 100;  // Microseconds.
   // A camera output (e.g. "Line1") set to ExposureActive, wired to the LED drivers' enable: an LED
   // lights only while the controller selects it and the sensor integrates. "": none (an LED is lit
   // from before its bracket to after it).

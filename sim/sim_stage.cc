@@ -139,7 +139,11 @@ struct SimStage::State {
       pulse_ = pulse;
     }
     CapturedFrame capture(const FrameRequest& request) override {
-      if (pulse_) {  // Exposes on the edge its trigger input sees.
+      if (s_.stage.camera.sync.line_triggered()) {  // Exposes on the edge its input sees.
+        if (!pulse_) {
+          throw HardwareError(info().id + ": camera.sync.trigger \"line\" and no controller " +
+                              "line wired to it (camera.sync.gpio)");
+        }
         s_.trigger_edges = 0;
         pulse_();
         if (s_.trigger_edges == 0) {
@@ -220,22 +224,30 @@ struct SimStage::State {
 
   CapturedFrame capture(const FrameRequest& request) {
     const std::string camera_name = "sim:" + stage.name;
-    const auto keyed_timeout = timeout_keys.find(request.sequence_key);
-    const bool timeout_now = timeout_after >= 0 && frames_delivered >= timeout_after;
-    if (keyed_timeout != timeout_keys.end() || timeout_now) {
-      if (!timeout_now) timeout_keys.erase(keyed_timeout);
+    if (auto it = timeout_keys.find(request.sequence_key); it != timeout_keys.end()) {
+      timeout_keys.erase(it);
       throw CameraTimeout(camera_name + ": no frame within " +
-                          std::to_string(stage.camera.timeout_s) + " s (injected)");
+                          std::to_string(stage.camera.timeout_s) + " s (injected, sequence key " +
+                          std::to_string(request.sequence_key) + ")");
+    }
+    if (timeout_after >= 0 && frames_delivered >= timeout_after) {
+      throw CameraTimeout(camera_name + ": no frame within " +
+                          std::to_string(stage.camera.timeout_s) + " s (injected after " +
+                          std::to_string(timeout_after) + " frames)");
     }
     const CameraSpec& cam_spec = stage.camera;
-    if (!(request.exposure_s > 0) || !(request.gain > 0) ||
-        (cam_spec.channels != 1 && cam_spec.channels != 3) || cam_spec.bit_depth < 1 ||
-        cam_spec.bit_depth > 16) {
-      throw HardwareError(camera_name + ": capture: expected a positive exposure and gain, 1 or " +
-                          "3 channels and 1..16 bits, got " + std::to_string(request.exposure_s) +
-                          " s, gain " + std::to_string(request.gain) + ", " +
-                          std::to_string(cam_spec.channels) + " channels, " +
-                          std::to_string(cam_spec.bit_depth) + " bits");
+    if (!(request.exposure_s > 0) || !(request.gain > 0)) {
+      throw HardwareError(camera_name + ": capture: expected a positive exposure and gain, got " +
+                          std::to_string(request.exposure_s) + " s, gain " +
+                          std::to_string(request.gain));
+    }
+    if (cam_spec.channels != 1 && cam_spec.channels != 3) {
+      throw HardwareError(camera_name + ": channels: the simulator delivers 1 or 3, got " +
+                          std::to_string(cam_spec.channels));
+    }
+    if (cam_spec.bit_depth < 1 || cam_spec.bit_depth > 16) {
+      throw HardwareError(camera_name + ": bit_depth: expected 1..16, got " +
+                          std::to_string(cam_spec.bit_depth));
     }
     const int w = cam_spec.width, h = cam_spec.height;
     const size_t n = size_t(w) * h;

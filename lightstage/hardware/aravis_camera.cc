@@ -265,8 +265,12 @@ struct AravisCamera::Impl {
     GError* error = nullptr;
     arv_camera_set_string(camera, "LineSelector", line.c_str(), &error);
     check(error, id, what + "selecting the line");
-    arv_camera_set_string(camera, "LineMode", "Output", &error);
-    check(error, id, what + "setting LineMode Output");
+    const char* mode = arv_camera_get_string(camera, "LineMode", &error);
+    check(error, id, what + "reading LineMode");
+    if (mode == nullptr || std::string(mode) != "Output") {  // Dedicated outputs: read-only.
+      arv_camera_set_string(camera, "LineMode", "Output", &error);
+      check(error, id, what + "setting LineMode Output");
+    }
     arv_camera_set_string(camera, "LineSource", "ExposureActive", &error);
     check(error, id, what + "setting LineSource ExposureActive");
   }
@@ -312,13 +316,20 @@ struct AravisCamera::Impl {
     check(error, id, "restarting acquisition after a timeout");
   }
 
+  size_t payload_bytes() const {
+    return size_t(spec.width) * spec.height * ((genicam_format_bit_depth(format) + 7) / 8);
+  }
+
   void trigger() {
     if (spec.sync.line_triggered()) {
+      // The controller's fault, not the camera's: the camera stays reachable.
+      trigger_line_failed = true;
       if (!pulse_trigger_line) {
-        throw HardwareError("camera " + id + ": camera.sync.trigger \"line\" and no trigger " +
-                            "line wired to it (wire_trigger)");
+        throw HardwareError("camera " + id + ": camera.sync.trigger \"line\" and no " +
+                            "controller line wired to it (camera.sync.gpio)");
       }
       pulse_trigger_line();
+      trigger_line_failed = false;
       return;
     }
     GError* error = nullptr;
@@ -334,6 +345,8 @@ struct AravisCamera::Impl {
       arv_stream_push_buffer(stream, stale);
     }
     trigger();
+    int partial = 0;  // Frames of this request that came incomplete.
+    size_t partial_bytes = 0;
     using clock = std::chrono::steady_clock;
     const auto deadline =
         clock::now() + std::chrono::duration<double>(spec.timeout_s + exposure_us_actual * 1e-6);
@@ -345,13 +358,19 @@ struct AravisCamera::Impl {
       if (buffer == nullptr) {
         if (control_lost) throw HardwareError("camera " + id + ": control connection lost");
         restart_acquisition();
-        throw CameraTimeout("camera " + id + ": no frame within " + std::to_string(spec.timeout_s) +
-                            " s (camera.timeout_s) after " +
-                            (spec.sync.line_triggered()
-                                 ? "pulsing the trigger line: check the wire from camera.sync.gpio "
-                                   "to the camera's input " +
-                                       spec.sync.input
-                                 : std::string("a software trigger")));
+        const std::string cause =
+            partial > 0 ? "; " + std::to_string(partial) + " came incomplete (the last " +
+                              std::to_string(partial_bytes) + " bytes of " +
+                              std::to_string(payload_bytes()) + ")"
+            : spec.sync.line_triggered() ? ": check the wire from camera.sync.gpio to the "
+                                           "camera's input " +
+                                               spec.sync.input
+                                         : std::string();
+        throw CameraTimeout(
+            "camera " + id + ": no whole frame within " + std::to_string(spec.timeout_s) +
+            " s (camera.timeout_s) after " +
+            (spec.sync.line_triggered() ? "pulsing the trigger line" : "a software trigger") +
+            cause);
       }
       const bool complete = arv_buffer_get_status(buffer) == ARV_BUFFER_STATUS_SUCCESS;
       const int w = arv_buffer_get_image_width(buffer);
@@ -364,12 +383,14 @@ struct AravisCamera::Impl {
       }
       size_t size = 0;
       const void* data = arv_buffer_get_image_data(buffer, &size);
-      // Packets lost, or a payload cut short (a torn transfer): that frame is gone, ask again.
-      const size_t payload_bytes = size_t(w) * h * ((genicam_format_bit_depth(format) + 7) / 8);
-      if (!complete || size < payload_bytes) {
+      // Packets lost, or a payload cut short (a torn transfer): that frame is gone. Not asked for
+      // again here (a late whole frame would answer two triggers): the timeout says so, and the
+      // sequencer's retry starts afresh.
+      if (!complete || size < payload_bytes()) {
         ++incomplete;
+        ++partial;
+        partial_bytes = size;
         arv_stream_push_buffer(stream, buffer);
-        trigger();
         continue;
       }
       CapturedFrame frame;
@@ -389,6 +410,7 @@ struct AravisCamera::Impl {
 
   int n_buffers = 4;
   std::function<void()> pulse_trigger_line;  // camera.sync.trigger "line"; empty: software.
+  bool trigger_line_failed = false;
 };
 
 AravisCamera::AravisCamera(const CameraSpec& spec, const AravisOptions& options)
@@ -414,7 +436,8 @@ CapturedFrame AravisCamera::capture(const FrameRequest& request) {
   } catch (const CameraTimeout&) {
     throw;
   } catch (const HardwareError&) {
-    impl_->unreachable = true;
+    if (!impl_->trigger_line_failed) impl_->unreachable = true;
+    impl_->trigger_line_failed = false;
     throw;
   }
 }

@@ -52,7 +52,7 @@ GpioLights::GpioLights(const Stage& stage, std::unique_ptr<GpioLineDriver> drive
                        " is already used by LED " + std::to_string(it->second));
     }
     trigger_ = {-1, sync.gpio_chip, sync.gpio_line, false, -1, false};
-    trigger_pulse_s_ = sync.pulse_s;
+    trigger_pulse_s_ = sync.pulse_us * 1e-6;
   }
   for (size_t i = 0; i <= leds_.size(); ++i) {
     Line& l = i < leds_.size() ? leds_[i] : trigger_;
@@ -85,7 +85,8 @@ void GpioLights::pulse_trigger() {
 }
 
 std::string GpioLights::describe_trigger() const {
-  return "trigger line (" + trigger_.chip + " line " + std::to_string(trigger_.line) + ")";
+  return "trigger line camera.sync.gpio (" + trigger_.chip + " line " +
+         std::to_string(trigger_.line) + ")";
 }
 
 GpioLights::~GpioLights() {

@@ -50,7 +50,7 @@ class GpioLights : public LightController {
   void set_levels(const std::vector<double>& level) override;
   double level_period_s() const override { return pwm_period_s_; }
   void verify_levels() override;  // HardwareError when the PWM thread failed (all lines off).
-  // camera.sync.trigger "line": the trigger line (camera.sync.gpio) high for camera.sync.pulse_s.
+  // camera.sync.trigger "line": the trigger line (camera.sync.gpio) high for camera.sync.pulse_us.
   void pulse_trigger() override;
   void set_pwm_period(double seconds);  // Default 10 ms.
   // Drives every line to its off level; keeps going past failures (remembered in last_error()).
@@ -61,7 +61,7 @@ class GpioLights : public LightController {
   const std::string& last_error() const { return last_error_; }
   // "LED 12 (gpiochip0 line 4, active-low)", for messages and `lightstage check`.
   std::string describe(int led_index) const;
-  std::string describe_trigger() const;  // "trigger line (gpiochip0 line 17)".
+  std::string describe_trigger() const;  // "trigger line camera.sync.gpio (gpiochip0 line 17)".
 
  private:
   struct Line {

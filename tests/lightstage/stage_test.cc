@@ -81,13 +81,13 @@ TEST(Stage, JsonRoundTripPreservesEverything) {
   stage.camera.response.gamma = 2.2;
   stage.plan.time_steps = 3;
   stage.plan.led_order = {2, 1, 0};
-  stage.camera.sync = {"line", "Line2", "gpiochip1", 23, 2.5e-4, "Line1"};
+  stage.camera.sync = {"line", "Line2", "gpiochip1", 23, 250, "Line1"};
   const Stage back = parse_stage(stage_to_json(stage), "roundtrip.json");
   EXPECT_EQ(back.camera.sync.trigger, "line");
   EXPECT_EQ(back.camera.sync.input, "Line2");
   EXPECT_EQ(back.camera.sync.gpio_chip, "gpiochip1");
   EXPECT_EQ(back.camera.sync.gpio_line, 23);
-  EXPECT_NEAR(back.camera.sync.pulse_s, 2.5e-4, 1e-15);
+  EXPECT_EQ(back.camera.sync.pulse_us, 250);
   EXPECT_EQ(back.camera.sync.exposure_active_output, "Line1");
   EXPECT_EQ(parse_stage(stage_to_json(default_stage()), "d.json").camera.sync.gpio_line, -1);
   ASSERT_EQ(back.leds.size(), stage.leds.size());
@@ -151,6 +151,9 @@ TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
   ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
                        "camera": {"sync": {"pulse_us": 0}}})",
                    {"camera.sync.pulse_us", "microseconds"});
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
+                       "camera": {"sync": {"trigger": "line", "exposure_active_output": "Line0"}}})",
+                   {"camera.sync.exposure_active_output", "other than the trigger input"});
 }
 
 TEST(Stage, LoadStageNamesAMissingFile) {

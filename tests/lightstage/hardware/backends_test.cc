@@ -147,6 +147,13 @@ TEST(Backends, OpenHardwareInputErrorsNameTheStageField) {
   unknown.camera.backend = "usb";
   EXPECT_NE(input_error(unknown).find("fake_stage.json: camera.backend"), std::string::npos)
       << input_error(unknown);
+  Stage webcam = testing::FakeAravisStage();  // No GenICam I/O lines on V4L2.
+  webcam.camera.backend = "v4l2";
+  webcam.camera.sync.exposure_active_output = "Line1";
+  EXPECT_NE(input_error(webcam).find("fake_stage.json: camera.sync: a trigger line or an "
+                                     "exposure-active output needs a GenICam camera"),
+            std::string::npos)
+      << input_error(webcam);
 }
 
 // The CLI refuses to start on hardware it cannot open, before any frame.

@@ -138,12 +138,12 @@ TEST(GpioLights, StageWithoutLinesOrWithSharedLinesIsAnInputError) {
 }
 
 // camera.sync.trigger "line": the trigger line is requested low with the LEDs, and each pulse
-// is one rising edge followed by the line low again, pulse_s later.
+// is one rising edge followed by the line low again, pulse_us later.
 TEST(GpioLights, TriggerLinePulsesOnceARisingEdgeAndIsCheckedLikeAnLedLine) {
   FakeGpio gpio;
   Stage stage = GpioStage();
   stage.camera.sync.trigger = "line";
-  stage.camera.sync.pulse_s = 2e-3;
+  stage.camera.sync.pulse_us = 2000;
   try {
     GpioLights lights(stage, std::make_unique<FakeLineDriver>(gpio));
     FAIL() << "no trigger line given";
@@ -155,7 +155,8 @@ TEST(GpioLights, TriggerLinePulsesOnceARisingEdgeAndIsCheckedLikeAnLedLine) {
   stage.camera.sync.gpio_line = 5;  // LED 11's.
   EXPECT_THROW(GpioLights(stage, std::make_unique<FakeLineDriver>(gpio)), InputError);
   stage.camera.sync.gpio_line = 40;
-  ExpectHardwareError(gpio, stage, "trigger line (gpiochip0 line 40)");
+  ExpectHardwareError(gpio, stage, "trigger line camera.sync.gpio (gpiochip0 line 40)");
+  EXPECT_TRUE(gpio.level.empty()) << "the LEDs' lines, requested first, are released";
 
   stage.camera.sync.gpio_line = 9;
   GpioLights lights(stage, std::make_unique<FakeLineDriver>(gpio));
@@ -176,7 +177,8 @@ TEST(GpioLights, TriggerLinePulsesOnceARisingEdgeAndIsCheckedLikeAnLedLine) {
     lights.pulse_trigger();
     FAIL() << "expected HardwareError";
   } catch (const HardwareError& e) {
-    EXPECT_NE(std::string(e.what()).find("trigger line (gpiochip0 line 9): cannot pulse"),
+    EXPECT_NE(std::string(e.what()).find("trigger line camera.sync.gpio (gpiochip0 line 9): "
+                                         "cannot pulse"),
               std::string::npos)
         << e.what();
   }
