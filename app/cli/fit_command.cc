@@ -45,8 +45,10 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
       jobs::fit(options, progress_printer(quiet), quiet ? jobs::NoiseNoticeFn{} : print_noise);
   if (!jobs::Ranks::world().root()) return 0;
   const relight::FitSummary& s = summary.fit;
-  std::printf("%s: %dx%d pixels, %d fitted, %d flagged\n", options.out.c_str(), summary.width,
+  std::printf("%s: %dx%d pixels, %d fitted, %d flagged", options.out.c_str(), summary.width,
               summary.height, s.fitted, s.flagged);
+  if (s.empty > 0) std::printf(", %d with no signal (outside the mask)", s.empty);
+  std::printf("\n");
   for (int m = 1; m < 5; ++m) {
     if (m == int(relight::FitModel::kLambertPhong) && !options.phong) continue;
     std::printf("  %-26s %8d pixels (%.1f%% of fitted)\n", relight::to_string(relight::FitModel(m)),
@@ -206,12 +208,14 @@ void add_normals_command(CLI::App& app) {
     const jobs::NormalsJobSummary s =
         jobs::estimate_normals(*options, progress_printer(*quiet || !root));
     if (!root) return;
-    const long pixels = long(s.width) * s.height;
+    const long with_signal = long(s.width) * s.height - s.empty_pixels;
     std::printf(
-        "%s: %dx%d normals, %ld flagged (%.1f%%: too few lit lights, ill-conditioned or "
-        "saturated)\n",
+        "%s: %dx%d normals, %ld flagged (%.1f%% of the pixels with signal: too few lit lights, "
+        "ill-conditioned or saturated)",
         options->out.c_str(), s.width, s.height, s.flagged_pixels,
-        pixels > 0 ? 100.0 * double(s.flagged_pixels) / double(pixels) : 0.0);
+        with_signal > 0 ? 100.0 * double(s.flagged_pixels) / double(with_signal) : 0.0);
+    if (s.empty_pixels > 0) std::printf(", %ld with no signal (outside the mask)", s.empty_pixels);
+    std::printf("\n");
     std::printf("  %.2f s; noise: %s; read in bands of %d rows", s.seconds, s.noise_source.c_str(),
                 s.band_rows);
     if (s.ranks > 1) std::printf(" split over %d MPI ranks", s.ranks);

@@ -66,6 +66,7 @@ nlohmann::json summary_json(const relight::FitSummary& s) {
   return {{"pixels", s.pixels},
           {"fitted", s.fitted},
           {"flagged", s.flagged},
+          {"empty", s.empty},
           {"per_model", s.per_model},
           {"discarded_nonfinite_fits", s.discarded_nonfinite_fits},
           {"discarded_implausible_lobes", s.discarded_implausible_lobes},
@@ -78,6 +79,7 @@ relight::FitSummary summary_from(const nlohmann::json& j) {
   s.pixels = j.at("pixels").get<int>();
   s.fitted = j.at("fitted").get<int>();
   s.flagged = j.at("flagged").get<int>();
+  s.empty = j.value("empty", 0);  // Checkpoints from before kNoSignal have none.
   for (size_t k = 0; k < std::size(s.per_model); ++k) {
     s.per_model[k] = j.at("per_model").at(k).get<int>();
   }

@@ -317,6 +317,9 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   };
   const auto write = [&](const Image& rows, long flagged, int y1) {
     summary.flagged_pixels += flagged;
+    for (size_t i = 0; i < rows.num_pixels(); ++i) {
+      summary.empty_pixels += (int(rows.pixels[i * names.size() + 7]) & relight::kNoSignal) != 0;
+    }
     file->write_rows(rows);
     for (auto& preview : previews) preview->write_rows(rows);
     report(progress, "normals (rows)", y1, header.height());

@@ -347,6 +347,7 @@ void FitSummary::add(const FitSummary& part) {
   pixels += part.pixels;
   fitted += part.fitted;
   flagged += part.flagged;
+  empty += part.empty;
   for (int k = 0; k < 5; ++k) per_model[k] += part.per_model[k];
   discarded_nonfinite_fits += part.discarded_nonfinite_fits;
   discarded_implausible_lobes += part.discarded_implausible_lobes;
@@ -356,7 +357,9 @@ void FitSummary::add(const FitSummary& part) {
 
 std::string FitSummary::to_string() const {
   std::ostringstream s;
-  s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged; models:";
+  s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged";
+  if (empty > 0) s << ", " << empty << " with no signal (outside the mask)";
+  s << "; models:";
   for (int m = 1; m < 5; ++m) s << ' ' << relight::to_string(FitModel(m)) << '=' << per_model[m];
   s << "; " << discarded_nonfinite_fits << " non-finite fits discarded, "
     << discarded_implausible_lobes << " lobes with implausible k_s discarded; " << not_converged
@@ -414,7 +417,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
         const int flags = int(normals.flags.at(x, y, 0));
         if (flags != 0) {
           m[kMapFlags] = float(flags);
-          ++local.flagged;
+          ++((flags & kNoSignal) != 0 ? local.empty : local.flagged);
           continue;
         }
         const auto [count, saturated] =

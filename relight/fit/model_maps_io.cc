@@ -20,7 +20,7 @@ constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
 constexpr const char* kMaterialsAttribute = "lightstage:materials";
 // The LEDs of ModelMaps::shadows: [[x, y, z], ...], unit, stage frame.
 constexpr const char* kShadowLedsAttribute = "lightstage:shadow_leds";
-// The flags channel holds bits up to 512 (fit.h, normals.h); room for more, and always an int.
+// The flags channel holds bits up to 1024 (fit.h, normals.h); room for more, and always an int.
 constexpr int kMaxFlags = 65535;
 
 nlohmann::json to_json(const std::vector<Material>& materials) {
@@ -353,7 +353,7 @@ ModelMaps read_model_map_rows(const std::filesystem::path& path, int y0, int y1)
       }
       summary.material_pixels += out.maps.at(x, y, kMapMaterial) > 0;
       if (model == 0) {
-        ++summary.flagged;
+        ++((int(flags) & kNoSignal) != 0 ? summary.empty : summary.flagged);
         continue;
       }
       ++summary.fitted;

@@ -264,14 +264,19 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
   // Near LEDs (positions in the field): each pixel sees them from its own reference point.
   const bool per_pixel_dirs = valid.near;
   const bool robust = options.method == NormalMethod::kRobust;
-  std::atomic<int> flagged{0};
+  std::atomic<int> flagged{0}, empty{0};
 
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
     Scratch s(n);
-    int flagged_here = 0;
+    int flagged_here = 0, empty_here = 0;
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         const float* px = field.pixel(x, y);
+        if (std::all_of(px, px + 3 * field.num_lights(), [](float v) { return v == 0; })) {
+          out.flags.at(x, y, 0) = float(kNoSignal);
+          ++empty_here;
+          continue;
+        }
         if (per_pixel_dirs) {
           const capture::PixelLightDirs dir_to(field, x, y);
           for (size_t i = 0; i < n; ++i) s.pixel_dirs[i] = dir_to(light_index[i]);
@@ -302,8 +307,10 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
       }
     }
     flagged += flagged_here;
+    empty += empty_here;
   });
   out.flagged_pixels = flagged.load();
+  out.empty_pixels = empty.load();
   return out;
 }
 

@@ -78,15 +78,19 @@ enum NormalFlag : int {
   // (16 is kFitFailed, relight/fit/fit.h.)
   kSaturated = 32,  // Saturation censored too many samples (see max_saturated_fraction); also set
                     // with kTooFewLights when censoring is what left too few.
-  // (128 is kFitNotConverged, relight/fit/fit.h.)
+  // (128 is kFitNotConverged, 256 kOwnParameters, 512 kLobeShadowed: relight/fit/fit.h.)
+  // Every sample exactly 0: a pixel outside the capture's mask (an import zeroes them) or one no
+  // LED reaches. Not a failure: summaries count these apart from the flagged pixels.
+  kNoSignal = 1024,
 };
 
 struct NormalMap {
-  Image normal;      // 3 channels, unit, in the stage frame; (0, 0, 0) where flagged.
-  Image albedo;      // 3 channels: Lambertian albedo per channel (R = albedo/pi * cos), >= 0.
-  Image confidence;  // 1 channel in [0, 1]: conditioning of the used lights x residual fit.
-  Image flags;       // 1 channel: NormalFlag bits, 0 = ok.
-  int flagged_pixels = 0;
+  Image normal;            // 3 channels, unit, in the stage frame; (0, 0, 0) where flagged.
+  Image albedo;            // 3 channels: Lambertian albedo per channel (R = albedo/pi * cos), >= 0.
+  Image confidence;        // 1 channel in [0, 1]: conditioning of the used lights x residual fit.
+  Image flags;             // 1 channel: NormalFlag bits, 0 = ok.
+  int flagged_pixels = 0;  // With signal, and flagged.
+  int empty_pixels = 0;    // kNoSignal.
 };
 
 NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalOptions& options);

@@ -428,12 +428,15 @@ TEST(OlatImport, DiligentFromSimMatchesGroundTruthNormalsAndColours) {
   EXPECT_LE(e.flagged, e.pixels / 50);
   EXPECT_NEAR(ratio.x(), 1.4, 0.005);
   EXPECT_NEAR(ratio.z(), 0.6, 0.005);
-  // Outside the mask: zero samples, flagged (never NaN).
+  // Outside the mask: zero samples, marked as having no signal (never NaN), and counted apart
+  // from the flagged pixels (issue 18: summaries aware of the mask).
   for (const sim::SurfaceHit& h : set.hits) {
     if (h.hit) continue;
     EXPECT_EQ(field.at(h.pixel_x, h.pixel_y, 0, 0), 0.0f);
-    EXPECT_TRUE(int(map.flags.at(h.pixel_x, h.pixel_y, 0)) & relight::kAllShadowed);
+    EXPECT_EQ(int(map.flags.at(h.pixel_x, h.pixel_y, 0)), relight::kNoSignal);
   }
+  EXPECT_EQ(map.empty_pixels, background);
+  EXPECT_EQ(map.flagged_pixels, e.flagged);
 
   // Control: the same images without their intensities change the colours measurably.
   fs::remove(tmp / "sphere/light_intensities.txt");

@@ -8,6 +8,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
+#include "relight/fit/fit.h"
 #include "sim/sim_stage.h"
 #include "tests/relight/fit/fit_fixtures.h"
 #include "tests/support/test_support.h"
@@ -112,6 +113,43 @@ TEST(EstimateNormals, NoisyLambertianHeightFieldUnderOneDegree) {
     expect_finite(map.albedo);
     expect_finite(map.confidence);
   }
+}
+
+// Pixels whose every sample is 0 (outside an import's mask) have no signal: marked kNoSignal and
+// counted apart from the flagged pixels, whose count stays that of the pixels with signal; the fit
+// and its maps read back keep the same count.
+TEST(EstimateNormals, PixelsWithNoSignalAreCountedApartFromTheFlagged) {
+  brdf::Material matte;
+  matte.albedo = {0.7, 0.5, 0.3};
+  const NoiseModel noise;
+  SimField sim = render_field(dome_stage(150, 48, 1.8),
+                              bumpy_scene(matte, {{-0.4, 0.3, 0.12, 0.25}}), noise, 7);
+  for (int y = 2; y < 8; ++y) {
+    for (int x = 4; x < 9; ++x) {
+      std::fill_n(sim.field.pixel(x, y), 3 * sim.field.num_lights(), 0.0f);
+    }
+  }
+  NormalOptions options;
+  options.noise = noise;
+  const NormalMap map = estimate_normals(sim.field, options);
+  EXPECT_EQ(map.empty_pixels, 30);
+  EXPECT_EQ(map.flagged_pixels, 0);
+  EXPECT_EQ(int(map.flags.at(5, 3, 0)), kNoSignal);
+  EXPECT_EQ(map.normal.at(5, 3, 2), 0.0f);
+
+  FitOptions fit_options;
+  fit_options.normals.noise = noise;
+  const ModelMaps maps = fit_models(sim.field, fit_options);
+  EXPECT_EQ(maps.summary.empty, 30);
+  EXPECT_EQ(maps.summary.fitted + maps.summary.flagged + maps.summary.empty, 48 * 48);
+  EXPECT_NE(maps.summary.to_string().find("30 with no signal (outside the mask)"),
+            std::string::npos)
+      << maps.summary.to_string();
+  testing::TempDir dir;
+  write_model_maps(dir / "maps.exr", maps);
+  const FitSummary back = read_model_maps(dir / "maps.exr").summary;
+  EXPECT_EQ(back.empty, 30);
+  EXPECT_EQ(back.flagged, maps.summary.flagged);
 }
 
 TEST(EstimateNormals, RobustSurvivesHighlightsAndCastShadows) {
