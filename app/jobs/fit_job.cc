@@ -15,6 +15,7 @@
 #include "lightstage/exr_channels.h"
 #include "lightstage/memory.h"
 #include "relight/fit/basis_materials.h"
+#include "relight/fit/noise_from_data.h"
 #include "relight/fit/normals.h"
 
 namespace ls::jobs {
@@ -94,6 +95,27 @@ std::vector<fs::path> expand_time_inputs(const std::vector<fs::path>& inputs) {
   return files;
 }
 
+// The field's own measured noise when it carries one (a capture's dark frames and bracket); else
+// the noise of its data, from the residuals of a robust Lambertian fit over a band of rows from
+// its middle (an imported set: relight/fit/noise_from_data.h); else NoiseModel's defaults, which
+// describe the simulated 12-bit camera near mid exposure. Said in fit.noise_source.
+void choose_noise(capture::FieldStream& stream, std::size_t memory_bytes,
+                  relight::FitOptions& fit) {
+  const capture::ReflectanceField& header = stream.header();
+  fit.use_noise_of(header);
+  if (header.noise.measured) return;
+  const int align = std::max(1, stream.row_alignment());
+  // Its residuals take about six times the band's bytes: an eighth of the budget, 64 rows at most.
+  const int rows = std::min({header.height(), stream.band_rows(memory_bytes / 8), 64});
+  const int y0 = (header.height() - rows) / 2 / align * align;
+  capture::ReflectanceField band;
+  stream.read_rows(y0, std::min(header.height(), y0 + rows), band);
+  if (const auto found = relight::noise_from_data(band, fit.normals)) {
+    fit.normals.noise = found->model;
+    fit.noise_source = found->describe();
+  }
+}
+
 }  // namespace
 
 FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
@@ -107,11 +129,8 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   fit.materials = options.materials == "per-pixel" ? relight::FitMaterials::kPerPixel
                                                    : relight::FitMaterials::kBasis;
   fit.normals.method = normal_method(options.method);
-  // The noise model weights every residual and sets the shadow threshold: the field's own
-  // measurement when it carries one; otherwise NoiseModel's defaults, which describe the simulated
-  // 12-bit camera near mid exposure (and are ~3x conservative in sigma for its merged brackets,
-  // which only makes model choice more cautious: tests/relight/fit/fit_test.cc).
-  fit.use_noise_of(field);
+  // The noise model weights every residual and sets the shadow threshold (choose_noise).
+  choose_noise(stream, options.memory_bytes, fit);
   if (noise_notice) noise_notice(fit.noise_source, fit.normals.noise);
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(options.field_file.string() + ": noise: " + error);
@@ -258,8 +277,8 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   }
   capture::FieldStream stream(options.field_file);
   const capture::ReflectanceField& header = stream.header();
-  relight::FitOptions fit;  // Its noise: the field's measured one, else the default (fit.h).
-  fit.use_noise_of(header);
+  relight::FitOptions fit;
+  choose_noise(stream, options.memory_bytes, fit);
   relight::NormalOptions normal_options = fit.normals;
   normal_options.method = normal_method(options.method);
   if (const std::string error = normal_options.validate(); !error.empty()) {

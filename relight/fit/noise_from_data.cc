@@ -1,0 +1,166 @@
+#include "relight/fit/noise_from_data.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <utility>
+#include <vector>
+
+namespace ls::relight {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr int kBins = 12;
+constexpr long kMinSamples = 2000;
+constexpr double kMaxSamples = 4e5;
+constexpr int kMinPixels = 100;
+
+double robust_variance(std::vector<double>& residuals) {
+  const auto median_of = [](std::vector<double>& v) {
+    std::nth_element(v.begin(), v.begin() + long(v.size() / 2), v.end());
+    return v[v.size() / 2];
+  };
+  const double median = median_of(residuals);
+  for (double& r : residuals) r = std::abs(r - median);
+  const double sigma = 1.4826 * median_of(residuals);
+  return sigma * sigma;
+}
+
+}  // namespace
+
+std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& field,
+                                              const NormalOptions& options);
+
+std::string DataNoise::describe() const {
+  std::ostringstream s;
+  s << "estimated from the data (no dark frames): residuals of a robust Lambertian fit, " << samples
+    << " samples of " << pixels << " pixels";
+  return s.str();
+}
+
+std::optional<DataNoise> noise_from_data(const capture::ReflectanceField& field,
+                                         const NormalOptions& options) {
+  // The normals' shadow threshold and robust weights depend on the noise: estimate, then estimate
+  // again with what was found, until it settles.
+  NormalOptions refined = options;
+  std::optional<DataNoise> found;
+  for (int round = 0; round < 4; ++round) {
+    found = noise_from_residuals(field, refined);
+    if (!found) return found;
+    const double change = std::abs(found->model.a / refined.noise.a - 1) +
+                          std::abs(found->model.b / std::max(refined.noise.b, 1e-30) - 1);
+    refined.noise = found->model;
+    if (change < 0.02) break;
+  }
+  return found;
+}
+
+std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& field,
+                                              const NormalOptions& options) {
+  const capture::ReflectanceField* fitted = &field;
+  const NormalMap normals = estimate_normals(*fitted, options);
+  const capture::ValidLights valid = capture::valid_lights(*fitted);
+  // (predicted value, residual) over every usable sample, each scaled for its pixel's fit.
+  std::vector<std::pair<double, double>> residuals;
+  struct PixelResiduals {
+    size_t first, end;  // Its range of `residuals`.
+    double spread;      // Robust spread of its residuals over the noise assumed (1: as assumed).
+  };
+  std::vector<PixelResiduals> pixels;
+  DataNoise out;
+  // At most ~400k residuals (their memory, not their precision, is the limit): every k-th pixel.
+  const double all = 3.0 * double(valid.index.size()) * fitted->width() * fitted->height();
+  const long stride = std::max(1L, long(std::ceil(all / kMaxSamples)));
+  for (long p = 0; p < long(fitted->width()) * fitted->height(); p += stride) {
+    const int x = int(p % fitted->width()), y = int(p / fitted->width());
+    if (int(normals.flags.at(x, y, 0)) != 0) continue;
+    const Eigen::Vector3d n(normals.normal.at(x, y, 0), normals.normal.at(x, y, 1),
+                            normals.normal.at(x, y, 2));
+    const capture::PixelLightDirs pixel_dirs(*fitted, x, y);
+    const float* px = fitted->pixel(x, y);
+    const size_t first = residuals.size();
+    for (size_t i = 0; i < valid.index.size(); ++i) {
+      const int l = valid.index[i];
+      const double cos = n.dot(valid.near ? pixel_dirs(l) : valid.dirs_in_stage[i]);
+      if (cos < 0.3) continue;  // Near the terminator Lambert is least true.
+      for (int c = 0; c < 3; ++c) {
+        const double predicted = normals.albedo.at(x, y, c) * cos / kPi;
+        if (predicted > 0) residuals.emplace_back(predicted, px[3 * l + c] - predicted);
+      }
+    }
+    const size_t used = (residuals.size() - first) / 3;
+    if (used <= 3) {
+      residuals.resize(first);
+      continue;
+    }
+    const double dof = std::sqrt(double(used) / double(used - 3));
+    std::vector<double> scaled;  // The residuals in units of the noise assumed so far.
+    for (size_t k = first; k < residuals.size(); ++k) {
+      residuals[k].second *= dof;
+      scaled.push_back(residuals[k].second / std::sqrt(options.noise.variance(residuals[k].first)));
+    }
+    pixels.push_back({first, residuals.size(), std::sqrt(robust_variance(scaled))});
+  }
+  // Pixels the Lambertian model does not explain (a rough or glossy material, a penumbra across
+  // the pixel) spread wider than the noise: those beyond 1.5 times the typical spread are left out.
+  std::vector<double> spreads;
+  for (const PixelResiduals& p : pixels) spreads.push_back(p.spread);
+  if (spreads.empty()) return std::nullopt;
+  std::nth_element(spreads.begin(), spreads.begin() + long(spreads.size() / 2), spreads.end());
+  const double typical = spreads[spreads.size() / 2];
+  size_t kept = 0;  // Compacted in place: the pixels kept, in order.
+  for (const PixelResiduals& p : pixels) {
+    if (p.spread > 1.5 * typical) continue;
+    kept = size_t(std::copy(residuals.begin() + long(p.first), residuals.begin() + long(p.end),
+                            residuals.begin() + long(kept)) -
+                  residuals.begin());
+    ++out.pixels;
+  }
+  residuals.resize(kept);
+  out.samples = long(residuals.size());
+  if (out.samples < kMinSamples || out.pixels < kMinPixels) return std::nullopt;
+  // Bins of equal counts along the predicted value.
+  std::sort(residuals.begin(), residuals.end());
+  Eigen::MatrixXd A(kBins, 2);
+  Eigen::VectorXd b(kBins);
+  const size_t per_bin = residuals.size() / kBins;
+  for (int k = 0; k < kBins; ++k) {
+    std::vector<double> bin;
+    double level = 0;
+    for (size_t i = size_t(k) * per_bin; i < size_t(k + 1) * per_bin; ++i) {
+      bin.push_back(residuals[i].second);
+      level += residuals[i].first;
+    }
+    level /= double(bin.size());
+    const double variance = robust_variance(bin);
+    // Weighted by the precision of a variance estimate (its spread grows with the variance).
+    const double w = std::sqrt(double(bin.size())) / std::max(variance, 1e-30);
+    A(k, 0) = w;
+    A(k, 1) = w * level;
+    b(k) = w * variance;
+  }
+  Eigen::Vector2d ab = A.colPivHouseholderQr().solve(b);
+  if (ab(0) < 0 || ab(1) < 0) {  // Refit with the negative term held at 0.
+    const int keep = ab(0) < 0 ? 1 : 0;
+    const double t = A.col(keep).dot(b) / A.col(keep).squaredNorm();
+    ab.setZero();
+    ab(keep) = std::max(0.0, t);
+  }
+  if (!(ab(0) + ab(1) > 0)) return std::nullopt;
+  // No variance below the data's own quantisation: its smallest positive value is one code step
+  // at black (8-bit sRGB: 1/255/12.92 of white), whose rounding has variance step^2 / 12.
+  float step = std::numeric_limits<float>::infinity();
+  for (size_t i = 0; i < fitted->values().size(); ++i) {
+    const float v = fitted->values()[i];
+    if (v > 0 && v < step) step = v;
+  }
+  const double quantisation = std::isfinite(step) ? double(step) * step / 12 : 0.0;
+  out.model.a = std::max({ab(0), quantisation, 1e-12});  // NoiseModel divides by it.
+  out.model.b = ab(1);
+  return out;
+}
+
+}  // namespace ls::relight
