@@ -106,8 +106,9 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
   }
   // Pixels the Lambertian model does not explain (a rough or glossy material, a penumbra across
   // the pixel) spread wider than the noise: those beyond 1.5 times the typical spread are left out.
-  std::vector<double> spreads;
-  for (const PixelResiduals& p : pixels) spreads.push_back(p.spread);
+  std::vector<double> spreads(pixels.size());
+  std::transform(pixels.begin(), pixels.end(), spreads.begin(),
+                 [](const PixelResiduals& p) { return p.spread; });
   if (spreads.empty()) return std::nullopt;
   std::nth_element(spreads.begin(), spreads.begin() + long(spreads.size() / 2), spreads.end());
   const double typical = spreads[spreads.size() / 2];

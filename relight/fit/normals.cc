@@ -272,7 +272,7 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         const float* px = field.pixel(x, y);
-        if (std::all_of(px, px + 3 * field.num_lights(), [](float v) { return v == 0; })) {
+        if (std::all_of(px, px + 3 * size_t(field.num_lights()), [](float v) { return v == 0; })) {
           out.flags.at(x, y, 0) = float(kNoSignal);
           ++empty_here;
           continue;
