@@ -406,7 +406,7 @@ OlatImageSet read_diligent_set(const fs::path& folder, const OlatImportOptions& 
   }
 
   // Mask: non-zero = object (DiLiGenT's mask.png is 0 / 255). Pixels outside get zero samples,
-  // which the normals flag as kAllShadowed and the fits skip.
+  // which the normals mark kNoSignal and the fits skip, counted apart from the flagged.
   if (fs::is_regular_file(mask_file)) {
     read_mask(mask_file, job);
   } else {

@@ -47,7 +47,7 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
   const relight::FitSummary& s = summary.fit;
   std::printf("%s: %dx%d pixels, %d fitted, %d flagged", options.out.c_str(), summary.width,
               summary.height, s.fitted, s.flagged);
-  if (s.empty > 0) std::printf(", %d with no signal (outside the mask)", s.empty);
+  if (s.empty > 0) std::printf(", %d with no signal (every sample 0, as outside a mask)", s.empty);
   std::printf("\n");
   for (int m = 1; m < 5; ++m) {
     if (m == int(relight::FitModel::kLambertPhong) && !options.phong) continue;
@@ -214,7 +214,9 @@ void add_normals_command(CLI::App& app) {
         "ill-conditioned or saturated)",
         options->out.c_str(), s.width, s.height, s.flagged_pixels,
         with_signal > 0 ? 100.0 * double(s.flagged_pixels) / double(with_signal) : 0.0);
-    if (s.empty_pixels > 0) std::printf(", %ld with no signal (outside the mask)", s.empty_pixels);
+    if (s.empty_pixels > 0) {
+      std::printf(", %ld with no signal (every sample 0, as outside a mask)", s.empty_pixels);
+    }
     std::printf("\n");
     std::printf("  %.2f s; noise: %s; read in bands of %d rows", s.seconds, s.noise_source.c_str(),
                 s.band_rows);

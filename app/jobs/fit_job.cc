@@ -96,24 +96,50 @@ std::vector<fs::path> expand_time_inputs(const std::vector<fs::path>& inputs) {
 }
 
 // The field's own measured noise when it carries one (a capture's dark frames and bracket); else
-// the noise of its data, from the residuals of a robust Lambertian fit over a band of rows from
-// its middle (an imported set: relight/fit/noise_from_data.h); else NoiseModel's defaults, which
-// describe the simulated 12-bit camera near mid exposure. Said in fit.noise_source.
-void choose_noise(capture::FieldStream& stream, std::size_t memory_bytes,
-                  relight::FitOptions& fit) {
+// the noise of its data, from the residuals of a robust Lambertian fit (an imported set:
+// relight/fit/noise_from_data.h) over rows spread evenly down the field, about 8k pixels' worth
+// (4 to 32 rows) whatever --memory, estimated on rank 0 and shared, so that whole, banded and
+// MPI fits weigh alike; else NoiseModel's defaults (the simulated 12-bit camera near mid
+// exposure). Said in fit.noise_source.
+void choose_noise(capture::FieldStream& stream, relight::FitOptions& fit) {
   const capture::ReflectanceField& header = stream.header();
   fit.use_noise_of(header);
   if (header.noise.measured) return;
-  const int align = std::max(1, stream.row_alignment());
-  // Its residuals take about six times the band's bytes: an eighth of the budget, 64 rows at most.
-  const int rows = std::min({header.height(), stream.band_rows(memory_bytes / 8), 64});
-  const int y0 = (header.height() - rows) / 2 / align * align;
-  capture::ReflectanceField band;
-  stream.read_rows(y0, std::min(header.height(), y0 + rows), band);
-  if (const auto found = relight::noise_from_data(band, fit.normals)) {
-    fit.normals.noise = found->model;
-    fit.noise_source = found->describe();
+  const Ranks& ranks = Ranks::world();
+  std::vector<double> found(5, 0.0);  // Estimated (1), a, b, samples, pixels.
+  if (ranks.root()) {
+    const int rows =
+        std::min(header.height(), std::clamp((8192 + header.width() - 1) / header.width(), 4, 32));
+    capture::ReflectanceField sample(header.width(), rows, header.lights());
+    for (int k = 0; k < rows; ++k) {
+      const int y = int((k + 0.5) * header.height() / rows);
+      stream.read_rows_into(y, y + 1, sample.pixel(0, k));
+    }
+    if (const auto noise = relight::noise_from_data(sample, fit.normals)) {
+      found = {1, noise->model.a, noise->model.b, double(noise->samples), double(noise->pixels)};
+    }
   }
+  ranks.broadcast(found);
+  if (found[0] == 0) {
+    fit.noise_source += "; too few lit pixels to estimate it from the data";
+    return;
+  }
+  relight::DataNoise noise;
+  noise.model = {found[1], found[2]};
+  noise.samples = long(found[3]);
+  noise.pixels = int(found[4]);
+  fit.normals.noise = noise.model;
+  fit.noise_source = noise.describe();
+}
+
+// Pixels of `rows` whose flags (channel `flags`) say they hold no signal (relight::kNoSignal).
+long pixels_without_signal(const Image& rows, int flags) {
+  long count = 0;
+  for (size_t i = 0; i < rows.num_pixels(); ++i) {
+    count +=
+        (int(rows.pixels[i * size_t(rows.channels) + size_t(flags)]) & relight::kNoSignal) != 0;
+  }
+  return count;
 }
 
 }  // namespace
@@ -130,7 +156,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
                                                    : relight::FitMaterials::kBasis;
   fit.normals.method = normal_method(options.method);
   // The noise model weights every residual and sets the shadow threshold (choose_noise).
-  choose_noise(stream, options.memory_bytes, fit);
+  choose_noise(stream, fit);
   if (noise_notice) noise_notice(fit.noise_source, fit.normals.noise);
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(options.field_file.string() + ": noise: " + error);
@@ -278,7 +304,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   capture::FieldStream stream(options.field_file);
   const capture::ReflectanceField& header = stream.header();
   relight::FitOptions fit;
-  choose_noise(stream, options.memory_bytes, fit);
+  choose_noise(stream, fit);
   relight::NormalOptions normal_options = fit.normals;
   normal_options.method = normal_method(options.method);
   if (const std::string error = normal_options.validate(); !error.empty()) {
@@ -336,9 +362,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   };
   const auto write = [&](const Image& rows, long flagged, int y1) {
     summary.flagged_pixels += flagged;
-    for (size_t i = 0; i < rows.num_pixels(); ++i) {
-      summary.empty_pixels += (int(rows.pixels[i * names.size() + 7]) & relight::kNoSignal) != 0;
-    }
+    summary.empty_pixels += pixels_without_signal(rows, 7);
     file->write_rows(rows);
     for (auto& preview : previews) preview->write_rows(rows);
     report(progress, "normals (rows)", y1, header.height());

@@ -73,7 +73,7 @@ struct NormalsJobOptions {
 struct NormalsJobSummary {
   int width = 0, height = 0;
   long flagged_pixels = 0;
-  long empty_pixels = 0;  // No signal (relight::kNoSignal: outside the mask).
+  long empty_pixels = 0;  // No signal (relight::kNoSignal: every sample 0, as outside a mask).
   std::string noise_source;
   double seconds = 0.0;
   int band_rows = 0;

@@ -358,7 +358,7 @@ void FitSummary::add(const FitSummary& part) {
 std::string FitSummary::to_string() const {
   std::ostringstream s;
   s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged";
-  if (empty > 0) s << ", " << empty << " with no signal (outside the mask)";
+  if (empty > 0) s << ", " << empty << " with no signal (every sample 0, as outside a mask)";
   s << "; models:";
   for (int m = 1; m < 5; ++m) s << ' ' << relight::to_string(FitModel(m)) << '=' << per_model[m];
   s << "; " << discarded_nonfinite_fits << " non-finite fits discarded, "

@@ -180,8 +180,9 @@ struct FitSummary {
   int pixels = 0;
   int fitted = 0;
   int flagged = 0;
-  int empty =
-      0;  // Pixels with no signal (kNoSignal: outside the mask), neither fitted nor flagged.
+  // Pixels with no signal (kNoSignal: every sample 0, as outside a mask): neither fitted nor
+  // flagged.
+  int empty = 0;
   int per_model[5] = {0, 0, 0, 0, 0};   // Indexed by FitModel.
   int discarded_nonfinite_fits = 0;     // Individual model fits thrown away (not pixels).
   int discarded_implausible_lobes = 0;  // Lobe fits with k_s > max_specular_albedo (per model).

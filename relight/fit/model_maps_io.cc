@@ -209,7 +209,7 @@ ModelMapsWriter::ModelMapsWriter(const std::filesystem::path& path, int width, i
   channel("confidence", kMapConfidence, 1, identity);
   channel("residual", kMapResidual, 1,
           [](float v) { return std::log10(1 + std::max(v, 0.f)) / 2; });
-  channel("flags", kMapFlags, 1, [](float v) { return v / 511; });  // Bits up to 256.
+  channel("flags", kMapFlags, 1, [](float v) { return v / 2047; });  // Bits up to 1024.
   if (!header.materials.empty()) preview("materials", 3, material_preview);
 }
 

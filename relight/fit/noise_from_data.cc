@@ -29,6 +29,28 @@ double robust_variance(std::vector<double>& residuals) {
   return sigma * sigma;
 }
 
+// The data's own quantisation step near black: each light's smallest positive value (one code
+// step at black for quantised data: 8-bit sRGB, 1/255/12.92 of that light's white), the median over
+// the lights, so that a stray tiny value does not set it. Rounding to it has variance step^2 / 12.
+double code_step(const capture::ReflectanceField& field) {
+  std::vector<double> smallest;
+  for (int l = 0; l < field.num_lights(); ++l) {
+    float step = std::numeric_limits<float>::infinity();
+    for (int y = 0; y < field.height(); ++y) {
+      for (int x = 0; x < field.width(); ++x) {
+        const float* rgb = field.pixel(x, y) + 3 * l;
+        for (int c = 0; c < 3; ++c) {
+          if (rgb[c] > 0 && rgb[c] < step) step = rgb[c];
+        }
+      }
+    }
+    if (std::isfinite(step)) smallest.push_back(step);
+  }
+  if (smallest.empty()) return 0.0;
+  std::nth_element(smallest.begin(), smallest.begin() + long(smallest.size() / 2), smallest.end());
+  return smallest[smallest.size() / 2];
+}
+
 }  // namespace
 
 std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& field,
@@ -50,8 +72,11 @@ std::optional<DataNoise> noise_from_data(const capture::ReflectanceField& field,
   for (int round = 0; round < 4; ++round) {
     found = noise_from_residuals(field, refined);
     if (!found) return found;
-    const double change = std::abs(found->model.a / refined.noise.a - 1) +
-                          std::abs(found->model.b / std::max(refined.noise.b, 1e-30) - 1);
+    const auto relative = [](double x, double y) {
+      return std::abs(x - y) / std::max({std::abs(x), std::abs(y), 1e-30});
+    };
+    const double change =
+        relative(found->model.a, refined.noise.a) + relative(found->model.b, refined.noise.b);
     refined.noise = found->model;
     if (change < 0.02) break;
   }
@@ -86,12 +111,17 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
       const int l = valid.index[i];
       const double cos = n.dot(valid.near ? pixel_dirs(l) : valid.dirs_in_stage[i]);
       if (cos < 0.3) continue;  // Near the terminator Lambert is least true.
+      const float* rgb = px + 3 * l;
+      // Samples the normals left out stay out: censored (saturated) or not numbers.
+      if (capture::is_saturated(fitted->lights()[size_t(l)], rgb)) continue;
       for (int c = 0; c < 3; ++c) {
         const double predicted = normals.albedo.at(x, y, c) * cos / kPi;
-        if (predicted > 0) residuals.emplace_back(predicted, px[3 * l + c] - predicted);
+        if (predicted > 0 && std::isfinite(rgb[c])) {
+          residuals.emplace_back(predicted, rgb[c] - predicted);
+        }
       }
     }
-    const size_t used = (residuals.size() - first) / 3;
+    const size_t used = (residuals.size() - first) / 3;  // Lights (channels pooled).
     if (used <= 3) {
       residuals.resize(first);
       continue;
@@ -115,9 +145,11 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
   size_t kept = 0;  // Compacted in place: the pixels kept, in order.
   for (const PixelResiduals& p : pixels) {
     if (p.spread > 1.5 * typical) continue;
-    kept = size_t(std::copy(residuals.begin() + long(p.first), residuals.begin() + long(p.end),
-                            residuals.begin() + long(kept)) -
-                  residuals.begin());
+    if (kept != p.first) {  // std::copy may not write into its own source range.
+      std::copy(residuals.begin() + long(p.first), residuals.begin() + long(p.end),
+                residuals.begin() + long(kept));
+    }
+    kept += p.end - p.first;
     ++out.pixels;
   }
   residuals.resize(kept);
@@ -151,15 +183,8 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
     ab(keep) = std::max(0.0, t);
   }
   if (!(ab(0) + ab(1) > 0)) return std::nullopt;
-  // No variance below the data's own quantisation: its smallest positive value is one code step
-  // at black (8-bit sRGB: 1/255/12.92 of white), whose rounding has variance step^2 / 12.
-  float step = std::numeric_limits<float>::infinity();
-  for (size_t i = 0; i < fitted->values().size(); ++i) {
-    const float v = fitted->values()[i];
-    if (v > 0 && v < step) step = v;
-  }
-  const double quantisation = std::isfinite(step) ? double(step) * step / 12 : 0.0;
-  out.model.a = std::max({ab(0), quantisation, 1e-12});  // NoiseModel divides by it.
+  const double step = code_step(*fitted);
+  out.model.a = std::max({ab(0), step * step / 12, 1e-12});  // NoiseModel divides by it.
   out.model.b = ab(1);
   return out;
 }

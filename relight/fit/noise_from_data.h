@@ -6,9 +6,10 @@
 // value (in field units), each bin's variance is taken robustly (1.4826 MAD, squared, so that
 // highlights and shadows the Lambertian model does not explain stay out) and scaled by n / (n - 3)
 // for the three parameters each pixel's fit took from its own samples; variance = a + b v is then
-// fitted to the bins by weighted least squares, a and b >= 0, a no lower than the rounding of the
-// data's smallest positive value (one code step at black: the quantisation of 8-bit sets). The
-// variance of a value is what NoiseModel means: the field's own units, per sample.
+// fitted to the bins by weighted least squares, a and b >= 0, a no lower than the rounding of one
+// code step at black (the lights' smallest positive values: the quantisation of 8-bit sets).
+// Saturated and non-finite samples are left out, as the normals leave them. The variance of a value
+// is what NoiseModel means: the field's own units, per sample.
 #include <optional>
 #include <string>
 

@@ -232,6 +232,26 @@ TEST(StreamedField, NormalsInBandsAreThoseOfTheWholeField) {
   }
 }
 
+// A field without measured noise (an import's) is weighed by the noise of its own data, sampled
+// from rows spread down the field whatever --memory: in bands, the normals are those of the whole.
+TEST(StreamedField, NormalsOfAFieldWithoutMeasuredNoiseAreTheSameInBands) {
+  const testing::TempDir dir;
+  capture::ReflectanceField field = noisy_sim_field(40, 40, 36);
+  field.noise = capture::FieldNoise{};  // Not measured.
+  capture::write_field(dir / "field.exr", field);
+  const std::size_t row_bytes = 40 * 3 * field.lights().size() * sizeof(float);
+  const auto normals = [&](const std::string& out, const std::vector<std::string>& extra) {
+    std::vector<std::string> args = {"normals", (dir / "field.exr").string(), "--out",
+                                     (dir / out).string()};
+    args.insert(args.end(), extra.begin(), extra.end());
+    EXPECT_EQ(run_measured(args).code, 0) << out;
+    return read_image(dir / out);
+  };
+  const Image whole = normals("whole.exr", {});
+  const Image banded = normals("banded.exr", {"--memory", std::to_string(5 * row_bytes)});
+  EXPECT_EQ(whole.pixels, banded.pixels);
+}
+
 // A session captured on the simulated stage (no waits between frames).
 fs::path capture_session(const fs::path& dir, int width, int height, int leds) {
   Stage stage = stage_with_directions(fibonacci_dome_directions(leds, -11.5));

@@ -145,8 +145,7 @@ TEST(EstimateNormals, PixelsWithNoSignalAreCountedApartFromTheFlagged) {
   const ModelMaps maps = fit_models(sim.field, fit_options);
   EXPECT_EQ(maps.summary.empty, 30);
   EXPECT_EQ(maps.summary.fitted + maps.summary.flagged + maps.summary.empty, 48 * 48);
-  EXPECT_NE(maps.summary.to_string().find("30 with no signal (outside the mask)"),
-            std::string::npos)
+  EXPECT_NE(maps.summary.to_string().find("30 with no signal (every sample 0"), std::string::npos)
       << maps.summary.to_string();
   testing::TempDir dir;
   write_model_maps(dir / "maps.exr", maps);
@@ -184,8 +183,8 @@ TEST(NoiseFromData, RecoversReadAndShotVarianceOfAMatteScene) {
   EXPECT_GE(found->model.a / truth.a, 1.0);
   EXPECT_LE(found->model.a / truth.a, 4.5);
   EXPECT_NEAR(found->model.b / truth.b, 1.0, 0.15);
-  capture::ReflectanceField dark = render_field(dome_stage(150, 8, 1.8), scene, {}, 5).field;
-  EXPECT_FALSE(noise_from_data(dark, NormalOptions{}).has_value()) << "64 pixels: too few";
+  const capture::ReflectanceField tiny = render_field(dome_stage(150, 8, 1.8), scene, {}, 5).field;
+  EXPECT_FALSE(noise_from_data(tiny, NormalOptions{}).has_value()) << "64 pixels: too few";
 }
 
 TEST(EstimateNormals, RobustSurvivesHighlightsAndCastShadows) {
