@@ -38,7 +38,7 @@ double code_step(const capture::ReflectanceField& field) {
     float step = std::numeric_limits<float>::infinity();
     for (int y = 0; y < field.height(); ++y) {
       for (int x = 0; x < field.width(); ++x) {
-        const float* rgb = field.pixel(x, y) + 3 * l;
+        const float* rgb = field.pixel(x, y) + 3 * size_t(l);
         for (int c = 0; c < 3; ++c) {
           if (rgb[c] > 0 && rgb[c] < step) step = rgb[c];
         }
@@ -111,7 +111,7 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
       const int l = valid.index[i];
       const double cos = n.dot(valid.near ? pixel_dirs(l) : valid.dirs_in_stage[i]);
       if (cos < 0.3) continue;  // Near the terminator Lambert is least true.
-      const float* rgb = px + 3 * l;
+      const float* rgb = px + 3 * size_t(l);
       // Samples the normals left out stay out: censored (saturated) or not numbers.
       if (capture::is_saturated(fitted->lights()[size_t(l)], rgb)) continue;
       for (int c = 0; c < 3; ++c) {
