@@ -51,43 +51,11 @@ double code_step(const capture::ReflectanceField& field) {
   return smallest[smallest.size() / 2];
 }
 
-}  // namespace
-
+// One estimate, from the residuals of the normals solved with options.noise; `step`: code_step.
 std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& field,
-                                              const NormalOptions& options);
-
-std::string DataNoise::describe() const {
-  std::ostringstream s;
-  s << "estimated from the data (no dark frames): residuals of a robust Lambertian fit, " << samples
-    << " samples of " << pixels << " pixels";
-  return s.str();
-}
-
-std::optional<DataNoise> noise_from_data(const capture::ReflectanceField& field,
-                                         const NormalOptions& options) {
-  // The normals' shadow threshold and robust weights depend on the noise: estimate, then estimate
-  // again with what was found, until it settles.
-  NormalOptions refined = options;
-  std::optional<DataNoise> found;
-  for (int round = 0; round < 4; ++round) {
-    found = noise_from_residuals(field, refined);
-    if (!found) return found;
-    const auto relative = [](double x, double y) {
-      return std::abs(x - y) / std::max({std::abs(x), std::abs(y), 1e-30});
-    };
-    const double change =
-        relative(found->model.a, refined.noise.a) + relative(found->model.b, refined.noise.b);
-    refined.noise = found->model;
-    if (change < 0.02) break;
-  }
-  return found;
-}
-
-std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& field,
-                                              const NormalOptions& options) {
-  const capture::ReflectanceField* fitted = &field;
-  const NormalMap normals = estimate_normals(*fitted, options);
-  const capture::ValidLights valid = capture::valid_lights(*fitted);
+                                              const NormalOptions& options, double step) {
+  const NormalMap normals = estimate_normals(field, options);
+  const capture::ValidLights valid = capture::valid_lights(field);
   // (predicted value, residual) over every usable sample, each scaled for its pixel's fit.
   std::vector<std::pair<double, double>> residuals;
   struct PixelResiduals {
@@ -97,15 +65,15 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
   std::vector<PixelResiduals> pixels;
   DataNoise out;
   // At most ~400k residuals (their memory, not their precision, is the limit): every k-th pixel.
-  const double all = 3.0 * double(valid.index.size()) * fitted->width() * fitted->height();
+  const double all = 3.0 * double(valid.index.size()) * field.width() * field.height();
   const long stride = std::max(1L, long(std::ceil(all / kMaxSamples)));
-  for (long p = 0; p < long(fitted->width()) * fitted->height(); p += stride) {
-    const int x = int(p % fitted->width()), y = int(p / fitted->width());
+  for (long p = 0; p < long(field.width()) * field.height(); p += stride) {
+    const int x = int(p % field.width()), y = int(p / field.width());
     if (int(normals.flags.at(x, y, 0)) != 0) continue;
     const Eigen::Vector3d n(normals.normal.at(x, y, 0), normals.normal.at(x, y, 1),
                             normals.normal.at(x, y, 2));
-    const capture::PixelLightDirs pixel_dirs(*fitted, x, y);
-    const float* px = fitted->pixel(x, y);
+    const capture::PixelLightDirs pixel_dirs(field, x, y);
+    const float* px = field.pixel(x, y);
     const size_t first = residuals.size();
     for (size_t i = 0; i < valid.index.size(); ++i) {
       const int l = valid.index[i];
@@ -113,7 +81,7 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
       if (cos < 0.3) continue;  // Near the terminator Lambert is least true.
       const float* rgb = px + 3 * size_t(l);
       // Samples the normals left out stay out: censored (saturated) or not numbers.
-      if (capture::is_saturated(fitted->lights()[size_t(l)], rgb)) continue;
+      if (capture::is_saturated(field.lights()[size_t(l)], rgb)) continue;
       for (int c = 0; c < 3; ++c) {
         const double predicted = normals.albedo.at(x, y, c) * cos / kPi;
         if (predicted > 0 && std::isfinite(rgb[c])) {
@@ -183,10 +151,39 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
     ab(keep) = std::max(0.0, t);
   }
   if (!(ab(0) + ab(1) > 0)) return std::nullopt;
-  const double step = code_step(*fitted);
   out.model.a = std::max({ab(0), step * step / 12, 1e-12});  // NoiseModel divides by it.
   out.model.b = ab(1);
   return out;
+}
+
+}  // namespace
+
+std::string DataNoise::describe() const {
+  std::ostringstream s;
+  s << "estimated from the data (no dark frames): residuals of a robust Lambertian fit, " << samples
+    << " samples of " << pixels << " pixels";
+  return s.str();
+}
+
+std::optional<DataNoise> noise_from_data(const capture::ReflectanceField& field,
+                                         const NormalOptions& options) {
+  // The normals' shadow threshold and robust weights depend on the noise: estimate, then estimate
+  // again with what was found, until it settles.
+  NormalOptions refined = options;
+  const double step = code_step(field);  // Once: it is the data's, not the fit's.
+  std::optional<DataNoise> found;
+  for (int round = 0; round < 4; ++round) {
+    found = noise_from_residuals(field, refined, step);
+    if (!found) return found;
+    const auto relative = [](double x, double y) {
+      return std::abs(x - y) / std::max({std::abs(x), std::abs(y), 1e-30});
+    };
+    const double change =
+        relative(found->model.a, refined.noise.a) + relative(found->model.b, refined.noise.b);
+    refined.noise = found->model;
+    if (change < 0.02) break;
+  }
+  return found;
 }
 
 }  // namespace ls::relight

@@ -315,6 +315,26 @@ class SimulatedSceneOnTheFake {
   std::map<std::pair<int, int>, Fault> faults_;
 };
 
+// The stage's LEDs on fake GPIO lines, Aravis' GigE fake drawn by the simulator under them, and
+// captures on them without waits.
+struct SimulatedRig {
+  SimulatedRig(const Stage& stage, ArvGvFakeCamera* fake)
+      : lights(stage, std::make_unique<testing::FakeLineDriver>(gpio)),
+        scene(stage, fake, gpio),
+        camera(stage.camera) {
+    scene.start_drawing();
+  }
+  CaptureSummary capture(Session& session) {
+    SequencerOptions options;
+    options.sleep = [](double) {};
+    return run_capture(session, lights, camera, options);
+  }
+  testing::FakeGpio gpio;
+  GpioLights lights;
+  SimulatedSceneOnTheFake scene;
+  AravisCamera camera;
+};
+
 // Six LEDs on gpiochip0 lines 0-5, all on the camera's side (60 degrees apart around the view
 // axis, 40 degrees off it), a 128 x 96 16-bit camera on the GigE fake, the default bracket.
 Stage SimulatedGigeStage() {
@@ -341,23 +361,17 @@ Stage SimulatedGigeStage() {
 TEST_F(GigeFake, FramesDrawnBySimulatorFaultsAreCaughtShotAgainAndJournaled) {
   testing::TempDir tmp;
   const Stage stage = SimulatedGigeStage();
-  testing::FakeGpio gpio;
-  GpioLights lights(stage, std::make_unique<testing::FakeLineDriver>(gpio));
-  SimulatedSceneOnTheFake scene(stage, fake_, gpio);
-  AravisCamera camera(stage.camera);
-  scene.start_drawing();
-  SequencerOptions options;
-  options.sleep = [](double) {};
+  SimulatedRig rig(stage, fake_);
   Session clean = Session::create(tmp / "clean", stage, {});
-  ASSERT_EQ(run_capture(clean, lights, camera, options).status, CaptureSummary::Status::kComplete);
+  ASSERT_EQ(rig.capture(clean).status, CaptureSummary::Status::kComplete);
   EXPECT_TRUE(clean.frame_problems().empty());
   EXPECT_TRUE(clean.dead_leds().empty());
 
-  scene.fault_next(1, 2, SimulatedSceneOnTheFake::Fault::kWrongLed);
-  scene.fault_next(3, 1, SimulatedSceneOnTheFake::Fault::kTorn);
-  scene.fault_next(4, 2, SimulatedSceneOnTheFake::Fault::kStale);
+  rig.scene.fault_next(1, 2, SimulatedSceneOnTheFake::Fault::kWrongLed);
+  rig.scene.fault_next(3, 1, SimulatedSceneOnTheFake::Fault::kTorn);
+  rig.scene.fault_next(4, 2, SimulatedSceneOnTheFake::Fault::kStale);
   Session faulty = Session::create(tmp / "faulty", stage, {});
-  const CaptureSummary summary = run_capture(faulty, lights, camera, options);
+  const CaptureSummary summary = rig.capture(faulty);
   EXPECT_EQ(summary.status, CaptureSummary::Status::kComplete) << summary.message;
   EXPECT_EQ(summary.frames_reshot, 3);
   std::vector<FrameKey> rejected;
@@ -374,21 +388,14 @@ TEST_F(GigeFake, DriftOfTheLedsIsMeasuredFromTheReferenceLedThroughTheFake) {
   Stage stage = SimulatedGigeStage();
   stage.plan.reference_led = 2;
   stage.plan.reference_every = 2;
-  testing::FakeGpio gpio;
-  GpioLights lights(stage, std::make_unique<testing::FakeLineDriver>(gpio));
-  SimulatedSceneOnTheFake scene(stage, fake_, gpio);
-  AravisCamera camera(stage.camera);
-  scene.start_drawing();
-  SequencerOptions options;
-  options.sleep = [](double) {};
+  SimulatedRig rig(stage, fake_);
   const capture::ResponseCurve response = capture::ResponseCurve::given_or_linear(stage.camera);
   double change[2] = {0, 0};
   for (int drifting = 0; drifting < 2; ++drifting) {
-    scene.set_output_drift(drifting ? 0.002 : 0.0);  // Per frame delivered.
+    rig.scene.set_output_drift(drifting ? 0.002 : 0.0);  // Per frame delivered.
     const std::string name = drifting ? "drifting" : "steady";
     Session session = Session::create(tmp / name, stage, {});
-    ASSERT_EQ(run_capture(session, lights, camera, options).status,
-              CaptureSummary::Status::kComplete);
+    ASSERT_EQ(rig.capture(session).status, CaptureSummary::Status::kComplete);
     const auto drift = capture::measure_reference_drift(session, 0, response);
     ASSERT_TRUE(drift.has_value()) << name;
     change[drifting] = drift->largest_change();
