@@ -128,8 +128,10 @@ LeaveLightsOutResult leave_lights_out(const capture::ReflectanceField& field,
       }
     }
   }
-  double squared = 0, ssim_sum = 0;
+  double squared = 0, ssim_sum = 0, squared_codes = 0;
   size_t count = 0;
+  const auto gain = float(options.display_gain > 0 ? options.display_gain : 1.0 / peak);
+  const auto code = [gain](float v) { return std::round(255.0f * srgb_encode(gain * v)); };
   Image predicted, reference(field.width(), field.height(), 3);
   for (int l : held_out) {
     compact->relight_into(relight::LightingForModels::directional(field.lights()[l].dir_in_stage,
@@ -142,6 +144,8 @@ LeaveLightsOutResult leave_lights_out(const capture::ReflectanceField& field,
           reference.at(x, y, c) = r;
           const double d = double(predicted.at(x, y, c)) - r;
           squared += d * d;
+          const double dc = double(code(predicted.at(x, y, c))) - code(r);
+          squared_codes += dc * dc;
           ++count;
         }
       }
@@ -150,6 +154,8 @@ LeaveLightsOutResult leave_lights_out(const capture::ReflectanceField& field,
   }
   const double rmse = std::sqrt(squared / std::max<size_t>(count, 1));
   result.psnr_db = rmse > 0 && peak > 0 ? 20 * std::log10(peak / rmse) : 200.0;
+  const double rmse_codes = std::sqrt(squared_codes / std::max<size_t>(count, 1));
+  result.psnr_srgb8_db = rmse_codes > 0 ? 20 * std::log10(255.0 / rmse_codes) : 200.0;
   result.ssim = ssim_sum / held_out.size();
   return result;
 }

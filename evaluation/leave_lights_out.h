@@ -34,6 +34,9 @@ struct LeaveLightsOutOptions {
   int offset = 2;
   // Held-out LEDs must also have dir.z above this (RTI bases only know the camera's hemisphere).
   double min_dir_z = -1.0;
+  // The 8-bit sRGB PSNR's gain: display units (white = 1) per field unit; 0: the brightest
+  // held-out sample is white. An imported 8-bit set: 1, its own codes.
+  double display_gain = 0.0;
   // Called with the representation built from the training LEDs (e.g. to time its relighting).
   std::function<void(const relight::CompactField&)> inspect;
 };
@@ -41,6 +44,9 @@ struct LeaveLightsOutOptions {
 struct LeaveLightsOutResult {
   std::string name;
   double psnr_db = 0;
+  // Over the 8-bit sRGB codes of display_gain x both images (peak 255), as the RTI community
+  // compares (relight's figures): where the eye sees the error, not where the light is.
+  double psnr_srgb8_db = 0;
   double ssim = 0;
   double bytes_per_pixel = 0;
   double build_s = 0;

@@ -150,12 +150,28 @@ void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec,
   write_bytes_atomic(path, encoded.data(), encoded.size());
 }
 
+}  // namespace
+
+void write_rgb8(const fs::path& path, int width, int height, const uint8_t* rgb, int jpeg_quality) {
+  OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT8);
+  if (path.extension() == ".jpg" || path.extension() == ".jpeg") {
+    spec.attribute("Compression", "jpeg:" + std::to_string(std::clamp(jpeg_quality, 1, 100)));
+    spec.attribute("jpeg:subsampling", "4:4:4");
+  }
+  write_with_oiio(path, spec, OIIO::TypeDesc::UINT8, rgb);
+}
+
 float srgb_encode(float linear) {
-  linear = std::clamp(linear, 0.0f, 1.0f);
+  if (!(linear > 0.0f)) return 0.0f;  // Also NaN.
+  linear = std::min(linear, 1.0f);
   return linear <= 0.0031308f ? 12.92f * linear : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
 }
 
-}  // namespace
+float srgb_decode(float encoded) {
+  if (!(encoded > 0.0f)) return 0.0f;  // Also NaN.
+  encoded = std::min(encoded, 1.0f);
+  return encoded <= 0.04045f ? encoded / 12.92f : std::pow((encoded + 0.055f) / 1.055f, 2.4f);
+}
 
 Image read_image(const fs::path& path) {
   if (!fs::exists(path)) throw InputError(path.string() + ": file not found");

@@ -58,6 +58,17 @@ void write_exr(const std::filesystem::path& path, const Image& image,
 void write_png_preview(const std::filesystem::path& path, const Image& image,
                        double exposure_stops = 0.0);
 
+// An 8-bit RGB image (rows top to bottom, 3 bytes a pixel), its format from the extension: a
+// .jpg at `jpeg_quality` (1..100) with chroma not subsampled (4:4:4: for planes of coefficients,
+// not photographs), a .png lossless. Atomic.
+void write_rgb8(const std::filesystem::path& path, int width, int height, const uint8_t* rgb,
+                int jpeg_quality = 95);
+
+// The sRGB transfer curve (IEC 61966-2-1): linear [0, 1] <-> display-referred [0, 1], clamped
+// (NaN gives 0).
+float srgb_encode(float linear);
+float srgb_decode(float encoded);
+
 // Exposure (in stops) that puts the image's 99th-percentile luminance near white.
 double auto_exposure_stops(const Image& image, double percentile = 0.99);
 

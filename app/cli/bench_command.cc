@@ -5,6 +5,7 @@
 //  fit:         per-pixel model fits against field relighting (evaluation/fit_bench.h).
 //  temporal:    time-varying BRDF fits as the time steps grow (evaluation/temporal_bench.h).
 //  compact:     compact fields on held-out LEDs (evaluation/compact_bench.h).
+//  rti:         the RTI formats as stored, against relight (evaluation/rti_bench.h).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <memory>
@@ -18,6 +19,7 @@
 #include "evaluation/fit_bench.h"
 #include "evaluation/fit_sweeps_bench.h"
 #include "evaluation/led_bench.h"
+#include "evaluation/rti_bench.h"
 #include "evaluation/scale_bench.h"
 #include "evaluation/sun_bench.h"
 #include "evaluation/temporal_bench.h"
@@ -130,6 +132,34 @@ void print_compact(const evaluation::CompactBenchSummary& summary) {
   }
   std::fprintf(stderr, "wrote %s and compact_<scene>_psnr_vs_{time,bytes}.png\n",
                summary.csv.c_str());
+}
+
+void add_rti(CLI::App& bench) {
+  auto args = std::make_shared<evaluation::RtiBenchOptions>();
+  auto* cmd = bench.add_subcommand(
+      "rti",
+      "The RTI formats as stored (.ptm, .rti, OpenLIME planes, PCA): held-out 8-bit sRGB PSNR "
+      "against bytes per scene, on the real RTI set and a simulated one, beside relight's "
+      "figures. CSV + charts.");
+  cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
+  cmd->add_flag("--quick", args->quick, "A 32x32 simulated scene, fewer formats.");
+  cmd->callback([args] {
+    args->real_lp =
+        data_dir().parent_path().parent_path() / "shared/data/rti/loewenkopf_klein/dirs.lp";
+    const evaluation::RtiBenchSummary summary =
+        evaluation::run_rti_bench(*args, progress_printer(false));
+    for (const std::string& note : summary.notes) std::fprintf(stderr, "note: %s\n", note.c_str());
+    std::printf("%-18s %-20s %10s %12s %12s\n", "scene", "format", "KiB", "sRGB8 dB", "linear dB");
+    for (const evaluation::RtiBenchRow& r : summary.rows) {
+      std::printf("%-18s %-20s %10.1f %12.2f %12.2f\n", r.scene.c_str(), r.name.c_str(),
+                  r.bytes / 1024, r.result.psnr_srgb8_db, r.result.psnr_db);
+    }
+    std::printf("relight on loewenkopf (issue 18):");
+    for (const auto& f : evaluation::relight_loewenkopf_figures()) {
+      std::printf(" %s %.2f dB%s", f.name, f.psnr_db, f.bytes > 0 ? "" : "");
+    }
+    std::printf("\nwrote %s and rti_<scene>_psnr_vs_bytes.png\n", summary.csv.c_str());
+  });
 }
 
 void add_sun(CLI::App& bench) {
@@ -386,6 +416,7 @@ void add_bench_command(CLI::App& app) {
   add_fit(*bench);
   add_temporal(*bench);
   add_compact(*bench);
+  add_rti(*bench);
   add_scale(*bench);
 }
 

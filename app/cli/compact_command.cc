@@ -34,6 +34,11 @@ void add_compress_command(CLI::App& app) {
                    "RTI files: display units (white = 1) per field unit; 0: the brightest "
                    "sample is white.")
       ->capture_default_str();
+  compress
+      ->add_option("--encoding", args->encoding,
+                   "RTI files: srgb (the sRGB codes of the field, fitted as such: what RTIViewer, "
+                   "relight and OpenLIME show) or linear (.rti only, for lightstage's own use).")
+      ->capture_default_str();
   compress->add_option("--memory", args->memory_bytes,
                        "Bytes of memory for a field EXR: a larger one is read in bands of rows "
                        "(default: whole when it takes at most half of what is available).");

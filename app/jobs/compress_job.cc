@@ -188,6 +188,13 @@ std::string CompressOptions::validate() const {
   }
   if (tile < 0) return "--tile: expected a tile size in pixels >= 0 (0: one global basis)";
   if (!(gain >= 0 && gain < 1e30)) return "--gain: expected a finite gain >= 0";
+  if (encoding != "srgb" && encoding != "linear") {
+    return "--encoding: expected srgb or linear, got \"" + encoding + "\"";
+  }
+  if (encoding == "linear" && format.starts_with("ptm")) {
+    return "--encoding linear: a .ptm has no room to say its values are linear, and every viewer "
+           "shows them as sRGB; use --format hsh2|hsh3|hsh4 for a linear file";
+  }
   if (input.empty()) return "give the field (or .lp set) to compress";
   if (out.empty()) return "--out: give the output file";
   return {};
@@ -199,6 +206,7 @@ std::string CompressOptions::to_json() const {
                         {"rank", rank},
                         {"tile", tile},
                         {"gain", gain},
+                        {"encoding", encoding},
                         {"memory_bytes", memory_bytes}}
       .dump();
 }
@@ -220,6 +228,34 @@ std::uintmax_t input_bytes(const fs::path& input) {
   }
   return bytes;
 }
+
+namespace {
+
+// Display-referred files need their gain before the fit: by default the brightest sample becomes
+// white. From the field in memory, or a pass over the file in bands (rank 0's, shared).
+double white_gain(capture::FieldStream* stream, const capture::ReflectanceField& whole,
+                  const Ranks& ranks) {
+  const auto largest = [](const capture::ReflectanceField& field) {
+    float m = 0;
+    for (const float v : field.values()) m = std::max(m, std::isfinite(v) ? v : 0.0f);
+    return m;
+  };
+  std::vector<double> brightest = {0.0};
+  if (!stream) {
+    brightest[0] = largest(whole);
+  } else if (ranks.root()) {
+    const int height = stream->height(), rows = std::max(1, stream->band_rows(0));
+    capture::ReflectanceField band;
+    for (int y0 = 0; y0 < height; y0 += rows) {
+      stream->read_rows(y0, std::min(height, y0 + rows), band);
+      brightest[0] = std::max(brightest[0], double(largest(band)));
+    }
+  }
+  ranks.broadcast(brightest);
+  return brightest[0] > 0 ? 1.0 / brightest[0] : 1.0;
+}
+
+}  // namespace
 
 CompressSummary compress(const CompressOptions& options, const ProgressFn& progress) {
   if (const std::string problem = options.validate(); !problem.empty()) {
@@ -321,6 +357,10 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   }
   relight::RtiFitOptions rti_options;
   rti_basis(options.format, rti_options);
+  if (options.encoding == "srgb") {
+    rti_options.srgb_gain =
+        options.gain > 0 ? options.gain : white_gain(rows > 0 ? &*stream : nullptr, whole, ranks);
+  }
   relight::RtiWritten written;
   if (rows > 0) {  // In bands: the coefficients through a file, not held.
     written = relight::write_rti_file_in_bands(options.out, header, bands, rti_options,

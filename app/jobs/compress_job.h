@@ -18,6 +18,9 @@ struct CompressOptions {
   std::string rank = "auto";   // PCA: a positive number, or auto (from the noise floor).
   int tile = 0;                // PCA tile size in pixels; 0: one global basis.
   double gain = 0.0;           // RTI files: display units per field unit; 0: brightest = white.
+  // RTI files: "srgb" fits and stores the sRGB codes of gain x the field, as the RTI viewers show
+  // them; "linear" (.rti only: a .ptm cannot say so) stores gain x the field, for lightstage's use.
+  std::string encoding = "srgb";
   // Bytes of memory for a field EXR: a larger one is read in bands of rows (twice for PCA, three
   // times with the held-out rank rule). 0: FieldStream::band_rows' default. .lp sets are whole.
   std::size_t memory_bytes = 0;

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 
 namespace ls::relight {
 
@@ -88,6 +89,7 @@ std::string RtiFitOptions::validate() const {
   if (lrgb && basis != RtiBasis::kPtm) return "lrgb: only PTM has an LRGB variant";
   if (!(min_dir_z >= 0 && min_dir_z < 1)) return "min_dir_z: expected [0, 1)";
   if (!(ridge >= 0 && ridge < 1)) return "ridge: expected [0, 1)";
+  if (!(srgb_gain >= 0 && std::isfinite(srgb_gain))) return "srgb_gain: expected a gain >= 0";
   return "";
 }
 
@@ -148,6 +150,8 @@ float RtiFitter::fit_band(const capture::ReflectanceField& band, float* coefs,
                           float* colors) const {
   const int n = int(used_.size()), terms = terms_, width = width_;
   const int per_pixel = coefficients_per_pixel();
+  const bool srgb = options_.srgb_gain > 0;
+  const auto gain = float(options_.srgb_gain);
   std::vector<float> row_max(size_t(band.height()), 0.0f);
   tbb::parallel_for(
       tbb::blocked_range<int>(0, band.height()), [&](const tbb::blocked_range<int>& rows) {
@@ -159,7 +163,9 @@ float RtiFitter::fit_band(const capture::ReflectanceField& band, float* coefs,
             for (int i = 0; i < n; ++i) {
               for (int c = 0; c < 3; ++c) samples(i, c) = v[3 * used_[i] + c];
             }
+            // In field units: the default gain maps it to white.
             row_max[size_t(y)] = std::max(row_max[size_t(y)], samples.maxCoeff());
+            if (srgb) samples = samples.unaryExpr([&](float s) { return srgb_encode(gain * s); });
             float* out = coefs + (size_t(y) * width + x) * per_pixel;
             if (!options_.lrgb) {
               const Eigen::MatrixXf c = pinv_ * samples;  // T x 3
@@ -202,22 +208,53 @@ RtiField RtiField::fit(const capture::ReflectanceField& field, const capture::Fi
   RtiField out(options.basis, options.lrgb, width, height, std::move(coefs), std::move(colors));
   out.lights_used = fitter.lights_used();
   out.max_sample_value = max_sample;
+  out.set_display_gain(options.srgb_gain);
   return out;
+}
+
+float RtiField::value(const float* coef, const float* color, int c, const double* terms) const {
+  const int n = num_terms();
+  double v = 0;
+  if (lrgb_) {
+    for (int j = 0; j < n; ++j) v += coef[j] * terms[j];
+    return float(v * color[c]);
+  }
+  for (int j = 0; j < n; ++j) v += coef[c * n + j] * terms[j];
+  return float(v);
 }
 
 float RtiField::evaluate(int x, int y, int c, const Eigen::Vector3d& dir) const {
   double t[kMaxRtiTerms];
   rti_basis(basis_, dir, t);
-  const int terms = num_terms();
-  const float* coef = coefs_.data() + (size_t(y) * width_ + x) * coefficients_per_pixel();
-  double v = 0;
-  if (lrgb_) {
-    for (int j = 0; j < terms; ++j) v += coef[j] * t[j];
-    v *= colors_[(size_t(y) * width_ + x) * 3 + c];
-  } else {
-    for (int j = 0; j < terms; ++j) v += coef[c * terms + j] * t[j];
+  const size_t p = size_t(y) * width_ + x;
+  const float v = value(coefs_.data() + p * coefficients_per_pixel(),
+                        lrgb_ ? colors_.data() + p * 3 : nullptr, c, t);
+  return display_gain_ > 0 ? float(srgb_decode(v) / display_gain_) : v;
+}
+
+// Display-referred coefficients are not linear in the light: each light's value is decoded, then
+// weighed by its irradiance (a pass over the image per light).
+void RtiField::relight_display_into(const LightingForModels& lights, Image& out) const {
+  std::fill(out.pixels.begin(), out.pixels.end(), 0.0f);
+  const int per_pixel = coefficients_per_pixel();
+  for (size_t k = 0; k < lights.dirs_in_stage.size(); ++k) {
+    double t[kMaxRtiTerms];
+    rti_basis(basis_, lights.dirs_in_stage[k].cast<double>(), t);
+    if (std::all_of(t, t + num_terms(), [](double v) { return v == 0; })) continue;  // z <= 0.
+    const Eigen::Vector3f e = lights.irradiance_rgb[k] / float(display_gain_);
+    tbb::parallel_for(tbb::blocked_range<int>(0, height_), [&](const tbb::blocked_range<int>& r) {
+      for (int y = r.begin(); y < r.end(); ++y) {
+        for (int x = 0; x < width_; ++x) {
+          const size_t p = size_t(y) * width_ + x;
+          const float* coef = coefs_.data() + p * per_pixel;
+          const float* color = lrgb_ ? colors_.data() + p * 3 : nullptr;
+          for (int c = 0; c < 3; ++c) {
+            out.pixels[p * 3 + c] += e[c] * srgb_decode(value(coef, color, c, t));
+          }
+        }
+      }
+    });
   }
-  return float(v);
 }
 
 void RtiField::relight_into(const LightingForModels& lights, Image& out) const {
@@ -226,6 +263,10 @@ void RtiField::relight_into(const LightingForModels& lights, Image& out) const {
     out = Image(width_, height_, 3);
   }
   out.channel_names = {"R", "G", "B"};
+  if (display_gain_ > 0) {
+    relight_display_into(lights, out);
+    return;
+  }
   const int terms = num_terms();
   // The lighting projected onto the basis once: w[c * T + j] = sum_d E_d(c) b_j(d).
   float w[3 * kMaxRtiTerms] = {};

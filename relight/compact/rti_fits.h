@@ -9,8 +9,11 @@
 // facing the camera; LEDs at or behind the image plane (z <= min_dir_z) are left out of the fit,
 // and light from there contributes nothing when relighting (reported by the callers).
 //
-// Values are field units (radiance per unit LED irradiance); rti_io converts to the 8-bit file
-// formats with a gain.
+// Values are field units (radiance per unit LED irradiance), or display-referred: the sRGB codes
+// (white = 1) of gain x field units, which is what RTIViewer, relight and OpenLIME show (they
+// apply no transfer curve). A fit in those codes is what they show best: fitted in linear units a
+// polynomial's error lands where the eye sees it least (2-3 dB worse in 8-bit sRGB PSNR). rti_io
+// converts to the 8-bit file formats.
 #include <Eigen/Core>
 #include <string>
 #include <vector>
@@ -39,6 +42,9 @@ struct RtiFitOptions {
   // Tikhonov term relative to the mean diagonal of A^T A: keeps the solve stable when few LEDs
   // sample the grazing directions the high HSH orders vary most at.
   double ridge = 1e-6;
+  // > 0: fit the display-referred values srgb_encode(srgb_gain * v) (white = 1), which is what the
+  // RTI viewers show a file's values as (RtiField::display_gain); 0: linear field units.
+  double srgb_gain = 0.0;
 
   std::string validate() const;  // Empty when valid.
 };
@@ -73,6 +79,10 @@ class RtiField : public CompactField {
   const std::vector<float>& colors() const { return colors_; }
   // Value of pixel (x, y), channel c, under a unit light from dir (field units).
   float evaluate(int x, int y, int c, const Eigen::Vector3d& dir) const;
+  // > 0: the coefficients are display-referred, sRGB codes of this many display units (white = 1)
+  // per field unit; relighting decodes each light's value before adding it up. 0: linear.
+  double display_gain() const { return display_gain_; }
+  void set_display_gain(double gain) { display_gain_ = gain; }
 
   int lights_used = 0;         // LEDs the fit used (in the hemisphere, valid).
   float max_sample_value = 0;  // Largest fitted sample: the default export gain maps it to white.
@@ -83,6 +93,11 @@ class RtiField : public CompactField {
   int width_ = 0, height_ = 0;
   std::vector<float> coefs_;
   std::vector<float> colors_;
+  double display_gain_ = 0.0;
+
+  // The value of one pixel's channel c from the basis at a light (display or field units).
+  float value(const float* coef, const float* color, int c, const double* terms) const;
+  void relight_display_into(const LightingForModels& lights, Image& out) const;
 };
 
 // RtiField::fit a band at a time into the caller's buffers, for a field larger than memory whose

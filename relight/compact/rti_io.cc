@@ -164,8 +164,17 @@ RtiFile decode_hsh(const std::string& bytes, const std::string& name) {
   if (line.rfind("#HSH1.2", 0) != 0) {
     throw InputError(name + ": version: expected #HSH1.2, got \"" + line.substr(0, 40) + "\"");
   }
+  std::string encoding;  // Another builder's file is display-referred, as its viewers show it.
   for (line = header.line("type"); !line.empty() && line[0] == '#'; line = header.line("type")) {
     constexpr char kGain[] = "#lightstage field_gain ";
+    constexpr char kEncoding[] = "#lightstage encoding ";
+    if (line.rfind(kEncoding, 0) == 0) {
+      encoding = line.substr(sizeof(kEncoding) - 1);
+      if (encoding != "sRGB" && encoding != "linear") {
+        throw InputError(name + ": encoding: expected sRGB or linear, got \"" +
+                         encoding.substr(0, 40) + "\"");
+      }
+    }
     if (line.rfind(kGain, 0) == 0) {
       const std::string token = line.substr(sizeof(kGain) - 1);
       double g = 0;
@@ -176,6 +185,8 @@ RtiFile decode_hsh(const std::string& bytes, const std::string& name) {
       file.field_gain = g;
     }
   }
+  // lightstage wrote linear values with a gain before it wrote the encoding.
+  file.srgb = encoding.empty() ? !(file.field_gain > 0) : encoding == "sRGB";
   const std::string type = line;
   if (type != "3") {
     throw InputError(name + ": type: expected 3 (HSH), got \"" + type.substr(0, 40) + "\"");
@@ -247,13 +258,15 @@ double RtiQuantiser::code(double v, double gain) const {
   return basis_ == RtiBasis::kPtm ? v * gain * 255.0 : v * gain;
 }
 
-RtiFile RtiQuantiser::header(double gain) const {
+RtiFile RtiQuantiser::header(double gain, bool srgb) const {
   if (!(gain > 0)) gain = max_sample_ > 0 ? 1.0 / max_sample_ : 1.0;
   RtiFile file;
   file.width = width_;
   file.height = height_;
   file.terms = terms_;
   file.field_gain = gain;  // Informational for .ptm: encode_rti_file cannot store it there.
+  file.srgb = srgb;
+  if (srgb) gain = 1.0;  // The coefficients are display units already.
   file.scale.assign(size_t(terms_), 1.0f);
   file.bias.assign(size_t(terms_), 0.0f);
   if (basis_ == RtiBasis::kPtm) {
@@ -279,7 +292,7 @@ RtiFile RtiQuantiser::header(double gain) const {
 
 void RtiQuantiser::quantise(const RtiFile& header, const float* coefs, const float* colors,
                             size_t pixels, uint8_t* bytes) const {
-  const double gain = header.field_gain;
+  const double gain = header.srgb ? 1.0 : header.field_gain;
   const int per_pixel = lrgb_ ? terms_ : 3 * terms_;
   for (size_t p = 0; p < pixels; ++p) {
     uint8_t* out = bytes + p * size_t(header.bytes_per_pixel());
@@ -309,7 +322,8 @@ RtiFile quantise(const RtiField& field, double gain) {
   RtiQuantiser quantiser(field.basis(), field.lrgb(), field.width(), field.height());
   const size_t pixels = size_t(field.width()) * field.height();
   quantiser.add(field.coefficients().data(), field.colors().data(), pixels, field.max_sample_value);
-  RtiFile file = quantiser.header(gain);
+  RtiFile file = field.display_gain() > 0 ? quantiser.header(field.display_gain(), true)
+                                          : quantiser.header(gain);
   file.data.resize(pixels * size_t(file.bytes_per_pixel()));
   quantiser.quantise(file, field.coefficients().data(), field.colors().data(), pixels,
                      file.data.data());
@@ -318,8 +332,10 @@ RtiFile quantise(const RtiField& field, double gain) {
 
 RtiField dequantise(const RtiFile& file) {
   const size_t pixels = size_t(file.width) * file.height;
-  const double g =
-      file.format == RtiFileFormat::kHsh && file.field_gain > 0 ? file.field_gain : 1.0;
+  const double g = file.format == RtiFileFormat::kHsh && file.field_gain > 0 && !file.srgb
+                       ? file.field_gain
+                       : 1.0;
+  const double display_gain = !file.srgb ? 0.0 : file.field_gain > 0 ? file.field_gain : 1.0;
   if (file.format == RtiFileFormat::kHsh) {
     const int terms = file.terms;
     std::vector<float> coefs(pixels * 3 * terms);
@@ -330,7 +346,9 @@ RtiField dequantise(const RtiFile& file) {
     const RtiBasis basis = terms == 4   ? RtiBasis::kHsh2
                            : terms == 9 ? RtiBasis::kHsh3
                                         : RtiBasis::kHsh4;
-    return RtiField(basis, false, file.width, file.height, std::move(coefs));
+    RtiField field(basis, false, file.width, file.height, std::move(coefs));
+    field.set_display_gain(display_gain);
+    return field;
   }
   const bool lrgb = file.format == RtiFileFormat::kPtmLrgb;
   const int per_pixel = lrgb ? 6 : 18;
@@ -344,8 +362,10 @@ RtiField dequantise(const RtiFile& file) {
     }
     for (int c = 0; lrgb && c < 3; ++c) colors[p * 3 + c] = float(in[6 + c] / 255.0);
   }
-  return RtiField(RtiBasis::kPtm, lrgb, file.width, file.height, std::move(coefs),
-                  std::move(colors));
+  RtiField field(RtiBasis::kPtm, lrgb, file.width, file.height, std::move(coefs),
+                 std::move(colors));
+  field.set_display_gain(display_gain);
+  return field;
 }
 
 void encode_rti_rows(const RtiFile& header, const RtiRowFn& row, const RtiBytesFn& write) {
@@ -355,6 +375,7 @@ void encode_rti_rows(const RtiFile& header, const RtiRowFn& row, const RtiBytesF
   if (header.format == RtiFileFormat::kHsh) {
     text("#HSH1.2\n");
     if (header.field_gain > 0) text("#lightstage field_gain " + shortest(header.field_gain) + "\n");
+    text(std::string("#lightstage encoding ") + (header.srgb ? "sRGB" : "linear") + "\n");
     text("3\n" + std::to_string(w) + " " + std::to_string(h) + " 3\n" +
          std::to_string(header.terms) + " 2 1\n");
     write(header.scale.data(), 4 * size_t(header.terms));
@@ -514,7 +535,8 @@ RtiWritten write_rti_file_in_bands(const std::filesystem::path& path,
     }
   }
   coefs = {}, band_colors = {}, rows = {};
-  const RtiFile file = quantiser.header(gain);
+  const RtiFile file =
+      options.srgb_gain > 0 ? quantiser.header(options.srgb_gain, true) : quantiser.header(gain);
   std::vector<float> row(row_floats);
   AtomicFileWriter out(path);
   encode_rti_rows(

@@ -16,10 +16,13 @@
 //    byte / 255 * scale_j + bias_j; the evaluated value is 1 at white.
 //
 // Values in the files are display units (white = 255 codes for PTM, 1 for HSH); fields are in
-// field units. The writer maps field units to display units with a gain (default: the brightest
-// fitted sample becomes white). The .rti writer records the gain in a comment line
-// "#lightstage field_gain <g>", so reading it back returns field units; .ptm has no room for it,
-// so a .ptm reads back in display units (gain 1 = "white is 1").
+// field units. By default the values are display-referred: the sRGB codes of gain x field units,
+// fitted as such (RtiFitOptions::srgb_gain), which is how RTIViewer, relight and OpenLIME show
+// them (no transfer curve applied). A linear .rti (gain x field units) is for lightstage's own use.
+// The gain defaults to the brightest fitted sample becoming white. The .rti writer records it and
+// the encoding in comment lines "#lightstage field_gain <g>", "#lightstage encoding sRGB|linear",
+// so reading it back relights in field units; .ptm has no room for them, so a .ptm reads back as
+// sRGB with gain 1 ("white is 1").
 //
 // Quantisation is per coefficient over the whole image (as the reference builders do): PTM range
 // [min(min_j, 0), max(max_j, 0)] onto integer bias and 0..255; HSH [min_j, max_j] onto 0..255.
@@ -46,11 +49,16 @@ struct RtiFile {
   // PTM LRGB: 6 luminance bytes then 3 colour bytes.
   std::vector<uint8_t> data;
   double field_gain = 0.0;  // Display units per field unit, when the file records it (.rti).
+  // The coefficients are of sRGB codes (white = 1) of field_gain x field units, as every RTI viewer
+  // shows them: always for .ptm (the format has no room to say otherwise); for .rti unless the file
+  // says "#lightstage encoding linear" (or is an older lightstage file: a gain and no encoding).
+  bool srgb = true;
 
   int bytes_per_pixel() const { return format == RtiFileFormat::kPtmLrgb ? 9 : 3 * terms; }
 };
 
-// Field -> file. gain: display units (white = 1) per field unit; <= 0: 1 / max_sample_value.
+// Field -> file. gain: display units (white = 1) per field unit; <= 0: 1 / max_sample_value. A
+// display-referred field (fitted with srgb_gain) is stored as it is, with its own gain.
 RtiFile quantise(const RtiField& field, double gain = 0.0);
 
 // quantise in two steps, so that a field fitted band by band (larger than memory, issue 14) is
@@ -61,7 +69,9 @@ class RtiQuantiser {
   RtiQuantiser(RtiBasis basis, bool lrgb, int width, int height);
   // `pixels` pixels' coefficients (and LRGB colours) as RtiField holds them; their largest sample.
   void add(const float* coefs, const float* colors, size_t pixels, float max_sample);
-  RtiFile header(double gain = 0.0) const;
+  // srgb: the coefficients added are display-referred already (RtiFitOptions::srgb_gain = gain),
+  // quantised as they are; the gain is recorded.
+  RtiFile header(double gain = 0.0, bool srgb = false) const;
   // Into `bytes` as RtiFile::data lays them out.
   void quantise(const RtiFile& header, const float* coefs, const float* colors, size_t pixels,
                 uint8_t* bytes) const;
@@ -75,7 +85,8 @@ class RtiQuantiser {
   std::vector<double> lo_, hi_;  // Per term, of the coefficients (LRGB: times the magnitude).
   float max_sample_ = 0;
 };
-// File -> field, in field units when the file records its gain, else in display units (white 1).
+// File -> field, in field units when the file records its gain, else in display units (white 1);
+// an sRGB file's field is display-referred (RtiField::display_gain) and relights in those units.
 RtiField dequantise(const RtiFile& file);
 
 // Exact byte (de)serialisation. decode throws InputError "<name>: <field>: expected X, got Y".

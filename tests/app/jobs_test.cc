@@ -420,10 +420,15 @@ TEST_F(Jobs, RenderRelightsACompactFileUnderALightAsItsFormatHoldsIt) {
             ? relight::PcaField::read(compress.out).relight_point(dir_to_led)
             : relight::dequantise(relight::read_rti_file(compress.out)).relight_point(dir_to_led);
     EXPECT_EQ(rendered.pixels, expected.pixels) << format;
+    // A .ptm cannot hold its gain: it renders with white = 1, the brightest sample.
+    const float gain = format == "ptm"
+                           ? 1.0f / *std::max_element(field.values().begin(), field.values().end())
+                           : 1.0f;
     const double upright =
-        rms(rendered, [&](int x, int y, int c) { return field.at(x, y, led, c); });
-    const double flipped = rms(
-        rendered, [&](int x, int y, int c) { return field.at(x, field.height() - 1 - y, led, c); });
+        rms(rendered, [&](int x, int y, int c) { return gain * field.at(x, y, led, c); });
+    const double flipped = rms(rendered, [&](int x, int y, int c) {
+      return gain * field.at(x, field.height() - 1 - y, led, c);
+    });
     std::cout << format << ": rms against the LED's image " << upright << ", upside down "
               << flipped << "\n";
     EXPECT_LT(upright, 0.5 * flipped) << format;

@@ -107,9 +107,11 @@ struct FormatCase {
   RtiBasis basis;
   bool lrgb;
   const char* extension;
+  bool srgb = true;  // Display-referred (the default); .rti can also be linear.
 };
 void PrintTo(const FormatCase& c, std::ostream* os) {
-  *os << to_string(c.basis) << (c.lrgb ? " LRGB " : " ") << c.extension;
+  *os << to_string(c.basis) << (c.lrgb ? " LRGB " : " ") << c.extension
+      << (c.srgb ? " sRGB" : " linear");
 }
 
 class RtiFormatRoundTrip : public ::testing::TestWithParam<FormatCase> {};
@@ -120,6 +122,8 @@ TEST_P(RtiFormatRoundTrip, WriteReadWriteIsBitExactAndValuesWithinQuantisation) 
   RtiFitOptions options;
   options.basis = p.basis;
   options.lrgb = p.lrgb;
+  const float brightest = *std::max_element(field.values().begin(), field.values().end());
+  if (p.srgb) options.srgb_gain = 1.0 / brightest;
   const RtiField fit = RtiField::fit(field, options);
   testing::TempDir dir;
   const auto a = dir / (std::string("a") + p.extension);
@@ -130,10 +134,12 @@ TEST_P(RtiFormatRoundTrip, WriteReadWriteIsBitExactAndValuesWithinQuantisation) 
   EXPECT_EQ(file_bytes(a), file_bytes(b));
   EXPECT_EQ(read.width, field.width());
   EXPECT_EQ(read.height, field.height());
+  EXPECT_EQ(read.srgb, p.srgb);
   // The decoded field relights like the fit, up to 8-bit quantisation of the coefficients:
   // measured relative RMSE (point light, field units) ptm-rgb 0.5%, ptm-lrgb 0.6%, hsh 0.3-1.2%.
   RtiField back = dequantise(read);
-  const double gain = p.basis == RtiBasis::kPtm ? 1.0 / fit.max_sample_value : 1.0;
+  EXPECT_EQ(back.display_gain() > 0, p.srgb);
+  const double gain = p.basis == RtiBasis::kPtm ? 1.0 / brightest : 1.0;
   const Eigen::Vector3d light(0.2, 0.3, 0.93);
   Image expected = fit.relight_point(light);
   for (float& v : expected.pixels) v *= float(gain);  // .ptm reads back in display units.
@@ -145,10 +151,12 @@ INSTANTIATE_TEST_SUITE_P(Formats, RtiFormatRoundTrip,
                                            FormatCase{RtiBasis::kPtm, true, ".ptm"},
                                            FormatCase{RtiBasis::kHsh2, false, ".rti"},
                                            FormatCase{RtiBasis::kHsh3, false, ".rti"},
-                                           FormatCase{RtiBasis::kHsh4, false, ".rti"}),
+                                           FormatCase{RtiBasis::kHsh4, false, ".rti"},
+                                           FormatCase{RtiBasis::kHsh3, false, ".rti", false}),
                          [](const ::testing::TestParamInfo<FormatCase>& info) {
                            return std::string(to_string(info.param.basis)) +
-                                  (info.param.lrgb ? "_lrgb" : "");
+                                  (info.param.lrgb ? "_lrgb" : "") +
+                                  (info.param.srgb ? "" : "_linear");
                          });
 
 TEST(RtiIo, PtmHeaderIsTheHpLayout) {

@@ -1,0 +1,47 @@
+#pragma once
+// `lightstage bench rti` (issue 18): every RTI-style format lightstage writes, measured as the RTI
+// community measures them (relight's figures): every 5th light held out, the rest compressed into
+// the format's stored bytes (8-bit .ptm/.rti, OpenLIME JPEG planes and info.json, the float PCA
+// file) and read back, the held-out lights rendered, 8-bit sRGB PSNR pooled over them, against
+// the bytes per scene. On the real set (loewenkopf) and a simulated one; relight's own figures on
+// the real set are drawn beside them. Writes rti.csv and rti_<scene>_psnr_vs_bytes.png.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "evaluation/bench_support.h"
+#include "evaluation/leave_lights_out.h"
+
+namespace ls::evaluation {
+
+struct RtiBenchOptions {
+  std::filesystem::path out = "bench-out";
+  std::filesystem::path real_lp;  // The real set (.lp); skipped when absent.
+  bool quick = false;             // A 32x32 simulated scene only, fewer formats.
+  std::string validate() const;   // Empty when valid.
+};
+
+struct RtiBenchRow {
+  std::string scene, family, name;
+  double bytes = 0;  // Stored, per scene.
+  LeaveLightsOutResult result;
+};
+
+struct RtiBenchSummary {
+  std::vector<RtiBenchRow> rows;
+  std::vector<std::string> notes;
+  std::filesystem::path csv;
+};
+
+RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& progress = {});
+
+// relight's figures on loewenkopf_klein (issue 18: built from its sources, every 5th light held
+// out, 8-bit sRGB PSNR pooled): name, dB, bytes per scene (0 where the issue gives none).
+struct ReferenceFigure {
+  const char* name;
+  double psnr_db;
+  double bytes;
+};
+const std::vector<ReferenceFigure>& relight_loewenkopf_figures();
+
+}  // namespace ls::evaluation

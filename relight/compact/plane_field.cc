@@ -1,0 +1,443 @@
+// Quantised PCA planes with RBF or bilinear interpolation between the lights
+// (relight/compact/plane_field.h).
+#include "relight/compact/plane_field.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+
+#include "lightstage/errors.h"
+#include "lightstage/image.h"
+
+namespace ls::relight {
+
+namespace {
+
+// relight's RBF weights of the lights at a direction: Gaussian in chord distance, normalised,
+// those at or below `drop` left out and the rest normalised again.
+Eigen::VectorXd rbf_weights(const std::vector<Eigen::Vector3d>& lights, const Eigen::Vector3d& dir,
+                            double sigma, double drop) {
+  Eigen::VectorXd w(Eigen::Index(lights.size()));
+  for (size_t i = 0; i < lights.size(); ++i) {
+    w(Eigen::Index(i)) = std::exp(-(lights[i] - dir).squaredNorm() / (sigma * sigma));
+  }
+  if (!(w.sum() > 0)) return w;
+  w /= w.sum();
+  w = (w.array() > drop).select(w, 0.0);
+  if (w.sum() > 0) w /= w.sum();
+  return w;
+}
+
+// The octahedral grid of the bilinear type: node (x, y), index x + y * res, as relight's
+// buildResampleMap places it.
+Eigen::Vector3d grid_direction(int x, int y, int res) {
+  const double ox = 2.0 * x / (res - 1) - 1, oy = 2.0 * y / (res - 1) - 1;
+  const double gx = (ox - oy) / 2, gy = (ox + oy) / 2;
+  return Eigen::Vector3d(gx, gy, std::max(0.0, 1 - std::abs(gx) - std::abs(gy))).normalized();
+}
+
+// The four grid nodes around a direction and their bilinear weights (OpenLIME's bln).
+void bilinear_nodes(const Eigen::Vector3d& dir, int res, int node[4], double weight[4]) {
+  const double s = std::abs(dir.x()) + std::abs(dir.y()) + std::abs(dir.z());
+  double x = (dir.x() + dir.y()) / s, y = (dir.y() - dir.x()) / s;
+  x = (x + 1) / 2 * (res - 1);
+  y = (y + 1) / 2 * (res - 1);
+  const int sx = std::min(res - 2, std::max(0, int(std::floor(x))));
+  const int sy = std::min(res - 2, std::max(0, int(std::floor(y))));
+  const double dx = x - sx, dy = y - sy;
+  node[0] = sx + sy * res, weight[0] = (1 - dx) * (1 - dy);
+  node[1] = sx + 1 + sy * res, weight[1] = dx * (1 - dy);
+  node[2] = sx + (sy + 1) * res, weight[2] = (1 - dx) * dy;
+  node[3] = sx + 1 + (sy + 1) * res, weight[3] = dx * dy;
+}
+
+// The light as OpenLIME takes it: (x, y) within the unit disc, z from them.
+Eigen::Vector3d viewer_light(const Eigen::Vector3d& dir) {
+  Eigen::Vector3d l = dir.normalized();
+  const double r = std::hypot(l.x(), l.y());
+  if (r > 1) l.head<2>() /= r;
+  l.z() = std::sqrt(std::max(0.0, 1 - l.x() * l.x() - l.y() * l.y()));
+  return l;
+}
+
+// The grid's values from the lights' (dims x L), as relight's bilinear builder resamples: an RBF
+// prior B corrected so that bilinear interpolation A of the grid reproduces the lights,
+// iA = B + (A^T A + k I)^-1 A^T (I - A B).
+Eigen::MatrixXd bilinear_resampling(const std::vector<Eigen::Vector3d>& lights, int res,
+                                    double sigma, double k) {
+  const Eigen::Index n = Eigen::Index(lights.size()), dims = Eigen::Index(res) * res;
+  Eigen::MatrixXd b(dims, n), a = Eigen::MatrixXd::Zero(n, dims);
+  for (int y = 0; y < res; ++y) {
+    for (int x = 0; x < res; ++x) {
+      b.row(x + Eigen::Index(y) * res) =
+          rbf_weights(lights, grid_direction(x, y, res), sigma, 0.005);
+    }
+  }
+  for (Eigen::Index i = 0; i < n; ++i) {
+    int node[4];
+    double weight[4];
+    bilinear_nodes(viewer_light(lights[size_t(i)]), res, node, weight);
+    for (int q = 0; q < 4; ++q) a(i, node[q]) += weight[q];
+  }
+  Eigen::MatrixXd normal = a.transpose() * a;
+  normal.diagonal().array() += k;
+  const Eigen::MatrixXd residual = Eigen::MatrixXd::Identity(n, n) - a * b;
+  return b + normal.ldlt().solve(a.transpose() * residual);
+}
+
+// A decoded basis: (planes + 1) x D, row 0 the mean (display units), row p eigenvector p - 1.
+Eigen::MatrixXd decoded_basis(const PlaneField& f) {
+  const Eigen::Index d = Eigen::Index(f.dims()) * 3;
+  Eigen::MatrixXd out(f.planes + 1, d);
+  for (int p = 0; p <= f.planes; ++p) {
+    for (Eigen::Index i = 0; i < d; ++i) {
+      const double byte = f.basis[size_t(p) * size_t(d) + size_t(i)];
+      out(p, i) = p == 0 ? byte / 255.0 : (byte - 127.0) / f.range[size_t(p - 1)];
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+const char* to_string(PlaneInterpolation interpolation) {
+  return interpolation == PlaneInterpolation::kRbf ? "rbf" : "bilinear";
+}
+
+std::string PlaneFieldOptions::validate() const {
+  if (planes == 0 && !from_data) return "planes: 0 (from the data) needs from_data";
+  if (planes != 0 && (planes < 3 || planes % 3 != 0)) {
+    return "planes: expected a positive multiple of 3 (OpenLIME reads three a JPEG), got " +
+           std::to_string(planes);
+  }
+  if (!(sigma > 0 && sigma < 10)) return "sigma: expected (0, 10)";
+  if (resolution < 3 || resolution > 20) return "resolution: expected 3..20 (relight's range)";
+  if (!(regularization >= 0 && std::isfinite(regularization))) return "regularization: >= 0";
+  if (!(gain >= 0 && std::isfinite(gain))) return "gain: expected >= 0";
+  if (max_pca_pixels < 1) return "max_pca_pixels: expected >= 1";
+  return {};
+}
+
+int PlaneField::dims() const {
+  return interpolation == PlaneInterpolation::kRbf ? int(lights.size()) : resolution * resolution;
+}
+
+std::string PlaneField::name() const {
+  return std::string(to_string(interpolation)) + " " + std::to_string(planes) + " planes";
+}
+
+double PlaneField::bytes_per_pixel() const {
+  const double pixels = std::max(1.0, double(width_) * height_);
+  if (stored_bytes > 0) return double(stored_bytes) / pixels;
+  return planes + double(basis.size()) / pixels;
+}
+
+namespace {
+
+float brightest_sample(const capture::ReflectanceField& field) {
+  float brightest = 0;
+  for (const float v : field.values()) brightest = std::max(brightest, std::isfinite(v) ? v : 0);
+  return brightest;
+}
+
+// PlaneField::build with every option given (gain resolved, planes > 0).
+PlaneField build_planes(const capture::ReflectanceField& field, const PlaneFieldOptions& options) {
+  PlaneField out;
+  out.set_size(field.width(), field.height());
+  out.interpolation = options.interpolation;
+  out.planes = options.planes;
+  out.sigma = options.sigma;
+  out.resolution = options.resolution;
+  std::vector<int> used;
+  for (int l = 0; l < field.num_lights(); ++l) {
+    const Eigen::Vector3d d = field.lights()[size_t(l)].dir_in_stage.normalized();
+    if (!field.lights()[size_t(l)].valid || !(d.z() > 0)) continue;
+    used.push_back(l);
+    // As info.json prints them (3 decimals), so that this and the files read back render alike.
+    out.lights.push_back((d * 1000).array().round() / 1000);
+  }
+  const Eigen::Index n = Eigen::Index(used.size());
+  const Eigen::Index d = Eigen::Index(out.dims()) * 3;
+  if (n < 3 || d < out.planes) {
+    throw InputError(field.source + ": lights: " + std::to_string(out.planes) + " planes need " +
+                     std::to_string(out.planes / 3) + " or more valid LEDs in front of the image " +
+                     "plane, got " + std::to_string(n));
+  }
+  out.gain = options.gain;
+  const Eigen::MatrixXd resample = options.interpolation == PlaneInterpolation::kRbf
+                                       ? Eigen::MatrixXd::Identity(n, n)
+                                       : bilinear_resampling(out.lights, options.resolution,
+                                                             options.sigma, options.regularization);
+  // A pixel's vector: the display values at the lights, resampled to the basis's directions.
+  const auto gain = float(out.gain);
+  const auto pixel_vector = [&](int x, int y, Eigen::MatrixXd& samples, Eigen::RowVectorXd& v) {
+    const float* values = field.pixel(x, y);
+    for (Eigen::Index i = 0; i < n; ++i) {
+      for (int k = 0; k < 3; ++k)
+        samples(i, k) = srgb_encode(gain * values[3 * used[size_t(i)] + k]);
+    }
+    const Eigen::MatrixXd g = resample * samples;  // dims x 3
+    for (Eigen::Index j = 0; j < g.rows(); ++j) v.segment<3>(3 * j) = g.row(j);
+  };
+  // The covariance over evenly strided pixels, in blocks.
+  const long pixels = long(field.width()) * field.height();
+  const long stride = std::max(1L, pixels / options.max_pca_pixels);
+  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(d, d);
+  Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(d);
+  Eigen::MatrixXd block(1024, d), samples(n, 3);
+  Eigen::RowVectorXd v(d);
+  long taken = 0;
+  for (long p = 0, rows = 0; p < pixels || rows > 0; p += stride) {
+    if (p < pixels) {
+      pixel_vector(int(p % field.width()), int(p / field.width()), samples, v);
+      block.row(rows++) = v;
+      sum += v;
+      ++taken;
+    }
+    if (rows == block.rows() || (p >= pixels && rows > 0)) {
+      gram.selfadjointView<Eigen::Lower>().rankUpdate(block.topRows(rows).transpose());
+      rows = 0;
+    }
+  }
+  const Eigen::RowVectorXd mean = sum / double(taken);
+  const Eigen::MatrixXd covariance =
+      Eigen::MatrixXd(gram.selfadjointView<Eigen::Lower>()) / double(taken) -
+      mean.transpose() * mean;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(covariance);
+  // The basis as stored: the mean truncated to a byte, each eigenvector scaled to +-127.
+  out.basis.resize(size_t(out.planes + 1) * size_t(d));
+  out.range.resize(size_t(out.planes));
+  for (Eigen::Index i = 0; i < d; ++i) {
+    out.basis[size_t(i)] = uint8_t(std::clamp(mean(i) * 255.0, 0.0, 255.0));
+  }
+  for (int p = 0; p < out.planes; ++p) {
+    const Eigen::VectorXd e = eigen.eigenvectors().col(d - 1 - p);  // Largest first.
+    const double largest = e.cwiseAbs().maxCoeff();
+    out.range[size_t(p)] = float(largest > 0 ? 127.0 / largest : 1.0);
+    for (Eigen::Index i = 0; i < d; ++i) {
+      out.basis[size_t(p + 1) * size_t(d) + size_t(i)] =
+          uint8_t(std::clamp(127.0 + out.range[size_t(p)] * e(i), 0.0, 255.0));
+    }
+  }
+  // Each pixel's coefficients fitted to the basis as stored (least squares; relight projects on
+  // the unquantised one), in code units (0..255 scale).
+  const Eigen::MatrixXd stored = decoded_basis(out);
+  const Eigen::MatrixXd eigen_rows = stored.bottomRows(out.planes);
+  const Eigen::MatrixXd solve =
+      (eigen_rows * eigen_rows.transpose()).ldlt().solve(eigen_rows) * 255.0;  // planes x D
+  std::vector<float> coefficients(size_t(pixels) * size_t(out.planes));
+  tbb::parallel_for(tbb::blocked_range<int>(0, field.height()), [&](const auto& rows) {
+    Eigen::MatrixXd s(n, 3);
+    Eigen::RowVectorXd row(d);
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      for (int x = 0; x < field.width(); ++x) {
+        pixel_vector(x, y, s, row);
+        const Eigen::VectorXd c = solve * (row - stored.row(0)).transpose();
+        float* to = coefficients.data() + (size_t(y) * field.width() + x) * size_t(out.planes);
+        for (int p = 0; p < out.planes; ++p) to[p] = float(c(p));
+      }
+    }
+  });
+  // Scale and bias per plane from the 0.25% and 99.75% quantiles (relight's rangeQuantile).
+  out.scale.resize(size_t(out.planes));
+  out.bias.resize(size_t(out.planes));
+  std::vector<float> sample;
+  for (int p = 0; p < out.planes; ++p) {
+    sample.clear();
+    for (long q = 0; q < pixels; q += stride) {
+      sample.push_back(coefficients[size_t(q) * size_t(out.planes) + size_t(p)]);
+    }
+    const auto at = [&](double f) {
+      auto it = sample.begin() + std::ptrdiff_t(f * double(sample.size() - 1));
+      std::nth_element(sample.begin(), it, sample.end());
+      return double(*it);
+    };
+    const double lo = at(0.0025), hi = std::max(at(0.9975), lo + 1e-3);
+    out.scale[size_t(p)] = float((hi - lo) / 255.0);
+    out.bias[size_t(p)] = float(-lo / (hi - lo));
+  }
+  out.codes.resize(coefficients.size());
+  for (size_t i = 0; i < coefficients.size(); ++i) {
+    const size_t p = i % size_t(out.planes);
+    const double code = 255.0 * (coefficients[i] / 255.0 / out.scale[p] + out.bias[p]);
+    out.codes[i] = uint8_t(std::clamp(std::round(code), 0.0, 255.0));
+  }
+  return out;
+}
+
+// The 8-bit sRGB PSNR of `options` on `held` lights of `pixels`, built from `train`.
+double held_out_psnr(const capture::ReflectanceField& train, const PlaneFieldOptions& options,
+                     const std::vector<Eigen::Vector3d>& held_dirs,
+                     const std::vector<float>& held_codes) {
+  const PlaneField f = build_planes(train, options);
+  std::vector<float> rgb;
+  double squared = 0;
+  const size_t per_light = size_t(train.width()) * 3;
+  for (size_t h = 0; h < held_dirs.size(); ++h) {
+    f.display_into(held_dirs[h], rgb);
+    for (size_t i = 0; i < per_light; ++i) {
+      const double d =
+          std::round(255.0 * std::clamp(rgb[i], 0.0f, 1.0f)) - held_codes[h * per_light + i];
+      squared += d * d;
+    }
+  }
+  const double rmse = std::sqrt(squared / double(held_codes.size()));
+  return rmse > 0 ? 20 * std::log10(255.0 / rmse) : 200.0;
+}
+
+}  // namespace
+
+PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
+                                       PlaneFieldOptions options) {
+  if (const std::string e = options.validate(); !e.empty()) {
+    throw InputError(field.source + ": planes: " + e);
+  }
+  if (!(options.gain > 0)) {
+    const float brightest = brightest_sample(field);
+    options.gain = brightest > 0 ? 1.0 / brightest : 1.0;
+  }
+  const bool choose = options.from_data;
+  options.from_data = false;
+  std::vector<int> train, held;
+  for (int l = 0, k = 0; l < field.num_lights(); ++l) {
+    const capture::FieldLight& light = field.lights()[size_t(l)];
+    if (!light.valid || !(light.dir_in_stage.normalized().z() > 0)) continue;
+    (k++ % 5 == 2 ? held : train).push_back(l);
+  }
+  if (!choose || held.size() < 3) {  // Too few lights to hold any out: relight's defaults.
+    if (options.planes == 0) options.planes = 9;
+    return options;
+  }
+  // The training lights at evenly strided pixels, one row; the held-out lights' codes.
+  const long pixels = long(field.width()) * field.height();
+  const long count = std::min(pixels, 16384L), stride = pixels / count;
+  std::vector<capture::FieldLight> lights;
+  for (const int l : train) lights.push_back(field.lights()[size_t(l)]);
+  capture::ReflectanceField sample(int(count), 1, lights);
+  std::vector<Eigen::Vector3d> held_dirs;
+  for (const int l : held) held_dirs.push_back(field.lights()[size_t(l)].dir_in_stage);
+  std::vector<float> held_codes(held.size() * size_t(count) * 3);
+  const auto gain = float(options.gain);
+  for (long i = 0; i < count; ++i) {
+    const float* v = field.pixel(int(i * stride % field.width()), int(i * stride / field.width()));
+    for (size_t t = 0; t < train.size(); ++t) {
+      for (int c = 0; c < 3; ++c) sample.at(int(i), 0, int(t), c) = v[3 * train[t] + c];
+    }
+    for (size_t h = 0; h < held.size(); ++h) {
+      for (int c = 0; c < 3; ++c) {
+        held_codes[(h * size_t(count) + size_t(i)) * 3 + size_t(c)] =
+            std::round(255.0f * srgb_encode(gain * v[3 * held[h] + c]));
+      }
+    }
+  }
+  const auto psnr = [&](const PlaneFieldOptions& o) {
+    return held_out_psnr(sample, o, held_dirs, held_codes);
+  };
+  PlaneFieldOptions probe = options;
+  probe.planes = std::min(options.planes > 0 ? options.planes : 18, 3 * int(train.size()) / 3 * 3);
+  double best = -1;
+  if (options.interpolation == PlaneInterpolation::kRbf) {
+    for (const double sigma : {0.05, 0.07, 0.09, 0.11, 0.13, 0.16, 0.2, 0.25, 0.3}) {
+      probe.sigma = sigma;
+      if (const double db = psnr(probe); db > best) best = db, options.sigma = sigma;
+    }
+  } else {
+    for (const int resolution : {6, 8, 10, 12, 14, 16}) {
+      probe.resolution = resolution;
+      if (const double db = psnr(probe); db > best) best = db, options.resolution = resolution;
+    }
+  }
+  probe.sigma = options.sigma;
+  probe.resolution = options.resolution;
+  // With every light the spacing is sqrt(5/4) closer than among the training ones.
+  options.sigma *= std::sqrt(double(train.size()) / double(train.size() + held.size()));
+  if (options.planes == 0) {
+    std::vector<std::pair<int, double>> scores;
+    for (int planes = 3; planes <= 30 && planes <= 3 * int(train.size()); planes += 3) {
+      probe.planes = planes;
+      scores.emplace_back(planes, psnr(probe));
+      best = std::max(best, scores.back().second);
+    }
+    for (const auto& [planes, db] : scores) {
+      if (db >= best - 0.25) {
+        options.planes = planes;
+        break;
+      }
+    }
+  }
+  return options;
+}
+
+PlaneField PlaneField::build(const capture::ReflectanceField& field,
+                             const PlaneFieldOptions& options) {
+  return build_planes(field, choose_plane_options(field, options));
+}
+
+std::vector<float> PlaneField::weights_at(const Eigen::Vector3d& dir) const {
+  const Eigen::Vector3d l = viewer_light(dir);
+  const int dim = dims();
+  std::vector<std::pair<int, double>> nodes;
+  if (interpolation == PlaneInterpolation::kRbf) {
+    const Eigen::VectorXd w = rbf_weights(lights, l, sigma, 0.001);
+    for (int i = 0; i < dim; ++i) {
+      if (w(i) > 0) nodes.emplace_back(i, w(i));
+    }
+  } else {
+    int node[4];
+    double weight[4];
+    bilinear_nodes(l, resolution, node, weight);
+    for (int q = 0; q < 4; ++q) nodes.emplace_back(node[q], weight[q]);
+  }
+  std::vector<float> out(size_t(planes + 1) * 3, 0.0f);
+  for (int p = 0; p <= planes; ++p) {
+    for (const auto& [i, w] : nodes) {
+      for (int k = 0; k < 3; ++k) {
+        const double byte = basis[(size_t(p) * size_t(dim) + size_t(i)) * 3 + size_t(k)];
+        const double b = p == 0 ? byte / 255.0 : (byte - 127.0) / range[size_t(p - 1)];
+        out[size_t(p) * 3 + size_t(k)] += float(w * b);
+      }
+    }
+  }
+  return out;
+}
+
+void PlaneField::display_into(const Eigen::Vector3d& dir, std::vector<float>& rgb) const {
+  const std::vector<float> w = weights_at(dir);
+  rgb.resize(size_t(width_) * height_ * 3);
+  const size_t pixels = size_t(width_) * height_;
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, pixels), [&](const auto& r) {
+    for (size_t i = r.begin(); i < r.end(); ++i) {
+      const uint8_t* c = codes.data() + i * size_t(planes);
+      float v[3] = {w[0], w[1], w[2]};
+      for (int p = 0; p < planes; ++p) {
+        const float coefficient = (float(c[p]) / 255.0f - bias[size_t(p)]) * scale[size_t(p)];
+        for (int k = 0; k < 3; ++k) v[k] += w[size_t(p + 1) * 3 + size_t(k)] * coefficient;
+      }
+      for (int k = 0; k < 3; ++k) rgb[i * 3 + size_t(k)] = v[k];
+    }
+  });
+}
+
+void PlaneField::relight_into(const LightingForModels& lighting, Image& out) const {
+  if (out.width != width_ || out.height != height_ || out.channels != 3) {
+    out = Image(width_, height_, 3);
+  }
+  out.channel_names = {"R", "G", "B"};
+  std::fill(out.pixels.begin(), out.pixels.end(), 0.0f);
+  std::vector<float> display;
+  // Display values are not linear in the light: each light's picture is decoded, then weighed.
+  for (size_t k = 0; k < lighting.dirs_in_stage.size(); ++k) {
+    const Eigen::Vector3d dir = lighting.dirs_in_stage[k].cast<double>().normalized();
+    if (!(dir.z() > 0)) continue;  // Behind the image plane: no light the planes know.
+    display_into(dir, display);
+    const Eigen::Vector3f e = lighting.irradiance_rgb[k] / float(gain);
+    for (size_t i = 0; i < display.size(); ++i) {
+      out.pixels[i] += e[int(i % 3)] * srgb_decode(display[i]);
+    }
+  }
+}
+
+}  // namespace ls::relight
