@@ -116,6 +116,7 @@ void write_chart_of(const fs::path& out, const std::string& scene,
     s.point_labels.push_back(r->name);
   }
   std::vector<ChartSeries> all;
+  all.reserve(series.size() + 1);
   for (auto& [_, s] : series) all.push_back(s);
   if (scene.starts_with("real")) {
     ChartSeries relight{"relight (issue 18's figures)", {}, {}, {}, false};

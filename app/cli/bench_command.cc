@@ -156,7 +156,7 @@ void add_rti(CLI::App& bench) {
     }
     std::printf("relight on loewenkopf (issue 18):");
     for (const auto& f : evaluation::relight_loewenkopf_figures()) {
-      std::printf(" %s %.2f dB%s", f.name, f.psnr_db, f.bytes > 0 ? "" : "");
+      std::printf(" %s %.2f dB", f.name, f.psnr_db);
     }
     std::printf("\nwrote %s and rti_<scene>_psnr_vs_bytes.png\n", summary.csv.c_str());
   });

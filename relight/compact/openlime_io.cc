@@ -41,7 +41,8 @@ PlaneField write_openlime(const fs::path& folder, const PlaneField& field,
   std::vector<uint8_t> rgb(pixels * 3);
   for (int j = 0; j < field.planes / 3; ++j) {
     for (size_t i = 0; i < pixels; ++i) {
-      for (int k = 0; k < 3; ++k) rgb[i * 3 + k] = field.codes[i * field.planes + 3 * j + k];
+      for (int k = 0; k < 3; ++k)
+        rgb[i * 3 + k] = field.codes[i * size_t(field.planes) + size_t(3 * j + k)];
     }
     write_rgb8(plane_file(folder, j, format), field.width(), field.height(), rgb.data(),
                jpeg_quality);
@@ -126,7 +127,7 @@ PlaneField read_openlime(const fs::path& folder) {
     }
     for (size_t i = 0; i < pixels; ++i) {
       for (int k = 0; k < 3; ++k) {
-        out.codes[i * out.planes + 3 * j + k] =
+        out.codes[i * size_t(out.planes) + size_t(3 * j + k)] =
             uint8_t(std::clamp(std::lround(image.pixels[i * 3 + k] * 255.0f), 0L, 255L));
       }
     }

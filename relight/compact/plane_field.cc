@@ -315,9 +315,11 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
   const long pixels = long(field.width()) * field.height();
   const long count = std::min(pixels, 16384L), stride = pixels / count;
   std::vector<capture::FieldLight> lights;
+  lights.reserve(train.size());
   for (const int l : train) lights.push_back(field.lights()[size_t(l)]);
   capture::ReflectanceField sample(int(count), 1, lights);
   std::vector<Eigen::Vector3d> held_dirs;
+  held_dirs.reserve(held.size());
   for (const int l : held) held_dirs.push_back(field.lights()[size_t(l)].dir_in_stage);
   std::vector<float> held_codes(held.size() * size_t(count) * 3);
   const auto gain = float(options.gain);
