@@ -233,7 +233,7 @@ namespace {
 
 // Display-referred files need their gain before the fit: by default the brightest sample becomes
 // white. From the field in memory, or a pass over the file in bands (rank 0's, shared).
-double white_gain(capture::FieldStream* stream, const capture::ReflectanceField& whole,
+double white_gain(capture::FieldStream* stream, int rows, const capture::ReflectanceField& whole,
                   const Ranks& ranks) {
   const auto largest = [](const capture::ReflectanceField& field) {
     float m = 0;
@@ -244,7 +244,7 @@ double white_gain(capture::FieldStream* stream, const capture::ReflectanceField&
   if (!stream) {
     brightest[0] = largest(whole);
   } else if (ranks.root()) {
-    const int height = stream->height(), rows = std::max(1, stream->band_rows(0));
+    const int height = stream->height();  // In the bands' rows: within --memory.
     capture::ReflectanceField band;
     for (int y0 = 0; y0 < height; y0 += rows) {
       stream->read_rows(y0, std::min(height, y0 + rows), band);
@@ -358,8 +358,9 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   relight::RtiFitOptions rti_options;
   rti_basis(options.format, rti_options);
   if (options.encoding == "srgb") {
-    rti_options.srgb_gain =
-        options.gain > 0 ? options.gain : white_gain(rows > 0 ? &*stream : nullptr, whole, ranks);
+    rti_options.srgb_gain = options.gain > 0
+                                ? options.gain
+                                : white_gain(rows > 0 ? &*stream : nullptr, rows, whole, ranks);
   }
   relight::RtiWritten written;
   if (rows > 0) {  // In bands: the coefficients through a file, not held.
