@@ -88,15 +88,19 @@ Eigen::MatrixXd bilinear_resampling(const std::vector<Eigen::Vector3d>& lights, 
   return b + normal.ldlt().solve(a.transpose() * residual);
 }
 
-// A decoded basis: (planes + 1) x D, row 0 the mean (display units), row p eigenvector p - 1.
+// Basis row p's value i (of D = dims x 3) as stored: the mean in display units (p = 0), else
+// eigenvector p - 1.
+double basis_value(const PlaneField& f, int p, size_t i) {
+  const double byte = f.basis[size_t(p) * size_t(f.dims()) * 3 + i];
+  return p == 0 ? byte / 255.0 : (byte - 127.0) / f.range[size_t(p - 1)];
+}
+
+// The decoded basis: (planes + 1) x D.
 Eigen::MatrixXd decoded_basis(const PlaneField& f) {
   const Eigen::Index d = Eigen::Index(f.dims()) * 3;
   Eigen::MatrixXd out(f.planes + 1, d);
   for (int p = 0; p <= f.planes; ++p) {
-    for (Eigen::Index i = 0; i < d; ++i) {
-      const double byte = f.basis[size_t(p) * size_t(d) + size_t(i)];
-      out(p, i) = p == 0 ? byte / 255.0 : (byte - 127.0) / f.range[size_t(p - 1)];
-    }
+    for (Eigen::Index i = 0; i < d; ++i) out(p, i) = basis_value(f, p, size_t(i));
   }
   return out;
 }
@@ -397,9 +401,7 @@ std::vector<float> PlaneField::weights_at(const Eigen::Vector3d& dir) const {
   for (int p = 0; p <= planes; ++p) {
     for (const auto& [i, w] : nodes) {
       for (int k = 0; k < 3; ++k) {
-        const double byte = basis[(size_t(p) * size_t(dim) + size_t(i)) * 3 + size_t(k)];
-        const double b = p == 0 ? byte / 255.0 : (byte - 127.0) / range[size_t(p - 1)];
-        out[size_t(p) * 3 + size_t(k)] += float(w * b);
+        out[size_t(p) * 3 + size_t(k)] += float(w * basis_value(*this, p, size_t(i) * 3 + k));
       }
     }
   }
