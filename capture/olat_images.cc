@@ -377,6 +377,10 @@ ReflectanceField read_whole(SetImport& set, const LightImageFn& on_light) {
 
 }  // namespace
 
+ReflectanceField images_header(OlatImageSet job, const OlatImportOptions& options) {
+  return SetImport(std::move(job), options).header();
+}
+
 ReflectanceField import_images(OlatImageSet job, const OlatImportOptions& options,
                                OlatImportSummary* summary) {
   SetImport set(std::move(job), options);

@@ -437,6 +437,10 @@ ReflectanceField import_olat(const fs::path& source, const OlatImportOptions& op
   return import_images(read_set(source, options), options, summary);
 }
 
+ReflectanceField olat_header(const fs::path& source, const OlatImportOptions& options) {
+  return images_header(read_set(source, options), options);
+}
+
 int import_olat_to_file(const fs::path& source, const OlatImportOptions& options,
                         const fs::path& out, const ExrAttributes& attributes,
                         std::size_t memory_bytes, const LightImageFn& on_light,

@@ -92,6 +92,10 @@ ReflectanceField import_diligent(const std::filesystem::path& folder,
 ReflectanceField import_olat(const std::filesystem::path& source, const OlatImportOptions& options,
                              OlatImportSummary* summary = nullptr);
 
+// The field `source` imports into, without its values (size, lights): cheap, only the first
+// image's header is read. InputErrors as import_olat's for the set's description.
+ReflectanceField olat_header(const std::filesystem::path& source, const OlatImportOptions& options);
+
 // A light's image as imported (width * height * 3 floats, field units) and its direction.
 using LightImageFn = std::function<void(int light, const Eigen::Vector3d& dir_in_stage,
                                         const std::vector<float>& rgb)>;

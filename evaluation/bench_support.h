@@ -46,6 +46,17 @@ capture::ReflectanceField capture_sim_field(const Stage& stage, const sim::Scene
                                             const std::filesystem::path& session_dir,
                                             const std::string& phase, const ProgressFn& progress);
 
+// A step run as the user runs it: its own process.
+struct Measured {
+  double seconds = 0;
+  double peak_mib = 0;  // The process's own peak resident memory (wait4's ru_maxrss).
+  std::string output;   // What it printed.
+};
+
+// Runs `argv` (argv[0] looked up on PATH when it has no '/'), its output written to `log`;
+// InputError naming the command and the log when it fails.
+Measured run_process(const std::vector<std::string>& argv, const std::filesystem::path& log);
+
 std::vector<relight::EnvironmentMap> load_maps(const std::vector<std::filesystem::path>& paths);
 
 // Throws InputError with `error` unless it is empty (the options' validate()).

@@ -49,8 +49,11 @@ Format rti_format(relight::RtiBasis basis, bool lrgb, double gain) {
             const std::string encoded =
                 relight::encode_rti_file(relight::quantise(relight::RtiField::fit(f, options)));
             bytes = double(encoded.size());
-            return std::make_unique<relight::RtiField>(
+            auto read = std::make_unique<relight::RtiField>(
                 relight::dequantise(relight::decode_rti_file(encoded, "bench")));
+            // A .ptm cannot hold its gain (it reads back in display units): the user knows it.
+            read->set_display_gain(gain);
+            return read;
           }};
 }
 
@@ -175,7 +178,8 @@ RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& 
       row.result = leave_lights_out(
           field, [&](const capture::ReflectanceField& f) { return format.build(f, row.bytes); },
           leave_out);
-      row.name = row.result.name;
+      // The planes' image format tells JPEG and PNG rows of one type apart.
+      row.name = row.result.name + (format.family.ends_with(" png") ? " png" : "");
       summary.rows.push_back(row);
       report(progress, "bench rti", ++done, long(list.size()), scene + " " + row.name);
     }

@@ -5,6 +5,7 @@
 // file) and read back, the held-out lights rendered, 8-bit sRGB PSNR pooled over them, against
 // the bytes per scene. On the real set (loewenkopf) and a simulated one; relight's own figures on
 // the real set are drawn beside them. Writes rti.csv and rti_<scene>_psnr_vs_bytes.png.
+#include <cstddef>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -34,6 +35,32 @@ struct RtiBenchSummary {
 };
 
 RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& progress = {});
+
+// Memory (issue 18): a one-light set of the issue's size (the glossy simulated scene as sRGB
+// JPEGs and an .lp file), then import, compress and export openlime run on it as separate
+// lightstage processes, each one's peak resident memory (wait4) measured: by default and within
+// --memory. "start" is the process doing nothing (--help): what loading its libraries costs.
+struct RtiMemoryOptions {
+  std::filesystem::path out = "bench-out";
+  std::filesystem::path executable;  // The lightstage executable (the CLI: itself).
+  int width = 612, height = 512, lights = 96;
+  std::size_t memory_bytes = std::size_t(64) << 20;  // The --memory steps' budget.
+  bool keep = false;                                 // Keep the set and what was written.
+};
+
+struct RtiMemoryRow {
+  std::string step;
+  double peak_mib = 0, seconds = 0;
+};
+
+struct RtiMemorySummary {
+  int width = 0, height = 0, lights = 0;
+  double jpeg_mib = 0;  // The set's images on disk.
+  std::vector<RtiMemoryRow> rows;
+};
+
+RtiMemorySummary run_rti_memory_bench(const RtiMemoryOptions& options,
+                                      const ProgressFn& progress = {});
 
 // relight's figures on loewenkopf_klein (issue 18: built from its sources, every 5th light held
 // out, 8-bit sRGB PSNR pooled): name, dB, bytes per scene (0 where the issue gives none).

@@ -1,8 +1,6 @@
 #include "evaluation/scale_bench.h"
 
 #include <fcntl.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -10,7 +8,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
-#include <iterator>
 #include <map>
 
 #include "evaluation/chart.h"
@@ -27,45 +24,6 @@ using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-struct Measured {
-  double seconds = 0;
-  double peak_mib = 0;  // The process's own peak resident memory (wait4's ru_maxrss).
-  std::string output;   // What it printed.
-};
-
-// Runs `argv` (argv[0] looked up on PATH when it has no '/'), its output written to `log`;
-// InputError naming the step and the log when it fails.
-Measured run_process(const std::vector<std::string>& argv, const fs::path& log) {
-  std::vector<char*> args;
-  args.reserve(argv.size() + 1);
-  for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-  args.push_back(nullptr);
-  const std::string log_name = log.string();
-  const auto t0 = Clock::now();
-  const pid_t pid = fork();
-  if (pid < 0) throw InputError("bench scale: cannot start " + argv[0]);
-  if (pid == 0) {  // Only async-signal-safe calls until exec.
-    const int fd = open(log_name.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    if (fd >= 0) dup2(fd, 1), dup2(fd, 2);
-    execvp(args[0], args.data());
-    _exit(127);
-  }
-  int status = 0;
-  rusage usage{};
-  wait4(pid, &status, 0, &usage);
-  Measured m{seconds_since(t0), double(usage.ru_maxrss) / 1024.0, {}};
-  std::ifstream printed(log);
-  m.output.assign(std::istreambuf_iterator<char>(printed), std::istreambuf_iterator<char>());
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
-    std::string command;
-    for (const std::string& a : argv) command += a + " ";
-    throw InputError("bench scale: '" + command + "' failed (exit " +
-                     std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + "): see " +
-                     log_name);
-  }
-  return m;
 }
 
 // Drops the file's pages from this machine's page cache (written back first), so that the next

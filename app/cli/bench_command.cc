@@ -142,8 +142,16 @@ void add_rti(CLI::App& bench) {
       "against bytes per scene, on the real RTI set and a simulated one, beside relight's "
       "figures. CSV + charts.");
   cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
-  cmd->add_flag("--quick", args->quick, "A 32x32 simulated scene, fewer formats.");
-  cmd->callback([args] {
+  cmd->add_flag("--quick", args->quick, "A 32x32 simulated scene, fewer formats, no memory part.");
+  auto memory = std::make_shared<evaluation::RtiMemoryOptions>();
+  auto measure_memory = std::make_shared<bool>(true);
+  cmd->add_flag("!--no-memory", *measure_memory,
+                "Skip the memory part (a 612x512, 96-light JPEG set through import, compress and "
+                "export, each a process of its own).");
+  cmd->add_option("--memory", memory->memory_bytes, "Bytes: the memory part's --memory.")
+      ->capture_default_str();
+  cmd->add_flag("--keep", memory->keep, "Keep the memory part's set and what was written from it.");
+  cmd->callback([args, memory, measure_memory] {
     args->real_lp =
         data_dir().parent_path().parent_path() / "shared/data/rti/loewenkopf_klein/dirs.lp";
     const evaluation::RtiBenchSummary summary =
@@ -159,6 +167,17 @@ void add_rti(CLI::App& bench) {
       std::printf(" %s %.2f dB", f.name, f.psnr_db);
     }
     std::printf("\nwrote %s and rti_<scene>_psnr_vs_bytes.png\n", summary.csv.c_str());
+    if (args->quick || !*measure_memory) return;
+    memory->out = args->out;
+    memory->executable = fs::read_symlink("/proc/self/exe");
+    const evaluation::RtiMemorySummary m =
+        evaluation::run_rti_memory_bench(*memory, progress_printer(false));
+    std::printf("\npeak memory, %dx%d, %d lights (JPEGs %.1f MiB); --memory %zu MiB:\n", m.width,
+                m.height, m.lights, m.jpeg_mib, memory->memory_bytes >> 20);
+    for (const evaluation::RtiMemoryRow& r : m.rows) {
+      std::printf("  %-36s %8.1f MiB %8.2f s\n", r.step.c_str(), r.peak_mib, r.seconds);
+    }
+    std::printf("relight (issue 18): 100-236 MiB\n");
   });
 }
 

@@ -33,6 +33,7 @@ void add_envmaps_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
 void add_compress_command(CLI::App& app);  // compact_command.cc
 void add_render_command(CLI::App& app);    // compact_command.cc
+void add_export_command(CLI::App& app);    // compact_command.cc
 void add_devices_command(CLI::App& app);
 void add_check_command(CLI::App& app);
 void add_play_command(CLI::App& app);  // play_command.cc: the superposition check.

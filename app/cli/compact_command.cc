@@ -2,7 +2,8 @@
 // one compact representation (.ptm, .rti, or the PCA binary format of relight/compact/pca_field.h)
 // through the compress job (app/jobs/compress_job.h). FIELD is a field EXR, or an .lp capture (or a
 // folder holding one), imported directly. lightstage render COMPACT --light X Y Z | --env MAP:
-// relights one. `lightstage bench compact` is in bench_command.cc.
+// relights one (an OpenLIME folder too). lightstage export openlime FIELD --out DIR: the OpenLIME
+// planes. `lightstage bench compact` is in bench_command.cc.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <memory>
@@ -40,8 +41,10 @@ void add_compress_command(CLI::App& app) {
                    "relight and OpenLIME show) or linear (.rti only, for lightstage's own use).")
       ->capture_default_str();
   compress->add_option("--memory", args->memory_bytes,
-                       "Bytes of memory for a field EXR: a larger one is read in bands of rows "
-                       "(default: whole when it takes at most half of what is available).");
+                       "Bytes of memory for the field: a larger one is read in bands of rows "
+                       "(default: whole when it takes at most half of what is available). An .lp "
+                       "set with --memory, or larger than that, is imported into a field file "
+                       "beside the output first.");
   compress->callback([args] {
     // A bad --format or --rank is bad input (exit 2), as before options were validated here.
     const jobs::CompressSummary summary = jobs::compress(*args);
@@ -73,13 +76,62 @@ void add_compress_command(CLI::App& app) {
   });
 }
 
+void add_export_command(CLI::App& app) {
+  auto* exporter = app.add_subcommand("export", "Writes a field in another program's format.");
+  exporter->require_subcommand(1);
+  auto args = std::make_shared<jobs::OpenLimeExportOptions>();
+  auto* openlime = exporter->add_subcommand(
+      "openlime",
+      "An OpenLIME folder (info.json and its planes, as relight writes them) of a field or an .lp "
+      "set: quantised PCA planes with RBF or bilinear interpolation between the lights, "
+      "display-referred (sRGB), read by the OpenLIME viewer and by lightstage render.");
+  openlime->add_option("field", args->input, "Field EXR, .lp file, or folder with one .lp.")
+      ->required();
+  openlime->add_option("--out", args->out, "Folder to write (made; its files replaced).")
+      ->required();
+  openlime->add_option("--type", args->type, "rbf | bilinear.")->capture_default_str();
+  openlime
+      ->add_option("--planes", args->planes,
+                   "Planes, a multiple of 3; 0: the fewest within 0.25 dB of the best on "
+                   "held-out lights.")
+      ->capture_default_str();
+  openlime->add_option("--image", args->image, "Planes as jpg or png (lossless).")
+      ->capture_default_str();
+  openlime->add_option("--quality", args->quality, "JPEG quality.")->capture_default_str();
+  openlime
+      ->add_option("--gain", args->gain,
+                   "Display units (white = 1) per field unit; 0: the brightest sample is white.")
+      ->capture_default_str();
+  openlime->add_option("--memory", args->memory_bytes,
+                       "Bytes of memory for the field: a larger one (or an .lp set with "
+                       "--memory, imported into a field file beside the folder first) is read in "
+                       "bands of rows, three passes (default: as compress).");
+  openlime->callback([args] {
+    // Bad options are bad input (exit 2), as compress's.
+    const jobs::OpenLimeExportSummary summary =
+        jobs::export_openlime(*args, progress_printer(false));
+    const auto mib = [](std::uintmax_t bytes) { return double(bytes) / (1 << 20); };
+    std::printf("%s: OpenLIME %s (%s), %dx%d from %d lights\n", args->out.c_str(),
+                summary.representation.c_str(), summary.chosen.c_str(), summary.width,
+                summary.height, summary.lights);
+    std::printf("wrote %.3f MiB from %.2f MiB of input (%.3gx)\n", mib(summary.output_bytes),
+                mib(summary.input_bytes),
+                summary.input_bytes > 0 ? double(summary.output_bytes) / summary.input_bytes : 0.0);
+    if (summary.band_rows > 0) std::printf("read in bands of %d rows\n", summary.band_rows);
+    std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
+  });
+}
+
 void add_render_command(CLI::App& app) {
   auto args = std::make_shared<jobs::RenderOptions>();
   auto* render = app.add_subcommand(
       "render",
-      "Relights a compact file (.ptm, .rti, or the lightstage PCA format) under one distant light "
-      "or an environment map: a linear EXR in field units and a PNG preview.");
-  render->add_option("compact", args->input, "Compact file.")->required()->check(CLI::ExistingFile);
+      "Relights a compact file (.ptm, .rti, the lightstage PCA format, or an OpenLIME folder) "
+      "under one distant light or an environment map: a linear EXR in field units and a PNG "
+      "preview.");
+  render->add_option("compact", args->input, "Compact file, or OpenLIME folder.")
+      ->required()
+      ->check(CLI::ExistingPath);
   render->add_option("--out", args->out, "Output image (.exr; a .png preview beside it).")
       ->required();
   render

@@ -49,6 +49,7 @@ int run(int argc, char** argv) {
   ls::cli::add_bench_command(app);
   ls::cli::add_compress_command(app);
   ls::cli::add_render_command(app);
+  ls::cli::add_export_command(app);
   ls::cli::add_devices_command(app);
   ls::cli::add_check_command(app);
   ls::cli::add_play_command(app);

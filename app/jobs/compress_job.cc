@@ -5,6 +5,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numeric>
@@ -17,9 +18,11 @@
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/memory.h"
 #include "lightstage/rank_split.h"
 #include "lightstage/scratch_file.h"
 #include "relight/compact/pca_field.h"
+#include "relight/compact/plane_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
 #include "relight/lighting/envmap.h"
@@ -216,7 +219,9 @@ std::string CompressOptions::to_json() const {
 std::uintmax_t input_bytes(const fs::path& input) {
   if (!fs::is_directory(input) && input.extension() != ".lp") return fs::file_size(input);
   std::uintmax_t bytes = 0;
-  const fs::path dir = fs::is_directory(input) ? input : input.parent_path();
+  const fs::path dir = fs::is_directory(input)       ? input
+                       : input.parent_path().empty() ? fs::path(".")
+                                                     : input.parent_path();
   for (const auto& entry : fs::recursive_directory_iterator(dir)) {
     std::string ext = entry.path().extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
@@ -230,6 +235,44 @@ std::uintmax_t input_bytes(const fs::path& input) {
 }
 
 namespace {
+
+// A file beside the output for the job's length only.
+struct RemovedWhenDone {
+  fs::path path;
+  RemovedWhenDone(const RemovedWhenDone&) = delete;
+  RemovedWhenDone& operator=(const RemovedWhenDone&) = delete;
+  explicit RemovedWhenDone(fs::path p) : path(std::move(p)) {}
+  ~RemovedWhenDone() {
+    std::error_code ignored;
+    fs::remove(path, ignored);
+  }
+};
+
+bool is_olat_set(const fs::path& input) {
+  return input.extension() == ".lp" || fs::is_directory(input);
+}
+
+// The field file to read `input` from, an EXR as it is. An .lp set: empty (to be imported whole)
+// when its field takes at most half of the memory available and no budget is given; else
+// imported into a field file beside `out` (in bands, see import_olat_to_file), read from there
+// and removed when `imported` goes.
+fs::path field_within_budget(const fs::path& input, const fs::path& out, std::size_t memory_bytes,
+                             std::optional<RemovedWhenDone>& imported, const ProgressFn& progress) {
+  if (!is_olat_set(input)) return input;
+  if (memory_bytes == 0) {
+    const capture::ReflectanceField header = capture::olat_header(input, {});
+    const std::size_t bytes =
+        capture::ReflectanceField::bytes_for(header.width(), header.height(), header.num_lights());
+    if (bytes <= available_memory_bytes() / 2) return {};
+  }
+  fs::path file = out;
+  file += ".imported.exr";
+  imported.emplace(file);
+  report(progress, "import", 0, 1, input.filename());
+  capture::import_olat_to_file(input, capture::OlatImportOptions{}, file, {}, memory_bytes);
+  report(progress, "import", 1, 1);
+  return file;
+}
 
 // Display-referred files need their gain before the fit: by default the brightest sample becomes
 // white. From the field in memory, or a pass over the file in bands (rank 0's, shared).
@@ -281,12 +324,15 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   std::optional<CheckpointDir> checkpoint;
   capture::FieldBands bands;
   int rows = 0;
-  if (ext == ".lp" || fs::is_directory(options.input)) {
+  std::optional<RemovedWhenDone> imported;
+  const fs::path field_file =
+      field_within_budget(options.input, options.out, options.memory_bytes, imported, progress);
+  if (field_file.empty()) {
     report(progress, "read", 0, 1, options.input.filename());
     whole = capture::import_olat(options.input, capture::OlatImportOptions{});
     report(progress, "read", 1, 1);
   } else {
-    stream.emplace(options.input);
+    stream.emplace(field_file);
     const int align =
         options.format == "pca"
             ? std::lcm(stream->row_alignment(), relight::PcaField::band_alignment(
@@ -382,8 +428,94 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   return summary;
 }
 
+std::string OpenLimeExportOptions::validate() const {
+  if (type != "rbf" && type != "bilinear") {
+    return "--type: expected rbf or bilinear (OpenLIME's types), got \"" + type + "\"";
+  }
+  if (planes != 0 && (planes < 3 || planes % 3 != 0)) {
+    return "--planes: expected a positive multiple of 3 (OpenLIME reads three to an image), or 0 "
+           "(the fewest the data needs), got " +
+           std::to_string(planes);
+  }
+  if (image != "jpg" && image != "png") {
+    return "--image: expected jpg or png, got \"" + image + "\"";
+  }
+  if (quality < 1 || quality > 100) return "--quality: expected a JPEG quality in 1..100";
+  if (!(gain >= 0 && gain < 1e30)) return "--gain: expected a finite gain >= 0";
+  if (input.empty()) return "give the field (or .lp set) to export";
+  if (out.empty()) return "--out: give the folder to write";
+  return {};
+}
+
+OpenLimeExportSummary export_openlime(const OpenLimeExportOptions& options,
+                                      const ProgressFn& progress) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("export openlime: " + problem);
+  }
+  // The field whole, or within --memory in bands of a field file (three passes).
+  std::optional<RemovedWhenDone> imported;
+  const fs::path field_file =
+      field_within_budget(options.input, options.out, options.memory_bytes, imported, progress);
+  std::optional<capture::FieldStream> stream;
+  capture::ReflectanceField whole;
+  capture::FieldBands bands;
+  int rows = 0;
+  if (!field_file.empty()) {
+    stream.emplace(field_file);
+    rows = stream->band_rows(options.memory_bytes);
+  }
+  if (stream && rows < stream->height()) {
+    bands = [&, pass = 0](const capture::BandVisitor& visit) mutable {
+      const std::string label = "pass " + std::to_string(++pass) + " (rows)";
+      capture::ReflectanceField band;
+      for (int y0 = 0; y0 < stream->height(); y0 += rows) {
+        const int y1 = std::min(stream->height(), y0 + rows);
+        stream->read_rows(y0, y1, band);
+        visit(band);
+        report(progress, label, y1, stream->height());
+      }
+    };
+  } else {
+    report(progress, "read", 0, 1, options.input.filename());
+    if (stream) {
+      stream->read_rows(0, stream->height(), whole);
+    } else {
+      whole = capture::import_olat(options.input, capture::OlatImportOptions{});
+    }
+    report(progress, "read", 1, 1);
+    bands = capture::whole_field(whole);
+  }
+  const capture::ReflectanceField& field = stream ? stream->header() : whole;
+  relight::PlaneFieldOptions plane_options;
+  plane_options.interpolation = options.type == "rbf" ? relight::PlaneInterpolation::kRbf
+                                                      : relight::PlaneInterpolation::kBilinear;
+  plane_options.planes = options.planes;
+  plane_options.gain = options.gain;
+  report(progress, "planes", 0, 1, options.planes == 0 ? "choosing from the data" : "");
+  const relight::PlaneField built = relight::PlaneField::build(field, bands, plane_options);
+  report(progress, "planes", 1, 1);
+  const relight::PlaneField written =
+      relight::write_openlime(options.out, built, options.image, options.quality);
+  OpenLimeExportSummary summary;
+  summary.representation = written.name();
+  char chosen[64];
+  if (written.interpolation == relight::PlaneInterpolation::kRbf) {
+    std::snprintf(chosen, sizeof chosen, "sigma %.3g", written.sigma);
+  } else {
+    std::snprintf(chosen, sizeof chosen, "grid %dx%d", written.resolution, written.resolution);
+  }
+  summary.chosen = chosen;
+  summary.width = written.width();
+  summary.height = written.height();
+  summary.lights = field.num_lights();
+  summary.band_rows = stream && rows < stream->height() ? rows : 0;
+  summary.input_bytes = input_bytes(options.input);
+  summary.output_bytes = written.stored_bytes;
+  return summary;
+}
+
 std::string RenderOptions::validate() const {
-  if (input.empty()) return "a compact file (.ptm, .rti or PCA) is required";
+  if (input.empty()) return "a compact file (.ptm, .rti, PCA or an OpenLIME folder) is required";
   if (out.extension() != ".exr") {
     return "--out: the render is an OpenEXR file (linear): give a path ending in .exr, got \"" +
            out.string() + "\"";
@@ -404,7 +536,10 @@ RenderSummary render_compact(const RenderOptions& options) {
   }
   const std::string ext = options.input.extension().string();
   std::unique_ptr<relight::CompactField> field;
-  if (ext == ".ptm" || ext == ".rti") {
+  if (fs::is_directory(options.input) || options.input.filename() == "info.json") {
+    field = std::make_unique<relight::PlaneField>(relight::read_openlime(
+        fs::is_directory(options.input) ? options.input : options.input.parent_path()));
+  } else if (ext == ".ptm" || ext == ".rti") {
     field = std::make_unique<relight::RtiField>(
         relight::dequantise(relight::read_rti_file(options.input)));
   } else {

@@ -21,8 +21,10 @@ struct CompressOptions {
   // RTI files: "srgb" fits and stores the sRGB codes of gain x the field, as the RTI viewers show
   // them; "linear" (.rti only: a .ptm cannot say so) stores gain x the field, for lightstage's use.
   std::string encoding = "srgb";
-  // Bytes of memory for a field EXR: a larger one is read in bands of rows (twice for PCA, three
-  // times with the held-out rank rule). 0: FieldStream::band_rows' default. .lp sets are whole.
+  // Bytes of memory for the field: a larger one is read in bands of rows (twice for PCA, three
+  // times with the held-out rank rule). 0: FieldStream::band_rows' default (whole when it takes
+  // at most half of the memory available). An .lp set with a budget, or larger than that half,
+  // is imported into a field file beside `out` first (in bands), and compressed from it.
   std::size_t memory_bytes = 0;
   std::string validate() const;
   std::string to_json() const;  // What a resumed run must share (CheckpointDir's identity).
@@ -43,11 +45,40 @@ struct CompressSummary {
 // Throws InputError for bad options or inputs; the output is written only on success.
 CompressSummary compress(const CompressOptions& options, const ProgressFn& progress = {});
 
-// lightstage render: a compact file (.ptm, .rti, or the lightstage PCA format) relit under one
-// distant light or an environment map: linear radiance in field units (the file's codes
-// dequantised), as OUT.exr with an auto-exposed OUT.png beside it.
+// lightstage export openlime: a field (EXR, or an .lp set imported on the way) as an OpenLIME
+// folder (relight/compact/plane_field.h: info.json and its planes), read whole.
+struct OpenLimeExportOptions {
+  std::filesystem::path input;  // Field EXR, .lp file, or a folder holding one .lp.
+  std::filesystem::path out;    // The folder (made; its files replaced).
+  std::string type = "rbf";     // rbf | bilinear (OpenLIME's types).
+  int planes = 0;               // A multiple of 3; 0: the fewest the data needs.
+  std::string image = "jpg";    // jpg (at `quality`, what relight writes) | png (lossless).
+  int quality = 95;
+  double gain = 0.0;  // Display units per field unit; 0: the brightest sample is white.
+  // Bytes of memory for the field: as CompressOptions::memory_bytes (a larger field, or an .lp
+  // set with a budget, read in bands of a field file, three passes).
+  std::size_t memory_bytes = 0;
+  std::string validate() const;
+};
+
+struct OpenLimeExportSummary {
+  std::string representation;  // E.g. "rbf 9 planes".
+  std::string chosen;          // What was chosen from the data: "sigma 0.11", "grid 10x10".
+  int width = 0, height = 0, lights = 0;
+  std::uintmax_t input_bytes = 0, output_bytes = 0;  // On disk: the input, the folder written.
+  int band_rows = 0;                                 // Rows read at once; 0: whole.
+};
+
+// Throws InputError for bad options or inputs.
+OpenLimeExportSummary export_openlime(const OpenLimeExportOptions& options,
+                                      const ProgressFn& progress = {});
+
+// lightstage render: a compact file (.ptm, .rti, the lightstage PCA format, or an OpenLIME
+// folder of rbf or bilinear planes) relit under one distant light or an environment map: linear
+// radiance in field units (the file's codes dequantised), as OUT.exr with an auto-exposed OUT.png
+// beside it.
 struct RenderOptions {
-  std::filesystem::path input;
+  std::filesystem::path input;        // A file, or an OpenLIME folder (its info.json).
   std::filesystem::path out;          // .exr
   std::vector<double> light;          // X Y Z toward the light, stage frame (+Y up); or
   std::filesystem::path environment;  // an environment map (EXR/HDR) ...

@@ -147,8 +147,10 @@ float brightest_sample(const capture::ReflectanceField& field) {
   return brightest;
 }
 
-// PlaneField::build with every option given (gain resolved, planes > 0).
-PlaneField build_planes(const capture::ReflectanceField& field, const PlaneFieldOptions& options) {
+// PlaneField::build with every option given (gain resolved, planes > 0): two passes over the
+// bands, the covariance's and the coefficients'.
+PlaneField build_planes(const capture::ReflectanceField& field, const capture::FieldBands& bands,
+                        const PlaneFieldOptions& options) {
   PlaneField out;
   out.set_size(field.width(), field.height());
   out.interpolation = options.interpolation;
@@ -177,8 +179,8 @@ PlaneField build_planes(const capture::ReflectanceField& field, const PlaneField
                                                              options.sigma, options.regularization);
   // A pixel's vector: the display values at the lights, resampled to the basis's directions.
   const auto gain = float(out.gain);
-  const auto pixel_vector = [&](int x, int y, Eigen::MatrixXd& samples, Eigen::RowVectorXd& v) {
-    const float* values = field.pixel(x, y);
+  const auto pixel_vector = [&](const float* values, Eigen::MatrixXd& samples,
+                                Eigen::RowVectorXd& v) {
     for (Eigen::Index i = 0; i < n; ++i) {
       for (int k = 0; k < 3; ++k)
         samples(i, k) = srgb_encode(gain * values[3 * used[size_t(i)] + k]);
@@ -186,26 +188,29 @@ PlaneField build_planes(const capture::ReflectanceField& field, const PlaneField
     const Eigen::MatrixXd g = resample * samples;  // dims x 3
     for (Eigen::Index j = 0; j < g.rows(); ++j) v.segment<3>(3 * j) = g.row(j);
   };
-  // The covariance over evenly strided pixels, in blocks.
-  const long pixels = long(field.width()) * field.height();
+  // The covariance over evenly strided pixels (frame index a multiple of the stride), in blocks.
+  const long width = field.width(), pixels = width * field.height();
   const long stride = std::max(1L, pixels / options.max_pca_pixels);
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(d, d);
   Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(d);
   Eigen::MatrixXd block(1024, d), samples(n, 3);
   Eigen::RowVectorXd v(d);
-  long taken = 0;
-  for (long p = 0, rows = 0; p < pixels || rows > 0; p += stride) {
-    if (p < pixels) {
-      pixel_vector(int(p % field.width()), int(p / field.width()), samples, v);
+  long taken = 0, rows = 0;
+  const auto flush = [&] {
+    if (rows > 0) gram.selfadjointView<Eigen::Lower>().rankUpdate(block.topRows(rows).transpose());
+    rows = 0;
+  };
+  bands([&](const capture::ReflectanceField& band) {
+    const long first = band.first_row() * width, end = first + long(band.height()) * width;
+    for (long p = (first + stride - 1) / stride * stride; p < end; p += stride) {
+      pixel_vector(band.pixel(int(p % width), int((p - first) / width)), samples, v);
       block.row(rows++) = v;
       sum += v;
       ++taken;
+      if (rows == block.rows()) flush();
     }
-    if (rows == block.rows() || (p >= pixels && rows > 0)) {
-      gram.selfadjointView<Eigen::Lower>().rankUpdate(block.topRows(rows).transpose());
-      rows = 0;
-    }
-  }
+  });
+  flush();
   const Eigen::RowVectorXd mean = sum / double(taken);
   const Eigen::MatrixXd covariance =
       Eigen::MatrixXd(gram.selfadjointView<Eigen::Lower>()) / double(taken) -
@@ -233,17 +238,21 @@ PlaneField build_planes(const capture::ReflectanceField& field, const PlaneField
   const Eigen::MatrixXd solve =
       (eigen_rows * eigen_rows.transpose()).ldlt().solve(eigen_rows) * 255.0;  // planes x D
   std::vector<float> coefficients(size_t(pixels) * size_t(out.planes));
-  tbb::parallel_for(tbb::blocked_range<int>(0, field.height()), [&](const auto& rows) {
-    Eigen::MatrixXd s(n, 3);
-    Eigen::RowVectorXd row(d);
-    for (int y = rows.begin(); y < rows.end(); ++y) {
-      for (int x = 0; x < field.width(); ++x) {
-        pixel_vector(x, y, s, row);
-        const Eigen::VectorXd c = solve * (row - stored.row(0)).transpose();
-        float* to = coefficients.data() + (size_t(y) * field.width() + x) * size_t(out.planes);
-        for (int p = 0; p < out.planes; ++p) to[p] = float(c(p));
+  bands([&](const capture::ReflectanceField& band) {
+    tbb::parallel_for(tbb::blocked_range<int>(0, band.height()), [&](const auto& band_rows) {
+      Eigen::MatrixXd s(n, 3);
+      Eigen::RowVectorXd row(d);
+      for (int y = band_rows.begin(); y < band_rows.end(); ++y) {
+        for (int x = 0; x < band.width(); ++x) {
+          pixel_vector(band.pixel(x, y), s, row);
+          const Eigen::VectorXd c = solve * (row - stored.row(0)).transpose();
+          float* to =
+              coefficients.data() +
+              (size_t(band.first_row() + y) * size_t(width) + size_t(x)) * size_t(out.planes);
+          for (int p = 0; p < out.planes; ++p) to[p] = float(c(p));
+        }
       }
-    }
+    });
   });
   // Scale and bias per plane from the 0.25% and 99.75% quantiles (relight's rangeQuantile).
   out.scale.resize(size_t(out.planes));
@@ -276,7 +285,7 @@ PlaneField build_planes(const capture::ReflectanceField& field, const PlaneField
 double held_out_psnr(const capture::ReflectanceField& train, const PlaneFieldOptions& options,
                      const std::vector<Eigen::Vector3d>& held_dirs,
                      const std::vector<float>& held_codes) {
-  const PlaneField f = build_planes(train, options);
+  const PlaneField f = build_planes(train, capture::whole_field(train), options);
   std::vector<float> rgb;
   double squared = 0;
   const size_t per_light = size_t(train.width()) * 3;
@@ -296,13 +305,32 @@ double held_out_psnr(const capture::ReflectanceField& train, const PlaneFieldOpt
 
 PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
                                        PlaneFieldOptions options) {
+  return choose_plane_options(field, capture::whole_field(field), std::move(options));
+}
+
+PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
+                                       const capture::FieldBands& bands,
+                                       PlaneFieldOptions options) {
   if (const std::string e = options.validate(); !e.empty()) {
     throw InputError(field.source + ": planes: " + e);
   }
-  if (!(options.gain > 0)) {
-    const float brightest = brightest_sample(field);
-    options.gain = brightest > 0 ? 1.0 / brightest : 1.0;
-  }
+  // One pass over the bands: the brightest sample (for the default gain) and the values of every
+  // light at evenly strided pixels (frame index i * stride), to choose on.
+  const long width = field.width(), pixels = width * field.height();
+  const long count = std::min(pixels, 16384L), stride = pixels / count;
+  const size_t values = size_t(field.num_lights()) * 3;
+  std::vector<float> strided(size_t(count) * values);
+  float brightest = 0;
+  bands([&](const capture::ReflectanceField& band) {
+    if (!(options.gain > 0)) brightest = std::max(brightest, brightest_sample(band));
+    const long first = band.first_row() * width, end = first + long(band.height()) * width;
+    for (long p = (first + stride - 1) / stride * stride; p < end && p / stride < count;
+         p += stride) {
+      const float* v = band.pixel(int(p % width), int((p - first) / width));
+      std::copy(v, v + values, strided.begin() + std::ptrdiff_t(size_t(p / stride) * values));
+    }
+  });
+  if (!(options.gain > 0)) options.gain = brightest > 0 ? 1.0 / brightest : 1.0;
   const bool choose = options.from_data;
   options.from_data = false;
   std::vector<int> train, held;
@@ -315,9 +343,7 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
     if (options.planes == 0) options.planes = 9;
     return options;
   }
-  // The training lights at evenly strided pixels, one row; the held-out lights' codes.
-  const long pixels = long(field.width()) * field.height();
-  const long count = std::min(pixels, 16384L), stride = pixels / count;
+  // The training lights at the strided pixels, one row; the held-out lights' codes.
   std::vector<capture::FieldLight> lights;
   lights.reserve(train.size());
   for (const int l : train) lights.push_back(field.lights()[size_t(l)]);
@@ -328,7 +354,7 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
   std::vector<float> held_codes(held.size() * size_t(count) * 3);
   const auto gain = float(options.gain);
   for (long i = 0; i < count; ++i) {
-    const float* v = field.pixel(int(i * stride % field.width()), int(i * stride / field.width()));
+    const float* v = strided.data() + size_t(i) * values;
     for (size_t t = 0; t < train.size(); ++t) {
       for (int c = 0; c < 3; ++c) sample.at(int(i), 0, int(t), c) = v[3 * train[t] + c];
     }
@@ -379,7 +405,12 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
 
 PlaneField PlaneField::build(const capture::ReflectanceField& field,
                              const PlaneFieldOptions& options) {
-  return build_planes(field, choose_plane_options(field, options));
+  return build(field, capture::whole_field(field), options);
+}
+
+PlaneField PlaneField::build(const capture::ReflectanceField& header,
+                             const capture::FieldBands& bands, const PlaneFieldOptions& options) {
+  return build_planes(header, bands, choose_plane_options(header, bands, options));
 }
 
 std::vector<float> PlaneField::weights_at(const Eigen::Vector3d& dir) const {

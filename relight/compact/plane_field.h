@@ -56,6 +56,9 @@ struct PlaneFieldOptions {
 // the options to build with (from_data off, gain resolved).
 PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
                                        PlaneFieldOptions options);
+// The same over a field in bands (`header`: its size and lights): one pass.
+PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& header,
+                                       const capture::FieldBands& bands, PlaneFieldOptions options);
 
 class PlaneField : public CompactField {
  public:
@@ -63,6 +66,10 @@ class PlaneField : public CompactField {
   // Valid LEDs in front of the image plane (z > 0) take part; InputError when too few. With
   // options.from_data, choose_plane_options first.
   static PlaneField build(const capture::ReflectanceField& field, const PlaneFieldOptions& options);
+  // A field in bands (`header`: its size and lights), never held whole: three passes (the choice
+  // from the data, the covariance, the coefficients), the same planes as from the field whole.
+  static PlaneField build(const capture::ReflectanceField& header, const capture::FieldBands& bands,
+                          const PlaneFieldOptions& options);
 
   std::string name() const override;  // E.g. "rbf 9 planes".
   int width() const override { return width_; }

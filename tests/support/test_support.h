@@ -40,6 +40,9 @@ using ls::ImageError;
 // Runs a shell command, capturing stdout+stderr; returns the exit status.
 int run_command(const std::string& command, std::string* output);
 
+// The file's bytes ("" when it cannot be read).
+std::string file_bytes(const std::filesystem::path& path);
+
 // Overwrites `size` bytes of the file at byte `offset` from its end (a damaged file).
 void patch_from_end(const std::filesystem::path& path, std::uintmax_t offset, const void* bytes,
                     std::size_t size);

@@ -50,5 +50,51 @@ TEST(CompressCommand, ImportsAnLpCaptureIntoEachRepresentation) {
   EXPECT_NE(output.find("--rank"), std::string::npos) << output;
 }
 
+// Within --memory the set goes through a field file in bands: the same bytes as imported whole.
+// `export openlime` writes the folder OpenLIME opens; `render` reads it back.
+TEST(CompressCommand, WithinMemoryTheSameFilesAndOpenLimeFolders) {
+  if (!std::filesystem::exists(compact_testing::real_lp())) {
+    GTEST_SKIP() << compact_testing::real_lp() << " is absent";
+  }
+  namespace fs = std::filesystem;
+  testing::TempDir dir;
+  const std::string lp = compact_testing::real_lp().string(), cli = testing::cli_path().string();
+  const std::string small = " --memory 200000";  // Bands of a few rows of the 64x43 set.
+  std::string output;
+  for (const std::string& memory : {std::string(), small}) {
+    const std::string tag = memory.empty() ? "whole" : "bands";
+    ASSERT_EQ(testing::run_command(cli + " compress " + lp + " --format hsh3" + memory + " --out " +
+                                       (dir / (tag + ".rti")).string(),
+                                   &output),
+              0)
+        << output;
+    ASSERT_EQ(testing::run_command(cli + " export openlime " + lp + " --planes 9" + memory +
+                                       " --out " + (dir / tag).string(),
+                                   &output),
+              0)
+        << output;
+    EXPECT_NE(output.find("OpenLIME rbf 9 planes"), std::string::npos) << output;
+    EXPECT_EQ(output.find("read in bands") != std::string::npos, !memory.empty()) << output;
+  }
+  EXPECT_EQ(testing::file_bytes(dir / "whole.rti"), testing::file_bytes(dir / "bands.rti"));
+  for (const char* file : {"info.json", "plane_0.jpg", "plane_2.jpg"}) {
+    EXPECT_EQ(testing::file_bytes(dir / "whole" / file), testing::file_bytes(dir / "bands" / file))
+        << file;
+  }
+  EXPECT_FALSE(fs::exists(dir / "whole" / "plane_3.jpg"));
+  EXPECT_FALSE(fs::exists(dir / "bands.rti.imported.exr"));  // The field file is removed.
+  ASSERT_EQ(testing::run_command(cli + " render " + (dir / "whole").string() +
+                                     " --light 0.2 0.3 0.93 --out " + (dir / "lit.exr").string(),
+                                 &output),
+            0)
+      << output;
+  EXPECT_NE(output.find("64x43, rbf 9 planes relit"), std::string::npos) << output;
+  EXPECT_EQ(
+      testing::run_command(
+          cli + " export openlime " + lp + " --type ptm --out " + (dir / "x").string(), &output),
+      2);
+  EXPECT_NE(output.find("--type"), std::string::npos) << output;
+}
+
 }  // namespace
 }  // namespace ls

@@ -13,11 +13,6 @@
 namespace ls::relight {
 namespace {
 
-std::string file_bytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
-
 // A field whose every pixel is an exact combination of the basis (plus, per pixel, a colour).
 capture::ReflectanceField field_in_basis(RtiBasis basis) {
   const Stage stage = sim::rti_dome_stage(60, 10.0, 6);
@@ -131,7 +126,7 @@ TEST_P(RtiFormatRoundTrip, WriteReadWriteIsBitExactAndValuesWithinQuantisation) 
   write_rti_file(a, quantise(fit));
   const RtiFile read = read_rti_file(a);
   write_rti_file(b, read);
-  EXPECT_EQ(file_bytes(a), file_bytes(b));
+  EXPECT_EQ(testing::file_bytes(a), testing::file_bytes(b));
   EXPECT_EQ(read.width, field.width());
   EXPECT_EQ(read.height, field.height());
   EXPECT_EQ(read.srgb, p.srgb);
