@@ -305,7 +305,7 @@ double held_out_psnr(const capture::ReflectanceField& train, const PlaneFieldOpt
 
 PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
                                        PlaneFieldOptions options) {
-  return choose_plane_options(field, capture::whole_field(field), std::move(options));
+  return choose_plane_options(field, capture::whole_field(field), options);
 }
 
 PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
