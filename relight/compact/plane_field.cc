@@ -314,24 +314,27 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
   if (const std::string e = options.validate(); !e.empty()) {
     throw InputError(field.source + ": planes: " + e);
   }
-  // One pass over the bands: the brightest sample (for the default gain) and the values of every
-  // light at evenly strided pixels (frame index i * stride), to choose on.
+  // One pass over the bands (when there is something to find): the brightest sample (for the
+  // default gain) and the values of every light at evenly strided pixels (frame index i * stride),
+  // to choose on.
   const long width = field.width(), pixels = width * field.height();
   const long count = std::min(pixels, 16384L), stride = pixels / count;
   const size_t values = size_t(field.num_lights()) * 3;
   std::vector<float> strided(size_t(count) * values);
   float brightest = 0;
-  bands([&](const capture::ReflectanceField& band) {
-    if (!(options.gain > 0)) brightest = std::max(brightest, brightest_sample(band));
-    const long first = band.first_row() * width, end = first + long(band.height()) * width;
-    for (long p = (first + stride - 1) / stride * stride; p < end && p / stride < count;
-         p += stride) {
-      const float* v = band.pixel(int(p % width), int((p - first) / width));
-      std::copy(v, v + values, strided.begin() + std::ptrdiff_t(size_t(p / stride) * values));
-    }
-  });
-  if (!(options.gain > 0)) options.gain = brightest > 0 ? 1.0 / brightest : 1.0;
   const bool choose = options.from_data;
+  if (choose || !(options.gain > 0)) {
+    bands([&](const capture::ReflectanceField& band) {
+      if (!(options.gain > 0)) brightest = std::max(brightest, brightest_sample(band));
+      const long first = band.first_row() * width, end = first + long(band.height()) * width;
+      for (long p = (first + stride - 1) / stride * stride; p < end && p / stride < count;
+           p += stride) {
+        const float* v = band.pixel(int(p % width), int((p - first) / width));
+        std::copy(v, v + values, strided.begin() + std::ptrdiff_t(size_t(p / stride) * values));
+      }
+    });
+  }
+  if (!(options.gain > 0)) options.gain = brightest > 0 ? 1.0 / brightest : 1.0;
   options.from_data = false;
   std::vector<int> train, held;
   for (int l = 0, k = 0; l < field.num_lights(); ++l) {
