@@ -34,12 +34,12 @@ struct OlatImageSet {
   std::vector<std::string> notes;
 };
 
-// Reads every image (in parallel), undoes the transfer curve, applies the mask, downsizes to
-// options.max_size and divides by each light's intensity. All images must share the first one's
-// size. Integer files give each light its saturation ceiling (FieldLight::saturates_at).
 // The field's size and lights without its values: only the first image's header is read.
 ReflectanceField images_header(OlatImageSet set, const OlatImportOptions& options);
 
+// Reads every image (in parallel), undoes the transfer curve, applies the mask, downsizes to
+// options.max_size and divides by each light's intensity. All images must share the first one's
+// size. Integer files give each light its saturation ceiling (FieldLight::saturates_at).
 ReflectanceField import_images(OlatImageSet set, const OlatImportOptions& options,
                                OlatImportSummary* summary);
 

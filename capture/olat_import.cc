@@ -441,6 +441,12 @@ ReflectanceField olat_header(const fs::path& source, const OlatImportOptions& op
   return images_header(read_set(source, options), options);
 }
 
+std::uintmax_t olat_image_bytes(const fs::path& source) {
+  std::uintmax_t bytes = 0;
+  for (const OlatLight& light : read_set(source, {}).lights) bytes += fs::file_size(light.image);
+  return bytes;
+}
+
 int import_olat_to_file(const fs::path& source, const OlatImportOptions& options,
                         const fs::path& out, const ExrAttributes& attributes,
                         std::size_t memory_bytes, const LightImageFn& on_light,

@@ -16,6 +16,7 @@
 // curve and the intensity), so relight/fit/normals.h and fit.h leave such samples out as censored;
 // they are counted and reported (summary). With `zero_saturated` they become 0 instead, which the
 // normals and fits treat as shadowed (left out), at the cost of darkening relit highlights.
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -95,6 +96,8 @@ ReflectanceField import_olat(const std::filesystem::path& source, const OlatImpo
 // The field `source` imports into, without its values (size, lights): cheap, only the first
 // image's header is read. InputErrors as import_olat's for the set's description.
 ReflectanceField olat_header(const std::filesystem::path& source, const OlatImportOptions& options);
+// The bytes on disk of the images `source` lists: what the user holds of the set.
+std::uintmax_t olat_image_bytes(const std::filesystem::path& source);
 
 // A light's image as imported (width * height * 3 floats, field units) and its direction.
 using LightImageFn = std::function<void(int light, const Eigen::Vector3d& dir_in_stage,

@@ -2,7 +2,6 @@
 
 #include <Eigen/Core>
 #include <algorithm>
-#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -214,24 +213,10 @@ std::string CompressOptions::to_json() const {
       .dump();
 }
 
-// Bytes of the input on disk: an EXR's file, or the images of an .lp set (every JPEG, PNG or TIFF
-// in the folder of its .lp file and below).
+// Bytes of the input on disk: an EXR's file, or the images an .lp set lists.
 std::uintmax_t input_bytes(const fs::path& input) {
   if (!fs::is_directory(input) && input.extension() != ".lp") return fs::file_size(input);
-  std::uintmax_t bytes = 0;
-  const fs::path dir = fs::is_directory(input)       ? input
-                       : input.parent_path().empty() ? fs::path(".")
-                                                     : input.parent_path();
-  for (const auto& entry : fs::recursive_directory_iterator(dir)) {
-    std::string ext = entry.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return std::tolower(c); });
-    if (entry.is_regular_file() &&
-        (ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".tif" || ext == ".tiff")) {
-      bytes += entry.file_size();
-    }
-  }
-  return bytes;
+  return capture::olat_image_bytes(input);
 }
 
 namespace {

@@ -1,6 +1,8 @@
 // `lightstage compress`: the real .lp capture straight into each representation, and usage errors.
 #include <gtest/gtest.h>
 
+#include <fstream>
+
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_io.h"
 #include "tests/relight/compact/compact_fixtures.h"
@@ -39,6 +41,16 @@ TEST(CompressCommand, ImportsAnLpCaptureIntoEachRepresentation) {
   std::snprintf(sizes, sizeof sizes, "wrote %.2f MiB from 3.58 MiB of input",
                 double(std::filesystem::file_size(dir / "lion.lspca")) / (1 << 20));
   EXPECT_NE(output.find(sizes), std::string::npos) << output;
+  // Only the images the .lp lists count, also for an .lp named from its own folder.
+  std::filesystem::copy(compact_testing::real_lp().parent_path(), dir / "set",
+                        std::filesystem::copy_options::recursive);
+  std::ofstream(dir / "set" / "unlisted.jpg") << std::string(1 << 20, 'x');
+  ASSERT_EQ(testing::run_command("cd " + (dir / "set").string() + " && " + cli +
+                                     " compress dirs.lp --format hsh2 --out x.rti",
+                                 &output),
+            0)
+      << output;
+  EXPECT_NE(output.find("from 3.58 MiB of input"), std::string::npos) << output;
   // Bad input: exit 2 with a message naming the option.
   EXPECT_EQ(testing::run_command(
                 cli + " compress " + lp + " --format jpeg --out " + (dir / "x").string(), &output),
