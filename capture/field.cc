@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -471,6 +472,12 @@ void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
 }
 
 }  // namespace
+
+float ReflectanceField::largest_value() const {
+  float largest = 0;
+  for (const float v : values_) largest = std::max(largest, std::isfinite(v) ? v : 0.0f);
+  return largest;
+}
 
 void ReflectanceField::set_light_image(int light, const std::vector<float>& rgb) {
   for (std::size_t p = 0; p < std::size_t(width_) * height_; ++p) {

@@ -107,6 +107,8 @@ class ReflectanceField {
   }
 
   const std::vector<float>& values() const { return values_; }
+  // The largest finite value (0 when there is none): what a display-referred export makes white.
+  float largest_value() const;
   std::size_t bytes() const { return values_.size() * sizeof(float); }
   static std::size_t bytes_for(int width, int height, int num_lights) {
     return std::size_t(width) * height * num_lights * 3 * sizeof(float);

@@ -131,7 +131,7 @@ LeaveLightsOutResult leave_lights_out(const capture::ReflectanceField& field,
   double squared = 0, ssim_sum = 0, squared_codes = 0;
   size_t count = 0;
   const auto gain = float(options.display_gain > 0 ? options.display_gain : 1.0 / peak);
-  const auto code = [gain](float v) { return std::round(255.0f * srgb_encode(gain * v)); };
+  const auto code = [gain](float v) { return srgb8_code(gain * v); };
   Image predicted, reference(field.width(), field.height(), 3);
   for (int l : held_out) {
     compact->relight_into(relight::LightingForModels::directional(field.lights()[l].dir_in_stage,

@@ -162,9 +162,7 @@ RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& 
   const fs::path scratch = options.out / ".rti_bench_scratch";  // Each format's files, a while.
   fs::create_directories(scratch);
   for (const auto& [scene, field] : scenes) {
-    const double gain = scene.starts_with("real")
-                            ? 1.0
-                            : 1.0 / *std::max_element(field.values().begin(), field.values().end());
+    const double gain = scene.starts_with("real") ? 1.0 : 1.0 / field.largest_value();
     const std::vector<Format> list = formats(gain, options.quick, scratch);
     LeaveLightsOutOptions leave_out;
     leave_out.display_gain = gain;

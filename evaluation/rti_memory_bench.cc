@@ -28,7 +28,7 @@ fs::path write_jpeg_set(const RtiMemoryOptions& options, const fs::path& dir,
   const capture::ReflectanceField field =
       sim::render_ideal_field(stage, sim::rti_scene(sim::RtiScene::kGlossy));
   report(progress, "bench rti memory: render", 1, 1);
-  const float brightest = *std::max_element(field.values().begin(), field.values().end());
+  const float brightest = field.largest_value();
   fs::create_directories(dir / "images");
   std::string lp = std::to_string(field.num_lights()) + "\n";
   std::vector<uint8_t> rgb(std::size_t(field.width()) * field.height() * 3);
@@ -37,8 +37,7 @@ fs::path write_jpeg_set(const RtiMemoryOptions& options, const fs::path& dir,
       for (int x = 0; x < field.width(); ++x) {
         for (int c = 0; c < 3; ++c) {
           const float v = std::clamp(field.at(x, y, l, c) / brightest, 0.0f, 1.0f);
-          rgb[(std::size_t(y) * field.width() + x) * 3 + c] =
-              uint8_t(std::lround(255 * srgb_encode(v)));
+          rgb[(std::size_t(y) * field.width() + x) * 3 + c] = uint8_t(srgb8_code(v));
         }
       }
     }

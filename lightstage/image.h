@@ -1,6 +1,7 @@
 #pragma once
 // Images in memory and on disk. Everything in memory is linear, scene-referred float; 8-bit output
 // exists only for previews. Row 0 is the top row. Image I/O libraries stay in image.cc.
+#include <cmath>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -68,6 +69,8 @@ void write_rgb8(const std::filesystem::path& path, int width, int height, const 
 // (NaN gives 0).
 float srgb_encode(float linear);
 float srgb_decode(float encoded);
+// The 8-bit sRGB code (0..255, rounded) of a linear display value: what an 8-bit image holds.
+inline float srgb8_code(float linear) { return std::round(255.0f * srgb_encode(linear)); }
 
 // Exposure (in stops) that puts the image's 99th-percentile luminance near white.
 double auto_exposure_stops(const Image& image, double percentile = 0.99);

@@ -263,20 +263,15 @@ fs::path field_within_budget(const fs::path& input, const fs::path& out, std::si
 // white. From the field in memory, or a pass over the file in bands (rank 0's, shared).
 double white_gain(capture::FieldStream* stream, int rows, const capture::ReflectanceField& whole,
                   const Ranks& ranks) {
-  const auto largest = [](const capture::ReflectanceField& field) {
-    float m = 0;
-    for (const float v : field.values()) m = std::max(m, std::isfinite(v) ? v : 0.0f);
-    return m;
-  };
   std::vector<double> brightest = {0.0};
   if (!stream) {
-    brightest[0] = largest(whole);
+    brightest[0] = whole.largest_value();
   } else if (ranks.root()) {
     const int height = stream->height();  // In the bands' rows: within --memory.
     capture::ReflectanceField band;
     for (int y0 = 0; y0 < height; y0 += rows) {
       stream->read_rows(y0, std::min(height, y0 + rows), band);
-      brightest[0] = std::max(brightest[0], double(largest(band)));
+      brightest[0] = std::max(brightest[0], double(band.largest_value()));
     }
   }
   ranks.broadcast(brightest);

@@ -141,12 +141,6 @@ double PlaneField::bytes_per_pixel() const {
 
 namespace {
 
-float brightest_sample(const capture::ReflectanceField& field) {
-  float brightest = 0;
-  for (const float v : field.values()) brightest = std::max(brightest, std::isfinite(v) ? v : 0);
-  return brightest;
-}
-
 // PlaneField::build with every option given (gain resolved, planes > 0): two passes over the
 // bands, the covariance's and the coefficients'.
 PlaneField build_planes(const capture::ReflectanceField& field, const capture::FieldBands& bands,
@@ -325,7 +319,7 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
   const bool choose = options.from_data;
   if (choose || !(options.gain > 0)) {
     bands([&](const capture::ReflectanceField& band) {
-      if (!(options.gain > 0)) brightest = std::max(brightest, brightest_sample(band));
+      if (!(options.gain > 0)) brightest = std::max(brightest, band.largest_value());
       const long first = band.first_row() * width, end = first + long(band.height()) * width;
       for (long p = (first + stride - 1) / stride * stride; p < end && p / stride < count;
            p += stride) {
@@ -364,7 +358,7 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
     for (size_t h = 0; h < held.size(); ++h) {
       for (int c = 0; c < 3; ++c) {
         held_codes[(h * size_t(count) + size_t(i)) * 3 + size_t(c)] =
-            std::round(255.0f * srgb_encode(gain * v[3 * held[h] + c]));
+            srgb8_code(gain * v[3 * held[h] + c]);
       }
     }
   }
