@@ -18,6 +18,7 @@
 #include <tuple>
 
 #include "capture/band_spill.h"
+#include "capture/olat_pixels.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 
@@ -25,28 +26,6 @@ namespace ls::capture {
 namespace {
 
 namespace fs = std::filesystem;
-
-struct ImageHeader {
-  int width = 0, height = 0, channels = 0;
-  OIIO::TypeDesc format;
-};
-
-std::unique_ptr<OIIO::ImageInput> open_image(const fs::path& path, const std::string& at) {
-  auto in = OIIO::ImageInput::open(path.string());
-  if (!in) {
-    throw InputError(at + ": image: cannot read " + path.string() + ": " + OIIO::geterror());
-  }
-  return in;
-}
-
-ImageHeader header_of(const OIIO::ImageInput& in) {
-  const OIIO::ImageSpec& spec = in.spec();
-  return {spec.width, spec.height, spec.nchannels, spec.format};
-}
-
-bool is_integer_format(OIIO::TypeDesc format) {
-  return format.basetype == OIIO::TypeDesc::UINT8 || format.basetype == OIIO::TypeDesc::UINT16;
-}
 
 std::string pixel_format_text(const ImageHeader& h) {
   const std::string depth = h.format.basetype == OIIO::TypeDesc::UINT8    ? "8-bit"
@@ -62,41 +41,6 @@ std::string pixel_format_text(const ImageHeader& h) {
 }
 
 std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
-
-// Code (normalised to [0, 1]) -> linear value, tabulated per code for 8- and 16-bit files.
-class Linearizer {
- public:
-  Linearizer(TransferCurve curve, double gamma) : curve_(curve), gamma_(gamma) {
-    for (int bits : {8, 16}) {
-      const int max_code = (1 << bits) - 1;
-      std::vector<float>& table = bits == 8 ? table8_ : table16_;
-      table.resize(max_code + 1);
-      for (int code = 0; code <= max_code; ++code)
-        table[code] = float(apply(double(code) / max_code));
-    }
-  }
-  const std::vector<float>* table(OIIO::TypeDesc format) const {
-    if (format.basetype == OIIO::TypeDesc::UINT8) return &table8_;
-    if (format.basetype == OIIO::TypeDesc::UINT16) return &table16_;
-    return nullptr;  // Float files are linear already.
-  }
-
- private:
-  double apply(double v) const {
-    switch (curve_) {
-      case TransferCurve::kSrgb:
-        return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
-      case TransferCurve::kGamma:
-        return std::pow(v, gamma_);
-      case TransferCurve::kLinear:
-        break;
-    }
-    return v;
-  }
-  TransferCurve curve_;
-  double gamma_;
-  std::vector<float> table8_, table16_;
-};
 
 std::string transfer_text(TransferCurve curve, double gamma) {
   switch (curve) {
@@ -128,7 +72,7 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
                        const Linearizer& linearizer, const OlatImportOptions& options, int width,
                        int height, FieldLight& field_light, std::vector<float>& rgb_out) {
   const OlatLight& entry = job.lights[light];
-  const auto in = open_image(entry.image, entry.where);
+  const auto in = open_olat_image(entry.image, entry.where);
   const ImageHeader h = header_of(*in);
   if (h.width != first.width || h.height != first.height) {
     throw InputError(entry.where + ": image size: expected " +
@@ -141,38 +85,16 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
     throw InputError(entry.where + ": image: cannot decode " + entry.image.string() + ": " +
                      in->geterror());
   }
+  check_decoded(*in, entry.where, entry.image);
   const std::size_t pixels = std::size_t(h.width) * h.height;
   const bool integer = is_integer_format(h.format);
   const std::vector<float>* table = linearizer.table(h.format);
-  const int max_code = h.format.basetype == OIIO::TypeDesc::UINT8 ? 255 : 65535;
+  const int max_code = max_code_of(h.format);
   cv::Mat rgb(h.height, h.width, CV_32FC3);
   cv::Mat saturated(h.height, h.width, CV_32FC3, cv::Scalar::all(0));
-  auto* out = rgb.ptr<float>();
-  auto* sat = saturated.ptr<float>();
-  long long saturated_count = 0;
-  for (std::size_t p = 0; p < pixels; ++p) {
-    const bool inside = job.mask.empty() || job.mask[p] > 0;
-    for (int c = 0; c < 3; ++c) {
-      // Grey files feed all three channels; alpha and extra channels are ignored.
-      const int source_channel = h.channels < 3 ? 0 : c;
-      float v = raw[p * h.channels + source_channel];
-      if (!std::isfinite(v)) {
-        throw InputError(entry.where + ": image: " + entry.image.string() +
-                         " has a non-finite value at pixel (" + std::to_string(p % h.width) + ", " +
-                         std::to_string(p / h.width) + ")");
-      }
-      if (integer) {
-        const int code = std::clamp(int(std::lround(v * max_code)), 0, max_code);
-        if (code == max_code && inside) {
-          sat[p * 3 + c] = 1.0f;
-          ++saturated_count;
-        }
-        v = (*table)[code];
-      }
-      if (!inside || (options.zero_saturated && sat[p * 3 + c] > 0)) v = 0.0f;
-      out[p * 3 + c] = std::max(v, 0.0f);
-    }
-  }
+  const long long saturated_count = linearise_pixels(
+      raw.data(), h, pixels, 0, job.mask.empty() ? nullptr : job.mask.data(), linearizer,
+      options.zero_saturated, rgb.ptr<float>(), saturated.ptr<float>(), entry.where, entry.image);
   if (width != h.width || height != h.height) {
     const cv::Size size(width, height);
     cv::Mat small;
@@ -231,7 +153,7 @@ class SetImport {
     }
     if (job_.lights.empty()) throw InputError(job_.source.string() + ": no lights listed");
     {
-      const auto in = open_image(job_.lights[0].image, job_.lights[0].where);
+      const auto in = open_olat_image(job_.lights[0].image, job_.lights[0].where);
       first_ = header_of(*in);
     }
     if (!job_.mask.empty() &&
@@ -470,7 +392,7 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
 }
 
 void read_mask(const fs::path& mask_file, OlatImageSet& job) {
-  const auto in = open_image(mask_file, mask_file.string());
+  const auto in = open_olat_image(mask_file, mask_file.string());
   const ImageHeader h = header_of(*in);
   std::vector<float> raw(std::size_t(h.width) * h.height * h.channels);
   if (!in->read_image(0, 0, 0, h.channels, OIIO::TypeDesc::FLOAT, raw.data())) {

@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -55,6 +56,9 @@ int import_images_to_file(OlatImageSet set, const OlatImportOptions& options,
                           const std::filesystem::path& out, const ExrAttributes& attributes,
                           std::size_t memory_bytes, const LightImageFn& on_light,
                           OlatImportSummary* summary, const RankSplit& split = {});
+
+// OlatBands::open's work once the set is read (olat_bands.cc).
+std::unique_ptr<OlatBands> open_olat_bands(OlatImageSet set, const OlatImportOptions& options);
 
 // Reads a mask image into set.mask (non-zero in any of the first three channels = object).
 void read_mask(const std::filesystem::path& mask_file, OlatImageSet& set);

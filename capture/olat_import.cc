@@ -441,6 +441,11 @@ ReflectanceField olat_header(const fs::path& source, const OlatImportOptions& op
   return images_header(read_set(source, options), options);
 }
 
+std::unique_ptr<OlatBands> OlatBands::open(const fs::path& source,
+                                           const OlatImportOptions& options) {
+  return open_olat_bands(read_set(source, options), options);
+}
+
 std::uintmax_t olat_image_bytes(const fs::path& source) {
   std::uintmax_t bytes = 0;
   for (const OlatLight& light : read_set(source, {}).lights) bytes += fs::file_size(light.image);

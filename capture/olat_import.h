@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -98,6 +99,39 @@ ReflectanceField import_olat(const std::filesystem::path& source, const OlatImpo
 ReflectanceField olat_header(const std::filesystem::path& source, const OlatImportOptions& options);
 // The bytes on disk of the images `source` lists: what the user holds of the set.
 std::uintmax_t olat_image_bytes(const std::filesystem::path& source);
+
+// An OLAT set read in bands of rows straight from its images, every light's rows of a band at
+// once: the values import_olat gives, with neither the field in memory nor a copy on disk (a set
+// larger than memory, issue 18). Every image stays open and its decoder reads on from where the
+// last band ended; a band above the last one read opens the images again (a new pass).
+class OlatBands {
+ public:
+  // Null when the set cannot be read so: imported at another size (options.max_size), or more
+  // images than may be open at once (kMaxOpenImages). InputErrors as import_olat's.
+  static std::unique_ptr<OlatBands> open(const std::filesystem::path& source,
+                                         const OlatImportOptions& options);
+  static constexpr int kMaxOpenImages = 512;
+  ~OlatBands();
+  OlatBands(const OlatBands&) = delete;
+  OlatBands& operator=(const OlatBands&) = delete;
+
+  int width() const { return header_.width(); }
+  int height() const { return header_.height(); }
+  // The field's lights (with the images' saturation ceilings) and attributes, no values.
+  const ReflectanceField& header() const { return header_; }
+  // The rows of a band that, with the decoding buffers, fits in `bytes` (at least one).
+  int rows_within(std::size_t bytes) const;
+  // Rows [y0, y1) into band (reallocated only when its size changes). InputError naming the .lp
+  // line and the image when one cannot be decoded there.
+  void read_rows(int y0, int y1, ReflectanceField& band);
+
+  struct Images;  // The open images (olat_bands.cc).
+  OlatBands(std::unique_ptr<Images> images, ReflectanceField header);
+
+ private:
+  std::unique_ptr<Images> images_;
+  ReflectanceField header_;
+};
 
 // A light's image as imported (width * height * 3 floats, field units) and its direction.
 using LightImageFn = std::function<void(int light, const Eigen::Vector3d& dir_in_stage,

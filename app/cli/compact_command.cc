@@ -43,8 +43,8 @@ void add_compress_command(CLI::App& app) {
   compress->add_option("--memory", args->memory_bytes,
                        "Bytes of memory for the field: a larger one is read in bands of rows "
                        "(default: whole when it takes at most half of what is available). An .lp "
-                       "set with --memory, or larger than that, is imported into a field file "
-                       "beside the output first.");
+                       "set is always read in bands straight from its images, of 32 MiB unless "
+                       "this is given.");
   compress->callback([args] {
     // A bad --format or --rank is bad input (exit 2), as before options were validated here.
     const jobs::CompressSummary summary = jobs::compress(*args);
@@ -103,9 +103,9 @@ void add_export_command(CLI::App& app) {
                    "Display units (white = 1) per field unit; 0: the brightest sample is white.")
       ->capture_default_str();
   openlime->add_option("--memory", args->memory_bytes,
-                       "Bytes of memory for the field: a larger one (or an .lp set with "
-                       "--memory, imported into a field file beside the folder first) is read in "
-                       "bands of rows, three passes (default: as compress).");
+                       "Bytes of memory for the field: a larger one is read in bands of rows, "
+                       "three passes (default: as compress; an .lp set is always read in bands "
+                       "straight from its images).");
   openlime->callback([args] {
     // Bad options are bad input (exit 2), as compress's.
     const jobs::OpenLimeExportSummary summary =

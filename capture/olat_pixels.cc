@@ -1,0 +1,104 @@
+#include "capture/olat_pixels.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "lightstage/errors.h"
+
+namespace ls::capture {
+
+std::unique_ptr<OIIO::ImageInput> open_olat_image(const std::filesystem::path& path,
+                                                  const std::string& at) {
+  auto in = OIIO::ImageInput::open(path.string());
+  if (!in) {
+    throw InputError(at + ": image: cannot read " + path.string() + ": " + OIIO::geterror());
+  }
+  return in;
+}
+
+ImageHeader header_of(const OIIO::ImageInput& in) {
+  const OIIO::ImageSpec& spec = in.spec();
+  return {spec.width, spec.height, spec.nchannels, spec.format};
+}
+
+void check_decoded(OIIO::ImageInput& in, const std::string& at,
+                   const std::filesystem::path& image) {
+  const std::string message = in.geterror();
+  if (message.find("Premature end") != std::string::npos) {
+    throw InputError(at + ": image: " + image.string() + " is cut short (" + message + ")");
+  }
+}
+
+bool is_integer_format(OIIO::TypeDesc format) {
+  return format.basetype == OIIO::TypeDesc::UINT8 || format.basetype == OIIO::TypeDesc::UINT16;
+}
+
+int max_code_of(OIIO::TypeDesc format) {
+  return format.basetype == OIIO::TypeDesc::UINT8 ? 255 : 65535;
+}
+
+Linearizer::Linearizer(TransferCurve curve, double gamma) : curve_(curve), gamma_(gamma) {
+  for (int bits : {8, 16}) {
+    const int max_code = (1 << bits) - 1;
+    std::vector<float>& table = bits == 8 ? table8_ : table16_;
+    table.resize(max_code + 1);
+    for (int code = 0; code <= max_code; ++code)
+      table[code] = float(apply(double(code) / max_code));
+  }
+}
+
+const std::vector<float>* Linearizer::table(OIIO::TypeDesc format) const {
+  if (format.basetype == OIIO::TypeDesc::UINT8) return &table8_;
+  if (format.basetype == OIIO::TypeDesc::UINT16) return &table16_;
+  return nullptr;
+}
+
+double Linearizer::apply(double v) const {
+  switch (curve_) {
+    case TransferCurve::kSrgb:
+      return v <= 0.04045 ? v / 12.92 : std::pow((v + 0.055) / 1.055, 2.4);
+    case TransferCurve::kGamma:
+      return std::pow(v, gamma_);
+    case TransferCurve::kLinear:
+      break;
+  }
+  return v;
+}
+
+long long linearise_pixels(const float* raw, const ImageHeader& h, std::size_t pixels,
+                           std::size_t first_pixel, const float* mask, const Linearizer& linearizer,
+                           bool zero_saturated, float* rgb, float* saturated, const std::string& at,
+                           const std::filesystem::path& image) {
+  const bool integer = is_integer_format(h.format);
+  const std::vector<float>* table = linearizer.table(h.format);
+  const int max_code = max_code_of(h.format);
+  long long saturated_count = 0;
+  for (std::size_t p = 0; p < pixels; ++p) {
+    const bool inside = mask == nullptr || mask[p] > 0;
+    for (int c = 0; c < 3; ++c) {
+      const int source_channel = h.channels < 3 ? 0 : c;
+      float v = raw[p * h.channels + source_channel];
+      if (!std::isfinite(v)) {
+        const std::size_t at_pixel = first_pixel + p;
+        throw InputError(at + ": image: " + image.string() + " has a non-finite value at pixel (" +
+                         std::to_string(at_pixel % h.width) + ", " +
+                         std::to_string(at_pixel / h.width) + ")");
+      }
+      bool clipped = false;
+      if (integer) {
+        const int code = std::clamp(int(std::lround(v * max_code)), 0, max_code);
+        clipped = code == max_code && inside;
+        if (clipped) {
+          if (saturated != nullptr) saturated[p * 3 + c] = 1.0f;
+          ++saturated_count;
+        }
+        v = (*table)[code];
+      }
+      if (!inside || (zero_saturated && clipped)) v = 0.0f;
+      rgb[p * 3 + c] = std::max(v, 0.0f);
+    }
+  }
+  return saturated_count;
+}
+
+}  // namespace ls::capture

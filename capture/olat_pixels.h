@@ -1,0 +1,60 @@
+#pragma once
+// What the OLAT importers do to each image's pixels, shared by the whole-image import
+// (olat_images.cc) and the band reader (olat_bands.cc) so that both give the same values: open
+// and check an image, undo its transfer curve, mask, count and (optionally) zero saturated codes.
+#include <OpenImageIO/imageio.h>
+
+#include <cstddef>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "capture/olat_import.h"
+
+namespace ls::capture {
+
+struct ImageHeader {
+  int width = 0, height = 0, channels = 0;
+  OIIO::TypeDesc format;
+};
+
+// InputError naming `at` (the .lp line or file) and the image when it cannot be opened.
+std::unique_ptr<OIIO::ImageInput> open_olat_image(const std::filesystem::path& path,
+                                                  const std::string& at);
+ImageHeader header_of(const OIIO::ImageInput& in);
+bool is_integer_format(OIIO::TypeDesc format);
+// The largest code of an integer format (255 or 65535).
+int max_code_of(OIIO::TypeDesc format);
+
+// After a read that succeeded: libjpeg reports a file cut short only as a warning (OIIO passes it
+// on in geterror() and fills the rest grey), which is an InputError here naming `at` and the
+// image. Other decoder warnings (e.g. extraneous bytes, common in camera files) pass.
+void check_decoded(OIIO::ImageInput& in, const std::string& at, const std::filesystem::path& image);
+
+// Code (normalised to [0, 1]) -> linear value, tabulated per code for 8- and 16-bit files.
+class Linearizer {
+ public:
+  Linearizer(TransferCurve curve, double gamma);
+  // Null for float files: they are linear already.
+  const std::vector<float>* table(OIIO::TypeDesc format) const;
+
+ private:
+  double apply(double v) const;
+  TransferCurve curve_;
+  double gamma_;
+  std::vector<float> table8_, table16_;
+};
+
+// Pixels as read (normalised floats, h.channels each; grey feeds all three channels, alpha and
+// extra channels are ignored) -> linear RGB >= 0 in rgb (3 per pixel). mask: null, or 1/0 per
+// pixel (0: set to 0). Saturated samples (integer files at their largest code, inside the mask)
+// are counted, marked in `saturated` (3 per pixel, may be null) and, with zero_saturated, set to
+// 0. first_pixel: the index of raw's first pixel in its image (for messages). A non-finite value
+// is an InputError naming `at`, the image and the pixel.
+long long linearise_pixels(const float* raw, const ImageHeader& h, std::size_t pixels,
+                           std::size_t first_pixel, const float* mask, const Linearizer& linearizer,
+                           bool zero_saturated, float* rgb, float* saturated, const std::string& at,
+                           const std::filesystem::path& image);
+
+}  // namespace ls::capture
