@@ -29,11 +29,11 @@ void check_decoded(OIIO::ImageInput& in, const std::string& at,
   }
 }
 
-bool is_integer_format(OIIO::TypeDesc format) {
+bool is_integer_format(const OIIO::TypeDesc& format) {
   return format.basetype == OIIO::TypeDesc::UINT8 || format.basetype == OIIO::TypeDesc::UINT16;
 }
 
-int max_code_of(OIIO::TypeDesc format) {
+int max_code_of(const OIIO::TypeDesc& format) {
   return format.basetype == OIIO::TypeDesc::UINT8 ? 255 : 65535;
 }
 
@@ -47,7 +47,7 @@ Linearizer::Linearizer(TransferCurve curve, double gamma) : curve_(curve), gamma
   }
 }
 
-const std::vector<float>* Linearizer::table(OIIO::TypeDesc format) const {
+const std::vector<float>* Linearizer::table(const OIIO::TypeDesc& format) const {
   if (format.basetype == OIIO::TypeDesc::UINT8) return &table8_;
   if (format.basetype == OIIO::TypeDesc::UINT16) return &table16_;
   return nullptr;

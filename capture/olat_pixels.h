@@ -23,9 +23,9 @@ struct ImageHeader {
 std::unique_ptr<OIIO::ImageInput> open_olat_image(const std::filesystem::path& path,
                                                   const std::string& at);
 ImageHeader header_of(const OIIO::ImageInput& in);
-bool is_integer_format(OIIO::TypeDesc format);
+bool is_integer_format(const OIIO::TypeDesc& format);
 // The largest code of an integer format (255 or 65535).
-int max_code_of(OIIO::TypeDesc format);
+int max_code_of(const OIIO::TypeDesc& format);
 
 // After a read that succeeded: libjpeg reports a file cut short only as a warning (OIIO passes it
 // on in geterror() and fills the rest grey), which is an InputError here naming `at` and the
@@ -37,7 +37,7 @@ class Linearizer {
  public:
   Linearizer(TransferCurve curve, double gamma);
   // Null for float files: they are linear already.
-  const std::vector<float>* table(OIIO::TypeDesc format) const;
+  const std::vector<float>* table(const OIIO::TypeDesc& format) const;
 
  private:
   double apply(double v) const;
