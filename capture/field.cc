@@ -562,16 +562,20 @@ void FieldStream::read_rows_planar(int y0, int y1, const PlanarVisitor& visit) {
   file_->pixels->read_planar(y0, y1, visit);
 }
 
-void FieldStream::read_rows(int y0, int y1, ReflectanceField& band) {
-  LS_CHECK(0 <= y0 && y0 < y1 && y1 <= height(), "rows out of the field");
-  if (band.width() != width() || band.height() != y1 - y0 ||
-      band.num_lights() != header_.num_lights()) {
-    band = ReflectanceField();  // Freed first: the last, shorter band must not hold two.
-    band = ReflectanceField(width(), y1 - y0, header_.lights());
+void shape_band(const ReflectanceField& header, int y0, int y1, ReflectanceField& band) {
+  LS_CHECK(0 <= y0 && y0 < y1 && y1 <= header.height(), "rows out of the field");
+  if (band.width() != header.width() || band.height() != y1 - y0 ||
+      band.num_lights() != header.num_lights()) {
+    band = ReflectanceField();
+    band = ReflectanceField(header.width(), y1 - y0, header.lights());
   }
-  band.lights() = header_.lights();
-  copy_attributes(header_, band);
-  band.set_band(y0, height());
+  band.lights() = header.lights();
+  copy_attributes(header, band);
+  band.set_band(y0, header.height());
+}
+
+void FieldStream::read_rows(int y0, int y1, ReflectanceField& band) {
+  shape_band(header_, y0, y1, band);
   read_rows_into(y0, y1, band.pixel(0, 0));
 }
 

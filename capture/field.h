@@ -136,6 +136,10 @@ class ReflectanceField {
 
 // What a field carries beside its values and lights (scene time, source, noise, view).
 void copy_attributes(const ReflectanceField& from, ReflectanceField& to);
+// `band` made ready to hold rows [y0, y1) of the field `header` describes (its lights and
+// attributes, its place in the frame), for a reader to fill; reallocated only when its size
+// changes, and then freed first (the last, shorter band must not hold two).
+void shape_band(const ReflectanceField& header, int y0, int y1, ReflectanceField& band);
 
 // The lights of a field that hold data (valid), as indices into lights() and unit directions.
 struct ValidLights {

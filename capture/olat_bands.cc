@@ -82,17 +82,9 @@ int OlatBands::rows_within(std::size_t bytes) const {
 }
 
 void OlatBands::read_rows(int y0, int y1, ReflectanceField& band) {
-  LS_CHECK(0 <= y0 && y0 < y1 && y1 <= height(), "rows out of the field");
+  shape_band(header_, y0, y1, band);
   Images& images = *images_;
   if (y0 < images.next_row) images.open_all();
-  if (band.width() != width() || band.height() != y1 - y0 ||
-      band.num_lights() != header_.num_lights()) {
-    band = ReflectanceField();  // Freed first: the last, shorter band must not hold two.
-    band = ReflectanceField(width(), y1 - y0, header_.lights());
-  }
-  band.lights() = header_.lights();
-  copy_attributes(header_, band);
-  band.set_band(y0, height());
   const std::size_t pixels = std::size_t(width()) * std::size_t(y1 - y0);
   const std::size_t stride = 3 * std::size_t(header_.num_lights());
   float* values = band.pixel(0, 0);
