@@ -34,23 +34,17 @@ struct OlatBands::Images {
       in[size_t(l)] = open_olat_image(light.image, light.where);
       headers[size_t(l)] = header_of(*in[size_t(l)]);
     });
-    const ImageHeader& first = headers[0];
     for (size_t l = 1; l < headers.size(); ++l) {
-      if (headers[l].width != first.width || headers[l].height != first.height) {
-        throw InputError(
-            set.lights[l].where + ": image size: expected " + std::to_string(first.width) + "x" +
-            std::to_string(first.height) + " like " + set.lights[0].where + ", got " +
-            std::to_string(headers[l].width) + "x" + std::to_string(headers[l].height) + " (" +
-            set.lights[l].image.string() + ")");
-      }
+      check_same_size(headers[0], set.lights[0].where, set.lights[0].image, headers[l],
+                      set.lights[l].where, set.lights[l].image);
     }
     next_row = 0;
   }
 };
 
 std::unique_ptr<OlatBands> open_olat_bands(OlatImageSet set, const OlatImportOptions& options) {
-  ReflectanceField header = images_header(set, options);
   if (int(set.lights.size()) > OlatBands::kMaxOpenImages) return nullptr;
+  ReflectanceField header = images_header(set, options);
   auto images = std::make_unique<OlatBands::Images>(std::move(set), options);
   images->open_all();
   if (images->headers[0].width != header.width() || images->headers[0].height != header.height()) {
@@ -61,8 +55,7 @@ std::unique_ptr<OlatBands> open_olat_bands(OlatImageSet set, const OlatImportOpt
     const ImageHeader& h = images->headers[l];
     if (!is_integer_format(h.format)) continue;
     header.lights()[l].saturates_at =
-        (*images->linearizer.table(h.format))[size_t(max_code_of(h.format))] *
-        images->set.lights[l].intensity_rgb.cwiseInverse();
+        images->linearizer.ceiling(h.format) * images->set.lights[l].intensity_rgb.cwiseInverse();
   }
   return std::make_unique<OlatBands>(std::move(images), std::move(header));
 }

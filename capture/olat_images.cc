@@ -74,12 +74,7 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   const OlatLight& entry = job.lights[light];
   const auto in = open_olat_image(entry.image, entry.where);
   const ImageHeader h = header_of(*in);
-  if (h.width != first.width || h.height != first.height) {
-    throw InputError(entry.where + ": image size: expected " +
-                     size_text(first.width, first.height) + " like " + job.lights[0].where + " (" +
-                     job.lights[0].image.string() + "), got " + size_text(h.width, h.height) +
-                     " (" + entry.image.string() + ")");
-  }
+  check_same_size(first, job.lights[0].where, job.lights[0].image, h, entry.where, entry.image);
   std::vector<float> raw(std::size_t(h.width) * h.height * h.channels);
   if (!in->read_image(0, 0, 0, h.channels, OIIO::TypeDesc::FLOAT, raw.data())) {
     throw InputError(entry.where + ": image: cannot decode " + entry.image.string() + ": " +
@@ -88,8 +83,6 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   check_decoded(*in, entry.where, entry.image);
   const std::size_t pixels = std::size_t(h.width) * h.height;
   const bool integer = is_integer_format(h.format);
-  const std::vector<float>* table = linearizer.table(h.format);
-  const int max_code = max_code_of(h.format);
   cv::Mat rgb(h.height, h.width, CV_32FC3);
   cv::Mat saturated(h.height, h.width, CV_32FC3, cv::Scalar::all(0));
   const long long saturated_count = linearise_pixels(
@@ -127,7 +120,7 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   // An integer file clips at its largest code: after the transfer curve and the intensity that is
   // this light's ceiling. (A field pixel averaged from clipped and unclipped image pixels lies
   // below it and is not caught.) Float files carry no ceiling.
-  if (integer) field_light.saturates_at = (*table)[max_code] * inverse_intensity;
+  if (integer) field_light.saturates_at = linearizer.ceiling(h.format) * inverse_intensity;
   rgb_out.resize(std::size_t(width) * height * 3);
   for (std::size_t p = 0; p < std::size_t(width) * height; ++p) {
     for (int c = 0; c < 3; ++c) rgb_out[3 * p + c] = values[3 * p + c] * inverse_intensity[c];

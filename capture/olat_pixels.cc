@@ -29,6 +29,17 @@ void check_decoded(OIIO::ImageInput& in, const std::string& at,
   }
 }
 
+void check_same_size(const ImageHeader& first, const std::string& first_at,
+                     const std::filesystem::path& first_image, const ImageHeader& h,
+                     const std::string& at, const std::filesystem::path& image) {
+  if (h.width == first.width && h.height == first.height) return;
+  const auto size = [](const ImageHeader& i) {
+    return std::to_string(i.width) + "x" + std::to_string(i.height);
+  };
+  throw InputError(at + ": image size: expected " + size(first) + " like " + first_at + " (" +
+                   first_image.string() + "), got " + size(h) + " (" + image.string() + ")");
+}
+
 bool is_integer_format(const OIIO::TypeDesc& format) {
   return format.basetype == OIIO::TypeDesc::UINT8 || format.basetype == OIIO::TypeDesc::UINT16;
 }

@@ -32,12 +32,22 @@ int max_code_of(const OIIO::TypeDesc& format);
 // image. Other decoder warnings (e.g. extraneous bytes, common in camera files) pass.
 void check_decoded(OIIO::ImageInput& in, const std::string& at, const std::filesystem::path& image);
 
+// InputError naming `at` and both images when `h` is not the size of `first` (the set's first
+// image, named by first_at and first_image).
+void check_same_size(const ImageHeader& first, const std::string& first_at,
+                     const std::filesystem::path& first_image, const ImageHeader& h,
+                     const std::string& at, const std::filesystem::path& image);
+
 // Code (normalised to [0, 1]) -> linear value, tabulated per code for 8- and 16-bit files.
 class Linearizer {
  public:
   Linearizer(TransferCurve curve, double gamma);
   // Null for float files: they are linear already.
   const std::vector<float>* table(const OIIO::TypeDesc& format) const;
+  // The linear value of an integer format's largest code: where its files clip.
+  float ceiling(const OIIO::TypeDesc& format) const {
+    return (*table(format))[size_t(max_code_of(format))];
+  }
 
  private:
   double apply(double v) const;

@@ -110,23 +110,19 @@ bool is_olat_set(const fs::path& input) {
   return input.extension() == ".lp" || fs::is_directory(input);
 }
 
-// Whether an .lp set is to be read in bands: a budget is given, or its field takes more than half
-// of the memory available.
-bool olat_set_in_bands(const fs::path& input, std::size_t memory_bytes) {
-  if (!is_olat_set(input)) return false;
-  if (memory_bytes > 0) return true;
-  const capture::ReflectanceField header = capture::olat_header(input, {});
-  return capture::ReflectanceField::bytes_for(header.width(), header.height(),
-                                              header.num_lights()) > available_memory_bytes() / 2;
-}
-
 // The field file to read `input` from, an EXR as it is. An .lp set: empty (to be imported whole)
-// unless it is to be read in bands: then imported into a field file beside `out` (in bands, see
-// import_olat_to_file), read from there and removed when `imported` goes.
+// unless a budget is given or its field takes more than half of the memory available: then
+// imported into a field file beside `out` (in bands, see import_olat_to_file), read from there
+// and removed when `imported` goes.
 fs::path field_file_for(const fs::path& input, const fs::path& out, std::size_t memory_bytes,
                         std::optional<RemovedWhenDone>& imported, const ProgressFn& progress) {
   if (!is_olat_set(input)) return input;
-  if (!olat_set_in_bands(input, memory_bytes)) return {};
+  if (memory_bytes == 0) {
+    const capture::ReflectanceField header = capture::olat_header(input, {});
+    const std::size_t bytes =
+        capture::ReflectanceField::bytes_for(header.width(), header.height(), header.num_lights());
+    if (bytes <= available_memory_bytes() / 2) return {};
+  }
   fs::path file = out;
   file += ".imported.exr";
   imported.emplace(file);
@@ -334,8 +330,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   // tiles or Gram sub-bands per band: the same bytes as in memory): of a field EXR, or of an .lp
   // set's images.
   const std::string ext = options.input.extension().string();
-  // Under MPI a field's bands are split over the ranks (an .lp set is imported whole: it runs as
-  // one process).
+  // Under MPI a field's bands are split over the ranks (an .lp set is read by one process).
   const Ranks& ranks = Ranks::world();
   if (ranks.size() > 1 && (ext == ".lp" || fs::is_directory(options.input))) {
     throw InputError(
