@@ -1,6 +1,5 @@
 #include "capture/field.h"
 
-#include <OpenImageIO/imageio.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
@@ -19,6 +18,8 @@
 
 #include "capture/exr_band_reader.h"
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
+#include "lightstage/image_file.h"
 #include "lightstage/memory.h"
 
 namespace ls::capture {
@@ -125,18 +126,22 @@ void require_memory(std::size_t bytes, const std::string& what) {
 
 namespace {
 
-OIIO::ImageSpec field_spec(const std::string& name, const ReflectanceField& field,
-                           const ExrAttributes& attributes, int tile_size, FieldStorage storage) {
+using image_file::Sample;
+
+image_file::Spec field_spec(const std::string& name, const ReflectanceField& field,
+                            const ExrAttributes& attributes, int tile_size, FieldStorage storage) {
   if (field.width() <= 0 || field.height() <= 0 || field.num_lights() <= 0) {
     throw InputError(name + ": cannot write an empty reflectance field");
   }
   const int num_channels = 3 * field.num_lights();
-  OIIO::ImageSpec spec(field.width(), field.height(), num_channels,
-                       storage.half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
-  spec.channelnames.clear();
+  image_file::Spec spec;
+  spec.width = field.width();
+  spec.height = field.height();
+  spec.channels = num_channels;
+  spec.format = storage.half ? Sample::kHalf : Sample::kFloat;
   nlohmann::json lights = nlohmann::json::array();
   for (const FieldLight& light : field.lights()) {
-    for (int c = 0; c < 3; ++c) spec.channelnames.push_back(channel_name(light.led_id, c));
+    for (int c = 0; c < 3; ++c) spec.channel_names.push_back(channel_name(light.led_id, c));
     nlohmann::json entry = {
         {"id", light.led_id},
         {"dir", {light.dir_in_stage.x(), light.dir_in_stage.y(), light.dir_in_stage.z()}},
@@ -152,14 +157,13 @@ OIIO::ImageSpec field_spec(const std::string& name, const ReflectanceField& fiel
     }
     lights.push_back(entry);
   }
-  spec.alpha_channel = -1;
-  spec.attribute(kLightsAttribute, lights.dump());
-  spec.attribute(kSceneTimeAttribute, OIIO::TypeDesc::DOUBLE, &field.scene_time_s);
+  spec.set(kLightsAttribute, lights.dump());
+  spec.set(kSceneTimeAttribute, field.scene_time_s);
   if (field.noise.measured) {
     const nlohmann::json noise = {{"read_variance", field.noise.read_variance},
                                   {"shot_variance_per_unit", field.noise.shot_variance_per_unit},
                                   {"method", field.noise.method}};
-    spec.attribute(kNoiseAttribute, noise.dump());
+    spec.set(kNoiseAttribute, noise.dump());
   }
   if (field.view) {
     const FieldView& v = *field.view;
@@ -167,59 +171,45 @@ OIIO::ImageSpec field_spec(const std::string& name, const ReflectanceField& fiel
                                  {"camera_distance_m", v.camera_distance_m},
                                  {"ortho_height_m", v.ortho_height_m},
                                  {"reference_z_m", v.reference_z_m}};
-    spec.attribute(kViewAttribute, view.dump());
+    spec.set(kViewAttribute, view.dump());
   }
-  for (const auto& [key, value] : attributes) spec.attribute(key, value);
-  if (storage.half) spec.attribute(kStorageAttribute, storage.to_json());
+  for (const auto& [key, value] : attributes) spec.set(key, value);
+  if (storage.half) spec.set(kStorageAttribute, storage.to_json());
   // Uncompressed: ExrBandReader reads its rows as raw bytes, without OpenEXR's conversion value by
   // value. Relighting the 512x512 sim field (151 LEDs, 475 MB): 1034 MiB/s of file uncompressed
   // against 338 MiB/s with RLE, which saves nothing on noisy values (the demo field, with invalid
   // LEDs and a black background: 92 against 119 MB). Older RLE fields still read, more slowly.
-  spec.attribute("compression", "none");
-  if (tile_size > 0) {
-    spec.tile_width = spec.tile_height = tile_size;
-    spec.tile_depth = 1;
-  }
+  spec.set("compression", "none");
+  spec.tile_width = spec.tile_height = std::max(0, tile_size);
   return spec;
 }
 
 }  // namespace
 
 struct FieldWriter::File {
+  explicit File(const std::filesystem::path& path) : name(path.string()), file(path) {}
   std::string name;
-  std::filesystem::path path, temp;
-  std::unique_ptr<OIIO::ImageOutput> out;
+  AtomicFileWriter file;                    // Atomic: nothing at the path until finish().
+  std::unique_ptr<image_file::Writer> out;  // Gone before the file goes.
   int tile_size = 0;
   FieldStorage storage;
   std::vector<std::uint16_t> halves;  // Rows converted for writing (half storage).
-  bool finished = false;
 };
 
 FieldWriter::FieldWriter(const std::filesystem::path& path, const ReflectanceField& header,
                          const ExrAttributes& attributes, int tile_size, FieldStorage storage)
-    : file_(std::make_unique<File>()), width_(header.width()), height_(header.height()) {
+    : width_(header.width()), height_(header.height()) {
+  const image_file::Spec spec = field_spec(path.string(), header, attributes, tile_size, storage);
+  file_ = std::make_unique<File>(path);
   File& f = *file_;
-  f.name = path.string();
-  f.path = path;
   f.tile_size = tile_size;
   f.storage = storage;
-  const OIIO::ImageSpec spec = field_spec(f.name, header, attributes, tile_size, storage);
-  // Atomic: written beside the target under a temporary name, renamed over it by finish().
-  f.temp = path;
-  f.temp += ".tmp-" + std::to_string(::getpid()) + ".exr";
-  f.out = OIIO::ImageOutput::create("openexr");
-  if (!f.out) throw InputError(f.name + ": OpenEXR writer unavailable: " + OIIO::geterror());
-  if (!f.out->open(f.temp.string(), spec)) {
-    throw InputError(f.name + ": cannot open for writing: " + f.out->geterror());
-  }
+  std::string error;
+  f.out = image_file::create("field.exr", spec, f.file, error);  // EXR, whatever the name.
+  if (!f.out) throw InputError(f.name + ": cannot open for writing: " + error);
 }
 
-FieldWriter::~FieldWriter() {
-  if (file_->finished) return;
-  file_->out->close();
-  std::error_code ignored;
-  std::filesystem::remove(file_->temp, ignored);
-}
+FieldWriter::~FieldWriter() = default;
 
 void FieldWriter::write_rows(int y0, const ReflectanceField& band) {
   File& f = *file_;
@@ -240,20 +230,14 @@ void FieldWriter::write_rows(int y0, const ReflectanceField& band) {
       const int b = std::min(band.height(), a + piece);
       f.halves.resize(std::size_t(b - a) * row_values);
       floats_to_halves(band.pixel(0, a), f.halves.size(), f.storage.scale, f.halves.data());
-      ok = f.tile_size > 0
-               ? f.out->write_tiles(0, width_, y0 + a, y0 + b, 0, 1, OIIO::TypeDesc::HALF,
-                                    f.halves.data())
-               : f.out->write_scanlines(y0 + a, y0 + b, 0, OIIO::TypeDesc::HALF, f.halves.data());
+      ok = f.out->write_rows(y0 + a, y0 + b, Sample::kHalf, f.halves.data());
     }
   } else {
-    ok = f.tile_size > 0
-             ? f.out->write_tiles(0, width_, y0, y1, 0, 1, OIIO::TypeDesc::FLOAT,
-                                  band.values().data())
-             : f.out->write_scanlines(y0, y1, 0, OIIO::TypeDesc::FLOAT, band.values().data());
+    ok = f.out->write_rows(y0, y1, Sample::kFloat, band.values().data());
   }
   if (!ok) {
     throw InputError(f.name + ": writing the reflectance field failed (rows " + std::to_string(y0) +
-                     ".." + std::to_string(y1 - 1) + "): " + f.out->geterror());
+                     ".." + std::to_string(y1 - 1) + "): " + f.out->error());
   }
   next_row_ = y1;
 }
@@ -263,19 +247,11 @@ void FieldWriter::finish() {
   if (next_row_ != height_) {
     throw std::logic_error(f.name + ": FieldWriter::finish before every row was written");
   }
-  const bool closed = f.out->close();
-  std::error_code ec;
-  if (!closed) {
-    const std::string error = f.out->geterror();
-    std::filesystem::remove(f.temp, ec);
-    throw InputError(f.name + ": writing the reflectance field failed: " + error);
+  if (!f.out->close()) {
+    throw InputError(f.name + ": writing the reflectance field failed: " + f.out->error());
   }
-  f.finished = true;
-  std::filesystem::rename(f.temp, f.path, ec);
-  if (ec) {
-    std::filesystem::remove(f.temp, ec);
-    throw InputError(f.name + ": cannot rename the temporary file into place: " + ec.message());
-  }
+  f.out.reset();
+  f.file.commit();
 }
 
 FieldStorage choose_storage(const ReflectanceField& field, StorageChoice choice, HalfCheck* check) {
@@ -350,10 +326,10 @@ std::vector<FieldLight> parse_lights(const std::string& name, const std::string&
 
 // The EXR library may return channels in another order than written (it sorts them by name):
 // file channel i goes to layout index result[i] (light-major, RGB innermost).
-std::vector<int> channel_layout(const std::string& name, const OIIO::ImageSpec& spec,
+std::vector<int> channel_layout(const std::string& name, const image_file::Spec& spec,
                                 const std::vector<FieldLight>& lights) {
   const int num_lights = int(lights.size());
-  const int num_channels = spec.nchannels;
+  const int num_channels = spec.channels;
   if (num_lights == 0 || num_channels != 3 * num_lights) {
     throw InputError(name + ": expected " + std::to_string(3 * num_lights) + " channels (3 per " +
                      "LED for " + std::to_string(num_lights) + " LEDs), found " +
@@ -371,7 +347,7 @@ std::vector<int> channel_layout(const std::string& name, const OIIO::ImageSpec& 
   std::vector<int> file_to_layout(num_channels);
   std::vector<bool> seen(num_channels, false);
   for (int i = 0; i < num_channels; ++i) {
-    const std::string& channel = spec.channelnames[i];
+    const std::string& channel = spec.channel_names[i];
     auto it = layout_index.find(channel);
     if (it == layout_index.end()) {
       throw InputError(name + ": unknown channel '" + channel +
@@ -386,53 +362,30 @@ std::vector<int> channel_layout(const std::string& name, const OIIO::ImageSpec& 
 
 // The scene time, seconds: a number of any numeric EXR type (a time written by another tool as an
 // int or a float reads as that number); anything else is refused by name, never taken as 0.
-double scene_time_of(const std::string& name, const OIIO::ParamValue& t) {
-  const OIIO::TypeDesc type = t.type();
-  double seconds = std::numeric_limits<double>::quiet_NaN();
-  if (type.aggregate == OIIO::TypeDesc::SCALAR && type.arraylen == 0) {
-    switch (type.basetype) {
-      case OIIO::TypeDesc::DOUBLE:
-        seconds = t.get<double>();
-        break;
-      case OIIO::TypeDesc::FLOAT:
-      case OIIO::TypeDesc::HALF:
-        seconds = double(t.get_float());
-        break;
-      case OIIO::TypeDesc::UINT8:
-      case OIIO::TypeDesc::INT8:
-      case OIIO::TypeDesc::UINT16:
-      case OIIO::TypeDesc::INT16:
-      case OIIO::TypeDesc::UINT32:
-      case OIIO::TypeDesc::INT32:
-        seconds = double(t.get_int());
-        break;
-      case OIIO::TypeDesc::INT64:
-        seconds = double(t.get<int64_t>());
-        break;
-      case OIIO::TypeDesc::UINT64:
-        seconds = double(t.get<uint64_t>());
-        break;
-      default:
-        break;
-    }
-  }
+double scene_time_of(const std::string& name, const image_file::Attribute& t) {
+  const double seconds = t.is_number() ? t.number() : std::numeric_limits<double>::quiet_NaN();
   if (!std::isfinite(seconds)) {
+    const std::string value = t.is_number() ? std::to_string(seconds) : *t.text();
     throw InputError(name + ": attribute '" + kSceneTimeAttribute +
-                     "': expected a finite number of seconds, got " +
-                     (std::string(type.c_str()) + " " + t.get_string()));
+                     "': expected a finite number of seconds, got " + t.type_name + " " + value);
   }
   return seconds;
 }
 
+// An attribute's text: a string as stored, a number as text (for a message that names it).
+std::string text_of(const image_file::Attribute& a) {
+  return a.text() != nullptr ? *a.text() : std::to_string(a.number());
+}
+
 // The optional attributes: scene time, measured noise, view.
-void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
+void read_field_attributes(const std::string& name, const image_file::Spec& spec,
                            ReflectanceField& field) {
-  if (const OIIO::ParamValue* t = spec.find_attribute(kSceneTimeAttribute)) {
+  if (const image_file::Attribute* t = spec.find(kSceneTimeAttribute)) {
     field.scene_time_s = scene_time_of(name, *t);
   }
-  if (const OIIO::ParamValue* noise = spec.find_attribute(kNoiseAttribute)) {
+  if (const image_file::Attribute* noise = spec.find(kNoiseAttribute)) {
     try {
-      const nlohmann::json j = nlohmann::json::parse(noise->get_string());
+      const nlohmann::json j = nlohmann::json::parse(text_of(*noise));
       field.noise.read_variance = j.at("read_variance").get<double>();
       field.noise.shot_variance_per_unit = j.at("shot_variance_per_unit").get<double>();
       field.noise.method = j.value("method", std::string());
@@ -447,9 +400,9 @@ void read_field_attributes(const std::string& name, const OIIO::ImageSpec& spec,
                        "': expected {read_variance, shot_variance_per_unit, method}: " + e.what());
     }
   }
-  if (const OIIO::ParamValue* view = spec.find_attribute(kViewAttribute)) {
+  if (const image_file::Attribute* view = spec.find(kViewAttribute)) {
     try {
-      const nlohmann::json j = nlohmann::json::parse(view->get_string());
+      const nlohmann::json j = nlohmann::json::parse(text_of(*view));
       FieldView v;
       v.fov_y_deg = j.at("fov_y_deg").get<double>();
       v.camera_distance_m = j.at("camera_distance_m").get<double>();
@@ -494,28 +447,30 @@ void copy_attributes(const ReflectanceField& from, ReflectanceField& to) {
 
 struct FieldStream::File {
   std::string name;
-  std::unique_ptr<OIIO::ImageInput> in;
-  std::unique_ptr<ExrBandReader> pixels;  // OIIO reads the header; OpenEXR the pixels, faster.
+  image_file::Spec spec;  // The header as read.
+  std::unique_ptr<ExrBandReader> pixels;
 };
 
 FieldStream::FieldStream(const std::filesystem::path& path) : file_(std::make_unique<File>()) {
   File& f = *file_;
   f.name = path.string();
-  f.in = OIIO::ImageInput::open(f.name);
-  if (!f.in) throw InputError(f.name + ": cannot read reflectance field: " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = f.in->spec();
-  const OIIO::ParamValue* lights_param = spec.find_attribute(kLightsAttribute);
-  if (lights_param == nullptr || lights_param->type() != OIIO::TypeDesc::STRING) {
+  std::string error;
+  const auto in = image_file::open(path, error);
+  if (!in) throw InputError(f.name + ": cannot read reflectance field: " + error);
+  f.spec = in->spec();
+  const image_file::Spec& spec = f.spec;
+  const image_file::Attribute* lights_param = spec.find(kLightsAttribute);
+  if (lights_param == nullptr || lights_param->text() == nullptr) {
     throw InputError(f.name + ": not a reflectance field: missing string attribute '" +
                      std::string(kLightsAttribute) + "'");
   }
-  std::vector<FieldLight> lights = parse_lights(f.name, lights_param->get_string());
-  if (const OIIO::ParamValue* storage = spec.find_attribute(kStorageAttribute);
-      storage != nullptr && storage->type() == OIIO::TypeDesc::STRING) {
-    storage_ = FieldStorage::parse(f.name, storage->get_string());
+  std::vector<FieldLight> lights = parse_lights(f.name, *lights_param->text());
+  if (const image_file::Attribute* storage = spec.find(kStorageAttribute);
+      storage != nullptr && storage->text() != nullptr) {
+    storage_ = FieldStorage::parse(f.name, *storage->text());
   }
   f.pixels = std::make_unique<ExrBandReader>(
-      path, spec.channelnames, channel_layout(f.name, spec, lights), 1.0f / storage_.scale);
+      path, spec.channel_names, channel_layout(f.name, spec, lights), 1.0f / storage_.scale);
   header_ = ReflectanceField::without_values(spec.width, spec.height, std::move(lights));
   header_.source = f.name;
   read_field_attributes(f.name, spec, header_);
@@ -524,8 +479,8 @@ FieldStream::FieldStream(const std::filesystem::path& path) : file_(std::make_un
 FieldStream::~FieldStream() = default;
 
 int FieldStream::rows_within(std::size_t bytes) const {
-  const OIIO::ImageSpec& spec = file_->in->spec();
-  const std::size_t row_bytes = std::size_t(width()) * spec.nchannels * sizeof(float);
+  const image_file::Spec& spec = file_->spec;
+  const std::size_t row_bytes = std::size_t(width()) * spec.channels * sizeof(float);
   // The band and the reader's buffer (a quarter of it at most: ExrBandReader).
   const std::size_t band_bytes = bytes / 5 * 4;
   int rows = int(std::min<std::size_t>(std::size_t(height()),
@@ -535,7 +490,7 @@ int FieldStream::rows_within(std::size_t bytes) const {
   return std::min(rows, height());
 }
 
-int FieldStream::row_alignment() const { return std::max(1, file_->in->spec().tile_height); }
+int FieldStream::row_alignment() const { return std::max(1, file_->spec.tile_height); }
 
 int FieldStream::band_rows(std::size_t memory_bytes) const {
   if (memory_bytes > 0) return rows_within(memory_bytes);

@@ -15,7 +15,7 @@ struct OlatBands::Images {
   OlatImageSet set;
   OlatImportOptions options;
   Linearizer linearizer;
-  std::vector<std::unique_ptr<OIIO::ImageInput>> in;
+  std::vector<std::unique_ptr<image_file::Reader>> in;
   std::vector<ImageHeader> headers;
   int next_row = 0;
 
@@ -91,11 +91,10 @@ void OlatBands::read_rows(int y0, int y1, ReflectanceField& band) {
     Buffers& b = buffers.local();
     b.raw.resize(pixels * size_t(h.channels));
     b.rgb.resize(3 * pixels);
-    if (!images.in[size_t(l)]->read_scanlines(0, 0, y0, y1, 0, 0, h.channels, OIIO::TypeDesc::FLOAT,
-                                              b.raw.data())) {
+    if (!images.in[size_t(l)]->read_rows(y0, y1, image_file::Sample::kFloat, b.raw.data())) {
       throw InputError(light.where + ": image: cannot decode " + light.image.string() + " (rows " +
                        std::to_string(y0) + "-" + std::to_string(y1 - 1) +
-                       "): " + images.in[size_t(l)]->geterror());
+                       "): " + images.in[size_t(l)]->error());
     }
     check_decoded(*images.in[size_t(l)], light.where, light.image);
     const std::size_t first = std::size_t(y0) * std::size_t(width());

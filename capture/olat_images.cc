@@ -28,11 +28,7 @@ namespace {
 namespace fs = std::filesystem;
 
 std::string pixel_format_text(const ImageHeader& h) {
-  const std::string depth = h.format.basetype == OIIO::TypeDesc::UINT8    ? "8-bit"
-                            : h.format.basetype == OIIO::TypeDesc::UINT16 ? "16-bit"
-                            : h.format.basetype == OIIO::TypeDesc::HALF   ? "half float"
-                            : h.format.basetype == OIIO::TypeDesc::FLOAT  ? "float"
-                                                                          : h.format.c_str();
+  const std::string depth = image_file::sample_name(h.format);
   const std::string layout = h.channels == 1   ? "grey"
                              : h.channels == 2 ? "grey+alpha"
                              : h.channels == 3 ? "RGB"
@@ -76,9 +72,9 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   const ImageHeader h = header_of(*in);
   check_same_size(first, job.lights[0].where, job.lights[0].image, h, entry.where, entry.image);
   std::vector<float> raw(std::size_t(h.width) * h.height * h.channels);
-  if (!in->read_image(0, 0, 0, h.channels, OIIO::TypeDesc::FLOAT, raw.data())) {
+  if (!in->read_rows(0, h.height, image_file::Sample::kFloat, raw.data())) {
     throw InputError(entry.where + ": image: cannot decode " + entry.image.string() + ": " +
-                     in->geterror());
+                     in->error());
   }
   check_decoded(*in, entry.where, entry.image);
   const std::size_t pixels = std::size_t(h.width) * h.height;
@@ -388,8 +384,8 @@ void read_mask(const fs::path& mask_file, OlatImageSet& job) {
   const auto in = open_olat_image(mask_file, mask_file.string());
   const ImageHeader h = header_of(*in);
   std::vector<float> raw(std::size_t(h.width) * h.height * h.channels);
-  if (!in->read_image(0, 0, 0, h.channels, OIIO::TypeDesc::FLOAT, raw.data())) {
-    throw InputError(mask_file.string() + ": cannot decode: " + in->geterror());
+  if (!in->read_rows(0, h.height, image_file::Sample::kFloat, raw.data())) {
+    throw InputError(mask_file.string() + ": cannot decode: " + in->error());
   }
   job.mask.resize(std::size_t(h.width) * h.height);
   for (std::size_t p = 0; p < job.mask.size(); ++p) {

@@ -7,23 +7,22 @@
 
 namespace ls::capture {
 
-std::unique_ptr<OIIO::ImageInput> open_olat_image(const std::filesystem::path& path,
-                                                  const std::string& at) {
-  auto in = OIIO::ImageInput::open(path.string());
-  if (!in) {
-    throw InputError(at + ": image: cannot read " + path.string() + ": " + OIIO::geterror());
-  }
+std::unique_ptr<image_file::Reader> open_olat_image(const std::filesystem::path& path,
+                                                    const std::string& at) {
+  std::string error;
+  auto in = image_file::open(path, error);
+  if (!in) throw InputError(at + ": image: cannot read " + path.string() + ": " + error);
   return in;
 }
 
-ImageHeader header_of(const OIIO::ImageInput& in) {
-  const OIIO::ImageSpec& spec = in.spec();
-  return {spec.width, spec.height, spec.nchannels, spec.format};
+ImageHeader header_of(const image_file::Reader& in) {
+  const image_file::Spec& spec = in.spec();
+  return {spec.width, spec.height, spec.channels, spec.format};
 }
 
-void check_decoded(OIIO::ImageInput& in, const std::string& at,
+void check_decoded(image_file::Reader& in, const std::string& at,
                    const std::filesystem::path& image) {
-  const std::string message = in.geterror();
+  const std::string message = in.error();
   if (message.find("Premature end") != std::string::npos) {
     throw InputError(at + ": image: " + image.string() + " is cut short (" + message + ")");
   }
@@ -40,12 +39,12 @@ void check_same_size(const ImageHeader& first, const std::string& first_at,
                    first_image.string() + "), got " + size(h) + " (" + image.string() + ")");
 }
 
-bool is_integer_format(const OIIO::TypeDesc& format) {
-  return format.basetype == OIIO::TypeDesc::UINT8 || format.basetype == OIIO::TypeDesc::UINT16;
+bool is_integer_format(image_file::Sample format) {
+  return format == image_file::Sample::kUInt8 || format == image_file::Sample::kUInt16;
 }
 
-int max_code_of(const OIIO::TypeDesc& format) {
-  return format.basetype == OIIO::TypeDesc::UINT8 ? 255 : 65535;
+int max_code_of(image_file::Sample format) {
+  return format == image_file::Sample::kUInt8 ? 255 : 65535;
 }
 
 Linearizer::Linearizer(TransferCurve curve, double gamma) : curve_(curve), gamma_(gamma) {
@@ -58,9 +57,9 @@ Linearizer::Linearizer(TransferCurve curve, double gamma) : curve_(curve), gamma
   }
 }
 
-const std::vector<float>* Linearizer::table(const OIIO::TypeDesc& format) const {
-  if (format.basetype == OIIO::TypeDesc::UINT8) return &table8_;
-  if (format.basetype == OIIO::TypeDesc::UINT16) return &table16_;
+const std::vector<float>* Linearizer::table(image_file::Sample format) const {
+  if (format == image_file::Sample::kUInt8) return &table8_;
+  if (format == image_file::Sample::kUInt16) return &table16_;
   return nullptr;
 }
 

@@ -2,8 +2,6 @@
 // What the OLAT importers do to each image's pixels, shared by the whole-image import
 // (olat_images.cc) and the band reader (olat_bands.cc) so that both give the same values: open
 // and check an image, undo its transfer curve, mask, count and (optionally) zero saturated codes.
-#include <OpenImageIO/imageio.h>
-
 #include <cstddef>
 #include <filesystem>
 #include <memory>
@@ -11,26 +9,28 @@
 #include <vector>
 
 #include "capture/olat_import.h"
+#include "lightstage/image_file.h"
 
 namespace ls::capture {
 
 struct ImageHeader {
   int width = 0, height = 0, channels = 0;
-  OIIO::TypeDesc format;
+  image_file::Sample format = image_file::Sample::kOther;
 };
 
 // InputError naming `at` (the .lp line or file) and the image when it cannot be opened.
-std::unique_ptr<OIIO::ImageInput> open_olat_image(const std::filesystem::path& path,
-                                                  const std::string& at);
-ImageHeader header_of(const OIIO::ImageInput& in);
-bool is_integer_format(const OIIO::TypeDesc& format);
+std::unique_ptr<image_file::Reader> open_olat_image(const std::filesystem::path& path,
+                                                    const std::string& at);
+ImageHeader header_of(const image_file::Reader& in);
+bool is_integer_format(image_file::Sample format);
 // The largest code of an integer format (255 or 65535).
-int max_code_of(const OIIO::TypeDesc& format);
+int max_code_of(image_file::Sample format);
 
-// After a read that succeeded: libjpeg reports a file cut short only as a warning (OIIO passes it
-// on in geterror() and fills the rest grey), which is an InputError here naming `at` and the
-// image. Other decoder warnings (e.g. extraneous bytes, common in camera files) pass.
-void check_decoded(OIIO::ImageInput& in, const std::string& at, const std::filesystem::path& image);
+// After a read that succeeded: libjpeg reports a file cut short only as a warning (and fills the
+// rest grey), which is an InputError here naming `at` and the image. Other decoder warnings (e.g.
+// extraneous bytes, common in camera files) pass.
+void check_decoded(image_file::Reader& in, const std::string& at,
+                   const std::filesystem::path& image);
 
 // InputError naming `at` and both images when `h` is not the size of `first` (the set's first
 // image, named by first_at and first_image).
@@ -43,9 +43,9 @@ class Linearizer {
  public:
   Linearizer(TransferCurve curve, double gamma);
   // Null for float files: they are linear already.
-  const std::vector<float>* table(const OIIO::TypeDesc& format) const;
+  const std::vector<float>* table(image_file::Sample format) const;
   // The linear value of an integer format's largest code: where its files clip.
-  float ceiling(const OIIO::TypeDesc& format) const {
+  float ceiling(image_file::Sample format) const {
     return (*table(format))[size_t(max_code_of(format))];
   }
 

@@ -1,8 +1,10 @@
 # Every dependency comes from Debian 12's packages (scripts/setup.sh installs them).
 find_package(PkgConfig REQUIRED)
 find_package(Eigen3 3.4 REQUIRED NO_MODULE)
-find_package(OpenImageIO REQUIRED)
+find_package(OpenImageIO REQUIRED)  # Only in the lightstage_oiio module, the viewer and tests.
 find_package(OpenEXR REQUIRED)
+find_package(JPEG REQUIRED)  # libjpeg-turbo (libjpeg-dev): RTI sets and OpenLIME planes.
+find_package(PNG REQUIRED)  # libpng (libpng-dev): frames and previews.
 find_package(Imath REQUIRED)
 find_package(TBB REQUIRED)
 find_package(nlohmann_json 3.10 REQUIRED)

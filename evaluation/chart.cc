@@ -2,10 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <opencv2/imgcodecs.hpp>
+#include <cstdio>
 #include <opencv2/imgproc.hpp>
 
-#include "lightstage/errors.h"
+#include "lightstage/image.h"
 
 namespace ls::evaluation {
 
@@ -84,7 +84,10 @@ void write_chart(const std::filesystem::path& png, const ChartAxes& axes,
     cv::putText(img, s.name, {W - R + 32, ly}, cv::FONT_HERSHEY_SIMPLEX, 0.45, black, 1,
                 cv::LINE_AA);
   }
-  if (!cv::imwrite(png.string(), img)) throw InputError(png.string() + ": cannot write chart");
+  // Drawn in OpenCV's BGR order (kColours), written in RGB order.
+  cv::Mat rgb;
+  cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);
+  write_rgb8(png, rgb.cols, rgb.rows, rgb.ptr<uint8_t>());
 }
 
 }  // namespace ls::evaluation

@@ -2,10 +2,10 @@
 
 #include <cmath>
 #include <functional>
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 #include "relight/time/temporal_render.h"
 #include "sim/noisy_field.h"
 #include "sim/sim_stage.h"
@@ -190,12 +190,19 @@ void write_time_edit_figure(const std::filesystem::path& png, const TimeLapse& l
       }
     }
   }
-  // The renders as one preview, then enlarged with a label per row and a time per column.
-  const std::filesystem::path raw = png.string() + ".grid.png";
-  write_png_preview(raw, grid, auto_exposure_stops(grid));
-  const cv::Mat small = cv::imread(raw.string(), cv::IMREAD_COLOR);
-  std::filesystem::remove(raw);
-  if (small.empty()) throw InputError(raw.string() + ": cannot read the figure back");
+  // The renders as one preview, 8-bit sRGB as write_png_preview encodes them (in memory, RGB
+  // order), then enlarged with a label per row and a time per column.
+  const float scale = float(std::exp2(auto_exposure_stops(grid)));
+  cv::Mat small(grid.height, grid.width, CV_8UC3);
+  for (int y = 0; y < grid.height; ++y) {
+    auto* row = small.ptr<cv::Vec3b>(y);
+    for (int x = 0; x < grid.width; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        const float v = grid.at(x, y, c) * scale;
+        row[x][c] = uchar(std::lround(255.0f * srgb_encode(std::isfinite(v) ? v : 0.0f)));
+      }
+    }
+  }
   constexpr int kScale = 6, kLeft = 200, kTop = 30;
   cv::Mat big;
   cv::resize(small, big, {}, kScale, kScale, cv::INTER_NEAREST);
@@ -212,7 +219,7 @@ void write_time_edit_figure(const std::filesystem::path& png, const TimeLapse& l
                 {kLeft + col * w * kScale + 8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1,
                 cv::LINE_AA);
   }
-  if (!cv::imwrite(png.string(), figure)) throw InputError(png.string() + ": cannot write");
+  write_rgb8(png, figure.cols, figure.rows, figure.ptr<uint8_t>());  // A new Mat: continuous.
 }
 
 }  // namespace ls::evaluation

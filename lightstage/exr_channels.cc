@@ -1,12 +1,11 @@
 #include "lightstage/exr_channels.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <utility>
 
 #include "lightstage/errors.h"
+#include "lightstage/image_file.h"
 
 namespace ls {
 
@@ -22,9 +21,10 @@ const std::string* NamedChannelFile::attribute(const std::string& name) const {
 ExrLayout exr_layout(const fs::path& path) {
   const std::string name = path.string();
   if (!fs::exists(path)) throw InputError(name + ": file not found");
-  auto in = OIIO::ImageInput::open(name);
-  if (!in) throw InputError(name + ": cannot read: " + OIIO::geterror());
-  return {in->spec().width, in->spec().height, in->spec().channelnames};
+  std::string error;
+  const auto in = image_file::open(path, error);
+  if (!in) throw InputError(name + ": cannot read: " + error);
+  return {in->spec().width, in->spec().height, in->spec().channel_names};
 }
 
 std::vector<std::string> exr_channel_names(const fs::path& path) {
@@ -36,14 +36,15 @@ NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std
                                      size_t required, int y0, int y1) {
   const std::string name = path.string();
   if (!fs::exists(path)) throw InputError(name + ": file not found");
-  auto in = OIIO::ImageInput::open(name);
-  if (!in) throw InputError(name + ": cannot read " + kind + ": " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
+  std::string error;
+  const auto in = image_file::open(path, error);
+  if (!in) throw InputError(name + ": cannot read " + kind + ": " + error);
+  const image_file::Spec& spec = in->spec();
   const int count = int(names.size());
   std::vector<int> file_channel(count, -1);
   for (int c = 0; c < count; ++c) {
-    for (int f = 0; f < spec.nchannels; ++f) {
-      if (spec.channelnames[f] == names[c]) file_channel[c] = f;
+    for (int f = 0; f < spec.channels; ++f) {
+      if (spec.channel_names[f] == names[c]) file_channel[c] = f;
     }
     if (file_channel[c] < 0 && size_t(c) < required) {
       throw InputError(name + ": channel '" + names[c] + "': missing (not " + kind + " from " +
@@ -52,34 +53,27 @@ NamedChannelFile read_named_channels(const fs::path& path, const std::vector<std
   }
   const int found =
       int(std::count_if(file_channel.begin(), file_channel.end(), [](int f) { return f >= 0; }));
-  if (exact && spec.nchannels != found) {
+  if (exact && spec.channels != found) {
     throw InputError(name + ": channels: expected " + std::to_string(found) + " (" + kind +
-                     "), got " + std::to_string(spec.nchannels));
+                     "), got " + std::to_string(spec.channels));
   }
   if (spec.width <= 0 || spec.height <= 0) throw InputError(name + ": image has no pixels");
   if (y1 < 0) y1 = spec.height;
   LS_CHECK(0 <= y0 && y0 < y1 && y1 <= spec.height, "rows out of the image");
-  Image raw(spec.width, y1 - y0, spec.nchannels);
-  const bool read =
-      y1 - y0 == spec.height
-          ? in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, raw.pixels.data())
-          : in->read_scanlines(0, 0, spec.y + y0, spec.y + y1, 0, 0, spec.nchannels,
-                               OIIO::TypeDesc::FLOAT, raw.pixels.data());
-  if (!read) {
-    throw InputError(name + ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
+  Image raw(spec.width, y1 - y0, spec.channels);
+  if (!in->read_rows(y0, y1, image_file::Sample::kFloat, raw.pixels.data())) {
+    throw InputError(name + ": cannot read pixels (truncated or corrupt file?): " + in->error());
   }
   NamedChannelFile out;
-  for (const OIIO::ParamValue& p : spec.extra_attribs) {
-    if (p.type() == OIIO::TypeDesc::STRING)
-      out.attributes.emplace_back(p.name().string(), p.get_string());
+  for (const image_file::Attribute& a : spec.attributes) {
+    if (const std::string* text = a.text()) out.attributes.emplace_back(a.name, *text);
   }
-  in->close();
   out.image = Image(spec.width, y1 - y0, count);
   out.image.channel_names = names;
   for (size_t i = 0; i < raw.num_pixels(); ++i) {
     for (int c = 0; c < count; ++c) {
       out.image.pixels[i * count + c] =
-          file_channel[c] < 0 ? 0.0f : raw.pixels[i * spec.nchannels + file_channel[c]];
+          file_channel[c] < 0 ? 0.0f : raw.pixels[i * spec.channels + file_channel[c]];
     }
   }
   return out;

@@ -1,7 +1,5 @@
 #include "lightstage/image.h"
 
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
 #include <fcntl.h>
 #include <unistd.h>
 #include <zlib.h>
@@ -14,6 +12,7 @@
 #include <random>
 
 #include "lightstage/errors.h"
+#include "lightstage/image_file.h"
 #include "lightstage/memory.h"
 
 namespace ls {
@@ -25,7 +24,7 @@ Image::Image(int w, int h, int c, float fill)
 
 namespace {
 
-// A temporary sibling of `path` that keeps its extension (OpenImageIO picks the format from it).
+// A temporary sibling of `path` that keeps its extension (the format is picked from it).
 fs::path temp_sibling(const fs::path& path) {
   static thread_local std::mt19937_64 rng{std::random_device{}()};
   return path.parent_path() / (path.stem().string() + ".tmp" + std::to_string(getpid()) + "-" +
@@ -121,44 +120,52 @@ void write_bytes_atomic(const fs::path& path, const void* data, size_t size) {
   writer.commit();
 }
 
+using image_file::Sample;
+
 // Encodes in memory, the format from path's extension: an encoder's own file writes do not all
 // report a full disk, so the bytes are written by write_bytes_atomic.
-std::vector<unsigned char> encode_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec,
-                                            const OIIO::TypeDesc& in_type, const void* data) {
-  std::vector<unsigned char> encoded;
-  OIIO::Filesystem::IOVecOutput memory(encoded);
-  auto out = OIIO::ImageOutput::create(path.string());
-  if (!out) throw InputError(path.string() + ": cannot write this format: " + OIIO::geterror());
-  if (!out->supports("ioproxy") || !out->set_ioproxy(&memory)) {
-    throw InputError(path.string() + ": the " + out->format_name() +
-                     " writer cannot encode to memory");
+std::vector<unsigned char> encode(const fs::path& path, const image_file::Spec& spec,
+                                  Sample in_type, const void* data) {
+  image_file::MemorySink memory;
+  std::string error;
+  const auto out = image_file::create(path, spec, memory, error);
+  if (!out) throw InputError(path.string() + ": " + error);
+  if (!out->write_rows(0, spec.height, in_type, data) || !out->close()) {
+    throw InputError(path.string() + ": encoding failed: " + out->error());
   }
-  if (!out->open(path.string(), spec) || !out->write_image(in_type, data) || !out->close()) {
-    throw InputError(path.string() + ": encoding failed: " + out->geterror());
-  }
-  return encoded;
+  return std::move(memory.bytes);
+}
+
+image_file::Spec spec_of(int width, int height, int channels, Sample format) {
+  image_file::Spec spec;
+  spec.width = width;
+  spec.height = height;
+  spec.channels = channels;
+  spec.format = format;
+  spec.channel_names = image_file::default_channel_names(channels);
+  return spec;
 }
 
 // An output file, its folder created when missing.
-void write_with_oiio(const fs::path& path, const OIIO::ImageSpec& spec,
-                     const OIIO::TypeDesc& in_type, const void* data) {
+void write_encoded(const fs::path& path, const image_file::Spec& spec, Sample in_type,
+                   const void* data) {
   if (!path.parent_path().empty()) {
     std::error_code ec;
     fs::create_directories(path.parent_path(), ec);
   }
-  const std::vector<unsigned char> encoded = encode_with_oiio(path, spec, in_type, data);
+  const std::vector<unsigned char> encoded = encode(path, spec, in_type, data);
   write_bytes_atomic(path, encoded.data(), encoded.size());
 }
 
 }  // namespace
 
 void write_rgb8(const fs::path& path, int width, int height, const uint8_t* rgb, int jpeg_quality) {
-  OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT8);
+  image_file::Spec spec = spec_of(width, height, 3, Sample::kUInt8);
   if (path.extension() == ".jpg" || path.extension() == ".jpeg") {
-    spec.attribute("Compression", "jpeg:" + std::to_string(std::clamp(jpeg_quality, 1, 100)));
-    spec.attribute("jpeg:subsampling", "4:4:4");
+    spec.set("Compression", "jpeg:" + std::to_string(std::clamp(jpeg_quality, 1, 100)));
+    spec.set("jpeg:subsampling", "4:4:4");
   }
-  write_with_oiio(path, spec, OIIO::TypeDesc::UINT8, rgb);
+  write_encoded(path, spec, Sample::kUInt8, rgb);
 }
 
 float srgb_encode(float linear) {
@@ -175,44 +182,42 @@ float srgb_decode(float encoded) {
 
 Image read_image(const fs::path& path) {
   if (!fs::exists(path)) throw InputError(path.string() + ": file not found");
-  auto in = OIIO::ImageInput::open(path.string());
-  if (!in) {
-    throw InputError(path.string() + ": cannot read image: " + OIIO::geterror());
-  }
-  const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) {
+  std::string error;
+  const auto in = image_file::open(path, error);
+  if (!in) throw InputError(path.string() + ": cannot read image: " + error);
+  const image_file::Spec& spec = in->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.channels <= 0) {
     throw InputError(path.string() + ": image has no pixels");
   }
   // The header's size is checked before it is allocated: a damaged or hostile header can claim
   // gigabytes in a few bytes.
-  require_memory(std::size_t(spec.width) * spec.height * spec.nchannels * sizeof(float),
+  require_memory(std::size_t(spec.width) * spec.height * spec.channels * sizeof(float),
                  path.string() + ": the image's " + std::to_string(spec.width) + "x" +
-                     std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) +
+                     std::to_string(spec.height) + "x" + std::to_string(spec.channels) +
                      " float pixels",
                  "is its header damaged?");
-  Image image(spec.width, spec.height, spec.nchannels);
-  image.channel_names = spec.channelnames;
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, image.pixels.data())) {
+  Image image(spec.width, spec.height, spec.channels);
+  image.channel_names = spec.channel_names;
+  if (!in->read_rows(0, spec.height, Sample::kFloat, image.pixels.data())) {
     throw InputError(path.string() +
-                     ": cannot read pixels (truncated or corrupt file?): " + in->geterror());
+                     ": cannot read pixels (truncated or corrupt file?): " + in->error());
   }
-  in->close();
   return image;
 }
 
 namespace {
 
-// write_exr's header: float, zip, the channel names (else OpenImageIO's R,G,B,A / Y).
-OIIO::ImageSpec exr_spec(int width, int height, int channels,
-                         const std::vector<std::string>& channel_names,
-                         const ExrAttributes& attributes) {
-  OIIO::ImageSpec spec(width, height, channels, OIIO::TypeDesc::FLOAT);
+// write_exr's header: float, zip, the channel names (else R,G,B,A / Y).
+image_file::Spec exr_spec(int width, int height, int channels,
+                          const std::vector<std::string>& channel_names,
+                          const ExrAttributes& attributes) {
+  image_file::Spec spec = spec_of(width, height, channels, Sample::kFloat);
   if (!channel_names.empty()) {
     LS_CHECK(int(channel_names.size()) == channels, "channel names mismatch");
-    spec.channelnames = channel_names;
+    spec.channel_names = channel_names;
   }
-  spec.attribute("compression", "zip");
-  for (const auto& [name, value] : attributes) spec.attribute(name, value);
+  spec.set("compression", "zip");
+  for (const auto& [name, value] : attributes) spec.set(name, value);
   return spec;
 }
 
@@ -231,53 +236,19 @@ void encode_preview(const Image& image, double exposure_stops, std::vector<uint8
   }
 }
 
-// OpenImageIO's output into an AtomicFileWriter (OpenEXR writes its rows in order, then comes
-// back to fill in its offset table). A failed write is kept for the caller, not thrown through
-// the encoder.
-class AtomicProxy final : public OIIO::Filesystem::IOProxy {
- public:
-  explicit AtomicProxy(AtomicFileWriter& file) : IOProxy("", Write), file_(file) {}
-  const char* proxytype() const override { return "lightstage-atomic"; }
-  size_t write(const void* buf, size_t size) override {
-    const size_t written = pwrite(buf, size, m_pos);
-    m_pos += int64_t(written);
-    return written;
-  }
-  size_t pwrite(const void* buf, size_t size, int64_t offset) override {
-    if (!error_.empty()) return 0;
-    try {
-      file_.write_at(uint64_t(offset), buf, size);
-    } catch (const InputError& e) {
-      error_ = e.what();
-      return 0;
-    }
-    size_ = std::max(size_, uint64_t(offset) + size);
-    return size;
-  }
-  size_t size() const override { return size_t(size_); }
-  const std::string& error() const { return error_; }
-
- private:
-  AtomicFileWriter& file_;
-  uint64_t size_ = 0;
-  std::string error_;
-};
-
 }  // namespace
 
 struct ImageRowWriter::Output {
-  explicit Output(const fs::path& p) : path(p), file(p), proxy(file) {}
+  explicit Output(const fs::path& p) : path(p), file(p) {}
   fs::path path;
   AtomicFileWriter file;
-  AtomicProxy proxy;
-  std::unique_ptr<OIIO::ImageOutput> out;  // Closed before the proxy and file go.
+  std::unique_ptr<image_file::Writer> out;  // Gone before the file goes.
   bool png = false;
   int width = 0, height = 0, channels = 0, next_row = 0;
   std::vector<uint8_t> bytes;
 
   [[noreturn]] void fail(const std::string& what) const {
-    const std::string why = proxy.error().empty() ? out->geterror() : proxy.error();
-    throw InputError(path.string() + ": " + what + ": " + why);
+    throw InputError(path.string() + ": " + what + ": " + out->error());
   }
 };
 
@@ -292,19 +263,16 @@ ImageRowWriter::ImageRowWriter(const fs::path& path, int width, int height, int 
   Output& o = *output_;
   o.png = path.extension() == ".png";
   o.width = width, o.height = height, o.channels = channels;
-  OIIO::ImageSpec spec;
+  image_file::Spec spec;
   if (o.png) {
-    spec = OIIO::ImageSpec(width, height, preview_channels(channels), OIIO::TypeDesc::UINT8);
-    spec.attribute("png:compressionLevel", 1);  // Previews: a job's last step, not its archive.
+    spec = spec_of(width, height, preview_channels(channels), Sample::kUInt8);
+    spec.set("png:compressionLevel", 1LL);  // Previews: a job's last step, not its archive.
   } else {
     spec = exr_spec(width, height, channels, channel_names, attributes);
   }
-  o.out = OIIO::ImageOutput::create(path.string());
-  if (!o.out) throw InputError(path.string() + ": cannot write this format: " + OIIO::geterror());
-  if (!o.out->supports("ioproxy") || !o.out->set_ioproxy(&o.proxy) ||
-      !o.out->open(path.string(), spec)) {
-    o.fail("cannot start writing");
-  }
+  std::string error;
+  o.out = image_file::create(path, spec, o.file, error);
+  if (!o.out) throw InputError(path.string() + ": cannot start writing: " + error);
 }
 
 ImageRowWriter::~ImageRowWriter() = default;
@@ -319,9 +287,9 @@ void ImageRowWriter::write_rows(const Image& rows, double exposure_stops) {
   bool ok;
   if (o.png) {
     encode_preview(rows, exposure_stops, o.bytes);
-    ok = o.out->write_scanlines(o.next_row, y1, 0, OIIO::TypeDesc::UINT8, o.bytes.data());
+    ok = o.out->write_rows(o.next_row, y1, Sample::kUInt8, o.bytes.data());
   } else {
-    ok = o.out->write_scanlines(o.next_row, y1, 0, OIIO::TypeDesc::FLOAT, rows.pixels.data());
+    ok = o.out->write_rows(o.next_row, y1, Sample::kFloat, rows.pixels.data());
   }
   if (!ok) o.fail("cannot write rows " + std::to_string(o.next_row) + ".." + std::to_string(y1));
   o.next_row = y1;
@@ -331,7 +299,7 @@ void ImageRowWriter::commit() {
   Output& o = *output_;
   LS_CHECK(o.next_row == o.height, o.path.string() + ": ImageRowWriter::commit before every row");
   if (!o.out->close()) o.fail("encoding failed");
-  if (!o.proxy.error().empty()) o.fail("cannot write");
+  o.out.reset();
   o.file.commit();
 }
 
@@ -345,10 +313,10 @@ void write_exr(const fs::path& path, const Image& image, ExrPixelType type,
     writer.commit();
     return;
   }
-  OIIO::ImageSpec spec =
+  image_file::Spec spec =
       exr_spec(image.width, image.height, image.channels, image.channel_names, attributes);
-  spec.set_format(OIIO::TypeDesc::HALF);
-  write_with_oiio(path, spec, OIIO::TypeDesc::FLOAT, image.pixels.data());
+  spec.format = Sample::kHalf;
+  write_encoded(path, spec, Sample::kFloat, image.pixels.data());
 }
 
 double auto_exposure_stops(const Image& image, double percentile) {
@@ -377,13 +345,12 @@ StoredFile write_raw_frame(const fs::path& path, const RawFrame& frame) {
   const int shift = 16 - frame.bit_depth;
   std::vector<uint16_t> aligned(frame.pixels.size());
   for (size_t i = 0; i < aligned.size(); ++i) aligned[i] = uint16_t(frame.pixels[i] << shift);
-  OIIO::ImageSpec spec(frame.width, frame.height, frame.channels, OIIO::TypeDesc::UINT16);
-  spec.attribute("png:compressionLevel", 1);  // Fast: capture must not wait on the encoder.
-  spec.attribute("lightstage:bit_depth", frame.bit_depth);
+  image_file::Spec spec = spec_of(frame.width, frame.height, frame.channels, Sample::kUInt16);
+  spec.set("png:compressionLevel", 1LL);  // Fast: capture must not wait on the encoder.
+  spec.set("lightstage:bit_depth", (long long)frame.bit_depth);
   // The frame's folder is not created: a session folder deleted or unmounted mid-capture must
   // stop the capture, not be recreated half empty.
-  const std::vector<unsigned char> encoded =
-      encode_with_oiio(path, spec, OIIO::TypeDesc::UINT16, aligned.data());
+  const std::vector<unsigned char> encoded = encode(path, spec, Sample::kUInt16, aligned.data());
   write_bytes_atomic(path, encoded.data(), encoded.size());
   return {encoded.size(), crc32_of(encoded.data(), encoded.size())};
 }
@@ -402,25 +369,26 @@ uint32_t crc32_of(const void* data, size_t size) {
 
 RawFrame read_raw_frame(const fs::path& path, int bit_depth) {
   if (!fs::exists(path)) throw InputError(path.string() + ": frame file not found");
-  auto in = OIIO::ImageInput::open(path.string());
-  if (!in) throw InputError(path.string() + ": cannot read frame: " + OIIO::geterror());
-  const OIIO::ImageSpec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.nchannels <= 0) {
+  std::string error;
+  const auto in = image_file::open(path, error);
+  if (!in) throw InputError(path.string() + ": cannot read frame: " + error);
+  const image_file::Spec& spec = in->spec();
+  if (spec.width <= 0 || spec.height <= 0 || spec.channels <= 0) {
     throw InputError(path.string() + ": frame has no pixels");
   }
   // Checked before it is allocated, as read_image does: a damaged header can claim gigabytes.
-  require_memory(std::size_t(spec.width) * spec.height * spec.nchannels * sizeof(uint16_t),
+  require_memory(std::size_t(spec.width) * spec.height * spec.channels * sizeof(uint16_t),
                  path.string() + ": the frame's " + std::to_string(spec.width) + "x" +
-                     std::to_string(spec.height) + "x" + std::to_string(spec.nchannels) + " pixels",
+                     std::to_string(spec.height) + "x" + std::to_string(spec.channels) + " pixels",
                  "is its header damaged?");
   RawFrame frame;
   frame.width = spec.width;
   frame.height = spec.height;
-  frame.channels = spec.nchannels;
+  frame.channels = spec.channels;
   frame.bit_depth = bit_depth;
-  frame.pixels.resize(size_t(spec.width) * spec.height * spec.nchannels);
-  if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT16, frame.pixels.data())) {
-    throw InputError(path.string() + ": cannot read frame pixels (truncated?): " + in->geterror());
+  frame.pixels.resize(size_t(spec.width) * spec.height * spec.channels);
+  if (!in->read_rows(0, spec.height, Sample::kUInt16, frame.pixels.data())) {
+    throw InputError(path.string() + ": cannot read frame pixels (truncated?): " + in->error());
   }
   const int shift = 16 - bit_depth;
   for (auto& v : frame.pixels) v = uint16_t(v >> shift);

@@ -9,6 +9,8 @@
 #include <utility>
 #include <vector>
 
+#include "lightstage/image_file.h"
+
 namespace ls {
 
 // A float image with interleaved channels: pixels[(y * width + x) * channels + c].
@@ -41,7 +43,7 @@ struct RawFrame {
 
 enum class ExrPixelType { kFloat, kHalf };
 
-// Reads any format OpenImageIO reads (EXR incl. DWAB, Radiance HDR, PNG, JPEG, TIFF) as linear
+// Reads any format image_file.h reads (EXR incl. DWAB, Radiance HDR, PNG, JPEG, TIFF) as linear
 // float. 8/16-bit sRGB-encoded files are returned as stored (normalised to [0,1]), not linearised:
 // callers that import photographs undo their transfer curve explicitly. Throws InputError naming
 // the file.
@@ -96,15 +98,15 @@ void write_file_atomic(const std::filesystem::path& path, const std::string& con
 // sibling, commit() makes it durable and renames it over `path`; destroyed before commit(), the
 // temporary file is removed, so no partial file is ever left at `path`. InputError naming the path
 // when a write fails (a full disk fails here, not silently later).
-class AtomicFileWriter {
+class AtomicFileWriter final : public image_file::Sink {
  public:
   explicit AtomicFileWriter(const std::filesystem::path& path);
-  ~AtomicFileWriter();
+  ~AtomicFileWriter() override;
   AtomicFileWriter(const AtomicFileWriter&) = delete;
   AtomicFileWriter& operator=(const AtomicFileWriter&) = delete;
   void write(const void* data, size_t size);
   // At `offset` (a header's table filled in after the rows; the next write() is unaffected).
-  void write_at(uint64_t offset, const void* data, size_t size);
+  void write_at(uint64_t offset, const void* data, size_t size) override;
   void commit();
 
  private:

@@ -11,7 +11,7 @@ PACKAGES=(
   clang libclang-rt-14-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
   libopencv-calib3d-dev libopencv-videoio-dev libopencv-video-dev
-  libopenexr-dev libimath-dev libopenimageio-dev openimageio-tools
+  libopenexr-dev libimath-dev libjpeg-dev libpng-dev libopenimageio-dev openimageio-tools
   libgpiod-dev gpiod libaravis-dev libusb-1.0-0-dev aravis-tools-cli
   libeigen3-dev libglfw3-dev libgl-dev libegl-dev
   libgtest-dev libgmock-dev libbenchmark-dev

@@ -1,7 +1,5 @@
 #include "viewer/viewer_state.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <charconv>
 #include <cmath>
 #include <fstream>
@@ -9,6 +7,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/image_file.h"
 #include "lightstage/json_reader.h"
 
 namespace ls::viewer {
@@ -120,16 +119,14 @@ InputKind classify_input(const fs::path& path) {
   if (!fs::exists(path)) throw InputError(path.string() + ": no such file or directory");
   if (path.extension() == ".lspca") return InputKind::kPca;
   if (path.extension() == ".exr") {
-    auto input = OIIO::ImageInput::open(path.string());
-    if (!input) {
-      throw InputError(path.string() + ": not a readable EXR (" + OIIO::geterror() + ")");
-    }
+    std::string error;
+    const auto input = image_file::open(path, error);
+    if (!input) throw InputError(path.string() + ": not a readable EXR (" + error + ")");
     bool has_led = false, has_normal = false;
-    for (const auto& name : input->spec().channelnames) {
+    for (const auto& name : input->spec().channel_names) {
       has_led |= name.rfind("led", 0) == 0;
       has_normal |= name == "normal.x";
     }
-    input->close();
     if (has_normal) return InputKind::kModels;
     if (has_led) return InputKind::kField;
     throw InputError(path.string() +

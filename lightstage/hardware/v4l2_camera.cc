@@ -1,20 +1,38 @@
 #include "lightstage/hardware/v4l2_camera.h"
 
-#include <cmath>
 #include <filesystem>
-#include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
 
 #include "lightstage/errors.h"
+#include "lightstage/hardware/v4l2_video.h"
+#include "lightstage/module.h"
 
 namespace ls {
 
+namespace {
+
+// A new device from the lightstage_v4l2 module (OpenCV's video I/O), loaded on the first call. A
+// module that cannot be loaded is a fault of this installation, not of the stage file (whose
+// InputErrors open_camera prefixes with its name): a HardwareError naming the device.
+std::unique_ptr<V4l2Video> new_video(const std::string& path) {
+  using Entry = V4l2Video* (*)();
+  Entry entry = nullptr;
+  try {
+    entry = reinterpret_cast<Entry>(module_symbol("lightstage_v4l2", "lightstage_v4l2_open"));
+  } catch (const InputError& e) {
+    throw HardwareError("V4L2 device " + path + " cannot be opened: " + e.what());
+  }
+  return std::unique_ptr<V4l2Video>(entry());
+}
+
+}  // namespace
+
 struct V4l2Camera::Impl {
   CameraSpec spec;
-  cv::VideoCapture cap;
+  std::unique_ptr<V4l2Video> video;
   CameraInfo info;
   double exposure_set = -1, gain_set = -1;
   double exposure_actual_s = 0, gain_actual = 1;
+  V4l2Frame frame;  // Reused from capture to capture.
 };
 
 V4l2Camera::V4l2Camera(const CameraSpec& spec) : impl_(std::make_unique<Impl>()) {
@@ -37,25 +55,24 @@ V4l2Camera::V4l2Camera(const CameraSpec& spec) : impl_(std::make_unique<Impl>())
                         " (camera.device_id) does not exist; `lightstage devices` lists the "
                         "video devices present");
   }
-  const bool opened = is_index ? impl_->cap.open(std::stoi(dev), cv::CAP_V4L2)
-                               : impl_->cap.open(path, cv::CAP_V4L2);
-  if (!opened || !impl_->cap.isOpened()) {
+  // Only now the module: a stage file's mistakes are reported without loading it.
+  impl_->video = new_video(path);
+  V4l2Video& video = *impl_->video;
+  if (!video.open(dev, spec.width, spec.height)) {
+    const std::string why = video.error();
     throw HardwareError("V4L2 device " + path +
-                        " cannot be opened (busy, no permission: is the user in group video?)");
+                        " cannot be opened (busy, no permission: is the user in group video?)" +
+                        (why.empty() ? "" : ": " + why));
   }
-  impl_->cap.set(cv::CAP_PROP_FRAME_WIDTH, spec.width);
-  impl_->cap.set(cv::CAP_PROP_FRAME_HEIGHT, spec.height);
-  impl_->cap.set(cv::CAP_PROP_BUFFERSIZE, 1);
-  impl_->cap.set(cv::CAP_PROP_AUTO_EXPOSURE, 1);  // V4L2: 1 = manual.
-  const int w = int(impl_->cap.get(cv::CAP_PROP_FRAME_WIDTH));
-  const int h = int(impl_->cap.get(cv::CAP_PROP_FRAME_HEIGHT));
+  const int w = video.width();
+  const int h = video.height();
   if (w != spec.width || h != spec.height) {
     throw HardwareError("V4L2 device " + path + ": camera.width x camera.height " +
                         std::to_string(spec.width) + "x" + std::to_string(spec.height) +
                         " is not offered; the device set " + std::to_string(w) + "x" +
                         std::to_string(h));
   }
-  impl_->info = {path, impl_->cap.getBackendName(), w, h, spec.channels, 8};
+  impl_->info = {path, video.backend_name(), w, h, spec.channels, 8};
 }
 
 V4l2Camera::~V4l2Camera() = default;
@@ -65,37 +82,36 @@ CameraInfo V4l2Camera::info() const { return impl_->info; }
 CapturedFrame V4l2Camera::capture(const FrameRequest& request) {
   Impl& m = *impl_;
   if (request.exposure_s != m.exposure_set) {
-    // V4L2 exposure_absolute is in units of 100 us.
-    m.cap.set(cv::CAP_PROP_EXPOSURE, request.exposure_s * 1e4);
-    m.exposure_actual_s = m.cap.get(cv::CAP_PROP_EXPOSURE) * 1e-4;
+    m.video->set_exposure_s(request.exposure_s);
+    m.exposure_actual_s = m.video->exposure_s();
     m.exposure_set = request.exposure_s;
   }
   if (request.gain != m.gain_set) {
-    m.cap.set(cv::CAP_PROP_GAIN, request.gain);
-    const double g = m.cap.get(cv::CAP_PROP_GAIN);
+    m.video->set_gain(request.gain);
+    const double g = m.video->gain();
     m.gain_actual = g > 0 ? g : 1.0;
     m.gain_set = request.gain;
   }
-  cv::Mat img;
-  // The driver queues frames exposed before the request: drop one, keep the next.
-  if (!m.cap.grab() || !m.cap.grab() || !m.cap.retrieve(img) || img.empty()) {
-    throw CameraTimeout("V4L2 device " + m.info.id + ": no frame");
+  switch (m.video->grab(m.spec.channels, m.frame)) {
+    case V4l2Video::Grab::kFrame:
+      break;
+    case V4l2Video::Grab::kNoFrame:
+      throw CameraTimeout("V4L2 device " + m.info.id + ": no frame");
+    case V4l2Video::Grab::kFailed:
+      throw HardwareError("V4L2 device " + m.info.id + ": " + m.video->error());
   }
-  if (img.cols != m.spec.width || img.rows != m.spec.height) {
-    throw HardwareError("V4L2 device " + m.info.id + ": delivered " + std::to_string(img.cols) +
-                        "x" + std::to_string(img.rows) + ", expected " +
+  const V4l2Frame& in = m.frame;
+  if (in.width != m.spec.width || in.height != m.spec.height) {
+    throw HardwareError("V4L2 device " + m.info.id + ": delivered " + std::to_string(in.width) +
+                        "x" + std::to_string(in.height) + ", expected " +
                         std::to_string(m.spec.width) + "x" + std::to_string(m.spec.height));
   }
-  cv::Mat conv;
-  cv::cvtColor(img, conv, m.spec.channels == 1 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGR2RGB);
   CapturedFrame frame;
-  frame.raw.width = conv.cols;
-  frame.raw.height = conv.rows;
-  frame.raw.channels = conv.channels();
+  frame.raw.width = in.width;
+  frame.raw.height = in.height;
+  frame.raw.channels = in.channels;
   frame.raw.bit_depth = 8;
-  frame.raw.pixels.resize(size_t(conv.cols) * conv.rows * conv.channels());
-  cv::Mat dst(conv.rows, conv.cols, CV_MAKETYPE(CV_16U, conv.channels()), frame.raw.pixels.data());
-  conv.convertTo(dst, CV_16U);
+  frame.raw.pixels.assign(in.pixels.begin(), in.pixels.end());  // 8-bit codes as they are.
   frame.exposure_s = m.exposure_actual_s > 0 ? m.exposure_actual_s : request.exposure_s;
   frame.gain = m.gain_actual;
   return frame;

@@ -2,7 +2,7 @@
 // A webcam or other V4L2 device through OpenCV's VideoCapture: a simple third back-end for trying
 // the pipeline without a machine-vision camera. 8-bit only; exposure and gain are requested through
 // V4L2 controls and read back, but many webcams ignore them (the frame reports what was read back).
-// OpenCV types stay in v4l2_camera.cc.
+// OpenCV stays in a module loaded when a device is opened (v4l2_video.h).
 #include <memory>
 
 #include "lightstage/hardware.h"
