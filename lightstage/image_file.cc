@@ -46,6 +46,7 @@ const char* sample_name(Sample sample) {
 std::vector<std::string> default_channel_names(int channels) {
   if (channels == 1) return {"Y"};
   std::vector<std::string> names;
+  names.reserve(size_t(std::max(channels, 0)));
   for (int c = 0; c < channels; ++c) {
     names.push_back(c < 4 ? std::string(1, "RGBA"[c]) : "channel" + std::to_string(c));
   }
