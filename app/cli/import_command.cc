@@ -123,7 +123,7 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("--memory", *memory,
                   "Bytes of memory for the field: a larger one is written in bands of rows, each "
                   "image spilled to a file beside --out that needs the field's size free "
-                  "(default: in memory when the field takes at most half of what is available).");
+                  "(default: 32 MiB; a field within it is written whole, without a spill).");
   auto storage = std::make_shared<std::string>("auto");
   cmd->add_option("--storage", *storage,
                   "How the field file holds the values: half floats where the field relit from "

@@ -52,8 +52,9 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
   };
   const Ranks& ranks = Ranks::world();
   summary.band_rows = capture::import_olat_to_file(
-      source, options, out, {{kOptionsAttribute, options_json(source, options)}}, memory_bytes,
-      keep_frontal, &summary.import, {ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }});
+      source, options, out, {{kOptionsAttribute, options_json(source, options)}},
+      memory_bytes > 0 ? memory_bytes : kDefaultImportMemoryBytes, keep_frontal, &summary.import,
+      {ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }});
   summary.ranks = ranks.size();
   if (!ranks.root()) return summary;  // Rank 0 wrote the field (and writes the preview).
   summary.lights = summary.import.images;

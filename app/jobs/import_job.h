@@ -22,8 +22,13 @@ struct ImportJobSummary {
   int ranks = 1;                  // Processes the lights were split over (MPI); rank 0 wrote.
 };
 
+// An import reads each image once and its field is written in bands: more memory than a few tens
+// of rows of it does not make it faster, so a field larger than this is spilled and written in
+// bands by default (issue 18: peak memory within that of the RTI tools on the same set).
+inline constexpr std::size_t kDefaultImportMemoryBytes = std::size_t(32) << 20;
+
 // `options` as capture::import_olat takes them (validated there); memory_bytes as
-// capture::import_olat_to_file (0: default); progress: "import".
+// capture::import_olat_to_file (0: kDefaultImportMemoryBytes); progress: "import".
 ImportJobSummary import_set(const std::filesystem::path& source, const std::filesystem::path& out,
                             capture::OlatImportOptions options, std::size_t memory_bytes = 0,
                             const ProgressFn& progress = {});
