@@ -105,11 +105,12 @@ Eigen::Vector3d parse_triple(const std::vector<Token>& tokens, std::size_t first
 
 // Unit direction toward the light; rejects NaN, infinite and zero vectors.
 Eigen::Vector3d unit_direction(const Eigen::Vector3d& v, const std::string& at) {
-  if (!v.allFinite() || v.norm() < 1e-9) {
+  const double norm = v.stableNorm();  // norm() overflows to inf near the largest double.
+  if (!v.allFinite() || !(norm >= 1e-9) || !std::isfinite(norm)) {
     throw InputError(at + ": light direction: expected a finite non-zero vector x y z, got " +
                      vector_text(v));
   }
-  return v.normalized();
+  return v / norm;
 }
 
 // Notes when directions were not unit length (they are normalised either way).

@@ -191,8 +191,11 @@ Eigen::Vector3d JsonReader::vec3() const {
 
 Eigen::Vector3d JsonReader::unit_vec3() const {
   const Eigen::Vector3d v = vec3();
-  if (!(v.norm() > 1e-9)) fail("a non-zero direction vector");
-  return v.normalized();
+  // stableNorm: the squares of components near the largest double overflow (norm() is then inf
+  // and the "unit" vector 0).
+  const double norm = v.stableNorm();
+  if (!(norm > 1e-9) || !std::isfinite(norm)) fail("a non-zero direction vector");
+  return v / norm;
 }
 
 double JsonReader::number_or(const std::string& key, double fallback) const {

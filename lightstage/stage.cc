@@ -31,9 +31,12 @@ Led parse_led(const JsonReader& r, size_t index) {
     led.dir_in_stage = r["direction"].unit_vec3();
   } else {
     const Eigen::Vector3d p = r["position"].vec3();
-    if (!(p.norm() > 1e-6)) r["position"].fail("a position away from the stage centre");
-    led.dir_in_stage = p.normalized();
-    led.distance_m = p.norm();
+    const double distance_m = p.stableNorm();
+    if (!(distance_m > 1e-6) || !(distance_m < 1e6)) {
+      r["position"].fail("a position away from the stage centre, within 1000 km of it (metres)");
+    }
+    led.dir_in_stage = p / distance_m;
+    led.distance_m = distance_m;
   }
   if (r.has("color")) {
     const JsonReader c = r["color"];

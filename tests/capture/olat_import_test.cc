@@ -666,6 +666,12 @@ TEST(OlatImport, LpErrorsNameFileLineAndField) {
       [&] { import_rti_lp(set.lp("3\na0.png 0 0 1\na1.png 0 x 1\na2.png 1 0 1"), {}); });
   EXPECT_NE(e.find("set.lp:3: light direction: expected a number, got 'x'"), std::string::npos)
       << e;
+  // Components near the largest double: a unit direction all the same (their squares overflow
+  // norm(), and the direction once came out 0).
+  const auto huge =
+      import_rti_lp(set.lp("3\na0.png 0 0 1\na1.png 0 1e308 1e308\na2.png 1 0 1"), {});
+  EXPECT_NEAR(huge.lights()[1].dir_in_stage.norm(), 1.0, 1e-12);
+  EXPECT_NEAR(huge.lights()[1].dir_in_stage.y(), std::sqrt(0.5), 1e-12);
   e = input_error([&] { import_rti_lp(set.lp("three\n" + good), {}); });
   EXPECT_NE(e.find("set.lp:1: count"), std::string::npos) << e;
 

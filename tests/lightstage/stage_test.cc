@@ -115,6 +115,12 @@ TEST(Stage, GeneratedLayoutAndPositions) {
   EXPECT_NEAR(*p.leds[0].distance_m, 2.0, 1e-12);
   EXPECT_NEAR(p.leds[0].dir_in_stage.y(), 1.0, 1e-12);
   EXPECT_FALSE(p.leds[1].distance_m.has_value());
+  // A component near the largest double (a fuzz finding: its square overflowed and the "unit"
+  // direction came out 0): still a unit vector along it.
+  const Stage huge = parse_stage(
+      R"({"leds": [{"direction": [0.88, 0.32, -0.33e308]}, {"direction": [0, 1, 0]}]})", "h.json");
+  EXPECT_NEAR(huge.leds[0].dir_in_stage.norm(), 1.0, 1e-12);
+  EXPECT_NEAR(huge.leds[0].dir_in_stage.z(), -1.0, 1e-12);
 }
 
 TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
@@ -122,6 +128,8 @@ TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
   ExpectStageError(R"({"leds": []})", {"leds", "at least one LED"});
   ExpectStageError(R"({"leds": [{"direction": [0, 0]}]})", {"leds[0].direction", "3 numbers"});
   ExpectStageError(R"({"leds": [{"direction": [0, 0, 0]}]})", {"leds[0].direction", "non-zero"});
+  ExpectStageError(R"({"leds": [{"position": [1e308, 1e308, 0]}]})",
+                   {"leds[0].position", "within 1000 km"});
   ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "position": [0, 1, 0]}]})",
                    {"leds[0]", "exactly one of"});
   ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensty": 2}]})",
