@@ -1,5 +1,7 @@
 #include "evaluation/led_bench.h"
 
+#include <algorithm>
+#include <array>
 #include <fstream>
 #include <optional>
 #include <set>
@@ -29,6 +31,9 @@ std::string LedBenchOptions::validate() const {
   if (repeats < 1)
     return "bench leds: repeats: expected at least 1, got " + std::to_string(repeats);
   if (maps.empty()) return "bench leds: maps: expected at least one environment map";
+  if (turns < 0 || turns > 360) {
+    return "bench leds: turns: expected 0..360, got " + std::to_string(turns);
+  }
   return {};
 }
 
@@ -37,30 +42,40 @@ namespace {
 void write_csv(const fs::path& path, const std::vector<LedBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
-  csv << "leds,map,method,relative_rmse,psnr_db,relight_ms,relight_gb_per_s,light_weights_ms,"
+  csv << "leds,map,method,turns,relative_rmse,psnr_db,relight_ms,relight_gb_per_s,light_weights_ms,"
          "uncovered_fraction\n";
   for (const LedBenchRow& r : rows) {
-    csv << r.leds << ',' << r.map << ',' << r.method << ',' << r.relative_rmse << ',' << r.psnr_db
-        << ',' << r.relight_ms << ',' << r.relight_gb_per_s << ',' << r.light_weights_ms << ','
-        << r.uncovered_fraction << '\n';
+    csv << r.leds << ',' << r.map << ',' << r.method << ',' << r.turns << ',' << r.relative_rmse
+        << ',' << r.psnr_db << ',' << r.relight_ms << ',' << r.relight_gb_per_s << ','
+        << r.light_weights_ms << ',' << r.uncovered_fraction << '\n';
   }
 }
 
+// One series per map and method, in the order they come.
+ChartSeries& series_for(std::vector<ChartSeries>& all, const LedBenchRow& r) {
+  const std::string name = r.map + (r.method == "cells" ? "" : " + sources");
+  for (ChartSeries& series : all) {
+    if (series.name == name) return series;
+  }
+  return all.emplace_back(ChartSeries{name, {}, {}, {}, true});
+}
+
 void write_charts(const LedBenchOptions& options, const std::vector<LedBenchRow>& rows) {
-  std::vector<ChartSeries> speed, error;
-  for (const LedBenchRow& r : rows) {  // One series per map and method, in the order they come.
-    const std::string name = r.map + (r.method == "cells" ? "" : " + sources");
-    size_t m = 0;
-    while (m < speed.size() && speed[m].name != name) ++m;
-    if (m == speed.size()) {
-      speed.push_back({name, {}, {}, {}, true});
-      error.push_back({name, {}, {}, {}, true});
+  std::vector<ChartSeries> speed, error, turned;
+  for (const LedBenchRow& r : rows) {
+    if (r.turns > 0) {  // Untimed.
+      ChartSeries& t = series_for(turned, r);
+      t.x.push_back(r.leds);
+      t.y.push_back(r.relative_rmse);
+      continue;
     }
-    speed[m].x.push_back(r.relight_ms);
-    speed[m].y.push_back(r.psnr_db);
-    speed[m].point_labels.push_back(std::to_string(r.leds));
-    error[m].x.push_back(r.leds);
-    error[m].y.push_back(r.relative_rmse);
+    ChartSeries& s = series_for(speed, r);
+    s.x.push_back(r.relight_ms);
+    s.y.push_back(r.psnr_db);
+    s.point_labels.push_back(std::to_string(r.leds));
+    ChartSeries& e = series_for(error, r);
+    e.x.push_back(r.leds);
+    e.y.push_back(r.relative_rmse);
   }
   const std::string res = std::to_string(options.resolution);
   write_chart(options.out / "leds_psnr_vs_time.png",
@@ -72,6 +87,54 @@ void write_charts(const LedBenchOptions& options, const std::vector<LedBenchRow>
       options.out / "leds_error_vs_count.png",
       {"Relighting error against ground truth vs number of LEDs", "LEDs", "relative RMSE", true},
       error);
+  if (!turned.empty()) {
+    write_chart(options.out / "leds_error_vs_count_turned.png",
+                {"The maps with a compact source turned to " + std::to_string(options.turns) +
+                     " azimuths: median error vs number of LEDs",
+                 "LEDs", "relative RMSE (median over the turns)", true},
+                turned);
+  }
+}
+
+// The map turned about the vertical to options.turns azimuths, relit by cells and with sources,
+// each against its own ground truth: the median errors over the turns that light what the camera
+// sees (a source turned behind the backdrop leaves the truth black: no relative error).
+std::vector<LedBenchRow> turned_rows(const LedBenchOptions& options, const sim::Scene& scene,
+                                     const Stage& stage, const capture::ReflectanceField& field,
+                                     const relight::EnvironmentMap& map,
+                                     sim::GroundTruthOptions gt) {
+  const relight::FieldSources sources(field);  // Each turn's LEDs' shadows when first needed.
+  std::vector<LedBenchRow> rows(2);
+  std::array<std::vector<ImageError>, 2> errors;
+  for (int t = 0; t < options.turns; ++t) {
+    gt.rotation_deg = 360.0 * t / options.turns;
+    const Image truth = sim::render_ground_truth(scene, stage.camera, map, gt);
+    if (*std::max_element(truth.pixels.begin(), truth.pixels.end()) <= 0) continue;
+    for (const bool split : {false, true}) {
+      const relight::SplitLighting lighting = relight::split_lighting(
+          map, field.lights(), gt.rotation_deg, gt.coverage_radius_rad, split);
+      Image relit;
+      relight::relight_into(field, lighting.weights.irradiance_rgb, relit);
+      sources.add(lighting, relit);
+      errors[split ? 1 : 0].push_back(compare_images(relit, truth));
+      rows[split ? 1 : 0].uncovered_fraction = lighting.weights.uncovered_fraction();
+    }
+  }
+  for (const bool split : {false, true}) {
+    std::vector<ImageError>& e = errors[split ? 1 : 0];
+    LedBenchRow& row = rows[split ? 1 : 0];
+    row.map = fs::path(map.source()).stem().string();
+    row.method = split ? "cells + sources" : "cells";
+    row.turns = int(e.size());
+    if (e.empty()) continue;
+    const auto middle = e.begin() + long(e.size() / 2);
+    std::nth_element(e.begin(), middle, e.end(), [](const ImageError& a, const ImageError& b) {
+      return a.relative_rmse < b.relative_rmse;
+    });
+    row.relative_rmse = middle->relative_rmse;
+    row.psnr_db = middle->psnr_db;
+  }
+  return rows;
 }
 
 }  // namespace
@@ -143,6 +206,12 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
         row.relight_gb_per_s = field.bytes() / (row.relight_ms * 1e6);
         row.uncovered_fraction = lighting.weights.uncovered_fraction();
         summary.rows.push_back(row);
+      }
+      if (options.turns > 0 && !splits[m].sources.empty()) {
+        for (LedBenchRow& row : turned_rows(options, scene, stage, field, map, gt)) {
+          row.leds = count;
+          summary.rows.push_back(std::move(row));
+        }
       }
     }
   }

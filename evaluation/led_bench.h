@@ -18,14 +18,19 @@ struct LedBenchOptions {
   std::vector<int> counts{20, 40, 80, 150, 300};  // LEDs of the Fibonacci domes.
   int resolution = 128;                           // Camera width and height.
   int repeats = 21;                               // Timed relights (median reported).
-  std::vector<std::filesystem::path> maps;        // Environment maps (the CLI: the shipped ones).
-  std::string validate() const;                   // Empty when valid.
+  // Maps with a compact source are also relit turned about the vertical to this many azimuths
+  // (evenly spaced), the median error reported: one position of a small source says more about
+  // how near it happens to fall to an LED than about the dome's density. 0: not turned.
+  int turns = 8;
+  std::vector<std::filesystem::path> maps;  // Environment maps (the CLI: the shipped ones).
+  std::string validate() const;             // Empty when valid.
 };
 
 struct LedBenchRow {
   int leds = 0;
   std::string map;     // The map file's stem.
   std::string method;  // "cells" (every light by LED cells) or "cells + sources" (issue 16).
+  int turns = 0;       // > 0: relative_rmse and psnr_db are the median of this many turns; untimed.
   double relative_rmse = 0, psnr_db = 0;
   double relight_ms = 0, relight_gb_per_s = 0, light_weights_ms = 0;
   double uncovered_fraction = 0;
