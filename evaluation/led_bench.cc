@@ -97,8 +97,9 @@ void write_charts(const LedBenchOptions& options, const std::vector<LedBenchRow>
 }
 
 // The map turned about the vertical to options.turns azimuths, relit by cells and with sources,
-// each against its own ground truth: the median errors over the turns that light what the camera
-// sees (a source turned behind the backdrop leaves the truth black: no relative error).
+// each against its own ground truth: the median errors (the upper middle one of an even count)
+// over the turns that light what the camera sees (a source turned behind the backdrop leaves the
+// truth black: no relative error). None when no turn does.
 std::vector<LedBenchRow> turned_rows(const LedBenchOptions& options, const sim::Scene& scene,
                                      const Stage& stage, const capture::ReflectanceField& field,
                                      const relight::EnvironmentMap& map,
@@ -120,13 +121,13 @@ std::vector<LedBenchRow> turned_rows(const LedBenchOptions& options, const sim::
       rows[split ? 1 : 0].uncovered_fraction = lighting.weights.uncovered_fraction();
     }
   }
+  if (errors[0].empty()) return {};
   for (const bool split : {false, true}) {
     std::vector<ImageError>& e = errors[split ? 1 : 0];
     LedBenchRow& row = rows[split ? 1 : 0];
     row.map = fs::path(map.source()).stem().string();
     row.method = split ? "cells + sources" : "cells";
     row.turns = int(e.size());
-    if (e.empty()) continue;
     const auto middle = e.begin() + long(e.size() / 2);
     std::nth_element(e.begin(), middle, e.end(), [](const ImageError& a, const ImageError& b) {
       return a.relative_rmse < b.relative_rmse;
