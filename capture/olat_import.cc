@@ -126,6 +126,13 @@ void note_direction_norms(const std::vector<double>& norms, const std::string& f
   }
 }
 
+// Whether `path` is a file; false, not a throw, where the system cannot say (a name longer than
+// the file system allows, as a listed image's can be).
+bool is_file(const fs::path& path) {
+  std::error_code error;
+  return fs::is_regular_file(path, error);
+}
+
 // Finds a listed image: as written; with Windows backslashes as '/'; else by its file name in the
 // list's folder or below (RTI sets are often moved from the capturing machine, absolute paths and
 // all). Counts what it had to do, for one note per set rather than one per line.
@@ -135,12 +142,12 @@ class ImageFinder {
 
   fs::path find(const std::string& written, const std::string& at) {
     const fs::path direct = resolve(written);
-    if (fs::is_regular_file(direct)) return direct;
+    if (is_file(direct)) return direct;
     std::string slashes = written;
     std::replace(slashes.begin(), slashes.end(), '\\', '/');
     if (slashes != written) {
       const fs::path converted = resolve(slashes);
-      if (fs::is_regular_file(converted)) {
+      if (is_file(converted)) {
         ++converted_backslashes_;
         return converted;
       }
@@ -251,8 +258,8 @@ std::string OlatImportOptions::validate() const {
 OlatFormat detect_olat_format(const fs::path& source) {
   if (!fs::exists(source)) throw InputError(source.string() + ": not found");
   if (fs::is_directory(source)) {
-    const bool names = fs::is_regular_file(source / "filenames.txt");
-    const bool dirs = fs::is_regular_file(source / "light_directions.txt");
+    const bool names = is_file(source / "filenames.txt");
+    const bool dirs = is_file(source / "light_directions.txt");
     if (names && dirs) return OlatFormat::kDiligent;
     if (names || dirs) {  // Half a DiLiGenT folder: say what the other half is.
       throw InputError(source.string() + ": a DiLiGenT folder needs " +
@@ -339,7 +346,7 @@ OlatImageSet read_diligent_set(const fs::path& folder, const OlatImportOptions& 
   const fs::path intensities_file = folder / "light_intensities.txt";
   const fs::path mask_file = folder / "mask.png";
   for (const fs::path& required : {names_file, dirs_file}) {
-    if (!fs::is_regular_file(required)) throw InputError(required.string() + ": not found");
+    if (!is_file(required)) throw InputError(required.string() + ": not found");
   }
   const std::vector<TextLine> names = non_blank(read_lines(names_file));
   const std::vector<TextLine> dirs = non_blank(read_lines(dirs_file));
@@ -365,7 +372,7 @@ OlatImageSet read_diligent_set(const fs::path& folder, const OlatImportOptions& 
     image.erase(image.find_last_not_of(" \t") + 1);
     image.erase(0, image.find_first_not_of(" \t"));
     entry.image = folder / image;
-    if (!fs::is_regular_file(entry.image)) {
+    if (!is_file(entry.image)) {
       throw InputError(entry.where + ": image: '" + image + "' not found in " + folder.string());
     }
     const std::string at = where(dirs_file, dirs[i].number);
@@ -384,7 +391,7 @@ OlatImageSet read_diligent_set(const fs::path& folder, const OlatImportOptions& 
 
   // Intensities: one RGB per light (DiLiGenT calibrated each LED's brightness and colour); the
   // images are divided by them per channel so every light counts as unit irradiance.
-  if (fs::is_regular_file(intensities_file)) {
+  if (is_file(intensities_file)) {
     const std::vector<TextLine> intensities = non_blank(read_lines(intensities_file));
     check_count(intensities_file, intensities);
     for (int i = 0; i < n; ++i) {
@@ -408,7 +415,7 @@ OlatImageSet read_diligent_set(const fs::path& folder, const OlatImportOptions& 
 
   // Mask: non-zero = object (DiLiGenT's mask.png is 0 / 255). Pixels outside get zero samples,
   // which the normals mark kNoSignal and the fits skip, counted apart from the flagged.
-  if (fs::is_regular_file(mask_file)) {
+  if (is_file(mask_file)) {
     read_mask(mask_file, job);
   } else {
     job.notes.push_back(mask_file.string() + ": not found; every pixel used");

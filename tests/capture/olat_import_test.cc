@@ -672,6 +672,12 @@ TEST(OlatImport, LpErrorsNameFileLineAndField) {
       import_rti_lp(set.lp("3\na0.png 0 0 1\na1.png 0 1e308 1e308\na2.png 1 0 1"), {});
   EXPECT_NEAR(huge.lights()[1].dir_in_stage.norm(), 1.0, 1e-12);
   EXPECT_NEAR(huge.lights()[1].dir_in_stage.y(), std::sqrt(0.5), 1e-12);
+  // A name longer than the file system allows (a fuzz finding: the file system's error escaped).
+  e = input_error([&] {
+    import_rti_lp(set.lp("3\na0.png 0 0 1\n" + std::string(300, 'x') + ".png 0 1 1\na2.png 1 0 1"),
+                  {});
+  });
+  EXPECT_NE(e.find("set.lp:3: image: '" + std::string(300, 'x')), std::string::npos) << e;
   e = input_error([&] { import_rti_lp(set.lp("three\n" + good), {}); });
   EXPECT_NE(e.find("set.lp:1: count"), std::string::npos) << e;
 
