@@ -141,12 +141,12 @@ class ImageFinder {
   explicit ImageFinder(fs::path folder) : folder_(std::move(folder)) {}
 
   fs::path find(const std::string& written, const std::string& at) {
-    const fs::path direct = resolve(written);
+    fs::path direct = resolve(written);
     if (is_file(direct)) return direct;
     std::string slashes = written;
     std::replace(slashes.begin(), slashes.end(), '\\', '/');
     if (slashes != written) {
-      const fs::path converted = resolve(slashes);
+      fs::path converted = resolve(slashes);
       if (is_file(converted)) {
         ++converted_backslashes_;
         return converted;
