@@ -8,6 +8,7 @@
 #include <map>
 
 #include "capture/olat_images.h"
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -105,12 +106,12 @@ Eigen::Vector3d parse_triple(const std::vector<Token>& tokens, std::size_t first
 
 // Unit direction toward the light; rejects NaN, infinite and zero vectors.
 Eigen::Vector3d unit_direction(const Eigen::Vector3d& v, const std::string& at) {
-  const double norm = v.stableNorm();  // norm() overflows to inf near the largest double.
-  if (!v.allFinite() || !(norm >= 1e-9) || !std::isfinite(norm)) {
+  const std::optional<Eigen::Vector3d> unit = unit_vector(v);
+  if (!unit) {
     throw InputError(at + ": light direction: expected a finite non-zero vector x y z, got " +
                      vector_text(v));
   }
-  return v / norm;
+  return *unit;
 }
 
 // Notes when directions were not unit length (they are normalised either way).

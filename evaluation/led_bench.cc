@@ -97,19 +97,21 @@ void write_charts(const LedBenchOptions& options, const std::vector<LedBenchRow>
 }
 
 // The map turned about the vertical to options.turns azimuths, relit by cells and with sources,
-// each against its own ground truth: the median errors (the upper middle one of an even count)
-// over the turns that light what the camera sees (a source turned behind the backdrop leaves the
-// truth black: no relative error). None when no turn does.
+// each against its own ground truth (`unturned_truth` the first turn's, rendered already): the
+// median errors (the upper middle one of an even count) over the turns that light what the camera
+// sees (a source turned behind the backdrop leaves the truth black: no relative error). None when
+// no turn does. `sources` makes each turn's LEDs' shadows when first needed.
 std::vector<LedBenchRow> turned_rows(const LedBenchOptions& options, const sim::Scene& scene,
                                      const Stage& stage, const capture::ReflectanceField& field,
-                                     const relight::EnvironmentMap& map,
-                                     sim::GroundTruthOptions gt) {
-  const relight::FieldSources sources(field);  // Each turn's LEDs' shadows when first needed.
+                                     const relight::FieldSources& sources,
+                                     const relight::EnvironmentMap& map, sim::GroundTruthOptions gt,
+                                     const Image& unturned_truth) {
   std::vector<LedBenchRow> rows(2);
   std::array<std::vector<ImageError>, 2> errors;
   for (int t = 0; t < options.turns; ++t) {
     gt.rotation_deg = 360.0 * t / options.turns;
-    const Image truth = sim::render_ground_truth(scene, stage.camera, map, gt);
+    const Image truth =
+        t == 0 ? unturned_truth : sim::render_ground_truth(scene, stage.camera, map, gt);
     if (*std::max_element(truth.pixels.begin(), truth.pixels.end()) <= 0) continue;
     for (const bool split : {false, true}) {
       const relight::SplitLighting lighting = relight::split_lighting(
@@ -161,6 +163,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
       for (const int led : splits.back().leds()) source_leds.insert(led);
     }
     std::optional<relight::FieldSources> sources;
+    std::optional<relight::FieldSources> turn_sources;  // The field in memory: any LED's shadow.
     const double sources_ms = median_ms(1, [&] {
       sources.emplace(field, capture::whole_field(field),
                       std::vector<int>(source_leds.begin(), source_leds.end()));
@@ -209,7 +212,9 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
         summary.rows.push_back(row);
       }
       if (options.turns > 0 && !splits[m].sources.empty()) {
-        for (LedBenchRow& row : turned_rows(options, scene, stage, field, map, gt)) {
+        if (!turn_sources) turn_sources.emplace(field);  // One fit for every map's turns.
+        for (LedBenchRow& row :
+             turned_rows(options, scene, stage, field, *turn_sources, map, gt, truth)) {
           row.leds = count;
           summary.rows.push_back(std::move(row));
         }

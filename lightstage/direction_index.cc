@@ -90,6 +90,12 @@ double max_nearest_neighbour_angle(const std::vector<Eigen::Vector3d>& dirs) {
   return worst;
 }
 
+std::optional<Eigen::Vector3d> unit_vector(const Eigen::Vector3d& v, double min_length) {
+  const double length = v.stableNorm();
+  if (!v.allFinite() || !(length > min_length) || !std::isfinite(length)) return std::nullopt;
+  return v / length;
+}
+
 double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b));
 }

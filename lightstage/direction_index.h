@@ -4,6 +4,7 @@
 // the 100,000 LEDs a stage file may hold.
 #include <Eigen/Core>
 #include <memory>
+#include <optional>
 #include <vector>
 
 namespace ls {
@@ -34,6 +35,11 @@ class DirectionIndex {
 // The angle between two directions in radians (any lengths, non-zero): atan2 of |a x b| and a . b,
 // accurate at small angles where acos of the dot product is not.
 double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
+// v scaled to unit length, or nullopt when it has no direction: a non-finite component, or a
+// length of at most min_length. The length by stableNorm: the squares of components near the
+// largest double overflow norm(), and normalized() then gives 0.
+std::optional<Eigen::Vector3d> unit_vector(const Eigen::Vector3d& v, double min_length = 1e-9);
 
 // The largest angle from any direction to its nearest other one (pi for fewer than two): the
 // widest gap of a dome's sampling. Directions need not be unit length (non-zero, finite).

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 
 namespace ls {
@@ -190,12 +191,9 @@ Eigen::Vector3d JsonReader::vec3() const {
 }
 
 Eigen::Vector3d JsonReader::unit_vec3() const {
-  const Eigen::Vector3d v = vec3();
-  // stableNorm: the squares of components near the largest double overflow (norm() is then inf
-  // and the "unit" vector 0).
-  const double norm = v.stableNorm();
-  if (!(norm > 1e-9) || !std::isfinite(norm)) fail("a non-zero direction vector");
-  return v / norm;
+  const std::optional<Eigen::Vector3d> unit = unit_vector(vec3());
+  if (!unit) fail("a non-zero direction vector");
+  return *unit;
 }
 
 double JsonReader::number_or(const std::string& key, double fallback) const {
