@@ -192,8 +192,9 @@ void add_sun(CLI::App& bench) {
   auto* cmd = bench.add_subcommand(
       "sun",
       "A small source between the LEDs: swept from an LED to the middle of three and turned "
-      "through a full circle; the field relit by LED cells and with the source at its true "
-      "direction, each against ground truth (built-in dome, demo scene).");
+      "through a full circle; the field relit by LED cells, with the source at its true "
+      "direction, and with it and the scene's exact visibility of it (the shadows' share of the "
+      "error), each against ground truth (built-in dome, demo scene).");
   cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
   cmd->add_option("--resolution", args->resolution, "Camera width and height.")
       ->capture_default_str();

@@ -159,8 +159,10 @@ const LedPairFlow& FieldSources::flow(int from_led, int to_led) const {
   return it->second;
 }
 
-void FieldSources::add(const SplitLighting& lighting, Image& out) const {
-  for (const PlacedSource& source : lighting.sources) {
+void FieldSources::add(const SplitLighting& lighting, Image& out,
+                       const std::vector<const Image*>& visibility) const {
+  for (size_t i = 0; i < lighting.sources.size(); ++i) {
+    const PlacedSource& source = lighting.sources[i];
     if (!source.triangle) continue;
     std::array<const LedShadow*, 3> shadows{};
     PairFlows flows{};
@@ -169,14 +171,14 @@ void FieldSources::add(const SplitLighting& lighting, Image& out) const {
     for (int k = 0; k < 3; ++k) {
       for (int j = 0; j < 3; ++j) {
         const int from = source.triangle->leds[size_t(k)], to = source.triangle->leds[size_t(j)];
-        if (j != k && from != to && source.triangle->weights[size_t(k)] >= kMinTriangleWeight &&
-            source.triangle->weights[size_t(j)] >= kMinTriangleWeight) {
+        if (j != k && from != to && source.triangle->weights[size_t(k)] >= kMinTriangleWeight) {
           flows[size_t(k)][size_t(j)] = &flow(from, to);
         }
       }
     }
     lock.unlock();
-    add_compact_source(shadows, flows, *source.triangle, source.in_stage, fit_, out);
+    add_compact_source(shadows, flows, *source.triangle, source.in_stage, fit_, out,
+                       i < visibility.size() ? visibility[i] : nullptr);
   }
 }
 

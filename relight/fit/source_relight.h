@@ -61,7 +61,10 @@ class FieldSources {
   // Adds every source of `lighting` that has a triangle to `out` (the field's size, 3 channels).
   // The flows between a triangle's LEDs are computed when first needed and kept: a sun that stays
   // between the same LEDs (a rotation's small steps, a viewer's frames) costs one pass per pixel.
-  void add(const SplitLighting& lighting, Image& out) const;
+  // visibility[i], where given, is the share of lighting.sources[i] each pixel sees
+  // (add_compact_source), instead of the one interpolated from the LEDs' shadows.
+  void add(const SplitLighting& lighting, Image& out,
+           const std::vector<const Image*>& visibility = {}) const;
 
  private:
   // The fit over the bands (and led_dirs_), calling `also` with each band after it.

@@ -236,10 +236,13 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to) {
 
 void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
                         const LedTriangle& triangle, const CompactSource& source,
-                        const LambertianFit& fit, Image& out) {
+                        const LambertianFit& fit, Image& out, const Image* visibility) {
   const int width = fit.normal.width, height = fit.normal.height;
   LS_CHECK(out.width == width && out.height == height && out.channels == 3,
            "add_compact_source: the output is not the field's size");
+  LS_CHECK(!visibility || (visibility->width == width && visibility->height == height &&
+                           visibility->channels == 1),
+           "add_compact_source: the visibility is not one channel of the field's size");
   const float limit = float(std::max(width, height)) / 4;
   // Each LED's shadows move toward where the others have them, by the others' weights
   // (multi-image morphing, on the distance images).
@@ -250,13 +253,13 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
       const Eigen::Vector3d& b = shadows[size_t(j)]->dir;
       angle[size_t(k)][size_t(j)] = angle_between(a, b);
       LS_CHECK(j == k || triangle.weights[size_t(k)] < kMinTriangleWeight ||
-                   triangle.weights[size_t(j)] < kMinTriangleWeight ||
-                   flows[size_t(k)][size_t(j)] != nullptr,
-               "add_compact_source: a flow between two weighted LEDs is missing");
+                   angle[size_t(k)][size_t(j)] <= 0 || flows[size_t(k)][size_t(j)] != nullptr,
+               "add_compact_source: a flow from a weighted LED is missing");
     }
   }
-  // The LEDs that carry weight, each with the flows toward the others that do (float, per pixel:
-  // this loop runs for every frame of a turning sun).
+  // The LEDs that carry weight, each with the flows toward the others (float, per pixel: this loop
+  // runs for every frame of a turning sun). Toward an LED of no weight a flow moves nothing, but
+  // still gives how fast the edges move: the penumbra of a source at an LED's own direction.
   struct Toward {
     const float* shadow_flow;
     const float* gloss_flow;
@@ -276,10 +279,7 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
     a = {shadows[size_t(k)], float(triangle.weights[size_t(k)])};
     for (int j = 0; j < 3; ++j) {
       const LedPairFlow* f = flows[size_t(k)][size_t(j)];
-      if (j == k || f == nullptr || triangle.weights[size_t(j)] < kMinTriangleWeight ||
-          angle[size_t(k)][size_t(j)] <= 0) {
-        continue;
-      }
+      if (j == k || f == nullptr || angle[size_t(k)][size_t(j)] <= 0) continue;
       a.toward[size_t(a.towards++)] = {f->shadow.data(), f->gloss.data(),
                                        float(triangle.weights[size_t(j)]),
                                        float(1 / angle[size_t(k)][size_t(j)])};
@@ -321,7 +321,9 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
         }
       }
       const float half_width = std::clamp(radius * speed, 0.5f, max_half_width);
-      const float visible = std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
+      const float visible = visibility
+                                ? visibility->pixels[p]
+                                : std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
       const float* n = &fit.normal.pixels[3 * p];
       const float cosine = std::max(0.0f, n[0] * s[0] + n[1] * s[1] + n[2] * s[2]) * float(kInvPi);
       const float* albedo = &fit.albedo.pixels[3 * p];

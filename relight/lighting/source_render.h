@@ -72,11 +72,16 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to);
 // Adds the light of `source` (its direction in the stage frame: the map's, rotated with it) to
 // `out` (width x height x 3). shadows[k] is the LedShadow of
 // triangle.leds[k]; flows[k][j] the led_pair_flow from shadows[k] to shadows[j], needed (not
-// null) for k != j where both LEDs weigh at least kMinTriangleWeight.
+// null) for every other LED j where LED k weighs at least kMinTriangleWeight (toward an LED of no
+// weight for the penumbra's width: how fast the edges move). `visibility`, when given
+// (1 channel, the field's size), is the share of the source each pixel sees, used instead of the
+// visibility interpolated from the LEDs' shadows: a simulator's exact one (sim::
+// render_source_visibility) measures how much of the error is the shadows' and how much the
+// shading's.
 inline constexpr double kMinTriangleWeight = 1e-3;
 using PairFlows = std::array<std::array<const LedPairFlow*, 3>, 3>;
 void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
                         const LedTriangle& triangle, const CompactSource& source,
-                        const LambertianFit& fit, Image& out);
+                        const LambertianFit& fit, Image& out, const Image* visibility = nullptr);
 
 }  // namespace ls::relight

@@ -1,6 +1,7 @@
 // The whole slice against ground truth: simulated capture -> session -> field -> relighting.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <set>
 
@@ -176,6 +177,50 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
     // Splitting never makes a map worse than the cells did.
     EXPECT_LE(split_err.relative_rmse, cells_err.relative_rmse + 1e-6) << c.name;
   }
+}
+
+// A source at an LED's own direction casts that LED's shadows, softened to the penumbra its size
+// casts: how fast the edges move comes from the flows toward the triangle's other LEDs, though
+// they weigh nothing there. Measured against the same render with the visibility traced in the
+// scene (sim::render_source_visibility), so that only the shadows differ.
+TEST(EndToEnd, ASourceAtAnLedsDirectionCastsThePenumbraOfItsSize) {
+  testing::TempDir tmp;
+  Stage stage = default_stage();
+  stage.camera.width = stage.camera.height = 64;
+  const sim::Scene scene = sim::default_scene();
+  const auto field = testing::CaptureAndBuild(tmp / "s", stage, scene);
+  const auto dirs = stage.led_directions();
+  const double radius = 2.0 * M_PI / 180;
+  // The LED nearest elevation 50 deg, azimuth 30 deg: it lights the spheres and the relief, and
+  // the spheres' shadows fall on the relief.
+  const Eigen::Vector3d aim(std::cos(50 * M_PI / 180) * std::cos(M_PI / 6),
+                            std::sin(50 * M_PI / 180),
+                            std::cos(50 * M_PI / 180) * std::sin(M_PI / 6));
+  const int led =
+      int(std::max_element(dirs.begin(), dirs.end(),
+                           [&](const auto& a, const auto& b) { return a.dot(aim) < b.dot(aim); }) -
+          dirs.begin());
+  relight::PlacedSource source;
+  source.in_stage.dir = dirs[size_t(led)];
+  source.in_stage.radius_rad = radius;
+  source.in_stage.irradiance_rgb = Eigen::Vector3d::Ones();
+  source.triangle =
+      relight::led_triangle(dirs, {}, source.in_stage.dir, max_nearest_neighbour_angle(dirs));
+  ASSERT_TRUE(source.triangle.has_value());
+  relight::SplitLighting lighting;
+  lighting.sources.push_back(source);
+  const relight::FieldSources sources(field);
+  Image interpolated(64, 64, 3), exact(64, 64, 3);
+  sources.add(lighting, interpolated);
+  const Image visibility =
+      sim::render_source_visibility(scene, stage.camera, source.in_stage.dir, radius);
+  sources.add(lighting, exact, {&visibility});
+  const double error = testing::compare_images(interpolated, exact).relative_rmse;
+  std::cout << "source at LED " << led << ": relative RMSE against exact visibility " << error
+            << "\n";
+  // Measured 0.064 (seed 1); 0.079 when the flows toward LEDs of no weight were not made and the
+  // shadow came out hard. Asserted at 0.07: the hard shadow's figure trips it.
+  EXPECT_LT(error, 0.07);
 }
 
 }  // namespace

@@ -132,6 +132,36 @@ TEST(GroundTruth, SmallSourceMatchesOneLightImage) {
   expect_matches_one_light(lone_sphere(mat), ortho_camera(48, 1.2), 0.0, 0.01);
 }
 
+// A sphere above a plane under a 2-degree disc at 45 degrees: the plane sees none of it in the
+// middle of the sphere's shadow, all of it far away, and about half on the shadow's edge.
+TEST(GroundTruth, SourceVisibilityIsTheShareOfTheDiscSeen) {
+  Scene scene;
+  SceneMaterial m;
+  m.name = "m";
+  scene.materials.push_back(m);
+  scene.spheres.push_back({{0, 0, 1}, 0.3, 0});
+  scene.planes.push_back({{0, 0, 0}, {0, 0, 1}, 2.0, 2.0, 0});
+  const CameraSpec camera = ortho_camera(96, 3.0);
+  const Eigen::Vector3d dir = Eigen::Vector3d(1, 0, 1).normalized();
+  const Image visibility = render_source_visibility(scene, camera, dir, 2.0 * kPi / 180);
+  ASSERT_EQ(visibility.channels, 1);
+  // The pixel whose surface point is nearest `at` (on the plane: the camera looks down -z).
+  const auto hits = trace_camera(scene, camera);
+  const auto seen_at = [&](const Eigen::Vector3d& at) {
+    const SurfaceHit* best = &hits.front();
+    for (const SurfaceHit& h : hits) {
+      if ((h.position - at).norm() < (best->position - at).norm()) best = &h;
+    }
+    return visibility.at(best->pixel_x, best->pixel_y, 0);
+  };
+  // The shadow of the sphere's centre falls at (-1, 0, 0); its edge across the light at y = +-0.3.
+  EXPECT_EQ(seen_at({-1, 0, 0}), 0.0f);
+  EXPECT_EQ(seen_at({1, 0, 0}), 1.0f);
+  EXPECT_NEAR(seen_at({-1, 0.3, 0}), 0.5, 0.3);
+  EXPECT_NEAR(seen_at({-1, -0.3, 0}), 0.5, 0.3);
+  EXPECT_THROW(render_source_visibility(scene, camera, dir, -1.0), InputError);
+}
+
 TEST(GroundTruth, RotationTurnsTheMapAboutY) {
   brdf::Material mat;
   mat.albedo = {0.6, 0.6, 0.6};
