@@ -68,7 +68,7 @@ void write_outputs(const SunBenchOptions& options, const SunBenchSummary& summar
   for (const std::string path : {"sweep", "turn"}) {
     ChartSeries cells{"LED cells (today)", {}, {}, {}, true};
     ChartSeries sources{"source at its direction", {}, {}, {}, true};
-    ChartSeries exact{"the same, exact visibility (sim)", {}, {}, {}, true};
+    ChartSeries exact{"exact visibility (sim)", {}, {}, {}, true};
     for (const SunBenchRow& r : summary.rows) {
       if (r.path != path) continue;
       cells.x.push_back(r.position);
