@@ -7,7 +7,7 @@
 // its true direction, each against ground truth rendered from the scene; and the source rendered
 // with the scene's exact visibility of it (traced in the simulator) instead of the one interpolated
 // from the LEDs' shadows: what is left then is the shading's error, the rest the shadows'. Writes
-// sun.csv and sun_sweep.png, sun_turn.png (error against position, both methods) and
+// sun.csv and sun_sweep.png, sun_turn.png (error against position, all three) and
 // sun_error_vs_time.png (error against the time per frame), and each position's images in
 // sun_frames/ (by cells, with the source, ground truth).
 #include <filesystem>
