@@ -292,10 +292,10 @@ std::vector<FieldLight> parse_lights(const std::string& name, const std::string&
       light.led_id = id.get<int>();
       light.dir_in_stage = {dir[0].get<double>(), dir[1].get<double>(), dir[2].get<double>()};
       light.valid = e.at("valid").get<bool>();
-      // norm() finite too: components near the largest double overflow it, and the direction
-      // normalised later would be 0.
+      // norm() finite, not only the components: near the largest double they overflow it, and
+      // the direction normalised later would be 0. (A NaN component makes it NaN.)
       const double norm = light.dir_in_stage.norm();
-      if (!light.dir_in_stage.allFinite() || !(norm > 0) || !std::isfinite(norm)) {
+      if (!(norm > 0 && std::isfinite(norm))) {
         throw InputError("dir must be a finite, non-zero direction");
       }
       if (e.contains("saturates_at")) {

@@ -1,10 +1,10 @@
 // The whole slice against ground truth: simulated capture -> session -> field -> relighting.
 #include <gtest/gtest.h>
 
-#include <algorithm>
 #include <cmath>
 #include <set>
 
+#include "lightstage/direction_index.h"
 #include "relight/fit/source_relight.h"
 #include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
@@ -116,16 +116,28 @@ TEST(EndToEnd, MapOfOneLedsCellReturnsThatLedsImage) {
   }
 }
 
+// The demo scene captured on the built-in dome at size x size pixels, and its field.
+struct DemoCapture {
+  explicit DemoCapture(int size) : stage(sized(default_stage(), size)) {}
+  static Stage sized(Stage stage, int size) {
+    stage.camera.width = stage.camera.height = size;
+    return stage;
+  }
+  testing::TempDir tmp;
+  Stage stage;
+  sim::Scene scene = sim::default_scene();
+  capture::ReflectanceField field = testing::CaptureAndBuild(tmp / "s", stage, scene);
+};
+
 // The demo scene (matte, rough, glossy spheres, a shadowing height field, a checkered plane)
 // relit from its simulated capture on the built-in dome, against ground truth rendered directly
 // from the scene under each shipped map (restricted to what the dome covers): by LED cells alone,
 // and with the maps' compact sources split off and rendered at their true direction (issue 16).
 TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
-  testing::TempDir tmp;
-  Stage stage = default_stage();
-  stage.camera.width = stage.camera.height = 96;
-  const sim::Scene scene = sim::default_scene();
-  const auto field = testing::CaptureAndBuild(tmp / "s", stage, scene);
+  const DemoCapture demo(96);
+  const Stage& stage = demo.stage;
+  const sim::Scene& scene = demo.scene;
+  const capture::ReflectanceField& field = demo.field;
   const auto dirs = stage.led_directions();
   // Relative RMSE measured at 151 LEDs, 96x96, seed 1, 128-wide quadrature, by cells: sky_sun
   // 0.117, softbox_studio 0.035, small_source 0.185 (a 2-degree source falls into one 14-degree
@@ -184,22 +196,16 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
 // they weigh nothing there. Measured against the same render with the visibility traced in the
 // scene (sim::render_source_visibility), so that only the shadows differ.
 TEST(EndToEnd, ASourceAtAnLedsDirectionCastsThePenumbraOfItsSize) {
-  testing::TempDir tmp;
-  Stage stage = default_stage();
-  stage.camera.width = stage.camera.height = 64;
-  const sim::Scene scene = sim::default_scene();
-  const auto field = testing::CaptureAndBuild(tmp / "s", stage, scene);
-  const auto dirs = stage.led_directions();
+  const DemoCapture demo(64);
+  const auto dirs = demo.stage.led_directions();
   const double radius = 2.0 * M_PI / 180;
   // The LED nearest elevation 50 deg, azimuth 30 deg: it lights the spheres and the relief, and
   // the spheres' shadows fall on the relief.
   const Eigen::Vector3d aim(std::cos(50 * M_PI / 180) * std::cos(M_PI / 6),
                             std::sin(50 * M_PI / 180),
                             std::cos(50 * M_PI / 180) * std::sin(M_PI / 6));
-  const int led =
-      int(std::max_element(dirs.begin(), dirs.end(),
-                           [&](const auto& a, const auto& b) { return a.dot(aim) < b.dot(aim); }) -
-          dirs.begin());
+  const int led = DirectionIndex(dirs).nearest(aim);
+  ASSERT_GE(led, 0);
   relight::PlacedSource source;
   source.in_stage.dir = dirs[size_t(led)];
   source.in_stage.radius_rad = radius;
@@ -209,11 +215,11 @@ TEST(EndToEnd, ASourceAtAnLedsDirectionCastsThePenumbraOfItsSize) {
   ASSERT_TRUE(source.triangle.has_value());
   relight::SplitLighting lighting;
   lighting.sources.push_back(source);
-  const relight::FieldSources sources(field);
+  const relight::FieldSources sources(demo.field);
   Image interpolated(64, 64, 3), exact(64, 64, 3);
   sources.add(lighting, interpolated);
   const Image visibility =
-      sim::render_source_visibility(scene, stage.camera, source.in_stage.dir, radius);
+      sim::render_source_visibility(demo.scene, demo.stage.camera, source.in_stage.dir, radius);
   sources.add(lighting, exact, {&visibility});
   const double error = testing::compare_images(interpolated, exact).relative_rmse;
   std::cout << "source at LED " << led << ": relative RMSE against exact visibility " << error
