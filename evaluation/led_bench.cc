@@ -166,7 +166,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
     std::optional<relight::FieldSources> turn_sources;  // The field in memory: any LED's shadow.
     const double sources_ms = median_ms(1, [&] {
       sources.emplace(field, capture::whole_field(field),
-                      std::vector<int>(source_leds.begin(), source_leds.end()));
+                      std::vector<int>(source_leds.begin(), source_leds.end()), true);
     });
     for (size_t m = 0; m < maps.size(); ++m) {
       const relight::EnvironmentMap& map = maps[m];
@@ -212,7 +212,10 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
         summary.rows.push_back(row);
       }
       if (options.turns > 0 && !splits[m].sources.empty()) {
-        if (!turn_sources) turn_sources.emplace(field);  // One fit for every map's turns.
+        if (!turn_sources) {  // One fit and shape for every map's turns.
+          turn_sources.emplace(field);
+          turn_sources->recover_geometry();
+        }
         for (LedBenchRow& row :
              turned_rows(options, scene, stage, field, *turn_sources, map, gt, truth)) {
           row.leds = count;

@@ -58,24 +58,24 @@ relight::EnvironmentMap disc_map(const Eigen::Vector3d& centre, double radius_de
 void write_outputs(const SunBenchOptions& options, const SunBenchSummary& summary) {
   std::ofstream csv(summary.csv);
   if (!csv) throw InputError(summary.csv.string() + ": cannot write");
-  csv << "path,position,angle_to_nearest_led_deg,cells_rmse,sources_rmse,exact_visibility_rmse,"
-         "cells_ms,sources_ms\n";
+  csv << "path,position,angle_to_nearest_led_deg,cells_rmse,sources_rmse,flows_rmse,"
+         "exact_visibility_rmse,cells_ms,sources_ms,flows_ms\n";
   for (const SunBenchRow& r : summary.rows) {
     csv << r.path << ',' << r.position << ',' << r.angle_to_nearest_led_deg << ',' << r.cells_rmse
-        << ',' << r.sources_rmse << ',' << r.exact_visibility_rmse << ',' << r.cells_ms << ','
-        << r.sources_ms << '\n';
+        << ',' << r.sources_rmse << ',' << r.flows_rmse << ',' << r.exact_visibility_rmse << ','
+        << r.cells_ms << ',' << r.sources_ms << ',' << r.flows_ms << '\n';
   }
   for (const std::string path : {"sweep", "turn"}) {
     ChartSeries cells{"LED cells (today)", {}, {}, {}, true};
-    ChartSeries sources{"source at its direction", {}, {}, {}, true};
+    ChartSeries flows{"source, shadows by flows", {}, {}, {}, true};
+    ChartSeries sources{"source, flows + shape", {}, {}, {}, true};
     ChartSeries exact{"exact visibility (sim)", {}, {}, {}, true};
     for (const SunBenchRow& r : summary.rows) {
       if (r.path != path) continue;
-      cells.x.push_back(r.position);
+      for (ChartSeries* s : {&cells, &flows, &sources, &exact}) s->x.push_back(r.position);
       cells.y.push_back(r.cells_rmse);
-      sources.x.push_back(r.position);
+      flows.y.push_back(r.flows_rmse);
       sources.y.push_back(r.sources_rmse);
-      exact.x.push_back(r.position);
       exact.y.push_back(r.exact_visibility_rmse);
     }
     const bool sweep = path == "sweep";
@@ -85,22 +85,25 @@ void write_outputs(const SunBenchOptions& options, const SunBenchSummary& summar
                : "A small source turned through a full circle about the vertical",
          sweep ? "position between the LED and the middle of its triangle" : "azimuth, degrees",
          "relative RMSE against ground truth", false},
-        {cells, sources, exact});
+        {cells, flows, sources, exact});
   }
   ChartSeries cells{"LED cells (today)", {}, {}, {}, false};
-  ChartSeries sources{"source at its direction", {}, {}, {}, false};
+  ChartSeries flows{"source, shadows by flows", {}, {}, {}, false};
+  ChartSeries sources{"source, flows + shape", {}, {}, {}, false};
   for (const SunBenchRow& r : summary.rows) {
     cells.x.push_back(r.cells_ms);
     cells.y.push_back(r.cells_rmse);
+    flows.x.push_back(r.flows_ms);
+    flows.y.push_back(r.flows_rmse);
     sources.x.push_back(r.sources_ms);
     sources.y.push_back(r.sources_rmse);
   }
   write_chart(options.out / "sun_error_vs_time.png",
               {"Small source: error against time per frame (" + std::to_string(options.resolution) +
-                   " px; sources also need " + std::to_string(int(summary.sources_setup_ms)) +
-                   " ms once per field)",
+                   " px; once per field, flows " + std::to_string(int(summary.flows_setup_ms)) +
+                   " ms, + shape " + std::to_string(int(summary.sources_setup_ms)) + " ms)",
                "relight time per frame, ms", "relative RMSE against ground truth", false},
-              {cells, sources});
+              {cells, flows, sources});
 }
 
 }  // namespace
@@ -167,9 +170,13 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
     for (const int led : splits.back().leds()) leds.insert(led);
   }
   SunBenchSummary summary;
-  std::optional<relight::FieldSources> sources;
+  std::optional<relight::FieldSources> sources, flows;
   summary.sources_setup_ms = median_ms(1, [&] {
-    sources.emplace(field, capture::whole_field(field), std::vector<int>(leds.begin(), leds.end()));
+    sources.emplace(field, capture::whole_field(field), std::vector<int>(leds.begin(), leds.end()),
+                    true);
+  });
+  summary.flows_setup_ms = median_ms(1, [&] {
+    flows.emplace(field, capture::whole_field(field), std::vector<int>(leds.begin(), leds.end()));
   });
   for (size_t i = 0; i < places.size(); ++i) {
     SunBenchRow row;
@@ -178,13 +185,17 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
     row.angle_to_nearest_led_deg = index.nearest_angle(places[i].dir) / kDeg;
     const relight::SplitLighting cells =
         relight::split_lighting(maps[i], field.lights(), 0.0, coverage, false);
-    Image relit_cells, relit_sources;
+    Image relit_cells, relit_sources, relit_flows;
     row.cells_ms = median_ms(options.repeats, [&] {
       relight::relight_into(field, cells.weights.irradiance_rgb, relit_cells);
     });
     row.sources_ms = median_ms(options.repeats, [&] {
       relight::relight_into(field, splits[i].weights.irradiance_rgb, relit_sources);
       sources->add(splits[i], relit_sources);
+    });
+    row.flows_ms = median_ms(options.repeats, [&] {
+      relight::relight_into(field, splits[i].weights.irradiance_rgb, relit_flows);
+      flows->add(splits[i], relit_flows);
     });
     sim::GroundTruthOptions gt;
     gt.directions_width = 256;  // 0.7-degree quadrature: the 2-degree disc's penumbrae resolved.
@@ -193,6 +204,7 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
     const Image truth = sim::render_ground_truth(scene, stage.camera, maps[i], gt);
     row.cells_rmse = compare_images(relit_cells, truth).relative_rmse;
     row.sources_rmse = compare_images(relit_sources, truth).relative_rmse;
+    row.flows_rmse = compare_images(relit_flows, truth).relative_rmse;
     // The same render with the visibility traced in the scene: the shading's part of the error.
     const Image visibility = sim::render_source_visibility(scene, stage.camera, places[i].dir,
                                                            options.radius_deg * kDeg);

@@ -50,36 +50,9 @@ CompactSourceLight::CompactSourceLight(const capture::ReflectanceField& field)
 
 CompactSourceLight::CompactSourceLight(const relight::PcaField& pca)
     : width_(pca.width()), height_(pca.height()), make_([&pca] {
-        std::vector<capture::FieldLight> lights;
-        for (size_t l = 0; l < pca.led_dirs().size(); ++l) {
-          lights.push_back({int(l), pca.led_dirs()[l], bool(pca.led_valid()[l])});
-        }
-        const capture::ReflectanceField header =
-            capture::ReflectanceField::without_values(pca.width(), pca.height(), lights);
-        // The reconstruction in bands of 64 rows: what photometric stereo reads.
-        const capture::FieldBands bands = [&](const capture::BandVisitor& visit) {
-          for (int y0 = 0; y0 < pca.height(); y0 += 64) {
-            const int rows = std::min(64, pca.height() - y0);
-            capture::ReflectanceField band(pca.width(), rows, lights);
-            band.set_band(y0, pca.height());
-            for (int y = 0; y < rows; ++y) {
-              for (int x = 0; x < pca.width(); ++x) {
-                float* v = band.pixel(x, y);
-                for (int l = 0; l < int(lights.size()); ++l) {
-                  for (int c = 0; c < 3; ++c) v[3 * l + c] = pca.reconstruct(x, y0 + y, l, c);
-                }
-              }
-            }
-            visit(band);
-          }
-        };
-        return std::make_unique<relight::FieldSources>(header, bands, [&pca](int led) {
-          std::vector<float> one_led(3 * size_t(pca.num_lights()), 0.0f);
-          std::fill_n(one_led.begin() + 3 * long(led), 3, 1.0f);
-          Image image;
-          pca.relight_led_weights_into(one_led.data(), image);
-          return image.pixels;
-        });
+        return std::make_unique<relight::FieldSources>(
+            pca.header(), pca.reconstruction_bands(),
+            [&pca](int led) { return pca.led_image(led); });
       }) {}
 
 const relight::FieldSources& CompactSourceLight::sources() {

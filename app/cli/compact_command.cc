@@ -142,6 +142,9 @@ void add_render_command(CLI::App& app) {
   render->add_option("--env", args->environment, "Environment map (EXR/HDR) instead of --light.");
   render->add_option("--rotate", args->rotation_deg, "Rotation of the map about +Y, degrees.")
       ->capture_default_str();
+  render->add_flag("!--no-compact-sources", args->compact_sources,
+                   "A PCA under a map with a sun or small lamp: relight it by the LED cells too "
+                   "instead of rendering it at its true direction with moving shadows.");
   render->callback([args] {
     if (const std::string problem = args->validate(); !problem.empty()) {
       throw CLI::ValidationError("render", problem);
@@ -149,6 +152,7 @@ void add_render_command(CLI::App& app) {
     const jobs::RenderSummary summary = jobs::render_compact(*args);
     std::printf("%s: %dx%d, %s relit\n", args->out.c_str(), summary.width, summary.height,
                 summary.representation.c_str());
+    if (!summary.sources.empty()) std::printf("  %s\n", summary.sources.c_str());
   });
 }
 

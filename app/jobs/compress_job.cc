@@ -24,6 +24,7 @@
 #include "relight/compact/plane_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
+#include "relight/fit/source_relight.h"
 #include "relight/lighting/envmap.h"
 
 namespace ls::jobs {
@@ -538,6 +539,29 @@ std::string RenderOptions::validate() const {
   return {};
 }
 
+namespace {
+
+// A PCA under the map with its compact sources split off: the rest by LED cells, each source at its
+// direction (shadows from the reconstruction's shape where it agrees with the LEDs). False, and
+// nothing done, when the map has no source the dome covers.
+bool relight_with_sources(const relight::PcaField& pca, const RenderOptions& options, Image& out,
+                          std::string& report) {
+  const relight::EnvironmentMap map = relight::EnvironmentMap::load(options.environment);
+  const capture::ReflectanceField header = pca.header();
+  const relight::SplitLighting split =
+      relight::split_lighting(map, header.lights(), options.rotation_deg, 0.0, true);
+  if (split.leds().empty()) return false;
+  pca.relight_led_weights_into(split.weights.irradiance_rgb.data(), out);
+  relight::FieldSources sources(header, pca.reconstruction_bands(),
+                                [&pca](int led) { return pca.led_image(led); });
+  sources.recover_geometry();
+  sources.add(split, out);
+  report = split.report();
+  return true;
+}
+
+}  // namespace
+
 RenderSummary render_compact(const RenderOptions& options) {
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("render: " + problem);
@@ -553,19 +577,22 @@ RenderSummary render_compact(const RenderOptions& options) {
   } else {
     field = std::make_unique<relight::PcaField>(relight::PcaField::read(options.input));
   }
-  const relight::LightingForModels lights =
-      options.light.empty()
-          ? relight::LightingForModels::environment(
-                relight::EnvironmentMap::load(options.environment), options.rotation_deg)
-          : relight::LightingForModels::directional(
-                Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized(),
-                Eigen::Vector3d::Ones());
-  const Image image = field->relight(lights);
+  RenderSummary summary{field->name(), field->width(), field->height(), {}};
+  Image image;
+  const auto* pca = dynamic_cast<const relight::PcaField*>(field.get());
+  if (options.environment.empty()) {
+    image = field->relight_point(
+        Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized());
+  } else if (!(pca && options.compact_sources &&
+               relight_with_sources(*pca, options, image, summary.sources))) {
+    image = field->relight(relight::LightingForModels::environment(
+        relight::EnvironmentMap::load(options.environment), options.rotation_deg));
+  }
   write_exr(options.out, image);
   fs::path png = options.out;
   png.replace_extension(".png");
   write_png_preview(png, image, auto_exposure_stops(image));
-  return {field->name(), image.width, image.height};
+  return summary;
 }
 
 }  // namespace ls::jobs

@@ -83,12 +83,17 @@ struct RenderOptions {
   std::vector<double> light;          // X Y Z toward the light, stage frame (+Y up); or
   std::filesystem::path environment;  // an environment map (EXR/HDR) ...
   double rotation_deg = 0.0;          // ... rotated about +Y.
+  // A PCA (it keeps its LEDs' directions) under a map with a compact source (a sun, a lamp): the
+  // source split off and rendered at its true direction from the PCA's reconstruction, as
+  // `relight` does for a field (relight/fit/source_relight.h), the rest of the map by LED cells.
+  bool compact_sources = true;
   std::string validate() const;
 };
 
 struct RenderSummary {
   std::string representation;  // E.g. "hsh3", "ptm-lrgb", "pca k=12".
   int width = 0, height = 0;
+  std::string sources;  // What was split off the map and rendered at its direction; empty: none.
 };
 
 RenderSummary render_compact(const RenderOptions& options);

@@ -74,6 +74,7 @@ std::string RelightOptions::to_json() const {
   if (exposure_stops) j["exposure_stops"] = *exposure_stops;
   j["coverage_deg"] = coverage_deg;
   j["compact_sources"] = compact_sources;
+  j["source_geometry"] = source_geometry;
   j["memory_bytes"] = memory_bytes;
   j["directions"] = directions_width;
   return j.dump();
@@ -96,22 +97,38 @@ struct Output {
 // line says why (empty when they fit).
 
 std::size_t sources_bytes(const capture::ReflectanceField& header,
-                          const std::vector<Output>& outputs, std::size_t source_leds) {
+                          const std::vector<Output>& outputs, std::size_t source_leds,
+                          bool geometry) {
   int triangles = 0;
   for (const Output& out : outputs) {
     for (const auto& source : out.lighting.sources) triangles += source.triangle.has_value();
   }
   return relight::FieldSources::bytes_needed(header.width(), header.height(), int(source_leds),
-                                             triangles);
+                                             triangles, geometry ? header.num_lights() : 0);
 }
 
+// The sources fit with the geometry, or without it, or (the returned line says why) not at all.
 std::string fit_sources_in_memory(const RelightOptions& options,
                                   const capture::ReflectanceField& header,
-                                  std::vector<Output>& outputs, std::set<int>& source_leds) {
+                                  std::vector<Output>& outputs, std::set<int>& source_leds,
+                                  bool& geometry) {
   if (source_leds.empty()) return {};
-  const std::size_t need = sources_bytes(header, outputs, source_leds.size());
   const std::size_t may = memory_given(options);
-  if (need <= may) return {};
+  geometry = options.source_geometry;
+  if (geometry && sources_bytes(header, outputs, source_leds.size(), true) <= may) return {};
+  std::string note;
+  if (geometry) {
+    char line[240];
+    std::snprintf(line, sizeof line,
+                  "compact sources' shadows by the LEDs' flows alone: the scene's shape would hold "
+                  "%.0f MiB for this %dx%d field, over the %.0f MiB it may use (--memory)",
+                  double(sources_bytes(header, outputs, source_leds.size(), true)) / (1 << 20),
+                  header.width(), header.height(), double(may) / (1 << 20));
+    note = line;
+    geometry = false;
+  }
+  const std::size_t need = sources_bytes(header, outputs, source_leds.size(), false);
+  if (need <= may) return note;
   MapRotations map_rotations(options);
   size_t i = 0;
   map_rotations.for_each(
@@ -120,12 +137,12 @@ std::string fit_sources_in_memory(const RelightOptions& options,
             relight::split_lighting(map, header.lights(), rotation, coverage_rad(options), false);
       });
   source_leds.clear();
-  char note[240];
-  std::snprintf(note, sizeof note,
+  char cells[240];
+  std::snprintf(cells, sizeof cells,
                 "compact sources relit by the LED cells: rendering them at their direction would "
                 "hold %.0f MiB for this %dx%d field, over the %.0f MiB it may use (--memory)",
                 double(need) / (1 << 20), header.width(), header.height(), double(may) / (1 << 20));
-  return note;
+  return cells;
 }
 
 // The field relit under every map and rotation, read once a few MiB at a time (FieldStream's rows
@@ -149,7 +166,9 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
         for (const int led : out.lighting.leds()) source_leds.insert(led);
         outputs.push_back(std::move(out));
       });
-  const std::string sources_note = fit_sources_in_memory(options, header, outputs, source_leds);
+  bool geometry = false;
+  const std::string sources_note =
+      fit_sources_in_memory(options, header, outputs, source_leds, geometry);
   // The field's rows as the file holds them, in pieces of about 8 MiB: relighting sums over each
   // pixel's values, so it needs no pixel-major band (and no memory for one: --memory is moot).
   const auto pass_start = Clock::now();
@@ -191,9 +210,9 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
     report(progress, "compact sources (normals)", 0, 1);
     // Bands within what the sources' images leave of the memory given.
     const std::size_t band_bytes =
-        memory_given(options) - sources_bytes(header, outputs, source_leds.size());
+        memory_given(options) - sources_bytes(header, outputs, source_leds.size(), geometry);
     const relight::FieldSources sources(header, stream.bands(stream.rows_within(band_bytes)),
-                                        {source_leds.begin(), source_leds.end()});
+                                        {source_leds.begin(), source_leds.end()}, geometry);
     for (Output& out : outputs) sources.add(out.lighting, out.relit);
     sources_ms = ms_between(t0, Clock::now());
   }
@@ -208,9 +227,9 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
                   100.0 * out.lighting.weights.uncovered_fraction());
     std::string line = detail;
     if (!out.lighting.sources.empty()) {
-      char ms[96];
-      std::snprintf(ms, sizeof ms, " (normals and shadows of the sources' LEDs: %.0f ms, all maps)",
-                    sources_ms);
+      char ms[160];
+      std::snprintf(ms, sizeof ms, " (normals, %sshadows of the sources' LEDs: %.0f ms, all maps)",
+                    geometry ? "the scene's shape, " : "", sources_ms);
       line += "\n    " + out.lighting.report() + ms;
     }
     if (!sources_note.empty()) line += "\n    " + sources_note;

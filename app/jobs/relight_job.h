@@ -27,6 +27,9 @@ struct RelightOptions {
   // Fields: a map's compact bright sources (a sun, a lamp) are split off and rendered at their
   // true direction with moving shadows (relight/lighting/source_render.h), the rest by LED cells.
   bool compact_sources = true;
+  // Their shadows: by the scene's shape recovered from every LED's shadows where it agrees with
+  // the LEDs around the source (relight/lighting/shadow_geometry.h), else by the flows alone.
+  bool source_geometry = true;
   // What rendering them may hold (relight::FieldSources::bytes_needed); 0: half of the memory
   // available. Over it they are relit by the cells, and the output's detail says so. Models and
   // temporal maps are read in bands of rows within what the full-size outputs leave of it.

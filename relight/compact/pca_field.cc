@@ -443,6 +443,44 @@ float PcaField::reconstruct(int x, int y, int light, int c) const {
   return v;
 }
 
+capture::ReflectanceField PcaField::header() const {
+  std::vector<capture::FieldLight> lights;
+  for (size_t l = 0; l < led_dirs_.size(); ++l) {
+    lights.push_back({int(l), led_dirs_[l], bool(led_valid_[l])});
+  }
+  return capture::ReflectanceField::without_values(width_, height_, lights);
+}
+
+capture::FieldBands PcaField::reconstruction_bands(int rows) const {
+  LS_CHECK(rows > 0, "PcaField::reconstruction_bands: rows must be positive");
+  return [this, rows](const capture::BandVisitor& visit) {
+    const capture::ReflectanceField head = header();
+    for (int y0 = 0; y0 < height_; y0 += rows) {
+      const int band_rows = std::min(rows, height_ - y0);
+      capture::ReflectanceField band(width_, band_rows, head.lights());
+      band.set_band(y0, height_);
+      tbb::parallel_for(0, band_rows, [&](int y) {
+        for (int x = 0; x < width_; ++x) {
+          float* v = band.pixel(x, y);
+          for (int l = 0; l < num_lights(); ++l) {
+            for (int c = 0; c < 3; ++c) v[3 * l + c] = reconstruct(x, y0 + y, l, c);
+          }
+        }
+      });
+      visit(band);
+    }
+  };
+}
+
+std::vector<float> PcaField::led_image(int led) const {
+  LS_CHECK(led >= 0 && led < num_lights(), "PcaField::led_image: no light " + std::to_string(led));
+  std::vector<float> one_led(3 * size_t(num_lights()), 0.0f);
+  std::fill_n(one_led.begin() + 3 * long(led), 3, 1.0f);
+  Image image;
+  relight_led_weights_into(one_led.data(), image);
+  return std::move(image.pixels);
+}
+
 void PcaField::relight_into(const LightingForModels& lights, Image& out) const {
   const std::vector<float> e = interpolator_.led_irradiance(lights);
   relight_led_weights_into(e.data(), out);

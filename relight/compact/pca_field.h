@@ -204,6 +204,12 @@ class PcaField : public CompactField {
   int tile_size() const { return tile_size_; }
   // The reconstruction of one pixel's value under LED l.
   float reconstruct(int x, int y, int light, int c) const;
+  // The reconstruction as a field, for what reads one (photometric stereo, compact sources:
+  // relight/fit/source_relight.h): its header (the lights, no values), its rows in bands of
+  // `rows`, and its image under LED l alone (width x height x 3, field units).
+  capture::ReflectanceField header() const;
+  capture::FieldBands reconstruction_bands(int rows = 64) const;
+  std::vector<float> led_image(int led) const;
 
   // For GPU relighting (viewer/gpu_relight.cc), which does the per-pixel sum itself:
   // the number of tiles (1 for a global basis; row-major, tiles_across() per row of tiles),

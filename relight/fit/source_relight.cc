@@ -93,28 +93,62 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
 }
 
 FieldSources::FieldSources(const capture::ReflectanceField& header,
-                           const capture::FieldBands& bands, const std::vector<int>& leds) {
+                           const capture::FieldBands& bands, const std::vector<int>& leds,
+                           bool with_geometry) {
   const size_t pixels = size_t(header.width()) * header.height();
   std::map<int, std::vector<float>> images;
   for (const int led : leds) {
     LS_CHECK(led >= 0 && led < header.num_lights(),
              "FieldSources: no light " + std::to_string(led));
-    images[led].resize(3 * pixels);
+    images[led];
   }
+  if (with_geometry) {
+    for (int led = 0; led < header.num_lights(); ++led) images[led];
+  }
+  for (auto& [led, rgb] : images) rgb.resize(3 * pixels);
   // The LEDs' images in the same pass as the fit.
   read_fit(header, bands, [&](const capture::ReflectanceField& band) {
     const size_t first = size_t(band.first_row()) * header.width();
     for (auto& [led, rgb] : images) copy_led_image(band, led, rgb.data() + 3 * first);
   });
-  for (auto& [led, rgb] : images) {
-    shadows_.emplace(led, led_shadow(led_dirs_[size_t(led)], std::move(rgb), fit_));
+  if (with_geometry) build_geometry([&images](int led) { return images.at(led); }, {});
+  for (const int led : leds) {
+    shadows_.emplace(led, led_shadow(led_dirs_[size_t(led)], std::move(images.at(led)), fit_));
   }
+}
+
+void FieldSources::recover_geometry(const std::function<void(int, int)>& progress) {
+  LS_CHECK(led_image_ != nullptr,
+           "FieldSources: the geometry needs every LED's image; this field was streamed");
+  const std::lock_guard<std::mutex> lock(mutex_);
+  build_geometry(led_image_, progress);
+}
+
+void FieldSources::build_geometry(const LedImageFn& image_of,
+                                  const std::function<void(int, int)>& progress) {
+  std::vector<int> leds;
+  std::vector<Eigen::Vector3d> dirs;
+  for (int led = 0; led < int(led_dirs_.size()); ++led) {
+    if (!usable_[size_t(led)]) continue;
+    leds.push_back(led);
+    dirs.push_back(led_dirs_[size_t(led)]);
+  }
+  geometry_ = std::make_unique<ShadowGeometry>(
+      fit_, dirs,
+      [&](int k) {
+        const int led = leds[size_t(k)];
+        return led_lit_mask(led_dirs_[size_t(led)], image_of(led), fit_);
+      },
+      progress);
 }
 
 void FieldSources::read_fit(const capture::ReflectanceField& header,
                             const capture::FieldBands& bands, const capture::BandVisitor& also) {
   fit_ = {Image(header.width(), header.height(), 3), Image(header.width(), header.height(), 3)};
-  for (const capture::FieldLight& light : header.lights()) led_dirs_.push_back(light.dir_in_stage);
+  for (const capture::FieldLight& light : header.lights()) {
+    led_dirs_.push_back(light.dir_in_stage);
+    usable_.push_back(light.valid);
+  }
   const NormalOptions normal_options = normal_options_for(header);
   bands([&](const capture::ReflectanceField& band) {
     const NormalMap normals = estimate_normals(band, normal_options);
@@ -127,11 +161,15 @@ void FieldSources::read_fit(const capture::ReflectanceField& header,
   });
 }
 
-std::size_t FieldSources::bytes_needed(int width, int height, int leds, int triangles) {
+std::size_t FieldSources::bytes_needed(int width, int height, int leds, int triangles,
+                                       int all_leds) {
   const std::size_t floats_per_pixel = std::size_t{6} +
                                        std::size_t{7} * std::size_t(std::max(leds, 0)) +
-                                       std::size_t{24} * std::size_t(std::max(triangles, 0));
-  return std::size_t(width) * std::size_t(height) * floats_per_pixel * sizeof(float);
+                                       std::size_t{24} * std::size_t(std::max(triangles, 0)) +
+                                       std::size_t{3} * std::size_t(std::max(all_leds, 0));
+  const std::size_t pixels = std::size_t(width) * std::size_t(height);
+  return pixels * floats_per_pixel * sizeof(float) +
+         pixels * std::size_t(std::max(all_leds, 0)) / 8;
 }
 
 // Callers hold mutex_.
@@ -177,8 +215,10 @@ void FieldSources::add(const SplitLighting& lighting, Image& out,
       }
     }
     lock.unlock();
+    std::optional<SourceShadowView> view;
+    if (geometry_) view = geometry_->view(source.in_stage.dir, source.in_stage.radius_rad);
     add_compact_source(shadows, flows, *source.triangle, source.in_stage, fit_, out,
-                       i < visibility.size() ? visibility[i] : nullptr);
+                       i < visibility.size() ? visibility[i] : nullptr, view ? &*view : nullptr);
   }
 }
 

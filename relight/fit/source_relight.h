@@ -5,6 +5,7 @@
 // LEDs around the sources. Fields in memory and streamed ones alike (capture::FieldBands).
 #include <functional>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -13,6 +14,7 @@
 #include "capture/field.h"
 #include "relight/lighting/compact_sources.h"
 #include "relight/lighting/light_cells.h"
+#include "relight/lighting/shadow_geometry.h"
 #include "relight/lighting/source_render.h"
 
 namespace ls::relight {
@@ -43,9 +45,10 @@ SplitLighting split_lighting(const EnvironmentMap& map,
 class FieldSources {
  public:
   // A streamed field: the fit and the shadows of `leds`, in one pass over its bands; add() needs no
-  // other LED.
+  // other LED. with_geometry: the scene's shape too (recover_geometry), from every LED's image
+  // held during the pass.
   FieldSources(const capture::ReflectanceField& header, const capture::FieldBands& bands,
-               const std::vector<int>& leds);
+               const std::vector<int>& leds, bool with_geometry = false);
   // A field in memory (it must outlive this): the fit now, each LED's shadow when a source first
   // falls next to it (a sun turning with the map in the viewer).
   explicit FieldSources(const capture::ReflectanceField& field);
@@ -54,10 +57,17 @@ class FieldSources {
   using LedImageFn = std::function<std::vector<float>(int led)>;
   FieldSources(const capture::ReflectanceField& header, const capture::FieldBands& bands,
                LedImageFn led_image);
+  // The scene's shape from every usable LED's shadows (shadow_geometry.h), for add() to cast the
+  // sources' shadows by where it agrees with the LEDs: seconds at 256^2 (more LEDs, larger maps:
+  // longer). Needs the LEDs' images (not the streamed constructor's). progress(done, total) per
+  // LED.
+  void recover_geometry(const std::function<void(int, int)>& progress = {});
+  bool has_geometry() const { return geometry_ != nullptr; }
   // Memory it takes for a field of width x height with `leds` LED shadows and the flows of
   // `triangles` LED triangles: the fit (6 floats a pixel), each LED (image, gloss and distance: 7)
-  // and each triangle's 6 ordered pairs (4 each). 11 GiB at 24 MP with one source.
-  static std::size_t bytes_needed(int width, int height, int leds, int triangles);
+  // and each triangle's 6 ordered pairs (4 each). 11 GiB at 24 MP with one source. With the
+  // geometry of `all_leds` LEDs, their images while it is recovered (3 each) and their masks.
+  static std::size_t bytes_needed(int width, int height, int leds, int triangles, int all_leds = 0);
   // Adds every source of `lighting` that has a triangle to `out` (the field's size, 3 channels).
   // The flows between a triangle's LEDs are computed when first needed and kept: a sun that stays
   // between the same LEDs (a rotation's small steps, a viewer's frames) costs one pass per pixel.
@@ -75,7 +85,11 @@ class FieldSources {
 
   LambertianFit fit_;
   std::vector<Eigen::Vector3d> led_dirs_;
+  void build_geometry(const LedImageFn& image_of, const std::function<void(int, int)>& progress);
+
   LedImageFn led_image_;      // Set: shadows made on demand.
+  std::vector<bool> usable_;  // Per LED: not flagged dead.
+  std::unique_ptr<ShadowGeometry> geometry_;
   mutable std::mutex mutex_;  // add() may run on several threads; it fills the caches.
   mutable std::map<int, LedShadow> shadows_;
   mutable std::map<std::pair<int, int>, LedPairFlow> flows_;

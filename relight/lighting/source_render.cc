@@ -11,6 +11,7 @@
 
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
+#include "relight/lighting/shadow_geometry.h"
 
 namespace ls::relight {
 
@@ -159,52 +160,63 @@ std::optional<LedTriangle> led_triangle(const std::vector<Eigen::Vector3d>& unit
   return LedTriangle{{near.front(), near.front(), near.front()}, {1.0, 0.0, 0.0}};
 }
 
-LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
+LitMask led_lit_mask(const Eigen::Vector3d& led_dir, const std::vector<float>& rgb,
                      const LambertianFit& fit) {
   const int width = fit.normal.width, height = fit.normal.height;
   const size_t pixels = size_t(width) * height;
   LS_CHECK(rgb.size() == 3 * pixels && fit.albedo.pixels.size() == 3 * pixels,
-           "led_shadow: the LED image and the Lambertian fit differ in size");
-  LedShadow shadow;
-  shadow.dir = led_dir.normalized();
-  shadow.width = width;
-  shadow.height = height;
+           "led_lit_mask: the LED image and the Lambertian fit differ in size");
+  const Eigen::Vector3d dir = led_dir.normalized();
   std::vector<double> expected(pixels);
   double sum = 0;
   size_t lit_count = 0;
   for (size_t p = 0; p < pixels; ++p) {
-    expected[p] = luminance(lambert(fit, p, shadow.dir));
+    expected[p] = luminance(lambert(fit, p, dir));
     if (expected[p] > 0) {
       sum += expected[p];
       ++lit_count;
     }
   }
   const double dark = kDarkShare * (lit_count ? sum / double(lit_count) : 0.0);
-  // 255 where lit, 0 in a cast shadow. Where the Lambertian term is too dark to tell (attached
-  // shadow, black material) the nearest told pixel's answer: edges then run only between what was
-  // seen lit and what was seen shadowed, not along every terminator.
-  cv::Mat lit(height, width, CV_8U), untold(height, width, CV_8U);
+  // Where the Lambertian term is too dark to tell (attached shadow, black material) the nearest
+  // told pixel's answer: edges then run only between what was seen lit and what was seen
+  // shadowed, not along every terminator.
+  LitMask lit(pixels);
+  cv::Mat untold(height, width, CV_8U);
   for (size_t p = 0; p < pixels; ++p) {
     const double measured = luminance(Eigen::Vector3d(rgb[3 * p], rgb[3 * p + 1], rgb[3 * p + 2]));
     const double ratio =
-        pixel3(fit.normal, p).dot(shadow.dir) < kGrazingCosine ? kGrazingShadowRatio : kShadowRatio;
+        pixel3(fit.normal, p).dot(dir) < kGrazingCosine ? kGrazingShadowRatio : kShadowRatio;
     const bool told = expected[p] > dark;
-    const bool in_shadow = told && measured < ratio * expected[p];
-    lit.data[p] = in_shadow ? 0 : 255;
+    lit[p] = told && measured < ratio * expected[p] ? 0 : 1;
     untold.data[p] = told ? 0 : 255;
   }
   if (cv::countNonZero(untold) < int(pixels)) {
     cv::Mat distance, labels;
     cv::distanceTransform(untold, distance, labels, cv::DIST_L2, cv::DIST_MASK_5,
                           cv::DIST_LABEL_PIXEL);
-    std::vector<uchar> answer_of_label(pixels + 1, 255);
+    std::vector<std::uint8_t> answer_of_label(pixels + 1, 1);
     for (size_t p = 0; p < pixels; ++p) {
-      if (!untold.data[p]) answer_of_label[size_t(labels.ptr<int>()[p])] = lit.data[p];
+      if (!untold.data[p]) answer_of_label[size_t(labels.ptr<int>()[p])] = lit[p];
     }
     for (size_t p = 0; p < pixels; ++p) {
-      if (untold.data[p]) lit.data[p] = answer_of_label[size_t(labels.ptr<int>()[p])];
+      if (untold.data[p]) lit[p] = answer_of_label[size_t(labels.ptr<int>()[p])];
     }
   }
+  return lit;
+}
+
+LedShadow led_shadow(const Eigen::Vector3d& led_dir, std::vector<float> rgb,
+                     const LambertianFit& fit) {
+  const int width = fit.normal.width, height = fit.normal.height;
+  const size_t pixels = size_t(width) * height;
+  LedShadow shadow;
+  shadow.dir = led_dir.normalized();
+  shadow.width = width;
+  shadow.height = height;
+  LitMask mask = led_lit_mask(shadow.dir, rgb, fit);
+  for (auto& v : mask) v = v ? 255 : 0;
+  const cv::Mat lit(height, width, CV_8U, mask.data());
   // Distances to the nearest pixel of the other kind; the edge lies half a pixel from both sides.
   cv::Mat to_shadow, to_lit, shadowed;
   cv::distanceTransform(lit, to_shadow, cv::DIST_L2, cv::DIST_MASK_PRECISE);
@@ -236,7 +248,8 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to) {
 
 void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
                         const LedTriangle& triangle, const CompactSource& source,
-                        const LambertianFit& fit, Image& out, const Image* visibility) {
+                        const LambertianFit& fit, Image& out, const Image* visibility,
+                        const SourceShadowView* geometry) {
   const int width = fit.normal.width, height = fit.normal.height;
   LS_CHECK(out.width == width && out.height == height && out.channels == 3,
            "add_compact_source: the output is not the field's size");
@@ -321,9 +334,10 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
         }
       }
       const float half_width = std::clamp(radius * speed, 0.5f, max_half_width);
-      const float visible = visibility
-                                ? visibility->pixels[p]
-                                : std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
+      std::optional<float> visible;
+      if (visibility) visible = visibility->pixels[p];
+      if (!visible && geometry) visible = geometry->visible_share(x, y);
+      if (!visible) visible = std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
       const float* n = &fit.normal.pixels[3 * p];
       const float cosine = std::max(0.0f, n[0] * s[0] + n[1] * s[1] + n[2] * s[2]) * float(kInvPi);
       const float* albedo = &fit.albedo.pixels[3 * p];
@@ -331,7 +345,7 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
       for (int c = 0; c < 3; ++c) {
         const float shading = std::max(0.0f, albedo[c] * cosine + gloss[c]);
         const float bounced = shadow_weight > 0 ? in_shadow[c] / shadow_weight : 0.0f;
-        o[c] += irradiance[c] * (visible * shading + (1 - visible) * bounced);
+        o[c] += irradiance[c] * (*visible * shading + (1 - *visible) * bounced);
       }
     }
   });

@@ -20,6 +20,7 @@
 // Near-LED fields are lit along the LEDs' nominal directions here.
 #include <Eigen/Core>
 #include <array>
+#include <cstdint>
 #include <optional>
 #include <vector>
 
@@ -47,6 +48,13 @@ struct LambertianFit {
   Image normal;
   Image albedo;
 };
+
+// Which pixels an LED lit (1) and left in its cast shadow (0): a sample under half of its
+// Lambertian term is shadowed; where that term is too dark to tell, the nearest told pixel's
+// answer. `rgb`: the LED's image (width x height x 3, field units).
+using LitMask = std::vector<std::uint8_t>;
+LitMask led_lit_mask(const Eigen::Vector3d& led_dir, const std::vector<float>& rgb,
+                     const LambertianFit& fit);
 
 // One LED's image (width x height x 3, field units) and the signed distance from each pixel to the
 // edge of its cast shadow, in pixels: > 0 lit, < 0 shadowed, clamped to +-max(width, height) / 4.
@@ -77,11 +85,14 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to);
 // (1 channel, the field's size), is the share of the source each pixel sees, used instead of the
 // visibility interpolated from the LEDs' shadows: a simulator's exact one (sim::
 // render_source_visibility) measures how much of the error is the shadows' and how much the
-// shading's.
+// shading's. `geometry`, when given, is the source's view of the scene's recovered shape
+// (shadow_geometry.h): its visibility wherever it agrees with the LEDs, the flows' elsewhere.
 inline constexpr double kMinTriangleWeight = 1e-3;
 using PairFlows = std::array<std::array<const LedPairFlow*, 3>, 3>;
+class SourceShadowView;
 void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
                         const LedTriangle& triangle, const CompactSource& source,
-                        const LambertianFit& fit, Image& out, const Image* visibility = nullptr);
+                        const LambertianFit& fit, Image& out, const Image* visibility = nullptr,
+                        const SourceShadowView* geometry = nullptr);
 
 }  // namespace ls::relight

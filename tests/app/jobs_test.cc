@@ -17,6 +17,7 @@
 #include "app/jobs/relight_job.h"
 #include "capture/field.h"
 #include "lightstage/backend_registry.h"
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
 #include "relight/compact/pca_field.h"
@@ -25,7 +26,9 @@
 #include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
+#include "sim/ground_truth.h"
 #include "sim/sim_backend.h"
+#include "tests/app/e2e_fixtures.h"
 #include "tests/support/test_support.h"
 
 namespace ls {
@@ -243,7 +246,8 @@ TEST_F(Jobs, APreviewOfADarkRelightIsDarkNotNoise) {
 
 // A map's compact source is rendered at its direction and reported; when that would hold more
 // than the memory given, it is relit by the LED cells instead (the same bytes as
-// --no-compact-sources) and the output's detail says so.
+// --no-compact-sources) and the output's detail says so; when only the scene's shape would, its
+// shadows come from the flows alone (as --no-source-geometry), with a note.
 TEST_F(Jobs, CompactSourcesOverTheMemoryGivenAreRelitByTheCellsAndSaySo) {
   jobs::BuildJobOptions build;
   build.session_dir = *dir_ / "session";
@@ -271,6 +275,16 @@ TEST_F(Jobs, CompactSourcesOverTheMemoryGivenAreRelitByTheCellsAndSaySo) {
   EXPECT_NE(tight_detail.find("relit by the LED cells"), std::string::npos) << tight_detail;
   EXPECT_NE(tight_detail.find("--memory"), std::string::npos) << tight_detail;
   EXPECT_EQ(tight.pixels, cells.pixels);
+  // Room for the source's LEDs (117 KB at 24x24) but not for every LED's image while the scene's
+  // shape is recovered (1 MB more): the shadows by the flows alone, and the detail says so.
+  relight.memory_bytes = 300000;
+  const auto [flows_detail, flows] = run("flows");
+  EXPECT_NE(flows_detail.find("by the LEDs' flows alone"), std::string::npos) << flows_detail;
+  relight.memory_bytes = 0;
+  relight.source_geometry = false;
+  const auto [no_shape_detail, no_shape] = run("no_shape");
+  EXPECT_EQ(no_shape_detail.find("flows alone"), std::string::npos) << no_shape_detail;
+  EXPECT_EQ(flows.pixels, no_shape.pixels);
 }
 
 // A fit in bands of rows that is stopped halfway (as by a kill) resumes from the bands it
@@ -442,6 +456,45 @@ TEST_F(Jobs, RenderRelightsACompactFileUnderALightAsItsFormatHoldsIt) {
   bad.light.clear();
   EXPECT_NE(input_error([&] { (void)jobs::render_compact(bad); }).find("--env"), std::string::npos);
   EXPECT_FALSE(fs::exists(bad.out));
+}
+
+// A PCA under a small source (issue 16): rendered at the source's direction from the PCA's own
+// reconstruction (its normals, its LEDs' shadows, the shape they give), not by the map's grid of
+// lights interpolated between the LEDs; against ground truth from the scene (64x64 demo scene).
+TEST_F(Jobs, RenderOfAPcaCastsASmallSourcesShadowsAtItsDirection) {
+  const testing::TempDir dir;
+  Stage stage = default_stage();
+  stage.camera.width = stage.camera.height = 64;
+  const sim::Scene scene = sim::default_scene();
+  capture::write_field(dir / "field.exr", testing::CaptureAndBuild(dir / "s", stage, scene));
+  jobs::CompressOptions compress;
+  compress.input = dir / "field.exr";
+  compress.out = dir / "field.lspca";
+  (void)jobs::compress(compress);
+  const fs::path map_file = testing::source_dir() / "data" / "envmaps" / "small_source.exr";
+  jobs::RenderOptions render;
+  render.input = compress.out;
+  render.environment = map_file;
+  render.out = dir / "sources.exr";
+  const jobs::RenderSummary summary = jobs::render_compact(render);
+  EXPECT_NE(summary.sources.find("compact source"), std::string::npos) << summary.sources;
+  render.compact_sources = false;
+  render.out = dir / "grid.exr";
+  EXPECT_TRUE(jobs::render_compact(render).sources.empty());
+  const auto dirs = stage.led_directions();
+  sim::GroundTruthOptions gt;
+  gt.covered_by_leds = dirs;
+  gt.coverage_radius_rad = max_nearest_neighbour_angle(dirs);
+  const Image truth =
+      sim::render_ground_truth(scene, stage.camera, relight::EnvironmentMap::load(map_file), gt);
+  const double with_sources = compare_images(read_image(dir / "sources.exr"), truth).relative_rmse;
+  const double by_grid = compare_images(read_image(dir / "grid.exr"), truth).relative_rmse;
+  std::cout << "PCA under small_source: relative RMSE " << with_sources << " (by the grid "
+            << by_grid << ")\n";
+  // Measured 0.089 (by the grid 0.200; at 256^2 the demo's PCA gives 0.046 against 0.199):
+  // asserted under 0.1 and under half the grid's.
+  EXPECT_LT(with_sources, 0.1);
+  EXPECT_LT(with_sources, 0.5 * by_grid);
 }
 
 TEST_F(Jobs, RelightRefusesBadOptionsBeforeWritingAnything) {

@@ -1,0 +1,548 @@
+#include "relight/lighting/shadow_geometry.h"
+
+#include <tbb/combinable.h>
+#include <tbb/parallel_for.h>
+
+#include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <numeric>
+
+#include "lightstage/errors.h"
+
+namespace ls::relight {
+
+namespace {
+
+// Normals steeper than this (n_z, toward the camera) do not seed a region: their gradients are too
+// large to integrate reliably (limbs, flanks); those over kLimbNz join a neighbouring region.
+constexpr float kSeedNz = 0.5f;
+constexpr float kLimbNz = 0.05f;
+constexpr float kMaxGradient = 6.0f;  // Height change per pixel a normal may say.
+// Neighbours whose normals differ by more than 35 degrees, or whose albedo chromaticities by more
+// than 0.1, lie on different surfaces (a sphere's limb over the backdrop, relief over checker).
+const float kSameSurfaceCos = float(std::cos(35.0 * std::numbers::pi / 180));
+constexpr float kSameSurfaceChroma = 0.1f;
+// Shares of the depth map's pixels: smaller regions are holes, filled around them; regions under
+// the second continue their surroundings (at 256^2: 20 and 1000 pixels).
+constexpr double kSmallestRegionShare = 3e-4;
+constexpr double kPlacedRegionShare = 0.015;
+// Scales of a floating region's relief tried when placing it: photometric normals flatten a
+// sphere's rim (the fit averages over its shading), which makes its recovered height too low.
+constexpr std::array<float, 4> kFloatingScales = {1.0f, 1.15f, 1.3f, 1.45f};
+// Carving score: +1 for a measured shadow the placement casts, -kLitPenalty for a measured lit
+// sample it shadows. A wrong shadow costs more than a missed one: normals too flat, and a limb
+// the fit lost, make shapes too small, never too large.
+constexpr double kLitPenalty = 3.0;
+constexpr float kRayStartPx = 0.1f;  // Above its own surface a ray starts at.
+
+struct Neighbours {
+  int at[4];  // -1 outside the image: left, right, up, down.
+};
+Neighbours neighbours(int p, int w, int h) {
+  const int x = p % w, y = p / w;
+  return {{x > 0 ? p - 1 : -1, x + 1 < w ? p + 1 : -1, y > 0 ? p - w : -1, y + 1 < h ? p + w : -1}};
+}
+
+// The field's fit averaged over scale x scale blocks.
+struct DepthInput {
+  int width = 0, height = 0;
+  std::vector<Eigen::Vector3f> normal, albedo;
+  std::vector<float> gx, gy;  // dz/dx, dz/dy in image axes (y down), from the normals.
+};
+
+DepthInput reduce_fit(const LambertianFit& fit, int scale) {
+  DepthInput in;
+  in.width = (fit.normal.width + scale - 1) / scale;
+  in.height = (fit.normal.height + scale - 1) / scale;
+  const size_t n = size_t(in.width) * in.height;
+  in.normal.assign(n, Eigen::Vector3f::Zero());
+  in.albedo.assign(n, Eigen::Vector3f::Zero());
+  std::vector<int> count(n, 0);
+  for (int y = 0; y < fit.normal.height; ++y) {
+    for (int x = 0; x < fit.normal.width; ++x) {
+      const size_t p = size_t(y) * fit.normal.width + x;
+      const size_t q = size_t(y / scale) * in.width + x / scale;
+      in.normal[q] += Eigen::Vector3f(&fit.normal.pixels[3 * p]);
+      in.albedo[q] += Eigen::Vector3f(&fit.albedo.pixels[3 * p]);
+      ++count[q];
+    }
+  }
+  in.gx.assign(n, 0.0f);
+  in.gy.assign(n, 0.0f);
+  for (size_t q = 0; q < n; ++q) {
+    in.albedo[q] /= float(std::max(count[q], 1));
+    const float length = in.normal[q].norm();
+    in.normal[q] = length > 0.5f * float(count[q]) ? Eigen::Vector3f(in.normal[q] / length)
+                                                   : Eigen::Vector3f::Zero();
+    const float nz = std::max(in.normal[q].z(), 1.0f / kMaxGradient);
+    in.gx[q] = std::clamp(-in.normal[q].x() / nz, -kMaxGradient, kMaxGradient);
+    in.gy[q] = std::clamp(in.normal[q].y() / nz, -kMaxGradient, kMaxGradient);
+  }
+  return in;
+}
+
+LitMask reduce_mask(const LitMask& full, int width, int height, const DepthInput& in, int scale) {
+  if (scale == 1) return full;
+  std::vector<int> lit(size_t(in.width) * in.height, 0), count(lit.size(), 0);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const size_t q = size_t(y / scale) * in.width + x / scale;
+      lit[q] += full[size_t(y) * width + x];
+      ++count[q];
+    }
+  }
+  LitMask reduced(lit.size());
+  for (size_t q = 0; q < lit.size(); ++q) reduced[q] = 2 * lit[q] >= count[q] ? 1 : 0;
+  return reduced;
+}
+
+struct Edge {
+  int a, b;    // Pixels, b right of or below a.
+  float step;  // z_b - z_a.
+};
+
+// Surfaces: regions of pixels joined by edges whose normals and chromaticities agree.
+struct Surfaces {
+  std::vector<int> region;  // -1: none.
+  std::vector<std::vector<int>> pixels;
+  std::vector<Edge> edges;
+  int background = -1;  // The largest.
+};
+
+Surfaces split_surfaces(const DepthInput& in) {
+  const int w = in.width, h = in.height;
+  const size_t n = size_t(w) * h;
+  const auto usable = [&](int p, float min_nz) { return in.normal[size_t(p)].z() > min_nz; };
+  const auto same = [&](int a, int b) {
+    const Eigen::Vector3f ca = in.albedo[size_t(a)] / (in.albedo[size_t(a)].sum() + 1e-3f);
+    const Eigen::Vector3f cb = in.albedo[size_t(b)] / (in.albedo[size_t(b)].sum() + 1e-3f);
+    return in.normal[size_t(a)].dot(in.normal[size_t(b)]) > kSameSurfaceCos &&
+           (ca - cb).norm() < kSameSurfaceChroma;
+  };
+  const auto step = [&](int a, int b) {
+    return b == a + 1 ? 0.5f * (in.gx[size_t(a)] + in.gx[size_t(b)])
+                      : 0.5f * (in.gy[size_t(a)] + in.gy[size_t(b)]);
+  };
+  Surfaces s;
+  std::vector<int> parent(n);
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto find = [&parent](int a) {
+    while (parent[size_t(a)] != a) a = parent[size_t(a)] = parent[size_t(parent[size_t(a)])];
+    return a;
+  };
+  std::vector<char> joined(n, 0);
+  for (int p = 0; p < int(n); ++p) {
+    if (!usable(p, kSeedNz)) continue;
+    joined[size_t(p)] = 1;
+    const Neighbours nb = neighbours(p, w, h);
+    for (const int q : {nb.at[1], nb.at[3]}) {
+      if (q < 0 || !usable(q, kSeedNz) || !same(p, q)) continue;
+      s.edges.push_back({p, q, step(p, q)});
+      parent[size_t(find(p))] = find(q);
+    }
+  }
+  // Limbs grow back, each pixel onto its most similar joined neighbour.
+  for (int pass = 0; pass < 64; ++pass) {
+    bool grew = false;
+    for (int p = 0; p < int(n); ++p) {
+      if (joined[size_t(p)] || !usable(p, kLimbNz)) continue;
+      int best = -1;
+      float best_cos = kSameSurfaceCos;
+      for (const int q : neighbours(p, w, h).at) {
+        if (q < 0 || !joined[size_t(q)]) continue;
+        const float c = in.normal[size_t(p)].dot(in.normal[size_t(q)]);
+        if (c > best_cos) best_cos = c, best = q;
+      }
+      if (best < 0) continue;
+      joined[size_t(p)] = 1;
+      const int a = std::min(p, best), b = std::max(p, best);
+      s.edges.push_back({a, b, step(a, b)});
+      parent[size_t(find(p))] = find(best);
+      grew = true;
+    }
+    if (!grew) break;
+  }
+  std::vector<std::vector<int>> by_root(n);
+  for (int p = 0; p < int(n); ++p) {
+    if (joined[size_t(p)]) by_root[size_t(find(p))].push_back(p);
+  }
+  s.region.assign(n, -1);
+  for (auto& pixels : by_root) {
+    if (double(pixels.size()) < kSmallestRegionShare * double(n)) continue;
+    const int r = int(s.pixels.size());
+    if (s.background < 0 || pixels.size() > s.pixels[size_t(s.background)].size()) s.background = r;
+    for (const int p : pixels) s.region[size_t(p)] = r;
+    s.pixels.push_back(std::move(pixels));
+  }
+  return s;
+}
+
+// Heights per region (least squares over its edges), each region's lowest at 0.
+std::vector<float> integrate_surfaces(const Surfaces& s, size_t n) {
+  std::vector<float> z(n, 0.0f);
+  std::vector<int> local(n, -1);
+  for (const auto& pixels : s.pixels) {
+    for (size_t i = 0; i < pixels.size(); ++i) local[size_t(pixels[i])] = int(i);
+  }
+  std::vector<std::vector<Eigen::Triplet<double>>> triplets(s.pixels.size());
+  std::vector<Eigen::VectorXd> rhs(s.pixels.size());
+  for (size_t r = 0; r < s.pixels.size(); ++r) {
+    rhs[r] = Eigen::VectorXd::Zero(long(s.pixels[r].size()));
+    // A weak pull to 0 fixes the free constant.
+    for (size_t i = 0; i < s.pixels[r].size(); ++i) triplets[r].emplace_back(i, i, 1e-6);
+  }
+  for (const Edge& e : s.edges) {
+    const int r = s.region[size_t(e.a)];
+    if (r < 0 || s.region[size_t(e.b)] != r) continue;
+    const int a = local[size_t(e.a)], b = local[size_t(e.b)];
+    auto& t = triplets[size_t(r)];
+    t.emplace_back(a, a, 1);
+    t.emplace_back(b, b, 1);
+    t.emplace_back(a, b, -1);
+    t.emplace_back(b, a, -1);
+    rhs[size_t(r)][b] += e.step;
+    rhs[size_t(r)][a] -= e.step;
+  }
+  for (size_t r = 0; r < s.pixels.size(); ++r) {
+    const long m = long(s.pixels[r].size());
+    Eigen::SparseMatrix<double> a(m, m);
+    a.setFromTriplets(triplets[r].begin(), triplets[r].end());
+    const Eigen::VectorXd solved =
+        Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>>(a).solve(rhs[r]);
+    const double lowest = solved.minCoeff();
+    for (long i = 0; i < m; ++i) z[size_t(s.pixels[r][size_t(i)])] = float(solved[i] - lowest);
+  }
+  return z;
+}
+
+// A region floats (a sphere, not a bump of the ground) when most of its rim is steep.
+bool floats(const Surfaces& s, int r, const DepthInput& in) {
+  int rim = 0, steep = 0;
+  for (const int p : s.pixels[size_t(r)]) {
+    bool at_rim = false;
+    for (const int q : neighbours(p, in.width, in.height).at) {
+      at_rim = at_rim || q < 0 || s.region[size_t(q)] != r;
+    }
+    if (!at_rim) continue;
+    ++rim;
+    steep += in.normal[size_t(p)].z() < kSeedNz;
+  }
+  return rim > 0 && 2 * steep > rim;
+}
+
+// The depth map as it is built: surface heights and the solid's reach below them.
+struct Depth {
+  int width = 0, height = 0;
+  std::vector<float> top, thickness;  // Depth-map pixels; thickness infinite: attached.
+};
+constexpr float kAttached = 1e30f;
+
+// Offsets of a region above the backdrop scored against the LEDs' measured shadows.
+struct Carving {
+  const Depth& depth;
+  const Surfaces& surfaces;
+  const std::vector<LitMask>& lit;  // Depth-map resolution.
+  const std::vector<Eigen::Vector3f>& led_dirs;
+  float lowest_offset = 0;  // Candidate i is offset lowest_offset + i.
+  int candidates = 0;
+
+  // The best offset of region r as it now lies in `depth` (at offset 0) and its score.
+  std::pair<float, double> best_offset(int r) const {
+    tbb::combinable<std::vector<double>> per_thread(
+        [this] { return std::vector<double>(size_t(candidates) + 2, 0.0); });
+    tbb::parallel_for(0, int(led_dirs.size()), [&](int l) {
+      if (led_dirs[size_t(l)].z() < 0.1f) return;
+      score_led(r, l, per_thread.local());
+    });
+    std::vector<double> score(size_t(candidates) + 2, 0.0);
+    per_thread.combine_each([&](const std::vector<double>& s) {
+      for (size_t i = 0; i < s.size(); ++i) score[i] += s[i];
+    });
+    double run = 0, best = -1e300;
+    int best_i = 0;
+    for (int i = 0; i <= candidates; ++i) {
+      run += score[size_t(i)];
+      if (run > best) best = run, best_i = i;
+    }
+    return {lowest_offset + float(best_i), best};
+  }
+
+  // Adds +1 (measured shadow) or -kLitPenalty (measured lit) over the offsets at which region r
+  // shadows a sample (occluder), or at which another region shadows r's sample (receiver); the
+  // score is kept as differences, summed in best_offset.
+  void score_led(int r, int l, std::vector<double>& score) const {
+    const int w = depth.width, h = depth.height;
+    const Eigen::Vector3f& d = led_dirs[size_t(l)];
+    const float dx = d.x(), dy = -d.y(), dz = d.z();
+    const float dxy = std::hypot(dx, dy);
+    if (dxy < 1e-3f) return;
+    const float step = 0.5f / dxy;
+    for (int y = 0; y < h; y += 2) {
+      for (int x = 0; x < w; x += 2) {
+        const size_t p = size_t(y) * w + x;
+        if (surfaces.region[p] < 0) continue;
+        const bool receiver = surfaces.region[p] == r;
+        const float start = depth.top[p] + 0.5f;
+        float lo = 1e30f, hi = -1e30f;
+        for (int i = 1; i < 2 * (w + h); ++i) {
+          const float t = step * float(i);
+          const int qx = int(std::lround(float(x) + t * dx)),
+                    qy = int(std::lround(float(y) + t * dy));
+          if (qx < 0 || qy < 0 || qx >= w || qy >= h) break;
+          const size_t q = size_t(qy) * w + qx;
+          const int rq = surfaces.region[q];
+          if (receiver) {
+            // Raised by o, r's ray meets q's solid for o in (top - thickness, top).
+            if (rq == r || rq < 0) continue;
+            const float top = depth.top[q] - start - t * dz;
+            if (top < lowest_offset - 8) continue;
+            lo = std::min(lo, top - std::min(depth.thickness[q], 1e6f));
+            hi = std::max(hi, top);
+          } else if (rq == r) {
+            // Raised by o, q's solid holds the ray for o in (ray - top, ray - top + thickness).
+            const float ray = start + t * dz;
+            lo = std::min(lo, ray - depth.top[q]);
+            hi = std::max(hi, ray - depth.top[q] + depth.thickness[q]);
+          }
+        }
+        if (lo > hi) continue;
+        const double v = lit[size_t(l)][p] ? -kLitPenalty : 1.0;
+        const int a = std::clamp(int(std::ceil(lo - lowest_offset)), 0, candidates + 1);
+        const int b =
+            std::clamp(int(std::floor(hi - lowest_offset)), receiver ? -1 : 0, candidates);
+        if (a > b) continue;
+        score[size_t(a)] += v;
+        score[size_t(b) + 1] -= v;
+      }
+    }
+  }
+};
+
+bool placed_by_carving(const Surfaces& s, int r, size_t pixels) {
+  return double(s.pixels[size_t(r)].size()) >= kPlacedRegionShare * double(pixels);
+}
+
+// Places each large region above the backdrop (and scales a floating one's relief) by carving.
+void place_regions(Depth& depth, const Surfaces& s, const std::vector<float>& relief,
+                   const std::vector<char>& floating, const std::vector<LitMask>& lit,
+                   const std::vector<Eigen::Vector3f>& led_dirs) {
+  float bg_lo = 1e30f, bg_hi = -1e30f;
+  for (const int p : s.pixels[size_t(s.background)]) {
+    bg_lo = std::min(bg_lo, relief[size_t(p)]);
+    bg_hi = std::max(bg_hi, relief[size_t(p)]);
+  }
+  const Carving carving{depth,     s,
+                        lit,       led_dirs,
+                        bg_lo - 8, int(bg_hi - bg_lo + float(std::max(depth.width, depth.height)))};
+  for (int r = 0; r < int(s.pixels.size()); ++r) {
+    if (r == s.background || !placed_by_carving(s, r, depth.top.size())) continue;
+    const auto& pixels = s.pixels[size_t(r)];
+    const auto lay = [&](float scale, float offset) {
+      float highest = 0;
+      for (const int p : pixels) highest = std::max(highest, scale * relief[size_t(p)]);
+      // The hidden half mirrors the visible one about the silhouette, which lies below the
+      // lowest recovered pixel (steep rims are lost) by what a sphere of the region's
+      // silhouette area would add.
+      const float below =
+          std::max(0.0f, std::sqrt(float(pixels.size()) / float(std::numbers::pi)) - highest);
+      for (const int p : pixels) {
+        depth.top[size_t(p)] = scale * relief[size_t(p)] + offset;
+        if (floating[size_t(r)])
+          depth.thickness[size_t(p)] = 2 * (scale * relief[size_t(p)] + below) + 1;
+      }
+    };
+    double best_score = -1e300;
+    float best_scale = 1, best_offset = 0;
+    for (const float scale :
+         floating[size_t(r)] ? std::vector<float>(kFloatingScales.begin(), kFloatingScales.end())
+                             : std::vector<float>{1.0f}) {
+      lay(scale, 0);
+      const auto [offset, score] = carving.best_offset(r);
+      if (score > best_score) best_score = score, best_scale = scale, best_offset = offset;
+    }
+    lay(best_scale, best_offset);
+  }
+}
+
+// Small regions (bump tips cut off by their steep flanks) continue the surface around them: the
+// median over their rim of the neighbour's height plus the normals' step.
+void continue_small_regions(Depth& depth, const Surfaces& s, const std::vector<char>& floating,
+                            const DepthInput& in) {
+  for (int r = 0; r < int(s.pixels.size()); ++r) {
+    if (r == s.background || placed_by_carving(s, r, depth.top.size())) continue;
+    std::vector<float> offsets;
+    for (const int p : s.pixels[size_t(r)]) {
+      const Neighbours nb = neighbours(p, in.width, in.height);
+      for (int k = 0; k < 4; ++k) {
+        const int q = nb.at[k];
+        if (q < 0 || s.region[size_t(q)] < 0 || s.region[size_t(q)] == r ||
+            floating[size_t(s.region[size_t(q)])]) {
+          continue;
+        }
+        const float gradient = k < 2 ? 0.5f * (in.gx[size_t(q)] + in.gx[size_t(p)])
+                                     : 0.5f * (in.gy[size_t(q)] + in.gy[size_t(p)]);
+        const float p_above_q = (k == 0 || k == 2) ? gradient : -gradient;  // q left of / above p
+        offsets.push_back(depth.top[size_t(q)] + p_above_q - depth.top[size_t(p)]);
+      }
+    }
+    if (offsets.empty()) continue;
+    std::nth_element(offsets.begin(), offsets.begin() + long(offsets.size() / 2), offsets.end());
+    for (const int p : s.pixels[size_t(r)]) {
+      depth.top[size_t(p)] += offsets[offsets.size() / 2];
+      depth.thickness[size_t(p)] = kAttached;
+    }
+  }
+}
+
+// Pixels of no region (normals too steep: flanks) take their highest attached neighbour's height.
+void fill_holes(Depth& depth, std::vector<int> region, const std::vector<char>& floating) {
+  const int w = depth.width, h = depth.height;
+  for (int pass = 0; pass < 16; ++pass) {
+    Depth next = depth;
+    std::vector<int> next_region = region;
+    bool filled = false;
+    for (int p = 0; p < w * h; ++p) {
+      if (region[size_t(p)] >= 0) continue;
+      int best = -1;
+      for (const int q : neighbours(p, w, h).at) {
+        if (q >= 0 && region[size_t(q)] >= 0 &&
+            (best < 0 || depth.top[size_t(q)] > depth.top[size_t(best)]))
+          best = q;
+      }
+      if (best < 0 || floating[size_t(region[size_t(best)])]) continue;
+      next.top[size_t(p)] = depth.top[size_t(best)];
+      next.thickness[size_t(p)] = depth.thickness[size_t(best)];
+      next_region[size_t(p)] = region[size_t(best)];
+      filled = true;
+    }
+    depth = std::move(next);
+    region = std::move(next_region);
+    if (!filled) break;
+  }
+}
+
+std::vector<std::uint64_t> pack_bits(const LitMask& mask) {
+  std::vector<std::uint64_t> bits((mask.size() + 63) / 64, 0);
+  for (size_t p = 0; p < mask.size(); ++p) {
+    if (mask[p]) bits[p / 64] |= std::uint64_t(1) << (p % 64);
+  }
+  return bits;
+}
+
+}  // namespace
+
+ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
+                               const std::vector<Eigen::Vector3d>& led_dirs,
+                               const std::function<LitMask(int led)>& lit_mask,
+                               const std::function<void(int, int)>& progress)
+    : field_width_(fit.normal.width), field_height_(fit.normal.height) {
+  LS_CHECK(field_width_ > 0 && field_height_ > 0, "ShadowGeometry: the Lambertian fit is empty");
+  scale_ = (std::max(field_width_, field_height_) + kDepthMapSize - 1) / kDepthMapSize;
+  const DepthInput in = reduce_fit(fit, scale_);
+  width_ = in.width;
+  height_ = in.height;
+  std::vector<LitMask> lit;
+  for (int l = 0; l < int(led_dirs.size()); ++l) {
+    const LitMask mask = lit_mask(l);
+    LS_CHECK(mask.size() == size_t(field_width_) * field_height_,
+             "ShadowGeometry: LED " + std::to_string(l) + "'s mask is not the field's size");
+    led_dirs_.push_back(led_dirs[size_t(l)].normalized().cast<float>());
+    led_lit_bits_.push_back(pack_bits(mask));
+    lit.push_back(reduce_mask(mask, field_width_, field_height_, in, scale_));
+    if (progress) progress(l + 1, int(led_dirs.size()));
+  }
+  const Surfaces surfaces = split_surfaces(in);
+  Depth depth{width_, height_, {}, {}};
+  depth.top.assign(size_t(width_) * height_, kNoSurface);
+  depth.thickness.assign(depth.top.size(), kAttached);
+  if (surfaces.background >= 0) {
+    const std::vector<float> relief = integrate_surfaces(surfaces, depth.top.size());
+    std::vector<char> floating(surfaces.pixels.size(), 0);
+    for (int r = 0; r < int(surfaces.pixels.size()); ++r) {
+      floating[size_t(r)] = r != surfaces.background && floats(surfaces, r, in);
+      for (const int p : surfaces.pixels[size_t(r)]) {
+        depth.top[size_t(p)] = relief[size_t(p)];
+        if (floating[size_t(r)]) depth.thickness[size_t(p)] = 2 * relief[size_t(p)] + 1;
+      }
+    }
+    place_regions(depth, surfaces, relief, floating, lit, led_dirs_);
+    continue_small_regions(depth, surfaces, floating, in);
+    fill_holes(depth, surfaces.region, floating);
+  }
+  top_px_ = std::move(depth.top);
+  thickness_px_ = std::move(depth.thickness);
+  for (const float z : top_px_) highest_px_ = std::max(highest_px_, z);
+}
+
+bool ShadowGeometry::sees(int x, int y, const Eigen::Vector3f& dir) const {
+  // The field pixel's centre in depth-map pixels.
+  const float u = (float(x) + 0.5f) / float(scale_) - 0.5f,
+              v = (float(y) + 0.5f) / float(scale_) - 0.5f;
+  const int px = std::clamp(int(std::lround(u)), 0, width_ - 1),
+            py = std::clamp(int(std::lround(v)), 0, height_ - 1);
+  const size_t p = size_t(py) * width_ + px;
+  const float dx = dir.x(), dy = -dir.y(), dz = dir.z();
+  const float dxy = std::hypot(dx, dy);
+  if (dxy < 1e-6f) return true;
+  const float step = 0.5f / dxy, start = top_px_[p] + kRayStartPx;
+  for (int i = 1; i < 4 * (width_ + height_); ++i) {
+    const float t = step * float(i);
+    const int qx = int(std::lround(u + t * dx)), qy = int(std::lround(v + t * dy));
+    if (qx < 0 || qy < 0 || qx >= width_ || qy >= height_) return true;
+    const float ray = start + t * dz;
+    if (ray > highest_px_) return true;
+    const size_t q = size_t(qy) * width_ + qx;
+    if (q != p && ray < top_px_[q] && ray > top_px_[q] - thickness_px_[q]) return false;
+  }
+  return true;
+}
+
+SourceShadowView ShadowGeometry::view(const Eigen::Vector3d& dir, double radius_rad) const {
+  SourceShadowView view;
+  view.geometry_ = this;
+  const Eigen::Vector3f c = dir.normalized().cast<float>();
+  // Sunflower samples over the disc (equal areas), in the plane tangent to its centre.
+  constexpr int kDiscSamples = 16;
+  const Eigen::Vector3f axis =
+      std::abs(c.z()) < 0.99f ? Eigen::Vector3f::UnitZ() : Eigen::Vector3f::UnitX();
+  const Eigen::Vector3f a = c.cross(axis).normalized(), b = c.cross(a);
+  const float golden = float(std::numbers::pi * (3 - std::sqrt(5.0)));
+  for (int i = 0; i < kDiscSamples; ++i) {
+    const float r = float(std::tan(radius_rad)) * std::sqrt((float(i) + 0.5f) / kDiscSamples);
+    const float angle = golden * float(i);
+    view.disc_.push_back((c + r * (std::cos(angle) * a + std::sin(angle) * b)).normalized());
+  }
+  std::vector<int> leds(led_dirs_.size());
+  std::iota(leds.begin(), leds.end(), 0);
+  const size_t count = std::min<size_t>(kNearestLeds, leds.size());
+  std::partial_sort(leds.begin(), leds.begin() + long(count), leds.end(), [&](int i, int j) {
+    return led_dirs_[size_t(i)].dot(c) > led_dirs_[size_t(j)].dot(c);
+  });
+  view.nearest_leds_.assign(leds.begin(), leds.begin() + long(count));
+  return view;
+}
+
+std::optional<float> SourceShadowView::visible_share(int x, int y) const {
+  const ShadowGeometry& g = *geometry_;
+  const int px = std::min(x / g.scale_, g.width_ - 1), py = std::min(y / g.scale_, g.height_ - 1);
+  if (g.top_px_[size_t(py) * g.width_ + px] == ShadowGeometry::kNoSurface) return std::nullopt;
+  const size_t p = size_t(y) * g.field_width_ + x;
+  int agreeing = 0;
+  for (size_t i = 0; i < nearest_leds_.size(); ++i) {
+    const int l = nearest_leds_[i];
+    const bool lit = (g.led_lit_bits_[size_t(l)][p / 64] >> (p % 64)) & 1;
+    const bool agrees = lit == g.sees(x, y, g.led_dirs_[size_t(l)]);
+    if (i == 0 && !agrees) return std::nullopt;  // At an LED, what it measured is the truth.
+    agreeing += agrees;
+  }
+  const int needed = std::min<int>(ShadowGeometry::kAgreeing, int(nearest_leds_.size()));
+  if (agreeing < needed) return std::nullopt;
+  int seen = 0;
+  for (const Eigen::Vector3f& d : disc_) seen += g.sees(x, y, d);
+  return float(seen) / float(disc_.size());
+}
+
+}  // namespace ls::relight

@@ -1,0 +1,82 @@
+#pragma once
+// The scene's shape recovered from a field, to cast a compact source's shadows at its true
+// direction (issue 16). The LEDs' shadows, interpolated by flow (source_render.h), go wrong where
+// a shadow's shape changes between two LEDs (a sphere's shadow swinging across a relief); a shape
+// casts them right at any direction, as far as the shape is right. So:
+//  - Depth from the photometric normals: the gradients integrated (least squares) over regions of
+//    continuous surface, split where neighbouring normals or albedo chromaticities jump (a limb, a
+//    sphere in front of a backdrop).
+//  - Each region's height above the largest (the backdrop) and its relief scale: the placement
+//  whose
+//    traced shadows best match the shadows every LED measured, as occluder and as receiver (shadow
+//    carving). A region ringed by steep normals floats (a sphere): its hidden half mirrors the
+//    visible one. Small regions (bump tips cut off by steep flanks) continue their surroundings.
+//  - Visibility: rays traced through the depth map (orthographic camera; image x along +x, image y
+//    along -y, heights along +z toward the camera, in depth-map pixels).
+// It is trusted only where it agrees with what the LEDs nearest the source measured (the nearest,
+// and at least 7 of 8): elsewhere (its shape wrong, a detail too fine for it) the flows render
+// the shadow.
+// Large fields are reduced to at most kDepthMapSize pixels a side for the depth.
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <vector>
+
+#include "relight/lighting/source_render.h"
+
+namespace ls::relight {
+
+class ShadowGeometry;
+
+// A compact source's view of the geometry: its disc's directions and the LEDs nearest it.
+class SourceShadowView {
+ public:
+  // The share of the source's disc field pixel (x, y) sees, or nullopt where the geometry
+  // disagrees with the nearest LEDs' measured shadows there (or has no surface).
+  std::optional<float> visible_share(int x, int y) const;
+
+ private:
+  friend class ShadowGeometry;
+  const ShadowGeometry* geometry_ = nullptr;
+  std::vector<Eigen::Vector3f> disc_;
+  std::vector<int> nearest_leds_;
+};
+
+class ShadowGeometry {
+ public:
+  static constexpr int kDepthMapSize = 256;  // Longest side of the depth map, in its pixels.
+  static constexpr int kNearestLeds = 8;     // LEDs around a source its shadows are checked with,
+  static constexpr int kAgreeing = 7;        // and how many must agree.
+
+  // `lit_mask(l)`: LED l's led_lit_mask, for each of `led_dirs` (unit, stage frame);
+  // `progress(done, total)` after each LED's pass, where set.
+  ShadowGeometry(const LambertianFit& fit, const std::vector<Eigen::Vector3d>& led_dirs,
+                 const std::function<LitMask(int led)>& lit_mask,
+                 const std::function<void(int, int)>& progress = {});
+
+  // A source's view: its disc (angular radius) and the LEDs nearest it.
+  SourceShadowView view(const Eigen::Vector3d& dir, double radius_rad) const;
+
+  // Field pixel (x, y) sees the direction (unit, stage frame) past the recovered shape.
+  bool sees(int x, int y, const Eigen::Vector3f& dir) const;
+  // Height toward the camera of each depth-map pixel (field pixels / scale()), in its pixels;
+  // kNoSurface where nothing was recovered.
+  const std::vector<float>& heights() const { return top_px_; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int scale() const { return scale_; }
+  static constexpr float kNoSurface = -1e30f;
+
+ private:
+  friend class SourceShadowView;
+  int field_width_ = 0, field_height_ = 0;
+  int width_ = 0, height_ = 0, scale_ = 1;
+  std::vector<float> top_px_;        // Surface height toward the camera.
+  std::vector<float> thickness_px_;  // How far the solid reaches below it (infinite: attached).
+  float highest_px_ = kNoSurface;
+  std::vector<Eigen::Vector3f> led_dirs_;
+  std::vector<std::vector<std::uint64_t>> led_lit_bits_;  // Field resolution, one bit a pixel.
+};
+
+}  // namespace ls::relight
