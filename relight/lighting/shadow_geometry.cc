@@ -6,6 +6,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <numbers>
 #include <numeric>
@@ -37,6 +38,14 @@ constexpr std::array<float, 4> kFloatingScales = {1.0f, 1.15f, 1.3f, 1.45f};
 // the fit lost, make shapes too small, never too large.
 constexpr double kLitPenalty = 3.0;
 constexpr float kRayStartPx = 0.1f;  // Above its own surface a ray starts at.
+// A source within this share of the LED spacing from its nearest LED is near it: anywhere in a
+// triangle of live LEDs (at most 0.58 of the way in an equilateral one), not in a hole dead LEDs
+// left.
+constexpr float kNearestDecides = 0.75f;
+
+float angle_of(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  return std::atan2(a.cross(b).norm(), a.dot(b));
+}
 
 struct Neighbours {
   int at[4];  // -1 outside the image: left, right, up, down.
@@ -522,27 +531,37 @@ SourceShadowView ShadowGeometry::view(const Eigen::Vector3d& dir, double radius_
     return led_dirs_[size_t(i)].dot(c) > led_dirs_[size_t(j)].dot(c);
   });
   view.nearest_leds_.assign(leds.begin(), leds.begin() + long(count));
+  // What the nearest LED measured has the last word at a pixel, unless dead LEDs left it far.
+  if (count > 1) {
+    const Eigen::Vector3f& nearest = led_dirs_[size_t(leds[0])];
+    float spacing = std::numbers::pi_v<float>;
+    for (size_t l = 0; l < led_dirs_.size(); ++l) {
+      if (int(l) != leds[0]) spacing = std::min(spacing, angle_of(nearest, led_dirs_[l]));
+    }
+    view.nearest_decides_ = angle_of(c, nearest) < kNearestDecides * spacing;
+  }
   return view;
 }
 
-std::optional<float> SourceShadowView::visible_share(int x, int y) const {
+std::optional<SourceShadowView::Visibility> SourceShadowView::visibility(int x, int y) const {
   const ShadowGeometry& g = *geometry_;
   const int px = std::min(x / g.scale_, g.width_ - 1), py = std::min(y / g.scale_, g.height_ - 1);
   if (g.top_px_[size_t(py) * g.width_ + px] == ShadowGeometry::kNoSurface) return std::nullopt;
   const size_t p = size_t(y) * g.field_width_ + x;
   int agreeing = 0;
+  bool nearest_agrees = true;
   for (size_t i = 0; i < nearest_leds_.size(); ++i) {
     const int l = nearest_leds_[i];
     const bool lit = (g.led_lit_bits_[size_t(l)][p / 64] >> (p % 64)) & 1;
     const bool agrees = lit == g.sees(x, y, g.led_dirs_[size_t(l)]);
-    if (i == 0 && !agrees) return std::nullopt;  // At an LED, what it measured is the truth.
+    if (i == 0) nearest_agrees = agrees;
     agreeing += agrees;
   }
-  const int needed = std::min<int>(ShadowGeometry::kAgreeing, int(nearest_leds_.size()));
-  if (agreeing < needed) return std::nullopt;
   int seen = 0;
   for (const Eigen::Vector3f& d : disc_) seen += g.sees(x, y, d);
-  return float(seen) / float(disc_.size());
+  const int needed = std::min<int>(ShadowGeometry::kAgreeing, int(nearest_leds_.size()));
+  return Visibility{float(seen) / float(disc_.size()), nearest_agrees || !nearest_decides_,
+                    agreeing >= needed};
 }
 
 }  // namespace ls::relight

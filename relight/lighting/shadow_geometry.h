@@ -13,9 +13,10 @@
 //    visible one. Small regions (bump tips cut off by steep flanks) continue their surroundings.
 //  - Visibility: rays traced through the depth map (orthographic camera; image x along +x, image y
 //    along -y, heights along +z toward the camera, in depth-map pixels).
-// It is trusted only where it agrees with what the LEDs nearest the source measured (the nearest,
-// and at least 7 of 8): elsewhere (its shape wrong, a detail too fine for it) the flows render
-// the shadow.
+// It is trusted only where it agrees with what the LEDs nearest the source measured: with at
+// least 7 of the 8 nearest over most of a pixel's 3x3 neighbourhood, and with the nearest at the
+// pixel. Elsewhere (its shape wrong, a detail too fine for it) the flows render the shadow
+// (add_compact_source).
 // Large fields are reduced to at most kDepthMapSize pixels a side for the depth.
 #include <Eigen/Core>
 #include <cstdint>
@@ -32,15 +33,21 @@ class ShadowGeometry;
 // A compact source's view of the geometry: its disc's directions and the LEDs nearest it.
 class SourceShadowView {
  public:
-  // The share of the source's disc field pixel (x, y) sees, or nullopt where the geometry
-  // disagrees with the nearest LEDs' measured shadows there (or has no surface).
-  std::optional<float> visible_share(int x, int y) const;
+  // The share of the source's disc field pixel (x, y) sees, and whether the geometry agrees there
+  // with the measured shadows of the LED nearest the source (true when dead LEDs left that one
+  // far) and of kAgreeing of the kNearestLeds; nullopt where it has no surface.
+  struct Visibility {
+    float share = 1;
+    bool nearest_agrees = false, most_agree = false;
+  };
+  std::optional<Visibility> visibility(int x, int y) const;
 
  private:
   friend class ShadowGeometry;
   const ShadowGeometry* geometry_ = nullptr;
   std::vector<Eigen::Vector3f> disc_;
   std::vector<int> nearest_leds_;
+  bool nearest_decides_ = false;  // The source's nearest LED is within the dome's spacing.
 };
 
 class ShadowGeometry {

@@ -5,6 +5,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -301,6 +302,14 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
   const Eigen::Vector3f s = source.dir.normalized().cast<float>();
   const Eigen::Vector3f irradiance = source.irradiance_rgb.cast<float>();
   const float radius = float(source.radius_rad), max_half_width = limit / 4;
+  // With the shape: per pixel the flows' visibility, the shape's (NaN where it has no surface),
+  // whether the shape agrees with the LEDs there, and the light the visibility lets through. Which
+  // one a pixel takes is decided over its 3x3 neighbourhood after the pass.
+  const bool by_shape = geometry != nullptr && visibility == nullptr;
+  const size_t pixels = by_shape ? size_t(width) * height : 0;
+  std::vector<float> flow_visible(pixels), lit_part(3 * pixels);
+  std::vector<float> shape_visible(pixels, std::numeric_limits<float>::quiet_NaN());
+  cv::Mat shape_agrees = by_shape ? cv::Mat::zeros(height, width, CV_8U) : cv::Mat();
   tbb::parallel_for(0, height, [&](int y) {
     for (int x = 0; x < width; ++x) {
       const size_t p = size_t(y) * width + x;
@@ -334,21 +343,46 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
         }
       }
       const float half_width = std::clamp(radius * speed, 0.5f, max_half_width);
-      std::optional<float> visible;
-      if (visibility) visible = visibility->pixels[p];
-      if (!visible && geometry) visible = geometry->visible_share(x, y);
-      if (!visible) visible = std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
       const float* n = &fit.normal.pixels[3 * p];
       const float cosine = std::max(0.0f, n[0] * s[0] + n[1] * s[1] + n[2] * s[2]) * float(kInvPi);
       const float* albedo = &fit.albedo.pixels[3 * p];
+      const float visible = visibility
+                                ? visibility->pixels[p]
+                                : std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
       float* o = &out.pixels[3 * p];
       for (int c = 0; c < 3; ++c) {
         const float shading = std::max(0.0f, albedo[c] * cosine + gloss[c]);
         const float bounced = shadow_weight > 0 ? in_shadow[c] / shadow_weight : 0.0f;
-        o[c] += irradiance[c] * (*visible * shading + (1 - *visible) * bounced);
+        if (!by_shape) {
+          o[c] += irradiance[c] * (visible * shading + (1 - visible) * bounced);
+          continue;
+        }
+        o[c] += irradiance[c] * bounced;
+        lit_part[3 * p + size_t(c)] = irradiance[c] * (shading - bounced);
+      }
+      if (by_shape) {
+        flow_visible[p] = visible;
+        if (const auto v = geometry->visibility(x, y)) {
+          // Where the LED nearest the source saw otherwise, the shape is not taken: at an LED,
+          // what it measured is the truth.
+          if (v->nearest_agrees) shape_visible[p] = v->share;
+          shape_agrees.data[p] = v->most_agree ? 1 : 0;
+        }
       }
     }
   });
+  if (!by_shape) return;
+  // The shape where most of the 3x3 around a pixel agrees with the LEDs around the source: a lone
+  // pixel of one kind among the other (a ray slipping between two depth samples, a limb) is noise,
+  // not a shadow.
+  cv::Mat votes;
+  cv::boxFilter(shape_agrees, votes, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false,
+                cv::BORDER_REPLICATE);
+  for (size_t p = 0; p < pixels; ++p) {
+    const bool shape = !std::isnan(shape_visible[p]) && votes.ptr<float>()[p] >= 5;
+    const float v = shape ? shape_visible[p] : flow_visible[p];
+    for (size_t c = 0; c < 3; ++c) out.pixels[3 * p + c] += v * lit_part[3 * p + c];
+  }
 }
 
 }  // namespace ls::relight

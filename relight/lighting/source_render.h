@@ -86,7 +86,8 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to);
 // visibility interpolated from the LEDs' shadows: a simulator's exact one (sim::
 // render_source_visibility) measures how much of the error is the shadows' and how much the
 // shading's. `geometry`, when given, is the source's view of the scene's recovered shape
-// (shadow_geometry.h): its visibility wherever it agrees with the LEDs, the flows' elsewhere.
+// (shadow_geometry.h): its visibility where it agrees with the LEDs around the source (over most
+// of the pixel's 3x3 neighbourhood, and with the nearest LED at the pixel), the flows' elsewhere.
 inline constexpr double kMinTriangleWeight = 1e-3;
 using PairFlows = std::array<std::array<const LedPairFlow*, 3>, 3>;
 class SourceShadowView;
