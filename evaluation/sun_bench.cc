@@ -67,8 +67,8 @@ void write_outputs(const SunBenchOptions& options, const SunBenchSummary& summar
   }
   for (const std::string path : {"sweep", "turn"}) {
     ChartSeries cells{"LED cells (today)", {}, {}, {}, true};
-    ChartSeries flows{"source, shadows by flows", {}, {}, {}, true};
-    ChartSeries sources{"source, flows + shape", {}, {}, {}, true};
+    ChartSeries flows{"source: flows alone", {}, {}, {}, true};
+    ChartSeries sources{"source: flows + shape", {}, {}, {}, true};
     ChartSeries exact{"exact visibility (sim)", {}, {}, {}, true};
     for (const SunBenchRow& r : summary.rows) {
       if (r.path != path) continue;
@@ -88,8 +88,8 @@ void write_outputs(const SunBenchOptions& options, const SunBenchSummary& summar
         {cells, flows, sources, exact});
   }
   ChartSeries cells{"LED cells (today)", {}, {}, {}, false};
-  ChartSeries flows{"source, shadows by flows", {}, {}, {}, false};
-  ChartSeries sources{"source, flows + shape", {}, {}, {}, false};
+  ChartSeries flows{"source: flows alone", {}, {}, {}, false};
+  ChartSeries sources{"source: flows + shape", {}, {}, {}, false};
   for (const SunBenchRow& r : summary.rows) {
     cells.x.push_back(r.cells_ms);
     cells.y.push_back(r.cells_rmse);
@@ -98,12 +98,13 @@ void write_outputs(const SunBenchOptions& options, const SunBenchSummary& summar
     sources.x.push_back(r.sources_ms);
     sources.y.push_back(r.sources_rmse);
   }
-  write_chart(options.out / "sun_error_vs_time.png",
-              {"Small source: error against time per frame (" + std::to_string(options.resolution) +
-                   " px; once per field, flows " + std::to_string(int(summary.flows_setup_ms)) +
-                   " ms, + shape " + std::to_string(int(summary.sources_setup_ms)) + " ms)",
-               "relight time per frame, ms", "relative RMSE against ground truth", false},
-              {cells, flows, sources});
+  write_chart(
+      options.out / "sun_error_vs_time.png",
+      {"Small source, " + std::to_string(options.resolution) +
+           " px: error vs. time per frame (setup " + std::to_string(int(summary.flows_setup_ms)) +
+           " ms, with the shape " + std::to_string(int(summary.sources_setup_ms)) + ")",
+       "relight time per frame, ms", "relative RMSE against ground truth", false},
+      {cells, flows, sources});
 }
 
 }  // namespace

@@ -211,8 +211,11 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
     // Bands within what the sources' images leave of the memory given.
     const std::size_t band_bytes =
         memory_given(options) - sources_bytes(header, outputs, source_leds.size(), geometry);
-    const relight::FieldSources sources(header, stream.bands(stream.rows_within(band_bytes)),
-                                        {source_leds.begin(), source_leds.end()}, geometry);
+    const relight::FieldSources sources(
+        header, stream.bands(stream.rows_within(band_bytes)),
+        {source_leds.begin(), source_leds.end()}, geometry, [&](int done, int total) {
+          report(progress, "compact sources (the scene's shape)", done, total);
+        });
     for (Output& out : outputs) sources.add(out.lighting, out.relit);
     sources_ms = ms_between(t0, Clock::now());
   }

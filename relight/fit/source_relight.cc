@@ -94,7 +94,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
 
 FieldSources::FieldSources(const capture::ReflectanceField& header,
                            const capture::FieldBands& bands, const std::vector<int>& leds,
-                           bool with_geometry) {
+                           bool with_geometry, const std::function<void(int, int)>& progress) {
   const size_t pixels = size_t(header.width()) * header.height();
   std::map<int, std::vector<float>> images;
   for (const int led : leds) {
@@ -111,7 +111,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
     const size_t first = size_t(band.first_row()) * header.width();
     for (auto& [led, rgb] : images) copy_led_image(band, led, rgb.data() + 3 * first);
   });
-  if (with_geometry) build_geometry([&images](int led) { return images.at(led); }, {});
+  if (with_geometry) build_geometry([&images](int led) { return images.at(led); }, progress);
   for (const int led : leds) {
     shadows_.emplace(led, led_shadow(led_dirs_[size_t(led)], std::move(images.at(led)), fit_));
   }

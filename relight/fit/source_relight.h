@@ -45,10 +45,11 @@ SplitLighting split_lighting(const EnvironmentMap& map,
 class FieldSources {
  public:
   // A streamed field: the fit and the shadows of `leds`, in one pass over its bands; add() needs no
-  // other LED. with_geometry: the scene's shape too (recover_geometry), from every LED's image
-  // held during the pass.
+  // other LED. with_geometry: the scene's shape too (recover_geometry, `progress` per LED), from
+  // every LED's image held during the pass.
   FieldSources(const capture::ReflectanceField& header, const capture::FieldBands& bands,
-               const std::vector<int>& leds, bool with_geometry = false);
+               const std::vector<int>& leds, bool with_geometry = false,
+               const std::function<void(int, int)>& progress = {});
   // A field in memory (it must outlive this): the fit now, each LED's shadow when a source first
   // falls next to it (a sun turning with the map in the viewer).
   explicit FieldSources(const capture::ReflectanceField& field);
@@ -62,7 +63,6 @@ class FieldSources {
   // longer). Needs the LEDs' images (not the streamed constructor's). progress(done, total) per
   // LED.
   void recover_geometry(const std::function<void(int, int)>& progress = {});
-  bool has_geometry() const { return geometry_ != nullptr; }
   // Memory it takes for a field of width x height with `leds` LED shadows and the flows of
   // `triangles` LED triangles: the fit (6 floats a pixel), each LED (image, gloss and distance: 7)
   // and each triangle's 6 ordered pairs (4 each). 11 GiB at 24 MP with one source. With the

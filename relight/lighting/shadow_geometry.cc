@@ -38,6 +38,9 @@ constexpr std::array<float, 4> kFloatingScales = {1.0f, 1.15f, 1.3f, 1.45f};
 // the fit lost, make shapes too small, never too large.
 constexpr double kLitPenalty = 3.0;
 constexpr float kRayStartPx = 0.1f;  // Above its own surface a ray starts at.
+// Neighbouring depth samples within this many pixels of height are one surface (a field pixel
+// between them takes their interpolated height).
+constexpr float kOneSurfaceStepPx = 3.0f;
 // A source within this share of the LED spacing from its nearest LED is near it: anywhere in a
 // triangle of live LEDs (at most 0.58 of the way in an equilateral one), not in a hole dead LEDs
 // left.
@@ -334,10 +337,12 @@ bool placed_by_carving(const Surfaces& s, int r, size_t pixels) {
   return double(s.pixels[size_t(r)].size()) >= kPlacedRegionShare * double(pixels);
 }
 
-// Places each large region above the backdrop (and scales a floating one's relief) by carving.
+// Places each large region above the backdrop (and scales a floating one's relief) by carving;
+// `placed()` after each.
 void place_regions(Depth& depth, const Surfaces& s, const std::vector<float>& relief,
                    const std::vector<char>& floating, const std::vector<LitMask>& lit,
-                   const std::vector<Eigen::Vector3f>& led_dirs) {
+                   const std::vector<Eigen::Vector3f>& led_dirs,
+                   const std::function<void()>& placed) {
   float bg_lo = 1e30f, bg_hi = -1e30f;
   for (const int p : s.pixels[size_t(s.background)]) {
     bg_lo = std::min(bg_lo, relief[size_t(p)]);
@@ -373,6 +378,7 @@ void place_regions(Depth& depth, const Surfaces& s, const std::vector<float>& re
       if (score > best_score) best_score = score, best_scale = scale, best_offset = offset;
     }
     lay(best_scale, best_offset);
+    placed();
   }
 }
 
@@ -461,7 +467,7 @@ ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
     led_dirs_.push_back(led_dirs[size_t(l)].normalized().cast<float>());
     led_lit_bits_.push_back(pack_bits(mask));
     lit.push_back(reduce_mask(mask, field_width_, field_height_, in, scale_));
-    if (progress) progress(l + 1, int(led_dirs.size()));
+    if (progress) progress(l + 1, int(led_dirs.size()) + 1);  // The carving still to come.
   }
   const Surfaces surfaces = split_surfaces(in);
   Depth depth{width_, height_, {}, {}};
@@ -477,7 +483,14 @@ ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
         if (floating[size_t(r)]) depth.thickness[size_t(p)] = 2 * relief[size_t(p)] + 1;
       }
     }
-    place_regions(depth, surfaces, relief, floating, lit, led_dirs_);
+    int to_place = 0, placed = 0;
+    for (int r = 0; r < int(surfaces.pixels.size()); ++r) {
+      to_place += r != surfaces.background && placed_by_carving(surfaces, r, depth.top.size());
+    }
+    const int leds = int(led_dirs.size());
+    place_regions(depth, surfaces, relief, floating, lit, led_dirs_, [&] {
+      if (progress) progress(leds + ++placed, leds + to_place);
+    });
     continue_small_regions(depth, surfaces, floating, in);
     fill_holes(depth, surfaces.region, floating);
   }
@@ -496,7 +509,23 @@ bool ShadowGeometry::sees(int x, int y, const Eigen::Vector3f& dir) const {
   const float dx = dir.x(), dy = -dir.y(), dz = dir.z();
   const float dxy = std::hypot(dx, dy);
   if (dxy < 1e-6f) return true;
-  const float step = 0.5f / dxy, start = top_px_[p] + kRayStartPx;
+  float own = top_px_[p];
+  if (scale_ > 1) {
+    // The surface under the field pixel, between the depth map's samples where they are one
+    // surface (no jump), not the nearest sample's: a slope's pixels would shadow themselves.
+    const int x0 = std::clamp(int(std::floor(u)), 0, std::max(width_ - 2, 0));
+    const int y0 = std::clamp(int(std::floor(v)), 0, std::max(height_ - 2, 0));
+    const float fx = std::clamp(u - float(x0), 0.0f, 1.0f),
+                fy = std::clamp(v - float(y0), 0.0f, 1.0f);
+    const size_t a = size_t(y0) * width_ + x0;
+    const float z00 = top_px_[a], z01 = top_px_[a + 1], z10 = top_px_[a + width_],
+                z11 = top_px_[a + width_ + 1];
+    const float lo = std::min({z00, z01, z10, z11}), hi = std::max({z00, z01, z10, z11});
+    if (lo > kNoSurface && hi - lo < kOneSurfaceStepPx) {
+      own = (1 - fy) * ((1 - fx) * z00 + fx * z01) + fy * ((1 - fx) * z10 + fx * z11);
+    }
+  }
+  const float step = 0.5f / dxy, start = own + kRayStartPx;
   for (int i = 1; i < 4 * (width_ + height_); ++i) {
     const float t = step * float(i);
     const int qx = int(std::lround(u + t * dx)), qy = int(std::lround(v + t * dy));

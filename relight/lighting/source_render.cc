@@ -104,6 +104,49 @@ inline void bilinear(const float* image, int width, int height, int channels, fl
   }
 }
 
+// With the shape (shadow_geometry.h): per pixel the flows' visibility, the shape's (NaN where it
+// has no surface, or where the LED nearest the source saw otherwise: at an LED, what it measured
+// is the truth), whether the shape agrees with the LEDs around the source there, and the light
+// the visibility lets through. Which one a pixel takes is decided over its 3x3 neighbourhood
+// once every pixel is known.
+struct ShapeVisibility {
+  ShapeVisibility(const SourceShadowView& view, int width, int height)
+      : view(view),
+        width(width),
+        flow_visible(size_t(width) * height),
+        shape_visible(flow_visible.size(), std::numeric_limits<float>::quiet_NaN()),
+        lit_part(3 * flow_visible.size()),
+        agrees(cv::Mat::zeros(height, width, CV_8U)) {}
+
+  void record(int x, int y, float flows) {
+    const size_t p = size_t(y) * width + x;
+    flow_visible[p] = flows;
+    if (const auto v = view.visibility(x, y)) {
+      if (v->nearest_agrees) shape_visible[p] = v->share;
+      agrees.data[p] = v->most_agree ? 1 : 0;
+    }
+  }
+
+  // The shape where most of the 3x3 around a pixel agrees: a lone pixel of one kind among the
+  // other (a ray slipping between two depth samples, a limb) is noise, not a shadow.
+  void add_to(Image& out) const {
+    cv::Mat votes;
+    cv::boxFilter(agrees, votes, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false,
+                  cv::BORDER_REPLICATE);
+    for (size_t p = 0; p < flow_visible.size(); ++p) {
+      const bool shape = !std::isnan(shape_visible[p]) && votes.ptr<float>()[p] >= 5;
+      const float v = shape ? shape_visible[p] : flow_visible[p];
+      for (size_t c = 0; c < 3; ++c) out.pixels[3 * p + c] += v * lit_part[3 * p + c];
+    }
+  }
+
+  const SourceShadowView& view;
+  int width;
+  std::vector<float> flow_visible, shape_visible;
+  std::vector<float> lit_part;  // 3 per pixel: (shading - bounced) x irradiance.
+  cv::Mat agrees;
+};
+
 }  // namespace
 
 std::optional<LedTriangle> led_triangle(const std::vector<Eigen::Vector3d>& unit_dirs,
@@ -302,14 +345,8 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
   const Eigen::Vector3f s = source.dir.normalized().cast<float>();
   const Eigen::Vector3f irradiance = source.irradiance_rgb.cast<float>();
   const float radius = float(source.radius_rad), max_half_width = limit / 4;
-  // With the shape: per pixel the flows' visibility, the shape's (NaN where it has no surface),
-  // whether the shape agrees with the LEDs there, and the light the visibility lets through. Which
-  // one a pixel takes is decided over its 3x3 neighbourhood after the pass.
-  const bool by_shape = geometry != nullptr && visibility == nullptr;
-  const size_t pixels = by_shape ? size_t(width) * height : 0;
-  std::vector<float> flow_visible(pixels), lit_part(3 * pixels);
-  std::vector<float> shape_visible(pixels, std::numeric_limits<float>::quiet_NaN());
-  cv::Mat shape_agrees = by_shape ? cv::Mat::zeros(height, width, CV_8U) : cv::Mat();
+  std::optional<ShapeVisibility> by_shape;
+  if (geometry && !visibility) by_shape.emplace(*geometry, width, height);
   tbb::parallel_for(0, height, [&](int y) {
     for (int x = 0; x < width; ++x) {
       const size_t p = size_t(y) * width + x;
@@ -353,36 +390,17 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
       for (int c = 0; c < 3; ++c) {
         const float shading = std::max(0.0f, albedo[c] * cosine + gloss[c]);
         const float bounced = shadow_weight > 0 ? in_shadow[c] / shadow_weight : 0.0f;
-        if (!by_shape) {
+        if (by_shape) {
+          o[c] += irradiance[c] * bounced;
+          by_shape->lit_part[3 * p + size_t(c)] = irradiance[c] * (shading - bounced);
+        } else {
           o[c] += irradiance[c] * (visible * shading + (1 - visible) * bounced);
-          continue;
-        }
-        o[c] += irradiance[c] * bounced;
-        lit_part[3 * p + size_t(c)] = irradiance[c] * (shading - bounced);
-      }
-      if (by_shape) {
-        flow_visible[p] = visible;
-        if (const auto v = geometry->visibility(x, y)) {
-          // Where the LED nearest the source saw otherwise, the shape is not taken: at an LED,
-          // what it measured is the truth.
-          if (v->nearest_agrees) shape_visible[p] = v->share;
-          shape_agrees.data[p] = v->most_agree ? 1 : 0;
         }
       }
+      if (by_shape) by_shape->record(x, y, visible);
     }
   });
-  if (!by_shape) return;
-  // The shape where most of the 3x3 around a pixel agrees with the LEDs around the source: a lone
-  // pixel of one kind among the other (a ray slipping between two depth samples, a limb) is noise,
-  // not a shadow.
-  cv::Mat votes;
-  cv::boxFilter(shape_agrees, votes, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false,
-                cv::BORDER_REPLICATE);
-  for (size_t p = 0; p < pixels; ++p) {
-    const bool shape = !std::isnan(shape_visible[p]) && votes.ptr<float>()[p] >= 5;
-    const float v = shape ? shape_visible[p] : flow_visible[p];
-    for (size_t c = 0; c < 3; ++c) out.pixels[3 * p + c] += v * lit_part[3 * p + c];
-  }
+  if (by_shape) by_shape->add_to(out);
 }
 
 }  // namespace ls::relight
