@@ -212,9 +212,9 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
         summary.rows.push_back(row);
       }
       if (options.turns > 0 && !splits[m].sources.empty()) {
-        if (!turn_sources) {  // One fit and shape for every map's turns.
+        if (!turn_sources) {  // One fit for every map's turns, the shape already recovered.
           turn_sources.emplace(field);
-          turn_sources->recover_geometry();
+          turn_sources->use_geometry_of(*sources);
         }
         for (LedBenchRow& row :
              turned_rows(options, scene, stage, field, *turn_sources, map, gt, truth)) {

@@ -3,15 +3,14 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <numbers>
 #include <string>
 
 #include "lightstage/errors.h"
+#include "relight/lighting/compact_sources.h"
 #include "relight/lighting/light_cells.h"
 #include "sim/sim_stage.h"
 #include "sim/tracer.h"
@@ -123,18 +122,7 @@ Image render_source_visibility(const Scene& scene, const CameraSpec& camera,
   if (!(radius_rad >= 0) || samples < 1 || !dir.allFinite() || dir.norm() == 0) {
     throw InputError("source visibility: expected a direction, a radius >= 0 and samples >= 1");
   }
-  // The disc's directions: sunflower (golden-angle) points, equal areas of the disc each.
-  const Eigen::Vector3d centre = dir.normalized();
-  const Eigen::Vector3d helper =
-      std::abs(centre.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
-  const Eigen::Vector3d u = centre.cross(helper).normalized(), v = centre.cross(u);
-  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
-  std::vector<Eigen::Vector3d> dirs;
-  for (int i = 0; i < samples; ++i) {
-    const double r = std::tan(radius_rad) * std::sqrt((i + 0.5) / samples);
-    const double a = golden_angle * i;
-    dirs.push_back((centre + r * (std::cos(a) * u + std::sin(a) * v)).normalized());
-  }
+  const std::vector<Eigen::Vector3d> dirs = relight::disc_directions(dir, radius_rad, samples);
   const std::vector<SurfaceHit> hits = trace_camera(scene, camera);
   const detail::Tracer tracer(scene);
   Image out(camera.width, camera.height, 1);

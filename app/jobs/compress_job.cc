@@ -544,12 +544,11 @@ namespace {
 // A PCA under the map with its compact sources split off: the rest by LED cells, each source at its
 // direction (shadows from the reconstruction's shape where it agrees with the LEDs). False, and
 // nothing done, when the map has no source the dome covers.
-bool relight_with_sources(const relight::PcaField& pca, const RenderOptions& options, Image& out,
-                          std::string& report) {
-  const relight::EnvironmentMap map = relight::EnvironmentMap::load(options.environment);
+bool relight_with_sources(const relight::PcaField& pca, const relight::EnvironmentMap& map,
+                          double rotation_deg, Image& out, std::string& report) {
   const capture::ReflectanceField header = pca.header();
   const relight::SplitLighting split =
-      relight::split_lighting(map, header.lights(), options.rotation_deg, 0.0, true);
+      relight::split_lighting(map, header.lights(), rotation_deg, 0.0, true);
   if (split.leds().empty()) return false;
   pca.relight_led_weights_into(split.weights.irradiance_rgb.data(), out);
   relight::FieldSources sources(header, pca.reconstruction_bands(),
@@ -583,10 +582,12 @@ RenderSummary render_compact(const RenderOptions& options) {
   if (options.environment.empty()) {
     image = field->relight_point(
         Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized());
-  } else if (!(pca && options.compact_sources &&
-               relight_with_sources(*pca, options, image, summary.sources))) {
-    image = field->relight(relight::LightingForModels::environment(
-        relight::EnvironmentMap::load(options.environment), options.rotation_deg));
+  } else {
+    const relight::EnvironmentMap map = relight::EnvironmentMap::load(options.environment);
+    if (!(pca && options.compact_sources &&
+          relight_with_sources(*pca, map, options.rotation_deg, image, summary.sources))) {
+      image = field->relight(relight::LightingForModels::environment(map, options.rotation_deg));
+    }
   }
   write_exr(options.out, image);
   fs::path png = options.out;

@@ -107,6 +107,18 @@ std::size_t sources_bytes(const capture::ReflectanceField& header,
                                              triangles, geometry ? header.num_lights() : 0);
 }
 
+// What is left out for want of memory, one line: `what` would hold `need` bytes.
+std::string over_memory(const char* what, std::size_t need, std::size_t may,
+                        const capture::ReflectanceField& header) {
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "%s would hold %.0f MiB for this %dx%d field, over the %.0f MiB it may use "
+                "(--memory)",
+                what, double(need) / (1 << 20), header.width(), header.height(),
+                double(may) / (1 << 20));
+  return line;
+}
+
 // The sources fit with the geometry, or without it, or (the returned line says why) not at all.
 std::string fit_sources_in_memory(const RelightOptions& options,
                                   const capture::ReflectanceField& header,
@@ -115,16 +127,12 @@ std::string fit_sources_in_memory(const RelightOptions& options,
   if (source_leds.empty()) return {};
   const std::size_t may = memory_given(options);
   geometry = options.source_geometry;
-  if (geometry && sources_bytes(header, outputs, source_leds.size(), true) <= may) return {};
   std::string note;
   if (geometry) {
-    char line[240];
-    std::snprintf(line, sizeof line,
-                  "compact sources' shadows by the LEDs' flows alone: the scene's shape would hold "
-                  "%.0f MiB for this %dx%d field, over the %.0f MiB it may use (--memory)",
-                  double(sources_bytes(header, outputs, source_leds.size(), true)) / (1 << 20),
-                  header.width(), header.height(), double(may) / (1 << 20));
-    note = line;
+    const std::size_t need = sources_bytes(header, outputs, source_leds.size(), true);
+    if (need <= may) return {};
+    note = over_memory("compact sources' shadows by the LEDs' flows alone: the scene's shape", need,
+                       may, header);
     geometry = false;
   }
   const std::size_t need = sources_bytes(header, outputs, source_leds.size(), false);
@@ -137,12 +145,8 @@ std::string fit_sources_in_memory(const RelightOptions& options,
             relight::split_lighting(map, header.lights(), rotation, coverage_rad(options), false);
       });
   source_leds.clear();
-  char cells[240];
-  std::snprintf(cells, sizeof cells,
-                "compact sources relit by the LED cells: rendering them at their direction would "
-                "hold %.0f MiB for this %dx%d field, over the %.0f MiB it may use (--memory)",
-                double(need) / (1 << 20), header.width(), header.height(), double(may) / (1 << 20));
-  return cells;
+  return over_memory("compact sources relit by the LED cells: rendering them at their direction",
+                     need, may, header);
 }
 
 // The field relit under every map and rotation, read once a few MiB at a time (FieldStream's rows

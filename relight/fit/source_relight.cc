@@ -111,7 +111,11 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
     const size_t first = size_t(band.first_row()) * header.width();
     for (auto& [led, rgb] : images) copy_led_image(band, led, rgb.data() + 3 * first);
   });
-  if (with_geometry) build_geometry([&images](int led) { return images.at(led); }, progress);
+  if (with_geometry) {
+    build_geometry(
+        [&](int led) { return led_lit_mask(led_dirs_[size_t(led)], images.at(led), fit_); },
+        progress);
+  }
   for (const int led : leds) {
     shadows_.emplace(led, led_shadow(led_dirs_[size_t(led)], std::move(images.at(led)), fit_));
   }
@@ -121,10 +125,20 @@ void FieldSources::recover_geometry(const std::function<void(int, int)>& progres
   LS_CHECK(led_image_ != nullptr,
            "FieldSources: the geometry needs every LED's image; this field was streamed");
   const std::lock_guard<std::mutex> lock(mutex_);
-  build_geometry(led_image_, progress);
+  build_geometry(
+      [&](int led) { return led_lit_mask(led_dirs_[size_t(led)], led_image_(led), fit_); },
+      progress);
 }
 
-void FieldSources::build_geometry(const LedImageFn& image_of,
+void FieldSources::use_geometry_of(const FieldSources& other) {
+  LS_CHECK(other.fit_.normal.width == fit_.normal.width &&
+               other.fit_.normal.height == fit_.normal.height && other.geometry_ != nullptr,
+           "FieldSources: the geometry shared is not of a field this size, or was not recovered");
+  const std::lock_guard<std::mutex> lock(mutex_);
+  geometry_ = other.geometry_;
+}
+
+void FieldSources::build_geometry(const std::function<LitMask(int led)>& mask_of,
                                   const std::function<void(int, int)>& progress) {
   std::vector<int> leds;
   std::vector<Eigen::Vector3d> dirs;
@@ -133,13 +147,8 @@ void FieldSources::build_geometry(const LedImageFn& image_of,
     leds.push_back(led);
     dirs.push_back(led_dirs_[size_t(led)]);
   }
-  geometry_ = std::make_unique<ShadowGeometry>(
-      fit_, dirs,
-      [&](int k) {
-        const int led = leds[size_t(k)];
-        return led_lit_mask(led_dirs_[size_t(led)], image_of(led), fit_);
-      },
-      progress);
+  geometry_ = std::make_shared<const ShadowGeometry>(
+      fit_, dirs, [&](int k) { return mask_of(leds[size_t(k)]); }, progress);
 }
 
 void FieldSources::read_fit(const capture::ReflectanceField& header,

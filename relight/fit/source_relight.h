@@ -63,6 +63,8 @@ class FieldSources {
   // longer). Needs the LEDs' images (not the streamed constructor's). progress(done, total) per
   // LED.
   void recover_geometry(const std::function<void(int, int)>& progress = {});
+  // The geometry `other` recovered, for this view of the same field (no second recovery).
+  void use_geometry_of(const FieldSources& other);
   // Memory it takes for a field of width x height with `leds` LED shadows and the flows of
   // `triangles` LED triangles: the fit (6 floats a pixel), each LED (image, gloss and distance: 7)
   // and each triangle's 6 ordered pairs (4 each). 11 GiB at 24 MP with one source. With the
@@ -85,11 +87,13 @@ class FieldSources {
 
   LambertianFit fit_;
   std::vector<Eigen::Vector3d> led_dirs_;
-  void build_geometry(const LedImageFn& image_of, const std::function<void(int, int)>& progress);
+  // From each usable LED's lit mask (mask_of(led)).
+  void build_geometry(const std::function<LitMask(int led)>& mask_of,
+                      const std::function<void(int, int)>& progress);
 
   LedImageFn led_image_;      // Set: shadows made on demand.
   std::vector<bool> usable_;  // Per LED: not flagged dead.
-  std::unique_ptr<ShadowGeometry> geometry_;
+  std::shared_ptr<const ShadowGeometry> geometry_;
   mutable std::mutex mutex_;  // add() may run on several threads; it fills the caches.
   mutable std::map<int, LedShadow> shadows_;
   mutable std::map<std::pair<int, int>, LedPairFlow> flows_;

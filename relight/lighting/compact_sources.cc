@@ -1,5 +1,6 @@
 #include "relight/lighting/compact_sources.h"
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -95,6 +96,22 @@ Eigen::Vector3d border_radiance(const EnvironmentMap& map, const std::vector<int
 }
 
 }  // namespace
+
+std::vector<Eigen::Vector3d> disc_directions(const Eigen::Vector3d& dir, double radius_rad,
+                                             int count) {
+  const Eigen::Vector3d centre = dir.normalized();
+  const Eigen::Vector3d helper =
+      std::abs(centre.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d u = centre.cross(helper).normalized(), v = centre.cross(u);
+  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
+  std::vector<Eigen::Vector3d> dirs;
+  for (int i = 0; i < count; ++i) {
+    const double r = std::tan(radius_rad) * std::sqrt((i + 0.5) / count);
+    const double a = golden_angle * i;
+    dirs.push_back((centre + r * (std::cos(a) * u + std::sin(a) * v)).normalized());
+  }
+  return dirs;
+}
 
 std::string CompactSource::describe() const {
   const Eigen::Vector3d& d = dir;

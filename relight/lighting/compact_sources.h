@@ -24,6 +24,11 @@ struct CompactSource {
   std::string describe() const;  // Direction, size and share, one line.
 };
 
+// `count` directions spread evenly over a uniform disc of directions (centre `dir`, angular radius
+// radius_rad): sunflower (golden-angle) points, each standing for an equal area of the disc.
+std::vector<Eigen::Vector3d> disc_directions(const Eigen::Vector3d& dir, double radius_rad,
+                                             int count);
+
 struct CompactSourceOptions {
   // A pixel belongs to a source when its luminance is at least min_contrast x the map's mean
   // luminance (the sun of a clear sky is ~10^4 x; the lamps of a studio a few x, and stay in the

@@ -11,6 +11,7 @@
 #include <numbers>
 #include <numeric>
 
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 
 namespace ls::relight {
@@ -46,8 +47,8 @@ constexpr float kOneSurfaceStepPx = 3.0f;
 // left.
 constexpr float kNearestDecides = 0.75f;
 
-float angle_of(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
+bool bit(const std::vector<std::uint64_t>& bits, size_t p) {
+  return (bits[p / 64] >> (p % 64)) & 1;
 }
 
 struct Neighbours {
@@ -541,35 +542,52 @@ bool ShadowGeometry::sees(int x, int y, const Eigen::Vector3f& dir) const {
 SourceShadowView ShadowGeometry::view(const Eigen::Vector3d& dir, double radius_rad) const {
   SourceShadowView view;
   view.geometry_ = this;
-  const Eigen::Vector3f c = dir.normalized().cast<float>();
-  // Sunflower samples over the disc (equal areas), in the plane tangent to its centre.
   constexpr int kDiscSamples = 16;
-  const Eigen::Vector3f axis =
-      std::abs(c.z()) < 0.99f ? Eigen::Vector3f::UnitZ() : Eigen::Vector3f::UnitX();
-  const Eigen::Vector3f a = c.cross(axis).normalized(), b = c.cross(a);
-  const float golden = float(std::numbers::pi * (3 - std::sqrt(5.0)));
-  for (int i = 0; i < kDiscSamples; ++i) {
-    const float r = float(std::tan(radius_rad)) * std::sqrt((float(i) + 0.5f) / kDiscSamples);
-    const float angle = golden * float(i);
-    view.disc_.push_back((c + r * (std::cos(angle) * a + std::sin(angle) * b)).normalized());
+  for (const Eigen::Vector3d& d : disc_directions(dir, radius_rad, kDiscSamples)) {
+    view.disc_.push_back(d.cast<float>());
   }
+  const Eigen::Vector3f c = dir.normalized().cast<float>();
   std::vector<int> leds(led_dirs_.size());
   std::iota(leds.begin(), leds.end(), 0);
   const size_t count = std::min<size_t>(kNearestLeds, leds.size());
   std::partial_sort(leds.begin(), leds.begin() + long(count), leds.end(), [&](int i, int j) {
     return led_dirs_[size_t(i)].dot(c) > led_dirs_[size_t(j)].dot(c);
   });
-  view.nearest_leds_.assign(leds.begin(), leds.begin() + long(count));
+  for (size_t i = 0; i < count; ++i) view.nearest_agreement_.push_back(&agreement(leds[i]));
   // What the nearest LED measured has the last word at a pixel, unless dead LEDs left it far.
   if (count > 1) {
-    const Eigen::Vector3f& nearest = led_dirs_[size_t(leds[0])];
-    float spacing = std::numbers::pi_v<float>;
+    const Eigen::Vector3d nearest = led_dirs_[size_t(leds[0])].cast<double>();
+    double spacing = std::numbers::pi;
     for (size_t l = 0; l < led_dirs_.size(); ++l) {
-      if (int(l) != leds[0]) spacing = std::min(spacing, angle_of(nearest, led_dirs_[l]));
+      if (int(l) != leds[0]) {
+        spacing = std::min(spacing, angle_between(nearest, led_dirs_[l].cast<double>()));
+      }
     }
-    view.nearest_decides_ = angle_of(c, nearest) < kNearestDecides * spacing;
+    view.nearest_decides_ = angle_between(c.cast<double>(), nearest) < kNearestDecides * spacing;
   }
   return view;
+}
+
+const std::vector<std::uint64_t>& ShadowGeometry::agreement(int led) const {
+  {
+    const std::lock_guard<std::mutex> lock(agreement_mutex_);
+    const auto it = agreement_.find(led);
+    if (it != agreement_.end()) return it->second;
+  }
+  // Made unlocked (a parallel pass): two sources reaching a new LED at once make it twice, and
+  // keep the first.
+  LitMask agrees(size_t(field_width_) * field_height_, 0);
+  tbb::parallel_for(0, field_height_, [&](int y) {
+    const size_t row = size_t(std::min(y / scale_, height_ - 1)) * width_;
+    for (int x = 0; x < field_width_; ++x) {
+      const size_t p = size_t(y) * field_width_ + x;
+      if (top_px_[row + size_t(std::min(x / scale_, width_ - 1))] == kNoSurface) continue;
+      agrees[p] = bit(led_lit_bits_[size_t(led)], p) == sees(x, y, led_dirs_[size_t(led)]);
+    }
+  });
+  std::vector<std::uint64_t> bits = pack_bits(agrees);
+  const std::lock_guard<std::mutex> lock(agreement_mutex_);
+  return agreement_.emplace(led, std::move(bits)).first->second;
 }
 
 std::optional<SourceShadowView::Visibility> SourceShadowView::visibility(int x, int y) const {
@@ -578,17 +596,11 @@ std::optional<SourceShadowView::Visibility> SourceShadowView::visibility(int x, 
   if (g.top_px_[size_t(py) * g.width_ + px] == ShadowGeometry::kNoSurface) return std::nullopt;
   const size_t p = size_t(y) * g.field_width_ + x;
   int agreeing = 0;
-  bool nearest_agrees = true;
-  for (size_t i = 0; i < nearest_leds_.size(); ++i) {
-    const int l = nearest_leds_[i];
-    const bool lit = (g.led_lit_bits_[size_t(l)][p / 64] >> (p % 64)) & 1;
-    const bool agrees = lit == g.sees(x, y, g.led_dirs_[size_t(l)]);
-    if (i == 0) nearest_agrees = agrees;
-    agreeing += agrees;
-  }
+  for (const std::vector<std::uint64_t>* agrees : nearest_agreement_) agreeing += bit(*agrees, p);
+  const bool nearest_agrees = nearest_agreement_.empty() || bit(*nearest_agreement_[0], p);
   int seen = 0;
   for (const Eigen::Vector3f& d : disc_) seen += g.sees(x, y, d);
-  const int needed = std::min<int>(ShadowGeometry::kAgreeing, int(nearest_leds_.size()));
+  const int needed = std::min<int>(ShadowGeometry::kAgreeing, int(nearest_agreement_.size()));
   return Visibility{float(seen) / float(disc_.size()), nearest_agrees || !nearest_decides_,
                     agreeing >= needed};
 }

@@ -24,6 +24,8 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <functional>
+#include <map>
+#include <mutex>
 #include <optional>
 #include <vector>
 
@@ -49,7 +51,8 @@ class SourceShadowView {
   friend class ShadowGeometry;
   const ShadowGeometry* geometry_ = nullptr;
   std::vector<Eigen::Vector3f> disc_;
-  std::vector<int> nearest_leds_;
+  // Per LED nearest the source, nearest first: where the shape agrees with what it measured.
+  std::vector<const std::vector<std::uint64_t>*> nearest_agreement_;
   bool nearest_decides_ = false;  // The source's nearest LED is within the dome's spacing.
 };
 
@@ -85,8 +88,14 @@ class ShadowGeometry {
   std::vector<float> top_px_;        // Surface height toward the camera.
   std::vector<float> thickness_px_;  // How far the solid reaches below it (infinite: attached).
   float highest_px_ = kNoSurface;
+  // One bit a field pixel: where LED l's shadows as the shape casts them agree with what it
+  // measured. Made when a source first falls near the LED, kept for every source after it.
+  const std::vector<std::uint64_t>& agreement(int led) const;
+
   std::vector<Eigen::Vector3f> led_dirs_;
   std::vector<std::vector<std::uint64_t>> led_lit_bits_;  // Field resolution, one bit a pixel.
+  mutable std::mutex agreement_mutex_;
+  mutable std::map<int, std::vector<std::uint64_t>> agreement_;
 };
 
 }  // namespace ls::relight
