@@ -1,12 +1,12 @@
-// Viewer frame time on the GPU (issue 5): relighting a 512 x 512 x 150-LED field per source (field
+// Viewer frame time on the GPU: relighting a 512 x 512 x 150-LED field per source (field
 // in half and in float, PCA k = 16, fitted models under 512 and 2048 distant lights, exact and
 // through the prefiltered environment), one frame = weights upload + draw + glFinish, in a hidden
 // GlWindow. Needs a display:
 //   xvfb-run -a -s "-screen 0 1280x720x24" build/bench/bench_viewer   (llvmpipe)
 // The upload itself (once per source) is timed too (BM_UploadField).
-// Issue 16: the field on the CPU under sky_sun.exr turning by 0.1 deg a frame, the sun split off
-// and rendered at its true direction (BM_FieldSunRotationOnCpu, with/without the split), and the
-// first frame with a sun (photometric-stereo normals, then the sun's LED shadows and flows).
+// Compact sources: the field on the CPU under sky_sun.exr turning by 0.1 deg a frame, the sun split
+// off and rendered at its true direction (BM_FieldSunRotationOnCpu, with/without the split), and
+// the first frame with a sun (photometric-stereo normals, then the sun's LED shadows and flows).
 #include <benchmark/benchmark.h>
 
 #define GL_GLEXT_PROTOTYPES

@@ -1,6 +1,6 @@
 #pragma once
 // LED images spilled to disk in bands of rows, so that a field larger than memory is built from
-// LED-major frames into a pixel-major file (issue 14, capture/build_field.h): band b holds each
+// LED-major frames into a pixel-major file (capture/build_field.h): band b holds each
 // LED's rows of that band in turn, so an LED is written with one pwrite per band and a band is
 // read back with one pread. The file is removed when the SpillFile is destroyed, unless it is kept
 // for a build that may be resumed (capture/build_checkpoint.h).

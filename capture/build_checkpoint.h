@@ -1,5 +1,5 @@
 #pragma once
-// The LEDs a build in bands has merged (lightstage build --memory, issue 14), kept beside the field
+// The LEDs a build in bands has merged (lightstage build --memory), kept beside the field
 // (OUT.partial/, lightstage/checkpoint_dir.h) until it is written, so that a build that is killed
 // resumes from them: their images in the spill (leds.spill, capture/band_spill.h) and, per LED, a
 // record (led_I) of what its merge counted beside its image: its saturated samples and its

@@ -64,7 +64,7 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
                              BuildSummary* summary = nullptr);
 
 // The field built straight into the file `out` (write_field's format, scanlines), holding no more
-// of it than options.memory_bytes at once (issue 14): with less than the whole field, each LED's
+// of it than options.memory_bytes at once: with less than the whole field, each LED's
 // image is spilled in bands of rows to a file beside `out` (it needs the field's size free there,
 // and is removed), then each band is read back, turned pixel-major and written. The same values
 // and attributes as write_field(build_field(...)), byte for byte. Returns the band height used

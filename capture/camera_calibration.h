@@ -1,5 +1,5 @@
 #pragma once
-// Camera intrinsics from photographs of a chessboard (issue 8): OpenCV finds the inner corners of
+// Camera intrinsics from photographs of a chessboard: OpenCV finds the inner corners of
 // each view (findChessboardCornersSB, sub-pixel) and calibrateCamera fits a pinhole with radial
 // and tangential distortion to all views. The result feeds capture::ViewCamera (fx, fy, cx, cy).
 //

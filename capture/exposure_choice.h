@@ -1,5 +1,5 @@
 #pragma once
-// Exposures chosen per LED (issue 17): from a session that shot every LED at the whole bracket
+// Exposures chosen per LED: from a session that shot every LED at the whole bracket
 // (the last session of the same scene), the fewest bracket steps that keep each pixel's best
 // exposure. A pixel's best step is its longest unsaturated one (the HDR merge leans on it: it has
 // the most signal above the read noise); a step is kept for an LED when it is the best one for

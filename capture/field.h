@@ -181,7 +181,7 @@ void require_memory(std::size_t bytes, const std::string& what);
 // saturates, distant); the view in "lightstage:view" (optional); `attributes` as given (e.g. the
 // options the field was built with).
 // tile_size > 0: a tiled EXR of tile_size^2 tiles, each holding every LED of its pixels, so a
-// region is read without the rest of its rows (issue 14); 0: scanlines.
+// region is read without the rest of its rows; 0: scanlines.
 // storage: half values (capture/half_storage.h) or float, recorded in "lightstage:storage".
 void write_field(const std::filesystem::path& path, const ReflectanceField& field,
                  const ExrAttributes& attributes = {}, int tile_size = 0,
@@ -192,8 +192,8 @@ FieldStorage choose_storage(const ReflectanceField& field, StorageChoice choice,
                             HalfCheck* check = nullptr);
 ReflectanceField read_field(const std::filesystem::path& path);
 
-// A field file written band by band, top to bottom (a field built or imported without holding it,
-// issue 14): the header (lights, noise, view, time) from `header` (its values unused), the file as
+// A field file written band by band, top to bottom (a field built or imported without holding it):
+// the header (lights, noise, view, time) from `header` (its values unused), the file as
 // write_field's. Written under a temporary name; finish() renames it into place once every row is
 // written, and a writer destroyed before that removes it: no partial field is ever left.
 class FieldWriter {
@@ -213,7 +213,7 @@ class FieldWriter {
   int width_, height_, next_row_ = 0;
 };
 
-// A field visited band by band, top to bottom (a field larger than memory, issue 14): a
+// A field visited band by band, top to bottom (a field larger than memory): a
 // FieldBands calls its visitor with each band in turn (a ReflectanceField of the band's rows that
 // knows its first_row() and frame_height()). whole_field visits one band, the field itself.
 using BandVisitor = std::function<void(const ReflectanceField& band)>;
@@ -223,7 +223,7 @@ inline FieldBands whole_field(const ReflectanceField& field) {
 }
 
 // A field on disk read in bands of rows, every LED of a band's pixels at once, so that a field
-// larger than memory can be streamed (issue 14); scanline or tiled files alike. A band is a
+// larger than memory can be streamed; scanline or tiled files alike. A band is a
 // ReflectanceField of the band's rows (its lights, noise and time the file's); it knows nothing
 // of its place in the image, so per-pixel light directions (near LEDs) need y offset by the band's
 // first row. Errors as read_field's.

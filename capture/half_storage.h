@@ -1,6 +1,6 @@
 #pragma once
 // Half-float (IEEE binary16) values of a reflectance field: in a field file (half the bytes on
-// disk and through every pass that reads it, issue 14) and in memory (the viewer's CPU relighting,
+// disk and through every pass that reads it) and in memory (the viewer's CPU relighting,
 // relight/lighting/half_relight.h). Values are stored times a power of two that brings the
 // field's largest |value| to 2^14, well inside half's range (65504) and undone exactly on reading;
 // half keeps 11 significant bits (relative rounding error <= 2^-11 = 4.9e-4 above 2^-14 after
@@ -37,7 +37,7 @@ struct HalfCheck {
 };
 
 // How a field file holds its values: attribute "lightstage:storage", {"values": "half",
-// "scale": S} (stored = value * S), absent for float (every field written before it).
+// "scale": S} (stored = value * S), absent for float (a file without it holds floats).
 inline constexpr const char* kStorageAttribute = "lightstage:storage";
 struct FieldStorage {
   bool half = false;

@@ -102,7 +102,7 @@ std::uintmax_t olat_image_bytes(const std::filesystem::path& source);
 
 // An OLAT set read in bands of rows straight from its images, every light's rows of a band at
 // once: the values import_olat gives, with neither the field in memory nor a copy on disk (a set
-// larger than memory, issue 18). Every image stays open and its decoder reads on from where the
+// larger than memory). Every image stays open and its decoder reads on from where the
 // last band ended; a band above the last one read opens the images again (a new pass).
 class OlatBands {
  public:

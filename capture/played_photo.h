@@ -1,6 +1,6 @@
 #pragma once
 // A photograph of the dome playing a pattern of LED levels (LightController::set_levels), as
-// `lightstage play` takes it to check the whole chain against the field (issue 17): an HDR
+// `lightstage play` takes it to check the whole chain against the field: an HDR
 // bracket, shot twice so that the photograph's own noise is measured, dark-subtracted and merged
 // through the camera response into radiance (stage units, like the field relit).
 #include <cstdint>

@@ -1,5 +1,5 @@
 #pragma once
-// A field larger than memory seen whole at a reduced resolution (the viewer, issue 14): each pixel
+// A field larger than memory seen whole at a reduced resolution (the viewer): each pixel
 // the mean of a factor x factor block of the file's pixels (blocks at the right and bottom edges
 // hold what is left). Radiance sums linearly, so a relit reduced field is the mean of the full
 // field's relit blocks; what depends on where a pixel is (the view, near-LED geometry) uses

@@ -37,7 +37,7 @@ set_property(TARGET opencv::video APPEND PROPERTY INTERFACE_LINK_LIBRARIES openc
 pkg_check_modules(GPIOD REQUIRED IMPORTED_TARGET libgpiodcxx)
 pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 
-# The viewer (issue 5): GLFW window + OpenGL 3.3 core (no loader: GL_GLEXT_PROTOTYPES against
+# The viewer: GLFW window + OpenGL 3.3 core (no loader: GL_GLEXT_PROTOTYPES against
 # libglvnd's libOpenGL), Dear ImGui from Debian's pkg-config file (includes the GLFW/GL3 back-ends).
 find_package(glfw3 REQUIRED)
 set(OpenGL_GL_PREFERENCE GLVND)
@@ -51,5 +51,5 @@ if(LIGHTSTAGE_BUILD_BENCHMARKS)
   find_package(benchmark REQUIRED)
 endif()
 
-# Runs across machines (issue 14): optional. Without MPI everything builds and runs as one process.
+# Runs across machines (MPI): optional. Without MPI everything builds and runs as one process.
 find_package(MPI COMPONENTS CXX)

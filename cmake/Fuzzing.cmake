@@ -1,4 +1,4 @@
-# LIGHTSTAGE_FUZZ (issue 19): a separate build directory, configured with clang++, where the
+# LIGHTSTAGE_FUZZ: a separate build directory, configured with clang++, where the
 # libraries and the tests named in LIGHTSTAGE_SANITIZE_TESTS are built under AddressSanitizer and
 # UndefinedBehaviorSanitizer with libFuzzer's coverage, and fuzz/ holds one libFuzzer target per
 # parser. scripts/fuzz.sh configures, builds and runs it; the normal build is untouched.

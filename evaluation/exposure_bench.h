@@ -1,5 +1,5 @@
 #pragma once
-// `lightstage bench exposures` (issue 17): each LED's exposures chosen from an earlier session
+// `lightstage bench exposures`: each LED's exposures chosen from an earlier session
 // (capture/exposure_choice.h) against the whole bracket, on the demo scene and on a
 // high-dynamic-range one (a near-mirror sphere beside a dark cloth): LED frames, exposure and
 // capture time, and the field's error against the simulator's truth. CSV and a chart.

@@ -34,7 +34,7 @@ std::string FitBenchOptions::validate() const {
 namespace {
 
 // One fit configuration: which candidate models the BIC choice may pick from, and the solver
-// (relight::FitSolver: the profiled solver of issue 15, or LM on every candidate as before it).
+// (relight::FitSolver: the profiled solver, the default, or LM on every candidate).
 // Lambert is always a candidate (FitOptions has no switch for it), so "Oren-Nayar" is
 // Lambert-or-Oren-Nayar etc.
 struct FitConfig {

@@ -1,5 +1,5 @@
 #pragma once
-// Failure sweeps for photometric-stereo normals and per-pixel BRDF fits (issue #3): how the
+// Failure sweeps for photometric-stereo normals and per-pixel BRDF fits: how the
 // estimates degrade along one axis at a time, and whether they stay finite, in bounds and flagged.
 //
 // Each sweep point synthesises a field from the simulator's ground truth (three regions with known

@@ -1,5 +1,5 @@
 #pragma once
-// Leave-lights-out evaluation of compact fields (issue 7); the simulated RTI scenes it runs on in
+// Leave-lights-out evaluation of compact fields; the simulated RTI scenes it runs on in
 // tests and in `lightstage bench compact` are in sim/rti_scenes.h.
 //
 // Protocol: hold out every `every`-th valid LED (those with index % every == offset), build the

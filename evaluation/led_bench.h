@@ -29,7 +29,7 @@ struct LedBenchOptions {
 struct LedBenchRow {
   int leds = 0;
   std::string map;     // The map file's stem.
-  std::string method;  // "cells" (every light by LED cells) or "cells + sources" (issue 16).
+  std::string method;  // "cells" (the whole map by LED cells) or "cells + sources" (split off).
   int turns = 0;       // > 0: relative_rmse and psnr_db are the median of this many turns; untimed.
   double relative_rmse = 0, psnr_db = 0;
   double relight_ms = 0, relight_gb_per_s = 0, light_weights_ms = 0;

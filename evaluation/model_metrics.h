@@ -1,6 +1,6 @@
 #pragma once
 // How well fitted model maps (relight/fit/fit.h) hold together, against the simulator's truth:
-// the speckle that per-pixel model choice leaves (issue 15) and the wrong models on surfaces whose
+// the speckle that per-pixel model choice leaves and the wrong models on surfaces whose
 // true material is Lambertian.
 #include <vector>
 

@@ -1,5 +1,5 @@
 #pragma once
-// `lightstage bench rti` (issue 18): every RTI-style format lightstage writes, measured as the RTI
+// `lightstage bench rti`: every RTI-style format lightstage writes, measured as the RTI
 // community measures them (relight's figures): every 5th light held out, the rest compressed into
 // the format's stored bytes (8-bit .ptm/.rti, OpenLIME JPEG planes and info.json, the float PCA
 // file) and read back, the held-out lights rendered, 8-bit sRGB PSNR pooled over them, against
@@ -36,10 +36,10 @@ struct RtiBenchSummary {
 
 RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& progress = {});
 
-// Memory (issue 18): a one-light set of the issue's size (the glossy simulated scene as sRGB
-// JPEGs and an .lp file), then import, compress and export openlime run on it as separate
-// lightstage processes, each one's peak resident memory (wait4) measured: by default and within
-// --memory. "start" is the process doing nothing (--help): what loading its libraries costs.
+// Memory: a one-light set of width x height pixels and `lights` lights (the glossy simulated
+// scene as sRGB JPEGs and an .lp file), then import, compress and export openlime run on it as
+// separate lightstage processes, each one's peak resident memory (wait4) measured: by default and
+// within --memory. "start" is the process doing nothing (--help): what loading its libraries costs.
 struct RtiMemoryOptions {
   std::filesystem::path out = "bench-out";
   std::filesystem::path executable;  // The lightstage executable (the CLI: itself).
@@ -62,8 +62,8 @@ struct RtiMemorySummary {
 RtiMemorySummary run_rti_memory_bench(const RtiMemoryOptions& options,
                                       const ProgressFn& progress = {});
 
-// relight's figures on loewenkopf_klein (issue 18: built from its sources, every 5th light held
-// out, 8-bit sRGB PSNR pooled): name, dB, bytes per scene (0 where the issue gives none).
+// relight's figures on loewenkopf_klein (built from its sources, every 5th light held out, 8-bit
+// sRGB PSNR pooled): name, dB, bytes per scene (0 where the figures give no size).
 struct ReferenceFigure {
   const char* name;
   double psnr_db;

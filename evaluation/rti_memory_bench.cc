@@ -1,6 +1,7 @@
-// `lightstage bench rti`'s memory part (evaluation/rti_bench.h): a one-light set of issue 18's
-// size written as JPEGs and an .lp file, then import, compress and export run on it as the user
-// runs them, one process each, their peak resident memory measured.
+// `lightstage bench rti`'s memory part (evaluation/rti_bench.h): a one-light set of
+// RtiMemoryOptions' size (612 x 512, 96 lights by default) written as JPEGs and an .lp file, then
+// import, compress and export run on it as the user runs them, one process each, their peak
+// resident memory measured.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

@@ -1,5 +1,5 @@
 #pragma once
-// lightstage bench scale (issue 14): each step of the pipeline on captures of growing size, run
+// lightstage bench scale: each step of the pipeline on captures of growing size, run
 // as the user runs it (the lightstage executable, one process per step) within a memory budget:
 // wall time, peak resident memory (the process's own, from wait4) against the budget, and reading
 // the field's bytes from the page cache and from disk in the same run, for comparison with

@@ -1,5 +1,5 @@
 #pragma once
-// `lightstage bench sun`: a small source between the LEDs (issue 16). On the built-in dome and the
+// `lightstage bench sun`: a small source between the LEDs. On the built-in dome and the
 // demo scene, a disc source (default 2 deg radius, unit irradiance) is
 //  - swept in small steps from an LED's direction to the middle of the three LEDs around it, and
 //  - turned through a full circle about the vertical at its elevation,

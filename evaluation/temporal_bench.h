@@ -3,7 +3,7 @@
 // simulator's time-varying scene as the number of time steps grows: fit time per pixel (per-step
 // BRDF fits and temporal model fits) and the error against ground truth (rendering at uncaptured
 // times, and the recovered rates). Writes temporal.csv, temporal_error_vs_steps.png and
-// temporal_time_vs_steps.png. Then (issue 20) the rise-and-fall scene's time lapse
+// temporal_time_vs_steps.png. Then the rise-and-fall scene's time lapse
 // (evaluation/temporal_held_out.h) captured at a growing number of its steps: the error at the
 // steps held out of the curves, the processes alone, linear interpolation of the captured images
 // and the nearest captured image (temporal_held_out.csv, temporal_held_out_vs_steps.png), and a

@@ -1,5 +1,5 @@
 #pragma once
-// Temporal fits judged at the time steps they were not given (issue 20): a time-lapse of the
+// Temporal fits judged at the time steps they were not given: a time-lapse of the
 // simulator's rise-and-fall scene (sim::rise_and_fall_scene: a corroding metal whose red rises and
 // falls, a stone slab wetted and drying), some steps captured with noise, the temporal models
 // fitted from those and rendered under every LED at every step, against the simulator's

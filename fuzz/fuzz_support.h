@@ -1,5 +1,5 @@
 #pragma once
-// What the libFuzzer targets in fuzz/ share (issue 19: nothing crashes, nothing bad is accepted).
+// What the libFuzzer targets in fuzz/ share (nothing crashes, nothing bad is accepted).
 //
 // The rule every target follows: a reader given any bytes either returns, or refuses them with the
 // project's InputError (lightstage/errors.h). Anything else — a crash, a sanitizer report, an

@@ -1,6 +1,6 @@
 #pragma once
 // A folder beside a long job's output (OUT.partial/) where it keeps what it has finished until the
-// output is written, so that a run that is killed resumes from it (issue 14: fit's bands, build's
+// output is written, so that a run that is killed resumes from it (fit's bands, build's
 // merged LEDs). run.json records the run's identity (what must match for the folder's contents to
 // be reused: input, its size and time, options) and its band height.
 #include <cstddef>

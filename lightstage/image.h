@@ -115,7 +115,7 @@ class AtomicFileWriter final : public image_file::Sink {
 };
 
 // An image written a band of rows at a time, top to bottom, never held whole (maps of a field
-// larger than memory, issue 14): the format from the extension, OpenEXR (float, zip, the
+// larger than memory): the format from the extension, OpenEXR (float, zip, the
 // attributes in its header) as write_exr writes it, or an 8-bit PNG preview as write_png_preview
 // writes it (exposure 0), the same bytes. Atomic like AtomicFileWriter: nothing at `path` until
 // commit(); InputError naming the path when a write fails.

@@ -5,7 +5,7 @@
 // goes through OpenImageIO,
 // loaded from a module (lightstage_oiio) on first use: Debian's OpenImageIO brings 260 libraries
 // and 120 MiB of resident memory into a process before any work, more than an RTI set's whole
-// compression needs (issue 18). Row 0 is the top row of the data window.
+// compression needs. Row 0 is the top row of the data window.
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>

@@ -1,7 +1,7 @@
 #pragma once
 // A temporary file of floats beside an output, written and read at float offsets, and removed when
 // destroyed: data larger than memory on its way into the output (a field built in bands: its LEDs'
-// images; an RTI file compressed in bands: its coefficients, issue 14).
+// images; an RTI file compressed in bands: its coefficients).
 #include <cstddef>
 #include <filesystem>
 #include <string>

@@ -46,7 +46,7 @@ struct FrameRecord {
   double gain = 1.0;
   double scene_time_s = 0.0;
   std::string captured_at;  // ISO 8601 UTC.
-  // The file as written (journals before issue 19 have neither: bytes = 0).
+  // The file as written (absent in older journals: bytes = 0).
   uint64_t bytes = 0;
   uint32_t crc32 = 0;
   FrameTiming timing;  // Journaled as "timing" (absent in older journals: all 0).
@@ -79,7 +79,7 @@ struct SessionInfo {
   uint64_t seed = 1;
 };
 
-// One capture writes a session at a time (issue 19): an exclusive lock on SESSION/capture.lock,
+// One capture writes a session at a time: an exclusive lock on SESSION/capture.lock,
 // held while this lives. A POSIX record lock, so the kernel drops it when its process ends: the
 // lock of a killed capture is stale by construction and the next capture takes it. InputError
 // naming the holding process when another capture holds it.

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Kill loop (issue 19): a real-time simulated capture with a dead LED is killed with SIGKILL at
+# Kill loop: a real-time simulated capture with a dead LED is killed with SIGKILL at
 # random moments (inside brackets, during resumes) KILLS times, resumed until complete, then
 # compared with an uninterrupted capture: every frame byte-identical, the dead LED flagged.
 #   scripts/kill_loop.sh [KILLS=20] [WORK_DIR=/tmp/lightstage-kill-loop]

@@ -24,12 +24,12 @@
 // wet surface drying has no or a constant specular lobe (validate() requires wet.ks == dry.ks and
 // equal roughness).
 //
-// Two processes whose parameters do not move monotonically between two endpoints (issue 20):
+// Two processes whose parameters do not move monotonically between two endpoints:
 //   corroding (rises and falls): the progress w = 1 - e^(-lambda t') as paint, and every
 //                    parameter on the quadratic Bezier curve from wet through the control point
 //                    `middle` to dry: p(w) = (1-w)^2 wet + 2 w (1-w) middle + w^2 dry (the
 //                    roughness's reciprocal, as harmonic above); a middle albedo above both ends
-//                    rises, then falls (issue 20's corroding metal: red 0.073 -> 0.118 -> 0.057).
+//                    rises, then falls (the corroding metal: red 0.073 -> 0.118 -> 0.057).
 //                    At w = 1/2 the material is (wet + 2 middle + dry) / 4.
 //   wetting and drying (two phases): a dry surface wets at wetting_rate_per_s (kappa) from the
 //                    onset, then dries at rate_per_s (lambda < kappa): its wetness

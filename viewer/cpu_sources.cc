@@ -46,7 +46,7 @@ class CpuFieldSource : public GpuSource {
     gl_util::check_target(*this, target);
     gl_util::check_led_weights(*this, lighting.field_irradiance_rgb(), field_.num_lights());
     // The map by LED cells (without its compact sources when they were split off), then the
-    // sources at their true directions (issue 16).
+    // sources at their true directions.
     if (half_) {
       half_->relight_into(lighting.field_irradiance_rgb(), image_);
     } else {

@@ -27,8 +27,8 @@ namespace {
 // Field: R(x, l) in a buffer texture in the field's own pixel-major order (each pixel's 3L values
 // padded to whole groups of 4 LEDs = 3 RGBA texels), so one pixel's samples are contiguous and a
 // fetch brings 4 values; the lighting as one RGBA weight per texel of a group plus the list of
-// groups with any light, in a uniform buffer. (A texture array with one RGB layer per LED, the
-// first version, ran 1.5x slower on llvmpipe: 150 fetches per pixel, 1 MB apart.)
+// groups with any light, in a uniform buffer. (A texture array with one RGB layer per LED instead
+// runs 1.5x slower on llvmpipe: 150 fetches per pixel, 1 MB apart.)
 
 constexpr int kMaxFieldGroups = 256;  // 1024 LEDs: 768 + 64 vec4 = 13 KiB of uniform buffer, under
                                       // the 16 KiB every GL 3.3 implementation allows.
@@ -45,7 +45,7 @@ uniform int groups;                  // Per pixel.
 uniform int image_width;
 uniform int image_height;
 uniform float output_scale;          // Undoes the storage scale.
-uniform sampler2D sources_image;     // The compact sources' light (issue 16), image row 0 at
+uniform sampler2D sources_image;     // The compact sources' light, image row 0 at
 uniform int with_sources;            // texture row 0; added when with_sources != 0.
 out vec4 radiance;
 void main() {
@@ -215,7 +215,7 @@ class FieldSource : public GpuSource {
     }
   }
 
-  // The compact sources' light (issue 16) computed on the CPU into the sources texture; false
+  // The compact sources' light computed on the CPU into the sources texture; false
   // when the lighting has none.
   bool upload_sources(const ViewLighting& lighting) {
     if (!sources_.render(lighting, sources_image_)) return false;

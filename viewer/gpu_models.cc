@@ -27,7 +27,7 @@ namespace {
 // relight/fit/model_render.cc's shade() with relight/lighting/brdf.h's models, line for line, and
 // the same shadows (each light takes its nearest LED's). The prefiltered shading has no shadows:
 // its lighting is one environment for every pixel.
-// (Lights in a texture, the first version, cost two fetches per light: 1.6x slower on llvmpipe.)
+// (Lights in a texture instead cost two fetches per light: 1.6x slower on llvmpipe.)
 
 // "#define LIGHTS_PER_PASS n" goes after the version line.
 // With "#define PREFILTERED" too, the prefiltered shading (ModelShading::kPrefiltered): no lights,

@@ -1,5 +1,5 @@
 #pragma once
-// Relighting on the GPU (issue 5): the viewer's sources (measured field, PCA-compressed field,
+// Relighting on the GPU: the viewer's sources (measured field, PCA-compressed field,
 // fitted models) live in textures and a shader forms the image, so rotating the environment costs
 // one small upload (the per-LED or per-basis weights) and one draw.
 //
@@ -7,11 +7,10 @@
 // relight::relight (field), PcaField::relight_led_weights_into (PCA) and render_models (models)
 // give for the same lighting; tests read the framebuffer back and compare with those.
 //
-// Additions by vcore (nothing declared before was changed): FieldPrecision and the `precision`
-// argument of upload_field (defaulted; benchmarks force half or float), GpuSource::bytes().
-// Additions by vpre: ModelShading and the `shading` argument of upload_models (defaulted: kExact,
-// as before).
-// Additions for issue 16 (compact sources): ViewLighting::split and field_irradiance_rgb(),
+// Precision and cost: FieldPrecision and the `precision` argument of upload_field (defaulted;
+// benchmarks force half or float), GpuSource::bytes(); ModelShading and the `shading` argument of
+// upload_models (defaulted: kExact).
+// Compact sources: ViewLighting::split and field_irradiance_rgb(),
 // GpuSource::adds_compact_sources(); field sources add the split-off sources
 // (relight::FieldSources) to the cells' image.
 //
@@ -42,7 +41,7 @@ struct ViewLighting {
   // The same lighting as distant lights (LightingForModels::environment or ::directional). Model
   // sources use this.
   relight::LightingForModels lights;
-  // Issue 16: a field under an environment map with compact sources (a sun, a small lamp), set
+  // A field under an environment map with compact sources (a sun, a small lamp), set
   // only when the map has some. Field sources relight by split->weights (the map without its
   // sources, by LED cells) and add each source at its true direction (relight::FieldSources::add),
   // as `lightstage relight` does. Sources that cannot add them back (PCA, models) keep
@@ -119,8 +118,8 @@ std::unique_ptr<GpuSource> upload_field(const capture::ReflectanceField& field,
                                         FieldPrecision precision = FieldPrecision::kAuto);
 std::unique_ptr<GpuSource> upload_pca(const relight::PcaField& pca);
 
-// How the models source shades (added by vpre, issue 5 "fitted BRDFs against a prefiltered
-// environment").
+// How the models source shades: fitted BRDFs summed over the lights, or against a prefiltered
+// environment.
 //  * kExact: the BRDF summed over every distant light (relight/fit/model_render.h, line for line;
 //    1.9e-5 of the peak from render_models). Cost is linear in the lights: 2.2 s a frame at 512^2
 //    under 512 lights on llvmpipe.

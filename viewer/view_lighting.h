@@ -1,6 +1,6 @@
 #pragma once
 // The lighting of a viewer frame (ViewLighting, viewer/gpu_relight.h) from an environment map, and
-// the light of the map's compact sources on a field (issue 16: "relighting under the sun"). A sun
+// the light of the map's compact sources on a field (relighting under the sun). A sun
 // or a small lamp relit by LED cells is spread over the cells of the LEDs around it, so its shadows
 // come out as two or three offset copies; split off (relight/fit/source_relight.h), it is rendered
 // at its true direction, turning with the map, while the rest of the map is relit by the cells.

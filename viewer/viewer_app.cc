@@ -166,7 +166,7 @@ bool ViewerApp::Impl::shows(Source s) const {
 }
 
 const ViewLighting& ViewerApp::Impl::current_lighting() {
-  // Compact sources are split off only for a field on show (issue 16), and distant lights made
+  // Compact sources are split off only for a field on show, and distant lights made
   // only for models on show: a rotation costs what the shown sources need.
   EnvironmentNeeds needs;
   const bool field_on_show = field.has_value() && shows(Source::kField);

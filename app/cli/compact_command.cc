@@ -46,7 +46,7 @@ void add_compress_command(CLI::App& app) {
                        "set is always read in bands straight from its images, of 32 MiB unless "
                        "this is given.");
   compress->callback([args] {
-    // A bad --format or --rank is bad input (exit 2), as before options were validated here.
+    // A bad --format or --rank is bad input (exit 2): jobs::compress validates them.
     const jobs::CompressSummary summary = jobs::compress(*args);
     if (!jobs::Ranks::world().root()) return;  // Under MPI rank 0 wrote the file and prints.
     if (args->format == "pca") {

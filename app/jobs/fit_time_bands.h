@@ -1,6 +1,6 @@
 #pragma once
 // lightstage fit --time on time-step fields read in bands of rows (--memory, and every run under
-// MPI), never holding a field or the maps whole (issue 14). Everything in a temporal fit is per
+// MPI), never holding a field or the maps whole. Everything in a temporal fit is per
 // pixel but its data-driven curves, which are learnt from a sample of the whole image, so:
 //   1. per band: normals (from the source step's band), each step's BRDF fit and each pixel's
 //      process, kept in a checkpoint (OUT.partial/steps_Y.band);

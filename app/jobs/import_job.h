@@ -24,7 +24,7 @@ struct ImportJobSummary {
 
 // An import reads each image once and its field is written in bands: more memory than a few tens
 // of rows of it does not make it faster, so a field larger than this is spilled and written in
-// bands by default (issue 18: peak memory within that of the RTI tools on the same set).
+// bands by default (so that peak memory stays within that of the RTI tools on the same set).
 inline constexpr std::size_t kDefaultImportMemoryBytes = std::size_t(32) << 20;
 
 // `options` as capture::import_olat takes them (validated there); memory_bytes as

@@ -1,6 +1,6 @@
 #pragma once
 // The processes of a run under MPI (mpirun, or srun under Slurm): `lightstage fit` splits its bands
-// of rows over them (issue 14). Without MPI, or started without a launcher, there is one process,
+// of rows over them. Without MPI, or started without a launcher, there is one process,
 // rank 0, and every call below is trivial. Built with MPI when CMake finds it (find_package(MPI)).
 #include <vector>
 

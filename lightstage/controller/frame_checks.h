@@ -1,5 +1,5 @@
 #pragma once
-// Checks of frames as they arrive (issue 17): what a frame should look like, judged before it is
+// Checks of frames as they arrive: what a frame should look like, judged before it is
 // saved, so that the sequencer can shoot it again. Pure functions of the frames; the sequencer
 // acts.
 #include <functional>

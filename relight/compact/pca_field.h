@@ -1,5 +1,5 @@
 #pragma once
-// PCA of the light dimension of a reflectance field (issue 7), and the raw field as a
+// PCA of the light dimension of a reflectance field, and the raw field as a
 // CompactField.
 //
 // Every (pixel, channel) is a vector of L light samples v(l). PCA finds k light functions

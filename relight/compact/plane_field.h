@@ -1,5 +1,5 @@
 #pragma once
-// Quantised PCA planes with interpolation between the lights (issue 18): the representation of
+// Quantised PCA planes with interpolation between the lights: the representation of
 // relight (cnr-isti-vclab) and OpenLIME's "rbf" and "bilinear" RTI types, colorspace "mrgb", held
 // exactly as those files hold it, so what lightstage renders is what OpenLIME shows.
 //

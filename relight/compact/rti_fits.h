@@ -1,5 +1,5 @@
 #pragma once
-// The RTI classics as CompactFields (issue 7): polynomial texture maps (PTM, Malzbender et al.
+// The RTI classics as CompactFields: polynomial texture maps (PTM, Malzbender et al.
 // 2001) and hemispherical harmonics (HSH, Gautron et al. 2004, as RTIViewer evaluates them), fitted
 // per pixel by linear least squares. The design matrix depends only on the light directions, so
 // its pseudo-inverse (T x n, T = 4..16 terms) is computed once and applied to every pixel.
@@ -101,7 +101,7 @@ class RtiField : public CompactField {
 };
 
 // RtiField::fit a band at a time into the caller's buffers, for a field larger than memory whose
-// coefficients go to disk as they are fitted (issue 14).
+// coefficients go to disk as they are fitted.
 class RtiFitter {
  public:
   // The field's lights; InputError as RtiField::fit for bad options or too few lights.

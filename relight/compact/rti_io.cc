@@ -185,7 +185,7 @@ RtiFile decode_hsh(const std::string& bytes, const std::string& name) {
       file.field_gain = g;
     }
   }
-  // lightstage wrote linear values with a gain before it wrote the encoding.
+  // No encoding line: linear values if the file gives a gain (lightstage's older files), else sRGB.
   file.srgb = encoding.empty() ? !(file.field_gain > 0) : encoding == "sRGB";
   const std::string type = line;
   if (type != "3") {

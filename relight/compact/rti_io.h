@@ -1,5 +1,5 @@
 #pragma once
-// The RTI interchange formats (issue 7), in the layouts RTIViewer and relight/OpenLIME read:
+// The RTI interchange formats, in the layouts RTIViewer and relight/OpenLIME read:
 //
 //  .ptm (PTM_1.2, HP Labs; uncompressed PTM_FORMAT_RGB and PTM_FORMAT_LRGB):
 //    "PTM_1.2\n" "PTM_FORMAT_RGB\n" (or _LRGB) "<width>\n" "<height>\n"
@@ -11,9 +11,9 @@
 //  .rti (HSH, RTIViewer's "#HSH1.2"): text header "#HSH1.2\n", comment lines starting with '#',
 //    "3\n" (HSH), "<width> <height> 3\n", "<terms> 2 1\n", then terms float32 scales and terms
 //    float32 biases (little-endian), then bytes, rows TOP to bottom (RTIViewer's Hsh::loadData and
-//    relight read row j at offset j * width; lightstage before issue 18 wrote them bottom to top,
-//    and such files read upside down), per pixel the R terms, G terms, B terms: coefficient =
-//    byte / 255 * scale_j + bias_j; the evaluated value is 1 at white.
+//    relight read row j at offset j * width; older lightstage files, written bottom to top, read
+//    upside down), per pixel the R terms, G terms, B terms: coefficient = byte / 255 * scale_j +
+//    bias_j; the evaluated value is 1 at white.
 //
 // Values in the files are display units (white = 255 codes for PTM, 1 for HSH); fields are in
 // field units. By default the values are display-referred: the sRGB codes of gain x field units,
@@ -61,7 +61,7 @@ struct RtiFile {
 // display-referred field (fitted with srgb_gain) is stored as it is, with its own gain.
 RtiFile quantise(const RtiField& field, double gain = 0.0);
 
-// quantise in two steps, so that a field fitted band by band (larger than memory, issue 14) is
+// quantise in two steps, so that a field fitted band by band (larger than memory) is
 // quantised byte for byte as the whole: add() every band's coefficients (the ranges), then
 // header() (scales, biases, gain; no data) and quantise() each band's pixels.
 class RtiQuantiser {
@@ -102,7 +102,7 @@ RtiFile decode_rti_file(const std::string& bytes, const std::string& name);
 void write_rti_file(const std::filesystem::path& path, const RtiFile& file);  // Atomic.
 
 // write_rti_file(path, quantise(RtiField::fit(header, bands, options), gain)) byte for byte, for
-// a field larger than memory (issue 14): each band's coefficients spilled to a file in `kept_dir`
+// a field larger than memory: each band's coefficients spilled to a file in `kept_dir`
 // (a CheckpointDir's, beside `path`), then quantised and written row by row: it holds a band's
 // coefficients, not the image's. The spill and a record of each band fitted stay there for a
 // killed run to resume from: a band with a record is read back, not fitted (the caller removes the

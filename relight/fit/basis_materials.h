@@ -1,5 +1,5 @@
 #pragma once
-// Basis materials (issue 15; after Lensch et al. 2003, "Image-based reconstruction of spatial
+// Basis materials (after Lensch et al. 2003, "Image-based reconstruction of spatial
 // appearance and geometric detail", and Goldman et al. 2005, "Shape and spatially-varying BRDFs
 // from photometric stereo"): a scene has a few materials, not one per pixel.
 //

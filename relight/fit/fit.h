@@ -1,5 +1,5 @@
 #pragma once
-// Per-pixel appearance fitting and model choice (issue #3).
+// Per-pixel appearance fitting and model choice.
 //
 // For every pixel, starting from the photometric-stereo normal, fits
 //   Lambert (albedo RGB), nested in both of
@@ -10,10 +10,10 @@
 // angles: PS is biased for non-Lambertian surfaces, e.g. Oren-Nayar flattens the shading toward
 // the viewer), so k = 5, 6, 7, 7 parameters.
 //
-// Solvers (FitSolver): by default (issue 15) each candidate is first fitted at the photometric-
+// Solvers (FitSolver): by default each candidate is first fitted at the photometric-
 // stereo normal with its albedos and k_s in closed form and its nonlinear parameter searched
 // (relight/fit/profiled_fit.h); the best candidate by BIC, and any other that normal refinement
-// could still make best, is then polished, normal included, by the bounded LM below. The older
+// could still make best, is then polished, normal included, by the bounded LM below. The other
 // solver runs the LM on every candidate from the Lambert start (kEveryCandidateByLm).
 //
 // Each LM fit is bounded Levenberg-Marquardt (ceres::TinySolver through relight/fit/pixel_solver.h,
@@ -68,18 +68,18 @@ inline constexpr double kDefaultMaxSpecularAlbedo = 2.0;
 
 enum class FitSolver {
   kProfiled,            // Closed-form candidates, LM polish of the contenders (the default).
-  kEveryCandidateByLm,  // LM on every candidate (before issue 15; kept as the comparison).
+  kEveryCandidateByLm,  // LM on every candidate (kept as the comparison).
 };
 const char* to_string(FitSolver solver);
 
-// How the scene's materials are modelled (issue 15).
+// How the scene's materials are modelled.
 enum class FitMaterials {
   // Basis materials (relight/fit/basis_materials.h): the per-pixel fits are clustered into the
   // scene's few materials, each material fitted on all of its pixels' samples together, and each
   // pixel given the weights of at most two materials, unless its own per-pixel fit explains it
   // better by BIC (the per-pixel fit is then kept: material 0).
   kBasis,
-  kPerPixel,  // Each pixel chooses its model alone (before issue 15; kept as the comparison).
+  kPerPixel,  // Each pixel chooses its model alone (kept as the comparison).
 };
 const char* to_string(FitMaterials materials);
 
@@ -208,8 +208,8 @@ struct ModelMaps {
   // attribute. Empty for per-pixel fits.
   std::vector<Material> materials;
   // The LEDs each fitted pixel saw in cast shadow (relight/fit/fit_shadows.h), so that a model
-  // render has the field's visibility; channels "shadow.N" of the file. Empty for maps fitted
-  // before it existed: every light then lights every pixel.
+  // render has the field's visibility; channels "shadow.N" of the file. Empty for maps read
+  // from a file without those channels: every light then lights every pixel.
   FitShadows shadows;
   float at(int x, int y, MapChannel c) const { return maps.at(x, y, c); }
   FitModel model(int x, int y) const { return FitModel(int(maps.at(x, y, kMapModel))); }
@@ -234,7 +234,7 @@ void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,
                       const ExrAttributes& attributes = {});
 
 // The same file and previews written a band of rows at a time, top to bottom (a fit in bands of a
-// field larger than memory, issue 14): the same bytes as write_model_maps. `header` gives what
+// field larger than memory): the same bytes as write_model_maps. `header` gives what
 // the file's header holds (noise, materials, the shadows' LEDs and words); its rows are unused.
 // Nothing is left at `path` before commit().
 class ModelMapsWriter {

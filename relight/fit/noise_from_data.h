@@ -1,5 +1,5 @@
 #pragma once
-// The noise of a field that carries no measured noise (issue 18: an imported RTI or DiLiGenT set
+// The noise of a field that carries no measured noise (an imported RTI or DiLiGenT set
 // has no dark frames and no bracket), estimated from the data itself: the residuals of a robust
 // Lambertian photometric-stereo fit. Each pixel's samples lit well above its terminator
 // (n.l >= 0.3) are compared with albedo * n.l / pi; the residuals are binned by that predicted

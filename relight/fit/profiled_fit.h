@@ -1,5 +1,5 @@
 #pragma once
-// Candidate fits with the linear parameters solved in closed form (issue 15).
+// Candidate fits with the linear parameters solved in closed form.
 //
 // At a fixed normal every model here is linear in its albedos and k_s once its one nonlinear
 // parameter is fixed:

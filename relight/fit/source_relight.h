@@ -1,5 +1,5 @@
 #pragma once
-// Relighting a field under a map with its compact sources split off (issue 16): the rest of the map
+// Relighting a field under a map with its compact sources split off: the rest of the map
 // by LED cells (relight.h), each source at its true direction with moving shadows
 // (relight/lighting/source_render.h), from the field's own Lambertian fit and the images of the
 // LEDs around the sources. Fields in memory and streamed ones alike (capture::FieldBands).

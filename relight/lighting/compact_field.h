@@ -1,5 +1,5 @@
 #pragma once
-// Compact reflectance fields (issue 7): representations of R(x, l) that are smaller than the raw
+// Compact reflectance fields: representations of R(x, l) that are smaller than the raw
 // field (pixels x LEDs x 3 floats), relight faster, and can be lit from directions between the
 // LEDs. Each is a point on a size / speed / accuracy chart (lightstage bench compact).
 //

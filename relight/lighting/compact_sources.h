@@ -4,7 +4,7 @@
 // source is spread over the cells around it, so each shadow comes out as two or three offset
 // copies at the LEDs' directions (the classic artefact of Debevec et al. 2000). Split off, a source
 // is rendered at its true direction (relight/lighting/source_render.h) while the smooth rest of the
-// map is relit by the cells as before.
+// map is relit by the cells.
 #include <Eigen/Core>
 #include <string>
 #include <vector>

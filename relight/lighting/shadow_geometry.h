@@ -1,6 +1,6 @@
 #pragma once
 // The scene's shape recovered from a field, to cast a compact source's shadows at its true
-// direction (issue 16). The LEDs' shadows, interpolated by flow (source_render.h), go wrong where
+// direction. The LEDs' shadows, interpolated by flow (source_render.h), go wrong where
 // a shadow's shape changes between two LEDs (a sphere's shadow swinging across a relief); a shape
 // casts them right at any direction, as far as the shape is right. So:
 //  - Depth from the photometric normals: the gradients integrated (least squares) over regions of

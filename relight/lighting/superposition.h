@@ -1,5 +1,5 @@
 #pragma once
-// The superposition check (issue 17): light is additive, so a photograph of the dome playing LED
+// The superposition check: light is additive, so a photograph of the dome playing LED
 // levels must equal the field relit with those levels. It tests the LED calibration as the field
 // holds it, the HDR merge and the relighting in one number, and finds what changed since the
 // field was captured (an LED dimmed, knocked or failed).

@@ -1,5 +1,5 @@
 #pragma once
-// Time-varying BRDFs (issue 6; Sun, Sunkavalli, Ramamoorthi, Belhumeur, Nayar 2007): from one
+// Time-varying BRDFs (Sun, Sunkavalli, Ramamoorthi, Belhumeur, Nayar 2007): from one
 // reflectance field per time step of the same scene, per pixel
 //   1. one normal for all steps (photometric stereo, relight/fit/normals.h, on the last,
 //      driest step by default: see NormalSource), held fixed: the geometry does not change;
@@ -197,7 +197,7 @@ struct TemporalSummary {
   std::string to_string() const;
 };
 
-// Data-driven temporal curves (issue 20; after Gu, Tu, Ramamoorthi, Belhumeur, Matusik, Nayar
+// Data-driven temporal curves (after Gu, Tu, Ramamoorthi, Belhumeur, Matusik, Nayar
 // 2006, "Time-varying surface appearance: acquisition, modeling and rendering"): one curve per
 // BRDF parameter, shared by the surface, free to rise and fall; per pixel a time warp and its own
 // endpoints:
@@ -257,7 +257,7 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
 // Temporal models from per-step fits (sorted by time, at least one).
 TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const NormalMap& normals,
                                  const TemporalFitOptions& options);
-// Step 3 in pieces that also run on bands of rows (issue 14: `lightstage fit --time` on fields
+// Step 3 in pieces that also run on bands of rows (`lightstage fit --time` on fields
 // larger than memory). All but the curves is per pixel; fit_temporal_models is these on one band:
 //   1. fit_temporal_processes on each band's per-step fits;
 //   2. a CurveSample: count() over every band's maps, then gather() over every band, in order,
@@ -309,8 +309,8 @@ double temporal_value(TemporalModel model, double rate, double onset, double wet
 // .dry_albedo.png, .confidence.png, .flags.png.
 void write_temporal_maps(const std::filesystem::path& path, const TemporalMaps& maps,
                          const ExrAttributes& attributes = {});
-// The same file and previews written a band of rows at a time, top to bottom (a fit in bands,
-// issue 14): the same bytes as write_temporal_maps. `header` gives what the file's header holds
+// The same file and previews written a band of rows at a time, top to bottom (a fit in bands):
+// the same bytes as write_temporal_maps. `header` gives what the file's header holds
 // (step times, noise, curves); step_values: whether the file has the step.I.<param> channels (a
 // band without degenerate pixels writes zeros there); max_rate: the largest kTRate of the maps,
 // for the rate preview. Nothing is left at `path` before commit().

@@ -135,7 +135,7 @@ struct DemoCapture {
 // The demo scene (matte, rough, glossy spheres, a shadowing height field, a checkered plane)
 // relit from its simulated capture on the built-in dome, against ground truth rendered directly
 // from the scene under each shipped map (restricted to what the dome covers): by LED cells alone,
-// and with the maps' compact sources split off and rendered at their true direction (issue 16).
+// and with the maps' compact sources split off and rendered at their true direction.
 TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
   const DemoCapture demo(96);
   const Stage& stage = demo.stage;
@@ -147,8 +147,8 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
   // cell: its shadows and highlights come from the LED's direction, not the source's). Asserted
   // with ~1.4x margin.
   // With compact sources, their shadows cast by the scene's shape recovered from the LEDs' shadows
-  // where it agrees with them: sky_sun measured 0.0457, asserted at issue 16's figure 0.05;
-  // small_source 0.0643 here (0.056 in the demo's 256^2, under the issue's 0.06), asserted at 0.07:
+  // where it agrees with them: sky_sun measured 0.0457, asserted at the target 0.05; small_source
+  // 0.0643 here (0.056 in the demo's 256^2, under the target 0.06), asserted at 0.07:
   // by the flows alone it measured 0.096 (the spheres' shadows on the relief move 20-40 pixels
   // between LEDs and change shape). softbox_studio has no compact source.
   struct Case {

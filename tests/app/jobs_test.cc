@@ -210,7 +210,7 @@ TEST_F(Jobs, BuildAndRelightWriteWhatTheLibraryComputesAndRecordTheirOptions) {
   }
 }
 
-// A map that lights the scene from behind the backdrop (issue 18: spot1Lux) leaves it nearly black:
+// A map that lights the scene from behind the backdrop (spot1Lux) leaves it nearly black:
 // its preview stays dark instead of being exposed until its noise fills the frame; a map that
 // lights the scene keeps the exposure of its own highlights.
 TEST_F(Jobs, APreviewOfADarkRelightIsDarkNotNoise) {
@@ -239,7 +239,7 @@ TEST_F(Jobs, APreviewOfADarkRelightIsDarkNotNoise) {
   };
   const double dark = mean_code(summary.images[0].png), lit = mean_code(summary.images[1].png);
   std::printf("preview means: lit from behind %.1f, softbox %.1f (of 255)\n", dark, lit);
-  // Measured: 5.6 and 140; exposed by its own highlights the first was 114, all noise.
+  // Measured: 5.6 and 140; exposed by its own highlights, the first would be 114, all noise.
   EXPECT_LT(dark, 20);
   EXPECT_GT(lit, 100);
 }
@@ -458,7 +458,7 @@ TEST_F(Jobs, RenderRelightsACompactFileUnderALightAsItsFormatHoldsIt) {
   EXPECT_FALSE(fs::exists(bad.out));
 }
 
-// A PCA under a small source (issue 16): rendered at the source's direction from the PCA's own
+// A PCA under a small source: rendered at the source's direction from the PCA's own
 // reconstruction (its normals, its LEDs' shadows, the shape they give), not by the map's grid of
 // lights interpolated between the LEDs; against ground truth from the scene (64x64 demo scene).
 TEST_F(Jobs, RenderOfAPcaCastsASmallSourcesShadowsAtItsDirection) {

@@ -1,4 +1,4 @@
-// `lightstage fit` and `fit --time` under MPI (issue 14): `mpirun -n 2` splits the bands over two
+// `lightstage fit` and `fit --time` under MPI: `mpirun -n 2` splits the bands over two
 // ranks and writes the bytes of a one-process fit (but for the time in its header). Runs where
 // CMake found MPI (CI installs it); skipped with a message elsewhere.
 #include <gtest/gtest.h>

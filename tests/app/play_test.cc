@@ -1,4 +1,4 @@
-// The map played on the simulated dome against the field relit (issue 17): they agree within the
+// The map played on the simulated dome against the field relit: they agree within the
 // noise for each shipped map, and an LED changed after the field was captured (20% dimmer, or
 // moved 3 degrees) is found by bisecting the dome, and named.
 #include <gtest/gtest.h>

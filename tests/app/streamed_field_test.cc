@@ -1,4 +1,4 @@
-// Fields read in bands of rows (issue 14): `lightstage relight` on scanline and tiled fields
+// Fields read in bands of rows: `lightstage relight` on scanline and tiled fields
 // gives the bytes of the in-memory relighting, and its peak memory does not follow the field;
 // `lightstage fit --memory` gives the maps of the whole field.
 #include <gtest/gtest.h>

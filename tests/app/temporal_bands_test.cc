@@ -1,4 +1,4 @@
-// `lightstage fit --time` in bands of rows (issue 14): the time-step fields read a band at a time
+// `lightstage fit --time` in bands of rows: the time-step fields read a band at a time
 // within --memory, the curves learnt from every band's sample, the maps written a band at a time,
 // the same maps as the fit of the whole fields; a run killed halfway resumes from its checkpoints.
 #include <gtest/gtest.h>

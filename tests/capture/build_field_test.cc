@@ -281,7 +281,7 @@ TEST(BuildField, RejectsBadTimeStep) {
   EXPECT_THROW(build_field(session, options), InputError);
 }
 
-// Issue 14: built in bands through a spill file (a field larger than memory), the field has the
+// Built in bands through a spill file (a field larger than memory), the field has the
 // values and attributes of the one built in memory, and nothing but the field is left beside it.
 TEST(BuildField, InBandsWithinAMemoryBudgetGivesTheFieldBuiltInMemory) {
   ls::testing::TempDir dir;
@@ -340,7 +340,7 @@ TEST(BuildField, InBandsWithinAMemoryBudgetGivesTheFieldBuiltInMemory) {
   EXPECT_TRUE(std::filesystem::is_regular_file(dir / "blocker"));
 }
 
-// Issue 19: a session with no usable frames (its journal gone) is refused, naming the session,
+// A session with no usable frames (its journal gone) is refused, naming the session,
 // and no field is written; not an all-zero field.
 TEST(BuildField, ASessionWithoutUsableFramesIsRefusedAndNothingIsWritten) {
   ls::testing::TempDir dir;

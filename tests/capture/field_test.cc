@@ -233,7 +233,7 @@ TEST(Field, ReadValidatesAndNamesTheFile) {
                   R"([{"id": 4, "dir": [0, 0, 0], "valid": true}])");
   EXPECT_THAT(read_error(f6), HasSubstr(f6));
   EXPECT_THAT(read_error(f6), HasSubstr("non-zero direction"));
-  // Issue 19: an id beyond an int is refused by name, not wrapped onto another LED's channels.
+  // An id beyond an int is refused by name, not wrapped onto another LED's channels.
   const std::string f7 = (dir / "hugeid.exr").string();
   write_plain_exr(f7, {"led001.R", "led001.G", "led001.B"},
                   R"([{"id": 4294967297, "dir": [0, 1, 0], "valid": true}])");

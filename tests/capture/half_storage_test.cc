@@ -1,4 +1,4 @@
-// Half-float field files (issue 14): half the bytes, values within half's precision of the floats,
+// Half-float field files: half the bytes, values within half's precision of the floats,
 // the choice recorded in the file and refused where the field relit from halves would be off by
 // more than kHalfRelitTolerance.
 #include "capture/half_storage.h"

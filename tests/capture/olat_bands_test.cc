@@ -1,4 +1,4 @@
-// OLAT sets read in bands straight from their images (capture::OlatBands, issue 18): the values,
+// OLAT sets read in bands straight from their images (capture::OlatBands): the values,
 // ceilings and attributes of the whole import in any band height and over several passes, and
 // the errors of an image that cannot be decoded part-way.
 #include <OpenImageIO/imageio.h>

@@ -429,7 +429,7 @@ TEST(OlatImport, DiligentFromSimMatchesGroundTruthNormalsAndColours) {
   EXPECT_NEAR(ratio.x(), 1.4, 0.005);
   EXPECT_NEAR(ratio.z(), 0.6, 0.005);
   // Outside the mask: zero samples, marked as having no signal (never NaN), and counted apart
-  // from the flagged pixels (issue 18: summaries aware of the mask).
+  // from the flagged pixels (summaries aware of the mask).
   for (const sim::SurfaceHit& h : set.hits) {
     if (h.hit) continue;
     EXPECT_EQ(field.at(h.pixel_x, h.pixel_y, 0, 0), 0.0f);
@@ -471,7 +471,7 @@ TEST(OlatImport, DiligentDownsizedKeepsMaskBorderUndarkened) {
   EXPECT_NEAR(ratio.x(), 1.4, 0.005);
 }
 
-// Issue 14: imported in bands of rows through a spill file (a set larger than memory), the field
+// Imported in bands of rows through a spill file (a set larger than memory), the field
 // file holds the values and lights of the import in memory, and each light's image is seen once.
 TEST(OlatImport, InBandsWithinAMemoryBudgetWritesTheFieldOfTheWholeImport) {
   ls::testing::TempDir tmp;
@@ -509,7 +509,7 @@ TEST(OlatImport, InBandsWithinAMemoryBudgetWritesTheFieldOfTheWholeImport) {
   EXPECT_THAT(left, ::testing::UnorderedElementsAre("sphere", "bands.exr"));
 }
 
-// Issue 14: an import in bands stopped halfway through reading the images (as by a kill) resumes
+// An import in bands stopped halfway through reading the images (as by a kill) resumes
 // from the images it read (kept in OUT.partial/ with a record each): it reads only the rest, and
 // writes the field and the lights' ceilings of an uninterrupted import.
 TEST(OlatImport, AKilledImportInBandsResumesFromTheImagesItRead) {
@@ -728,7 +728,7 @@ TEST(OlatImport, DiligentErrorsNameFileLineAndField) {
   write_text(dir / "filenames.txt", "a0.png\nnone.png\na2.png\n");
   e = input_error([&] { import_olat(dir, {}); });
   EXPECT_NE(e.find("filenames.txt:2: image: 'none.png' not found"), std::string::npos) << e;
-  // Half a DiLiGenT folder names the missing half, not an .lp file (issue 19).
+  // Half a DiLiGenT folder names the missing half, not an .lp file.
   fs::remove(dir / "filenames.txt");
   e = input_error([&] { detect_olat_format(dir); });
   EXPECT_NE(e.find("a DiLiGenT folder needs filenames.txt beside its light_directions.txt"),

@@ -1,4 +1,4 @@
-// The dome's output drifting during a capture (issue 17): the reference LED's shots measure it as
+// The dome's output drifting during a capture: the reference LED's shots measure it as
 // the simulator injected it, the build reports it, and --correct-drift divides it out of every LED
 // (each LED's image then matches the noise-free render without the drift's bias).
 #include "capture/reference_drift.h"

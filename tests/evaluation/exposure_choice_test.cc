@@ -1,4 +1,4 @@
-// Exposures chosen per LED from an earlier session (issue 17), against the whole bracket, on the
+// Exposures chosen per LED from an earlier session, against the whole bracket, on the
 // demo scene and on a high-dynamic-range one (a near-mirror sphere beside a dark cloth): fewer
 // frames, and the field's error against the simulator's truth unchanged within its noise.
 #include <gtest/gtest.h>

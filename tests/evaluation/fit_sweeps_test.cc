@@ -136,8 +136,8 @@ TEST(FitSweepSaturation, HeavySaturationIsFlaggedNotGuessed) {
   }
   const SweepPoint& heavy = points.at(0.4);
   const SweepPoint& none = points.at(0);
-  // Measured: before censoring, 203 surface pixels had unflagged fitted normals > 30 deg off at
-  // 40% clipped; now 0, with 100% flagged (too few unclipped lit samples). At 20% clipped: 0
+  // Measured: at 40% clipped, no surface pixel has an unflagged fitted normal > 30 deg off (203
+  // without censoring), 100% flagged (too few unclipped lit samples). At 20% clipped: 0
   // gross, 14.6% flagged (kSaturated), 0.47 deg mean error on the rest; at 10%: 0 flagged,
   // 0.31 deg.
   EXPECT_LE(heavy.unflagged_gross_errors, 3);

@@ -100,8 +100,8 @@ TEST_F(DamagedJournal, ValidJsonOfTheWrongShapeNamesTheJournalLine) {
   EXPECT_NE(what.find("frames.jsonl:4: expected a frame"), std::string::npos) << what;
 }
 
-// Found by the session fuzz target: indices beyond the plan (or an int) reached past the stage's
-// LEDs and steps when the manifest was written (out of range, UB), now named by line and field.
+// Indices beyond the plan (or an int), as the session fuzz target wrote them, are named by line and
+// field: unchecked, they would reach past the stage's LEDs and steps (out of range, UB).
 TEST_F(DamagedJournal, IndicesBeyondThePlanNameTheJournalLineAndField) {
   const std::pair<const char*, const char*> cases[] = {
       {R"({"dead_led": 99, "reason": "x"})",
@@ -120,8 +120,8 @@ TEST_F(DamagedJournal, IndicesBeyondThePlanNameTheJournalLineAndField) {
   }
 }
 
-// Found by the session fuzz target: a frame's size or checksum, or the manifest's seed, given as
-// a float far beyond its integer type was converted (undefined behaviour); now refused by name.
+// A frame's size or checksum, or the manifest's seed, given as a float far beyond its integer type
+// (as the session fuzz target wrote them) is refused by name, not converted (undefined behaviour).
 TEST_F(DamagedJournal, SizesChecksumsAndSeedsBeyondTheirTypesAreRefusedByName) {
   const std::string frame =
       R"({"t": 0, "led": 0, "e": 0, "r": 0, "file": "x.png", "exposure_s": 0.01, "gain": 1, )"

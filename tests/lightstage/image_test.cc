@@ -70,7 +70,7 @@ TEST(Image, TruncatedOrMissingFilesAreInputErrorsNamingTheFile) {
   }
 }
 
-// Issue 19: a file written where a folder stands says so (it said "...: Success").
+// A file written where a folder stands says so, not "...: Success".
 TEST(Image, WritingOverAFolderSaysItIsAFolder) {
   testing::TempDir tmp;
   std::filesystem::create_directories(tmp / "maps.exr");

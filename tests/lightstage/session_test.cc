@@ -79,7 +79,7 @@ TEST(Session, TornJournalLineAndMissingFrameFileAreRecapturedNotTrusted) {
   EXPECT_EQ(Session::open(tmp / "s").frames().size(), 4u);
 }
 
-// Issue 19: garbage in the middle of the journal is damage, not "an interrupted write" (only the
+// Garbage in the middle of the journal is damage, not "an interrupted write" (only the
 // last line can be that); it is ignored, and the frames around it are kept.
 TEST(Session, GarbageMidJournalIsCalledDamageAndIgnored) {
   testing::TempDir tmp;
@@ -113,7 +113,7 @@ TEST(Session, RefusesToOverwriteAnExistingSessionAndNamesNonSessions) {
   }
 }
 
-// Issue 19: a manifest.json that is a folder is called one, not "invalid JSON".
+// A manifest.json that is a folder is called one, not "invalid JSON".
 TEST(Session, AManifestThatIsAFolderIsCalledOne) {
   testing::TempDir tmp;
   std::filesystem::create_directories(tmp / "s" / "manifest.json");

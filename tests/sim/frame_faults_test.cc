@@ -1,4 +1,4 @@
-// Frame faults injected into the simulated camera during a capture (issue 17): each bad frame is
+// Frame faults injected into the simulated camera during a capture: each bad frame is
 // caught by its check on arrival, shot again and journaled, and nothing bad reaches the session:
 // its frames are bit for bit those of a capture without faults (the simulator seeds each frame's
 // noise with its plan key). A fault that persists marks the LED dead; a stuck LED stops the

@@ -1,4 +1,4 @@
-// Time-varying materials (issue 6): closed forms, spatial variation, scene files, and a capture
+// Time-varying materials: closed forms, spatial variation, scene files, and a capture
 // over time whose fields follow the process.
 #include "sim/time_varying.h"
 
@@ -225,7 +225,7 @@ TEST(TimeVaryingScene, ProcessErrorsNameTheFileAndTheField) {
       << no_wetting;
 }
 
-// The two processes that are not monotone (issue 20), in the rise-and-fall scene.
+// The two processes that are not monotone, in the rise-and-fall scene.
 TEST(TimeVaryingClosedForms, CorrosionRisesAndFallsAndWettingReturnsDry) {
   const Scene scene = rise_and_fall_scene();
   const Scene file = load_scene(testing::source_dir() / "data/scenes/rise_and_fall.json");

@@ -1,4 +1,4 @@
-// The viewer application (issue 5): the view state's script and command-line forms, the app driven
+// The viewer application: the view state's script and command-line forms, the app driven
 // by a scripted sequence (open, rotate, switch source, edit, split, point light) against the CPU
 // relighting of the same inputs, dropped bad files, and `lightstage view` as a process. Runs under
 // Xvfb (tests/viewer/with_xvfb.sh).

@@ -1,5 +1,5 @@
-// The viewer under a map with a compact source (issue 16, "a sun rotating with the map at
-// interactive rates"): a field is relit by the LED cells of the map without its sources, plus each
+// The viewer under a map with a compact source (a sun rotating with the map at
+// interactive rates): a field is relit by the LED cells of the map without its sources, plus each
 // source at its true direction (relight::FieldSources), exactly as `lightstage relight` does, at
 // every rotation; the PCA keeps the whole map. Runs under Xvfb (tests/viewer/with_xvfb.sh), where
 // the viewer relights the field on the CPU (llvmpipe); the shader path (upload_field) is checked
@@ -90,7 +90,7 @@ class ViewerCompactSources : public ::testing::Test {
     relight::FieldSources(*field_).add(split, out);
     return out;
   }
-  // The whole map by LED cells (what the viewer showed before issue 16).
+  // The whole map by LED cells, its sources not split off.
   static Image cpu_by_cells(double rotation_deg) {
     return relight::relight(
         *field_, relight::integrate_environment(*map_, dirs_, rotation_deg, 0.0, valid_));

@@ -119,7 +119,7 @@ TEST(CalibrateCli, DirectionsThenIntensitiesRecoverThePerturbedDome) {
   EXPECT_GE(intensities, 7);
   EXPECT_LT(worst_e, 0.01);
 
-  // Issue 19: no LED calibrated (every LED photo dark) is exit code 2 with no stage written; a
+  // No LED calibrated (every LED photo dark) is exit code 2 with no stage written; a
   // NaN measurement (a usage error, 1) and an output in a missing folder (2) are refused before
   // any work.
   std::filesystem::create_directories(dir / "dark");

@@ -37,7 +37,7 @@ TEST(CalibrationSim, FittingWithTheCalibratedStageBeatsTheDrawing) {
   relight::FitOptions options;
   options.roughness_starts = {0.2};
   // The per-candidate LM the measurements below were taken with. The profiled solver (the
-  // default since issue 15) holds lobes to what the dome resolves, which halves the relighting
+  // default) holds lobes to what the dome resolves, which halves the relighting
   // error (true stage: sky_sun 0.104, softbox 0.209) and leaves the three stages within 0.02 of
   // each other there: the relighting arm would no longer see the calibration.
   options.solver = relight::FitSolver::kEveryCandidateByLm;

@@ -151,7 +151,7 @@ TEST(MirrorSphereSim, PerspectiveCameraDirectionsOfDistantLeds) {
   // so a 0.02 px error in the outline's major axis moves the ball 0.4 mm along the view ray;
   // orthographic views take the depth as given); 136 of 151 LEDs, RMS 0.069 deg, worst 0.284 deg.
   // With the true centres: RMS 0.035, worst 0.189 deg, as orthographic (0.034, 0.127). So the
-  // pinhole path meets the 0.2 deg; a ball placed from its outline alone does not quite:
+  // pinhole path meets the 0.2 deg target; a ball placed from its outline alone does not quite:
   // measure its distance (or use the two balls' known spacing) where 0.2 deg is needed.
   EXPECT_LT(worst_centre, 0.7e-3);
   EXPECT_GE(fitted.ok, 130);

@@ -242,7 +242,7 @@ TEST(Sequencer, FramesThatCannotBeSavedStopTheCaptureCleanlyAndResumeRecapturesT
 }
 
 // A kill inside a dead LED's bracket (the bracket split between two runs), or after its step's
-// last frame but before the verdict was journaled: the resume still flags it (issue 19).
+// last frame but before the verdict was journaled: the resume still flags it.
 TEST(Sequencer, ADeadLedIsFlaggedWhateverMomentTheCaptureWasKilledAt) {
   const Stage stage = SmallStage(12);
   const std::string first_of_dead = FrameKey{0, 5, 0, 0}.name(stage);
@@ -287,7 +287,7 @@ TEST(Sequencer, ADeadLedIsFlaggedWhateverMomentTheCaptureWasKilledAt) {
 }
 
 // The session folder is deleted (or unmounted) mid-capture: the capture stops as a storage
-// failure naming the folder, and never recreates it half empty (issue 19).
+// failure naming the folder, and never recreates it half empty.
 TEST(Sequencer, AVanishedSessionFolderStopsTheCaptureAndIsNotRecreated) {
   testing::TempDir tmp;
   const Stage stage = SmallStage();
@@ -311,7 +311,7 @@ TEST(Sequencer, AVanishedSessionFolderStopsTheCaptureAndIsNotRecreated) {
 }
 
 // Frames damaged after they were saved (truncated, overwritten, replaced by another image) are
-// found when the session is read back and captured again; the intact ones are kept (issue 19).
+// found when the session is read back and captured again; the intact ones are kept.
 TEST(Sequencer, DamagedFramesAreFoundOnResumeAndCapturedAgain) {
   testing::TempDir tmp;
   const Stage stage = SmallStage();

@@ -1,4 +1,4 @@
-// Capture over time (issue 6): plans with a list of times, scene times of frames, waiting for a
+// Capture over time: plans with a list of times, scene times of frames, waiting for a
 // step's start, overruns and resume across time steps.
 #include <gtest/gtest.h>
 

@@ -355,7 +355,7 @@ Stage SimulatedGigeStage() {
   return stage;
 }
 
-// Frame faults injected into the fake camera (issue 17): a frame lit by the wrong LED, a torn one
+// Frame faults injected into the fake camera: a frame lit by the wrong LED, a torn one
 // and a stale one each fail their bracket's check on arrival, are shot again and journaled, and
 // the session completes with no LED judged dead; a clean capture raises no alarm.
 TEST_F(GigeFake, FramesDrawnBySimulatorFaultsAreCaughtShotAgainAndJournaled) {

@@ -1,4 +1,4 @@
-// OpenLIME planes (issue 18): the export read back renders what was built, upright, within the
+// OpenLIME planes: the export read back renders what was built, upright, within the
 // 8-bit quantisation; bad folders are refused by file and field.
 #include "relight/compact/plane_field.h"
 
@@ -99,7 +99,7 @@ TEST(PlaneField, BuiltInBandsAsWhole) {
   EXPECT_EQ(banded.codes, whole.codes);
 }
 
-// Issue 18: a simulated scene written in each viewer's format and read back from the files renders
+// A simulated scene written in each viewer's format and read back from the files renders
 // the held-out lights (every 5th) as the representation in memory does, within the loss of its
 // 8-bit and JPEG storage, and at least at the PSNR stated here (8-bit sRGB against the held-out
 // images; each bound the value measured at 64x64, 150 LEDs, less 0.3 dB: a regression guard).

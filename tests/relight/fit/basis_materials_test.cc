@@ -55,7 +55,7 @@ const Material& nearest(const std::vector<Material>& materials, const brdf::Mate
 
 double relative(double fitted, double truth) { return std::abs(fitted - truth) / truth; }
 
-// Every parameter within 2% of the truth (issue 15), the model the truth's.
+// Every parameter within 2% of the truth, the model the truth's.
 void expect_recovered(const Material& m, const brdf::Material& truth, const std::string& what) {
   EXPECT_EQ(m.model, true_model(truth)) << what;
   for (int c = 0; c < 3; ++c) {
@@ -121,7 +121,7 @@ TEST_F(DemoMaterials, FindsEveryReflectanceWithItsParametersWithinTwoPercent) {
   }
 }
 
-// The number of materials is the scene's (issue 15: 5 on the demo): the checker's two
+// The number of materials is the scene's (5 on the demo): the checker's two
 // reflectances tile the backdrop and are its one material with an albedo texture; every other
 // reflectance is a scene material of its own.
 TEST_F(DemoMaterials, FindsTheScenesFiveMaterialsTheCheckerOneOfThem) {
@@ -180,7 +180,7 @@ TEST_F(DemoMaterials, LambertianSurfacesKeepLambertAndSpeckleIsGone) {
   std::cout << "wrong model on Lambertian pixels: basis " << 100 * basis.wrong_fraction()
             << "%, per pixel " << 100 * per_pixel.wrong_fraction() << "%; speckle: basis "
             << 100 * speckle_basis << "%, per pixel " << 100 * speckle_per_pixel << "%\n";
-  EXPECT_LE(basis.wrong_fraction(), 0.002);  // Issue 15: at most 0.2%.
+  EXPECT_LE(basis.wrong_fraction(), 0.002);  // At most 0.2%.
   // Regression guard from the measured values (basis 0.14%, per pixel 1.05%): a fifth.
   EXPECT_LT(speckle_basis, 0.2 * speckle_per_pixel);
 }
@@ -235,7 +235,7 @@ TEST_F(DemoMaterials, ModelRenderIsNoWorseThanPerPixelFits) {
         compare_images(render_models(*per_pixel_, lights), truth).relative_rmse;
     std::cout << name << ": model render vs truth, relative RMSE: basis " << basis << ", per pixel "
               << per_pixel << "\n";
-    EXPECT_LE(basis, per_pixel * 1.002) << name;  // No worse (issue 15), within rounding.
+    EXPECT_LE(basis, per_pixel * 1.002) << name;  // No worse, within rounding.
   }
 }
 

@@ -379,8 +379,8 @@ TEST(FitModels, CapturedFieldThroughThePipeline) {
             << median(normal_deg) << " deg, median reduced chi^2 " << median(reduced_chi2) << "\n";
   // Measured (seed 5), measured noise variance = 5.7e-8 + 7.4e-6 * v: 274 of 282 right (97.2%),
   // 0.037 deg, reduced chi^2 1.27 (with the default NoiseModel, ~3x conservative in sigma here,
-  // it was 276 of 282 and 0.09). Near 1 is what a correct noise estimate gives: the measured sigma
-  // is within ~13% of the residuals' scatter, which the two-sided bound checks.
+  // it gives 276 of 282 and 0.09). Near 1 is what a correct noise estimate gives: the measured
+  // sigma is within ~13% of the residuals' scatter, which the two-sided bound checks.
   ASSERT_GT(total, 200);
   EXPECT_GE(right, 0.95 * total);
   EXPECT_LT(median(normal_deg), 0.5);

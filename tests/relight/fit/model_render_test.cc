@@ -186,10 +186,10 @@ TEST_F(ModelRender, AgainstFieldRelightingAndGroundTruth) {
               << error(models_unguarded, truth_covered) << "\n";
     // Measured: softbox 0.038 field, 0.045 models (grid), 0.058 models (LEDs), 0.042 models vs
     // field, 0.046 whole sphere; sky_sun 0.062, 0.089, 0.106, 0.092, 0.098. Without the render
-    // guard: the same (0.045, 0.089), since fit_models now discards lobes with k_s > 2 (5 pixels
-    // keep k_s in (1, 2]); before it did, 17 and 265. The models lose to the field by what they
-    // cannot have: the shadows the spheres cast on each other (the sun makes them sharp) and misfit
-    // near the silhouettes.
+    // guard: the same (0.045, 0.089), since fit_models discards lobes with k_s > 2 (5 pixels
+    // keep k_s in (1, 2]); with those lobes kept, 17 and 265. The models lose to the field by what
+    // they cannot have: the shadows the spheres cast on each other (the sun makes them sharp) and
+    // misfit near the silhouettes.
     EXPECT_LT(field_vs_truth, 0.1) << name;
     EXPECT_LT(dome_vs_truth, 0.15) << name;
     EXPECT_LT(leds_vs_truth, 0.16) << name;

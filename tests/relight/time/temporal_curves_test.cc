@@ -1,4 +1,4 @@
-// Data-driven temporal curves (issue 20) on the simulator's materials that rise and fall
+// Data-driven temporal curves on the simulator's materials that rise and fall
 // (sim::rise_and_fall_scene: a corroding metal and a stone slab wetted, then drying): captured
 // every other step, rendered under every LED at the steps held out and at the captured ones,
 // against the simulator's noise-free images (evaluation/temporal_held_out.h).
@@ -20,7 +20,7 @@ void print(const char* what, const ErrorsByMaterial& errors) {
   std::printf("\n");
 }
 
-// Held out: every odd step. Issue 20 asks for the curves to be at least as close to the truth
+// Held out: every odd step. The curves must be at least as close to the truth
 // there as linear interpolation of the two captured neighbours' images, and at the captured steps
 // within 10% of the per-step fits (the best the BRDF model does with each step alone). Measured
 // (relative RMS over each material's lit samples, 151 LEDs, 7 of 13 steps captured):

@@ -491,7 +491,7 @@ TEST(TemporalEdit, RateScaleAndTransfer) {
 
 // A pixel whose albedo climbs in a straight line over the capture (the corroding metal's first
 // phase) has no process that the data bound: exponential and sigmoid fit the line with a rate the
-// span cannot show and endpoints far beyond the data (the 270x-too-bright renders of issue 20).
+// span cannot show and endpoints far beyond the data (renders 270x too bright).
 // Such a pixel is flagged and renders from its nearest per-step fit, in memory and after a round
 // trip through the file; a pixel that follows a real exponential is not flagged.
 TEST(TemporalFit, RunawayProcessIsFlaggedAndRendersFromTheNearestStep) {
@@ -546,7 +546,7 @@ TEST(TemporalFit, RunawayProcessIsFlaggedAndRendersFromTheNearestStep) {
   }
 }
 
-// A material that rises and falls (issue 20's corroding metal: red albedo 0.073 -> 0.118 -> 0.057,
+// A material that rises and falls (a corroding metal: red albedo 0.073 -> 0.118 -> 0.057,
 // k_s 0.20 -> 0.01, roughness 0.065 -> 0.27), each pixel on its own clock (rate +-30%, onset
 // +-1.5 h), captured every other hour of twelve with per-step noise. No process follows it: the
 // curves learnt from the pixels do, and at the hours held out they are closer to the truth than
