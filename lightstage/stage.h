@@ -52,8 +52,9 @@ struct SimulatedSensor {
   std::vector<int> dead_led_ids;
 };
 
-// How the controller and the camera keep time (README, "Synchronisation"). The wiring each mode
-// expects is the README's; the simulator and Aravis' fake camera stand in for it in the tests.
+// How the controller and the camera keep time (docs/hardware.md, "Synchronisation"). The wiring
+// each mode expects is described there; the simulator and Aravis' fake camera stand in for it in
+// the tests.
 struct CameraSync {
   // "software": the camera is triggered over its link. "line": the controller pulses its output
   // gpio_chip/gpio_line for pulse_us, wired to the camera's trigger input `input` (rising edge).

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Sanitizers and fuzzing (README "Sanitizers and fuzzing"). In a build directory of its
+# Sanitizers and fuzzing (docs/testing.md, "Sanitizers and fuzzing"). In a build directory of its
 # own, configured with clang++ and LIGHTSTAGE_FUZZ=ON (cmake/Fuzzing.cmake):
 #   1. builds the fuzz targets (fuzz/) and the tests named in LIGHTSTAGE_SANITIZE_TESTS under
 #      AddressSanitizer + UndefinedBehaviorSanitizer;
