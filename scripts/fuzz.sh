@@ -33,6 +33,7 @@ for name in "$@"; do targets+=("${name%_fuzz}_fuzz"); done
 start=$(date +%s)
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}  # a clone elsewhere reuses the cache
 cli=${FUZZ_CLI:-$PWD/build/app/cli/lightstage}
 [ -x "$cli" ] || echo "fuzz: warning: no $cli (scripts/setup.sh builds it): the tests that run the CLI will fail"
 cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_CXX_COMPILER=clang++ -DCMAKE_BUILD_TYPE=Release \

@@ -35,6 +35,8 @@ fi
 
 launcher=()
 command -v ccache >/dev/null && launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache)
+# Paths below the checkout are hashed relative to it, so a clone elsewhere reuses the cache.
+export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}
 # Warnings are errors: this script builds with one known toolchain (Debian 12, GCC 12).
 cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release -DLIGHTSTAGE_WERROR=ON "${launcher[@]}" >/dev/null
 echo "setup: building in $BUILD_DIR"

@@ -168,7 +168,7 @@ void add_rti(CLI::App& bench) {
       std::printf("%-18s %-20s %10.1f %12.2f %12.2f\n", r.scene.c_str(), r.name.c_str(),
                   r.bytes / 1024, r.result.psnr_srgb8_db, r.result.psnr_db);
     }
-    std::printf("relight on loewenkopf (issue 18):");
+    std::printf("relight (cnr-isti-vclab) on loewenkopf, the same held-out lights:");
     for (const auto& f : evaluation::relight_loewenkopf_figures()) {
       std::printf(" %s %.2f dB", f.name, f.psnr_db);
     }
@@ -183,7 +183,7 @@ void add_rti(CLI::App& bench) {
     for (const evaluation::RtiMemoryRow& r : m.rows) {
       std::printf("  %-36s %8.1f MiB %8.2f s\n", r.step.c_str(), r.peak_mib, r.seconds);
     }
-    std::printf("relight (issue 18): 100-236 MiB\n");
+    std::printf("relight (cnr-isti-vclab) on the same set: 100-236 MiB\n");
   });
 }
 

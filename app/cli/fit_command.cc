@@ -138,7 +138,7 @@ void add_fit_command(CLI::App& app) {
   cmd->add_option("field", options->field_file, "Reflectance field (.exr from 'lightstage build').")
       ->check(CLI::ExistingFile);
   cmd->add_option("--time", options->time_inputs,
-                  "Time-varying fit (issue 6): one field per time step (their scene_time_s), or a "
+                  "Time-varying fit: one field per time step (their scene_time_s), or a "
                   "directory of field_tNNN.exr. Writes temporal maps (process per pixel, rate, "
                   "onset, wet and dry parameters) for 'lightstage relight --time T --temporal'.")
       ->expected(1, -1)
