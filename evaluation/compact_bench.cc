@@ -7,6 +7,7 @@
 
 #include "capture/olat_import.h"
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 #include "lightstage/errors.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
@@ -159,47 +160,47 @@ void score_scene(const std::string& scene_name, const capture::ReflectanceField&
 void write_csv(const fs::path& path, const std::vector<CompactBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
-  csv << "scene,representation,bytes_per_pixel,build_s,relight_ms,psnr_db,ssim,held_out,"
+  csv << "scene,family,representation,bytes_per_pixel,build_s,relight_ms,psnr_db,ssim,held_out,"
          "automatic,pareto_psnr_bytes,pareto_psnr_time\n";
   for (const CompactBenchRow& r : rows) {
-    csv << '"' << r.scene << "\",\"" << r.name << "\"," << r.result.bytes_per_pixel << ','
-        << r.result.build_s << ',' << r.relight_ms << ',' << r.result.psnr_db << ','
-        << r.result.ssim << ',' << r.result.held_out << ',' << r.automatic << ',' << r.pareto_bytes
-        << ',' << r.pareto_time << '\n';
+    csv << csv_field(r.scene) << ',' << csv_field(r.family) << ',' << csv_field(r.name) << ','
+        << r.result.bytes_per_pixel << ',' << r.result.build_s << ',' << r.relight_ms << ','
+        << r.result.psnr_db << ',' << r.result.ssim << ',' << r.result.held_out << ','
+        << r.automatic << ',' << r.pareto_bytes << ',' << r.pareto_time << '\n';
   }
-}
-
-void write_scene_charts(const fs::path& out, const std::string& scene_name,
-                        const std::vector<const CompactBenchRow*>& rows) {
-  std::map<std::string, ChartSeries> by_time, by_bytes;
-  for (const CompactBenchRow* r : rows) {
-    for (auto* chart : {&by_time, &by_bytes}) {
-      ChartSeries& s = (*chart)[r->family];
-      s.name = r->family;
-      s.y.push_back(r->result.psnr_db);
-      s.point_labels.push_back(r->name);
-    }
-    by_time[r->family].x.push_back(r->relight_ms);
-    by_bytes[r->family].x.push_back(r->result.bytes_per_pixel);
-  }
-  const std::string stem = scene_name.substr(0, scene_name.find(' '));
-  auto values = [](const std::map<std::string, ChartSeries>& m) {
-    std::vector<ChartSeries> v;
-    v.reserve(m.size());
-    for (const auto& [_, s] : m) v.push_back(s);
-    return v;
-  };
-  write_chart(out / ("compact_" + stem + "_psnr_vs_time.png"),
-              {"Compact fields, " + scene_name + ": held-out PSNR vs relight time per frame",
-               "relight time per frame (environment map), ms", "PSNR on held-out LEDs, dB", true},
-              values(by_time));
-  write_chart(out / ("compact_" + stem + "_psnr_vs_bytes.png"),
-              {"Compact fields, " + scene_name + ": held-out PSNR vs size", "bytes per pixel",
-               "PSNR on held-out LEDs, dB", true},
-              values(by_bytes));
 }
 
 }  // namespace
+
+void write_compact_charts(const fs::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  const std::vector<std::string> families = table.distinct("family");
+  for (const std::string& scene : table.distinct("scene")) {
+    const std::string stem = scene.substr(0, scene.find(' '));
+    for (const bool by_time : {true, false}) {
+      // Names beside the points on the front (no other both smaller, or faster, and better).
+      std::vector<ChartSeries> series = series_by("family", families);
+      for (ChartSeries& s : series) {
+        s.where.push_back({"scene", scene});
+        s.labels = {.column = "representation",
+                    .where = {by_time ? "pareto_psnr_time" : "pareto_psnr_bytes", "1"}};
+      }
+      const Chart chart{
+          .csv = csv,
+          .x = by_time ? "relight_ms" : "bytes_per_pixel",
+          .y = "psnr_db",
+          .series = series,
+          .title = "Compact fields, " + scene + ": held-out PSNR vs " +
+                   (by_time ? "relight time per frame" : "size") + " (labels: the front)",
+          .x_label = by_time ? "relight time per frame (environment map), ms" : "bytes per pixel",
+          .y_label = "PSNR on held-out LEDs, dB",
+          .log_x = true};
+      write_chart(fs::path(csv).replace_filename("compact_" + stem + "_psnr_vs_" +
+                                                 (by_time ? "time" : "bytes") + ".png"),
+                  chart);
+    }
+  }
+}
 
 CompactBenchSummary run_compact_bench(const CompactBenchOptions& options,
                                       const ProgressFn& progress) {
@@ -220,10 +221,10 @@ CompactBenchSummary run_compact_bench(const CompactBenchOptions& options,
       if (r.scene == scene_name) scene_rows.push_back(&r);
     }
     mark_pareto(scene_rows);
-    write_scene_charts(options.out, scene_name, {scene_rows.begin(), scene_rows.end()});
   }
   summary.csv = options.out / "compact.csv";
   write_csv(summary.csv, summary.rows);
+  write_compact_charts(summary.csv);
   return summary;
 }
 

@@ -39,4 +39,8 @@ struct CompactBenchSummary {
 CompactBenchSummary run_compact_bench(const CompactBenchOptions& options,
                                       const ProgressFn& progress = {});
 
+// compact_<scene>_psnr_vs_time.png and compact_<scene>_psnr_vs_bytes.png (the scene's first
+// word) beside `csv` (a compact.csv), from it alone.
+void write_compact_charts(const std::filesystem::path& csv);
+
 }  // namespace ls::evaluation

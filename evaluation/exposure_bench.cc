@@ -7,6 +7,7 @@
 #include "capture/build_field.h"
 #include "capture/exposure_choice.h"
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 #include "lightstage/controller/sequencer.h"
 #include "lightstage/errors.h"
 #include "sim/sim_stage.h"
@@ -95,6 +96,23 @@ ExposureBenchRow compare_exposure_plans(const std::string& scene_name, const sim
   return row;
 }
 
+void write_exposure_chart(const fs::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  std::string at;  // Older files lack the read-out's frame rate.
+  if (table.has("camera_fps") && !table.rows.empty()) {
+    at = " at " + table.rows[0][table.column("camera_fps")] + " fps read-out";
+  }
+  Chart chart{.csv = csv,
+              .x = "capture_s",
+              .y = "median_error",
+              .series = series_by("scene", table.distinct("scene")),
+              .title = "Exposures chosen per LED against the whole bracket (labels: plan)",
+              .x_label = "capture time per time step" + at + ", s",
+              .y_label = "median LED error vs truth (relative)"};
+  for (ChartSeries& s : chart.series) s.labels.column = "plan";
+  write_chart(fs::path(csv).replace_filename("exposures_error_vs_time.png"), chart);
+}
+
 ExposureBenchSummary run_exposure_bench(const ExposureBenchOptions& options,
                                         const ProgressFn& progress) {
   throw_if_invalid(options.resolution < 16 || !(options.camera_fps > 0)
@@ -117,25 +135,17 @@ ExposureBenchSummary run_exposure_bench(const ExposureBenchOptions& options,
   fs::remove_all(work);
   summary.csv = options.out / "exposures.csv";
   std::ofstream csv(summary.csv);
-  csv << "scene,plan,led_frames,exposure_s,capture_s,median_error,p90_error\n";
-  std::vector<ChartSeries> series;
+  if (!csv) throw InputError(summary.csv.string() + ": cannot write");
+  csv << "scene,plan,led_frames,exposure_s,capture_s,median_error,p90_error,camera_fps\n";
   for (const ExposureBenchRow& row : summary.rows) {
-    ChartSeries s{row.scene, {}, {}, {}, true};
     for (const auto& [plan, o] : {std::pair{"whole bracket", row.whole}, {"chosen", row.chosen}}) {
       csv << row.scene << ',' << plan << ',' << o.led_frames << ',' << o.exposure_s << ','
-          << o.capture_s << ',' << o.median_error << ',' << o.p90_error << '\n';
-      s.x.push_back(o.capture_s);
-      s.y.push_back(100 * o.median_error);
-      s.point_labels.push_back(std::string(plan) + " (" + std::to_string(o.led_frames) + ")");
+          << o.capture_s << ',' << o.median_error << ',' << o.p90_error << ',' << options.camera_fps
+          << '\n';
     }
-    series.push_back(s);
   }
-  write_chart(options.out / "exposures_error_vs_time.png",
-              {"Exposures chosen per LED against the whole bracket (LED frames in brackets)",
-               "capture time per time step at " + std::to_string(int(options.camera_fps)) +
-                   " fps read-out (s)",
-               "median LED error vs truth (%)"},
-              series);
+  csv.close();
+  write_exposure_chart(summary.csv);
   return summary;
 }
 

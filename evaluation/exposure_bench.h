@@ -45,4 +45,7 @@ struct ExposureBenchSummary {
 ExposureBenchSummary run_exposure_bench(const ExposureBenchOptions& options,
                                         const ProgressFn& progress = {});
 
+// exposures_error_vs_time.png beside `csv` (an exposures.csv), from it alone.
+void write_exposure_chart(const std::filesystem::path& csv);
+
 }  // namespace ls::evaluation

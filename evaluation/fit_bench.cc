@@ -1,8 +1,11 @@
 #include "evaluation/fit_bench.h"
 
+#include <algorithm>
+#include <cmath>
 #include <fstream>
 
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 #include "evaluation/model_metrics.h"
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
@@ -51,7 +54,7 @@ const std::vector<FitConfig>& fit_configs() {
                                         {"Oren-Nayar", true, false, false, {}},
                                         {"Lambert+TS", false, true, false, {}},
                                         {"Lambert+Phong", false, false, true, {}},
-                                        {"BIC (L, ON, L+TS)", true, true, false, {}}};
+                                        {"BIC (L / ON / L+TS)", true, true, false, {}}};
     std::vector<FitConfig> out;
     for (const relight::FitSolver solver :
          {relight::FitSolver::kProfiled, relight::FitSolver::kEveryCandidateByLm}) {
@@ -173,50 +176,82 @@ std::vector<FitBenchRow> rows_for_map(const capture::ReflectanceField& field, co
   return rows;
 }
 
-void write_csv(const fs::path& path, const std::vector<FitBenchRow>& rows) {
+void write_csv(const fs::path& path, const FitBenchOptions& options,
+               const std::vector<FitBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "method,map,fit_s,normals_s,fit_pixels_per_s,render_ms,time_to_frame_s,relative_rmse,"
-         "psnr_db,flagged_fraction,speckle,wrong_on_lambertian,materials,fine_relative_rmse\n";
+         "psnr_db,flagged_fraction,speckle,wrong_on_lambertian,materials,fine_relative_rmse,"
+         "resolution,leds\n";
   for (const FitBenchRow& r : rows) {
-    csv << r.method << ',' << r.map << ',' << r.fit_s << ',' << r.normals_s << ','
-        << r.fit_pixels_per_s << ',' << r.render_ms << ',' << r.time_to_frame_s << ','
+    csv << csv_field(r.method) << ',' << csv_field(r.map) << ',' << r.fit_s << ',' << r.normals_s
+        << ',' << r.fit_pixels_per_s << ',' << r.render_ms << ',' << r.time_to_frame_s << ','
         << r.relative_rmse << ',' << r.psnr_db << ',' << r.flagged_fraction << ',' << r.speckle
-        << ',' << r.wrong_on_lambertian << ',' << r.materials << ',' << r.fine_relative_rmse
-        << '\n';
+        << ',' << r.wrong_on_lambertian << ',' << r.materials << ',' << r.fine_relative_rmse << ','
+        << options.resolution << ',' << options.leds << '\n';
   }
 }
 
-void write_charts(const FitBenchOptions& options, const std::vector<FitBenchRow>& rows) {
-  std::vector<ChartSeries> by_time, by_rate;
-  for (const FitBenchRow& r : rows) {  // One series per map; methods, not a sequence.
-    if (by_time.empty() || by_time.back().name != r.map) {
-      by_time.push_back({r.map, {}, {}, {}, false});
-      by_rate.push_back({r.map, {}, {}, {}, false});
+// The method whose errors under the maps lie furthest apart (the largest smallest gap): the map
+// names beside its points do not run into each other.
+std::string spread_method(const CsvTable& table, const std::vector<std::string>& methods) {
+  const std::vector<double> error = table.numbers("relative_rmse");
+  const size_t method = table.column("method");
+  std::string best;
+  double best_gap = -1;
+  for (const std::string& m : methods) {
+    std::vector<double> ys;
+    for (size_t r = 0; r < table.rows.size(); ++r) {
+      if (table.rows[r][method] == m && std::isfinite(error[r])) ys.push_back(error[r]);
     }
-    by_time.back().x.push_back(r.time_to_frame_s);
-    by_time.back().y.push_back(r.relative_rmse);
-    by_time.back().point_labels.push_back(r.method);
-    if (r.method == "field") continue;  // The field has no fit throughput.
-    by_rate.back().x.push_back(r.fit_pixels_per_s);
-    by_rate.back().y.push_back(r.relative_rmse);
-    by_rate.back().point_labels.push_back(r.method);
+    std::sort(ys.begin(), ys.end());
+    double gap = INFINITY;
+    for (size_t k = 1; k < ys.size(); ++k) gap = std::min(gap, ys[k] - ys[k - 1]);
+    if (!ys.empty() && gap > best_gap) {
+      best = m;
+      best_gap = gap;
+    }
   }
-  const std::string size = std::to_string(options.resolution) + "x" +
-                           std::to_string(options.resolution) + " px, " +
-                           std::to_string(options.leds) + " LEDs";
-  write_chart(
-      options.out / "fit_error_vs_time.png",
-      {"Relighting error vs time to a frame (" + size + ")",
-       "s: field relight | normals + fit + model render", "relative RMSE vs ground truth", true},
-      by_time);
-  write_chart(options.out / "fit_error_vs_throughput.png",
-              {"Model relighting error vs fit throughput (" + size + ")",
-               "fit throughput, pixels/s (all cores)", "relative RMSE vs ground truth", true},
-              by_rate);
+  return best;
 }
 
 }  // namespace
+
+void write_fit_charts(const fs::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  std::string size;  // Older files lack the camera's size and the LEDs.
+  if (table.has("resolution") && table.has("leds") && !table.rows.empty()) {
+    const std::string& res = table.rows[0][table.column("resolution")];
+    size = " (" + res + "x" + res + " px, " + table.rows[0][table.column("leds")] + " LEDs)";
+  }
+  // One series per method (methods, not a sequence: points alone); the maps named beside one
+  // method's points.
+  std::vector<std::string> methods = table.distinct("method");
+  Chart chart{.csv = csv,
+              .x = "time_to_frame_s",
+              .y = "relative_rmse",
+              .series = series_by("method", methods),
+              .title = "Relighting error vs time to a frame" + size,
+              .x_label = "seconds: field relight | normals + fit + model render",
+              .y_label = "relative RMSE vs ground truth",
+              .log_x = true,
+              .lines = false};
+  const auto label_maps = [&] {
+    const std::string labelled = spread_method(table, methods);
+    for (ChartSeries& s : chart.series) {
+      if (s.title == labelled) s.labels.column = "map";
+    }
+  };
+  label_maps();
+  write_chart(fs::path(csv).replace_filename("fit_error_vs_time.png"), chart);
+  std::erase(methods, "field");  // No fit, no throughput.
+  chart.x = "fit_pixels_per_s";
+  chart.series = series_by("method", methods);
+  chart.title = "Model relighting error vs fit throughput" + size;
+  chart.x_label = "fit throughput, pixels/s (all cores)";
+  label_maps();
+  write_chart(fs::path(csv).replace_filename("fit_error_vs_throughput.png"), chart);
+}
 
 FitBenchSummary run_fit_bench(const FitBenchOptions& options, const ProgressFn& progress) {
   throw_if_invalid(options.validate());
@@ -241,8 +276,8 @@ FitBenchSummary run_fit_bench(const FitBenchOptions& options, const ProgressFn& 
     }
   }
   summary.csv = options.out / "fit.csv";
-  write_csv(summary.csv, summary.rows);
-  write_charts(options, summary.rows);
+  write_csv(summary.csv, options, summary.rows);
+  write_fit_charts(summary.csv);
   return summary;
 }
 

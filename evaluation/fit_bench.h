@@ -50,4 +50,7 @@ struct FitBenchSummary {
 
 FitBenchSummary run_fit_bench(const FitBenchOptions& options, const ProgressFn& progress = {});
 
+// fit_error_vs_time.png and fit_error_vs_throughput.png beside `csv` (a fit.csv), from it alone.
+void write_fit_charts(const std::filesystem::path& csv);
+
 }  // namespace ls::evaluation

@@ -1,42 +1,36 @@
 #include "evaluation/fit_sweeps_bench.h"
 
-#include <cstdio>
-#include <limits>
-#include <optional>
+#include <algorithm>
 
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 
 namespace ls::evaluation {
 
-namespace {
-
-void write_axis_chart(const std::filesystem::path& out, SweepAxis axis,
-                      const std::vector<SweepPoint>& points) {
-  std::vector<ChartSeries> series(4);
-  series[0].name = "LS normals, mean";
-  series[1].name = "robust normals, mean";
-  series[2].name = "fit normals, mean";
-  series[3].name = "fit normals, p95";
-  for (const SweepPoint& p : points) {
-    if (p.axis != axis) continue;
-    const std::optional<double>* y[4] = {&p.least_squares.mean_deg, &p.robust.mean_deg,
-                                         &p.fit.mean_deg, &p.fit.p95_deg};
-    for (int k = 0; k < 4; ++k) {
-      // Everything flagged: no error to plot (the chart skips non-finite points).
-      series[k].x.push_back(p.value);
-      series[k].y.push_back(y[k]->value_or(std::numeric_limits<double>::quiet_NaN()));
-    }
-    char label[48];
-    std::snprintf(label, sizeof label, "%.0f%% flagged", 100 * p.fit.flagged_fraction);
-    series[2].point_labels.push_back(label);
+void write_fit_sweeps_charts(const std::filesystem::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  const std::vector<std::string> axes = table.distinct("axis");
+  for (const SweepAxis axis : kAllSweepAxes) {
+    const std::string name = to_string(axis);
+    if (std::find(axes.begin(), axes.end(), name) == axes.end()) continue;
+    // Everything flagged leaves a point without an error (an empty field): not drawn.
+    Chart chart{
+        .csv = csv,
+        .x = "value",
+        .series = {{.title = "LS normals, mean", .y = "ls_mean_deg"},
+                   {.title = "robust normals, mean", .y = "robust_mean_deg"},
+                   {.title = "fit normals, mean",
+                    .y = "fit_mean_deg",
+                    .labels = {.column = "fit_flagged", .format = "%.0f%%", .scale = 100}},
+                   {.title = "fit normals, p95", .y = "fit_p95_deg"}},
+        .title = "Normal error vs " + std::string(axis_label(axis)) + " (labels: fit, % flagged)",
+        .x_label = axis_label(axis),
+        .y_label = "angular error of the normal, deg",
+        .log_x = axis == SweepAxis::kLedCount};
+    for (ChartSeries& s : chart.series) s.where = {{"axis", name}};
+    write_chart(std::filesystem::path(csv).replace_filename("fit_sweeps_" + name + ".png"), chart);
   }
-  write_chart(out / ("fit_sweeps_" + std::string(to_string(axis)) + ".png"),
-              {"Normal error vs " + std::string(axis_label(axis)) + " (labels: fit, % flagged)",
-               axis_label(axis), "angular error of the normal, deg", axis == SweepAxis::kLedCount},
-              series);
 }
-
-}  // namespace
 
 FitSweepsBenchSummary run_fit_sweeps_bench(const FitSweepsBenchOptions& options,
                                            const ProgressFn& progress) {
@@ -48,7 +42,7 @@ FitSweepsBenchSummary run_fit_sweeps_bench(const FitSweepsBenchOptions& options,
   summary.points = run_fit_sweeps(sweeps);
   summary.csv = options.out / "fit_sweeps.csv";
   write_fit_sweeps_csv(summary.csv, summary.points);
-  for (const SweepAxis axis : sweeps.axes) write_axis_chart(options.out, axis, summary.points);
+  write_fit_sweeps_charts(summary.csv);
   for (const SweepPoint& p : summary.points) summary.invalid_outputs += p.invalid_outputs;
   return summary;
 }

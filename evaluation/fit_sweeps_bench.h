@@ -26,4 +26,7 @@ struct FitSweepsBenchSummary {
 FitSweepsBenchSummary run_fit_sweeps_bench(const FitSweepsBenchOptions& options,
                                            const ProgressFn& progress = {});
 
+// fit_sweeps_<axis>.png, one per axis in `csv` (a fit_sweeps.csv), beside it, from it alone.
+void write_fit_sweeps_charts(const std::filesystem::path& csv);
+
 }  // namespace ls::evaluation

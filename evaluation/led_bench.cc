@@ -7,6 +7,7 @@
 #include <set>
 
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
 #include "relight/fit/source_relight.h"
@@ -51,50 +52,49 @@ void write_csv(const fs::path& path, const std::vector<LedBenchRow>& rows) {
   }
 }
 
-// One series per map and method, in the order they come.
-ChartSeries& series_for(std::vector<ChartSeries>& all, const LedBenchRow& r) {
-  const std::string name = r.map + (r.method == "cells" ? "" : " + sources");
-  for (ChartSeries& series : all) {
-    if (series.name == name) return series;
+}  // namespace
+
+void write_led_charts(const fs::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  // One series per map and method, in the order they come; timed rows (turns 0) apart from the
+  // medians over turns.
+  std::vector<ChartSeries> series;
+  for (const std::string& map : table.distinct("map")) {
+    for (const std::string& method : table.distinct("method")) {
+      series.push_back({.title = map + (method == "cells" ? "" : " + sources"),
+                        .where = {{"map", map}, {"method", method}, {"turns", "0"}}});
+    }
   }
-  return all.emplace_back(ChartSeries{name, {}, {}, {}, true});
+  Chart speed{.csv = csv,
+              .x = "relight_ms",
+              .y = "psnr_db",
+              .series = series,
+              .title = "Relighting from the field: PSNR vs time per frame (point labels: LEDs)",
+              .x_label = "relight time per frame, ms",
+              .y_label = "PSNR vs ground truth, dB",
+              .log_x = true};
+  for (ChartSeries& s : speed.series) s.labels.column = "leds";
+  write_chart(fs::path(csv).replace_filename("leds_psnr_vs_time.png"), speed);
+  Chart error{.csv = csv,
+              .x = "leds",
+              .y = "relative_rmse",
+              .series = series,
+              .title = "Relighting error against ground truth vs number of LEDs",
+              .x_label = "LEDs",
+              .y_label = "relative RMSE",
+              .log_x = true};
+  write_chart(fs::path(csv).replace_filename("leds_error_vs_count.png"), error);
+  std::vector<std::string> turns = table.distinct("turns");
+  std::erase(turns, "0");
+  if (turns.empty()) return;
+  for (ChartSeries& s : error.series) s.where.back().second = turns.front();
+  error.title = "The maps with a compact source turned to " + turns.front() +
+                " azimuths: median error vs number of LEDs";
+  error.y_label = "relative RMSE (median over the turns)";
+  write_chart(fs::path(csv).replace_filename("leds_error_vs_count_turned.png"), error);
 }
 
-void write_charts(const LedBenchOptions& options, const std::vector<LedBenchRow>& rows) {
-  std::vector<ChartSeries> speed, error, turned;
-  for (const LedBenchRow& r : rows) {
-    if (r.turns > 0) {  // Untimed.
-      ChartSeries& t = series_for(turned, r);
-      t.x.push_back(r.leds);
-      t.y.push_back(r.relative_rmse);
-      continue;
-    }
-    ChartSeries& s = series_for(speed, r);
-    s.x.push_back(r.relight_ms);
-    s.y.push_back(r.psnr_db);
-    s.point_labels.push_back(std::to_string(r.leds));
-    ChartSeries& e = series_for(error, r);
-    e.x.push_back(r.leds);
-    e.y.push_back(r.relative_rmse);
-  }
-  const std::string res = std::to_string(options.resolution);
-  write_chart(options.out / "leds_psnr_vs_time.png",
-              {"Relighting from the field: PSNR vs time per frame (" + res + "x" + res +
-                   " px, point labels = LEDs)",
-               "relight time per frame, ms", "PSNR vs ground truth, dB", true},
-              speed);
-  write_chart(
-      options.out / "leds_error_vs_count.png",
-      {"Relighting error against ground truth vs number of LEDs", "LEDs", "relative RMSE", true},
-      error);
-  if (!turned.empty()) {
-    write_chart(options.out / "leds_error_vs_count_turned.png",
-                {"The maps with a compact source turned to " + std::to_string(options.turns) +
-                     " azimuths: median error vs number of LEDs",
-                 "LEDs", "relative RMSE (median over the turns)", true},
-                turned);
-  }
-}
+namespace {
 
 // The map turned about the vertical to options.turns azimuths, relit by cells and with sources,
 // each against its own ground truth (`unturned_truth` the first turn's, rendered already): the
@@ -226,7 +226,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
   }
   summary.csv = options.out / "leds.csv";
   write_csv(summary.csv, summary.rows);
-  write_charts(options, summary.rows);
+  write_led_charts(summary.csv);
   return summary;
 }
 

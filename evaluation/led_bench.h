@@ -50,4 +50,8 @@ struct LedBenchSummary {
 
 LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& progress = {});
 
+// leds_psnr_vs_time.png, leds_error_vs_count.png and (with turned rows)
+// leds_error_vs_count_turned.png beside `csv` (a leds.csv), from it alone.
+void write_led_charts(const std::filesystem::path& csv);
+
 }  // namespace ls::evaluation

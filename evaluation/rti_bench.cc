@@ -7,6 +7,7 @@
 
 #include "capture/olat_import.h"
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 #include "lightstage/errors.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/plane_field.h"
@@ -108,37 +109,65 @@ std::vector<Format> formats(double gain, bool quick, const fs::path& scratch) {
   return out;
 }
 
-void write_chart_of(const fs::path& out, const std::string& scene,
-                    const std::vector<const RtiBenchRow*>& rows) {
-  std::map<std::string, ChartSeries> series;
-  for (const RtiBenchRow* r : rows) {
-    ChartSeries& s = series[r->family];
-    s.name = r->family;
-    s.x.push_back(r->bytes / 1024);
-    s.y.push_back(r->result.psnr_srgb8_db);
-    s.point_labels.push_back(r->name);
-  }
-  std::vector<ChartSeries> all;
-  all.reserve(series.size() + 1);
-  for (auto& [_, s] : series) all.push_back(s);
-  if (scene.starts_with("real")) {
-    ChartSeries relight{"relight (issue 18's figures)", {}, {}, {}, false};
-    for (const ReferenceFigure& f : relight_loewenkopf_figures()) {
-      if (f.bytes <= 0) continue;
-      relight.x.push_back(f.bytes / 1024);
-      relight.y.push_back(f.psnr_db);
-      relight.point_labels.push_back(f.name);
+// The planes of an OpenLIME format's name ("rbf 9 planes png": "9"); empty for the others.
+std::string planes_of(const std::string& name) {
+  const size_t at = name.find(" planes");
+  if (at == std::string::npos) return {};
+  const size_t from = name.rfind(' ', at - 1);
+  return name.substr(from + 1, at - from - 1);
+}
+
+void write_csv(const fs::path& path, const std::vector<RtiBenchRow>& rows) {
+  std::ofstream csv(path);
+  if (!csv) throw InputError(path.string() + ": cannot write");
+  csv << "scene,family,format,planes,bytes,kib,psnr_srgb8_db,psnr_linear_db,held_out\n";
+  for (size_t i = 0; i < rows.size(); ++i) {
+    const RtiBenchRow& r = rows[i];
+    csv << csv_field(r.scene) << ',' << csv_field(r.family) << ',' << csv_field(r.name) << ','
+        << planes_of(r.name) << ',' << r.bytes << ',' << r.bytes / 1024 << ','
+        << r.result.psnr_srgb8_db << ',' << r.result.psnr_db << ',' << r.result.held_out << '\n';
+    if (!r.scene.starts_with("real") || (i + 1 < rows.size() && rows[i + 1].scene == r.scene)) {
+      continue;
     }
-    all.push_back(relight);
+    // After the real set's rows: relight's figures on it (no size when it gave none).
+    for (const ReferenceFigure& f : relight_loewenkopf_figures()) {
+      csv << csv_field(r.scene) << ",relight's figures," << f.name << ",,";
+      if (f.bytes > 0)
+        csv << f.bytes << ',' << f.bytes / 1024;
+      else
+        csv << ',';
+      csv << ',' << f.psnr_db << ",,\n";
+    }
   }
-  const std::string stem = scene.substr(0, scene.find(' '));
-  write_chart(out / ("rti_" + stem + "_psnr_vs_bytes.png"),
-              {"RTI formats, " + scene + ": held-out 8-bit sRGB PSNR vs stored size",
-               "KiB per scene (as stored)", "8-bit sRGB PSNR on held-out lights, dB", true},
-              all);
 }
 
 }  // namespace
+
+void write_rti_charts(const fs::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  const std::vector<std::string> families = table.distinct("family");
+  for (const std::string& scene : table.distinct("scene")) {
+    std::vector<ChartSeries> series = series_by("family", families);
+    for (ChartSeries& s : series) {
+      s.where.push_back({"scene", scene});
+      // The planes' formats named by their planes (the family is in the legend).
+      const bool planes = s.title.starts_with("rbf") || s.title.starts_with("bilinear");
+      s.labels = planes ? ChartLabels{.column = "planes", .format = "%g"}
+                        : ChartLabels{.column = "format"};
+    }
+    const std::string stem = scene.substr(0, scene.find(' '));
+    write_chart(fs::path(csv).replace_filename("rti_" + stem + "_psnr_vs_bytes.png"),
+                {.csv = csv,
+                 .x = "kib",
+                 .y = "psnr_srgb8_db",
+                 .series = series,
+                 .title = "RTI formats, " + scene +
+                          ": held-out 8-bit sRGB PSNR vs stored size (labels: planes, names)",
+                 .x_label = "KiB per scene (as stored)",
+                 .y_label = "8-bit sRGB PSNR on held-out lights, dB",
+                 .log_x = true});
+  }
+}
 
 RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& progress) {
   throw_if_invalid(options.validate());
@@ -168,7 +197,6 @@ RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& 
     leave_out.display_gain = gain;
     leave_out.min_dir_z = 0.0;  // The RTI formats know the camera's hemisphere only.
     long done = 0;
-    std::vector<const RtiBenchRow*> rows;
     for (const Format& format : list) {
       RtiBenchRow row;
       row.scene = scene;
@@ -181,20 +209,11 @@ RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& 
       summary.rows.push_back(row);
       report(progress, "bench rti", ++done, long(list.size()), scene + " " + row.name);
     }
-    for (const RtiBenchRow& r : summary.rows) {
-      if (r.scene == scene) rows.push_back(&r);
-    }
-    write_chart_of(options.out, scene, rows);
   }
   fs::remove_all(scratch);
   summary.csv = options.out / "rti.csv";
-  std::ofstream csv(summary.csv);
-  if (!csv) throw InputError(summary.csv.string() + ": cannot write");
-  csv << "scene,format,bytes,psnr_srgb8_db,psnr_linear_db,held_out\n";
-  for (const RtiBenchRow& r : summary.rows) {
-    csv << '"' << r.scene << "\",\"" << r.name << "\"," << r.bytes << ',' << r.result.psnr_srgb8_db
-        << ',' << r.result.psnr_db << ',' << r.result.held_out << '\n';
-  }
+  write_csv(summary.csv, summary.rows);
+  write_rti_charts(summary.csv);
   return summary;
 }
 

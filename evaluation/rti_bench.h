@@ -4,7 +4,8 @@
 // the format's stored bytes (8-bit .ptm/.rti, OpenLIME JPEG planes and info.json, the float PCA
 // file) and read back, the held-out lights rendered, 8-bit sRGB PSNR pooled over them, against
 // the bytes per scene. On the real set (loewenkopf) and a simulated one; relight's own figures on
-// the real set are drawn beside them. Writes rti.csv and rti_<scene>_psnr_vs_bytes.png.
+// the real set are written after its rows (family "relight's figures") and drawn beside them.
+// Writes rti.csv and rti_<scene>_psnr_vs_bytes.png.
 #include <cstddef>
 #include <filesystem>
 #include <string>
@@ -61,6 +62,9 @@ struct RtiMemorySummary {
 
 RtiMemorySummary run_rti_memory_bench(const RtiMemoryOptions& options,
                                       const ProgressFn& progress = {});
+
+// rti_<scene>_psnr_vs_bytes.png (the scene's first word) beside `csv` (an rti.csv), from it alone.
+void write_rti_charts(const std::filesystem::path& csv);
 
 // relight's figures on loewenkopf_klein (built from its sources, every 5th light held out, 8-bit
 // sRGB PSNR pooled): name, dB, bytes per scene (0 where the figures give no size).

@@ -9,8 +9,10 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
+#include <optional>
 
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 
@@ -101,57 +103,114 @@ ScaleMpiModel mpi_model(double one_rank_s, double two_ranks_s, double io_floor_s
   return model;
 }
 
-void write_scale_charts(const fs::path& out, const ScaleBenchSummary& summary, double budget_mib) {
-  const auto series_of = [&](const std::string& step, auto value) {
-    ChartSeries series{step, {}, {}, {}, true};
-    for (const ScaleBenchRow& r : summary.rows) {
-      if (r.step != step) continue;
-      series.x.push_back(double(r.size) * r.size / 1e6);
-      series.y.push_back(value(r));
+// scale_medians.csv beside `runs` (a scale.csv): per size and step, the medians over the runs.
+fs::path write_medians(const CsvTable& runs) {
+  const fs::path path = fs::path(runs.path).replace_filename("scale_medians.csv");
+  std::ofstream csv(path);
+  if (!csv) throw InputError(path.string() + ": cannot write");
+  csv << "size,leds,step,megapixels,seconds,peak_mib,field_mib,budget_mib,field_mib_per_s\n";
+  const size_t size_column = runs.column("size"), step_column = runs.column("step");
+  const std::vector<double> seconds = runs.numbers("seconds"), peak = runs.numbers("peak_mib"),
+                            field = runs.numbers("field_mib"), budget = runs.numbers("budget_mib");
+  const size_t leds = runs.column("leds");
+  for (const std::string& size : runs.distinct("size")) {
+    for (const std::string& step : runs.distinct("step")) {
+      std::vector<double> s, p;
+      size_t last = 0;
+      for (size_t r = 0; r < runs.rows.size(); ++r) {
+        if (runs.rows[r][size_column] != size || runs.rows[r][step_column] != step) continue;
+        s.push_back(seconds[r]);
+        p.push_back(peak[r]);
+        last = r;
+      }
+      if (s.empty()) continue;
+      const double megapixels = std::stod(size) * std::stod(size) / 1e6;
+      csv << size << ',' << runs.rows[last][leds] << ',' << csv_field(step) << ',' << megapixels
+          << ',' << median(s) << ',' << median(p) << ',' << field[last] << ',' << budget[last]
+          << ',' << field[last] / median(s) << '\n';
     }
-    return series;
-  };
-  std::vector<ChartSeries> memory, speed;
-  for (const char* step : {"build", "relight (disk)", "fit", "compress hsh3"}) {
-    memory.push_back(series_of(step, [](const ScaleBenchRow& r) { return r.peak_mib; }));
   }
-  ChartSeries budget = series_of("build", [&](const ScaleBenchRow&) { return budget_mib; });
-  budget.name = "--memory budget";
-  memory.push_back(budget);
-  ChartSeries field = series_of("build", [](const ScaleBenchRow& r) { return r.field_mib; });
-  field.name = "field file";
-  memory.push_back(field);
-  write_chart(out / "scale_peak_memory.png",
-              {"Peak resident memory of each step against the budget", "megapixels", "MiB", false},
-              memory);
-  for (const char* step : {"read (cache)", "read (disk)", "relight pass (cache)",
-                           "relight pass (disk)", "relight (disk)", "build", "compress hsh3"}) {
-    speed.push_back(
-        series_of(step, [](const ScaleBenchRow& r) { return r.field_mib / r.seconds; }));
+  return path;
+}
+
+// scale_mpi.csv beside `runs`: the MPI model (mpi_model) from the medians of the MPI fits' runs
+// at the size they ran at; nothing when there are none.
+std::optional<fs::path> write_mpi_model(const CsvTable& runs) {
+  const size_t size_column = runs.column("size"), step_column = runs.column("step");
+  const std::vector<double> seconds = runs.numbers("seconds");
+  std::string size;
+  std::map<std::string, std::vector<double>> by_step;
+  for (size_t r = 0; r < runs.rows.size(); ++r) {
+    if (runs.rows[r][step_column].starts_with("fit mpi")) size = runs.rows[r][size_column];
   }
-  write_chart(
-      out / "scale_throughput.png",
-      {"Field bytes through each step (relight: one image; pass: its reading and relighting)",
-       "megapixels", "field MiB/s", false},
-      speed);
-  const ScaleMpiModel& m = summary.mpi;
-  if (m.ranks.empty()) return;
-  ChartSeries measured{"measured", {1, 2}, {m.one_rank_s, m.two_ranks_s}, {}, true};
-  ChartSeries model{"model: serial + parallel / n, floored by I/O", {}, {}, {}, true};
-  ChartSeries floor{"I/O floor (3 passes from one store as fast as this disk)", {}, {}, {}, true};
+  if (size.empty()) return std::nullopt;
+  for (size_t r = 0; r < runs.rows.size(); ++r) {
+    if (runs.rows[r][size_column] == size) by_step[runs.rows[r][step_column]].push_back(seconds[r]);
+  }
+  // Basis materials read the field three times (fits, pool, blends).
+  const ScaleMpiModel m = mpi_model(median(by_step["fit mpi 1"]), median(by_step["fit mpi 2"]),
+                                    3 * median(by_step["read (disk)"]));
+  const fs::path path = fs::path(runs.path).replace_filename("scale_mpi.csv");
+  std::ofstream csv(path);
+  if (!csv) throw InputError(path.string() + ": cannot write");
+  csv << "size,ranks,measured_s,model_s,io_floor_s\n";
   for (size_t i = 0; i < m.ranks.size(); ++i) {
-    model.x.push_back(m.ranks[i]);
-    model.y.push_back(m.model_s[i]);
-    floor.x.push_back(m.ranks[i]);
-    floor.y.push_back(m.io_floor_s);
+    csv << size << ',' << m.ranks[i] << ',';
+    if (i < 2) csv << (i == 0 ? m.one_rank_s : m.two_ranks_s);
+    csv << ',' << m.model_s[i] << ',' << m.io_floor_s << '\n';
   }
-  const std::string title = "lightstage fit under MPI at " + std::to_string(summary.mpi_size) +
-                            "²: time against ranks (one core each)";
-  write_chart(out / "scale_mpi_ranks.png", {title, "ranks", "seconds", true},
-              {measured, model, floor});
+  return path;
 }
 
 }  // namespace
+
+void write_scale_charts(const fs::path& csv) {
+  const CsvTable runs = CsvTable::read(csv);
+  const fs::path medians = write_medians(runs);
+  const auto steps = [](std::initializer_list<const char*> names) {
+    std::vector<ChartSeries> series;
+    for (const char* name : names) series.push_back({.title = name, .where = {{"step", name}}});
+    return series;
+  };
+  Chart memory{.csv = medians,
+               .x = "megapixels",
+               .y = "peak_mib",
+               .series = steps({"build", "relight (disk)", "fit", "compress hsh3"}),
+               .title = "Peak resident memory of each step against the budget",
+               .x_label = "megapixels",
+               .y_label = "MiB"};
+  memory.series.push_back(
+      {.title = "--memory budget", .where = {{"step", "build"}}, .y = "budget_mib"});
+  memory.series.push_back({.title = "field file", .where = {{"step", "build"}}, .y = "field_mib"});
+  write_chart(fs::path(csv).replace_filename("scale_peak_memory.png"), memory);
+  write_chart(
+      fs::path(csv).replace_filename("scale_throughput.png"),
+      {.csv = medians,
+       .x = "megapixels",
+       .y = "field_mib_per_s",
+       .series = steps({"read (cache)", "read (disk)", "relight pass (cache)",
+                        "relight pass (disk)", "relight (disk)", "build", "compress hsh3"}),
+       .title =
+           "Field bytes through each step (relight: one image; pass: its reading and relighting)",
+       .x_label = "megapixels",
+       .y_label = "field MiB/s",
+       .log_y = true});
+  const std::optional<fs::path> mpi = write_mpi_model(runs);
+  if (!mpi) return;
+  write_chart(fs::path(csv).replace_filename("scale_mpi_ranks.png"),
+              {.csv = *mpi,
+               .x = "ranks",
+               // The measured points last, over the model's (equal at 1 and 2 ranks).
+               .series = {{.title = "model: serial + parallel / n, floored by I/O", .y = "model_s"},
+                          {.title = "I/O floor (3 passes from one store as fast as this disk)",
+                           .y = "io_floor_s"},
+                          {.title = "measured", .y = "measured_s"}},
+               .title = "lightstage fit under MPI at " + CsvTable::read(*mpi).rows.at(0).at(0) +
+                        "²: time against ranks (one core each)",
+               .x_label = "ranks",
+               .y_label = "seconds",
+               .log_x = true});
+}
 
 std::string ScaleBenchOptions::validate() const {
   if (executable.empty() || !fs::exists(executable)) return "the lightstage executable is missing";
@@ -270,7 +329,8 @@ ScaleBenchSummary run_scale_bench(const ScaleBenchOptions& options, const Progre
     }
     if (!options.keep) fs::remove_all(dir);
   }
-  write_scale_charts(options.out, summary, budget_mib);
+  csv.close();
+  write_scale_charts(summary.csv);
   return summary;
 }
 

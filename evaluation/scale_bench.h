@@ -66,4 +66,10 @@ struct ScaleBenchSummary {
 
 ScaleBenchSummary run_scale_bench(const ScaleBenchOptions& options, const ProgressFn& progress);
 
+// From `csv` (a scale.csv, one row per run): scale_medians.csv (per size and step, the medians
+// over the runs) and, when MPI fits ran, scale_mpi.csv (the model of fit time against ranks)
+// beside it, and the charts from those: scale_peak_memory.png, scale_throughput.png,
+// scale_mpi_ranks.png.
+void write_scale_charts(const std::filesystem::path& csv);
+
 }  // namespace ls::evaluation

@@ -9,6 +9,7 @@
 #include <set>
 
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
@@ -55,56 +56,70 @@ relight::EnvironmentMap disc_map(const Eigen::Vector3d& centre, double radius_de
   return relight::EnvironmentMap(std::move(image), "disc");
 }
 
+}  // namespace
+
+void write_sun_charts(const fs::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  // The methods are columns (NAME_rmse, NAME_ms): one series each.
+  const std::pair<const char*, std::string> methods[] = {{"LED cells", "cells"},
+                                                         {"source: flows alone", "flows"},
+                                                         {"source: flows + shape", "sources"},
+                                                         {"exact visibility (sim)", "exact"}};
+  for (const std::string& path : table.distinct("path")) {
+    const bool sweep = path == "sweep";
+    Chart chart{
+        .csv = csv,
+        .x = "position",
+        .title = sweep ? "A small source swept from an LED (0) to the middle of three LEDs (1)"
+                       : "A small source turned through a full circle about the vertical",
+        .x_label =
+            sweep ? "position between the LED and the middle of its triangle" : "azimuth, degrees",
+        .y_label = "relative RMSE against ground truth"};
+    for (const auto& [title, name] : methods) {
+      const std::string y = name == "exact" ? "exact_visibility_rmse" : name + "_rmse";
+      chart.series.push_back({.title = title, .where = {{"path", path}}, .y = y});
+    }
+    write_chart(fs::path(csv).replace_filename("sun_" + path + ".png"), chart);
+  }
+  std::string about;  // Older files lack the size and the set-up times.
+  if (table.has("sources_setup_ms") && !table.rows.empty()) {
+    const auto& row = table.rows[0];
+    const auto whole = [&](const char* column) {
+      return std::to_string(std::lround(std::stod(row[table.column(column)])));
+    };
+    about = ", " + row[table.column("resolution")] + " px (set-up " + whole("flows_setup_ms") +
+            " ms, with the shape " + whole("sources_setup_ms") + ")";
+  }
+  // Time is measured per method (none for the exact visibility): each series its own x.
+  Chart by_time{.csv = csv,
+                .title = "Small source: error vs. time per frame" + about,
+                .x_label = "relight time per frame, ms",
+                .y_label = "relative RMSE against ground truth",
+                .log_x = true,
+                .lines = false};
+  for (const auto& [title, name] : methods) {
+    if (name == "exact") continue;
+    by_time.series.push_back({.title = title, .x = name + "_ms", .y = name + "_rmse"});
+  }
+  write_chart(fs::path(csv).replace_filename("sun_error_vs_time.png"), by_time);
+}
+
+namespace {
+
 void write_outputs(const SunBenchOptions& options, const SunBenchSummary& summary) {
   std::ofstream csv(summary.csv);
   if (!csv) throw InputError(summary.csv.string() + ": cannot write");
   csv << "path,position,angle_to_nearest_led_deg,cells_rmse,sources_rmse,flows_rmse,"
-         "exact_visibility_rmse,cells_ms,sources_ms,flows_ms\n";
+         "exact_visibility_rmse,cells_ms,sources_ms,flows_ms,resolution,flows_setup_ms,"
+         "sources_setup_ms\n";
   for (const SunBenchRow& r : summary.rows) {
     csv << r.path << ',' << r.position << ',' << r.angle_to_nearest_led_deg << ',' << r.cells_rmse
         << ',' << r.sources_rmse << ',' << r.flows_rmse << ',' << r.exact_visibility_rmse << ','
-        << r.cells_ms << ',' << r.sources_ms << ',' << r.flows_ms << '\n';
+        << r.cells_ms << ',' << r.sources_ms << ',' << r.flows_ms << ',' << options.resolution
+        << ',' << summary.flows_setup_ms << ',' << summary.sources_setup_ms << '\n';
   }
-  for (const std::string path : {"sweep", "turn"}) {
-    ChartSeries cells{"LED cells (today)", {}, {}, {}, true};
-    ChartSeries flows{"source: flows alone", {}, {}, {}, true};
-    ChartSeries sources{"source: flows + shape", {}, {}, {}, true};
-    ChartSeries exact{"exact visibility (sim)", {}, {}, {}, true};
-    for (const SunBenchRow& r : summary.rows) {
-      if (r.path != path) continue;
-      for (ChartSeries* s : {&cells, &flows, &sources, &exact}) s->x.push_back(r.position);
-      cells.y.push_back(r.cells_rmse);
-      flows.y.push_back(r.flows_rmse);
-      sources.y.push_back(r.sources_rmse);
-      exact.y.push_back(r.exact_visibility_rmse);
-    }
-    const bool sweep = path == "sweep";
-    write_chart(
-        options.out / ("sun_" + path + ".png"),
-        {sweep ? "A small source swept from an LED (0) to the middle of three LEDs (1)"
-               : "A small source turned through a full circle about the vertical",
-         sweep ? "position between the LED and the middle of its triangle" : "azimuth, degrees",
-         "relative RMSE against ground truth", false},
-        {cells, flows, sources, exact});
-  }
-  ChartSeries cells{"LED cells (today)", {}, {}, {}, false};
-  ChartSeries flows{"source: flows alone", {}, {}, {}, false};
-  ChartSeries sources{"source: flows + shape", {}, {}, {}, false};
-  for (const SunBenchRow& r : summary.rows) {
-    cells.x.push_back(r.cells_ms);
-    cells.y.push_back(r.cells_rmse);
-    flows.x.push_back(r.flows_ms);
-    flows.y.push_back(r.flows_rmse);
-    sources.x.push_back(r.sources_ms);
-    sources.y.push_back(r.sources_rmse);
-  }
-  write_chart(
-      options.out / "sun_error_vs_time.png",
-      {"Small source, " + std::to_string(options.resolution) +
-           " px: error vs. time per frame (setup " + std::to_string(int(summary.flows_setup_ms)) +
-           " ms, with the shape " + std::to_string(int(summary.sources_setup_ms)) + ")",
-       "relight time per frame, ms", "relative RMSE against ground truth", false},
-      {cells, flows, sources});
+  csv.close();
+  write_sun_charts(summary.csv);
 }
 
 }  // namespace

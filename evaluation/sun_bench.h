@@ -49,4 +49,8 @@ struct SunBenchSummary {
 
 SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& progress = {});
 
+// sun_<path>.png (sun_sweep, sun_turn) and sun_error_vs_time.png beside `csv` (a sun.csv), from it
+// alone.
+void write_sun_charts(const std::filesystem::path& csv);
+
 }  // namespace ls::evaluation

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "evaluation/chart.h"
+#include "evaluation/csv_table.h"
 #include "evaluation/temporal_held_out.h"
 #include "lightstage/errors.h"
 #include "relight/fit/normals.h"
@@ -138,49 +139,72 @@ TemporalBenchRow run_steps(const World& w, int n, double duration_s) {
   return row;
 }
 
-void write_csv(const fs::path& path, const std::vector<TemporalBenchRow>& rows) {
+void write_csv(const fs::path& path, const std::vector<TemporalBenchRow>& rows, double duration_s) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "steps,step_fit_us_per_pixel_step,temporal_fit_us_per_pixel,render_rel_rms_error,"
-         "median_rate_rel_error,varying_recall,static_constant\n";
+         "median_rate_rel_error,varying_recall,static_constant,duration_s\n";
   for (const TemporalBenchRow& r : rows) {
     csv << r.steps << ',' << r.step_fit_us_per_pixel_step << ',' << r.temporal_fit_us_per_pixel
         << ',' << r.render_error << ',';
     // Too few steps for any process: no rate was recovered, so there is no rate error to show.
     if (r.varying_recall > 0) csv << r.median_rate_error;
-    csv << ',' << r.varying_recall << ',' << r.static_constant << '\n';
+    csv << ',' << r.varying_recall << ',' << r.static_constant << ',' << duration_s << '\n';
   }
 }
 
-void write_charts(const TemporalBenchOptions& options, const std::vector<TemporalBenchRow>& rows) {
-  ChartSeries error{"relit error", {}, {}, {}, true};
-  ChartSeries rate{"median rate error", {}, {}, {}, true};
-  ChartSeries step_time{"per-step BRDF fits, us / pixel / step", {}, {}, {}, true};
-  ChartSeries temporal_time{"temporal model fits, us / pixel", {}, {}, {}, true};
-  for (const TemporalBenchRow& r : rows) {
-    error.x.push_back(r.steps);
-    error.y.push_back(r.render_error);
-    if (r.varying_recall > 0) {
-      rate.x.push_back(r.steps);
-      rate.y.push_back(r.median_rate_error);
-    }
-    step_time.x.push_back(r.steps);
-    step_time.y.push_back(r.step_fit_us_per_pixel_step);
-    temporal_time.x.push_back(r.steps);
-    temporal_time.y.push_back(r.temporal_fit_us_per_pixel);
-    char label[48];
-    std::snprintf(label, sizeof label, "%.0f us/px", r.temporal_fit_us_per_pixel);
-    error.point_labels.push_back(label);
+}  // namespace
+
+void write_temporal_charts(const fs::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  std::string over;  // Older files lack the duration.
+  if (table.has("duration_s") && !table.rows.empty()) {
+    over = " over " + table.rows[0][table.column("duration_s")] + " s";
   }
-  write_chart(options.out / "temporal_error_vs_steps.png",
-              {"Temporal fit: error against ground truth vs time steps (labels: temporal fit "
-               "time per pixel)",
-               "time steps over " + std::to_string(int(options.duration_s)) + " s", "error", false},
-              {error, rate});
-  write_chart(options.out / "temporal_time_vs_steps.png",
-              {"Temporal fit: time per pixel vs time steps", "time steps", "microseconds", false},
-              {step_time, temporal_time});
+  write_chart(
+      fs::path(csv).replace_filename("temporal_error_vs_steps.png"),
+      {.csv = csv,
+       .x = "steps",
+       .series = {{.title = "relit error",
+                   .y = "render_rel_rms_error",
+                   .labels = {.column = "temporal_fit_us_per_pixel", .format = "%.0f us/px"}},
+                  {.title = "median rate error", .y = "median_rate_rel_error"}},
+       .title = "Temporal fit: error against ground truth vs time steps (labels: temporal fit "
+                "time per pixel)",
+       .x_label = "time steps" + over,
+       .y_label = "relative error"});
+  write_chart(
+      fs::path(csv).replace_filename("temporal_time_vs_steps.png"),
+      {.csv = csv,
+       .x = "steps",
+       .series = {{.title = "per-step BRDF fits, us / pixel / step",
+                   .y = "step_fit_us_per_pixel_step"},
+                  {.title = "temporal model fits, us / pixel", .y = "temporal_fit_us_per_pixel"}},
+       .title = "Temporal fit: time per pixel vs time steps",
+       .x_label = "time steps",
+       .y_label = "microseconds"});
 }
+
+void write_temporal_held_out_chart(const fs::path& csv) {
+  const CsvTable table = CsvTable::read(csv);
+  std::string of;  // Older files lack the time lapse's steps.
+  if (table.has("lapse_steps") && !table.rows.empty()) {
+    of = " of " + table.rows[0][table.column("lapse_steps")] + " over 1200 s";
+  }
+  write_chart(
+      fs::path(csv).replace_filename("temporal_held_out_vs_steps.png"),
+      {.csv = csv,
+       .x = "captured_steps",
+       .series = {{.title = "curves (and processes)", .y = "curves"},
+                  {.title = "processes only", .y = "processes_only"},
+                  {.title = "linear interpolation", .y = "linear_interpolation"},
+                  {.title = "nearest captured step", .y = "nearest_step"}},
+       .title = "Held-out time steps of the rise-and-fall scene: relative error vs steps captured",
+       .x_label = "steps captured" + of,
+       .y_label = "relative RMS error"});
+}
+
+namespace {
 
 // The held-out part (see the header): one row per number of captured steps, its CSV and chart, and
 // the time-edit figure from the capture of every other step.
@@ -198,27 +222,14 @@ std::vector<HeldOutBenchRow> run_held_out(const TemporalBenchOptions& options,
   }
   std::ofstream csv(options.out / "temporal_held_out.csv");
   if (!csv) throw InputError((options.out / "temporal_held_out.csv").string() + ": cannot write");
-  csv << "captured_steps,curves,processes_only,linear_interpolation,nearest_step,curve_families\n";
-  ChartSeries curves{"curves (and processes)", {}, {}, {}, true},
-      processes{"processes only", {}, {}, {}, true},
-      linear{"linear interpolation", {}, {}, {}, true},
-      nearest{"nearest captured step", {}, {}, {}, true};
+  csv << "captured_steps,curves,processes_only,linear_interpolation,nearest_step,curve_families,"
+         "lapse_steps\n";
   for (const HeldOutBenchRow& r : rows) {
     csv << r.captured << ',' << r.curves << ',' << r.processes_only << ',' << r.linear << ','
-        << r.nearest << ',' << r.curve_families << '\n';
-    for (auto [series, value] : {std::pair{&curves, r.curves},
-                                 {&processes, r.processes_only},
-                                 {&linear, r.linear},
-                                 {&nearest, r.nearest}}) {
-      series->x.push_back(r.captured);
-      series->y.push_back(value);
-    }
+        << r.nearest << ',' << r.curve_families << ',' << options.lapse_steps << '\n';
   }
-  write_chart(options.out / "temporal_held_out_vs_steps.png",
-              {"Held-out time steps of the rise-and-fall scene: relative error vs steps captured",
-               "steps captured of " + std::to_string(options.lapse_steps) + " over 1200 s",
-               "relative RMS error", false},
-              {curves, processes, linear, nearest});
+  csv.close();
+  write_temporal_held_out_chart(options.out / "temporal_held_out.csv");
   std::vector<capture::ReflectanceField> every_other;
   for (const int i : evenly_spaced_steps(options.lapse_steps, (options.lapse_steps + 1) / 2)) {
     every_other.push_back(lapse.noisy[size_t(i)]);
@@ -243,8 +254,8 @@ TemporalBenchSummary run_temporal_bench(const TemporalBenchOptions& options,
            std::to_string(n) + " steps");
   }
   summary.csv = options.out / "temporal.csv";
-  write_csv(summary.csv, summary.rows);
-  write_charts(options, summary.rows);
+  write_csv(summary.csv, summary.rows, options.duration_s);
+  write_temporal_charts(summary.csv);
   if (!options.captured.empty()) summary.held_out = run_held_out(options, progress);
   return summary;
 }

@@ -56,4 +56,10 @@ struct TemporalBenchSummary {
 TemporalBenchSummary run_temporal_bench(const TemporalBenchOptions& options,
                                         const ProgressFn& progress = {});
 
+// temporal_error_vs_steps.png and temporal_time_vs_steps.png beside `csv` (a temporal.csv), from
+// it alone.
+void write_temporal_charts(const std::filesystem::path& csv);
+// temporal_held_out_vs_steps.png beside `csv` (a temporal_held_out.csv), from it alone.
+void write_temporal_held_out_chart(const std::filesystem::path& csv);
+
 }  // namespace ls::evaluation

@@ -19,6 +19,7 @@ PACKAGES=(
   libnanoflann-dev
   libopenmpi-dev openmpi-bin
   xvfb xauth mesa-utils
+  gnuplot-nox  # the benches' charts (its pngcairo terminal)
 )
 
 missing=()

@@ -6,6 +6,7 @@
 //  temporal:    time-varying BRDF fits as the time steps grow (evaluation/temporal_bench.h).
 //  compact:     compact fields on held-out LEDs (evaluation/compact_bench.h).
 //  rti:         the RTI formats as stored, against relight (evaluation/rti_bench.h).
+//  charts:      every bench's charts redrawn from its CSV (evaluation/bench_charts.h).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <memory>
@@ -14,6 +15,8 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/contact_sheet.h"
+#include "evaluation/bench_charts.h"
+#include "evaluation/chart.h"
 #include "evaluation/compact_bench.h"
 #include "evaluation/exposure_bench.h"
 #include "evaluation/fit_bench.h"
@@ -23,6 +26,7 @@
 #include "evaluation/scale_bench.h"
 #include "evaluation/sun_bench.h"
 #include "evaluation/temporal_bench.h"
+#include "lightstage/errors.h"
 
 namespace ls::cli {
 
@@ -436,6 +440,25 @@ void add_scale(CLI::App& bench) {
   });
 }
 
+void add_charts(CLI::App& bench) {
+  auto dir = std::make_shared<fs::path>("bench-out");
+  auto* cmd = bench.add_subcommand(
+      "charts",
+      "Redraw every bench's charts from the CSV files in a folder (leds.csv, fit.csv, ...), "
+      "without running the benches: each chart and its gnuplot script (NAME.gp) beside its CSV. "
+      "Needs gnuplot (Debian: gnuplot-nox).");
+  cmd->add_option("--dir", *dir, "Folder of the benches' CSV files (a bench's --out).")
+      ->capture_default_str();
+  cmd->callback([dir] {
+    const evaluation::RedrawnCharts charts = evaluation::redraw_bench_charts(*dir);
+    for (const fs::path& csv : charts.drawn) std::printf("charts of %s redrawn\n", csv.c_str());
+    if (charts.errors.empty()) return;
+    std::string errors;
+    for (const std::string& e : charts.errors) errors += "\n  " + e;
+    throw InputError("bench charts: not drawn:" + errors);
+  });
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app) {
@@ -451,6 +474,16 @@ void add_bench_command(CLI::App& app) {
   add_compact(*bench);
   add_rti(*bench);
   add_scale(*bench);
+  add_charts(*bench);
+  // After a bench (its own callback first): charts need gnuplot; without it, their scripts alone.
+  bench->callback([bench] {
+    const auto missing = evaluation::chart_tool_missing();
+    if (!missing || bench->got_subcommand("charts")) return;
+    std::fprintf(stderr,
+                 "note: charts not drawn: %s. Each chart's gnuplot script (NAME.gp) is written "
+                 "beside the CSV: 'lightstage bench charts --dir OUT' draws them.\n",
+                 missing->c_str());
+  });
 }
 
 }  // namespace ls::cli

@@ -178,6 +178,27 @@ TEST(Cli, MalformedStageSceneAndMapFilesGiveClearErrors) {
   EXPECT_NE(out.find("frames is not a folder: move it aside"), std::string::npos) << out;
 }
 
+// bench charts redraws a bench's charts from its CSV alone, and refuses a folder without one.
+TEST(Cli, BenchChartsRedrawsFromTheCsvAlone) {
+  testing::TempDir tmp;
+  const std::string cli = cli_path().string() + " bench charts --dir " + tmp.path().string();
+  std::string out;
+  EXPECT_NE(run_command(cli, &out), 0) << out;
+  std::string found;
+  if (run_command("command -v gnuplot", &found) != 0) {
+    EXPECT_NE(out.find("gnuplot"), std::string::npos) << out;
+    GTEST_SKIP() << "gnuplot is not installed: " << out;
+  }
+  EXPECT_NE(out.find(tmp.path().string()), std::string::npos) << out;
+  std::ofstream(tmp / "temporal.csv")
+      << "steps,step_fit_us_per_pixel_step,temporal_fit_us_per_pixel,render_rel_rms_error,"
+         "median_rate_rel_error,varying_recall,static_constant\n"
+         "3,221,0.5,0.19,,0,1\n5,220,92,0.074,0.2,0.96,0.97\n8,220,144,0.075,0.025,1,0.98\n";
+  ASSERT_EQ(run_command(cli, &out), 0) << out;
+  EXPECT_TRUE(fs::exists(tmp / "temporal_error_vs_steps.png")) << out;
+  EXPECT_TRUE(fs::exists(tmp / "temporal_time_vs_steps.gp")) << out;
+}
+
 // Each subcommand's help names its own options and positionals (a few that only it has), and not
 // those of an unrelated command: a help wired to the wrong subcommand, or an option dropped, fails.
 TEST(Cli, HelpExplainsEverySubcommand) {
@@ -192,7 +213,7 @@ TEST(Cli, HelpExplainsEverySubcommand) {
       {"fit", {"field", "--method", "--phong", "--time"}},
       {"calibrate", {"directions", "intensities", "camera"}},
       {"compress", {"field", "--rank", "--tile", "--format"}},
-      {"bench", {"leds", "fit-sweeps", "fit", "compact", "temporal"}},
+      {"bench", {"leds", "fit-sweeps", "fit", "compact", "temporal", "charts"}},
       {"devices", {"--no-cameras"}},
       {"check", {"stage", "--blink", "--blink-seconds", "--no-frame"}},
       {"view", {"inputs", "--env", "--source", "--split", "--script", "--screenshot"}},

@@ -1,0 +1,37 @@
+# leds_error_vs_count_turned.png from leds.csv, written by lightstage. Re-plot in this folder: gnuplot leds_error_vs_count_turned.gp
+set datafile separator comma
+set table $s0 separator comma
+plot 'leds.csv' using (column('leds')):(column('relative_rmse')) with table if (strcol('map') eq 'sky_sun' && strcol('method') eq 'cells' && strcol('turns') eq '8')
+unset table
+set table $s1 separator comma
+plot 'leds.csv' using (column('leds')):(column('relative_rmse')) with table if (strcol('map') eq 'sky_sun' && strcol('method') eq 'cells + sources' && strcol('turns') eq '8')
+unset table
+set terminal pngcairo size 1000,700 noenhanced font 'Sans,11'
+set output 'leds_error_vs_count_turned.png'
+set title 'The maps with a compact source turned to 8 azimuths: median error vs number of LEDs' font 'Sans,13'
+set xlabel 'LEDs'
+set ylabel 'relative RMSE (median over the turns)'
+set format x '%g'
+set format y '%g'
+set grid xtics ytics mxtics mytics lc rgb '#dddddd'
+set key below left Left reverse horizontal spacing 1.2 width 2 height 1
+set autoscale fix
+set offsets graph 0.04, graph 0.04, graph 0.06, graph 0.06
+set logscale x
+set xtics (20, 50, 100, 200, 500)
+set linetype 1 lc rgb '#0072B2' lw 2 pt 7 ps 1.4 dt 1
+set linetype 2 lc rgb '#D55E00' lw 2 pt 5 ps 1.4 dt 2
+set linetype 3 lc rgb '#009E73' lw 2 pt 9 ps 1.4 dt 3
+set linetype 4 lc rgb '#CC79A7' lw 2 pt 13 ps 1.4 dt 4
+set linetype 5 lc rgb '#E69F00' lw 2 pt 11 ps 1.4 dt 5
+set linetype 6 lc rgb '#56B4E9' lw 2 pt 6 ps 1.4 dt 1
+set linetype 7 lc rgb '#000000' lw 2 pt 4 ps 1.4 dt 2
+set linetype 8 lc rgb '#8C564B' lw 2 pt 8 ps 1.4 dt 3
+set linetype 9 lc rgb '#777777' lw 2 pt 12 ps 1.4 dt 4
+set linetype 10 lc rgb '#0072B2' lw 2 pt 10 ps 1.4 dt 5
+set linetype 11 lc rgb '#D55E00' lw 2 pt 1 ps 1.4 dt 1
+set linetype 12 lc rgb '#009E73' lw 2 pt 2 ps 1.4 dt 2
+set linetype 13 lc rgb '#CC79A7' lw 2 pt 3 ps 1.4 dt 3
+set linetype cycle 13
+plot $s0 using 1:2 with linespoints lt 1 title 'sky_sun', \
+     $s1 using 1:2 with linespoints lt 2 title 'sky_sun + sources'
