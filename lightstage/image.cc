@@ -324,7 +324,7 @@ double auto_exposure_stops(const Image& image, double percentile) {
   lum.reserve(image.num_pixels());
   for (size_t i = 0; i < image.num_pixels(); ++i) {
     const float* p = &image.pixels[i * image.channels];
-    const float y = image.channels >= 3 ? 0.2126f * p[0] + 0.7152f * p[1] + 0.0722f * p[2] : p[0];
+    const float y = image.channels >= 3 ? luminance(p) : p[0];
     if (std::isfinite(y) && y > 0) lum.push_back(y);
   }
   if (lum.empty()) return 0.0;

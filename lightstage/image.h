@@ -1,6 +1,7 @@
 #pragma once
 // Images in memory and on disk. Everything in memory is linear, scene-referred float; 8-bit output
 // exists only for previews. Row 0 is the top row. Image I/O libraries stay in image.cc.
+#include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -67,12 +68,24 @@ void write_png_preview(const std::filesystem::path& path, const Image& image,
 void write_rgb8(const std::filesystem::path& path, int width, int height, const uint8_t* rgb,
                 int jpeg_quality = 95);
 
-// The sRGB transfer curve (IEC 61966-2-1): linear [0, 1] <-> display-referred [0, 1], clamped
-// (NaN gives 0).
+// The sRGB transfer curve (IEC 61966-2-1): linear [0, 1] <-> display-referred [0, 1]. Both clamp
+// their input to [0, 1] first, and NaN gives 0: a preview or a display shows black, never NaN.
 float srgb_encode(float linear);
 float srgb_decode(float encoded);
 // The 8-bit sRGB code (0..255, rounded) of a linear display value: what an 8-bit image holds.
 inline float srgb8_code(float linear) { return std::round(255.0f * srgb_encode(linear)); }
+
+// Luminance (relative, Y of CIE XYZ) of linear RGB with the Rec. 709 / sRGB primaries: the
+// weights of R, G and B (they sum to 1), and the weighted sum in float and in double.
+inline constexpr double kLuminanceWeights[3] = {0.2126, 0.7152, 0.0722};
+inline float luminance(const float* rgb) {
+  return float(kLuminanceWeights[0]) * rgb[0] + float(kLuminanceWeights[1]) * rgb[1] +
+         float(kLuminanceWeights[2]) * rgb[2];
+}
+inline double luminance(const Eigen::Vector3d& rgb) {
+  return kLuminanceWeights[0] * rgb.x() + kLuminanceWeights[1] * rgb.y() +
+         kLuminanceWeights[2] * rgb.z();
+}
 
 // Exposure (in stops) that puts the image's 99th-percentile luminance near white.
 double auto_exposure_stops(const Image& image, double percentile = 0.99);

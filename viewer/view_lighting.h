@@ -29,6 +29,7 @@ struct EnvironmentNeeds {
   // Distant lights for the models (ViewLighting::lights), sampled within the LEDs' coverage when
   // LEDs are known (as `lightstage relight --models` with a field).
   bool model_lights = true;
+  bool operator==(const EnvironmentNeeds&) const = default;
 };
 
 // The map rotated by rotation_deg about +Y as the viewer's sources take it: `split` when

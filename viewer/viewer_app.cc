@@ -178,9 +178,12 @@ const ViewLighting& ViewerApp::Impl::current_lighting() {
       (pca_on_show && !(gpu_pca && gpu_pca->adds_compact_sources())) ||
       (field_on_show && !(gpu_field && gpu_field->adds_compact_sources()));
   needs.model_lights = shows(Source::kModels);
-  const auto key = std::make_tuple(state.environment, state.rotation_deg, state.point_light,
-                                   state.light_dir, led_dirs.size(), needs.field_sources,
-                                   needs.whole_map_led_weights, needs.model_lights);
+  const LightingKey key{.environment = state.environment,
+                        .rotation_deg = state.rotation_deg,
+                        .point_light = state.point_light,
+                        .light_dir = state.light_dir,
+                        .led_count = led_dirs.size(),
+                        .needs = needs};
   if (lighting_key && *lighting_key == key) return lighting;
   const auto t0 = std::chrono::steady_clock::now();
   ViewLighting l;

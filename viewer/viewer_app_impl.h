@@ -9,7 +9,6 @@
 #include <memory>
 #include <optional>
 #include <string>
-#include <tuple>
 #include <vector>
 
 #include "capture/field.h"
@@ -19,6 +18,7 @@
 #include "relight/lighting/envmap.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"
+#include "viewer/view_lighting.h"
 #include "viewer/viewer_app.h"
 #include "viewer/viewer_state.h"
 
@@ -32,16 +32,17 @@ inline constexpr float kPanelWidth = 340.0f;
 inline constexpr int kStripWidth = 256, kStripHeight = 128;
 inline constexpr float kStripPanelHeight = kStripHeight + 56.0f;
 
-inline float srgb_encode(float linear) {
-  linear = std::clamp(linear, 0.0f, 1.0f);
-  return linear <= 0.0031308f ? 12.92f * linear : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
-}
-inline float srgb_decode(float encoded) {
-  return encoded <= 0.04045f ? encoded / 12.92f : std::pow((encoded + 0.055f) / 1.055f, 2.4f);
-}
-inline float luminance(const float* rgb) {
-  return 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2];
-}
+// What a frame's lighting was computed for (ViewerApp::Impl::current_lighting): it is computed
+// again when any of this changes.
+struct LightingKey {
+  std::string environment;
+  double rotation_deg = 0;
+  bool point_light = false;
+  Eigen::Vector3d light_dir{0, 0, 0};
+  size_t led_count = 0;
+  EnvironmentNeeds needs;
+  bool operator==(const LightingKey&) const = default;
+};
 
 struct Legend {
   bool categorical = false;
@@ -93,8 +94,7 @@ struct ViewerApp::Impl {
 
   // Lighting and what it was computed for.
   ViewLighting lighting;
-  std::optional<std::tuple<std::string, double, bool, Eigen::Vector3d, size_t, bool, bool, bool>>
-      lighting_key;
+  std::optional<app_detail::LightingKey> lighting_key;
   std::vector<float> led_luminance;
 
   double relight_ms = 0;   // Last frame: light weights (when they changed) + GPU relighting.

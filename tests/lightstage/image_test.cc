@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <limits>
 
 #include "lightstage/errors.h"
 #include "tests/support/test_support.h"
@@ -89,6 +90,45 @@ TEST(Image, AutoExposurePutsTheBrightPercentileNearWhite) {
   Image img(10, 10, 3, 4.0f);
   const double stops = auto_exposure_stops(img);
   EXPECT_NEAR(4.0 * std::exp2(stops), 0.9, 1e-3);
+}
+
+TEST(Image, SrgbClampsToTheUnitRangeAndGivesZeroForNan) {
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  const float inf = std::numeric_limits<float>::infinity();
+  for (const auto code : {srgb_encode, srgb_decode}) {
+    EXPECT_EQ(code(nan), 0.0f);
+    EXPECT_EQ(code(-nan), 0.0f);
+    EXPECT_EQ(code(-0.5f), 0.0f);
+    EXPECT_EQ(code(-inf), 0.0f);
+    EXPECT_EQ(code(0.0f), 0.0f);
+    EXPECT_FLOAT_EQ(code(1.0f), 1.0f);  // 1.055 - 0.055 in float: within an ulp of 1.
+    EXPECT_EQ(code(3.0f), code(1.0f));
+    EXPECT_EQ(code(inf), code(1.0f));
+  }
+  // IEC 61966-2-1 on both sides of the knee, and the two curves inverse to each other.
+  EXPECT_FLOAT_EQ(srgb_encode(0.002f), 12.92f * 0.002f);
+  EXPECT_NEAR(srgb_encode(0.18f), 0.4613561, 1e-6);
+  EXPECT_NEAR(srgb_decode(0.5f), 0.2140411, 1e-6);
+  for (float v = 0.0f; v <= 1.0f; v += 1.0f / 64) {
+    EXPECT_NEAR(srgb_decode(srgb_encode(v)), v, 2e-6) << v;
+  }
+  EXPECT_EQ(srgb8_code(nan), 0.0f);
+  EXPECT_EQ(srgb8_code(0.5f), 188.0f);
+}
+
+TEST(Image, LuminanceIsRec709ForFloatsAndVectors) {
+  const float white[3] = {1, 1, 1}, red[3] = {1, 0, 0}, green[3] = {0, 1, 0}, blue[3] = {0, 0, 1};
+  EXPECT_FLOAT_EQ(luminance(white), 1.0f);
+  EXPECT_FLOAT_EQ(luminance(red), 0.2126f);
+  EXPECT_FLOAT_EQ(luminance(green), 0.7152f);
+  EXPECT_FLOAT_EQ(luminance(blue), 0.0722f);
+  EXPECT_DOUBLE_EQ(luminance(Eigen::Vector3d(1, 1, 1)), 1.0);
+  EXPECT_DOUBLE_EQ(luminance(Eigen::Vector3d(2, 0, 0)), 2 * 0.2126);
+  EXPECT_DOUBLE_EQ(luminance(Eigen::Vector3d(0, 0.5, 4)), 0.5 * 0.7152 + 4 * 0.0722);
+  EXPECT_DOUBLE_EQ(kLuminanceWeights[0] + kLuminanceWeights[1] + kLuminanceWeights[2], 1.0);
+  // The float and double forms agree to float precision.
+  const float rgb[3] = {0.3f, 2.5f, 0.01f};
+  EXPECT_NEAR(luminance(rgb), luminance(Eigen::Vector3d(0.3f, 2.5f, 0.01f)), 1e-6);
 }
 
 }  // namespace

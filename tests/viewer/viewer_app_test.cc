@@ -14,6 +14,7 @@
 #include "capture/build_field.h"
 #include "lightstage/controller/sequencer.h"
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 #include "lightstage/session.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
@@ -303,17 +304,13 @@ TEST_F(ViewerApp_, ScriptedSequenceMatchesTheCpuRelighting) {
   const Image shown = app.displayed_image();
   ASSERT_EQ(shown.width, 64);
   ASSERT_EQ(shown.height, 48);
-  auto srgb = [](float v) {
-    v = std::clamp(v, 0.0f, 1.0f);
-    return v <= 0.0031308f ? 12.92f * v : 1.055f * std::pow(v, 1.0f / 2.4f) - 0.055f;
-  };
   const Image field_cpu = cpu_field(137);
   double worst_left = 0, worst_right = 0;
   for (int y = 0; y < 48; ++y) {
     for (int x = 0; x < 64; ++x) {
       if (x == 31 || x == 32) continue;  // The divider line itself.
       for (int c = 0; c < 3; ++c) {
-        const float expected = srgb(x < 32 ? field_cpu.at(x, y, c) : cpu_edited.at(x, y, c));
+        const float expected = srgb_encode(x < 32 ? field_cpu.at(x, y, c) : cpu_edited.at(x, y, c));
         const double d = std::abs(shown.at(x, y, c) - expected);
         (x < 32 ? worst_left : worst_right) = std::max(x < 32 ? worst_left : worst_right, d);
       }
@@ -446,8 +443,7 @@ TEST_F(ViewerApp_, ParameterMapsShowTheFit) {
       for (int c = 0; c < 3; ++c) {
         const float e =
             0.5f + 0.5f * maps_->at(x, y, relight::MapChannel(relight::kMapNormalX + c));
-        const float decoded = e <= 0.04045f ? e / 12.92f : std::pow((e + 0.055f) / 1.055f, 2.4f);
-        worst = std::max(worst, double(std::abs(normals.at(x, y, c) - decoded)));
+        worst = std::max(worst, double(std::abs(normals.at(x, y, c) - srgb_decode(e))));
       }
     }
   }
