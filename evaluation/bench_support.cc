@@ -75,10 +75,10 @@ Measured run_process(const std::vector<std::string>& argv, const fs::path& log) 
   return m;
 }
 
-std::vector<relight::EnvironmentMap> load_maps(const std::vector<fs::path>& paths) {
-  std::vector<relight::EnvironmentMap> maps;
+std::vector<physics::EnvironmentMap> load_maps(const std::vector<fs::path>& paths) {
+  std::vector<physics::EnvironmentMap> maps;
   maps.reserve(paths.size());
-  for (const fs::path& path : paths) maps.push_back(relight::EnvironmentMap::load(path));
+  for (const fs::path& path : paths) maps.push_back(physics::EnvironmentMap::load(path));
   return maps;
 }
 

@@ -10,7 +10,7 @@
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 #include "sim/scene.h"
 
 namespace ls::evaluation {
@@ -57,7 +57,7 @@ struct Measured {
 // InputError naming the command and the log when it fails.
 Measured run_process(const std::vector<std::string>& argv, const std::filesystem::path& log);
 
-std::vector<relight::EnvironmentMap> load_maps(const std::vector<std::filesystem::path>& paths);
+std::vector<physics::EnvironmentMap> load_maps(const std::vector<std::filesystem::path>& paths);
 
 // Throws InputError with `error` unless it is empty (the options' validate()).
 void throw_if_invalid(const std::string& error);

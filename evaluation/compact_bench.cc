@@ -132,7 +132,7 @@ void mark_pareto(std::vector<CompactBenchRow*>& rows) {
 
 // Every candidate on one field: leave-lights-out scores and relight time under `lighting`.
 void score_scene(const std::string& scene_name, const capture::ReflectanceField& field,
-                 const relight::EnvironmentMap& map, const CompactBenchOptions& options,
+                 const physics::EnvironmentMap& map, const CompactBenchOptions& options,
                  const std::vector<Candidate>& list, std::vector<CompactBenchRow>& rows,
                  const ProgressFn& progress, long& done, long total) {
   std::vector<Eigen::Vector3d> dirs;
@@ -208,7 +208,7 @@ CompactBenchSummary run_compact_bench(const CompactBenchOptions& options,
   fs::create_directories(options.out);
   CompactBenchSummary summary;
   const auto fields = scenes(options, summary.notes);
-  const auto map = relight::EnvironmentMap::load(options.environment_map);
+  const auto map = physics::EnvironmentMap::load(options.environment_map);
   const std::vector<Candidate> list = candidates(options.quick);
   long done = 0;
   const long total = long(fields.size() * list.size());

@@ -109,7 +109,7 @@ Fits fit_all(const capture::ReflectanceField& field, const relight::FitOptions& 
 std::vector<FitBenchRow> rows_for_map(const capture::ReflectanceField& field, const Fits& fits,
                                       const Stage& stage, const sim::Scene& scene,
                                       const std::vector<sim::SurfaceHit>& hits,
-                                      const relight::EnvironmentMap& map, int repeats) {
+                                      const physics::EnvironmentMap& map, int repeats) {
   const std::string map_name = fs::path(map.source()).stem().string();
   const auto dirs = stage.led_directions();
   const double coverage = max_nearest_neighbour_angle(dirs);
@@ -270,7 +270,7 @@ FitBenchSummary run_fit_bench(const FitBenchOptions& options, const ProgressFn& 
   summary.noise_shot_variance_per_unit = base.normals.noise.b;
   const Fits fits = fit_all(field, base, progress);
   const std::vector<sim::SurfaceHit> hits = sim::trace_camera(scene, stage.camera);
-  for (const relight::EnvironmentMap& map : load_maps(options.maps)) {
+  for (const physics::EnvironmentMap& map : load_maps(options.maps)) {
     for (FitBenchRow& row : rows_for_map(field, fits, stage, scene, hits, map, options.repeats)) {
       summary.rows.push_back(std::move(row));
     }

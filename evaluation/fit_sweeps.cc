@@ -28,7 +28,7 @@ using sim::Scene;
 using sim::SceneMaterial;
 using sim::SurfaceHit;
 
-constexpr double kPi = brdf::kPi;
+constexpr double kPi = physics::brdf::kPi;
 constexpr double kRadToDeg = 180.0 / kPi;
 // A fitted normal further off than this on a pixel the fit did not flag is a failure nobody was
 // told about.
@@ -346,7 +346,7 @@ SweepPoint evaluate(const capture::ReflectanceField& field, const std::vector<Su
     ++fitted;
     if (model != region_model(h.object)) continue;
     ++right;
-    const brdf::Material& truth = h.material;
+    const physics::brdf::Material& truth = h.material;
     for (int c = 0; c < 3; ++c) {
       albedo.push_back(std::abs(at(MapChannel(kMapAlbedoR + c)) / truth.albedo(c) - 1));
     }

@@ -104,7 +104,7 @@ namespace {
 std::vector<LedBenchRow> turned_rows(const LedBenchOptions& options, const sim::Scene& scene,
                                      const Stage& stage, const capture::ReflectanceField& field,
                                      const relight::FieldSources& sources,
-                                     const relight::EnvironmentMap& map, sim::GroundTruthOptions gt,
+                                     const physics::EnvironmentMap& map, sim::GroundTruthOptions gt,
                                      const Image& unturned_truth) {
   std::vector<LedBenchRow> rows(2);
   std::array<std::vector<ImageError>, 2> errors;
@@ -146,7 +146,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
   throw_if_invalid(options.validate());
   fs::create_directories(options.out);
   const sim::Scene scene = sim::default_scene();
-  const std::vector<relight::EnvironmentMap> maps = load_maps(options.maps);
+  const std::vector<physics::EnvironmentMap> maps = load_maps(options.maps);
   LedBenchSummary summary;
   for (const int count : options.counts) {
     Stage stage = stage_with_directions(fibonacci_dome_directions(count, -11.5));
@@ -158,7 +158,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
     const double coverage = max_nearest_neighbour_angle(dirs);
     std::vector<relight::SplitLighting> splits;
     std::set<int> source_leds;
-    for (const relight::EnvironmentMap& map : maps) {
+    for (const physics::EnvironmentMap& map : maps) {
       splits.push_back(relight::split_lighting(map, field.lights(), 0.0, coverage, true));
       for (const int led : splits.back().leds()) source_leds.insert(led);
     }
@@ -169,7 +169,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
                       std::vector<int>(source_leds.begin(), source_leds.end()), true);
     });
     for (size_t m = 0; m < maps.size(); ++m) {
-      const relight::EnvironmentMap& map = maps[m];
+      const physics::EnvironmentMap& map = maps[m];
       sim::GroundTruthOptions gt;
       gt.covered_by_leds = dirs;
       gt.coverage_radius_rad = coverage;

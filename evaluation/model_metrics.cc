@@ -31,13 +31,14 @@ double model_speckle(const relight::ModelMaps& maps) {
   return considered > 0 ? double(speckled) / double(considered) : 0.0;
 }
 
-relight::FitModel true_model(const brdf::Material& material) {
-  if (material.specular == brdf::SpecularModel::kTorranceSparrow) {
+relight::FitModel true_model(const physics::brdf::Material& material) {
+  if (material.specular == physics::brdf::SpecularModel::kTorranceSparrow) {
     return relight::FitModel::kLambertTorranceSparrow;
   }
-  if (material.specular != brdf::SpecularModel::kNone) return relight::FitModel::kLambertPhong;
-  return material.diffuse == brdf::DiffuseModel::kOrenNayar ? relight::FitModel::kOrenNayar
-                                                            : relight::FitModel::kLambert;
+  if (material.specular != physics::brdf::SpecularModel::kNone)
+    return relight::FitModel::kLambertPhong;
+  return material.diffuse == physics::brdf::DiffuseModel::kOrenNayar ? relight::FitModel::kOrenNayar
+                                                                     : relight::FitModel::kLambert;
 }
 
 RegionModels models_on(const relight::ModelMaps& maps, const std::vector<sim::SurfaceHit>& hits,

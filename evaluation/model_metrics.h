@@ -15,7 +15,7 @@ namespace ls::evaluation {
 double model_speckle(const relight::ModelMaps& maps);
 
 // The true model of a material (Lambert, Oren-Nayar, Lambert + Torrance-Sparrow or Phong).
-relight::FitModel true_model(const brdf::Material& material);
+relight::FitModel true_model(const physics::brdf::Material& material);
 
 struct RegionModels {
   int pixels = 0;  // Fitted pixels whose true material is the region's.

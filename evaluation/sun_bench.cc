@@ -27,7 +27,7 @@ constexpr double kDeg = std::numbers::pi / 180.0;
 
 // A black map with a uniform disc toward `centre` giving unit irradiance at normal incidence,
 // each pixel the mean of 8 x 8 samples (so the map's integral is the disc's).
-relight::EnvironmentMap disc_map(const Eigen::Vector3d& centre, double radius_deg) {
+physics::EnvironmentMap disc_map(const Eigen::Vector3d& centre, double radius_deg) {
   const int width = 1024, height = 512;
   const double cos_r = std::cos(radius_deg * kDeg);
   const double radiance = 1.0 / (std::numbers::pi * std::pow(std::sin(radius_deg * kDeg), 2));
@@ -36,14 +36,14 @@ relight::EnvironmentMap disc_map(const Eigen::Vector3d& centre, double radius_de
   const double cos_near = std::cos((radius_deg + 1.0) * kDeg);
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
-      if (relight::EnvironmentMap::direction((x + 0.5) / width, (y + 0.5) / height).dot(centre) <
+      if (physics::EnvironmentMap::direction((x + 0.5) / width, (y + 0.5) / height).dot(centre) <
           cos_near) {
         continue;
       }
       int inside = 0;
       for (int sy = 0; sy < 8; ++sy) {
         for (int sx = 0; sx < 8; ++sx) {
-          inside += relight::EnvironmentMap::direction((x + (sx + 0.5) / 8) / width,
+          inside += physics::EnvironmentMap::direction((x + (sx + 0.5) / 8) / width,
                                                        (y + (sy + 0.5) / 8) / height)
                         .dot(centre) >= cos_r;
         }
@@ -53,7 +53,7 @@ relight::EnvironmentMap disc_map(const Eigen::Vector3d& centre, double radius_de
       }
     }
   }
-  return relight::EnvironmentMap(std::move(image), "disc");
+  return physics::EnvironmentMap(std::move(image), "disc");
 }
 
 }  // namespace
@@ -175,11 +175,11 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
   }
   for (int i = 0; i < options.turn_steps; ++i) {
     const double azimuth = 360.0 * i / options.turn_steps;
-    places.push_back({"turn", azimuth, relight::rotate_about_y(aim, azimuth)});
+    places.push_back({"turn", azimuth, physics::rotate_about_y(aim, azimuth)});
   }
   std::vector<relight::SplitLighting> splits;
   std::set<int> leds;
-  std::vector<relight::EnvironmentMap> maps;
+  std::vector<physics::EnvironmentMap> maps;
   for (const Place& place : places) {
     maps.push_back(disc_map(place.dir, options.radius_deg));
     splits.push_back(relight::split_lighting(maps.back(), field.lights(), 0.0, coverage, true));

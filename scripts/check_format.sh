@@ -6,7 +6,7 @@ command -v clang-format >/dev/null || { echo "clang-format not installed (script
 bad=()
 while IFS= read -r f; do
   clang-format --dry-run -Werror "$f" >/dev/null 2>&1 || bad+=("$f")
-done < <(git ls-files '*.cc' '*.h' 2>/dev/null || find lightstage capture relight sim viewer tests bench -name '*.cc' -o -name '*.h')
+done < <(git ls-files '*.cc' '*.h' 2>/dev/null || find lightstage physics capture relight sim viewer tests microbench -name '*.cc' -o -name '*.h')
 if ((${#bad[@]})); then
   echo "not clang-formatted (run: clang-format -i FILE): ${bad[*]}"
   exit 1

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "lightstage/direction_index.h"  // angle_between
 #include "lightstage/errors.h"
 
 namespace ls::sim {
@@ -58,10 +59,6 @@ bool reflect(const std::vector<MirrorBall>& balls, const Eigen::Vector3d& o,
   const Eigen::Vector3d n = (*p - balls[hit].center).normalized();
   *r = d - 2.0 * d.dot(n) * n;
   return true;
-}
-
-double angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
 // Solid angle of a disc (or ball) of angular radius alpha.
@@ -171,7 +168,7 @@ MirrorSphereRenderer::MirrorSphereRenderer(std::vector<MirrorBall> balls, const 
           const bool hit = reflect(balls_, oc, dc, &pc, &rc);
           any_hit |= hit;
           all_hit &= hit;
-          if (hit && centre_hit) spread = std::max(spread, angle(r, rc));
+          if (hit && centre_hit) spread = std::max(spread, angle_between(r, rc));
         }
         if (!any_hit) continue;
         // Pixels on an outline are always sampled in full.
@@ -212,7 +209,7 @@ Image MirrorSphereRenderer::render_led(const Led& led, double led_radius_m,
         const Eigen::Vector3d toward = near ? (led_pos - p0).normalized() : dir;
         const double reach =
             near ? std::asin(std::min(1.0, led_radius_m / (led_pos - p0).norm())) : alpha;
-        if (spread < kPi && angle(r0, toward) > reach + spread + 1e-3) continue;
+        if (spread < kPi && angle_between(r0, toward) > reach + spread + 1e-3) continue;
         int lit = 0;
         for (int sy = 0; sy < ss; ++sy) {
           for (int sx = 0; sx < ss; ++sx) {
@@ -225,7 +222,7 @@ Image MirrorSphereRenderer::render_led(const Led& led, double led_radius_m,
               const double b = oc.dot(r);
               const double disc = b * b - (oc.squaredNorm() - led_radius_m * led_radius_m);
               if (disc >= 0 && -b - std::sqrt(disc) > 0) ++lit;
-            } else if (angle(r, dir) <= alpha) {
+            } else if (angle_between(r, dir) <= alpha) {
               ++lit;
             }
           }

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "lightstage/errors.h"
+#include "physics/envmap.h"
 
 namespace ls::sim {
 
@@ -17,12 +18,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDegToRad = kPi / 180.0;
-
-// DESIGN.md's lat-long direction of (u, v).
-Eigen::Vector3d direction(double u, double v) {
-  const double theta = kPi * v, phi = 2 * kPi * u - kPi;
-  return {std::sin(theta) * std::sin(phi), std::cos(theta), -std::sin(theta) * std::cos(phi)};
-}
 
 Eigen::Vector3d from_elevation_azimuth(double elevation_deg, double x_weight, double z_weight) {
   const Eigen::Vector2d horizontal = Eigen::Vector2d(x_weight, z_weight).normalized();
@@ -54,7 +49,8 @@ Image render_map(int width, const RadianceFn& smooth, const RadianceFn& compact,
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const auto& rows) {
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
-        const Eigen::Vector3d d = direction((x + 0.5) / width, (y + 0.5) / height);
+        const Eigen::Vector3d d =
+            physics::EnvironmentMap::direction((x + 0.5) / width, (y + 0.5) / height);
         Eigen::Vector3d value = smooth(d);
         if (compact && d.dot(compact_dir) > near_cos) {
           Eigen::Vector3d sum(0, 0, 0);
@@ -63,7 +59,8 @@ Image render_map(int width, const RadianceFn& smooth, const RadianceFn& compact,
             const double v = (y + (sy + 0.5) / kSub) / height;
             const double w_solid = std::sin(kPi * v);
             for (int sx = 0; sx < kSub; ++sx) {
-              sum += w_solid * compact(direction((x + (sx + 0.5) / kSub) / width, v));
+              sum += w_solid * compact(physics::EnvironmentMap::direction(
+                                   (x + (sx + 0.5) / kSub) / width, v));
               weight += w_solid;
             }
           }

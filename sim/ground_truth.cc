@@ -9,9 +9,9 @@
 #include <cstdint>
 #include <string>
 
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
-#include "relight/lighting/compact_sources.h"
-#include "relight/lighting/light_cells.h"
+#include "physics/sphere.h"
 #include "sim/sim_stage.h"
 #include "sim/tracer.h"
 
@@ -24,19 +24,19 @@ constexpr double kPi = 3.14159265358979323846;
 }  // namespace
 
 Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
-                          const relight::EnvironmentMap& map, const GroundTruthOptions& options) {
+                          const physics::EnvironmentMap& map, const GroundTruthOptions& options) {
   if (options.directions_width < 4 || options.directions_width % 2 != 0) {
     throw InputError("ground truth: directions_width: expected an even number >= 4, got " +
                      std::to_string(options.directions_width));
   }
-  std::vector<relight::CoarseTexel> texels =
-      relight::box_filter_environment(map, options.directions_width, options.rotation_deg);
+  std::vector<physics::CoarseTexel> texels =
+      physics::box_filter_environment(map, options.directions_width, options.rotation_deg);
   if (!options.covered_by_leds.empty()) {
     const double radius = options.coverage_radius_rad > 0
                               ? options.coverage_radius_rad
                               : max_nearest_neighbour_angle(options.covered_by_leds);
     const double cos_radius = std::cos(radius);
-    std::erase_if(texels, [&](const relight::CoarseTexel& t) {
+    std::erase_if(texels, [&](const physics::CoarseTexel& t) {
       for (const auto& led : options.covered_by_leds) {
         if (t.dir_in_stage.dot(led.normalized()) >= cos_radius) return false;
       }
@@ -51,9 +51,9 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
   std::vector<Eigen::Vector3d> corner_dirs;
   for (int j = 0; j <= blocks_y; ++j) {
     for (int i = 0; i <= blocks_x; ++i) {
-      const Eigen::Vector3d d0 = relight::EnvironmentMap::direction(
+      const Eigen::Vector3d d0 = physics::EnvironmentMap::direction(
           double(std::min(i * block, cw)) / cw, double(std::min(j * block, ch)) / ch);
-      corner_dirs.push_back(relight::rotate_about_y(d0, options.rotation_deg));
+      corner_dirs.push_back(physics::rotate_about_y(d0, options.rotation_deg));
     }
   }
   std::vector<std::array<int, 4>> texel_corners(texels.size());
@@ -80,21 +80,22 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
           return corner_visible[c];
         };
         // Lambert's f is constant: sum the cosine-weighted light and multiply once.
-        const bool lambert_only = h.material.diffuse == brdf::DiffuseModel::kLambert &&
-                                  h.material.specular == brdf::SpecularModel::kNone;
+        const bool lambert_only = h.material.diffuse == physics::brdf::DiffuseModel::kLambert &&
+                                  h.material.specular == physics::brdf::SpecularModel::kNone;
         const double cos_o = h.normal.dot(h.wo);
         Eigen::Vector3d sum(0, 0, 0);
         if (cos_o > 0) {
           for (size_t k = 0; k < texels.size(); ++k) {
-            const relight::CoarseTexel& t = texels[k];
+            const physics::CoarseTexel& t = texels[k];
             const double cos_i = h.normal.dot(t.dir_in_stage);
             if (cos_i <= 0) continue;
             Eigen::Vector3d weight;
             if (lambert_only) {
               weight = t.radiance_x_sr * cos_i;
             } else {
-              const Eigen::Vector3d f = brdf::eval(
-                  h.material, brdf::Geometry<double>{cos_i, cos_o, t.dir_in_stage.dot(h.wo)});
+              const Eigen::Vector3d f = physics::brdf::eval(
+                  h.material,
+                  physics::brdf::Geometry<double>{cos_i, cos_o, t.dir_in_stage.dot(h.wo)});
               if (!(f.maxCoeff() > 0)) continue;
               weight = t.radiance_x_sr.cwiseProduct(f) * cos_i;
             }
@@ -122,7 +123,7 @@ Image render_source_visibility(const Scene& scene, const CameraSpec& camera,
   if (!(radius_rad >= 0) || samples < 1 || !dir.allFinite() || dir.norm() == 0) {
     throw InputError("source visibility: expected a direction, a radius >= 0 and samples >= 1");
   }
-  const std::vector<Eigen::Vector3d> dirs = relight::disc_directions(dir, radius_rad, samples);
+  const std::vector<Eigen::Vector3d> dirs = physics::disc_directions(dir, radius_rad, samples);
   const std::vector<SurfaceHit> hits = trace_camera(scene, camera);
   const detail::Tracer tracer(scene);
   Image out(camera.width, camera.height, 1);
@@ -141,7 +142,7 @@ Image render_source_visibility(const Scene& scene, const CameraSpec& camera,
 }
 
 Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
-                          const relight::EnvironmentMap& map, const GroundTruthOptions& options,
+                          const physics::EnvironmentMap& map, const GroundTruthOptions& options,
                           double time_s) {
   GroundTruthOptions at_time = options;
   at_time.scene_time_s = time_s;

@@ -8,7 +8,7 @@
 
 #include "lightstage/image.h"
 #include "lightstage/stage.h"
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 #include "sim/scene.h"
 
 namespace ls::sim {
@@ -31,10 +31,10 @@ struct GroundTruthOptions {
 };
 
 Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
-                          const relight::EnvironmentMap& map, const GroundTruthOptions& options);
+                          const physics::EnvironmentMap& map, const GroundTruthOptions& options);
 // The scene as it is at scene time `time_s` (seconds); overrides options.scene_time_s.
 Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
-                          const relight::EnvironmentMap& map, const GroundTruthOptions& options,
+                          const physics::EnvironmentMap& map, const GroundTruthOptions& options,
                           double time_s);
 
 // The share of a uniform disc of directions (centre `dir` in the stage frame, angular radius

@@ -18,9 +18,9 @@ namespace {
 using detail::Tracer;
 
 // Applies a material's spatial variation at the object's (s, t).
-brdf::Material shade_material(const SceneMaterial& m, const Image* texture,
-                              const Eigen::Vector2d& st) {
-  brdf::Material out = m.base;
+physics::brdf::Material shade_material(const SceneMaterial& m, const Image* texture,
+                                       const Eigen::Vector2d& st) {
+  physics::brdf::Material out = m.base;
   const double s = std::clamp(st.x(), 0.0, 1.0), t = std::clamp(st.y(), 0.0, 1.0);
   if (m.checker_albedo) {
     const int cs = std::min(int(s * m.checker_cells), m.checker_cells - 1);
@@ -49,7 +49,7 @@ void camera_ray(const CameraSpec& camera, int x, int y, Eigen::Vector3d* origin,
     *origin = Eigen::Vector3d(ndc_x * half_h * aspect, ndc_y * half_h, 100.0);
     *dir = Eigen::Vector3d(0, 0, -1);
   } else {
-    const double tan_half = std::tan(0.5 * camera.fov_y_deg * brdf::kPi / 180.0);
+    const double tan_half = std::tan(0.5 * camera.fov_y_deg * physics::brdf::kPi / 180.0);
     *origin = Eigen::Vector3d(0, 0, camera.distance_m);
     *dir = Eigen::Vector3d(ndc_x * tan_half * aspect, ndc_y * tan_half, -1.0).normalized();
   }
@@ -142,9 +142,9 @@ Image render_one_light_with(const Tracer& tracer, const std::vector<SurfaceHit>&
       for (int x = 0; x < width; ++x) {
         const SurfaceHit& h = hits[size_t(y) * width + x];
         if (!h.hit) continue;
-        const auto g = brdf::Geometry<double>::from_world(h.normal, wi, h.wo);
+        const auto g = physics::brdf::Geometry<double>::from_world(h.normal, wi, h.wo);
         if (!(g.cos_i > 0)) continue;
-        const Eigen::Vector3d f = brdf::eval(h.material, g);
+        const Eigen::Vector3d f = physics::brdf::eval(h.material, g);
         if (!(f.maxCoeff() > 0)) continue;
         if (!hit_sees(tracer, h, wi)) continue;
         for (int c = 0; c < 3; ++c) out.at(x, y, c) = float(f[c] * g.cos_i);
@@ -173,9 +173,9 @@ Image render_one_near_light_with(const Tracer& tracer, const std::vector<Surface
         const double r_squared = to_led.squaredNorm();
         if (!(r_squared > 1e-12)) continue;  // The LED sits on the surface: no defined light.
         const Eigen::Vector3d wi = to_led / std::sqrt(r_squared);
-        const auto g = brdf::Geometry<double>::from_world(h.normal, wi, h.wo);
+        const auto g = physics::brdf::Geometry<double>::from_world(h.normal, wi, h.wo);
         if (!(g.cos_i > 0)) continue;
-        const Eigen::Vector3d f = brdf::eval(h.material, g);
+        const Eigen::Vector3d f = physics::brdf::eval(h.material, g);
         if (!(f.maxCoeff() > 0)) continue;
         // Shadow ray from the offset origin to the LED itself: geometry behind it does not count.
         const Eigen::Vector3d origin = shadow_ray_origin(h);

@@ -4,20 +4,20 @@
 
 namespace ls::sim {
 
-brdf::Material region_material(int region) {
-  brdf::Material m;
+physics::brdf::Material region_material(int region) {
+  physics::brdf::Material m;
   switch (region) {
     case kMatte:
       m.albedo = {0.75, 0.6, 0.45};
       break;
     case kRough:
-      m.diffuse = brdf::DiffuseModel::kOrenNayar;
+      m.diffuse = physics::brdf::DiffuseModel::kOrenNayar;
       m.albedo = {0.6, 0.45, 0.3};
-      m.sigma_rad = 30.0 / (180.0 / brdf::kPi);  // As the tests have always computed it.
+      m.sigma_rad = 30.0 / (180.0 / physics::brdf::kPi);  // As the tests have always computed it.
       break;
     default:
       m.albedo = {0.55, 0.15, 0.1};
-      m.specular = brdf::SpecularModel::kTorranceSparrow;
+      m.specular = physics::brdf::SpecularModel::kTorranceSparrow;
       m.ks = {0.35, 0.35, 0.35};
       m.roughness = 0.2;
       break;

@@ -27,7 +27,7 @@ Scene rti_scene(RtiScene which) {
   ball.name = "ball";
   ball.base.albedo = {0.7, 0.45, 0.3};
   if (which == RtiScene::kGlossy) {
-    ball.base.specular = brdf::SpecularModel::kTorranceSparrow;
+    ball.base.specular = physics::brdf::SpecularModel::kTorranceSparrow;
     ball.base.ks = {0.5, 0.5, 0.5};
     ball.base.roughness = 0.2;
   }

@@ -13,23 +13,24 @@ namespace ls::sim {
 
 namespace {
 
-constexpr double kDegToRad = brdf::kPi / 180.0;
+constexpr double kDegToRad = physics::brdf::kPi / 180.0;
 
 // The BRDF fields of `r` over `start` (fields not given keep start's values).
-brdf::Material parse_brdf(const JsonReader& r, const brdf::Material& start = brdf::Material()) {
-  brdf::Material m = start;
+physics::brdf::Material parse_brdf(
+    const JsonReader& r, const physics::brdf::Material& start = physics::brdf::Material()) {
+  physics::brdf::Material m = start;
   if (r.has("diffuse")) {
     m.diffuse = r["diffuse"].one_of({"lambert", "oren-nayar"}) == "lambert"
-                    ? brdf::DiffuseModel::kLambert
-                    : brdf::DiffuseModel::kOrenNayar;
+                    ? physics::brdf::DiffuseModel::kLambert
+                    : physics::brdf::DiffuseModel::kOrenNayar;
   }
   if (r.has("albedo")) m.albedo = r["albedo"].vec3();
   if (r.has("sigma_deg")) m.sigma_rad = r["sigma_deg"].number_in(0, 90, "(degrees)") * kDegToRad;
   if (r.has("specular")) {
     const std::string s = r["specular"].one_of({"none", "torrance-sparrow", "phong"});
-    m.specular = s == "none"               ? brdf::SpecularModel::kNone
-                 : s == "torrance-sparrow" ? brdf::SpecularModel::kTorranceSparrow
-                                           : brdf::SpecularModel::kPhong;
+    m.specular = s == "none"               ? physics::brdf::SpecularModel::kNone
+                 : s == "torrance-sparrow" ? physics::brdf::SpecularModel::kTorranceSparrow
+                                           : physics::brdf::SpecularModel::kPhong;
   }
   if (r.has("ks")) m.ks = r["ks"].vec3();
   if (r.has("roughness")) m.roughness = r["roughness"].number();
@@ -45,7 +46,7 @@ std::filesystem::path resolve(const std::string& file, const std::string& source
   return p;
 }
 
-MaterialProcess parse_process(const JsonReader& r, const brdf::Material& base,
+MaterialProcess parse_process(const JsonReader& r, const physics::brdf::Material& base,
                               const std::string& source) {
   r.expect_object(
       {"kind", "rate_per_s", "onset_s", "wet", "dry", "middle", "wetting_rate_per_s", "spatial"});
@@ -66,7 +67,8 @@ MaterialProcess parse_process(const JsonReader& r, const brdf::Material& base,
     r["wetting_rate_per_s"].fail("no wetting_rate_per_s for " + kind);
   }
   if (r.has("onset_s")) p.onset_s = r["onset_s"].number_in(0, 1e9, "(seconds)");
-  auto endpoint = [&](const char* key, const brdf::Material& start, bool required = false) {
+  auto endpoint = [&](const char* key, const physics::brdf::Material& start,
+                      bool required = false) {
     if (!required && !r.has(key)) return start;  // r[key] throws "missing" when required.
     const JsonReader e = r[key];
     e.expect_object(
@@ -77,7 +79,7 @@ MaterialProcess parse_process(const JsonReader& r, const brdf::Material& base,
   // to the material itself. Dust is the exception: its dry end is the wet surface under dust,
   // without gloss and with the same roughness (validate() requires that).
   p.wet = endpoint("wet", base);
-  brdf::Material dry_start = base;
+  physics::brdf::Material dry_start = base;
   if (p.kind == ProcessKind::kDustSettling) {
     dry_start = p.wet;
     dry_start.ks.setZero();
@@ -142,7 +144,7 @@ SceneMaterial parse_material(const JsonReader& r, const std::string& source) {
     const JsonReader c = r["checker"];
     c.expect_object({"albedo", "cells"});
     m.checker_albedo = c["albedo"].vec3();
-    brdf::Material alt = m.base;
+    physics::brdf::Material alt = m.base;
     alt.albedo = *m.checker_albedo;
     const std::string alt_problem = alt.validate();
     if (!alt_problem.empty()) {
@@ -227,7 +229,7 @@ void fill_procedural(HeightField& hf, const JsonReader& r) {
       }
       for (const Ridge& g : ridges) {
         const double along = x * std::cos(g.direction_rad) + y * std::sin(g.direction_rad);
-        h += g.amplitude * std::sin(2.0 * brdf::kPi * along / g.wavelength + g.phase_rad);
+        h += g.amplitude * std::sin(2.0 * physics::brdf::kPi * along / g.wavelength + g.phase_rad);
       }
       hf.heights[size_t(i) * n + j] = float(h);
     }

@@ -8,7 +8,7 @@
 #include <string_view>
 #include <vector>
 
-#include "relight/lighting/brdf.h"
+#include "physics/brdf.h"
 #include "sim/time_varying.h"
 
 namespace ls::sim {
@@ -17,7 +17,7 @@ namespace ls::sim {
 // [0,1]^2.
 struct SceneMaterial {
   std::string name;
-  brdf::Material base;
+  physics::brdf::Material base;
   // Optional per-pixel variation: a checker of two albedos, or an albedo texture (any image file).
   std::optional<Eigen::Vector3d> checker_albedo;  // Alternates with base.albedo.
   int checker_cells = 8;
@@ -89,12 +89,12 @@ bool has_time_varying_materials(const Scene& scene);
 struct SurfaceHit {
   bool hit = false;
   Eigen::Vector3d position{0, 0, 0};
-  Eigen::Vector3d normal{0, 0, 1};  // Unit, facing the viewer.
-  Eigen::Vector3d wo{0, 0, 1};      // Unit, toward the camera.
-  brdf::Material material;          // With spatial variation already applied.
-  int object = -1;                  // For region masks in tests.
-  int material_index = -1;          // Into Scene::materials; -1 when !hit.
-  Eigen::Vector2d st{0, 0};         // The object's own (s, t) in [0,1]^2 at the hit.
+  Eigen::Vector3d normal{0, 0, 1};   // Unit, facing the viewer.
+  Eigen::Vector3d wo{0, 0, 1};       // Unit, toward the camera.
+  physics::brdf::Material material;  // With spatial variation already applied.
+  int object = -1;                   // For region masks in tests.
+  int material_index = -1;           // Into Scene::materials; -1 when !hit.
+  Eigen::Vector2d st{0, 0};          // The object's own (s, t) in [0,1]^2 at the hit.
   // The pixel this hit belongs to (trace_camera returns them row-major); render_one_light takes
   // the image size from the last one.
   int pixel_x = 0;

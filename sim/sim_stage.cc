@@ -39,7 +39,7 @@ struct PixelRng {
   // Two independent standard normals (Box-Muller).
   void normals(double* z0, double* z1) {
     const double r = std::sqrt(-2.0 * std::log(uniform_open()));
-    const double a = 2.0 * brdf::kPi * uniform_open();
+    const double a = 2.0 * physics::brdf::kPi * uniform_open();
     *z0 = r * std::cos(a);
     *z1 = r * std::sin(a);
   }

@@ -45,7 +45,7 @@ std::string MaterialProcess::validate() const {
   if (std::string p = dry.validate(); !p.empty()) return "dry: " + p;
   if (wet.diffuse != dry.diffuse) return "dry.diffuse: expected the same diffuse model as wet";
   if (wet.specular != dry.specular) return "dry.specular: expected the same specular model as wet";
-  if (wet.specular == brdf::SpecularModel::kPhong) {
+  if (wet.specular == physics::brdf::SpecularModel::kPhong) {
     return "wet.specular: expected none or torrance-sparrow (the processes are Torrance-Sparrow)";
   }
   if (kind == ProcessKind::kWetDrying) {
@@ -59,7 +59,7 @@ std::string MaterialProcess::validate() const {
     if (wet.roughness != dry.roughness) {
       return "dry.roughness: dust settling keeps the base's roughness: expected that of wet";
     }
-    if (wet.diffuse != brdf::DiffuseModel::kLambert) {
+    if (wet.diffuse != physics::brdf::DiffuseModel::kLambert) {
       return "wet.diffuse: dust settling is a Lambertian layer over a Lambertian+glossy base: "
              "expected lambert";
     }
@@ -134,9 +134,10 @@ double sigmoid_weight(double kappa_per_s, double onset_s, double time_s) {
   return e / (1.0 + e);
 }
 
-brdf::Material blend_endpoints(const brdf::Material& wet, const brdf::Material& dry, double w) {
+physics::brdf::Material blend_endpoints(const physics::brdf::Material& wet,
+                                        const physics::brdf::Material& dry, double w) {
   w = std::clamp(w, 0.0, 1.0);
-  brdf::Material m = wet;
+  physics::brdf::Material m = wet;
   m.albedo = wet.albedo + (dry.albedo - wet.albedo) * w;
   m.ks = wet.ks + (dry.ks - wet.ks) * w;
   m.sigma_rad = wet.sigma_rad + (dry.sigma_rad - wet.sigma_rad) * w;
@@ -146,11 +147,12 @@ brdf::Material blend_endpoints(const brdf::Material& wet, const brdf::Material& 
   return m;
 }
 
-brdf::Material blend_through(const brdf::Material& wet, const brdf::Material& middle,
-                             const brdf::Material& dry, double w) {
+physics::brdf::Material blend_through(const physics::brdf::Material& wet,
+                                      const physics::brdf::Material& middle,
+                                      const physics::brdf::Material& dry, double w) {
   w = std::clamp(w, 0.0, 1.0);
   const double a = (1 - w) * (1 - w), b = 2 * w * (1 - w), c = w * w;
-  brdf::Material m = wet;
+  physics::brdf::Material m = wet;
   m.albedo = a * wet.albedo + b * middle.albedo + c * dry.albedo;
   m.ks = a * wet.ks + b * middle.ks + c * dry.ks;
   m.sigma_rad = a * wet.sigma_rad + b * middle.sigma_rad + c * dry.sigma_rad;
@@ -163,7 +165,7 @@ double ProcessTruth::weight(double time_s) const {
   return varying ? process_weight(kind, rate_per_s, onset_s, time_s, wetting_rate_per_s) : 0.0;
 }
 
-brdf::Material ProcessTruth::material(double time_s) const {
+physics::brdf::Material ProcessTruth::material(double time_s) const {
   if (!varying) return wet;
   if (kind == ProcessKind::kCorroding) return blend_through(wet, middle, dry, weight(time_s));
   return blend_endpoints(wet, dry, weight(time_s));
@@ -205,7 +207,8 @@ ProcessTruth truth_at(const SceneMaterial& material, double s, double t) {
   return truth;
 }
 
-brdf::Material material_at(const SceneMaterial& material, double s, double t, double time_s) {
+physics::brdf::Material material_at(const SceneMaterial& material, double s, double t,
+                                    double time_s) {
   if (!material.process) return material.base;
   return truth_at(material, s, t).material(time_s);
 }

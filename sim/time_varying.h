@@ -52,7 +52,7 @@
 #include <Eigen/Core>
 #include <string>
 
-#include "relight/lighting/brdf.h"
+#include "physics/brdf.h"
 
 namespace ls::sim {
 
@@ -82,10 +82,10 @@ struct MaterialProcess {
   ProcessKind kind = ProcessKind::kPaintDrying;
   // lambda (1/s) for paint and dust; the sigmoid steepness kappa (1/s) for wet drying. > 0.
   double rate_per_s = 0.01;
-  double onset_s = 0.0;   // Scene time the process starts (sigmoid midpoint for wet drying), >= 0.
-  brdf::Material wet;     // Endpoint at onset (dust: the clean base; wetting: fully wet).
-  brdf::Material dry;     // Endpoint at time -> inf (dust: albedo = dust colour, ks = 0).
-  brdf::Material middle;  // Corroding: the Bezier control point between wet and dry.
+  double onset_s = 0.0;  // Scene time the process starts (sigmoid midpoint for wet drying), >= 0.
+  physics::brdf::Material wet;      // Endpoint at onset (dust: the clean base; wetting: fully wet).
+  physics::brdf::Material dry;      // Endpoint at time -> inf (dust: albedo = dust colour, ks = 0).
+  physics::brdf::Material middle;   // Corroding: the Bezier control point between wet and dry.
   double wetting_rate_per_s = 0.0;  // Wetting and drying: kappa (1/s), > rate_per_s.
   SpatialVariation spatial;
 
@@ -97,16 +97,17 @@ struct MaterialProcess {
 struct ProcessTruth {
   bool varying = false;  // False: a constant material, or a point outside the process's region.
   ProcessKind kind = ProcessKind::kPaintDrying;
-  double rate_per_s = 0.0;  // lambda or kappa at this point (after spatial variation).
-  double onset_s = 0.0;     // At this point (after spatial variation).
-  brdf::Material wet;       // Equal to dry (and to the base) when !varying.
-  brdf::Material dry;
-  brdf::Material middle;            // Corroding.
+  double rate_per_s = 0.0;      // lambda or kappa at this point (after spatial variation).
+  double onset_s = 0.0;         // At this point (after spatial variation).
+  physics::brdf::Material wet;  // Equal to dry (and to the base) when !varying.
+  physics::brdf::Material dry;
+  physics::brdf::Material middle;   // Corroding.
   double wetting_rate_per_s = 0.0;  // Wetting and drying, at this point.
 
-  double weight(double time_s) const;            // w(time) above; 0 when !varying.
-  brdf::Material material(double time_s) const;  // blend_endpoints(wet, dry, weight(time_s));
-                                                 // corroding: blend_through(...).
+  double weight(double time_s) const;  // w(time) above; 0 when !varying.
+  physics::brdf::Material material(
+      double time_s) const;  // blend_endpoints(wet, dry, weight(time_s));
+                             // corroding: blend_through(...).
 };
 
 // The closed forms, for tests and for comparing fitted curves.
@@ -123,15 +124,18 @@ double beckmann_roughness_value(double m_wet, double m_dry, double rate_per_s, d
 // 1 / (1 + e^(-kappa (time_s - onset_s))).
 double sigmoid_weight(double kappa_per_s, double onset_s, double time_s);
 // Every parameter at weight w in [0, 1] (see the top of this file); models come from `wet`.
-brdf::Material blend_endpoints(const brdf::Material& wet, const brdf::Material& dry, double w);
+physics::brdf::Material blend_endpoints(const physics::brdf::Material& wet,
+                                        const physics::brdf::Material& dry, double w);
 // The quadratic Bezier from wet through the control `middle` to dry at w in [0, 1] (corroding).
-brdf::Material blend_through(const brdf::Material& wet, const brdf::Material& middle,
-                             const brdf::Material& dry, double w);
+physics::brdf::Material blend_through(const physics::brdf::Material& wet,
+                                      const physics::brdf::Material& middle,
+                                      const physics::brdf::Material& dry, double w);
 
 // The true process at (s, t) of `material` (clamped to [0,1]^2).
 ProcessTruth truth_at(const SceneMaterial& material, double s, double t);
 // The material at (s, t) and scene time `time_s`; a material without a process returns its base
 // (no checker or texture: those are applied by trace_camera, which knows the texture images).
-brdf::Material material_at(const SceneMaterial& material, double s, double t, double time_s);
+physics::brdf::Material material_at(const SceneMaterial& material, double s, double t,
+                                    double time_s);
 
 }  // namespace ls::sim

@@ -264,7 +264,7 @@ void Tracer::surface(const Eigen::Vector3d& position, int object, Eigen::Vector3
     // Lat-long around +Y: s from the azimuth (0.5 faces the camera), t from the pole.
     const double theta = std::acos(std::clamp(n.y(), -1.0, 1.0));
     const double phi = std::atan2(n.x(), n.z());
-    *st = {(phi + brdf::kPi) / (2 * brdf::kPi), theta / brdf::kPi};
+    *st = {(phi + physics::brdf::kPi) / (2 * physics::brdf::kPi), theta / physics::brdf::kPi};
   } else if (object < ns + np) {
     const PlaneFrame& p = planes_[object - ns];
     *normal = p.normal;

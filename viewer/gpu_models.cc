@@ -24,7 +24,7 @@ namespace {
 // ---------------------------------------------------------------------------------------------
 // Models: the maps in a 5-layer RGBA32F array, the distant lights in a uniform buffer, up to
 // LIGHTS_PER_PASS per pass (more lights: further passes added by blending); the shader is
-// relight/fit/model_render.cc's shade() with relight/lighting/brdf.h's models, line for line, and
+// relight/fit/model_render.cc's shade() with physics/brdf.h's models, line for line, and
 // the same shadows (each light takes its nearest LED's). The prefiltered shading has no shadows:
 // its lighting is one environment for every pixel.
 // (Lights in a texture instead cost two fetches per light: 1.6x slower on llvmpipe.)
@@ -73,7 +73,7 @@ out vec4 radiance;
 
 const float kPi = 3.14159265358979323846;
 
-// relight/lighting/brdf.h, cos(theta_i) not inside; the callers have checked cos_i > 0 and cos_o > 0.
+// physics/brdf.h, cos(theta_i) not inside; the callers have checked cos_i > 0 and cos_o > 0.
 float oren_nayar(float cos_i, float cos_o, float cos_io, float sigma) {
   float s2 = sigma * sigma;
   float a = 1.0 - 0.5 * s2 / (s2 + 0.33);

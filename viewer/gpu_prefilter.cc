@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "relight/lighting/brdf.h"
-#include "relight/lighting/envmap.h"
+#include "physics/brdf.h"
+#include "physics/envmap.h"
 
 namespace ls::viewer::model_prefilter {
 namespace {
@@ -32,10 +32,10 @@ const std::array<double, kPrefilterLevels>& lobe_integrals() {
     for (int j = 0; j < kPrefilterLevels; ++j) {
       double sum = 0;
       for (int i = 0; i < kSteps; ++i) {
-        const double theta = brdf::kPi * (i + 0.5) / kSteps;
+        const double theta = physics::brdf::kPi * (i + 0.5) / kSteps;
         sum += beckmann_lobe(std::cos(theta), kLevelRoughness[j]) * std::sin(theta);
       }
-      out[j] = 2.0 * brdf::kPi * sum * brdf::kPi / kSteps;
+      out[j] = 2.0 * physics::brdf::kPi * sum * physics::brdf::kPi / kSteps;
     }
     return out;
   }();
@@ -108,7 +108,7 @@ const std::vector<float>& lobe_albedo_table() {
         for (int a = 0; a < kSamples; ++a) {
           const double u1 = (a + 0.5) / kSamples;
           for (int b = 0; b < kSamples; ++b) {
-            const double phi = 2 * brdf::kPi * (b + 0.5) / kSamples;
+            const double phi = 2 * physics::brdf::kPi * (b + 0.5) / kSamples;
             // Torrance-Sparrow: h ~ D(h) cos theta_h; pdf(wi) = D cos theta_h / (4 wo.h).
             const double tan_h = m * std::sqrt(-std::log(1 - u1));
             const double cos_h = 1 / std::sqrt(1 + tan_h * tan_h), sin_h = tan_h * cos_h;
@@ -116,10 +116,10 @@ const std::vector<float>& lobe_albedo_table() {
             const double wo_h = wo.dot(h);
             const Eigen::Vector3d wi = 2 * wo_h * h - wo;
             if (wo_h > 0 && wi.z() > 0) {
-              const double d =
-                  std::exp(-tan_h * tan_h / (m * m)) / (brdf::kPi * m * m * std::pow(cos_h, 4));
-              const auto g = brdf::Geometry<double>::from_local(wi, wo);
-              ts += brdf::torrance_sparrow(g, m) * wi.z() * 4 * wo_h / (d * cos_h);
+              const double d = std::exp(-tan_h * tan_h / (m * m)) /
+                               (physics::brdf::kPi * m * m * std::pow(cos_h, 4));
+              const auto g = physics::brdf::Geometry<double>::from_local(wi, wo);
+              ts += physics::brdf::torrance_sparrow(g, m) * wi.z() * 4 * wo_h / (d * cos_h);
             }
             // Phong: wi ~ (n+1)/(2 pi) cos^n(alpha) about the mirror direction.
             const double cos_a = std::pow(u1, 1 / (exponent + 1));
@@ -127,9 +127,10 @@ const std::vector<float>& lobe_albedo_table() {
             const Eigen::Vector3d wp =
                 cos_a * mirror + sin_a * (std::cos(phi) * t1 + std::sin(phi) * t2);
             if (wp.z() > 0) {
-              const auto g = brdf::Geometry<double>::from_local(wp, wo);
-              const double pdf = (exponent + 1) / (2 * brdf::kPi) * std::pow(cos_a, exponent);
-              if (pdf > 0) ph += brdf::phong(g, exponent) * wp.z() / pdf;
+              const auto g = physics::brdf::Geometry<double>::from_local(wp, wo);
+              const double pdf =
+                  (exponent + 1) / (2 * physics::brdf::kPi) * std::pow(cos_a, exponent);
+              if (pdf > 0) ph += physics::brdf::phong(g, exponent) * wp.z() / pdf;
             }
           }
         }
@@ -140,7 +141,7 @@ const std::vector<float>& lobe_albedo_table() {
           const double sin_i = std::sqrt((a + 0.5) / kSamples);
           const double cos_i = std::sqrt(1 - sin_i * sin_i);
           for (int b = 0; b < kSamples; ++b) {
-            const double phi = 2 * brdf::kPi * (b + 0.5) / kSamples;
+            const double phi = 2 * physics::brdf::kPi * (b + 0.5) / kSamples;
             const Eigen::Vector3d wi(sin_i * std::cos(phi), sin_i * std::sin(phi), cos_i);
             on += std::max(0.0, wi.dot(wo) - cos_i * cos_o) / std::max(cos_i, cos_o);
           }
@@ -183,9 +184,10 @@ PrefilteredLighting prefilter(const relight::LightingForModels& lights) {
   }
   // Irradiance SH: L_lm = sum_k E_k Y_lm(w_k) (each light a delta of irradiance E_k), times the
   // clamped cosine's A_0 = pi, A_1 = 2 pi / 3, A_2 = pi / 4.
-  constexpr double kBand[9] = {brdf::kPi,         2 * brdf::kPi / 3, 2 * brdf::kPi / 3,
-                               2 * brdf::kPi / 3, brdf::kPi / 4,     brdf::kPi / 4,
-                               brdf::kPi / 4,     brdf::kPi / 4,     brdf::kPi / 4};
+  constexpr double kBand[9] = {
+      physics::brdf::kPi,         2 * physics::brdf::kPi / 3, 2 * physics::brdf::kPi / 3,
+      2 * physics::brdf::kPi / 3, physics::brdf::kPi / 4,     physics::brdf::kPi / 4,
+      physics::brdf::kPi / 4,     physics::brdf::kPi / 4,     physics::brdf::kPi / 4};
   std::array<Eigen::Vector3d, 9> sh;
   sh.fill(Eigen::Vector3d::Zero());
   for (std::size_t k = 0; k < count; ++k) {
@@ -208,7 +210,7 @@ PrefilteredLighting prefilter(const relight::LightingForModels& lights) {
   out.levels.assign(level_texels * kPrefilterLevels * 4, 0.0f);
   tbb::parallel_for(0, kPrefilterHeight, [&](int y) {
     for (int x = 0; x < kPrefilterWidth; ++x) {
-      const Eigen::Vector3f r = relight::EnvironmentMap::direction((x + 0.5) / kPrefilterWidth,
+      const Eigen::Vector3f r = physics::EnvironmentMap::direction((x + 0.5) / kPrefilterWidth,
                                                                    (y + 0.5) / kPrefilterHeight)
                                     .cast<float>();
       std::array<Eigen::Vector3f, kPrefilterLevels> sum;

@@ -7,7 +7,7 @@
 
 namespace ls::viewer {
 
-ViewLighting environment_lighting(const relight::EnvironmentMap& map, double rotation_deg,
+ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rotation_deg,
                                   const std::vector<Eigen::Vector3d>& led_dirs,
                                   const std::vector<bool>& led_valid,
                                   const EnvironmentNeeds& needs) {

@@ -11,9 +11,9 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/source_relight.h"
-#include "relight/lighting/envmap.h"
 #include "viewer/gpu_relight.h"
 
 namespace ls::viewer {
@@ -36,7 +36,7 @@ struct EnvironmentNeeds {
 // needs.field_sources and the map has compact sources; led_irradiance_rgb of the whole map
 // (integrate_environment over the LEDs' cells) unless a split makes it unneeded; `lights` when
 // needs.model_lights. Without LEDs, only `lights`.
-ViewLighting environment_lighting(const relight::EnvironmentMap& map, double rotation_deg,
+ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rotation_deg,
                                   const std::vector<Eigen::Vector3d>& led_dirs,
                                   const std::vector<bool>& led_valid,
                                   const EnvironmentNeeds& needs);

@@ -13,9 +13,9 @@
 
 #include "capture/field.h"
 #include "lightstage/image.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/model_render.h"
-#include "relight/lighting/envmap.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"
 #include "viewer/view_lighting.h"
@@ -73,7 +73,7 @@ struct ViewerApp::Impl {
   std::optional<relight::PcaField> pca_from_file, pca_from_field;
   std::vector<Eigen::Vector3d> led_dirs;
   std::vector<bool> led_valid;
-  std::optional<relight::EnvironmentMap> env;
+  std::optional<physics::EnvironmentMap> env;
   std::string loaded_env;
   double env_display_stops = 0;
 

@@ -25,10 +25,10 @@
 #include "lightstage/errors.h"
 #include "lightstage/memory.h"
 #include "lightstage/session.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
@@ -73,8 +73,8 @@ void read_pca_leds(const fs::path& path, std::vector<Eigen::Vector3d>& dirs,
   if (!in) throw InputError(path.string() + ": LED directions: expected more data");
 }
 
-relight::EnvironmentMap load_environment(const std::string& name) {
-  if (name == "uniform") return relight::EnvironmentMap(Image(64, 32, 3, 1.0f), "uniform");
+physics::EnvironmentMap load_environment(const std::string& name) {
+  if (name == "uniform") return physics::EnvironmentMap(Image(64, 32, 3, 1.0f), "uniform");
   const auto names = builtin_environment_names();
   if (std::find(names.begin(), names.end(), name) != names.end()) {
     const fs::path path = data_dir() / "envmaps" / (name + ".exr");
@@ -82,9 +82,9 @@ relight::EnvironmentMap load_environment(const std::string& name) {
       throw InputError(path.string() + ": built-in environment \"" + name +
                        "\" not found (run 'lightstage envmaps' to write it)");
     }
-    return relight::EnvironmentMap::load(path);
+    return physics::EnvironmentMap::load(path);
   }
-  return relight::EnvironmentMap::load(name);
+  return physics::EnvironmentMap::load(name);
 }
 
 }  // namespace

@@ -23,10 +23,10 @@
 #include "capture/build_field.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "viewer/gl_window.h"
 

@@ -23,10 +23,10 @@
 #include "capture/build_field.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "viewer/gl_window.h"
 
@@ -46,7 +46,7 @@ void ViewerApp::Impl::update_strip() {
     for (int y = 0; y < kStripHeight; ++y) {
       for (int x = 0; x < kStripWidth; ++x) {
         const Eigen::Vector3d d =
-            relight::EnvironmentMap::direction((x + 0.5) / kStripWidth, (y + 0.5) / kStripHeight);
+            physics::EnvironmentMap::direction((x + 0.5) / kStripWidth, (y + 0.5) / kStripHeight);
         double best = -2;
         int best_led = -1;
         for (size_t l = 0; l < led_dirs.size(); ++l) {
@@ -67,7 +67,7 @@ void ViewerApp::Impl::update_strip() {
   for (int y = 0; y < kStripHeight; ++y) {
     for (int x = 0; x < kStripWidth; ++x) {
       const Eigen::Vector3d d =
-          relight::EnvironmentMap::direction((x + 0.5) / kStripWidth, (y + 0.5) / kStripHeight);
+          physics::EnvironmentMap::direction((x + 0.5) / kStripWidth, (y + 0.5) / kStripHeight);
       const Eigen::Vector3f radiance = env->radiance_toward(d, state.rotation_deg);
       const int cell = strip_nearest_led[y * kStripWidth + x];
       const int right = strip_nearest_led[y * kStripWidth + (x + 1) % kStripWidth];
@@ -474,13 +474,13 @@ void ViewerApp::Impl::strip_panel() {
     const ImVec2 m = ImGui::GetIO().MousePos;
     const double u = std::clamp((m.x - p.x) / w, 0.0f, 0.9999f);
     const double v = std::clamp((m.y - p.y) / h, 0.0f, 1.0f);
-    state.light_dir = relight::EnvironmentMap::direction(u, v);
+    state.light_dir = physics::EnvironmentMap::direction(u, v);
   }
   ImDrawList* draw = ImGui::GetWindowDrawList();
   const float max_weight =
       led_luminance.empty() ? 0.0f : *std::max_element(led_luminance.begin(), led_luminance.end());
   for (size_t l = 0; l < led_dirs.size(); ++l) {
-    const Eigen::Vector2d uv = relight::EnvironmentMap::uv(led_dirs[l].normalized());
+    const Eigen::Vector2d uv = physics::EnvironmentMap::uv(led_dirs[l].normalized());
     const float weight = max_weight > 0 && l < led_luminance.size()
                              ? std::sqrt(std::max(0.0f, led_luminance[l]) / max_weight)
                              : 0.0f;
@@ -489,12 +489,12 @@ void ViewerApp::Impl::strip_panel() {
                           led_valid[l] ? IM_COL32(255, 230, 60, 220) : IM_COL32(255, 60, 60, 220));
   }
   if (state.point_light) {
-    const Eigen::Vector2d uv = relight::EnvironmentMap::uv(state.light_dir.normalized());
+    const Eigen::Vector2d uv = physics::EnvironmentMap::uv(state.light_dir.normalized());
     draw->AddCircle(ImVec2(p.x + float(uv.x()) * w, p.y + float(uv.y()) * h), 7,
                     IM_COL32(255, 255, 255, 255), 16, 2);
   } else if (lighting.split && shows(Source::kField)) {
     for (const relight::PlacedSource& source : lighting.split->sources) {
-      const Eigen::Vector2d uv = relight::EnvironmentMap::uv(source.in_stage.dir);
+      const Eigen::Vector2d uv = physics::EnvironmentMap::uv(source.in_stage.dir);
       draw->AddCircle(ImVec2(p.x + float(uv.x()) * w, p.y + float(uv.y()) * h), 9,
                       IM_COL32(255, 140, 0, 255), 16, 2);
     }

@@ -3,7 +3,7 @@
 // is lit, displayed and edited. Scripts change it through apply(), and to_command_line() writes the
 // `lightstage view ...` line that reproduces it (parse_view_command_line reads it back).
 //
-// Directions are in the stage frame (relight/lighting/envmap.h: +Y up, unit, toward the light);
+// Directions are in the stage frame (physics/envmap.h: +Y up, unit, toward the light);
 // rotation is the environment's rotation about +Y in degrees, as `lightstage relight --rotate`.
 #include <Eigen/Core>
 #include <filesystem>

@@ -10,7 +10,7 @@
 #include "capture/field.h"
 #include "lightstage/image_metrics.h"
 #include "lightstage/session.h"
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 #include "sim/ground_truth.h"
 #include "sim/scene.h"
 
@@ -82,7 +82,7 @@ void run_demo(const DemoArgs& args) {
   std::vector<jobs::Preview> comparison;
   std::printf("%-28s %12s %10s\n", "map", "rel. RMSE", "PSNR dB");
   for (const auto& map_path : shipped_environment_maps(false)) {
-    const relight::EnvironmentMap map = relight::EnvironmentMap::load(map_path);
+    const physics::EnvironmentMap map = physics::EnvironmentMap::load(map_path);
     sim::GroundTruthOptions gt;
     gt.directions_width = 128;  // 1.4-degree quadrature: exact shadows, ~20 s per map at 256^2.
     gt.covered_by_leds = stage.led_directions();

@@ -20,12 +20,12 @@
 #include "lightstage/memory.h"
 #include "lightstage/rank_split.h"
 #include "lightstage/scratch_file.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/plane_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
 #include "relight/fit/source_relight.h"
-#include "relight/lighting/envmap.h"
 
 namespace ls::jobs {
 
@@ -544,7 +544,7 @@ namespace {
 // A PCA under the map with its compact sources split off: the rest by LED cells, each source at its
 // direction (shadows from the reconstruction's shape where it agrees with the LEDs). False, and
 // nothing done, when the map has no source the dome covers.
-bool relight_with_sources(const relight::PcaField& pca, const relight::EnvironmentMap& map,
+bool relight_with_sources(const relight::PcaField& pca, const physics::EnvironmentMap& map,
                           double rotation_deg, Image& out, std::string& report) {
   const capture::ReflectanceField header = pca.header();
   const relight::SplitLighting split =
@@ -583,7 +583,7 @@ RenderSummary render_compact(const RenderOptions& options) {
     image = field->relight_point(
         Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized());
   } else {
-    const relight::EnvironmentMap map = relight::EnvironmentMap::load(options.environment);
+    const physics::EnvironmentMap map = physics::EnvironmentMap::load(options.environment);
     if (!(pca && options.compact_sources &&
           relight_with_sources(*pca, map, options.rotation_deg, image, summary.sources))) {
       image = field->relight(relight::LightingForModels::environment(map, options.rotation_deg));

@@ -13,8 +13,8 @@
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
+#include "physics/envmap.h"
 #include "relight/fit/pixel_solver.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 
 namespace ls::jobs {
@@ -72,7 +72,7 @@ class Player {
   }
 
   PlayResult run() {
-    const relight::EnvironmentMap map = relight::EnvironmentMap::load(options_.env_map);
+    const physics::EnvironmentMap map = physics::EnvironmentMap::load(options_.env_map);
     std::vector<Eigen::Vector3d> dirs;
     std::vector<bool> valid;
     for (const capture::FieldLight& light : field_.lights()) {

@@ -14,10 +14,10 @@
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/memory.h"
+#include "physics/envmap.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
 #include "relight/fit/source_relight.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "relight/time/temporal_render.h"
@@ -140,7 +140,7 @@ std::string fit_sources_in_memory(const RelightOptions& options,
   MapRotations map_rotations(options);
   size_t i = 0;
   map_rotations.for_each(
-      [&](const relight::EnvironmentMap& map, double rotation, const std::string&) {
+      [&](const physics::EnvironmentMap& map, double rotation, const std::string&) {
         outputs[i++].lighting =
             relight::split_lighting(map, header.lights(), rotation, coverage_rad(options), false);
       });
@@ -160,7 +160,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   std::set<int> source_leds;
   MapRotations map_rotations(options);
   map_rotations.for_each(
-      [&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+      [&](const physics::EnvironmentMap& map, double rotation, const std::string& name) {
         const auto t0 = Clock::now();
         Output out{name, rotation,
                    relight::split_lighting(map, header.lights(), rotation, coverage_rad(options),

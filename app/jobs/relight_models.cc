@@ -149,7 +149,7 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
     out.directional = true;
   }
   MapRotations map_rotations(options);
-  map_rotations.for_each([&](const relight::EnvironmentMap& map, double rotation,
+  map_rotations.for_each([&](const physics::EnvironmentMap& map, double rotation,
                              const std::string& name) {
     const auto t0 = Clock::now();
     ModelOutput& out = outputs.emplace_back();
@@ -244,7 +244,7 @@ void relight_temporal(const RelightOptions& options, RelightSummary& summary,
   }
   MapRotations map_rotations(options);
   map_rotations.for_each(
-      [&](const relight::EnvironmentMap& map, double rotation, const std::string& name) {
+      [&](const physics::EnvironmentMap& map, double rotation, const std::string& name) {
         ModelOutput& out = outputs.emplace_back();
         out.name = name + suffix;
         out.lighting = relight::LightingForModels::environment(map, rotation, sampling);

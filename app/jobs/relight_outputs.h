@@ -15,7 +15,7 @@
 #include "app/jobs/relight_job.h"
 #include "capture/field.h"
 #include "lightstage/image.h"
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 
 namespace ls::jobs {
 
@@ -32,13 +32,13 @@ class MapRotations {
   // Every map is read once here, so that a bad one stops the run before any image is written.
   explicit MapRotations(const RelightOptions& options) : options_(options) {
     for (const std::filesystem::path& map_path : options_.maps)
-      relight::EnvironmentMap::load(map_path);
+      physics::EnvironmentMap::load(map_path);
   }
   long count() const { return long(options_.maps.size() * options_.rotations_deg.size()); }
   template <typename Fn>  // fn(map, rotation_deg, output name)
   void for_each(Fn&& fn) {
     for (const std::filesystem::path& map_path : options_.maps) {
-      const relight::EnvironmentMap map = relight::EnvironmentMap::load(map_path);
+      const physics::EnvironmentMap map = physics::EnvironmentMap::load(map_path);
       for (double rotation : options_.rotations_deg) {
         fn(map, rotation,
            output_name(map_path, rotation, options_.rotations_deg.size() > 1, used_names_));

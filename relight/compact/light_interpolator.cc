@@ -4,19 +4,12 @@
 #include <algorithm>
 #include <cmath>
 
+#include "lightstage/direction_index.h"  // angle_between
 #include "lightstage/errors.h"
 #include "relight/compact/pca_field.h"
 #include "relight/lighting/relight.h"
 
 namespace ls::relight {
-
-namespace {
-
-double angle_between(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.cross(b).norm(), a.dot(b));
-}
-
-}  // namespace
 
 // ---------------------------------------------------------------------------------------------
 // LightInterpolator

@@ -14,10 +14,10 @@
 #include <sstream>
 
 #include "lightstage/errors.h"
+#include "physics/brdf.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/pixel_solver.h"
 #include "relight/fit/profiled_fit.h"
-#include "relight/lighting/brdf.h"
 
 namespace ls::relight {
 namespace {
@@ -65,19 +65,19 @@ struct Cost {
                          pixel::non_negative(p[4])};
     T sigma, ks, shape;
     lobe_params<M>(p, &sigma, &ks, &shape);
-    const auto diffuse = [&](const brdf::Geometry<T>& g) {
-      if constexpr (M == FitModel::kOrenNayar) return brdf::oren_nayar(g, sigma);
-      return brdf::lambert(g);
+    const auto diffuse = [&](const physics::brdf::Geometry<T>& g) {
+      if constexpr (M == FitModel::kOrenNayar) return physics::brdf::oren_nayar(g, sigma);
+      return physics::brdf::lambert(g);
     };
-    const auto specular = [&](const brdf::Geometry<T>& g) {
+    const auto specular = [&](const physics::brdf::Geometry<T>& g) {
       if constexpr (M == FitModel::kLambertTorranceSparrow) {
-        return ks * brdf::torrance_sparrow(g, shape);
+        return ks * physics::brdf::torrance_sparrow(g, shape);
       }
-      if constexpr (M == FitModel::kLambertPhong) return ks * brdf::phong(g, shape);
+      if constexpr (M == FitModel::kLambertPhong) return ks * physics::brdf::phong(g, shape);
       return T(0);
     };
     pixel::sample_residuals(d->samples, d->count, pixel::refined_normal(*d, p),
-                            brdf::Vec3<T>(d->wo.cast<T>()), albedo, diffuse, specular, r);
+                            physics::brdf::Vec3<T>(d->wo.cast<T>()), albedo, diffuse, specular, r);
     return true;
   }
 };

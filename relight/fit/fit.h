@@ -17,7 +17,7 @@
 // solver runs the LM on every candidate from the Lambert start (kEveryCandidateByLm).
 //
 // Each LM fit is bounded Levenberg-Marquardt (ceres::TinySolver through relight/fit/pixel_solver.h,
-// autodiff Jets through relight/lighting/brdf.h) with the bounds built into the parametrisation:
+// autodiff Jets through physics/brdf.h) with the bounds built into the parametrisation:
 // albedo = u^2, k_s = u^2, sigma = (pi/2) sigmoid(u), roughness = 0.02 + 0.98 sigmoid(u), Phong
 // exponent = 1 + (1e4 - 1) sigmoid(u). A chosen fit whose solver stopped on max_iterations is
 // kept but flagged kFitNotConverged.

@@ -6,15 +6,15 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
+#include "physics/brdf.h"
 #include "relight/fit/fit.h"
-#include "relight/lighting/brdf.h"
 
 // Model maps on disk (relight/fit/fit.h): one EXR of named channels, with the fit's noise model
 // and the basis materials as attributes, and PNG previews beside it.
 namespace ls::relight {
 namespace {
 
-using brdf::kPi;
+using physics::brdf::kPi;
 constexpr double kMaxSigma = 0.5 * kPi + 1e-6;  // Oren-Nayar's range, and rounding.
 constexpr const char* kFitNoiseAttribute = "lightstage:fit_noise";
 constexpr const char* kMaterialsAttribute = "lightstage:materials";

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "lightstage/errors.h"
-#include "relight/lighting/brdf.h"
+#include "physics/brdf.h"
 
 namespace ls::relight {
 namespace {
@@ -90,13 +90,14 @@ struct PixelModel {
     return true;
   }
   // The diffuse BRDF per unit albedo, 1/sr.
-  float diffuse(const brdf::Geometry<float>& g) const {
-    return oren_nayar ? brdf::oren_nayar(g, sigma) : float(1.0 / kPi);
+  float diffuse(const physics::brdf::Geometry<float>& g) const {
+    return oren_nayar ? physics::brdf::oren_nayar(g, sigma) : float(1.0 / kPi);
   }
   // The lobe's BRDF per unit k_s, 1/sr.
-  float lobe_f(const brdf::Geometry<float>& g) const {
-    return model == FitModel::kLambertTorranceSparrow ? brdf::torrance_sparrow(g, roughness)
-                                                      : brdf::phong(g, exponent);
+  float lobe_f(const physics::brdf::Geometry<float>& g) const {
+    return model == FitModel::kLambertTorranceSparrow
+               ? physics::brdf::torrance_sparrow(g, roughness)
+               : physics::brdf::phong(g, exponent);
   }
 };
 
@@ -163,7 +164,7 @@ Eigen::Vector3f shade(const Lights& lights, const PixelModel& p, const Eigen::Ve
     if (!(cos_i > 0)) continue;
     const float lit = pixel.any ? 1 - pixel.shadow(light_shadows.led_of[size_t(k)]) : 1.0f;
     if (lit == 0) continue;
-    const brdf::Geometry<float> g{cos_i, cos_o, wi.dot(wo)};
+    const physics::brdf::Geometry<float> g{cos_i, cos_o, wi.dot(wo)};
     const Eigen::Vector3f e = lit * Eigen::Vector3f(lights.r[k], lights.g[k], lights.b[k]);
     if (p.oren_nayar) diffuse += e * (p.diffuse(g) * cos_i);
     if (p.lobe) specular_rgb += e * (p.lobe_f(g) * cos_i);
@@ -184,7 +185,7 @@ Eigen::Vector3f model_radiance(const float* m, const Eigen::Vector3f& wi, const 
   if (!p.read(m, max_ks)) return Eigen::Vector3f::Zero();
   const float cos_i = p.n.dot(wi), cos_o = p.n.dot(wo);
   if (!(cos_i > 0 && cos_o > 0)) return Eigen::Vector3f::Zero();
-  const brdf::Geometry<float> g{cos_i, cos_o, wi.dot(wo)};
+  const physics::brdf::Geometry<float> g{cos_i, cos_o, wi.dot(wo)};
   Eigen::Vector3f out = p.albedo * (p.diffuse(g) * cos_i);
   if (p.lobe) out.array() += p.ks * p.lobe_f(g) * cos_i;
   for (int c = 0; c < 3; ++c) {

@@ -3,7 +3,7 @@
 //   I(x) = sum_k f_r(x; w_k, w_o) * max(0, n . w_k) * E_k      (per channel, radiance out)
 // over a set of distant light directions w_k (unit, toward the light, stage frame) with E_k the
 // irradiance each delivers at normal incidence (radiance x solid angle of the patch it stands for).
-// f_r is the pixel's fitted model (relight/lighting/brdf.h, cos not inside) with its fitted normal.
+// f_r is the pixel's fitted model (physics/brdf.h, cos not inside) with its fitted normal.
 //
 // Visibility comes from the fit (ModelMaps::shadows, relight/fit/fit_shadows.h): a direction
 // whose nearest LED the pixel saw in cast shadow does not light it. Known at the dome's
@@ -25,9 +25,9 @@
 #include <vector>
 
 #include "lightstage/image.h"
+#include "physics/envmap.h"
 #include "relight/fit/fit.h"
 #include "relight/lighting/compact_field.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/lighting.h"
 

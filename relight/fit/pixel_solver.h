@@ -5,7 +5,7 @@
 // residuals, and one wrapper around ceres::TinySolver that reports how the solver stopped.
 //
 // Conventions as in relight/fit/fit.h: R = (albedo * f_diffuse + k_s * f_lobe) * max(0, n.l) per
-// channel, f in 1/sr (relight/lighting/brdf.h), each residual divided by its noise sigma
+// channel, f in 1/sr (physics/brdf.h), each residual divided by its noise sigma
 // (NoiseModel, relight/fit/normals.h), chi^2 = sum of squared residuals.
 //
 // Internal to relight_fit and relight_time (their .cc files include it): it pulls in Ceres.
@@ -20,12 +20,12 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "physics/brdf.h"
 #include "relight/fit/normals.h"
-#include "relight/lighting/brdf.h"
 
 namespace ls::relight::pixel {
 
-inline constexpr double kPi = brdf::kPi;
+inline constexpr double kPi = physics::brdf::kPi;
 inline constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};  // Rec. 709 luminance weights.
 inline constexpr double kMinRoughness = 0.02;                 // Beckmann m in [0.02, 1].
 
@@ -65,10 +65,11 @@ struct PixelData {
 // The fitted normal: n0 tilted by two small angles (angles[0], angles[1]) along the tangents,
 // renormalised; n0 itself without refine_normal.
 template <class T>
-brdf::Vec3<T> refined_normal(const PixelData& d, const T* angles) {
+physics::brdf::Vec3<T> refined_normal(const PixelData& d, const T* angles) {
   using std::sqrt;
   if (!d.refine_normal) return d.n0.cast<T>();
-  const brdf::Vec3<T> n = d.n0.cast<T>() + d.t1.cast<T>() * angles[0] + d.t2.cast<T>() * angles[1];
+  const physics::brdf::Vec3<T> n =
+      d.n0.cast<T>() + d.t1.cast<T>() * angles[0] + d.t2.cast<T>() * angles[1];
   return n / sqrt(n.dot(n));
 }
 
@@ -87,12 +88,12 @@ std::string check_view_dirs(const std::vector<Eigen::Vector3d>& per_pixel, int w
 // v_c) / sigma_c, g the sample's geometry for normal n and view wo; diffuse(g) is the factor
 // multiplying the albedo, specular(g) the lobe with its k_s.
 template <class T, class Diffuse, class Specular>
-void sample_residuals(const Sample* samples, int count, const brdf::Vec3<T>& n,
-                      const brdf::Vec3<T>& wo, const T* albedo, const Diffuse& diffuse,
+void sample_residuals(const Sample* samples, int count, const physics::brdf::Vec3<T>& n,
+                      const physics::brdf::Vec3<T>& wo, const T* albedo, const Diffuse& diffuse,
                       const Specular& specular, T* r) {
   for (int i = 0; i < count; ++i) {
     const Sample& s = samples[i];
-    const auto g = brdf::Geometry<T>::from_world(n, s.l.cast<T>(), wo);
+    const auto g = physics::brdf::Geometry<T>::from_world(n, s.l.cast<T>(), wo);
     const T f_diffuse = diffuse(g);
     const T f_specular = specular(g);
     const T cos_i = g.cos_i > T(0) ? g.cos_i : T(0);

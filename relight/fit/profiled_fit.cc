@@ -3,7 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "relight/lighting/brdf.h"
+#include "physics/brdf.h"
 
 namespace ls::relight::profiled {
 namespace {
@@ -18,7 +18,7 @@ constexpr int kResolvingSamples = 3;     // A lobe needs this many samples above
 // matters to a BIC comparison (1 unit), where TinySolver's default is 1e-6.
 constexpr double kPolishChi2Tolerance = 1e-3;
 
-// Oren-Nayar's A and B of sigma (relight/lighting/brdf.h).
+// Oren-Nayar's A and B of sigma (physics/brdf.h).
 void oren_nayar_ab(double sigma, double* a, double* b) {
   const double s2 = sigma * sigma;
   *a = 1 - 0.5 * s2 / (s2 + 0.33);
@@ -302,7 +302,8 @@ T shape_of(const T* x, double min_m) {
 }
 
 // A sample's geometry that the polish does not change: wi.wo and the half vector's length and
-// angle to the view (brdf::torrance_sparrow_half), computed once per polish, not once per step.
+// angle to the view (physics::brdf::torrance_sparrow_half), computed once per polish, not once per
+// step.
 struct SampleConstants {
   double cos_io = 0, inv_len = 0, cos_oh = 0;
 };
@@ -326,7 +327,7 @@ template <FitModel M, class T>
 LinearSums<T> terms_at(const pixel::PixelData& p, const std::vector<SampleConstants>& constants,
                        double min_roughness, const T* x, std::vector<T>* a, std::vector<T>* b) {
   constexpr bool kLobe = M == FitModel::kLambertTorranceSparrow;
-  const brdf::Vec3<T> n = pixel::refined_normal(p, x);
+  const physics::brdf::Vec3<T> n = pixel::refined_normal(p, x);
   const T cos_o = n.x() * p.wo.x() + n.y() * p.wo.y() + n.z() * p.wo.z();
   const T shape = shape_of<M>(x, min_roughness);
   LinearSums<T> s;
@@ -340,12 +341,14 @@ LinearSums<T> terms_at(const pixel::PixelData& p, const std::vector<SampleConsta
     T ai(0), bi(0);
     if (cos_i > T(0) && cos_o > T(0)) {  // Every model is 0 with either direction below.
       if constexpr (M == FitModel::kOrenNayar) {
-        ai = brdf::oren_nayar(brdf::Geometry<T>{cos_i, cos_o, T(k.cos_io)}, shape) * cos_i;
+        ai = physics::brdf::oren_nayar(physics::brdf::Geometry<T>{cos_i, cos_o, T(k.cos_io)},
+                                       shape) *
+             cos_i;
       } else {
         ai = cos_i * (1 / kPi);
       }
       if constexpr (kLobe) {
-        bi = brdf::torrance_sparrow_half(cos_i, cos_o, k.inv_len, k.cos_oh, shape) * cos_i;
+        bi = physics::brdf::torrance_sparrow_half(cos_i, cos_o, k.inv_len, k.cos_oh, shape) * cos_i;
       }
     }
     (*a)[i] = ai;
@@ -483,9 +486,9 @@ struct LambertQuadratic {
 
   template <class T>
   bool operator()(const T* x, T* r) const {
-    const brdf::Vec3<T> n = pixel::refined_normal(*p, x);
+    const physics::brdf::Vec3<T> n = pixel::refined_normal(*p, x);
     for (int c = 0; c < 3; ++c) {
-      const brdf::Vec3<T> g = n * (x[2 + c] * x[2 + c] / kPi);
+      const physics::brdf::Vec3<T> g = n * (x[2 + c] * x[2 + c] / kPi);
       for (int k = 0; k < 3; ++k) r[3 * c + k] = u[c].row(k).cast<T>().dot(g) - T(z[c](k));
     }
     return true;

@@ -29,7 +29,7 @@ std::vector<int> SplitLighting::leds() const {
   return {leds.begin(), leds.end()};
 }
 
-SplitLighting split_lighting(const EnvironmentMap& map,
+SplitLighting split_lighting(const physics::EnvironmentMap& map,
                              const std::vector<capture::FieldLight>& lights, double rotation_deg,
                              double coverage_rad, bool split, const CompactSourceOptions& options) {
   std::vector<Eigen::Vector3d> dirs;
@@ -48,7 +48,7 @@ SplitLighting split_lighting(const EnvironmentMap& map,
   const double coverage = coverage_rad > 0 ? coverage_rad : max_nearest_neighbour_angle(dirs);
   for (const CompactSource& found : parts.sources) {
     PlacedSource placed{found, std::nullopt};
-    placed.in_stage.dir = rotate_about_y(found.dir, rotation_deg);
+    placed.in_stage.dir = physics::rotate_about_y(found.dir, rotation_deg);
     placed.triangle = led_triangle(dirs, valid, placed.in_stage.dir, coverage);
     out.weights.total_irradiance_rgb += found.irradiance_rgb;
     // What the dome cannot light stays in the map's account of uncovered light.

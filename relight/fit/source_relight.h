@@ -36,7 +36,7 @@ struct SplitLighting {
 };
 
 // coverage_rad <= 0: the largest nearest-neighbour angle between the field's LEDs.
-SplitLighting split_lighting(const EnvironmentMap& map,
+SplitLighting split_lighting(const physics::EnvironmentMap& map,
                              const std::vector<capture::FieldLight>& lights, double rotation_deg,
                              double coverage_rad, bool split,
                              const CompactSourceOptions& options = {});

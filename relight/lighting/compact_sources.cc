@@ -28,8 +28,8 @@ struct Region {
   bool compact = true;
 };
 
-Region grow_region(const EnvironmentMap& map, const std::vector<double>& lum, double threshold,
-                   int seed, double max_angle) {
+Region grow_region(const physics::EnvironmentMap& map, const std::vector<double>& lum,
+                   double threshold, int seed, double max_angle) {
   const int width = map.width(), height = map.height();
   const Eigen::Vector3d seed_dir = map.pixel_direction(seed % width, seed / width);
   Region region;
@@ -58,8 +58,8 @@ Region grow_region(const EnvironmentMap& map, const std::vector<double>& lum, do
 
 // The compact core of the bright region around a seed: grown at the threshold, then at doubling
 // thresholds while it is too wide (a sun inside its glow, or in a sunrise's bright haze).
-Region compact_core(const EnvironmentMap& map, const std::vector<double>& lum, double threshold,
-                    int seed, double max_angle, std::vector<char>& visited) {
+Region compact_core(const physics::EnvironmentMap& map, const std::vector<double>& lum,
+                    double threshold, int seed, double max_angle, std::vector<char>& visited) {
   Region region = grow_region(map, lum, threshold, seed, max_angle);
   for (const int p : region.pixels) visited[size_t(p)] = 1;  // The glow seeds nothing more.
   for (double t = 2 * threshold; !region.compact && t <= lum[size_t(seed)]; t *= 2) {
@@ -69,7 +69,7 @@ Region compact_core(const EnvironmentMap& map, const std::vector<double>& lum, d
 }
 
 // Solid-angle weighted mean radiance of the pixels within `ring` pixels of the region, outside it.
-Eigen::Vector3d border_radiance(const EnvironmentMap& map, const std::vector<int>& region,
+Eigen::Vector3d border_radiance(const physics::EnvironmentMap& map, const std::vector<int>& region,
                                 int ring) {
   const int width = map.width(), height = map.height();
   std::vector<char> inside(size_t(width) * height, 0), counted(size_t(width) * height, 0);
@@ -97,22 +97,6 @@ Eigen::Vector3d border_radiance(const EnvironmentMap& map, const std::vector<int
 
 }  // namespace
 
-std::vector<Eigen::Vector3d> disc_directions(const Eigen::Vector3d& dir, double radius_rad,
-                                             int count) {
-  const Eigen::Vector3d centre = dir.normalized();
-  const Eigen::Vector3d helper =
-      std::abs(centre.z()) < 0.9 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitX();
-  const Eigen::Vector3d u = centre.cross(helper).normalized(), v = centre.cross(u);
-  const double golden_angle = std::numbers::pi * (3.0 - std::sqrt(5.0));
-  std::vector<Eigen::Vector3d> dirs;
-  for (int i = 0; i < count; ++i) {
-    const double r = std::tan(radius_rad) * std::sqrt((i + 0.5) / count);
-    const double a = golden_angle * i;
-    dirs.push_back((centre + r * (std::cos(a) * u + std::sin(a) * v)).normalized());
-  }
-  return dirs;
-}
-
 std::string CompactSource::describe() const {
   const Eigen::Vector3d& d = dir;
   const double elevation = std::asin(std::clamp(d.y(), -1.0, 1.0)) / kDegToRad;
@@ -134,7 +118,7 @@ std::string CompactSourceOptions::validate() const {
   return {};
 }
 
-SplitEnvironment split_compact_sources(const EnvironmentMap& map,
+SplitEnvironment split_compact_sources(const physics::EnvironmentMap& map,
                                        const CompactSourceOptions& options) {
   if (const std::string error = options.validate(); !error.empty()) {
     throw InputError("compact sources: " + error);
@@ -202,7 +186,7 @@ SplitEnvironment split_compact_sources(const EnvironmentMap& map,
     }
     sources.push_back(source);
   }
-  return {EnvironmentMap(std::move(rest), map.source() + " without its compact sources"),
+  return {physics::EnvironmentMap(std::move(rest), map.source() + " without its compact sources"),
           std::move(sources)};
 }
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 
 namespace ls::relight {
 
@@ -24,11 +24,6 @@ struct CompactSource {
   std::string describe() const;  // Direction, size and share, one line.
 };
 
-// `count` directions spread evenly over a uniform disc of directions (centre `dir`, angular radius
-// radius_rad): sunflower (golden-angle) points, each standing for an equal area of the disc.
-std::vector<Eigen::Vector3d> disc_directions(const Eigen::Vector3d& dir, double radius_rad,
-                                             int count);
-
 struct CompactSourceOptions {
   // A pixel belongs to a source when its luminance is at least min_contrast x the map's mean
   // luminance (the sun of a clear sky is ~10^4 x; the lamps of a studio a few x, and stay in the
@@ -41,14 +36,15 @@ struct CompactSourceOptions {
 };
 
 struct SplitEnvironment {
-  EnvironmentMap rest;  // The map without its sources: rest + sources == the map, per channel.
+  physics::EnvironmentMap
+      rest;  // The map without its sources: rest + sources == the map, per channel.
   std::vector<CompactSource> sources;  // Brightest first.
 };
 
 // Finds up to max_sources compact sources (brightest first) and removes them from the map: each
 // source's pixels keep min(L, background) in the rest, where the background is the mean radiance
 // of the pixels bordering it.
-SplitEnvironment split_compact_sources(const EnvironmentMap& map,
+SplitEnvironment split_compact_sources(const physics::EnvironmentMap& map,
                                        const CompactSourceOptions& options = {});
 
 }  // namespace ls::relight

@@ -11,6 +11,7 @@
 #include <string>
 
 #include "lightstage/errors.h"
+#include "physics/sphere.h"
 
 namespace ls::relight {
 
@@ -66,12 +67,14 @@ class NearestLed {
       const double v0 = double(by) / grid_h_, v1 = double(by + 1) / grid_h_;
       for (int bx = 0; bx < grid_w_; ++bx) {
         const double u0 = double(bx) / grid_w_, u1 = double(bx + 1) / grid_w_;
-        const Eigen::Vector3d centre = EnvironmentMap::direction(0.5 * (u0 + u1), 0.5 * (v0 + v1));
+        const Eigen::Vector3d centre =
+            physics::EnvironmentMap::direction(0.5 * (u0 + u1), 0.5 * (v0 + v1));
         // Within a lat-long bucket the farthest point from the centre is a corner.
         double min_corner_dot = 1.0;
         for (double u : {u0, u1}) {
           for (double v : {v0, v1}) {
-            min_corner_dot = std::min(min_corner_dot, centre.dot(EnvironmentMap::direction(u, v)));
+            min_corner_dot =
+                std::min(min_corner_dot, centre.dot(physics::EnvironmentMap::direction(u, v)));
           }
         }
         const double radius_rad = std::acos(std::clamp(min_corner_dot, -1.0, 1.0)) + 1e-9;
@@ -183,13 +186,6 @@ void for_each_cell_sample(const std::vector<Eigen::Vector3d>& unit_dirs,
       tbb::simple_partitioner());
 }
 
-Eigen::Matrix3d rotation_about_y(double angle_rad) {
-  const double c = std::cos(angle_rad), s = std::sin(angle_rad);
-  Eigen::Matrix3d r;
-  r << c, 0, s, 0, 1, 0, -s, 0, c;
-  return r;
-}
-
 }  // namespace
 
 LightCells LightCells::compute(const std::vector<Eigen::Vector3d>& led_dirs,
@@ -225,7 +221,7 @@ double LightWeights::uncovered_fraction() const {
   return total > 0.0 ? uncovered_irradiance_rgb.dot(y_weights) / total : 0.0;
 }
 
-LightWeights integrate_environment(const EnvironmentMap& map,
+LightWeights integrate_environment(const physics::EnvironmentMap& map,
                                    const std::vector<Eigen::Vector3d>& led_dirs,
                                    double rotation_deg, double coverage_radius_rad,
                                    const std::vector<bool>& valid, int supersample) {
@@ -238,7 +234,7 @@ LightWeights integrate_environment(const EnvironmentMap& map,
   // The map rotated by +alpha puts the content of map direction d at R_y(alpha) d; it falls in
   // LED l's cell exactly when d is nearest to R_y(-alpha) l. Rotating the LEDs into the map's
   // frame keeps the sample grid aligned with the map's pixels.
-  const Eigen::Matrix3d map_from_stage = rotation_about_y(-rotation_deg * kPi / 180.0);
+  const Eigen::Matrix3d map_from_stage = physics::rotation_about_y(-rotation_deg * kPi / 180.0);
   for (auto& d : dirs) d = map_from_stage * d;
 
   const int num_leds = int(dirs.size());

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "lightstage/direction_index.h"  // max_nearest_neighbour_angle: the default coverage.
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 
 namespace ls::relight {
 
@@ -33,7 +33,7 @@ struct LightWeights {
 
 // Integrates the map rotated by rotation_deg about +Y over each LED's cell. `valid` (optional, one
 // per LED) excludes dead LEDs: their cells go to the nearest valid LED.
-LightWeights integrate_environment(const EnvironmentMap& map,
+LightWeights integrate_environment(const physics::EnvironmentMap& map,
                                    const std::vector<Eigen::Vector3d>& led_dirs,
                                    double rotation_deg = 0.0, double coverage_radius_rad = 0.0,
                                    const std::vector<bool>& valid = {}, int supersample = 2);

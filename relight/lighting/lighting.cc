@@ -7,7 +7,8 @@
 
 namespace ls::relight {
 
-LightingForModels LightingForModels::environment(const EnvironmentMap& map, double rotation_deg,
+LightingForModels LightingForModels::environment(const physics::EnvironmentMap& map,
+                                                 double rotation_deg,
                                                  const EnvironmentSampling& sampling) {
   const int directions_width = sampling.directions_width;
   std::vector<Eigen::Vector3d> covered;
@@ -27,7 +28,8 @@ LightingForModels LightingForModels::environment(const EnvironmentMap& map, doub
                      std::to_string(directions_width));
   }
   LightingForModels out;
-  for (const CoarseTexel& texel : box_filter_environment(map, directions_width, rotation_deg)) {
+  for (const physics::CoarseTexel& texel :
+       physics::box_filter_environment(map, directions_width, rotation_deg)) {
     if (!is_covered(texel.dir_in_stage)) continue;
     out.dirs_in_stage.push_back(texel.dir_in_stage.cast<float>());
     out.irradiance_rgb.push_back(texel.radiance_x_sr.cast<float>());

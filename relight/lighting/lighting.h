@@ -8,7 +8,7 @@
 #include <Eigen/Core>
 #include <vector>
 
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
 
 namespace ls::relight {
@@ -31,7 +31,8 @@ struct LightingForModels {
 
   // The map (rotated by rotation_deg about +Y, as for field relighting) box-filtered onto the
   // sampling's grid; black texels are dropped.
-  static LightingForModels environment(const EnvironmentMap& map, double rotation_deg = 0.0,
+  static LightingForModels environment(const physics::EnvironmentMap& map,
+                                       double rotation_deg = 0.0,
                                        const EnvironmentSampling& sampling = {});
   // One light per LED: direction led_dirs[l], irradiance weights.irradiance_rgb[3l..3l+2]
   // (integrate_environment); LEDs with zero weight (dead ones) are dropped.

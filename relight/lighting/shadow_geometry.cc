@@ -13,6 +13,7 @@
 
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
+#include "physics/sphere.h"
 
 namespace ls::relight {
 
@@ -543,7 +544,7 @@ SourceShadowView ShadowGeometry::view(const Eigen::Vector3d& dir, double radius_
   SourceShadowView view;
   view.geometry_ = this;
   constexpr int kDiscSamples = 16;
-  for (const Eigen::Vector3d& d : disc_directions(dir, radius_rad, kDiscSamples)) {
+  for (const Eigen::Vector3d& d : physics::disc_directions(dir, radius_rad, kDiscSamples)) {
     view.disc_.push_back(d.cast<float>());
   }
   const Eigen::Vector3f c = dir.normalized().cast<float>();

@@ -145,10 +145,10 @@ struct StepFit {
 };
 
 // Curves follow what a render sees (a curve per parameter loses what one step's fit couples):
-// the albedo as albedo * A(sigma) (brdf::oren_nayar_a; = albedo for Lambert), sigma, k_s as the
-// lobe's peak k_s / m^2 (1/sr) and the roughness as 1/m; at time t m(t) = 1 / curve, albedo(t)
-// = curve / A(sigma(t)), k_s(t) = curve m(t)^2. A curve pixel's wet and dry channels hold its
-// endpoints in that space (unclamped: a curve's extreme may lie outside the span it was fitted
+// the albedo as albedo * A(sigma) (physics::brdf::oren_nayar_a; = albedo for Lambert), sigma, k_s
+// as the lobe's peak k_s / m^2 (1/sr) and the roughness as 1/m; at time t m(t) = 1 / curve,
+// albedo(t) = curve / A(sigma(t)), k_s(t) = curve m(t)^2. A curve pixel's wet and dry channels hold
+// its endpoints in that space (unclamped: a curve's extreme may lie outside the span it was fitted
 // on). The processes keep the BRDF's parameters: their closed forms are in them.
 enum RenderedParam : int {
   kRenderedAlbedoR = 0,

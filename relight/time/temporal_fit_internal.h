@@ -7,8 +7,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "physics/brdf.h"
 #include "relight/fit/pixel_solver.h"
-#include "relight/lighting/brdf.h"
 #include "relight/time/temporal_fit.h"
 
 namespace ls::relight::temporal_internal {
@@ -30,7 +30,7 @@ inline double clamp_param(int p, double v) {
 // The BRDF's parameters to and from the space the curves follow (temporal_fit.h): albedo
 // A(sigma), sigma, the peak k_s / m^2, 1/m; from it clamped to their bounds.
 inline void to_fitted_space(double* q) {
-  const double a = brdf::oren_nayar_a(q[kParamSigma]), m = q[kParamRoughness];
+  const double a = physics::brdf::oren_nayar_a(q[kParamSigma]), m = q[kParamRoughness];
   for (int c = 0; c < 3; ++c) q[c] *= a;
   q[kParamKs] /= m * m;
   q[kParamRoughness] = 1 / m;
@@ -39,7 +39,7 @@ inline void from_fitted_space(double* y) {
   y[kParamSigma] = clamp_param(kParamSigma, y[kParamSigma]);
   const double m =
       clamp_param(kParamRoughness, y[kParamRoughness] > 0 ? 1 / y[kParamRoughness] : 1.0);
-  const double a = brdf::oren_nayar_a(y[kParamSigma]);
+  const double a = physics::brdf::oren_nayar_a(y[kParamSigma]);
   for (int c = 0; c < 3; ++c) y[c] = clamp_param(c, y[c] / a);
   y[kParamKs] = clamp_param(kParamKs, y[kParamKs] * m * m);
   y[kParamRoughness] = m;

@@ -15,8 +15,8 @@
 #include <vector>
 
 #include "lightstage/errors.h"
+#include "physics/brdf.h"
 #include "relight/fit/pixel_solver.h"
-#include "relight/lighting/brdf.h"
 #include "relight/time/temporal_fit.h"
 #include "relight/time/temporal_fit_internal.h"
 

@@ -7,8 +7,8 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/json_reader.h"
+#include "physics/brdf.h"
 #include "relight/fit/model_edit.h"
-#include "relight/lighting/brdf.h"
 #include "relight/time/temporal_fit_internal.h"
 
 namespace ls::relight {

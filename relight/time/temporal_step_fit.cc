@@ -11,9 +11,9 @@
 #include <vector>
 
 #include "lightstage/errors.h"
+#include "physics/brdf.h"
 #include "relight/fit/pixel_solver.h"
 #include "relight/fit/profiled_fit.h"
-#include "relight/lighting/brdf.h"
 #include "relight/time/temporal_fit.h"
 #include "relight/time/temporal_fit_internal.h"
 
@@ -38,12 +38,14 @@ struct StepPixel {
 // Residuals of the physical parameters q = (albedo r, g, b, sigma, k_s, roughness).
 template <class T>
 void step_residuals(const StepPixel& d, const T* q, T* r) {
-  const auto diffuse = [&](const brdf::Geometry<T>& g) { return brdf::oren_nayar(g, q[3]); };
-  const auto specular = [&](const brdf::Geometry<T>& g) {
-    return q[4] * brdf::torrance_sparrow(g, q[5]);
+  const auto diffuse = [&](const physics::brdf::Geometry<T>& g) {
+    return physics::brdf::oren_nayar(g, q[3]);
   };
-  pixel::sample_residuals(d.samples, d.count, brdf::Vec3<T>(d.n.cast<T>()),
-                          brdf::Vec3<T>(d.wo.cast<T>()), q, diffuse, specular, r);
+  const auto specular = [&](const physics::brdf::Geometry<T>& g) {
+    return q[4] * physics::brdf::torrance_sparrow(g, q[5]);
+  };
+  pixel::sample_residuals(d.samples, d.count, physics::brdf::Vec3<T>(d.n.cast<T>()),
+                          physics::brdf::Vec3<T>(d.wo.cast<T>()), q, diffuse, specular, r);
 }
 
 // Raw parameters with the bounds built in: albedo = u^2, then (Oren-Nayar) sigma = (pi/2)
@@ -186,7 +188,8 @@ std::array<double, 6> step_sigmas(const StepPixel& d, const StepResult& fit,
   };
   // d(albedo A(sigma)) = A d albedo + albedo A'(sigma) d sigma.
   const double sigma = fit.q[kParamSigma];
-  const double a = brdf::oren_nayar_a(sigma), a_prime = brdf::oren_nayar_a_slope(sigma);
+  const double a = physics::brdf::oren_nayar_a(sigma),
+               a_prime = physics::brdf::oren_nayar_a_slope(sigma);
   for (int c = 0; c < 3; ++c) {
     (*rendered)[size_t(c)] = combined(c, kParamSigma, a, fit.q[size_t(c)] * a_prime);
   }
@@ -359,7 +362,8 @@ void to_rendered(const StepFit& s, int x, int y, double* value, double* weight) 
     weight[p] = sd < kNoInformationSigma ? 1 / sd : 0.0;
   };
   const double sigma = s.value.at(x, y, kParamSigma), sd_sigma = s.sigma.at(x, y, kParamSigma);
-  const double a = brdf::oren_nayar_a(sigma), a_prime = brdf::oren_nayar_a_slope(sigma);
+  const double a = physics::brdf::oren_nayar_a(sigma),
+               a_prime = physics::brdf::oren_nayar_a_slope(sigma);
   for (int c = 0; c < 3; ++c) {
     const double albedo = s.value.at(x, y, c), sd = s.sigma.at(x, y, c);
     const double propagated = std::hypot(a * sd, albedo * a_prime * sd_sigma);

@@ -7,9 +7,9 @@
 #include <set>
 
 #include "lightstage/direction_index.h"
+#include "physics/envmap.h"
 #include "relight/fit/normals.h"
 #include "relight/fit/source_relight.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/ground_truth.h"
@@ -19,7 +19,7 @@
 namespace ls {
 namespace {
 
-using relight::EnvironmentMap;
+using physics::EnvironmentMap;
 
 Image ConstantMap(float radiance, int width = 256) { return Image(width, width / 2, 3, radiance); }
 

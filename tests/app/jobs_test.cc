@@ -20,10 +20,10 @@
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/ground_truth.h"
@@ -196,7 +196,7 @@ TEST_F(Jobs, BuildAndRelightWriteWhatTheLibraryComputesAndRecordTheirOptions) {
     dirs.push_back(light.dir_in_stage);
     valid.push_back(light.valid);
   }
-  const relight::EnvironmentMap map = relight::EnvironmentMap::load(map_file);
+  const physics::EnvironmentMap map = physics::EnvironmentMap::load(map_file);
   for (size_t k = 0; k < 2; ++k) {
     const Image expected = relight::relight(
         field, relight::integrate_environment(map, dirs, relight.rotations_deg[k], 0.0, valid));
@@ -486,7 +486,7 @@ TEST_F(Jobs, RenderOfAPcaCastsASmallSourcesShadowsAtItsDirection) {
   gt.covered_by_leds = dirs;
   gt.coverage_radius_rad = max_nearest_neighbour_angle(dirs);
   const Image truth =
-      sim::render_ground_truth(scene, stage.camera, relight::EnvironmentMap::load(map_file), gt);
+      sim::render_ground_truth(scene, stage.camera, physics::EnvironmentMap::load(map_file), gt);
   const double with_sources = compare_images(read_image(dir / "sources.exr"), truth).relative_rmse;
   const double by_grid = compare_images(read_image(dir / "grid.exr"), truth).relative_rmse;
   std::cout << "PCA under small_source: relative RMSE " << with_sources << " (by the grid "

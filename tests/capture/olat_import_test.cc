@@ -17,8 +17,8 @@
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
+#include "physics/envmap.h"
 #include "relight/fit/normals.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/sim_stage.h"
@@ -357,8 +357,8 @@ TEST(OlatImport, RealRtiSetImportsAndGivesCameraFacingNormals) {
   EXPECT_GT(lean[2], 0.05);
   EXPECT_LT(lean[3], -0.05);
 
-  const relight::EnvironmentMap env =
-      relight::EnvironmentMap::load(ls::testing::source_dir() / "data/envmaps/sky_sun.exr");
+  const physics::EnvironmentMap env =
+      physics::EnvironmentMap::load(ls::testing::source_dir() / "data/envmaps/sky_sun.exr");
   std::vector<Eigen::Vector3d> dirs;
   for (const FieldLight& light : field.lights()) dirs.push_back(light.dir_in_stage);
   const relight::LightWeights weights = relight::integrate_environment(env, dirs);

@@ -159,7 +159,7 @@ TEST(EnvironmentRelighting, EveryRepresentationAgainstGroundTruth) {
   const auto dirs = stage.led_directions();
   const double coverage = max_nearest_neighbour_angle(dirs);
   const auto map =
-      relight::EnvironmentMap::load(testing::source_dir() / "data/envmaps/sky_sun.exr");
+      physics::EnvironmentMap::load(testing::source_dir() / "data/envmaps/sky_sun.exr");
   const relight::LightWeights weights = relight::integrate_environment(map, dirs, 0, coverage);
   GroundTruthOptions gt;
   gt.directions_width = 128;

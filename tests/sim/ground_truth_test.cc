@@ -16,9 +16,9 @@
 namespace ls::sim {
 namespace {
 
-constexpr double kPi = brdf::kPi;
+constexpr double kPi = physics::brdf::kPi;
 
-Scene lone_sphere(const brdf::Material& material, double radius = 0.5) {
+Scene lone_sphere(const physics::brdf::Material& material, double radius = 0.5) {
   Scene scene;
   SceneMaterial m;
   m.name = "m";
@@ -41,7 +41,7 @@ Eigen::Vector3d rotate_y(const Eigen::Vector3d& d, double deg) {
 }
 
 TEST(GroundTruth, LambertSphereUnderConstantEnvironmentIsAlbedoTimesRadiance) {
-  brdf::Material mat;
+  physics::brdf::Material mat;
   mat.albedo = {0.7, 0.5, 0.3};
   const Scene scene = lone_sphere(mat);
   const Eigen::Vector3d c(0.5, 1.0, 2.0);
@@ -51,7 +51,7 @@ TEST(GroundTruth, LambertSphereUnderConstantEnvironmentIsAlbedoTimesRadiance) {
       for (int k = 0; k < 3; ++k) constant.at(x, y, k) = float(c[k]);
     }
   }
-  const relight::EnvironmentMap map(constant);
+  const physics::EnvironmentMap map(constant);
   const CameraSpec camera = ortho_camera(40, 1.2);
   GroundTruthOptions options;
   options.directions_width = 256;
@@ -85,7 +85,7 @@ struct Agreement {
 // Under the small source, the truth is the one-light image toward the source times its irradiance.
 Agreement compare_with_one_light(const Scene& scene, const CameraSpec& camera, double rotation_deg,
                                  double tolerance) {
-  const relight::EnvironmentMap map(make_small_source(512));
+  const physics::EnvironmentMap map(make_small_source(512));
   const Eigen::Vector3d irradiance = map.integral();
   const Eigen::Vector3d dir = rotate_y(small_source_direction(), rotation_deg);
   GroundTruthOptions options;
@@ -125,8 +125,8 @@ void expect_matches_one_light(const Scene& scene, const CameraSpec& camera, doub
 }
 
 TEST(GroundTruth, SmallSourceMatchesOneLightImage) {
-  brdf::Material mat;
-  mat.diffuse = brdf::DiffuseModel::kOrenNayar;
+  physics::brdf::Material mat;
+  mat.diffuse = physics::brdf::DiffuseModel::kOrenNayar;
   mat.sigma_rad = 0.35;
   mat.albedo = {0.6, 0.5, 0.4};
   expect_matches_one_light(lone_sphere(mat), ortho_camera(48, 1.2), 0.0, 0.01);
@@ -163,7 +163,7 @@ TEST(GroundTruth, SourceVisibilityIsTheShareOfTheDiscSeen) {
 }
 
 TEST(GroundTruth, RotationTurnsTheMapAboutY) {
-  brdf::Material mat;
+  physics::brdf::Material mat;
   mat.albedo = {0.6, 0.6, 0.6};
   expect_matches_one_light(lone_sphere(mat), ortho_camera(48, 1.2), 90.0, 0.01);
   expect_matches_one_light(lone_sphere(mat), ortho_camera(48, 1.2), -40.0, 0.01);
@@ -180,7 +180,7 @@ TEST(GroundTruth, DefaultSceneWithShadowsMatchesOneLightUnderSmallSource) {
 
 TEST(GroundTruth, BlockVisibilityApproximatesExact) {
   const Scene scene = default_scene();
-  const relight::EnvironmentMap map(make_studio(256));
+  const physics::EnvironmentMap map(make_studio(256));
   GroundTruthOptions options;
   options.directions_width = 128;
   const CameraSpec camera = ortho_camera(48, 2.4);
@@ -192,9 +192,9 @@ TEST(GroundTruth, BlockVisibilityApproximatesExact) {
 }
 
 TEST(GroundTruth, CoverageRestrictsDirections) {
-  brdf::Material mat;
+  physics::brdf::Material mat;
   const Scene scene = lone_sphere(mat);
-  const relight::EnvironmentMap map(make_small_source(256));
+  const physics::EnvironmentMap map(make_small_source(256));
   const CameraSpec camera = ortho_camera(24, 1.2);
   GroundTruthOptions all;
   all.directions_width = 128;
@@ -215,19 +215,19 @@ TEST(Envmaps, ShapesAndPower) {
     EXPECT_EQ(img.height, 128);
     EXPECT_EQ(img.channels, 3);
     for (float v : img.pixels) ASSERT_TRUE(std::isfinite(v) && v >= 0);
-    EXPECT_NO_THROW(relight::EnvironmentMap{img});
+    EXPECT_NO_THROW(physics::EnvironmentMap{img});
   }
   // The small source gives irradiance 1 at normal incidence: its integral is 2 / (1 + cos r).
-  const relight::EnvironmentMap small(make_small_source(512));
+  const physics::EnvironmentMap small(make_small_source(512));
   const double r = kSmallSourceRadiusDeg * kPi / 180;
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(small.integral()[k], 2 / (1 + std::cos(r)), 0.01);
   // Its light comes from where small_source_direction says.
-  const Eigen::Vector2d uv = relight::EnvironmentMap::uv(small_source_direction());
+  const Eigen::Vector2d uv = physics::EnvironmentMap::uv(small_source_direction());
   EXPECT_GT(small.radiance().at(int(uv.x() * 512), int(uv.y() * 256), 0),
             0.5 * small_source_radiance());
 
   // The sun: a limb-darkened disc of power L0 pi r^2 * 0.8, far brighter than the sky.
-  const relight::EnvironmentMap sky(make_sky_with_sun(1024));
+  const physics::EnvironmentMap sky(make_sky_with_sun(1024));
   const Eigen::Vector3d sun = sky_sun_direction();
   EXPECT_NEAR(std::asin(sun.y()) * 180 / kPi, 35.0, 1e-9);
   const double rs = kSunRadiusDeg * kPi / 180;
@@ -254,7 +254,7 @@ TEST(GroundTruth, DefaultSceneTiming) {
   const int directions = env ? std::atoi(env) : 64;
   const Stage stage = default_stage();
   const Scene scene = default_scene();
-  const relight::EnvironmentMap map(make_studio(512));
+  const physics::EnvironmentMap map(make_studio(512));
   GroundTruthOptions options;
   options.directions_width = directions;
   options.visibility_block = block_env ? std::atoi(block_env) : 1;

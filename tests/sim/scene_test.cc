@@ -49,10 +49,10 @@ TEST(SceneFile, ParsesAllObjectKinds) {
   })",
                                   "all.json");
   ASSERT_EQ(scene.materials.size(), 2u);
-  EXPECT_EQ(scene.materials[0].base.specular, brdf::SpecularModel::kPhong);
+  EXPECT_EQ(scene.materials[0].base.specular, physics::brdf::SpecularModel::kPhong);
   EXPECT_DOUBLE_EQ(scene.materials[0].base.phong_exponent, 80);
-  EXPECT_EQ(scene.materials[1].base.diffuse, brdf::DiffuseModel::kOrenNayar);
-  EXPECT_NEAR(scene.materials[1].base.sigma_rad, 30 * brdf::kPi / 180, 1e-12);
+  EXPECT_EQ(scene.materials[1].base.diffuse, physics::brdf::DiffuseModel::kOrenNayar);
+  EXPECT_NEAR(scene.materials[1].base.sigma_rad, 30 * physics::brdf::kPi / 180, 1e-12);
   ASSERT_TRUE(scene.materials[1].checker_albedo.has_value());
   EXPECT_EQ(scene.materials[1].checker_cells, 4);
   ASSERT_EQ(scene.spheres.size(), 1u);

@@ -13,7 +13,7 @@
 namespace ls::sim {
 namespace {
 
-constexpr double kPi = brdf::kPi;
+constexpr double kPi = physics::brdf::kPi;
 
 int add_lambert(Scene& scene, const Eigen::Vector3d& albedo) {
   SceneMaterial m;

@@ -29,8 +29,8 @@ const SceneMaterial& material_named(const Scene& scene, const std::string& name)
   throw std::runtime_error("no material " + name);
 }
 
-void expect_same_material(const brdf::Material& a, const brdf::Material& b, double tol,
-                          const std::string& what) {
+void expect_same_material(const physics::brdf::Material& a, const physics::brdf::Material& b,
+                          double tol, const std::string& what) {
   EXPECT_LE((a.albedo - b.albedo).norm(), tol) << what;
   EXPECT_LE((a.ks - b.ks).norm(), tol) << what;
   EXPECT_NEAR(a.roughness, b.roughness, tol) << what;
@@ -55,7 +55,7 @@ TEST(TimeVaryingClosedForms, MatchHandComputedValues) {
   EXPECT_DOUBLE_EQ(sigmoid_weight(1.0, 0.0, -1e6), 0.0);  // No overflow either way.
   EXPECT_DOUBLE_EQ(sigmoid_weight(1.0, 0.0, 1e6), 1.0);
   // The blend's roughness is the paper's Beckmann curve at the same weight.
-  brdf::Material wet, dry;
+  physics::brdf::Material wet, dry;
   wet.roughness = 0.08;
   dry.roughness = 0.35;
   const double w = process_weight(ProcessKind::kPaintDrying, 1.0 / 120, 0.0, 120.0);
@@ -74,7 +74,7 @@ TEST(TimeVaryingClosedForms, DustSettlingIsTheTransmittanceModel) {
   EXPECT_NEAR(truth.onset_s, 30.0, 1e-12);
   EXPECT_NEAR(truth.rate_per_s, 0.00625, 1e-12);
   const double tau = 200.0 - 30.0, transmittance = std::exp(-0.00625 * tau);
-  const brdf::Material m = material_at(dusty, 0.5, 0.5, 200.0);
+  const physics::brdf::Material m = material_at(dusty, 0.5, 0.5, 200.0);
   const Eigen::Vector3d rho_d(0.6, 0.1, 0.08), rho_dust(0.55, 0.5, 0.42), rho_s(0.45, 0.45, 0.45);
   // rho = (1 - T) rho_dust + T rho_d (diffuse) + e^(-lambda tau) rho_s (specular).
   EXPECT_LT((m.albedo - ((1 - transmittance) * rho_dust + transmittance * rho_d)).norm(), 1e-9);
@@ -136,7 +136,7 @@ TEST(TimeVaryingMaterials, StartWetAndEndDryAndConstantsStayPut) {
   expect_same_material(material_at(white, 0.5, 0.5, 300.0), white.base, 0.0, "constant");
   // Paint at t = 0 with onset 0 is exactly wet; its Oren-Nayar sigma moves to 20 degrees.
   const SceneMaterial& paint = material_named(scene, "drying-paint");
-  EXPECT_NEAR(material_at(paint, 0.3, 0.3, 1e7).sigma_rad, 20 * brdf::kPi / 180, 1e-9);
+  EXPECT_NEAR(material_at(paint, 0.3, 0.3, 1e7).sigma_rad, 20 * physics::brdf::kPi / 180, 1e-9);
 }
 
 TEST(TimeVaryingScene, TheDataFileIsTheBuiltInSceneAndHitsReevaluateOverTime) {
@@ -160,7 +160,7 @@ TEST(TimeVaryingScene, TheDataFileIsTheBuiltInSceneAndHitsReevaluateOverTime) {
     if (!hits0[p].hit) continue;
     ASSERT_GE(hits0[p].material_index, 0);
     const SceneMaterial& m = built_in.materials[hits0[p].material_index];
-    const brdf::Material expected =
+    const physics::brdf::Material expected =
         material_at(m, hits0[p].st.x(), hits0[p].st.y(), /*time_s=*/1e6);
     EXPECT_LT((hits_late[p].material.albedo - expected.albedo).norm(), 1e-12);
     EXPECT_LT((traced_late[p].material.ks - expected.ks).norm(), 1e-12);
@@ -274,8 +274,8 @@ struct DryingCapture {
     MaterialProcess p;
     p.kind = ProcessKind::kPaintDrying;
     p.rate_per_s = 0.1;
-    p.wet.specular = brdf::SpecularModel::kTorranceSparrow;
-    p.wet.diffuse = brdf::DiffuseModel::kOrenNayar;
+    p.wet.specular = physics::brdf::SpecularModel::kTorranceSparrow;
+    p.wet.diffuse = physics::brdf::DiffuseModel::kOrenNayar;
     p.wet.albedo = {0.1, 0.15, 0.4};
     p.wet.ks = {0.5, 0.5, 0.5};
     p.wet.roughness = 0.15;
@@ -320,7 +320,7 @@ TEST(TimeVaryingCapture, FieldsOverThreeStepsFollowThePaintDrying) {
   }
   ASSERT_TRUE(hits[peak].hit);
   const SurfaceHit& h = hits[peak];
-  const auto g = brdf::Geometry<double>::from_world(h.normal, light, h.wo);
+  const auto g = physics::brdf::Geometry<double>::from_world(h.normal, light, h.wo);
   const MaterialProcess& p = *setup.scene.materials[0].process;
 
   std::vector<double> measured, expected;
@@ -331,14 +331,15 @@ TEST(TimeVaryingCapture, FieldsOverThreeStepsFollowThePaintDrying) {
     EXPECT_DOUBLE_EQ(field.scene_time_s, setup.times[t]);
     // The closed forms, written out: every parameter from its own curve.
     const double time = setup.times[t];
-    brdf::Material m = p.wet;
+    physics::brdf::Material m = p.wet;
     for (int c = 0; c < 3; ++c) {
       m.albedo[c] = exponential_value(p.wet.albedo[c], p.dry.albedo[c], p.rate_per_s, 0, time);
       m.ks[c] = exponential_value(p.wet.ks[c], p.dry.ks[c], p.rate_per_s, 0, time);
     }
     m.sigma_rad = exponential_value(p.wet.sigma_rad, p.dry.sigma_rad, p.rate_per_s, 0, time);
     m.roughness = beckmann_roughness_value(p.wet.roughness, p.dry.roughness, p.rate_per_s, 0, time);
-    const double truth = brdf::eval(m, g)[1] * g.cos_i;  // Green: R(x, l) = f cos(theta_i).
+    const double truth =
+        physics::brdf::eval(m, g)[1] * g.cos_i;  // Green: R(x, l) = f cos(theta_i).
     const double value = field.at(h.pixel_x, h.pixel_y, /*light=*/0, /*c=*/1);
     // Measured (seed 7): 1.848 / 0.406 / 0.163 against 1.810 / 0.408 / 0.163 (2.1% at most).
     EXPECT_NEAR(value, truth, 0.04 * truth) << "time step " << t;
@@ -359,7 +360,7 @@ TEST(TimeVaryingCapture, GroundTruthTakesATime) {
   // A uniform white environment of radiance 1: a Lambert-like response, specular integrated too.
   Image white(64, 32, 3);
   std::fill(white.pixels.begin(), white.pixels.end(), 1.0f);
-  const relight::EnvironmentMap map(white);
+  const physics::EnvironmentMap map(white);
   GroundTruthOptions options;
   options.directions_width = 32;
   const Image at_zero = render_ground_truth(setup.scene, camera, map, options, 0.0);

@@ -17,10 +17,10 @@
 #include <string>
 
 #include "lightstage/errors.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/half_relight.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
@@ -66,8 +66,8 @@ ImageDifference difference(const Image& gpu, const Image& cpu) {
   return out;
 }
 
-relight::EnvironmentMap shipped_map(const std::string& name) {
-  return relight::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" /
+physics::EnvironmentMap shipped_map(const std::string& name) {
+  return physics::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" /
                                        (name + ".exr"));
 }
 
@@ -97,7 +97,7 @@ class GpuRelight : public ::testing::Test {
   // The environment's per-LED irradiance, rotated.
   static ViewLighting environment(double rotation_deg) {
     ViewLighting lighting;
-    const relight::EnvironmentMap map = shipped_map("softbox_studio");
+    const physics::EnvironmentMap map = shipped_map("softbox_studio");
     lighting.led_irradiance_rgb =
         relight::integrate_environment(map, led_dirs_, rotation_deg).irradiance_rgb;
     relight::EnvironmentSampling sampling;
@@ -482,7 +482,7 @@ TEST_F(PrefilteredModels, MisScaledPrefilteringWouldFailTheBounds) {
 // SH9 irradiance and the Oren-Nayar term: what is left is the tables' sampling and interpolation
 // and the reference's 2048 discrete lights.
 TEST_F(PrefilteredModels, UniformLightIsExactUpToTheTables) {
-  const relight::EnvironmentMap uniform(Image(64, 32, 3, 1.0f));
+  const physics::EnvironmentMap uniform(Image(64, 32, 3, 1.0f));
   relight::EnvironmentSampling sampling;
   sampling.directions_width = 64;
   ViewLighting lighting;

@@ -16,11 +16,11 @@
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/session.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/noisy_field.h"
@@ -55,8 +55,8 @@ Action parse_one(const std::string& json) {
   return actions.at(0);
 }
 
-relight::EnvironmentMap studio() {
-  return relight::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" /
+physics::EnvironmentMap studio() {
+  return physics::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" /
                                        "softbox_studio.exr");
 }
 

@@ -12,9 +12,9 @@
 #include <memory>
 
 #include "capture/field.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/source_relight.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/noisy_field.h"
@@ -66,7 +66,7 @@ class ViewerCompactSources : public ::testing::Test {
         sim::render_noisy_field(stage, sim::rti_scene(sim::RtiScene::kShadowed), noise, 11));
     capture::write_field(field_path(), *field_);
     *field_ = capture::read_field(field_path());  // Exactly what the viewer reads.
-    map_ = new relight::EnvironmentMap(relight::EnvironmentMap::load(map_path()));
+    map_ = new physics::EnvironmentMap(physics::EnvironmentMap::load(map_path()));
     for (const capture::FieldLight& light : field_->lights()) {
       dirs_.push_back(light.dir_in_stage);
       valid_.push_back(light.valid);
@@ -102,13 +102,13 @@ class ViewerCompactSources : public ::testing::Test {
 
   static testing::TempDir* dir_;
   static capture::ReflectanceField* field_;
-  static relight::EnvironmentMap* map_;
+  static physics::EnvironmentMap* map_;
   static std::vector<Eigen::Vector3d> dirs_;
   static std::vector<bool> valid_;
 };
 testing::TempDir* ViewerCompactSources::dir_ = nullptr;
 capture::ReflectanceField* ViewerCompactSources::field_ = nullptr;
-relight::EnvironmentMap* ViewerCompactSources::map_ = nullptr;
+physics::EnvironmentMap* ViewerCompactSources::map_ = nullptr;
 std::vector<Eigen::Vector3d> ViewerCompactSources::dirs_;
 std::vector<bool> ViewerCompactSources::valid_;
 
@@ -223,7 +223,7 @@ TEST_F(ViewerCompactSources, GpuFieldAddsTheSources) {
     EXPECT_LT(error, 1e-5);  // Float storage; only the summation order differs.
   }
   // A map without a compact source: no split, the shader adds nothing.
-  const relight::EnvironmentMap studio = relight::EnvironmentMap::load(
+  const physics::EnvironmentMap studio = physics::EnvironmentMap::load(
       testing::source_dir() / "data" / "envmaps" / "softbox_studio.exr");
   const ViewLighting plain = environment_lighting(studio, 30, dirs_, valid_, needs);
   EXPECT_FALSE(plain.split.has_value());

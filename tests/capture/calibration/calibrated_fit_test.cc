@@ -8,9 +8,9 @@
 #include <cstdio>
 
 #include "lightstage/image_metrics.h"
+#include "physics/envmap.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
-#include "relight/lighting/envmap.h"
 #include "sim/ground_truth.h"
 #include "sim/scene.h"
 #include "tests/capture/calibration/perturbed_dome.h"
@@ -90,8 +90,8 @@ TEST(CalibrationSim, FittingWithTheCalibratedStageBeatsTheDrawing) {
     }
   }
   for (const char* map_name : {"sky_sun.exr", "softbox_studio.exr"}) {
-    const relight::EnvironmentMap map =
-        relight::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / map_name);
+    const physics::EnvironmentMap map =
+        physics::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / map_name);
     sim::GroundTruthOptions gt;
     gt.directions_width = 128;
     gt.covered_by_leds = truth.led_directions();

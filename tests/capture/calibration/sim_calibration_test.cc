@@ -11,7 +11,7 @@
 #include "capture/field.h"
 #include "capture/light_calibration.h"
 #include "lightstage/image_metrics.h"
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/calibration_targets.h"
@@ -286,8 +286,8 @@ TEST(CalibrationSim, RelightingWithTheCalibratedStageBeatsTheDrawing) {
   const capture::ReflectanceField nominal_field = field_for(sim_stage, truth, dome.nominal);
   const capture::ReflectanceField calibrated_field = field_for(sim_stage, truth, dome.calibrated);
   for (const char* name : {"sky_sun.exr", "softbox_studio.exr"}) {
-    const relight::EnvironmentMap map =
-        relight::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / name);
+    const physics::EnvironmentMap map =
+        physics::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / name);
     sim::GroundTruthOptions gt;
     gt.directions_width = 128;
     gt.covered_by_leds = truth.led_directions();

@@ -32,12 +32,13 @@ using fit_testing::SimField;
 
 // The distinct reflectances the camera sees (a checker's two albedos are two), with their pixels.
 using Reflectance = std::tuple<int, double, double, double, double, int, double, double>;
-Reflectance reflectance_of(const brdf::Material& m) {
+Reflectance reflectance_of(const physics::brdf::Material& m) {
   return {int(m.diffuse), m.albedo(0),     m.albedo(1), m.albedo(2),
           m.sigma_rad,    int(m.specular), m.ks(0),     m.roughness};
 }
-std::map<Reflectance, brdf::Material> true_reflectances(const std::vector<sim::SurfaceHit>& hits) {
-  std::map<Reflectance, brdf::Material> out;
+std::map<Reflectance, physics::brdf::Material> true_reflectances(
+    const std::vector<sim::SurfaceHit>& hits) {
+  std::map<Reflectance, physics::brdf::Material> out;
   for (const sim::SurfaceHit& h : hits) {
     if (h.hit) out.emplace(reflectance_of(h.material), h.material);
   }
@@ -45,7 +46,8 @@ std::map<Reflectance, brdf::Material> true_reflectances(const std::vector<sim::S
 }
 
 // The material nearest in albedo to a true reflectance.
-const Material& nearest(const std::vector<Material>& materials, const brdf::Material& truth) {
+const Material& nearest(const std::vector<Material>& materials,
+                        const physics::brdf::Material& truth) {
   const Material* best = &materials.front();
   for (const Material& m : materials) {
     if ((m.albedo - truth.albedo).norm() < (best->albedo - truth.albedo).norm()) best = &m;
@@ -56,7 +58,8 @@ const Material& nearest(const std::vector<Material>& materials, const brdf::Mate
 double relative(double fitted, double truth) { return std::abs(fitted - truth) / truth; }
 
 // Every parameter within 2% of the truth, the model the truth's.
-void expect_recovered(const Material& m, const brdf::Material& truth, const std::string& what) {
+void expect_recovered(const Material& m, const physics::brdf::Material& truth,
+                      const std::string& what) {
   EXPECT_EQ(m.model, true_model(truth)) << what;
   for (int c = 0; c < 3; ++c) {
     EXPECT_LT(relative(m.albedo(c), truth.albedo(c)), 0.02) << what << " albedo " << c;

@@ -22,7 +22,7 @@ namespace {
 using fit_testing::render_field;
 using fit_testing::SimField;
 
-constexpr double kPi = brdf::kPi;
+constexpr double kPi = physics::brdf::kPi;
 constexpr double kRadToDeg = 180.0 / kPi;
 
 // The scene of most tests here, sim::three_region_spheres(): matte (Lambert), rough matte
@@ -138,7 +138,7 @@ TEST_F(ThreeSpheres, ModelChoiceIsRightOnIdentifiablePixels) {
 
 TEST_F(ThreeSpheres, RecoversParametersWithinTolerance) {
   for (int region = 0; region < 3; ++region) {
-    const brdf::Material truth = region_material(region);
+    const physics::brdf::Material truth = region_material(region);
     std::vector<double> albedo_rel, normal_deg, sigma_deg, ks_rel, roughness_rel;
     for (const sim::SurfaceHit& h : sim_->hits) {
       if (h.object != region || !identifiable(h, *dirs_)) continue;
@@ -186,7 +186,7 @@ TEST_F(ThreeSpheres, FindsOneMaterialPerSphereWithinTwoPercent) {
   ASSERT_EQ(maps_->materials.size(), 3u);
   EXPECT_EQ(maps_->summary.scene_materials, 3);
   for (int region = 0; region < 3; ++region) {
-    const brdf::Material truth = region_material(region);
+    const physics::brdf::Material truth = region_material(region);
     const Material* found = nullptr;
     for (const Material& m : maps_->materials) {
       if (m.model == region_model(region)) found = &m;

@@ -224,7 +224,7 @@ TEST_F(EditedModels, ParametersAreClampedToTheirBounds) {
         EXPECT_EQ(maps.at(x, y, kMapAlbedoG), 0.0f);
       }
       if (maps_->model(x, y) == FitModel::kOrenNayar) {
-        EXPECT_FLOAT_EQ(maps.at(x, y, kMapSigma), float(0.5 * brdf::kPi));
+        EXPECT_FLOAT_EQ(maps.at(x, y, kMapSigma), float(0.5 * physics::brdf::kPi));
       }
     }
   }

@@ -26,7 +26,7 @@ namespace {
 using fit_testing::render_field;
 using fit_testing::SimField;
 
-constexpr double kPi = brdf::kPi;
+constexpr double kPi = physics::brdf::kPi;
 
 // sim::three_region_spheres(): matte (Lambert), rough (Oren-Nayar, sigma 30 deg), glossy (Lambert +
 // Torrance-Sparrow) spheres in a row. Object index = sphere index.

@@ -19,7 +19,7 @@
 namespace ls::relight {
 namespace {
 
-constexpr double kRadToDeg = 180.0 / brdf::kPi;
+constexpr double kRadToDeg = 180.0 / physics::brdf::kPi;
 
 using fit_testing::render_field;
 using fit_testing::SimField;
@@ -37,7 +37,7 @@ struct Bump {
 };
 
 // A height field over [-1, 1]^2 facing the camera, made of Gaussian bumps.
-sim::Scene bumpy_scene(const brdf::Material& material, const std::vector<Bump>& bumps) {
+sim::Scene bumpy_scene(const physics::brdf::Material& material, const std::vector<Bump>& bumps) {
   sim::Scene scene;
   sim::SceneMaterial m;
   m.name = "surface";
@@ -93,7 +93,7 @@ void expect_finite(const Image& image) {
 }
 
 TEST(EstimateNormals, NoisyLambertianHeightFieldUnderOneDegree) {
-  brdf::Material matte;
+  physics::brdf::Material matte;
   matte.albedo = {0.7, 0.5, 0.3};
   const sim::Scene scene =
       bumpy_scene(matte, {{-0.4, 0.3, 0.12, 0.25}, {0.35, -0.2, 0.1, 0.2}, {0.2, 0.5, 0.06, 0.15}});
@@ -122,7 +122,7 @@ TEST(EstimateNormals, NoisyLambertianHeightFieldUnderOneDegree) {
 // counted apart from the flagged pixels, whose count stays that of the pixels with signal; the fit
 // and its maps read back keep the same count.
 TEST(EstimateNormals, PixelsWithNoSignalAreCountedApartFromTheFlagged) {
-  brdf::Material matte;
+  physics::brdf::Material matte;
   matte.albedo = {0.7, 0.5, 0.3};
   const NoiseModel noise;
   SimField sim = render_field(dome_stage(150, 48, 1.8),
@@ -158,7 +158,7 @@ TEST(EstimateNormals, PixelsWithNoSignalAreCountedApartFromTheFlagged) {
 // scene with known noise, both terms within 15% of the truth, at two noise levels, whatever the
 // default model the normals start from.
 TEST(NoiseFromData, RecoversReadAndShotVarianceOfAMatteScene) {
-  brdf::Material matte;
+  physics::brdf::Material matte;
   matte.albedo = {0.7, 0.5, 0.3};
   const sim::Scene scene =
       bumpy_scene(matte, {{-0.4, 0.3, 0.12, 0.25}, {0.35, -0.2, 0.1, 0.2}, {0.2, 0.5, 0.06, 0.15}});
@@ -188,9 +188,9 @@ TEST(NoiseFromData, RecoversReadAndShotVarianceOfAMatteScene) {
 }
 
 TEST(EstimateNormals, RobustSurvivesHighlightsAndCastShadows) {
-  brdf::Material glossy;
+  physics::brdf::Material glossy;
   glossy.albedo = {0.5, 0.45, 0.4};
-  glossy.specular = brdf::SpecularModel::kTorranceSparrow;
+  glossy.specular = physics::brdf::SpecularModel::kTorranceSparrow;
   glossy.ks = {0.5, 0.5, 0.5};
   glossy.roughness = 0.15;
   const sim::Scene scene = bumpy_scene(
@@ -216,7 +216,7 @@ TEST(EstimateNormals, RobustSurvivesHighlightsAndCastShadows) {
 }
 
 TEST(EstimateNormals, TwoValidLightsAreFlaggedNeverNaN) {
-  brdf::Material matte;
+  physics::brdf::Material matte;
   const sim::Scene scene = bumpy_scene(matte, {{0, 0, 0.1, 0.3}});
   SimField sim = render_field(dome_stage(24, 16, 1.8), scene, NoiseModel{}, 3);
   for (int l = 2; l < sim.field.num_lights(); ++l) sim.field.lights()[l].valid = false;
@@ -243,7 +243,7 @@ TEST(EstimateNormals, LightsInOnePlaneAreIllConditioned) {
   Stage stage = stage_with_directions(dirs);
   stage.camera.width = stage.camera.height = 8;
   stage.camera.ortho_height_m = 1.0;
-  brdf::Material matte;
+  physics::brdf::Material matte;
   const SimField sim = render_field(stage, bumpy_scene(matte, {{0, 0, 0.1, 0.3}}), NoiseModel{}, 5);
   const NormalMap map = estimate_normals(sim.field, NormalOptions{});
   for (int y = 0; y < 8; ++y) {

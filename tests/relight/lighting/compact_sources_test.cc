@@ -12,7 +12,7 @@
 namespace {
 
 using ls::Image;
-using ls::relight::EnvironmentMap;
+using ls::physics::EnvironmentMap;
 
 constexpr double kDeg = std::numbers::pi / 180.0;
 

@@ -14,7 +14,7 @@
 namespace {
 
 using ls::Image;
-using ls::relight::EnvironmentMap;
+using ls::physics::EnvironmentMap;
 using ls::relight::integrate_environment;
 using ls::relight::LightCells;
 using ls::relight::LightWeights;
@@ -50,7 +50,7 @@ int nearest_brute_force(const std::vector<Eigen::Vector3d>& dirs, const Eigen::V
   return best;
 }
 
-// (Compute and integrate times are measured in bench/bench_relight.cc, not asserted here.)
+// (Compute and integrate times are measured in microbench/bench_relight.cc, not asserted here.)
 TEST(LightCellsTest, DefaultDomeSumsTo4PiAndEveryCellLiesInItsCoverageCap) {
   const std::vector<Eigen::Vector3d> dirs = ls::default_stage().led_directions();
   ASSERT_GT(dirs.size(), 100u);

@@ -2,7 +2,7 @@
 // in half and in float, PCA k = 16, fitted models under 512 and 2048 distant lights, exact and
 // through the prefiltered environment), one frame = weights upload + draw + glFinish, in a hidden
 // GlWindow. Needs a display:
-//   xvfb-run -a -s "-screen 0 1280x720x24" build/bench/bench_viewer   (llvmpipe)
+//   xvfb-run -a -s "-screen 0 1280x720x24" build/microbench/bench_viewer   (llvmpipe)
 // The upload itself (once per source) is timed too (BM_UploadField).
 // Compact sources: the field on the CPU under sky_sun.exr turning by 0.1 deg a frame, the sun split
 // off and rendered at its true direction (BM_FieldSunRotationOnCpu, with/without the split), and
@@ -21,10 +21,10 @@
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
-#include "relight/lighting/envmap.h"
 #include "viewer/cpu_sources.h"
 #include "viewer/gl_window.h"
 #include "viewer/gpu_relight.h"
@@ -149,13 +149,13 @@ void BM_FieldFrameOnCpu(benchmark::State& state) {
 BENCHMARK(BM_FieldFrameOnCpu)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // sky_sun.exr from the checkout's data folder (LIGHTSTAGE_DATA overrides, as for the viewer).
-const ls::relight::EnvironmentMap& sky_sun() {
-  static const ls::relight::EnvironmentMap map = [] {
+const ls::physics::EnvironmentMap& sky_sun() {
+  static const ls::physics::EnvironmentMap map = [] {
     const char* data = std::getenv("LIGHTSTAGE_DATA");
     const std::filesystem::path dir =
         data ? std::filesystem::path(data)
              : std::filesystem::path(__FILE__).parent_path().parent_path() / "data";
-    return ls::relight::EnvironmentMap::load(dir / "envmaps" / "sky_sun.exr");
+    return ls::physics::EnvironmentMap::load(dir / "envmaps" / "sky_sun.exr");
   }();
   return map;
 }

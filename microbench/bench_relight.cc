@@ -15,7 +15,7 @@
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 
@@ -106,7 +106,7 @@ void BM_IntegrateEnvironment(benchmark::State& state) {
   std::mt19937 rng(2);
   std::uniform_real_distribution<float> value(0.0f, 5.0f);
   for (float& v : image.pixels) v = value(rng);
-  const ls::relight::EnvironmentMap map(image);
+  const ls::physics::EnvironmentMap map(image);
   double rotation_deg = 0;
   for (auto _ : state) {
     auto weights = ls::relight::integrate_environment(map, dome(), rotation_deg);

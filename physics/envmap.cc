@@ -1,4 +1,4 @@
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 
 #include <algorithm>
 #include <array>
@@ -10,8 +10,9 @@
 #include <vector>
 
 #include "lightstage/errors.h"
+#include "physics/sphere.h"
 
-namespace ls::relight {
+namespace ls::physics {
 
 namespace {
 
@@ -199,11 +200,7 @@ Eigen::Vector3f EnvironmentMap::radiance_toward(const Eigen::Vector3d& dir,
   // The map rotated by +alpha shows, toward `dir`, what the unrotated map shows toward
   // R_y(-alpha) dir (R_y: right-handed rotation about +Y).
   Eigen::Vector3d d = dir;
-  if (rotation_deg != 0.0) {
-    const double a = -rotation_deg * kPi / 180.0;
-    const double c = std::cos(a), s = std::sin(a);
-    d = Eigen::Vector3d(c * dir.x() + s * dir.z(), dir.y(), -s * dir.x() + c * dir.z());
-  }
+  if (rotation_deg != 0.0) d = rotation_about_y(-rotation_deg * kPi / 180.0) * dir;
   const Eigen::Vector2d uv_map = uv(d);
   const int w = width(), h = height();
   // Pixel centres sit at (x + 0.5) / W: shift by half a pixel, wrap in u, clamp in v.
@@ -239,9 +236,7 @@ Eigen::Vector3d EnvironmentMap::integral() const {
 }
 
 Eigen::Vector3d rotate_about_y(const Eigen::Vector3d& d, double rotation_deg) {
-  const double a = rotation_deg * kPi / 180.0;
-  const double c = std::cos(a), s = std::sin(a);
-  return Eigen::Vector3d(c * d.x() + s * d.z(), d.y(), -s * d.x() + c * d.z()).normalized();
+  return (rotation_about_y(rotation_deg * kPi / 180.0) * d).normalized();
 }
 
 std::vector<CoarseTexel> box_filter_environment(const EnvironmentMap& map, int width,
@@ -292,4 +287,4 @@ std::vector<CoarseTexel> box_filter_environment(const EnvironmentMap& map, int w
   return out;
 }
 
-}  // namespace ls::relight
+}  // namespace ls::physics

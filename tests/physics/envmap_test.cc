@@ -1,4 +1,4 @@
-#include "relight/lighting/envmap.h"
+#include "physics/envmap.h"
 
 #include <gtest/gtest.h>
 
@@ -19,7 +19,7 @@ namespace {
 
 namespace fs = std::filesystem;
 using ls::Image;
-using ls::relight::EnvironmentMap;
+using ls::physics::EnvironmentMap;
 
 constexpr double kPi = std::numbers::pi;
 
@@ -129,6 +129,29 @@ TEST(EnvmapTest, RotationSignIsRightHandedAboutY) {
     EXPECT_FLOAT_EQ(top.radiance_toward({0, 1, 0}, deg)[2], 10.0f) << deg;
   }
   EXPECT_FLOAT_EQ(behind.radiance_toward({0, 0, -1}, 360.0)[0], 10.0f);
+}
+
+// Box filtering keeps the map's light: a constant map filters to texels of that radiance times
+// each texel's solid angle, summing to 4 pi L at any coarse width and rotation.
+TEST(EnvmapTest, BoxFilterKeepsTheIntegralAtAnyWidthAndRotation) {
+  const EnvironmentMap map(Image(64, 32, 3, 2.0f));
+  for (const int width : {4, 16, 24, 128}) {
+    for (const double rotation_deg : {0.0, 33.0}) {
+      const std::vector<ls::physics::CoarseTexel> texels =
+          ls::physics::box_filter_environment(map, width, rotation_deg);
+      ASSERT_EQ(int(texels.size()), width * width / 2);
+      Eigen::Vector3d sum(0, 0, 0);
+      for (const ls::physics::CoarseTexel& t : texels) sum += t.radiance_x_sr;
+      EXPECT_NEAR(sum[1], 8 * kPi, 1e-9) << width << " " << rotation_deg;
+      const ls::physics::CoarseTexel& t = texels[size_t(width) + 1];
+      const Eigen::Vector3d unrotated =
+          EnvironmentMap::direction((t.x + 0.5) / width, (t.y + 0.5) / (width / 2));
+      EXPECT_LT((t.dir_in_stage - ls::physics::rotate_about_y(unrotated, rotation_deg)).norm(),
+                1e-12);
+    }
+  }
+  EXPECT_THROW(ls::physics::box_filter_environment(map, 6 + 1), ls::InputError);
+  EXPECT_THROW(ls::physics::box_filter_environment(map, 2), ls::InputError);
 }
 
 TEST(EnvmapTest, BilinearLookupReproducesPixelCentresAndWraps) {

@@ -1,6 +1,6 @@
 // Per-pixel model fitting throughput (fitted pixels per second) per candidate model set, and the
 // time to render fitted models under an environment map against field relighting of the same size.
-//   ./build/bench/bench_fit --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
+//   ./build/microbench/bench_fit --benchmark_repetitions=3 --benchmark_report_aggregates_only=true
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
@@ -12,10 +12,10 @@
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
+#include "physics/envmap.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
 #include "relight/fit/normals.h"
-#include "relight/lighting/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "sim/noisy_field.h"
@@ -48,15 +48,15 @@ ls::sim::Scene scene_for(FitModel model) {
   ls::sim::SceneMaterial m;
   m.base.albedo = {0.6, 0.45, 0.3};
   if (model == FitModel::kOrenNayar) {
-    m.base.diffuse = ls::brdf::DiffuseModel::kOrenNayar;
+    m.base.diffuse = ls::physics::brdf::DiffuseModel::kOrenNayar;
     m.base.sigma_rad = 0.5;
   }
   if (model == FitModel::kLambertTorranceSparrow) {
-    m.base.specular = ls::brdf::SpecularModel::kTorranceSparrow;
+    m.base.specular = ls::physics::brdf::SpecularModel::kTorranceSparrow;
     m.base.ks = {0.35, 0.35, 0.35};
   }
   if (model == FitModel::kLambertPhong) {
-    m.base.specular = ls::brdf::SpecularModel::kPhong;
+    m.base.specular = ls::physics::brdf::SpecularModel::kPhong;
     m.base.ks = {0.35, 0.35, 0.35};
   }
   scene.materials.push_back(m);
@@ -142,7 +142,7 @@ const ls::relight::ModelMaps& tiled_maps(int size) {
   return *slot;
 }
 
-ls::relight::EnvironmentMap studio_map() {
+ls::physics::EnvironmentMap studio_map() {
   ls::Image image(512, 256, 3, 0.05f);
   // A bright band overhead and a warm key light: enough structure for non-trivial sums.
   for (int y = 20; y < 60; ++y) {
@@ -152,7 +152,7 @@ ls::relight::EnvironmentMap studio_map() {
       image.at(x, y, 2) = 5.0f;
     }
   }
-  return ls::relight::EnvironmentMap(image);
+  return ls::physics::EnvironmentMap(image);
 }
 
 // Args: maps size, lighting (0: LED cells of the 151-LED dome; N > 0: N-wide lat-long grid),
@@ -162,7 +162,7 @@ void BM_RenderModels(benchmark::State& state) {
   const int grid = int(state.range(1));
   const int threads = threads_for(int(state.range(2)));
   const ls::relight::ModelMaps& maps = tiled_maps(size);
-  const ls::relight::EnvironmentMap map = studio_map();
+  const ls::physics::EnvironmentMap map = studio_map();
   const std::vector<Eigen::Vector3d> dirs = bench_stage(8).led_directions();
   const ls::relight::LightingForModels lighting =
       grid > 0 ? ls::relight::LightingForModels::environment(map, 0.0, {grid})

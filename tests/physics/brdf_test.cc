@@ -1,4 +1,4 @@
-#include "relight/lighting/brdf.h"
+#include "physics/brdf.h"
 
 #include <ceres/jet.h>
 #include <gtest/gtest.h>
@@ -10,9 +10,9 @@
 
 namespace {
 
-using ls::brdf::Geometry;
-using ls::brdf::kPi;
-using ls::brdf::Vec3;
+using ls::physics::brdf::Geometry;
+using ls::physics::brdf::kPi;
+using ls::physics::brdf::Vec3;
 
 // One isotropic lobe with its parameter: f(geometry) in 1/sr, without the cosine.
 struct Lobe {
@@ -23,18 +23,21 @@ struct Lobe {
 
 std::vector<Lobe> all_lobes() {
   std::vector<Lobe> lobes;
-  lobes.push_back({"lambert", 0, [](const Geometry<double>& g) { return ls::brdf::lambert(g); }});
+  lobes.push_back(
+      {"lambert", 0, [](const Geometry<double>& g) { return ls::physics::brdf::lambert(g); }});
   for (double sigma : {0.0, 0.3, 1.0, kPi / 2}) {
     lobes.push_back({"oren_nayar", sigma, [sigma](const Geometry<double>& g) {
-                       return ls::brdf::oren_nayar(g, sigma);
+                       return ls::physics::brdf::oren_nayar(g, sigma);
                      }});
   }
   for (double m : {0.1, 0.2, 0.4, 0.7, 1.0}) {
-    lobes.push_back({"torrance_sparrow", m,
-                     [m](const Geometry<double>& g) { return ls::brdf::torrance_sparrow(g, m); }});
+    lobes.push_back({"torrance_sparrow", m, [m](const Geometry<double>& g) {
+                       return ls::physics::brdf::torrance_sparrow(g, m);
+                     }});
   }
   for (double n : {1.0, 10.0, 100.0, 1000.0}) {
-    lobes.push_back({"phong", n, [n](const Geometry<double>& g) { return ls::brdf::phong(g, n); }});
+    lobes.push_back(
+        {"phong", n, [n](const Geometry<double>& g) { return ls::physics::brdf::phong(g, n); }});
   }
   return lobes;
 }
@@ -70,7 +73,7 @@ double directional_albedo(const std::function<double(const Geometry<double>&)>& 
 TEST(BrdfTest, LambertWhiteFurnaceIsOne) {
   for (double theta_o : {0.0, 0.5, 1.2, 1.5}) {
     const double rho =
-        directional_albedo([](const Geometry<double>& g) { return ls::brdf::lambert(g); },
+        directional_albedo([](const Geometry<double>& g) { return ls::physics::brdf::lambert(g); },
                            from_angles(theta_o, 0.3), 400, 400);
     EXPECT_NEAR(rho, 1.0, 1e-5) << theta_o;  // Midpoint rule: O(h^2) = 2.6e-6 here.
   }
@@ -82,7 +85,7 @@ TEST(BrdfTest, OrenNayarWithZeroSigmaIsLambert) {
   for (int i = 0; i < 1000; ++i) {
     const auto g = Geometry<double>::from_local(from_angles(angle(rng), azimuth(rng)),
                                                 from_angles(angle(rng), azimuth(rng)));
-    EXPECT_DOUBLE_EQ(ls::brdf::oren_nayar(g, 0.0), ls::brdf::lambert(g));
+    EXPECT_DOUBLE_EQ(ls::physics::brdf::oren_nayar(g, 0.0), ls::physics::brdf::lambert(g));
   }
 }
 
@@ -130,20 +133,20 @@ TEST(BrdfTest, EveryModelIsReciprocalAndZeroBelowTheHorizon) {
 }
 
 TEST(BrdfTest, MaterialEvalSumsItsLobes) {
-  ls::brdf::Material m;
-  m.diffuse = ls::brdf::DiffuseModel::kOrenNayar;
+  ls::physics::brdf::Material m;
+  m.diffuse = ls::physics::brdf::DiffuseModel::kOrenNayar;
   m.sigma_rad = 0.4;
   m.albedo = {0.2, 0.5, 0.8};
-  m.specular = ls::brdf::SpecularModel::kTorranceSparrow;
+  m.specular = ls::physics::brdf::SpecularModel::kTorranceSparrow;
   m.ks = {0.1, 0.2, 0.3};
   m.roughness = 0.3;
   const auto g = Geometry<double>::from_local(from_angles(0.3, 0.1), from_angles(0.5, 2.0));
-  const Vec3<double> f = ls::brdf::eval(m, g);
+  const Vec3<double> f = ls::physics::brdf::eval(m, g);
   for (int c = 0; c < 3; ++c) {
-    EXPECT_NEAR(
-        f[c],
-        m.albedo[c] * ls::brdf::oren_nayar(g, 0.4) + m.ks[c] * ls::brdf::torrance_sparrow(g, 0.3),
-        1e-15);
+    EXPECT_NEAR(f[c],
+                m.albedo[c] * ls::physics::brdf::oren_nayar(g, 0.4) +
+                    m.ks[c] * ls::physics::brdf::torrance_sparrow(g, 0.3),
+                1e-15);
   }
 }
 
@@ -184,10 +187,14 @@ void check_jet_derivatives(const char* name, Model model, double ci, double co, 
 }
 
 TEST(BrdfTest, CeresJetEvaluationMatchesDoubleAndHasNoNanAtNormalIncidence) {
-  const auto lambert = [](const auto& g, const auto&) { return ls::brdf::lambert(g); };
-  const auto oren_nayar = [](const auto& g, const auto& s) { return ls::brdf::oren_nayar(g, s); };
-  const auto ts = [](const auto& g, const auto& m) { return ls::brdf::torrance_sparrow(g, m); };
-  const auto phong = [](const auto& g, const auto& n) { return ls::brdf::phong(g, n); };
+  const auto lambert = [](const auto& g, const auto&) { return ls::physics::brdf::lambert(g); };
+  const auto oren_nayar = [](const auto& g, const auto& s) {
+    return ls::physics::brdf::oren_nayar(g, s);
+  };
+  const auto ts = [](const auto& g, const auto& m) {
+    return ls::physics::brdf::torrance_sparrow(g, m);
+  };
+  const auto phong = [](const auto& g, const auto& n) { return ls::physics::brdf::phong(g, n); };
   // A generic configuration (no kinks): wi at 30 degrees, wo at 40 degrees, 50 degrees apart in
   // azimuth.
   const Vec3<double> wi = from_angles(0.52, 0.0), wo = from_angles(0.70, 0.9);
@@ -206,11 +213,12 @@ TEST(BrdfTest, CeresJetEvaluationMatchesDoubleAndHasNoNanAtNormalIncidence) {
   }
   for (double n : {1.0, 50.0, 1e4}) check_jet("phong", phong, 1.0, 1.0, 1.0, n);
   // And the material as a whole, with Jet geometry.
-  ls::brdf::Material m;
-  m.specular = ls::brdf::SpecularModel::kTorranceSparrow;
+  ls::physics::brdf::Material m;
+  m.specular = ls::physics::brdf::SpecularModel::kTorranceSparrow;
   m.ks = {0.3, 0.3, 0.3};
-  const Vec3<Jet> f = ls::brdf::eval(m, Geometry<Jet>{Jet(1.0, 0), Jet(1.0, 1), Jet(1.0, 2)});
-  const Vec3<double> fd = ls::brdf::eval(m, Geometry<double>{1.0, 1.0, 1.0});
+  const Vec3<Jet> f =
+      ls::physics::brdf::eval(m, Geometry<Jet>{Jet(1.0, 0), Jet(1.0, 1), Jet(1.0, 2)});
+  const Vec3<double> fd = ls::physics::brdf::eval(m, Geometry<double>{1.0, 1.0, 1.0});
   for (int c = 0; c < 3; ++c) {
     EXPECT_NEAR(f[c].a, fd[c], 1e-12);
     EXPECT_TRUE(f[c].v.allFinite());
@@ -218,7 +226,7 @@ TEST(BrdfTest, CeresJetEvaluationMatchesDoubleAndHasNoNanAtNormalIncidence) {
 }
 
 TEST(BrdfTest, ValidateNamesTheParameterAndItsRange) {
-  ls::brdf::Material m;
+  ls::physics::brdf::Material m;
   EXPECT_EQ(m.validate(), "");
   m.albedo.y() = 1.3;
   EXPECT_EQ(m.validate(), "albedo.g must be in [0, 1], got 1.3");
@@ -228,13 +236,13 @@ TEST(BrdfTest, ValidateNamesTheParameterAndItsRange) {
   EXPECT_EQ(m.validate(), "albedo.b must be in [0, 1], got -0.1");
   m.albedo = {0.5, 0.5, 0.5};
 
-  m.diffuse = ls::brdf::DiffuseModel::kOrenNayar;
+  m.diffuse = ls::physics::brdf::DiffuseModel::kOrenNayar;
   m.sigma_rad = 2.0;
   EXPECT_EQ(m.validate(), "sigma_rad must be in [0, pi/2], got 2");
   m.sigma_rad = kPi / 2;
   EXPECT_EQ(m.validate(), "");
 
-  m.specular = ls::brdf::SpecularModel::kTorranceSparrow;
+  m.specular = ls::physics::brdf::SpecularModel::kTorranceSparrow;
   m.roughness = 0.0;
   EXPECT_EQ(m.validate(), "roughness must be in (0, 1], got 0");
   m.roughness = 1.0;
@@ -246,13 +254,13 @@ TEST(BrdfTest, ValidateNamesTheParameterAndItsRange) {
   m.ks = {5.0, 0.0, 0.0};  // ks has no upper bound (Fresnel folded in, any scale).
   EXPECT_EQ(m.validate(), "");
 
-  m.specular = ls::brdf::SpecularModel::kPhong;
+  m.specular = ls::physics::brdf::SpecularModel::kPhong;
   m.phong_exponent = 0.5;
   EXPECT_EQ(m.validate(), "phong_exponent must be in [1, 10000], got 0.5");
   m.phong_exponent = 2e4;
   EXPECT_EQ(m.validate(), "phong_exponent must be in [1, 10000], got 20000");
   // Parameters of lobes not in use are not checked.
-  m.specular = ls::brdf::SpecularModel::kNone;
+  m.specular = ls::physics::brdf::SpecularModel::kNone;
   m.roughness = -3;
   EXPECT_EQ(m.validate(), "");
 }

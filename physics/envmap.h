@@ -9,7 +9,7 @@
 
 #include "lightstage/image.h"
 
-namespace ls::relight {
+namespace ls::physics {
 
 class EnvironmentMap {
  public:
@@ -48,7 +48,7 @@ class EnvironmentMap {
 };
 
 // A direction of the unrotated map as the map rotated by rotation_deg about +Y shows it:
-// R_y(rotation) d, the sense of radiance_toward and integrate_environment.
+// R_y(rotation) d (physics/sphere.h), the sense of radiance_toward.
 Eigen::Vector3d rotate_about_y(const Eigen::Vector3d& dir, double rotation_deg);
 
 // One texel of a map box-filtered onto a coarse lat-long grid.
@@ -65,4 +65,4 @@ struct CoarseTexel {
 std::vector<CoarseTexel> box_filter_environment(const EnvironmentMap& map, int width,
                                                 double rotation_deg = 0.0);
 
-}  // namespace ls::relight
+}  // namespace ls::physics

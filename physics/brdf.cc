@@ -1,9 +1,9 @@
-#include "relight/lighting/brdf.h"
+#include "physics/brdf.h"
 
 #include <cmath>
 #include <sstream>
 
-namespace ls::brdf {
+namespace ls::physics::brdf {
 
 namespace {
 
@@ -56,4 +56,4 @@ std::string Material::validate() const {
   return error;
 }
 
-}  // namespace ls::brdf
+}  // namespace ls::physics::brdf

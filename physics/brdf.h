@@ -12,7 +12,7 @@
 #include <cmath>
 #include <string>
 
-namespace ls::brdf {
+namespace ls::physics::brdf {
 
 template <class T>
 using Vec3 = Eigen::Matrix<T, 3, 1>;
@@ -147,4 +147,4 @@ Vec3<T> eval(const Material& m, const Geometry<T>& g) {
   return f;
 }
 
-}  // namespace ls::brdf
+}  // namespace ls::physics::brdf
