@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 
 namespace ls::capture {
 
@@ -21,7 +22,7 @@ cv::Mat board_bytes(const Image& image) {
     for (int x = 0; x < image.width; ++x) {
       double v = image.at(x, y, 0);
       if (image.channels >= 3) {
-        v = 0.2126 * image.at(x, y, 0) + 0.7152 * image.at(x, y, 1) + 0.0722 * image.at(x, y, 2);
+        v = luminance(image.at(x, y, 0), image.at(x, y, 1), image.at(x, y, 2));
       }
       lum.at<float>(y, x) = float(v);
     }

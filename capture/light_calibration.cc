@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 
 namespace ls::capture {
 namespace {
@@ -17,7 +18,7 @@ constexpr double kDeg = kPi / 180.0;
 
 double luminance(const Image& image, size_t pixel) {
   const float* p = image.pixels.data() + pixel * image.channels;
-  if (image.channels >= 3) return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+  if (image.channels >= 3) return ls::luminance(p[0], p[1], p[2]);
   return p[0];
 }
 

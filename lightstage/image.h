@@ -82,10 +82,10 @@ inline float luminance(const float* rgb) {
   return float(kLuminanceWeights[0]) * rgb[0] + float(kLuminanceWeights[1]) * rgb[1] +
          float(kLuminanceWeights[2]) * rgb[2];
 }
-inline double luminance(const Eigen::Vector3d& rgb) {
-  return kLuminanceWeights[0] * rgb.x() + kLuminanceWeights[1] * rgb.y() +
-         kLuminanceWeights[2] * rgb.z();
+inline double luminance(double r, double g, double b) {
+  return kLuminanceWeights[0] * r + kLuminanceWeights[1] * g + kLuminanceWeights[2] * b;
 }
+inline double luminance(const Eigen::Vector3d& rgb) { return luminance(rgb.x(), rgb.y(), rgb.z()); }
 
 // Exposure (in stops) that puts the image's 99th-percentile luminance near white.
 double auto_exposure_stops(const Image& image, double percentile = 0.99);

@@ -15,6 +15,7 @@
 #include <thread>
 
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 #include "sim/time_varying.h"
 #include "sim/tracer.h"
 
@@ -302,7 +303,7 @@ struct SimStage::State {
         for (size_t k = 0; k < sources.size(); ++k) {
           for (int c = 0; c < 3; ++c) rgb[c] += double(sources[k][p * 3 + c]) * weights[k][c];
         }
-        if (out_channels == 1) rgb[0] = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+        if (out_channels == 1) rgb[0] = luminance(rgb[0], rgb[1], rgb[2]);
         PixelRng rng{mix64(frame_seed ^ (uint64_t(p) * 0xD1B54A32D192ED03ull))};
         double z[4];
         rng.normals(&z[0], &z[1]);

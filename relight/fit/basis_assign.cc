@@ -10,6 +10,7 @@
 #include <span>
 #include <vector>
 
+#include "lightstage/image.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/material_pool.h"
 #include "relight/fit/pixel_solver.h"
@@ -132,9 +133,9 @@ double lit_scale(const PixelTerms& terms, const Blend& blend,
     for (int i = 0; i < n; ++i) {
       double predicted = 0, measured = 0, variance = 0;
       for (int c = 0; c < 3; ++c) {
-        predicted += pixel::kLuma[c] * scale * prediction[3 * size_t(i) + size_t(c)];
-        measured += pixel::kLuma[c] * terms.value(i, c);
-        variance += pixel::kLuma[c] * pixel::kLuma[c] / terms.weight(i, c);
+        predicted += kLuminanceWeights[c] * scale * prediction[3 * size_t(i) + size_t(c)];
+        measured += kLuminanceWeights[c] * terms.value(i, c);
+        variance += kLuminanceWeights[c] * kLuminanceWeights[c] / terms.weight(i, c);
       }
       if (predicted - measured > FitShadows::kShadowSigmas * std::sqrt(variance)) continue;
       for (int c = 0; c < 3; ++c) {

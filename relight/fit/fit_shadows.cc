@@ -10,6 +10,7 @@
 
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
 #include "relight/fit/pixel_solver.h"
@@ -75,9 +76,7 @@ void measure_fit_shadows(const capture::ReflectanceField& field, const FitOption
   const NoiseModel& noise = options.normals.noise;
   const int words = maps.shadows.words.channels;
   const float max_ks = float(options.max_specular_albedo);
-  const auto luma = [](const auto& v) {
-    return pixel::kLuma[0] * v[0] + pixel::kLuma[1] * v[1] + pixel::kLuma[2] * v[2];
-  };
+  const auto luma = [](const auto& v) { return luminance(v[0], v[1], v[2]); };
   tbb::parallel_for(tbb::blocked_range<int>(0, field.height()), [&](const auto& rows) {
     std::vector<uint32_t> bits(size_t(words), 0);
     for (int y = rows.begin(); y < rows.end(); ++y) {

@@ -10,12 +10,12 @@
 #include <vector>
 
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 
 namespace ls::relight {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};
 // IRLS stops once a pass moves g by less than this fraction of |g|: the normal by under 1e-4 rad
 // (0.006 degrees, far below any normal's error), which most pixels reach in two or three passes.
 constexpr double kIrlsTolerance = 1e-4;
@@ -127,7 +127,7 @@ int gather_samples(const float* px, const std::vector<capture::FieldLight>& ligh
   double y_max = 0;
   for (size_t i = 0; i < n; ++i) {
     const float* v = px + 3 * size_t(light_index[i]);
-    const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
+    const double lum = luminance(v[0], v[1], v[2]);
     s.y[i] = std::isfinite(lum) ? lum : 0.0;
     s.sigma[i] = std::sqrt(options.noise.variance(s.y[i]));
     y_max = std::max(y_max, s.y[i]);

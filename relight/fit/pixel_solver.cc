@@ -3,6 +3,8 @@
 #include <optional>
 #include <string>
 
+#include "lightstage/image.h"
+
 namespace ls::relight::pixel {
 
 GatheredSamples gather_samples(const capture::ReflectanceField& field,
@@ -13,7 +15,7 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
   double y_max = 0;
   for (const int l : valid.index) {
     const float* v = px + 3 * size_t(l);
-    y_max = std::max(y_max, kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2]);
+    y_max = std::max(y_max, luminance(v[0], v[1], v[2]));
   }
   const double threshold =
       std::max(options.shadow_sigmas * std::sqrt(options.noise.a), options.shadow_fraction * y_max);
@@ -31,7 +33,7 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
       ++out.saturated;
       continue;
     }
-    const double lum = kLuma[0] * v[0] + kLuma[1] * v[1] + kLuma[2] * v[2];
+    const double lum = luminance(v[0], v[1], v[2]);
     if (!(lum > threshold) || !std::isfinite(lum)) {
       if (shadowed && std::isfinite(lum)) shadowed->push_back(dir(i));
       continue;

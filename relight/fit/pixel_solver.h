@@ -26,8 +26,7 @@
 namespace ls::relight::pixel {
 
 inline constexpr double kPi = physics::brdf::kPi;
-inline constexpr double kLuma[3] = {0.2126, 0.7152, 0.0722};  // Rec. 709 luminance weights.
-inline constexpr double kMinRoughness = 0.02;                 // Beckmann m in [0.02, 1].
+inline constexpr double kMinRoughness = 0.02;  // Beckmann m in [0.02, 1].
 
 // ---------------------------------------------------------------------------------------------
 // Samples.
