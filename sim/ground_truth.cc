@@ -10,8 +10,8 @@
 #include <string>
 
 #include "lightstage/errors.h"
-#include "relight/lighting/compact_sources.h"
 #include "relight/lighting/light_cells.h"
+#include "relight/sources/bright_sources.h"
 #include "sim/sim_stage.h"
 #include "sim/tracer.h"
 

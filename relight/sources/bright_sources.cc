@@ -1,4 +1,4 @@
-#include "relight/lighting/compact_sources.h"
+#include "relight/sources/bright_sources.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -113,20 +113,20 @@ std::vector<Eigen::Vector3d> disc_directions(const Eigen::Vector3d& dir, double 
   return dirs;
 }
 
-std::string CompactSource::describe() const {
+std::string BrightSource::describe() const {
   const Eigen::Vector3d& d = dir;
   const double elevation = std::asin(std::clamp(d.y(), -1.0, 1.0)) / kDegToRad;
   // Azimuth in the stage frame: 0 toward the camera (+Z), 90 toward +X.
   const double azimuth = std::atan2(d.x(), d.z()) / kDegToRad;
   char line[160];
   std::snprintf(line, sizeof line,
-                "compact source at elevation %.1f deg, azimuth %.1f deg, radius %.2f deg, %.1f%% "
+                "bright source at elevation %.1f deg, azimuth %.1f deg, radius %.2f deg, %.1f%% "
                 "of the map's light",
                 elevation, azimuth, radius_rad / kDegToRad, 100.0 * energy_share);
   return line;
 }
 
-std::string CompactSourceOptions::validate() const {
+std::string BrightSourceOptions::validate() const {
   if (!(std::isfinite(min_contrast) && min_contrast > 1)) return "min_contrast: expected > 1";
   if (!(max_radius_deg > 0 && max_radius_deg <= 45)) return "max_radius_deg: expected (0, 45]";
   if (!(min_energy_share >= 0 && min_energy_share <= 1)) return "min_energy_share: expected [0, 1]";
@@ -134,10 +134,10 @@ std::string CompactSourceOptions::validate() const {
   return {};
 }
 
-SplitEnvironment split_compact_sources(const EnvironmentMap& map,
-                                       const CompactSourceOptions& options) {
+SplitEnvironment split_bright_sources(const EnvironmentMap& map,
+                                      const BrightSourceOptions& options) {
   if (const std::string error = options.validate(); !error.empty()) {
-    throw InputError("compact sources: " + error);
+    throw InputError("bright sources: " + error);
   }
   const int width = map.width(), height = map.height();
   const std::vector<float>& radiance = map.radiance().pixels;
@@ -152,7 +152,7 @@ SplitEnvironment split_compact_sources(const EnvironmentMap& map,
     }
   }
   Image rest = map.radiance();
-  std::vector<CompactSource> sources;
+  std::vector<BrightSource> sources;
   const double threshold = options.min_contrast * total / (4 * std::numbers::pi);
   std::vector<char> visited(lum.size(), 0);
   // Seeds in decreasing luminance: each region is grown once from its brightest pixel.
@@ -169,7 +169,7 @@ SplitEnvironment split_compact_sources(const EnvironmentMap& map,
         compact_core(map, lum, threshold, seed, 2 * options.max_radius_deg * kDegToRad, visited);
     if (!region.compact) continue;
     const Eigen::Vector3d background = border_radiance(map, region.pixels, 2);
-    CompactSource source;
+    BrightSource source;
     Eigen::Vector3d centroid(0, 0, 0);
     std::vector<std::pair<Eigen::Vector3d, double>> weighted;  // Direction, luminance x sr.
     for (const int p : region.pixels) {
@@ -202,7 +202,7 @@ SplitEnvironment split_compact_sources(const EnvironmentMap& map,
     }
     sources.push_back(source);
   }
-  return {EnvironmentMap(std::move(rest), map.source() + " without its compact sources"),
+  return {EnvironmentMap(std::move(rest), map.source() + " without its bright sources"),
           std::move(sources)};
 }
 
