@@ -3,16 +3,13 @@
 #include <algorithm>
 #include <array>
 #include <fstream>
-#include <optional>
-#include <set>
 
 #include "evaluation/chart.h"
 #include "evaluation/csv_table.h"
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
-#include "relight/fit/source_relight.h"
 #include "relight/lighting/light_cells.h"
-#include "relight/lighting/relight.h"
+#include "relight/sources/map_relight.h"
 #include "sim/ground_truth.h"
 
 namespace ls::evaluation {
@@ -100,10 +97,11 @@ namespace {
 // each against its own ground truth (`unturned_truth` the first turn's, rendered already): the
 // median errors (the upper middle one of an even count) over the turns that light what the camera
 // sees (a source turned behind the backdrop leaves the truth black: no relative error). None when
-// no turn does. `sources` makes each turn's LEDs' shadows when first needed.
+// no turn does. relighters[0] relights by cells, [1] with the sources (each turn's LEDs' shadows
+// made when first needed).
 std::vector<LedBenchRow> turned_rows(const LedBenchOptions& options, const sim::Scene& scene,
-                                     const Stage& stage, const capture::ReflectanceField& field,
-                                     const relight::FieldSources& sources,
+                                     const Stage& stage,
+                                     const std::array<relight::MapRelighter*, 2>& relighters,
                                      const physics::EnvironmentMap& map, sim::GroundTruthOptions gt,
                                      const Image& unturned_truth) {
   std::vector<LedBenchRow> rows(2);
@@ -114,13 +112,9 @@ std::vector<LedBenchRow> turned_rows(const LedBenchOptions& options, const sim::
         t == 0 ? unturned_truth : sim::render_ground_truth(scene, stage.camera, map, gt);
     if (*std::max_element(truth.pixels.begin(), truth.pixels.end()) <= 0) continue;
     for (const bool split : {false, true}) {
-      const relight::SplitLighting lighting = relight::split_lighting(
-          map, field.lights(), gt.rotation_deg, gt.coverage_radius_rad, split);
-      Image relit;
-      relight::relight_into(field, lighting.weights.irradiance_rgb, relit);
-      sources.add(lighting, relit);
-      errors[split ? 1 : 0].push_back(compare_images(relit, truth));
-      rows[split ? 1 : 0].uncovered_fraction = lighting.weights.uncovered_fraction();
+      const relight::MapRelit relit = relighters[split ? 1 : 0]->relight(map, gt.rotation_deg);
+      errors[split ? 1 : 0].push_back(compare_images(relit.image, truth));
+      rows[split ? 1 : 0].uncovered_fraction = relit.lighting.weights.uncovered_fraction();
     }
   }
   if (errors[0].empty()) return {};
@@ -156,18 +150,17 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
                           "capture " + std::to_string(count), progress);
     const auto dirs = stage.led_directions();
     const double coverage = max_nearest_neighbour_angle(dirs);
+    relight::MapRelightOptions by_cells;
+    by_cells.coverage_rad = coverage;
+    by_cells.bright_sources = false;
+    relight::MapRelightOptions with_sources = by_cells;
+    with_sources.bright_sources = true;
+    relight::MapRelighter cells(field, by_cells), sources(field, with_sources);
+    const std::array<relight::MapRelighter*, 2> relighters{&cells, &sources};
     std::vector<relight::SplitLighting> splits;
-    std::set<int> source_leds;
-    for (const physics::EnvironmentMap& map : maps) {
-      splits.push_back(relight::split_lighting(map, field.lights(), 0.0, coverage, true));
-      for (const int led : splits.back().leds()) source_leds.insert(led);
-    }
-    std::optional<relight::FieldSources> sources;
-    std::optional<relight::FieldSources> turn_sources;  // The field in memory: any LED's shadow.
-    const double sources_ms = median_ms(1, [&] {
-      sources.emplace(field, capture::whole_field(field),
-                      std::vector<int>(source_leds.begin(), source_leds.end()), true);
-    });
+    for (const physics::EnvironmentMap& map : maps) splits.push_back(sources.lighting(map, 0.0));
+    // Reading the field for the sources' normals, the scene's shape and the LEDs' shadows, once.
+    const double sources_ms = median_ms(1, [&] { sources.prepare(splits); });
     for (size_t m = 0; m < maps.size(); ++m) {
       const physics::EnvironmentMap& map = maps[m];
       sim::GroundTruthOptions gt;
@@ -176,20 +169,15 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
       const Image truth = sim::render_ground_truth(scene, stage.camera, map, gt);
       for (const bool split : {false, true}) {
         if (split && splits[m].sources.empty()) continue;
+        relight::MapRelighter& relighter = *relighters[split ? 1 : 0];
         LedBenchRow row;
         row.leds = count;
         row.map = fs::path(map.source()).stem().string();
         row.method = split ? "cells + sources" : "cells";
         relight::SplitLighting lighting;
-        row.light_weights_ms = median_ms(3, [&] {
-          lighting = relight::split_lighting(map, field.lights(), 0.0, coverage, split);
-        });
+        row.light_weights_ms = median_ms(3, [&] { lighting = relighter.lighting(map, 0.0); });
         Image relit;
-        row.relight_ms = median_ms(options.repeats, [&] {
-          relight::relight_into(field, lighting.weights.irradiance_rgb, relit);
-          sources->add(lighting, relit);
-        });
-        // Reading the field for the sources' normals and LED shadows, once per field.
+        row.relight_ms = median_ms(options.repeats, [&] { relighter.render(lighting, relit); });
         if (split) row.light_weights_ms += sources_ms;
         if (count == options.counts.back() && !splits[m].sources.empty()) {
           // The largest dome's images of maps with a source, at the truth's exposure.
@@ -212,12 +200,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
         summary.rows.push_back(row);
       }
       if (options.turns > 0 && !splits[m].sources.empty()) {
-        if (!turn_sources) {  // One fit for every map's turns, the shape already recovered.
-          turn_sources.emplace(field);
-          turn_sources->use_geometry_of(*sources);
-        }
-        for (LedBenchRow& row :
-             turned_rows(options, scene, stage, field, *turn_sources, map, gt, truth)) {
+        for (LedBenchRow& row : turned_rows(options, scene, stage, relighters, map, gt, truth)) {
           row.leds = count;
           summary.rows.push_back(std::move(row));
         }

@@ -1,10 +1,10 @@
 #pragma once
 // `lightstage bench leds`: relighting accuracy and speed as the number of LEDs grows. For each dome
 // size, a simulated capture of the demo scene built into a field, relit under each map (median
-// time over repeats) by LED cells alone and with the map's compact sources split off and rendered
-// at their true direction (relight/fit/source_relight.h), and compared with ground truth rendered
-// directly from the scene. Writes leds.csv and two charts (PSNR against relight time; error
-// against LEDs).
+// time over repeats) by LED cells alone and with the map's bright sources split off and rendered
+// at their true direction (relight/sources/field_sources.h), and compared with ground truth
+// rendered directly from the scene. Writes leds.csv and two charts (PSNR against relight time;
+// error against LEDs).
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -18,7 +18,7 @@ struct LedBenchOptions {
   std::vector<int> counts{20, 40, 80, 150, 300};  // LEDs of the Fibonacci domes.
   int resolution = 128;                           // Camera width and height.
   int repeats = 21;                               // Timed relights (median reported).
-  // Maps with a compact source are also relit turned about the vertical to this many azimuths
+  // Maps with a bright source are also relit turned about the vertical to this many azimuths
   // (evenly spaced), the median error reported: one position of a small source says more about
   // how near it happens to fall to an LED than about the dome's density. 0: not turned.
   int turns = 8;
@@ -39,7 +39,7 @@ struct LedBenchRow {
 struct LedBenchSummary {
   std::vector<LedBenchRow> rows;
   std::filesystem::path csv;  // leds.csv; the charts beside it.
-  // Maps with a compact source, largest dome: by cells, with sources and ground truth, in that
+  // Maps with a bright source, largest dome: by cells, with sources and ground truth, in that
   // order (compare/*.png, at the truth's exposure), with labels.
   struct ComparisonImage {
     std::filesystem::path png;

@@ -6,15 +6,13 @@
 #include <fstream>
 #include <numbers>
 #include <optional>
-#include <set>
 
 #include "evaluation/chart.h"
 #include "evaluation/csv_table.h"
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
-#include "relight/fit/source_relight.h"
-#include "relight/lighting/relight.h"
+#include "relight/sources/map_relight.h"
 #include "sim/ground_truth.h"
 
 namespace ls::evaluation {
@@ -177,42 +175,37 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
     const double azimuth = 360.0 * i / options.turn_steps;
     places.push_back({"turn", azimuth, physics::rotate_about_y(aim, azimuth)});
   }
+  // By cells alone; the source split off with its shadows by the flows and the scene's shape
+  // (as `relight` does), and by the flows alone.
+  relight::MapRelightOptions by_cells;
+  by_cells.coverage_rad = coverage;
+  by_cells.bright_sources = false;
+  relight::MapRelightOptions with_shape = by_cells;
+  with_shape.bright_sources = true;
+  relight::MapRelightOptions flows_alone = with_shape;
+  flows_alone.source_geometry = false;
+  relight::MapRelighter cells(field, by_cells), sources(field, with_shape),
+      flows(field, flows_alone);
   std::vector<relight::SplitLighting> splits;
-  std::set<int> leds;
   std::vector<physics::EnvironmentMap> maps;
   for (const Place& place : places) {
     maps.push_back(disc_map(place.dir, options.radius_deg));
-    splits.push_back(relight::split_lighting(maps.back(), field.lights(), 0.0, coverage, true));
-    for (const int led : splits.back().leds()) leds.insert(led);
+    splits.push_back(sources.lighting(maps.back(), 0.0));
   }
   SunBenchSummary summary;
-  std::optional<relight::FieldSources> sources, flows;
-  summary.sources_setup_ms = median_ms(1, [&] {
-    sources.emplace(field, capture::whole_field(field), std::vector<int>(leds.begin(), leds.end()),
-                    true);
-  });
-  summary.flows_setup_ms = median_ms(1, [&] {
-    flows.emplace(field, capture::whole_field(field), std::vector<int>(leds.begin(), leds.end()));
-  });
+  summary.sources_setup_ms = median_ms(1, [&] { sources.prepare(splits); });
+  summary.flows_setup_ms = median_ms(1, [&] { flows.prepare(splits); });
   for (size_t i = 0; i < places.size(); ++i) {
     SunBenchRow row;
     row.path = places[i].path;
     row.position = places[i].position;
     row.angle_to_nearest_led_deg = index.nearest_angle(places[i].dir) / kDeg;
-    const relight::SplitLighting cells =
-        relight::split_lighting(maps[i], field.lights(), 0.0, coverage, false);
+    const relight::SplitLighting by_cells_lighting = cells.lighting(maps[i], 0.0);
     Image relit_cells, relit_sources, relit_flows;
-    row.cells_ms = median_ms(options.repeats, [&] {
-      relight::relight_into(field, cells.weights.irradiance_rgb, relit_cells);
-    });
-    row.sources_ms = median_ms(options.repeats, [&] {
-      relight::relight_into(field, splits[i].weights.irradiance_rgb, relit_sources);
-      sources->add(splits[i], relit_sources);
-    });
-    row.flows_ms = median_ms(options.repeats, [&] {
-      relight::relight_into(field, splits[i].weights.irradiance_rgb, relit_flows);
-      flows->add(splits[i], relit_flows);
-    });
+    row.cells_ms =
+        median_ms(options.repeats, [&] { cells.render(by_cells_lighting, relit_cells); });
+    row.sources_ms = median_ms(options.repeats, [&] { sources.render(splits[i], relit_sources); });
+    row.flows_ms = median_ms(options.repeats, [&] { flows.render(splits[i], relit_flows); });
     sim::GroundTruthOptions gt;
     gt.directions_width = 256;  // 0.7-degree quadrature: the 2-degree disc's penumbrae resolved.
     gt.covered_by_leds = dirs;
@@ -225,8 +218,7 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
     const Image visibility = sim::render_source_visibility(scene, stage.camera, places[i].dir,
                                                            options.radius_deg * kDeg);
     Image relit_exact;
-    relight::relight_into(field, splits[i].weights.irradiance_rgb, relit_exact);
-    sources->add(splits[i], relit_exact, {&visibility});
+    sources.render(splits[i], relit_exact, {&visibility});
     row.exact_visibility_rmse = compare_images(relit_exact, truth).relative_rmse;
     // Every position's images at the truth's exposure: what the numbers mean.
     char stem[64];

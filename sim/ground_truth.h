@@ -40,7 +40,7 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
 // The share of a uniform disc of directions (centre `dir` in the stage frame, angular radius
 // radius_rad) that each pixel's surface point sees unoccluded, by `samples` directions spread
 // evenly over the disc (a sunflower pattern): 1 channel, 0 where nothing is hit. The visibility a
-// source renderer would need to be exact (relight::add_compact_source takes it to bound the error
+// source renderer would need to be exact (relight::add_bright_source takes it to bound the error
 // of its own, interpolated from the LEDs' shadows).
 Image render_source_visibility(const Scene& scene, const CameraSpec& camera,
                                const Eigen::Vector3d& dir, double radius_rad, int samples = 64);

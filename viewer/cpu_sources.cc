@@ -25,7 +25,7 @@ class CpuFieldSource : public GpuSource {
   explicit CpuFieldSource(const capture::ReflectanceField& field)
       : field_(field), half_(relight::HalfField::of(field, 1e-3, &half_error_)), sources_(field) {}
   std::string name() const override { return "field"; }
-  bool adds_compact_sources() const override { return true; }
+  bool adds_bright_sources() const override { return true; }
   std::string note() const override {
     char precision[96];
     if (half_) {
@@ -45,7 +45,7 @@ class CpuFieldSource : public GpuSource {
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     gl_util::check_target(*this, target);
     gl_util::check_led_weights(*this, lighting.field_irradiance_rgb(), field_.num_lights());
-    // The map by LED cells (without its compact sources when they were split off), then the
+    // The map by LED cells (without its bright sources when they were split off), then the
     // sources at their true directions.
     if (half_) {
       half_->relight_into(lighting.field_irradiance_rgb(), image_);
@@ -60,7 +60,7 @@ class CpuFieldSource : public GpuSource {
   const capture::ReflectanceField& field_;
   double half_error_ = 0;
   std::optional<relight::HalfField> half_;
-  CompactSourceLight sources_;
+  BrightSourceLight sources_;
   Image image_;
 };
 
@@ -68,7 +68,7 @@ class CpuPcaSource : public GpuSource {
  public:
   explicit CpuPcaSource(relight::PcaField pca) : pca_(std::move(pca)), sources_(pca_) {}
   std::string name() const override { return pca_.name(); }
-  bool adds_compact_sources() const override { return true; }
+  bool adds_bright_sources() const override { return true; }
   std::string note() const override {
     return pca_.name() + ": software OpenGL: relit on the CPU and uploaded";
   }
@@ -78,7 +78,7 @@ class CpuPcaSource : public GpuSource {
   void render(const ViewLighting& lighting, GpuTarget& target) override {
     gl_util::check_target(*this, target);
     gl_util::check_led_weights(*this, lighting.field_irradiance_rgb(), pca_.num_lights());
-    // As the field: the map without its compact sources by the LED cells, then the sources,
+    // As the field: the map without its bright sources by the LED cells, then the sources,
     // rendered from the PCA's own reconstruction.
     pca_.relight_led_weights_into(lighting.field_irradiance_rgb().data(), image_);
     sources_.add(lighting, image_);
@@ -87,7 +87,7 @@ class CpuPcaSource : public GpuSource {
 
  private:
   relight::PcaField pca_;
-  CompactSourceLight sources_;  // After pca_, which it reads.
+  BrightSourceLight sources_;  // After pca_, which it reads.
   Image image_;
 };
 

@@ -105,11 +105,11 @@ class FieldSource : public GpuSource {
     glBindTexture(GL_TEXTURE_2D, sources_texture_.id());
     set_nearest(GL_TEXTURE_2D);
     glTexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, 1, 1, 0, GL_RGB, GL_FLOAT, nullptr);
-    check_gl("allocating the compact sources' image");
+    check_gl("allocating the bright sources' image");
     note_ = "field: " + std::to_string(lights_) + " LEDs, " + mb(bytes()) + " of " +
             (half ? "half" : "float") + " in a buffer texture" +
             (why.empty() ? "" : " (" + why + ")") +
-            "; compact sources (a sun) computed on the CPU and added";
+            "; bright sources (a sun) computed on the CPU and added";
   }
   ~FieldSource() override {
     glDeleteBuffers(1, &lighting_);
@@ -138,7 +138,7 @@ class FieldSource : public GpuSource {
   }
 
   std::string name() const override { return "field"; }
-  bool adds_compact_sources() const override { return true; }
+  bool adds_bright_sources() const override { return true; }
   std::string note() const override { return note_; }
   int width() const override { return width_; }
   int height() const override { return height_; }
@@ -230,7 +230,7 @@ class FieldSource : public GpuSource {
                       sources_image_.pixels.data());
     }
     glBindTexture(GL_TEXTURE_2D, 0);
-    check_gl("uploading the compact sources' image");
+    check_gl("uploading the bright sources' image");
     return true;
   }
 
@@ -241,9 +241,9 @@ class FieldSource : public GpuSource {
   Program program_;
   GLuint values_buffer_ = 0, lighting_ = 0;
   Texture values_;
-  CompactSourceLight sources_;
+  BrightSourceLight sources_;
   Image sources_image_;
-  Texture sources_texture_;  // 1 x 1 until a lighting has compact sources.
+  Texture sources_texture_;  // 1 x 1 until a lighting has bright sources.
   bool sources_allocated_ = false;
   std::vector<float> block_ = std::vector<float>(kLightingBytes / 4);
   std::string note_;

@@ -7,11 +7,12 @@
 // relight::relight (field), PcaField::relight_led_weights_into (PCA) and render_models (models)
 // give for the same lighting; tests read the framebuffer back and compare with those.
 //
-// Precision and cost: FieldPrecision and the `precision` argument of upload_field (defaulted;
-// benchmarks force half or float), GpuSource::bytes(); ModelShading and the `shading` argument of
-// upload_models (defaulted: kExact).
-// Compact sources: ViewLighting::split and field_irradiance_rgb(),
-// GpuSource::adds_compact_sources(); field sources add the split-off sources
+// Additions by vcore (nothing declared before was changed): FieldPrecision and the `precision`
+// argument of upload_field (defaulted; benchmarks force half or float), GpuSource::bytes().
+// Additions by vpre: ModelShading and the `shading` argument of upload_models (defaulted: kExact,
+// as before).
+// Additions for issue 16 (compact sources): ViewLighting::split and field_irradiance_rgb(),
+// GpuSource::adds_bright_sources(); field sources add the split-off sources
 // (relight::FieldSources) to the cells' image.
 //
 // Everything here needs a current OpenGL 3.3 core context (viewer/gl_window.h) on the calling
@@ -27,8 +28,8 @@
 #include "relight/compact/pca_field.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_render.h"
-#include "relight/fit/source_relight.h"
 #include "relight/lighting/light_cells.h"
+#include "relight/sources/field_sources.h"
 
 namespace ls::viewer {
 
@@ -87,10 +88,10 @@ class GpuSource {
   virtual int width() const = 0;
   virtual int height() const = 0;
   virtual std::size_t bytes() const = 0;  // GPU memory its textures take.
-  // Whether it renders ViewLighting::split (a field: the map without its compact sources by cells
+  // Whether it renders ViewLighting::split (a field: the map without its bright sources by cells
   // plus the sources); the others (PCA, a field over budget shown as PCA, models) use the whole
   // map's led_irradiance_rgb or lights.
-  virtual bool adds_compact_sources() const { return false; }
+  virtual bool adds_bright_sources() const { return false; }
   // Throws InputError when the lighting does not fit the source (LED count) or the target's size
   // is not the source's.
   virtual void render(const ViewLighting& lighting, GpuTarget& target) = 0;
@@ -110,7 +111,7 @@ enum class FieldPrecision { kAuto, kHalf, kFloat };
 // The field in textures (half float where that keeps the CPU result within tolerance; say which in
 // note()). A field over `budget_bytes` is compressed (PCA, noise-floor rank, at most 64 and at
 // most what fits the budget) and that is uploaded instead, with note() saying so; HardwareError
-// when not even rank 1 fits. Under a lighting with compact sources (ViewLighting::split) the source
+// when not even rank 1 fits. Under a lighting with bright sources (ViewLighting::split) the source
 // computes their light on the CPU (relight::FieldSources, built from `field` the first time) and
 // adds it in the shader, so `field` must then outlive the source.
 std::unique_ptr<GpuSource> upload_field(const capture::ReflectanceField& field,

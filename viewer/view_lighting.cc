@@ -4,8 +4,22 @@
 #include <utility>
 
 #include "relight/lighting/light_cells.h"
+#include "relight/sources/map_relight.h"
 
 namespace ls::viewer {
+
+namespace {
+
+// How the viewer relights under a map: automatic coverage, the sources' shadows by the LEDs'
+// flows alone (no seconds spent recovering the scene's shape before the first frame).
+relight::MapRelightOptions view_options(bool bright_sources) {
+  relight::MapRelightOptions options;
+  options.bright_sources = bright_sources;
+  options.source_geometry = false;
+  return options;
+}
+
+}  // namespace
 
 ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rotation_deg,
                                   const std::vector<Eigen::Vector3d>& led_dirs,
@@ -13,20 +27,21 @@ ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rot
                                   const EnvironmentNeeds& needs) {
   ViewLighting l;
   if (!led_dirs.empty()) {
+    std::vector<capture::FieldLight> leds;
+    leds.reserve(led_dirs.size());
+    for (size_t i = 0; i < led_dirs.size(); ++i) {
+      leds.push_back({int(i), led_dirs[i], i >= led_valid.size() || led_valid[i]});
+    }
     if (needs.field_sources) {
-      std::vector<capture::FieldLight> leds;
-      leds.reserve(led_dirs.size());
-      for (size_t i = 0; i < led_dirs.size(); ++i)
-        leds.push_back({int(i), led_dirs[i], i >= led_valid.size() || led_valid[i]});
       relight::SplitLighting split =
-          relight::split_lighting(map, leds, rotation_deg, /*coverage_rad=*/0.0, /*split=*/true);
+          relight::map_lighting(map, leds, rotation_deg, view_options(/*bright_sources=*/true));
       if (!split.sources.empty()) l.split = std::move(split);
     }
-    // The whole map, sun included, for the sources that cannot add a compact source back (PCA).
+    // The whole map, sun included, for the sources that cannot add a bright source back (PCA).
     if (needs.whole_map_led_weights || !l.split) {
       l.led_irradiance_rgb =
-          relight::integrate_environment(map, led_dirs, rotation_deg, 0.0, led_valid)
-              .irradiance_rgb;
+          relight::map_lighting(map, leds, rotation_deg, view_options(/*bright_sources=*/false))
+              .weights.irradiance_rgb;
     }
   }
   if (needs.model_lights) {
@@ -37,41 +52,34 @@ ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rot
   return l;
 }
 
-bool renders_compact_sources(const ViewLighting& lighting) {
-  if (!lighting.split) return false;
-  return std::any_of(lighting.split->sources.begin(), lighting.split->sources.end(),
-                     [](const relight::PlacedSource& s) { return s.triangle.has_value(); });
+bool renders_bright_sources(const ViewLighting& lighting) {
+  return lighting.split && relight::MapRelighter::renders_sources(*lighting.split);
 }
 
-CompactSourceLight::CompactSourceLight(const capture::ReflectanceField& field)
+BrightSourceLight::BrightSourceLight(const capture::ReflectanceField& field)
     : width_(field.width()),
       height_(field.height()),
-      make_([&field] { return std::make_unique<relight::FieldSources>(field); }) {}
+      relighter_(std::make_unique<relight::MapRelighter>(field, view_options(true))) {}
 
-CompactSourceLight::CompactSourceLight(const relight::PcaField& pca)
-    : width_(pca.width()), height_(pca.height()), make_([&pca] {
-        return std::make_unique<relight::FieldSources>(
-            pca.header(), pca.reconstruction_bands(),
-            [&pca](int led) { return pca.led_image(led); });
-      }) {}
+BrightSourceLight::BrightSourceLight(const relight::PcaField& pca)
+    : width_(pca.width()),
+      height_(pca.height()),
+      relighter_(std::make_unique<relight::MapRelighter>(pca, view_options(true))) {}
 
-const relight::FieldSources& CompactSourceLight::sources() {
-  if (!sources_) sources_ = make_();
-  return *sources_;
+BrightSourceLight::~BrightSourceLight() = default;
+
+void BrightSourceLight::add(const ViewLighting& lighting, Image& out) {
+  if (renders_bright_sources(lighting)) relighter_->add_sources(*lighting.split, out);
 }
 
-void CompactSourceLight::add(const ViewLighting& lighting, Image& out) {
-  if (renders_compact_sources(lighting)) sources().add(*lighting.split, out);
-}
-
-bool CompactSourceLight::render(const ViewLighting& lighting, Image& out) {
-  if (!renders_compact_sources(lighting)) return false;
+bool BrightSourceLight::render(const ViewLighting& lighting, Image& out) {
+  if (!renders_bright_sources(lighting)) return false;
   if (out.width != width_ || out.height != height_ || out.channels != 3) {
     out = Image(width_, height_, 3);
   } else {
     std::fill(out.pixels.begin(), out.pixels.end(), 0.0f);
   }
-  sources().add(*lighting.split, out);
+  relighter_->add_sources(*lighting.split, out);
   return true;
 }
 

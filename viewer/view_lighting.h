@@ -1,11 +1,10 @@
 #pragma once
 // The lighting of a viewer frame (ViewLighting, viewer/gpu_relight.h) from an environment map, and
-// the light of the map's compact sources on a field (relighting under the sun). A sun
-// or a small lamp relit by LED cells is spread over the cells of the LEDs around it, so its shadows
-// come out as two or three offset copies; split off (relight/fit/source_relight.h), it is rendered
-// at its true direction, turning with the map, while the rest of the map is relit by the cells.
+// the light of the map's bright sources on a field: relighting under the sun. A sun or a small
+// lamp relit by LED cells is spread over the cells of the LEDs around it, so its shadows come out
+// as two or three offset copies; split off (relight/sources/map_relight.h), it is rendered at its
+// true direction, turning with the map, while the rest of the map is relit by the cells.
 #include <Eigen/Core>
-#include <functional>
 #include <memory>
 #include <vector>
 
@@ -13,17 +12,18 @@
 #include "lightstage/image.h"
 #include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
-#include "relight/fit/source_relight.h"
+#include "physics/envmap.h"
+#include "relight/sources/map_relight.h"
 #include "viewer/gpu_relight.h"
 
 namespace ls::viewer {
 
 // What the shown sources need of an environment's lighting.
 struct EnvironmentNeeds {
-  // The field is shown: split the map's compact sources off for it (ViewLighting::split).
+  // The field is shown: split the map's bright sources off for it (ViewLighting::split).
   bool field_sources = false;
   // The whole map per LED (ViewLighting::led_irradiance_rgb) for the sources that cannot add a
-  // compact source back (PCA). Without it, a lighting with a split leaves led_irradiance_rgb empty
+  // bright source back (PCA). Without it, a lighting with a split leaves led_irradiance_rgb empty
   // (the field needs only the split's weights: 4 ms a rotation saved at 150 LEDs).
   bool whole_map_led_weights = true;
   // Distant lights for the models (ViewLighting::lights), sampled within the LEDs' coverage when
@@ -33,7 +33,7 @@ struct EnvironmentNeeds {
 };
 
 // The map rotated by rotation_deg about +Y as the viewer's sources take it: `split` when
-// needs.field_sources and the map has compact sources; led_irradiance_rgb of the whole map
+// needs.field_sources and the map has bright sources; led_irradiance_rgb of the whole map
 // (integrate_environment over the LEDs' cells) unless a split makes it unneeded; `lights` when
 // needs.model_lights. Without LEDs, only `lights`.
 ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rotation_deg,
@@ -41,32 +41,30 @@ ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rot
                                   const std::vector<bool>& led_valid,
                                   const EnvironmentNeeds& needs);
 
-// Whether the lighting has a compact source a field renders (one inside the dome's coverage).
-bool renders_compact_sources(const ViewLighting& lighting);
+// Whether the lighting has a bright source a field renders (one inside the dome's coverage).
+bool renders_bright_sources(const ViewLighting& lighting);
 
-// The compact sources' light on one field, for the field sources (CPU and GPU). The
-// relight::FieldSources (the field's photometric-stereo normals: 0.1-1 s at 256^2-512^2) is built
-// the first time a lighting has a source to render, so a map without one costs nothing; per-LED
-// shadows and per-triangle flows are cached inside it (a few ms the first time a sun falls between
-// new LEDs).
-class CompactSourceLight {
+// The bright sources' light on one field, for the field sources (CPU and GPU), through
+// relight::MapRelighter with the shadows by the LEDs' flows alone. The field's photometric-stereo
+// normals (0.1-1 s at 256^2-512^2) are found the first time a lighting has a source to render, so
+// a map without one costs nothing; per-LED shadows and per-triangle flows are cached (a few ms the
+// first time a sun falls between new LEDs).
+class BrightSourceLight {
  public:
   // `field` must outlive this.
-  explicit CompactSourceLight(const capture::ReflectanceField& field);
+  explicit BrightSourceLight(const capture::ReflectanceField& field);
   // A PCA's sources, from its reconstruction: normals from the reconstructed field (in bands of
   // rows), each LED's image from the PCA under that LED alone. `pca` must outlive this.
-  explicit CompactSourceLight(const relight::PcaField& pca);
+  explicit BrightSourceLight(const relight::PcaField& pca);
+  ~BrightSourceLight();
   // Adds the sources of lighting.split (if any) to `out` (the field's size, 3 channels).
   void add(const ViewLighting& lighting, Image& out);
   // The same into `out` alone: zeros plus the sources. False (out untouched) when there is none.
   bool render(const ViewLighting& lighting, Image& out);
 
  private:
-  const relight::FieldSources& sources();
-
   int width_ = 0, height_ = 0;
-  std::function<std::unique_ptr<relight::FieldSources>()> make_;  // Called once, when needed.
-  std::unique_ptr<relight::FieldSources> sources_;
+  std::unique_ptr<relight::MapRelighter> relighter_;
 };
 
 }  // namespace ls::viewer

@@ -172,11 +172,10 @@ const ViewLighting& ViewerApp::Impl::current_lighting() {
   const bool field_on_show = field.has_value() && shows(Source::kField);
   const bool pca_on_show = shows(Source::kPca);
   needs.field_sources = field_on_show || pca_on_show;
-  // The whole map per LED for a source that cannot add the compact sources back (the shader PCA,
+  // The whole map per LED for a source that cannot add the bright sources back (the shader PCA,
   // a field shown as PCA over the GPU budget).
-  needs.whole_map_led_weights =
-      (pca_on_show && !(gpu_pca && gpu_pca->adds_compact_sources())) ||
-      (field_on_show && !(gpu_field && gpu_field->adds_compact_sources()));
+  needs.whole_map_led_weights = (pca_on_show && !(gpu_pca && gpu_pca->adds_bright_sources())) ||
+                                (field_on_show && !(gpu_field && gpu_field->adds_bright_sources()));
   needs.model_lights = shows(Source::kModels);
   const LightingKey key{.environment = state.environment,
                         .rotation_deg = state.rotation_deg,

@@ -53,7 +53,7 @@ class ViewerApp {
   void save_screenshot(const std::filesystem::path& png_path);
 
   // The lighting of the current frame: per-LED irradiance of the whole map; for a field on show
-  // under a map with compact sources, the sources split off (ViewLighting::split); distant lights
+  // under a map with bright sources, the sources split off (ViewLighting::split); distant lights
   // for models on show.
   const ViewLighting& lighting();
   // Milliseconds of the last frame's GPU relighting (upload + draw + finish).

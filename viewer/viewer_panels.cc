@@ -264,8 +264,8 @@ void ViewerApp::Impl::lighting_section() {
     ImGui::Text("light dir %.2f %.2f %.2f", state.light_dir.x(), state.light_dir.y(),
                 state.light_dir.z());
   } else if (lighting.split && shows(Source::kField)) {
-    // What the field renders at its true direction instead of by LED cells.
-    ImGui::TextWrapped("field: compact sources at their true direction (orange on the strip): %s",
+    // Issue 16: what the field renders at its true direction instead of by LED cells.
+    ImGui::TextWrapped("field: bright sources at their true direction (orange on the strip): %s",
                        lighting.split->report().c_str());
   }
   if (!led_luminance.empty()) {
@@ -376,7 +376,7 @@ void ViewerApp::Impl::hover_info() {
     const float* r = field->pixel(px, py);
     for (int i = 0; i < field->num_lights() && 3 * size_t(i) + 2 < e.size(); ++i)
       for (int c = 0; c < 3; ++c) sum[c] += double(r[3 * i + c]) * e[3 * i + c];
-    ImGui::Text(l.split ? "field by LED cells %.4g %.4g %.4g (+ compact sources)"
+    ImGui::Text(l.split ? "field by LED cells %.4g %.4g %.4g (+ bright sources)"
                         : "field relit %.4g %.4g %.4g",
                 sum[0], sum[1], sum[2]);
   }

@@ -272,7 +272,7 @@ void add_leds(CLI::App& bench) {
   cmd->add_option("--repeats", args->repeats, "Timed repeats (median reported).")
       ->capture_default_str();
   cmd->add_option("--turns", args->turns,
-                  "Maps with a compact source are also relit turned to this many azimuths about "
+                  "Maps with a bright source are also relit turned to this many azimuths about "
                   "the vertical, each against its own truth: median errors (0: not turned).")
       ->capture_default_str();
   auto shared_maps = std::make_shared<bool>(false);

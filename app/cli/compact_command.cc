@@ -142,9 +142,12 @@ void add_render_command(CLI::App& app) {
   render->add_option("--env", args->environment, "Environment map (EXR/HDR) instead of --light.");
   render->add_option("--rotate", args->rotation_deg, "Rotation of the map about +Y, degrees.")
       ->capture_default_str();
-  render->add_flag("!--no-compact-sources", args->compact_sources,
+  render->add_flag("!--no-bright-sources", args->bright_sources,
                    "A PCA under a map with a sun or small lamp: relight it by the LED cells too "
                    "instead of rendering it at its true direction with moving shadows.");
+  render
+      ->add_flag("!--no-compact-sources", args->bright_sources, "Deprecated: --no-bright-sources.")
+      ->group("");
   render->callback([args] {
     if (const std::string problem = args->validate(); !problem.empty()) {
       throw CLI::ValidationError("render", problem);

@@ -98,12 +98,15 @@ void add_relight_command(CLI::App& app) {
   cmd->add_option("--coverage-deg", options->coverage_deg,
                   "Dome coverage radius around each LED, degrees (0: automatic).")
       ->capture_default_str();
-  cmd->add_flag("!--no-compact-sources", options->compact_sources,
+  cmd->add_flag("!--no-bright-sources", options->bright_sources,
                 "Fields: relight a map's sun or small lamp by the LED cells too, as one LED "
                 "cell's light each (shadows at the LEDs' directions), instead of rendering it "
                 "at its true direction with moving shadows.");
+  cmd->add_flag("!--no-compact-sources", options->bright_sources,
+                "Deprecated: --no-bright-sources.")
+      ->group("");
   cmd->add_flag("!--no-source-geometry", options->source_geometry,
-                "Fields: cast the compact sources' shadows by the flows between the LEDs' shadows "
+                "Fields: cast the bright sources' shadows by the flows between the LEDs' shadows "
                 "alone, without the scene's shape recovered from them (which needs every LED's "
                 "image in memory for seconds at 256^2; over --memory it is skipped, with a note).");
   cmd->add_option("--out", options->out_dir, "Output directory.")->required();

@@ -25,7 +25,8 @@
 #include "relight/compact/plane_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
-#include "relight/fit/source_relight.h"
+#include "physics/envmap.h"
+#include "relight/sources/map_relight.h"
 
 namespace ls::jobs {
 
@@ -539,28 +540,6 @@ std::string RenderOptions::validate() const {
   return {};
 }
 
-namespace {
-
-// A PCA under the map with its compact sources split off: the rest by LED cells, each source at its
-// direction (shadows from the reconstruction's shape where it agrees with the LEDs). False, and
-// nothing done, when the map has no source the dome covers.
-bool relight_with_sources(const relight::PcaField& pca, const physics::EnvironmentMap& map,
-                          double rotation_deg, Image& out, std::string& report) {
-  const capture::ReflectanceField header = pca.header();
-  const relight::SplitLighting split =
-      relight::split_lighting(map, header.lights(), rotation_deg, 0.0, true);
-  if (split.leds().empty()) return false;
-  pca.relight_led_weights_into(split.weights.irradiance_rgb.data(), out);
-  relight::FieldSources sources(header, pca.reconstruction_bands(),
-                                [&pca](int led) { return pca.led_image(led); });
-  sources.recover_geometry();
-  sources.add(split, out);
-  report = split.report();
-  return true;
-}
-
-}  // namespace
-
 RenderSummary render_compact(const RenderOptions& options) {
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("render: " + problem);
@@ -584,8 +563,17 @@ RenderSummary render_compact(const RenderOptions& options) {
         Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized());
   } else {
     const physics::EnvironmentMap map = physics::EnvironmentMap::load(options.environment);
-    if (!(pca && options.compact_sources &&
-          relight_with_sources(*pca, map, options.rotation_deg, image, summary.sources))) {
+    // A PCA under a map with a bright source the dome covers: the rest by LED cells, each source
+    // at its direction (shadows from the reconstruction's shape where it agrees with the LEDs).
+    if (pca && options.bright_sources) {
+      relight::MapRelighter relighter(*pca);
+      const relight::SplitLighting lighting = relighter.lighting(map, options.rotation_deg);
+      if (relight::MapRelighter::renders_sources(lighting)) {
+        relighter.render(lighting, image);
+        summary.sources = lighting.report();
+      }
+    }
+    if (image.pixels.empty()) {
       image = field->relight(relight::LightingForModels::environment(map, options.rotation_deg));
     }
   }

@@ -83,10 +83,10 @@ struct RenderOptions {
   std::vector<double> light;          // X Y Z toward the light, stage frame (+Y up); or
   std::filesystem::path environment;  // an environment map (EXR/HDR) ...
   double rotation_deg = 0.0;          // ... rotated about +Y.
-  // A PCA (it keeps its LEDs' directions) under a map with a compact source (a sun, a lamp): the
+  // A PCA (it keeps its LEDs' directions) under a map with a bright source (a sun, a lamp): the
   // source split off and rendered at its true direction from the PCA's reconstruction, as
-  // `relight` does for a field (relight/fit/source_relight.h), the rest of the map by LED cells.
-  bool compact_sources = true;
+  // `relight` does for a field (relight/sources/map_relight.h), the rest of the map by LED cells.
+  bool bright_sources = true;
   std::string validate() const;
 };
 

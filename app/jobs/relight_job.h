@@ -24,11 +24,11 @@ struct RelightOptions {
   std::optional<Eigen::Vector3d> light_dir;  // Models: one distant light of unit irradiance.
   std::optional<double> exposure_stops;      // Previews; empty: automatic per image.
   double coverage_deg = 0.0;                 // Dome coverage around each LED; 0: automatic.
-  // Fields: a map's compact bright sources (a sun, a lamp) are split off and rendered at their
-  // true direction with moving shadows (relight/lighting/source_render.h), the rest by LED cells.
-  bool compact_sources = true;
+  // Fields: a map's bright sources (a sun, a lamp) are split off and rendered at their true
+  // direction with moving shadows (relight/sources/map_relight.h), the rest by LED cells.
+  bool bright_sources = true;
   // Their shadows: by the scene's shape recovered from every LED's shadows where it agrees with
-  // the LEDs around the source (relight/lighting/shadow_geometry.h), else by the flows alone.
+  // the LEDs around the source (relight/sources/shadow_geometry.h), else by the flows alone.
   bool source_geometry = true;
   // What rendering them may hold (relight::FieldSources::bytes_needed); 0: half of the memory
   // available. Over it they are relit by the cells, and the output's detail says so. Models and

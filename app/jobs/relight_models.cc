@@ -13,6 +13,7 @@
 #include "relight/fit/model_render.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
+#include "relight/sources/map_relight.h"
 #include "relight/time/temporal_render.h"
 
 namespace ls::jobs {
@@ -149,24 +150,27 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
     out.directional = true;
   }
   MapRotations map_rotations(options);
-  map_rotations.for_each([&](const physics::EnvironmentMap& map, double rotation,
-                             const std::string& name) {
-    const auto t0 = Clock::now();
-    ModelOutput& out = outputs.emplace_back();
-    out.name = name;
-    out.lighting = relight::LightingForModels::environment(map, rotation, sampling);
-    if (field) {
-      out.field_irradiance_rgb = relight::integrate_environment(map, lights.dirs, rotation,
-                                                                coverage_rad(options), lights.valid)
-                                     .irradiance_rgb;
-      out.fallback = Image(width, height, 3);
-    }
-    char note[128];
-    std::snprintf(note, sizeof note, "lights %.1f ms (%zu directions%s)",
-                  ms_between(t0, Clock::now()), out.lighting.dirs_in_stage.size(),
-                  field ? " within the dome; field for flagged pixels" : " over the sphere");
-    out.lights_note = note;
-  });
+  map_rotations.for_each(
+      [&](const physics::EnvironmentMap& map, double rotation, const std::string& name) {
+        const auto t0 = Clock::now();
+        ModelOutput& out = outputs.emplace_back();
+        out.name = name;
+        out.lighting = relight::LightingForModels::environment(map, rotation, sampling);
+        if (field) {  // The whole map by the LEDs' cells: the flagged pixels have no shape to cast.
+          relight::MapRelightOptions cells;
+          cells.coverage_rad = coverage_rad(options);
+          cells.bright_sources = false;
+          out.field_irradiance_rgb =
+              relight::map_lighting(map, field->header().lights(), rotation, cells)
+                  .weights.irradiance_rgb;
+          out.fallback = Image(width, height, 3);
+        }
+        char note[128];
+        std::snprintf(note, sizeof note, "lights %.1f ms (%zu directions%s)",
+                      ms_between(t0, Clock::now()), out.lighting.dirs_in_stage.size(),
+                      field ? " within the dome; field for flagged pixels" : " over the sphere");
+        out.lights_note = note;
+      });
   std::size_t output_bytes = 0;
   for (ModelOutput& out : outputs) {
     out.relit = Image(width, height, 3);

@@ -33,6 +33,21 @@ std::string output_name(const fs::path& map_path, double rotation, bool several_
   return name;
 }
 
+MapRotations::MapRotations(const RelightOptions& options) {
+  maps_.reserve(options.maps.size());  // all_ points into it.
+  for (const fs::path& map_path : options.maps) {
+    maps_.push_back(relight::EnvironmentMap::load(map_path));
+  }
+  std::set<std::string> used_names;  // Maps from different folders may share a file name.
+  for (std::size_t m = 0; m < maps_.size(); ++m) {
+    for (const double rotation : options.rotations_deg) {
+      all_.push_back({&maps_[m], rotation});
+      names_.push_back(
+          output_name(options.maps[m], rotation, options.rotations_deg.size() > 1, used_names));
+    }
+  }
+}
+
 // A preview is exposed by its own highlights (auto_exposure_stops), but never more than
 // kDarkSceneStops brighter than a white Lambertian surface that all of the light reaches at normal
 // incidence (radiance sum E / pi at 0.9): a scene that a map leaves dark (lit from behind the

@@ -16,6 +16,7 @@
 #include "capture/field.h"
 #include "lightstage/image.h"
 #include "physics/envmap.h"
+#include "relight/sources/map_relight.h"
 
 namespace ls::jobs {
 
@@ -26,29 +27,26 @@ double ms_between(Clock::time_point a, Clock::time_point b);
 std::string output_name(const std::filesystem::path& map_path, double rotation,
                         bool several_rotations, std::set<std::string>& used_names);
 
-// Walks the maps and rotations in output order, loading each map once.
+// The maps and rotations in output order, each map loaded once: here, so that a bad one stops the
+// run before any image is written.
 class MapRotations {
  public:
-  // Every map is read once here, so that a bad one stops the run before any image is written.
-  explicit MapRotations(const RelightOptions& options) : options_(options) {
-    for (const std::filesystem::path& map_path : options_.maps)
-      physics::EnvironmentMap::load(map_path);
-  }
-  long count() const { return long(options_.maps.size() * options_.rotations_deg.size()); }
+  explicit MapRotations(const RelightOptions& options);
+  MapRotations(const MapRotations&) = delete;  // all() points into maps_.
+  MapRotations& operator=(const MapRotations&) = delete;
+  long count() const { return long(all_.size()); }
+  // Each map and rotation (the maps held here) and its output name, in output order.
+  const std::vector<relight::MapRotation>& all() const { return all_; }
+  const std::string& name(std::size_t i) const { return names_[i]; }
   template <typename Fn>  // fn(map, rotation_deg, output name)
-  void for_each(Fn&& fn) {
-    for (const std::filesystem::path& map_path : options_.maps) {
-      const physics::EnvironmentMap map = physics::EnvironmentMap::load(map_path);
-      for (double rotation : options_.rotations_deg) {
-        fn(map, rotation,
-           output_name(map_path, rotation, options_.rotations_deg.size() > 1, used_names_));
-      }
-    }
+  void for_each(Fn&& fn) const {
+    for (std::size_t i = 0; i < all_.size(); ++i) fn(*all_[i].map, all_[i].rotation_deg, names_[i]);
   }
 
  private:
-  const RelightOptions& options_;
-  std::set<std::string> used_names_;  // Maps from different folders may share a file name.
+  std::vector<physics::EnvironmentMap> maps_;
+  std::vector<relight::MapRotation> all_;
+  std::vector<std::string> names_;
 };
 
 // The PNG preview's exposure (preview_exposure in relight_outputs.cc), and the luminance of a

@@ -204,8 +204,8 @@ class PcaField : public CompactField {
   int tile_size() const { return tile_size_; }
   // The reconstruction of one pixel's value under LED l.
   float reconstruct(int x, int y, int light, int c) const;
-  // The reconstruction as a field, for what reads one (photometric stereo, compact sources:
-  // relight/fit/source_relight.h): its header (the lights, no values), its rows in bands of
+  // The reconstruction as a field, for what reads one (photometric stereo, bright sources:
+  // relight/sources/field_sources.h): its header (the lights, no values), its rows in bands of
   // `rows`, and its image under LED l alone (width x height x 3, field units).
   capture::ReflectanceField header() const;
   capture::FieldBands reconstruction_bands(int rows = 64) const;

@@ -162,6 +162,15 @@ TEST(Cli, MalformedStageSceneAndMapFilesGiveClearErrors) {
                      (tmp / "nan.exr").string() + " --out " + (tmp / "r").string(),
                  {"nan.exr"});
   EXPECT_FALSE(fs::exists(tmp / "r"));
+  // Maps relit by the cells alone: --no-bright-sources, and its deprecated name.
+  for (const std::string flag : {"--no-bright-sources", "--no-compact-sources"}) {
+    EXPECT_EQ(run_command(cli_path().string() + " relight --quiet " + (tmp / "f.exr").string() +
+                              " --env " + good_map.string() + " --out " +
+                              (tmp / ("cells" + flag)).string() + " " + flag,
+                          &out),
+              0)
+        << flag << ": " << out;
+  }
   ExpectCliError("build " + tmp.path().string() + " --out " + (tmp / "g.exr").string(),
                  {"not a lightstage session"});
 
@@ -205,7 +214,9 @@ TEST(Cli, HelpExplainsEverySubcommand) {
   const std::vector<std::pair<std::string, std::vector<std::string>>> expected = {
       {"capture", {"--out", "--resume", "--stage", "--scene", "--seed"}},
       {"build", {"session", "--out", "--all-time-steps", "--time-step"}},
-      {"relight", {"field", "--env", "--light", "--models", "--temporal", "--edits", "--rotate"}},
+      {"relight",
+       {"field", "--env", "--light", "--models", "--temporal", "--edits", "--rotate",
+        "--no-bright-sources"}},
       {"demo", {"--out", "--resolution", "--no-truth", "--no-shared-maps"}},
       {"stage", {"file", "--write"}},
       {"envmaps", {"--out", "--width"}},

@@ -9,9 +9,10 @@
 #include "lightstage/direction_index.h"
 #include "physics/envmap.h"
 #include "relight/fit/normals.h"
-#include "relight/fit/source_relight.h"
+#include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
+#include "relight/sources/field_sources.h"
 #include "sim/ground_truth.h"
 #include "tests/app/e2e_fixtures.h"
 #include "tests/support/test_support.h"
@@ -146,11 +147,11 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
   // 0.117, softbox_studio 0.035, small_source 0.185 (a 2-degree source falls into one 14-degree
   // cell: its shadows and highlights come from the LED's direction, not the source's). Asserted
   // with ~1.4x margin.
-  // With compact sources, their shadows cast by the scene's shape recovered from the LEDs' shadows
-  // where it agrees with them: sky_sun measured 0.0457, asserted at the target 0.05; small_source
-  // 0.0643 here (0.056 in the demo's 256^2, under the target 0.06), asserted at 0.07:
+  // With bright sources, their shadows cast by the scene's shape recovered from the LEDs' shadows
+  // where it agrees with them: sky_sun measured 0.0457, asserted at issue 16's figure 0.05;
+  // small_source 0.0643 here (0.056 in the demo's 256^2, under the issue's 0.06), asserted at 0.07:
   // by the flows alone it measured 0.096 (the spheres' shadows on the relief move 20-40 pixels
-  // between LEDs and change shape). softbox_studio has no compact source.
+  // between LEDs and change shape). softbox_studio has no bright source.
   struct Case {
     const char* name;
     double cells_bound, split_bound;
@@ -188,7 +189,7 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
     const auto cells_err = testing::compare_images(cells, truth);
     const auto split_err = testing::compare_images(split, truth);
     std::cout << c.name << ": relative RMSE by cells " << cells_err.relative_rmse
-              << ", with compact sources " << split_err.relative_rmse << "\n";
+              << ", with bright sources " << split_err.relative_rmse << "\n";
     EXPECT_TRUE(testing::ImageNear(cells, truth, c.cells_bound)) << c.name;
     EXPECT_TRUE(testing::ImageNear(split, truth, c.split_bound)) << c.name;
     // Splitting never makes a map worse than the cells did.
@@ -282,7 +283,7 @@ TEST(EndToEnd, ASmallSourceBetweenDeadLedsIsRenderedFromTheLiveOnes) {
   EXPECT_LT(error, 0.1);
 }
 
-// The scene's shape recovered from the field (relight/lighting/shadow_geometry.h) against the
+// The scene's shape recovered from the field (relight/sources/shadow_geometry.h) against the
 // simulator's: heights toward the camera above the backdrop, per object, in pixels.
 TEST(EndToEnd, TheShapeRecoveredFromTheLedsShadowsMatchesTheScene) {
   const DemoCapture demo(96);

@@ -15,6 +15,7 @@
 #include "app/jobs/compress_job.h"
 #include "app/jobs/fit_job.h"
 #include "app/jobs/relight_job.h"
+#include "app/jobs/relight_outputs.h"
 #include "capture/field.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/direction_index.h"
@@ -244,11 +245,11 @@ TEST_F(Jobs, APreviewOfADarkRelightIsDarkNotNoise) {
   EXPECT_GT(lit, 100);
 }
 
-// A map's compact source is rendered at its direction and reported; when that would hold more
+// A map's bright source is rendered at its direction and reported; when that would hold more
 // than the memory given, it is relit by the LED cells instead (the same bytes as
-// --no-compact-sources) and the output's detail says so; when only the scene's shape would, its
+// --no-bright-sources) and the output's detail says so; when only the scene's shape would, its
 // shadows come from the flows alone (as --no-source-geometry), with a note.
-TEST_F(Jobs, CompactSourcesOverTheMemoryGivenAreRelitByTheCellsAndSaySo) {
+TEST_F(Jobs, BrightSourcesOverTheMemoryGivenAreRelitByTheCellsAndSaySo) {
   jobs::BuildJobOptions build;
   build.session_dir = *dir_ / "session";
   build.out = *dir_ / "field.exr";
@@ -263,13 +264,13 @@ TEST_F(Jobs, CompactSourcesOverTheMemoryGivenAreRelitByTheCellsAndSaySo) {
     return std::make_pair(summary.images[0].detail, read_image(summary.images[0].exr));
   };
   const auto [split_detail, split] = run("split");
-  EXPECT_NE(split_detail.find("compact source at elevation 50.0 deg"), std::string::npos)
+  EXPECT_NE(split_detail.find("bright source at elevation 50.0 deg"), std::string::npos)
       << split_detail;
-  relight.compact_sources = false;
+  relight.bright_sources = false;
   const auto [cells_detail, cells] = run("cells");
-  EXPECT_EQ(cells_detail.find("compact source"), std::string::npos) << cells_detail;
+  EXPECT_EQ(cells_detail.find("bright source"), std::string::npos) << cells_detail;
   EXPECT_NE(split.pixels, cells.pixels);
-  relight.compact_sources = true;
+  relight.bright_sources = true;
   relight.memory_bytes = 1000;
   const auto [tight_detail, tight] = run("tight");
   EXPECT_NE(tight_detail.find("relit by the LED cells"), std::string::npos) << tight_detail;
@@ -477,8 +478,8 @@ TEST_F(Jobs, RenderOfAPcaCastsASmallSourcesShadowsAtItsDirection) {
   render.environment = map_file;
   render.out = dir / "sources.exr";
   const jobs::RenderSummary summary = jobs::render_compact(render);
-  EXPECT_NE(summary.sources.find("compact source"), std::string::npos) << summary.sources;
-  render.compact_sources = false;
+  EXPECT_NE(summary.sources.find("bright source"), std::string::npos) << summary.sources;
+  render.bright_sources = false;
   render.out = dir / "grid.exr";
   EXPECT_TRUE(jobs::render_compact(render).sources.empty());
   const auto dirs = stage.led_directions();
@@ -504,6 +505,28 @@ TEST_F(Jobs, RelightRefusesBadOptionsBeforeWritingAnything) {
   const std::string what = input_error([&] { (void)jobs::relight(relight); });
   EXPECT_NE(what.find("--env"), std::string::npos) << what;
   EXPECT_FALSE(fs::exists(relight.out_dir));
+}
+
+// Each map is read once, before any image: one removed after the run started still renders, under
+// every rotation, by its output names.
+TEST_F(Jobs, MapRotationsReadEachMapOnceUpFront) {
+  const fs::path map_file = *dir_ / "maps" / "sky.exr";
+  fs::create_directories(map_file.parent_path());
+  fs::copy_file(testing::source_dir() / "data" / "envmaps" / "small_source.exr", map_file);
+  jobs::RelightOptions relight;
+  relight.maps = {map_file};
+  relight.rotations_deg = {0.0, 90.0};
+  const jobs::MapRotations map_rotations(relight);
+  fs::remove(map_file);
+  std::vector<std::string> names;
+  map_rotations.for_each([&](const relight::EnvironmentMap& map, double, const std::string& name) {
+    EXPECT_GT(map.width(), 0);
+    names.push_back(name);
+  });
+  EXPECT_EQ(names, (std::vector<std::string>{"sky_rot000", "sky_rot090"}));
+  ASSERT_EQ(map_rotations.all().size(), 2u);
+  EXPECT_EQ(map_rotations.all()[0].map, map_rotations.all()[1].map);
+  EXPECT_EQ(map_rotations.all()[1].rotation_deg, 90.0);
 }
 
 }  // namespace

@@ -14,9 +14,10 @@
 #include "capture/field.h"
 #include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
-#include "relight/fit/source_relight.h"
+#include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
+#include "relight/sources/field_sources.h"
 #include "sim/noisy_field.h"
 #include "sim/rti_scenes.h"
 #include "tests/support/test_support.h"
@@ -53,7 +54,7 @@ Action rotate_to(double deg) {
 
 // A 64 x 48 simulated field of the shadowed RTI scene (40 LEDs) under small_source.exr (a 2-degree
 // source), written once for the viewer to open.
-class ViewerCompactSources : public ::testing::Test {
+class ViewerBrightSources : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     dir_ = new testing::TempDir();
@@ -106,13 +107,13 @@ class ViewerCompactSources : public ::testing::Test {
   static std::vector<Eigen::Vector3d> dirs_;
   static std::vector<bool> valid_;
 };
-testing::TempDir* ViewerCompactSources::dir_ = nullptr;
-capture::ReflectanceField* ViewerCompactSources::field_ = nullptr;
-physics::EnvironmentMap* ViewerCompactSources::map_ = nullptr;
-std::vector<Eigen::Vector3d> ViewerCompactSources::dirs_;
-std::vector<bool> ViewerCompactSources::valid_;
+testing::TempDir* ViewerBrightSources::dir_ = nullptr;
+capture::ReflectanceField* ViewerBrightSources::field_ = nullptr;
+physics::EnvironmentMap* ViewerBrightSources::map_ = nullptr;
+std::vector<Eigen::Vector3d> ViewerBrightSources::dirs_;
+std::vector<bool> ViewerBrightSources::valid_;
 
-TEST_F(ViewerCompactSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
+TEST_F(ViewerBrightSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
   ViewState state;
   state.field_file = field_path();
   state.environment = "small_source";
@@ -130,7 +131,7 @@ TEST_F(ViewerCompactSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
     app.frame();
     const relight::SplitLighting split =
         relight::split_lighting(*map_, field_->lights(), deg, 0.0, /*split=*/true);
-    ASSERT_FALSE(split.sources.empty()) << "small_source.exr has no compact source";
+    ASSERT_FALSE(split.sources.empty()) << "small_source.exr has no bright source";
     ASSERT_TRUE(app.lighting().split.has_value()) << "at " << deg << " deg";
     EXPECT_EQ(app.lighting().split->report(), split.report());
     const Image shown = app.relit_image();
@@ -166,7 +167,7 @@ TEST_F(ViewerCompactSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
 
 // The PCA on the CPU renders the sources as the field does, from its own reconstruction (its
 // LEDs' images and the normals of the reconstructed field), also when shown beside the field.
-TEST_F(ViewerCompactSources, PcaOnTheCpuRendersTheSourcesFromItsReconstruction) {
+TEST_F(ViewerBrightSources, PcaOnTheCpuRendersTheSourcesFromItsReconstruction) {
   ViewState state;
   state.field_file = field_path();
   state.environment = "small_source";
@@ -189,7 +190,7 @@ TEST_F(ViewerCompactSources, PcaOnTheCpuRendersTheSourcesFromItsReconstruction) 
   // The map without its source from the PCA, plus the source from the PCA's own reconstruction.
   Image expected;
   pca.relight_led_weights_into(app.lighting().field_irradiance_rgb().data(), expected);
-  CompactSourceLight from_pca(pca);
+  BrightSourceLight from_pca(pca);
   from_pca.add(app.lighting(), expected);
   const Image shown = app.relit_image();
   EXPECT_LT(max_relative_difference(shown, expected), 1e-5);
@@ -201,20 +202,20 @@ TEST_F(ViewerCompactSources, PcaOnTheCpuRendersTheSourcesFromItsReconstruction) 
 
 // The shader path (a hardware GPU): the sources' image computed on the CPU and added in the field
 // shader.
-TEST_F(ViewerCompactSources, GpuFieldAddsTheSources) {
+TEST_F(ViewerBrightSources, GpuFieldAddsTheSources) {
   const GlWindow window(64, 64, "viewer_sources_test", false);
   const auto source = upload_field(*field_, std::size_t(1) << 30, FieldPrecision::kFloat);
-  EXPECT_TRUE(source->adds_compact_sources());
+  EXPECT_TRUE(source->adds_bright_sources());
   // Over the budget the field is shown as PCA, which keeps the whole map (the viewer then makes
   // its weights).
-  EXPECT_FALSE(upload_field(*field_, 300000)->adds_compact_sources());
+  EXPECT_FALSE(upload_field(*field_, 300000)->adds_bright_sources());
   EnvironmentNeeds needs;
   needs.field_sources = true;
   needs.model_lights = false;
   for (const double deg : {0.0, 1.0, 300.0}) {
     const ViewLighting lighting = environment_lighting(*map_, deg, dirs_, valid_, needs);
     ASSERT_TRUE(lighting.split.has_value());
-    ASSERT_TRUE(renders_compact_sources(lighting)) << "at " << deg << " deg";
+    ASSERT_TRUE(renders_bright_sources(lighting)) << "at " << deg << " deg";
     GpuTarget target(source->width(), source->height());
     source->render(lighting, target);
     const double error =
@@ -222,7 +223,7 @@ TEST_F(ViewerCompactSources, GpuFieldAddsTheSources) {
     std::cout << deg << " deg: GPU field vs CPU with sources: max " << error << " of the peak\n";
     EXPECT_LT(error, 1e-5);  // Float storage; only the summation order differs.
   }
-  // A map without a compact source: no split, the shader adds nothing.
+  // A map without a bright source: no split, the shader adds nothing.
   const physics::EnvironmentMap studio = physics::EnvironmentMap::load(
       testing::source_dir() / "data" / "envmaps" / "softbox_studio.exr");
   const ViewLighting plain = environment_lighting(studio, 30, dirs_, valid_, needs);

@@ -1,4 +1,4 @@
-#include "relight/lighting/compact_sources.h"
+#include "relight/sources/bright_sources.h"
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -9,6 +9,7 @@
 
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 
 namespace ls::relight {
 
@@ -16,10 +17,6 @@ namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 
-double luminance(const float* rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
-double luminance(const Eigen::Vector3d& rgb) {
-  return rgb.dot(Eigen::Vector3d(0.2126, 0.7152, 0.0722));
-}
 
 // The 8-connected pixels of a lat-long map at or above a luminance, grown from a seed (wrapping
 // in u), and whether all of them lie within max_angle of the seed's direction.
@@ -97,20 +94,20 @@ Eigen::Vector3d border_radiance(const physics::EnvironmentMap& map, const std::v
 
 }  // namespace
 
-std::string CompactSource::describe() const {
+std::string BrightSource::describe() const {
   const Eigen::Vector3d& d = dir;
   const double elevation = std::asin(std::clamp(d.y(), -1.0, 1.0)) / kDegToRad;
   // Azimuth in the stage frame: 0 toward the camera (+Z), 90 toward +X.
   const double azimuth = std::atan2(d.x(), d.z()) / kDegToRad;
   char line[160];
   std::snprintf(line, sizeof line,
-                "compact source at elevation %.1f deg, azimuth %.1f deg, radius %.2f deg, %.1f%% "
+                "bright source at elevation %.1f deg, azimuth %.1f deg, radius %.2f deg, %.1f%% "
                 "of the map's light",
                 elevation, azimuth, radius_rad / kDegToRad, 100.0 * energy_share);
   return line;
 }
 
-std::string CompactSourceOptions::validate() const {
+std::string BrightSourceOptions::validate() const {
   if (!(std::isfinite(min_contrast) && min_contrast > 1)) return "min_contrast: expected > 1";
   if (!(max_radius_deg > 0 && max_radius_deg <= 45)) return "max_radius_deg: expected (0, 45]";
   if (!(min_energy_share >= 0 && min_energy_share <= 1)) return "min_energy_share: expected [0, 1]";
@@ -118,10 +115,10 @@ std::string CompactSourceOptions::validate() const {
   return {};
 }
 
-SplitEnvironment split_compact_sources(const physics::EnvironmentMap& map,
-                                       const CompactSourceOptions& options) {
+SplitEnvironment split_bright_sources(const physics::EnvironmentMap& map,
+                                      const BrightSourceOptions& options) {
   if (const std::string error = options.validate(); !error.empty()) {
-    throw InputError("compact sources: " + error);
+    throw InputError("bright sources: " + error);
   }
   const int width = map.width(), height = map.height();
   const std::vector<float>& radiance = map.radiance().pixels;
@@ -131,12 +128,12 @@ SplitEnvironment split_compact_sources(const physics::EnvironmentMap& map,
     const double sr = map.pixel_solid_angle_sr(y);
     for (int x = 0; x < width; ++x) {
       const size_t p = size_t(y) * width + x;
-      lum[p] = luminance(&radiance[3 * p]);
+      lum[p] = ls::luminance(radiance[3 * p], radiance[3 * p + 1], radiance[3 * p + 2]);
       total += sr * lum[p];
     }
   }
   Image rest = map.radiance();
-  std::vector<CompactSource> sources;
+  std::vector<BrightSource> sources;
   const double threshold = options.min_contrast * total / (4 * std::numbers::pi);
   std::vector<char> visited(lum.size(), 0);
   // Seeds in decreasing luminance: each region is grown once from its brightest pixel.
@@ -153,7 +150,7 @@ SplitEnvironment split_compact_sources(const physics::EnvironmentMap& map,
         compact_core(map, lum, threshold, seed, 2 * options.max_radius_deg * kDegToRad, visited);
     if (!region.compact) continue;
     const Eigen::Vector3d background = border_radiance(map, region.pixels, 2);
-    CompactSource source;
+    BrightSource source;
     Eigen::Vector3d centroid(0, 0, 0);
     std::vector<std::pair<Eigen::Vector3d, double>> weighted;  // Direction, luminance x sr.
     for (const int p : region.pixels) {
@@ -164,10 +161,10 @@ SplitEnvironment split_compact_sources(const physics::EnvironmentMap& map,
       for (int c = 0; c < 3; ++c) excess[c] = std::max(0.0, double(l[c]) - background[c]);
       source.irradiance_rgb += sr * excess;
       const Eigen::Vector3d dir = map.pixel_direction(x, y);
-      weighted.emplace_back(dir, sr * luminance(excess));
+      weighted.emplace_back(dir, sr * ls::luminance(excess));
       centroid += weighted.back().second * dir;
     }
-    const double source_lum = luminance(source.irradiance_rgb);
+    const double source_lum = ls::luminance(source.irradiance_rgb);
     if (!(source_lum > 0) || centroid.norm() == 0) continue;
     source.dir = centroid.normalized();
     source.energy_share = source_lum / total;
@@ -186,7 +183,7 @@ SplitEnvironment split_compact_sources(const physics::EnvironmentMap& map,
     }
     sources.push_back(source);
   }
-  return {physics::EnvironmentMap(std::move(rest), map.source() + " without its compact sources"),
+  return {physics::EnvironmentMap(std::move(rest), map.source() + " without its bright sources"),
           std::move(sources)};
 }
 

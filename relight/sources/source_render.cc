@@ -1,4 +1,4 @@
-#include "relight/lighting/source_render.h"
+#include "relight/sources/source_render.h"
 
 #include <tbb/parallel_for.h>
 
@@ -12,7 +12,7 @@
 
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
-#include "relight/lighting/shadow_geometry.h"
+#include "relight/sources/shadow_geometry.h"
 
 namespace ls::relight {
 
@@ -290,16 +290,16 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to) {
           flow_values(dense_flow(gloss_image(from), gloss_image(to)))};
 }
 
-void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
-                        const LedTriangle& triangle, const CompactSource& source,
-                        const LambertianFit& fit, Image& out, const Image* visibility,
-                        const SourceShadowView* geometry) {
+void add_bright_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
+                       const LedTriangle& triangle, const BrightSource& source,
+                       const LambertianFit& fit, Image& out, const Image* visibility,
+                       const SourceShadowView* geometry) {
   const int width = fit.normal.width, height = fit.normal.height;
   LS_CHECK(out.width == width && out.height == height && out.channels == 3,
-           "add_compact_source: the output is not the field's size");
+           "add_bright_source: the output is not the field's size");
   LS_CHECK(!visibility || (visibility->width == width && visibility->height == height &&
                            visibility->channels == 1),
-           "add_compact_source: the visibility is not one channel of the field's size");
+           "add_bright_source: the visibility is not one channel of the field's size");
   const float limit = float(std::max(width, height)) / 4;
   // Each LED's shadows move toward where the others have them, by the others' weights
   // (multi-image morphing, on the distance images).
@@ -311,7 +311,7 @@ void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const Pa
       angle[size_t(k)][size_t(j)] = angle_between(a, b);
       LS_CHECK(j == k || triangle.weights[size_t(k)] < kMinTriangleWeight ||
                    angle[size_t(k)][size_t(j)] <= 0 || flows[size_t(k)][size_t(j)] != nullptr,
-               "add_compact_source: a flow from a weighted LED is missing");
+               "add_bright_source: a flow from a weighted LED is missing");
     }
   }
   // The LEDs that carry weight, each with the flows toward the others (float, per pixel: this loop

@@ -1,5 +1,5 @@
 #pragma once
-// A compact source (compact_sources.h) rendered from a reflectance field at its true direction,
+// A bright source (bright_sources.h) rendered from a reflectance field at its true direction,
 // between the LEDs that sampled the field:
 //  - Shading: the pixel's Lambertian term at the source's direction (normal and albedo from
 //    photometric stereo), plus what the LEDs around the source show beyond their own Lambertian
@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "lightstage/image.h"
-#include "relight/lighting/compact_sources.h"
+#include "relight/sources/bright_sources.h"
 
 namespace ls::relight {
 
@@ -91,9 +91,9 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to);
 inline constexpr double kMinTriangleWeight = 1e-3;
 using PairFlows = std::array<std::array<const LedPairFlow*, 3>, 3>;
 class SourceShadowView;
-void add_compact_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
-                        const LedTriangle& triangle, const CompactSource& source,
-                        const LambertianFit& fit, Image& out, const Image* visibility = nullptr,
-                        const SourceShadowView* geometry = nullptr);
+void add_bright_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
+                       const LedTriangle& triangle, const BrightSource& source,
+                       const LambertianFit& fit, Image& out, const Image* visibility = nullptr,
+                       const SourceShadowView* geometry = nullptr);
 
 }  // namespace ls::relight

@@ -1,4 +1,4 @@
-#include "relight/lighting/compact_sources.h"
+#include "relight/sources/bright_sources.h"
 
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <numbers>
 #include <random>
 
-#include "relight/lighting/source_render.h"
+#include "relight/sources/source_render.h"
 
 namespace {
 
@@ -53,11 +53,11 @@ DiscMap disc_map(int width, const Eigen::Vector3d& centre, double radius_deg, do
 
 Eigen::Vector3d sum_over_sphere(const EnvironmentMap& map) { return map.integral(); }
 
-TEST(CompactSources, ASmallDiscIsFoundWithItsDirectionSizeAndEnergy) {
+TEST(BrightSources, ASmallDiscIsFoundWithItsDirectionSizeAndEnergy) {
   const Eigen::Vector3d centre = Eigen::Vector3d(0.5, 0.7, 0.3).normalized();
   const DiscMap disc = disc_map(512, centre, 2.0, 400.0, 0.2);
   const EnvironmentMap map(disc.radiance);
-  const auto split = ls::relight::split_compact_sources(map);
+  const auto split = ls::relight::split_bright_sources(map);
   ASSERT_EQ(split.sources.size(), 1u);
   const auto& source = split.sources[0];
   // A pixel is 0.7 deg: the centroid of a symmetric disc lands within a small part of one.
@@ -71,22 +71,22 @@ TEST(CompactSources, ASmallDiscIsFoundWithItsDirectionSizeAndEnergy) {
   EXPECT_NEAR(sum_over_sphere(split.rest)[0] + source.irradiance_rgb[0], total, 1e-4 * total);
 }
 
-TEST(CompactSources, WideAreaLightsAndDimSpecksStayInTheMap) {
+TEST(BrightSources, WideAreaLightsAndDimSpecksStayInTheMap) {
   // A 20-degree softbox: far wider than a few degrees, so the LED cells relight it well.
   const DiscMap box = disc_map(256, Eigen::Vector3d(0, 1, -1), 20.0, 50.0, 0.05);
-  EXPECT_TRUE(ls::relight::split_compact_sources(EnvironmentMap(box.radiance)).sources.empty());
+  EXPECT_TRUE(ls::relight::split_bright_sources(EnvironmentMap(box.radiance)).sources.empty());
   // A speck bright per pixel but holding under 1% of the light: its ghosts would not show.
   const DiscMap speck = disc_map(256, Eigen::Vector3d(0, 1, -1), 1.0, 40.0, 0.5);
-  EXPECT_TRUE(ls::relight::split_compact_sources(EnvironmentMap(speck.radiance)).sources.empty());
+  EXPECT_TRUE(ls::relight::split_bright_sources(EnvironmentMap(speck.radiance)).sources.empty());
 }
 
-TEST(CompactSources, TwoSourcesAreBothFoundBrightestFirst) {
+TEST(BrightSources, TwoSourcesAreBothFoundBrightestFirst) {
   const Eigen::Vector3d a = Eigen::Vector3d(0.2, 0.8, 0.5).normalized();
   const Eigen::Vector3d b = Eigen::Vector3d(-0.6, 0.5, -0.4).normalized();
   Image radiance = disc_map(512, a, 1.0, 2000.0, 0.1).radiance;
   const Image second = disc_map(512, b, 1.5, 500.0, 0.0).radiance;
   for (size_t i = 0; i < radiance.pixels.size(); ++i) radiance.pixels[i] += second.pixels[i];
-  const auto split = ls::relight::split_compact_sources(EnvironmentMap(radiance));
+  const auto split = ls::relight::split_bright_sources(EnvironmentMap(radiance));
   ASSERT_EQ(split.sources.size(), 2u);
   EXPECT_LT(angle_deg(split.sources[0].dir, a), 0.1);
   EXPECT_LT(angle_deg(split.sources[1].dir, b), 0.1);

@@ -1,8 +1,9 @@
 #pragma once
-// Relighting a field under a map with its compact sources split off: the rest of the map
-// by LED cells (relight.h), each source at its true direction with moving shadows
-// (relight/lighting/source_render.h), from the field's own Lambertian fit and the images of the
-// LEDs around the sources. Fields in memory and streamed ones alike (capture::FieldBands).
+// The pieces of relighting a field under a map with its bright sources split off: the rest of the
+// map by LED cells (relight/lighting/relight.h), each source at its true direction with moving
+// shadows (source_render.h), from the field's own Lambertian fit and the images of the LEDs
+// around the sources. Fields in memory and streamed ones alike (capture::FieldBands). Callers
+// relight through map_relight.h, which assembles them.
 #include <functional>
 #include <map>
 #include <memory>
@@ -12,15 +13,15 @@
 #include <vector>
 
 #include "capture/field.h"
-#include "relight/lighting/compact_sources.h"
 #include "relight/lighting/light_cells.h"
-#include "relight/lighting/shadow_geometry.h"
-#include "relight/lighting/source_render.h"
+#include "relight/sources/bright_sources.h"
+#include "relight/sources/shadow_geometry.h"
+#include "relight/sources/source_render.h"
 
 namespace ls::relight {
 
 struct PlacedSource {
-  CompactSource in_stage;               // The map's source, its direction rotated with the map.
+  BrightSource in_stage;                // The map's source, its direction rotated with the map.
   std::optional<LedTriangle> triangle;  // Unset: outside the dome's coverage, not rendered.
 };
 
@@ -39,7 +40,7 @@ struct SplitLighting {
 SplitLighting split_lighting(const physics::EnvironmentMap& map,
                              const std::vector<capture::FieldLight>& lights, double rotation_deg,
                              double coverage_rad, bool split,
-                             const CompactSourceOptions& options = {});
+                             const BrightSourceOptions& options = {});
 
 // The field's Lambertian fit and the LedShadow of each LED its sources fall between.
 class FieldSources {
@@ -65,6 +66,8 @@ class FieldSources {
   void recover_geometry(const std::function<void(int, int)>& progress = {});
   // The geometry `other` recovered, for this view of the same field (no second recovery).
   void use_geometry_of(const FieldSources& other);
+  // The shadows of `leds` now rather than when a source first falls next to them.
+  void prepare(const std::vector<int>& leds);
   // Memory it takes for a field of width x height with `leds` LED shadows and the flows of
   // `triangles` LED triangles: the fit (6 floats a pixel), each LED (image, gloss and distance: 7)
   // and each triangle's 6 ordered pairs (4 each). 11 GiB at 24 MP with one source. With the
@@ -74,7 +77,7 @@ class FieldSources {
   // The flows between a triangle's LEDs are computed when first needed and kept: a sun that stays
   // between the same LEDs (a rotation's small steps, a viewer's frames) costs one pass per pixel.
   // visibility[i], where given, is the share of lighting.sources[i] each pixel sees
-  // (add_compact_source), instead of the one interpolated from the LEDs' shadows.
+  // (add_bright_source), instead of the one interpolated from the LEDs' shadows.
   void add(const SplitLighting& lighting, Image& out,
            const std::vector<const Image*>& visibility = {}) const;
 

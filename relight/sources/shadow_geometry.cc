@@ -1,4 +1,4 @@
-#include "relight/lighting/shadow_geometry.h"
+#include "relight/sources/shadow_geometry.h"
 
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>

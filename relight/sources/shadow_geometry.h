@@ -1,5 +1,5 @@
 #pragma once
-// The scene's shape recovered from a field, to cast a compact source's shadows at its true
+// The scene's shape recovered from a field, to cast a bright source's shadows at its true
 // direction. The LEDs' shadows, interpolated by flow (source_render.h), go wrong where
 // a shadow's shape changes between two LEDs (a sphere's shadow swinging across a relief); a shape
 // casts them right at any direction, as far as the shape is right. So:
@@ -16,7 +16,7 @@
 // It is trusted only where it agrees with what the LEDs nearest the source measured: with at
 // least 7 of the 8 nearest over most of a pixel's 3x3 neighbourhood, and with the nearest at the
 // pixel. Elsewhere (its shape wrong, a detail too fine for it) the flows render the shadow
-// (add_compact_source).
+// (add_bright_source).
 // Larger fields are reduced to at most kDepthMapSize pixels a side for the depth (a minute's
 // carving at 512^2 on 2 cores); the coarser the depth map against the field, the more pixels the
 // agreement test hands back to the flows (at 512^2 with a 256 map: 0.104 on the demo's small
@@ -29,13 +29,13 @@
 #include <optional>
 #include <vector>
 
-#include "relight/lighting/source_render.h"
+#include "relight/sources/source_render.h"
 
 namespace ls::relight {
 
 class ShadowGeometry;
 
-// A compact source's view of the geometry: its disc's directions and the LEDs nearest it.
+// A bright source's view of the geometry: its disc's directions and the LEDs nearest it.
 class SourceShadowView {
  public:
   // The share of the source's disc field pixel (x, y) sees, and whether the geometry agrees there

@@ -1,4 +1,4 @@
-#include "relight/fit/source_relight.h"
+#include "relight/sources/field_sources.h"
 
 #include <algorithm>
 #include <cstdio>
@@ -18,7 +18,7 @@ std::string SplitLighting::report() const {
     line += source.in_stage.describe();
     if (!source.triangle) line += " (outside the dome's coverage: not rendered)";
   }
-  return line.empty() ? "no compact source" : line;
+  return line.empty() ? "no bright source" : line;
 }
 
 std::vector<int> SplitLighting::leds() const {
@@ -31,7 +31,7 @@ std::vector<int> SplitLighting::leds() const {
 
 SplitLighting split_lighting(const physics::EnvironmentMap& map,
                              const std::vector<capture::FieldLight>& lights, double rotation_deg,
-                             double coverage_rad, bool split, const CompactSourceOptions& options) {
+                             double coverage_rad, bool split, const BrightSourceOptions& options) {
   std::vector<Eigen::Vector3d> dirs;
   std::vector<bool> valid;
   for (const capture::FieldLight& light : lights) {
@@ -43,10 +43,10 @@ SplitLighting split_lighting(const physics::EnvironmentMap& map,
     out.weights = integrate_environment(map, dirs, rotation_deg, coverage_rad, valid);
     return out;
   }
-  SplitEnvironment parts = split_compact_sources(map, options);
+  SplitEnvironment parts = split_bright_sources(map, options);
   out.weights = integrate_environment(parts.rest, dirs, rotation_deg, coverage_rad, valid);
   const double coverage = coverage_rad > 0 ? coverage_rad : max_nearest_neighbour_angle(dirs);
-  for (const CompactSource& found : parts.sources) {
+  for (const BrightSource& found : parts.sources) {
     PlacedSource placed{found, std::nullopt};
     placed.in_stage.dir = physics::rotate_about_y(found.dir, rotation_deg);
     placed.triangle = led_triangle(dirs, valid, placed.in_stage.dir, coverage);
@@ -138,6 +138,11 @@ void FieldSources::use_geometry_of(const FieldSources& other) {
   geometry_ = other.geometry_;
 }
 
+void FieldSources::prepare(const std::vector<int>& leds) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  for (const int led : leds) (void)shadow(led);
+}
+
 void FieldSources::build_geometry(const std::function<LitMask(int led)>& mask_of,
                                   const std::function<void(int, int)>& progress) {
   std::vector<int> leds;
@@ -226,8 +231,8 @@ void FieldSources::add(const SplitLighting& lighting, Image& out,
     lock.unlock();
     std::optional<SourceShadowView> view;
     if (geometry_) view = geometry_->view(source.in_stage.dir, source.in_stage.radius_rad);
-    add_compact_source(shadows, flows, *source.triangle, source.in_stage, fit_, out,
-                       i < visibility.size() ? visibility[i] : nullptr, view ? &*view : nullptr);
+    add_bright_source(shadows, flows, *source.triangle, source.in_stage, fit_, out,
+                      i < visibility.size() ? visibility[i] : nullptr, view ? &*view : nullptr);
   }
 }
 

@@ -1,0 +1,289 @@
+#include "relight/sources/map_relight.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <set>
+
+#include "lightstage/errors.h"
+#include "relight/lighting/relight.h"
+
+namespace ls::relight {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_since(Clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+
+void report(const MapRelightProgress& progress, const std::string& phase, long done, long total) {
+  if (progress) progress(phase, done, total, {});
+}
+
+// The LEDs whose images the sources of `relit` need, and how many LED triangles they fall in.
+std::set<int> source_leds(const std::vector<MapRelit>& relit, int* triangles = nullptr) {
+  std::set<int> leds;
+  for (const MapRelit& r : relit) {
+    for (const int led : r.lighting.leds()) leds.insert(led);
+    if (triangles == nullptr) continue;
+    for (const PlacedSource& source : r.lighting.sources) *triangles += source.triangle.has_value();
+  }
+  return leds;
+}
+
+// What is left out for want of memory, one line: `what` would hold `need` bytes.
+std::string over_memory(const char* what, std::size_t need, std::size_t may, int width,
+                        int height) {
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "%s would hold %.0f MiB for this %dx%d field, over the %.0f MiB it may use", what,
+                double(need) / (1 << 20), width, height, double(may) / (1 << 20));
+  return line;
+}
+
+void check_options(const MapRelightOptions& options) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("relighting under a map: " + problem);
+  }
+}
+
+}  // namespace
+
+std::string MapRelightOptions::validate() const {
+  if (!std::isfinite(coverage_rad)) return "coverage: expected a finite angle";
+  return split.validate();
+}
+
+SplitLighting map_lighting(const EnvironmentMap& map,
+                           const std::vector<capture::FieldLight>& lights, double rotation_deg,
+                           const MapRelightOptions& options) {
+  return split_lighting(map, lights, rotation_deg, options.coverage_rad, options.bright_sources,
+                        options.split);
+}
+
+MapRelighter::MapRelighter(const capture::ReflectanceField& field, MapRelightOptions options)
+    : field_(&field),
+      options_(std::move(options)),
+      lights_(field.lights()),
+      width_(field.width()),
+      height_(field.height()),
+      geometry_(options_.source_geometry) {
+  check_options(options_);
+}
+
+MapRelighter::MapRelighter(const PcaField& pca, MapRelightOptions options)
+    : pca_(&pca),
+      options_(std::move(options)),
+      lights_(pca.header().lights()),
+      width_(pca.width()),
+      height_(pca.height()),
+      geometry_(options_.source_geometry) {
+  check_options(options_);
+}
+
+MapRelighter::MapRelighter(capture::FieldStream& stream, MapRelightOptions options)
+    : stream_(&stream),
+      options_(std::move(options)),
+      lights_(stream.header().lights()),
+      width_(stream.width()),
+      height_(stream.height()),
+      geometry_(options_.source_geometry) {
+  check_options(options_);
+}
+
+MapRelighter::~MapRelighter() = default;
+
+SplitLighting MapRelighter::lighting(const EnvironmentMap& map, double rotation_deg) const {
+  return map_lighting(map, lights_, rotation_deg, options_);
+}
+
+bool MapRelighter::renders_sources(const SplitLighting& lighting) {
+  return std::any_of(lighting.sources.begin(), lighting.sources.end(),
+                     [](const PlacedSource& s) { return s.triangle.has_value(); });
+}
+
+FieldSources& MapRelighter::sources(const MapRelightProgress& progress) {
+  if (sources_) return *sources_;
+  LS_CHECK(stream_ == nullptr, "MapRelighter: a streamed field's sources are made in relight_all");
+  if (field_ != nullptr) {
+    sources_ = std::make_unique<FieldSources>(*field_);
+  } else {
+    const capture::ReflectanceField header = pca_->header();
+    sources_ =
+        std::make_unique<FieldSources>(header, pca_->reconstruction_bands(),
+                                       [pca = pca_](int led) { return pca->led_image(led); });
+  }
+  if (geometry_) {
+    sources_->recover_geometry([&](int done, int total) {
+      report(progress, "bright sources (the scene's shape)", done, total);
+    });
+  }
+  return *sources_;
+}
+
+void MapRelighter::prepare(const std::vector<SplitLighting>& lightings,
+                           const MapRelightProgress& progress) {
+  std::set<int> leds;
+  for (const SplitLighting& lighting : lightings) {
+    for (const int led : lighting.leds()) leds.insert(led);
+  }
+  sources(progress).prepare({leds.begin(), leds.end()});
+}
+
+void MapRelighter::render_cells(const SplitLighting& lighting, Image& out) const {
+  LS_CHECK(stream_ == nullptr, "MapRelighter: a streamed field is relit by relight_all");
+  if (field_ != nullptr) {
+    relight_into(*field_, lighting.weights.irradiance_rgb, out);
+  } else {
+    pca_->relight_led_weights_into(lighting.weights.irradiance_rgb.data(), out);
+  }
+}
+
+void MapRelighter::add_sources(const SplitLighting& lighting, Image& out,
+                               const std::vector<const Image*>& visibility) {
+  if (renders_sources(lighting)) sources().add(lighting, out, visibility);
+}
+
+void MapRelighter::render(const SplitLighting& lighting, Image& out,
+                          const std::vector<const Image*>& visibility) {
+  render_cells(lighting, out);
+  add_sources(lighting, out, visibility);
+}
+
+MapRelit MapRelighter::relight(const EnvironmentMap& map, double rotation_deg) {
+  MapRelit out;
+  auto t0 = Clock::now();
+  out.lighting = lighting(map, rotation_deg);
+  out.weights_ms = ms_since(t0);
+  t0 = Clock::now();
+  render_cells(out.lighting, out.image);
+  out.relight_ms = ms_since(t0);
+  t0 = Clock::now();
+  add_sources(out.lighting, out.image);
+  out.sources_ms = ms_since(t0);
+  out.geometry = geometry_ && renders_sources(out.lighting);
+  return out;
+}
+
+std::string MapRelighter::fit_in_memory(const std::vector<MapRotation>& maps,
+                                        std::vector<MapRelit>& relit) {
+  int triangles = 0;
+  const std::set<int> leds = source_leds(relit, &triangles);
+  const std::size_t may = options_.memory_bytes;
+  if (leds.empty() || may == 0) return {};
+  const auto need = [&](bool geometry) {
+    return FieldSources::bytes_needed(width_, height_, int(leds.size()), triangles,
+                                      geometry ? int(lights_.size()) : 0);
+  };
+  std::string note;
+  if (geometry_) {
+    if (need(true) <= may) return {};
+    note = over_memory("bright sources' shadows by the LEDs' flows alone: the scene's shape",
+                       need(true), may, width_, height_);
+    geometry_ = false;
+  }
+  if (need(false) <= may) return note;
+  MapRelightOptions cells = options_;
+  cells.bright_sources = false;
+  for (std::size_t i = 0; i < maps.size(); ++i) {
+    relit[i].lighting = map_lighting(*maps[i].map, lights_, maps[i].rotation_deg, cells);
+  }
+  return over_memory("bright sources relit by the LED cells: rendering them at their direction",
+                     need(false), may, width_, height_);
+}
+
+MapRelitSet MapRelighter::relight_all(const std::vector<MapRotation>& maps, const RowPass& pass,
+                                      const MapRelightProgress& progress) {
+  MapRelitSet out;
+  if (stream_ != nullptr) {
+    relight_streamed(maps, pass, progress, out);
+    return out;
+  }
+  for (const MapRotation& m : maps) {
+    const auto t0 = Clock::now();
+    out.relit.emplace_back().lighting = lighting(*m.map, m.rotation_deg);
+    out.relit.back().weights_ms = ms_since(t0);
+  }
+  const std::string note = fit_in_memory(maps, out.relit);
+  for (MapRelit& r : out.relit) {
+    auto t0 = Clock::now();
+    render_cells(r.lighting, r.image);
+    r.relight_ms = ms_since(t0);
+    t0 = Clock::now();
+    add_sources(r.lighting, r.image);
+    r.sources_ms = ms_since(t0);
+    r.geometry = geometry_ && renders_sources(r.lighting);
+    r.note = note;
+  }
+  return out;
+}
+
+// The field read once a few MiB at a time (FieldStream's rows as the file holds them) whatever
+// its size: each piece relit under every map before the next is read, into full-size images.
+// Then the sources, from a second pass in bands.
+void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const RowPass& pass,
+                                    const MapRelightProgress& progress, MapRelitSet& out) {
+  std::vector<MapRelit>& relit = out.relit;
+  for (const MapRotation& m : maps) {
+    const auto t0 = Clock::now();
+    MapRelit& r = relit.emplace_back();
+    r.lighting = lighting(*m.map, m.rotation_deg);
+    r.weights_ms = ms_since(t0);
+    r.image = Image(width_, height_, 3);
+  }
+  const std::string note = fit_in_memory(maps, relit);
+  const std::set<int> leds = source_leds(relit);
+  // Relighting sums over each pixel's values: it needs no pixel-major band.
+  const auto pass_start = Clock::now();
+  const auto relight_rows = [&](int y0, int y1) {
+    stream_->read_rows_planar(y0, y1, [&](const capture::PlanarRows& rows) {
+      for (MapRelit& r : relit) {
+        const auto t0 = Clock::now();
+        relight_rows_into(rows, r.lighting.weights.irradiance_rgb, r.image);
+        r.relight_ms += ms_since(t0);
+      }
+      const int done = rows.first_row + rows.rows;
+      if (done < height_) report(progress, "relight (rows)", done, height_);
+    });
+  };
+  if (pass.rows.empty()) relight_rows(0, height_);
+  for (const auto& [y0, y1] : pass.rows) relight_rows(y0, y1);
+  if (pass.gather) {
+    std::vector<Image*> images;
+    for (MapRelit& r : relit) images.push_back(&r.image);
+    if (!pass.gather(images)) {
+      out.complete = false;
+      return;
+    }
+  }
+  out.rows_pass_s = ms_since(pass_start) / 1e3;
+  double sources_ms = 0;
+  if (!leds.empty()) {
+    const auto t0 = Clock::now();
+    report(progress, "bright sources (normals)", 0, 1);
+    // Bands within what the sources' images leave of the memory given.
+    int triangles = 0;
+    (void)source_leds(relit, &triangles);
+    const std::size_t need = FieldSources::bytes_needed(
+        width_, height_, int(leds.size()), triangles, geometry_ ? int(lights_.size()) : 0);
+    const int rows = options_.memory_bytes > 0 ? stream_->rows_within(options_.memory_bytes - need)
+                                               : stream_->band_rows(0);
+    const FieldSources streamed(stream_->header(), stream_->bands(rows), {leds.begin(), leds.end()},
+                                geometry_, [&](int done, int total) {
+                                  report(progress, "bright sources (the scene's shape)", done,
+                                         total);
+                                });
+    for (MapRelit& r : relit) streamed.add(r.lighting, r.image);
+    sources_ms = ms_since(t0);
+  }
+  for (MapRelit& r : relit) {
+    r.sources_ms = sources_ms;
+    r.geometry = geometry_ && !leds.empty();
+    r.note = note;
+  }
+}
+
+}  // namespace ls::relight
