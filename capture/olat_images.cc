@@ -275,7 +275,7 @@ class SetImport {
 ReflectanceField read_whole(SetImport& set, const LightImageFn& on_light) {
   const ReflectanceField& header = set.header();
   require_memory(ReflectanceField::bytes_for(header.width(), header.height(), set.num_lights()),
-                 set.what());
+                 set.what(), "use --max-size, or --memory to import in bands");
   ReflectanceField field(header.width(), header.height(), header.lights());
   set.read_images([&](int l, const std::vector<float>& rgb) {
     if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
@@ -301,12 +301,12 @@ ReflectanceField import_images(OlatImageSet job, const OlatImportOptions& option
 }
 
 int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, const fs::path& out,
-                          const ExrAttributes& attributes, std::size_t memory_bytes,
+                          const ExrAttributes& attributes, const MemoryBudget& memory,
                           const LightImageFn& on_light, OlatImportSummary* summary,
                           const RankSplit& split) {
   SetImport set(std::move(job), options);
   const ReflectanceField& header = set.header();
-  int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory_bytes);
+  int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory);
   std::atomic<int> resumed{0};
   const StorageChoice choice = options.storage;
   FieldStorage storage;

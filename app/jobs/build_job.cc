@@ -46,7 +46,7 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   }
   capture::BuildOptions build;
   build.time_step = time_step;
-  build.memory_bytes = options.memory_bytes;
+  build.memory = options.memory;
   build.correct_drift = options.correct_drift;
   build.storage = capture::parse_storage_choice("--storage", options.storage);
   build.on_progress = [&](int done, int total) { report(progress, "build", done, total); };

@@ -112,23 +112,23 @@ bool is_olat_set(const fs::path& input) {
 }
 
 // The field file to read `input` from, an EXR as it is. An .lp set: empty (to be imported whole)
-// unless a budget is given or its field takes more than half of the memory available: then
+// unless a budget is given or its field takes more than the budget: then
 // imported into a field file beside `out` (in bands, see import_olat_to_file), read from there
 // and removed when `imported` goes.
-fs::path field_file_for(const fs::path& input, const fs::path& out, std::size_t memory_bytes,
+fs::path field_file_for(const fs::path& input, const fs::path& out, const MemoryBudget& memory,
                         std::optional<RemovedWhenDone>& imported, const ProgressFn& progress) {
   if (!is_olat_set(input)) return input;
-  if (memory_bytes == 0) {
+  if (!memory.given()) {
     const capture::ReflectanceField header = capture::olat_header(input, {});
     const std::size_t bytes =
         capture::ReflectanceField::bytes_for(header.width(), header.height(), header.num_lights());
-    if (bytes <= available_memory_bytes() / 2) return {};
+    if (bytes <= memory.bytes()) return {};
   }
   fs::path file = out;
   file += ".imported.exr";
   imported.emplace(file);
   report(progress, "import", 0, 1, input.filename());
-  capture::import_olat_to_file(input, capture::OlatImportOptions{}, file, {}, memory_bytes);
+  capture::import_olat_to_file(input, capture::OlatImportOptions{}, file, {}, memory);
   report(progress, "import", 1, 1);
   return file;
 }
@@ -136,20 +136,20 @@ fs::path field_file_for(const fs::path& input, const fs::path& out, std::size_t 
 // Where a command's field comes from: whole in memory, or band by band from a field file or
 // straight from an .lp set's images. An .lp set is read in bands from its images whatever its
 // size: that is faster than importing it whole (bench rti: compress ptm 2.7 s against 6.0 s on
-// 612x512x96 JPEGs) and holds kImageBandBytes (or --memory) of it, not the float field.
+// 612x512x96 JPEGs) and holds --memory of it (unset: MemoryBudget::kImageSetBytes), not the float
+// field.
 struct FieldRows {
-  static constexpr std::size_t kImageBandBytes = std::size_t{32} << 20;
   std::optional<RemovedWhenDone> imported;  // Removed after the stream reading it is closed.
   std::optional<capture::FieldStream> stream;
   std::unique_ptr<capture::OlatBands> images;
 
   // Opens `input`. An .lp set its images cannot give band by band (capture::OlatBands::open)
   // is imported whole, or into a field file beside `out` when that does not fit.
-  FieldRows(const fs::path& input, const fs::path& out, std::size_t memory_bytes,
+  FieldRows(const fs::path& input, const fs::path& out, const MemoryBudget& memory,
             const ProgressFn& progress) {
     if (is_olat_set(input)) images = capture::OlatBands::open(input, capture::OlatImportOptions{});
     if (images) return;
-    const fs::path file = field_file_for(input, out, memory_bytes, imported, progress);
+    const fs::path file = field_file_for(input, out, memory, imported, progress);
     if (!file.empty()) stream.emplace(file);
   }
   bool in_bands() const { return stream || images; }
@@ -158,11 +158,10 @@ struct FieldRows {
   }
   int height() const { return header().height(); }
   int row_alignment() const { return stream ? stream->row_alignment() : 1; }
-  // The rows of a band for a memory budget (0: a field file's default, FieldStream::band_rows;
-  // an .lp set's images kImageBandBytes).
-  int band_rows(std::size_t memory_bytes) const {
-    if (stream) return stream->band_rows(memory_bytes);
-    return images->rows_within(memory_bytes > 0 ? memory_bytes : kImageBandBytes);
+  // The rows of a band for a memory budget (an .lp set's images: unset, kImageSetBytes).
+  int band_rows(const MemoryBudget& memory) const {
+    if (stream) return stream->band_rows(memory);
+    return images->rows_within(memory.bytes_or(MemoryBudget::kImageSetBytes));
   }
   void read_rows(int y0, int y1, capture::ReflectanceField& band) {
     if (stream) {
@@ -287,7 +286,7 @@ std::string CompressOptions::to_json() const {
                         {"tile", tile},
                         {"gain", gain},
                         {"encoding", encoding},
-                        {"memory_bytes", memory_bytes}}
+                        {"memory_bytes", memory.given_bytes()}}
       .dump();
 }
 
@@ -343,7 +342,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   std::optional<CheckpointDir> checkpoint;
   capture::FieldBands bands;
   int rows = 0;
-  FieldRows stream(options.input, options.out, options.memory_bytes, progress);
+  FieldRows stream(options.input, options.out, options.memory, progress);
   if (!stream.in_bands()) {
     report(progress, "read", 0, 1, options.input.filename());
     whole = capture::import_olat(options.input, capture::OlatImportOptions{});
@@ -355,7 +354,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
             ? std::lcm(stream.row_alignment(), relight::PcaField::band_alignment(
                                                    stream.header().width(), height, pca_options))
             : stream.row_alignment();
-    rows = std::max(align, stream.band_rows(options.memory_bytes) / align * align);
+    rows = std::max(align, stream.band_rows(options.memory) / align * align);
     if (split.split()) rows = band_rows_for_ranks(rows, height, align, split.size);
     if (rows < height || split.split()) {
       // What a compression in bands finished is kept beside the output for a killed run to
@@ -469,10 +468,10 @@ OpenLimeExportSummary export_openlime(const OpenLimeExportOptions& options,
     throw InputError("export openlime: " + problem);
   }
   // The field whole, or within --memory in bands (three passes).
-  FieldRows stream(options.input, options.out, options.memory_bytes, progress);
+  FieldRows stream(options.input, options.out, options.memory, progress);
   capture::ReflectanceField whole;
   capture::FieldBands bands;
-  const int rows = stream.in_bands() ? stream.band_rows(options.memory_bytes) : 0;
+  const int rows = stream.in_bands() ? stream.band_rows(options.memory) : 0;
   if (stream.in_bands() && rows < stream.height()) {
     bands = [&, pass = 0](const capture::BandVisitor& visit) mutable {
       const std::string label = "pass " + std::to_string(++pass) + " (rows)";

@@ -61,7 +61,7 @@ std::string FitJobOptions::to_json() const {
   j["phong"] = phong;
   j["method"] = method;
   j["materials"] = materials;
-  j["memory_bytes"] = memory_bytes;
+  j["memory_bytes"] = memory.given_bytes();
   return j.dump();
 }
 
@@ -162,7 +162,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
     throw InputError(options.field_file.string() + ": noise: " + error);
   }
   const Ranks& ranks = Ranks::world();
-  int rows = band_rows_for_ranks(stream.band_rows(options.memory_bytes), field.height(),
+  int rows = band_rows_for_ranks(stream.band_rows(options.memory), field.height(),
                                  stream.row_alignment(), ranks.size());
   auto start = Clock::now();
   const ExrAttributes attributes = {{kOptionsAttribute, options.to_json()}};
@@ -235,8 +235,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   const int width = first.width(), height = first.height();
   // The whole series in memory when its fields and fits take at most the budget (by default half
   // of what is available); else bands of rows within it.
-  const std::size_t budget =
-      options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
+  const std::size_t budget = options.memory.bytes();
   const std::size_t row_bytes = time_band_row_bytes(first, int(steps.size()), fit.normal_source);
   const std::size_t whole_bytes =
       std::size_t(height) * (row_bytes + steps.size() * capture::ReflectanceField::bytes_for(
@@ -313,7 +312,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   NormalsJobSummary summary;
   summary.width = header.width(), summary.height = header.height();
   summary.noise_source = fit.noise_source;
-  summary.band_rows = stream.band_rows(options.memory_bytes);
+  summary.band_rows = stream.band_rows(options.memory);
   const std::vector<std::string> names = {"normal.x", "normal.y", "normal.z",   "albedo.r",
                                           "albedo.g", "albedo.b", "confidence", "flags"};
   const nlohmann::json noise = {{"read_variance", normal_options.noise.a},
