@@ -24,6 +24,7 @@
 #include "capture/noise_estimate.h"
 #include "capture/reference_drift.h"
 #include "capture/response.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -107,11 +108,7 @@ class FieldBuild {
     prepare();
     const RankSplit& split = options_.split;
     BuildCheckpoint checkpoint(out, session_, options_);
-    // Rank 0 decides the band height (clearing an earlier run's checkpoint of another identity)
-    // before the others read it.
-    if (split.rank == 0) band_rows = checkpoint.band_rows(band_rows);
-    if (split.split()) split.barrier();
-    if (split.rank != 0) band_rows = checkpoint.recorded_rows();
+    band_rows = agreed_band_rows(checkpoint.dir(), band_rows, split);
     SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows,
                     checkpoint.spill_path());
     resume_.emplace(Resume{checkpoint, spill});
@@ -558,7 +555,7 @@ int build_field_file(const Session& session, const BuildOptions& options,
   BuildOptions banded = options;
   banded.memory = MemoryBudget(per_led * in_flight);
   const size_t band_budget = budget > per_led * in_flight ? budget - per_led * in_flight : 0;
-  const int rows = int(std::clamp<size_t>(band_budget / (2 * row_bytes), 1, size_t(camera.height)));
+  const int rows = rows_within(band_budget, 2 * row_bytes, camera.height);
   if (rows >= camera.height && !options.split.split()) {
     BuildSummary local;
     BuildSummary& sum = summary ? *summary : local;

@@ -17,6 +17,7 @@
 #include <unordered_map>
 
 #include "capture/exr_band_reader.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/image_file.h"
@@ -480,12 +481,7 @@ int FieldStream::rows_within(std::size_t bytes) const {
   const image_file::Spec& spec = file_->spec;
   const std::size_t row_bytes = std::size_t(width()) * spec.channels * sizeof(float);
   // The band and the reader's buffer (a quarter of it at most: ExrBandReader).
-  const std::size_t band_bytes = bytes / 5 * 4;
-  int rows = int(std::min<std::size_t>(std::size_t(height()),
-                                       std::max<std::size_t>(1, band_bytes / row_bytes)));
-  if (spec.tile_height > 0)
-    rows = std::max(spec.tile_height, rows / spec.tile_height * spec.tile_height);
-  return std::min(rows, height());
+  return ls::rows_within(bytes / 5 * 4, row_bytes, height(), spec.tile_height);
 }
 
 int FieldStream::row_alignment() const { return std::max(1, file_->spec.tile_height); }

@@ -19,6 +19,7 @@
 
 #include "capture/band_spill.h"
 #include "capture/olat_pixels.h"
+#include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 
@@ -323,10 +324,7 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
     for (const auto& [key, value] : attributes) identity[key] = value;
     identity["images"] = set.identity();
     const CheckpointDir checkpoint(out, input_identity(set.source(), identity.dump()));
-    int band_rows = split.rank == 0 ? checkpoint.band_rows(rows) : 0;
-    if (split.split())
-      split.barrier();  // Rank 0 decided the band height before the others read it.
-    if (split.rank != 0) band_rows = checkpoint.recorded_rows();
+    const int band_rows = agreed_band_rows(checkpoint, rows, split);
     SpillFile spill(out, header.width(), header.height(), set.num_lights(), band_rows,
                     checkpoint.dir() / "lights.spill");
     constexpr const char* kMagic = "lightstage import light 1";

@@ -52,7 +52,7 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   build.on_progress = [&](int done, int total) { report(progress, "build", done, total); };
   build.on_band_written = [&](int done, int total) { report(progress, "write", done, total); };
   const Ranks& ranks = Ranks::world();
-  build.split = {ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }};
+  build.split = ranks.split();
   BuiltField result;
   result.band_rows = capture::build_field_file(
       session, build, out, {{kOptionsAttribute, options.to_json()}}, &result.build);

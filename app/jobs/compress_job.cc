@@ -10,16 +10,17 @@
 #include <numeric>
 #include <optional>
 
-#include "app/jobs/fit_bands.h"
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "capture/olat_import.h"
+#include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/memory.h"
 #include "lightstage/rank_split.h"
 #include "lightstage/scratch_file.h"
+#include "relight/compact/pca_bands.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/plane_field.h"
 #include "relight/compact/rti_fits.h"
@@ -55,44 +56,6 @@ bool rti_basis(const std::string& format, relight::RtiFitOptions& options) {
     return false;
   }
   return true;
-}
-
-// Under MPI each rank finds the grams of its bands (PcaField::band_grams) and keeps them in a
-// record beside the output; rank 0 sums every band's in order (PcaGramBands).
-constexpr const char* kGramsMagic = "lightstage pca band grams 1";
-
-void save_grams(const fs::path& file, const relight::PcaBandGrams& band) {
-  std::vector<RecordBytes> blocks;
-  for (const Eigen::MatrixXd& g : band.grams) {
-    blocks.push_back({g.data(), std::size_t(g.size()) * sizeof(double)});
-  }
-  blocks.push_back({band.positive_sums.data(), band.positive_sums.size() * sizeof(double)});
-  write_record(file, kGramsMagic,
-               {{"first_row", band.first_row},
-                {"grams", band.grams.size()},
-                {"lights", band.grams.empty() ? 0 : band.grams[0].rows()},
-                {"units", band.positive_sums.size()}},
-               blocks);
-}
-
-relight::PcaBandGrams load_grams(const fs::path& file) {
-  relight::PcaBandGrams band;
-  const bool read = read_record(file, kGramsMagic, [&](const nlohmann::json& info) {
-    band.first_row = info.at("first_row").get<int>();
-    const auto lights = info.at("lights").get<Eigen::Index>();
-    band.grams.assign(info.at("grams").get<std::size_t>(), Eigen::MatrixXd(lights, lights));
-    band.positive_sums.resize(info.at("units").get<std::size_t>());
-    std::vector<RecordTarget> targets;
-    for (Eigen::MatrixXd& g : band.grams) {
-      targets.push_back({g.data(), std::size_t(g.size()) * sizeof(double)});
-    }
-    targets.push_back({band.positive_sums.data(), band.positive_sums.size() * sizeof(double)});
-    return std::optional<std::vector<RecordTarget>>{std::move(targets)};
-  });
-  if (!read) {
-    throw InputError(file.string() + ": a band's Gram matrices are missing (did its rank fail?)");
-  }
-  return band;
 }
 
 // A file beside the output for the job's length only.
@@ -172,87 +135,29 @@ struct FieldRows {
   }
 };
 
-// A PCA in bands, never holding its coefficients: the basis from the passes over the bands (kept
-// in the checkpoint: a rerun skips those passes), then each band's coefficients into a spill
-// beside the output (kept, with a record per band: a rerun projects only the bands not there),
-// then the file written from the spill. Under MPI every rank makes the grams and coefficients of
-// its own bands; rank 0 finds the basis and writes the file (the others return once their bands
-// are in). Returns the basis; `resumed_rows`: the rows a killed run had projected.
-relight::PcaField pca_in_bands(FieldRows& stream, int rows, const capture::FieldBands& bands,
-                               const relight::PcaOptions& options, const CheckpointDir& checkpoint,
-                               const fs::path& out, const ProgressFn& progress, const Ranks& ranks,
-                               relight::PcaSummary& summary, int& resumed_rows) {
-  const capture::ReflectanceField& header = stream.header();
-  const int height = header.height();
-  const fs::path basis_file = checkpoint.dir() / "basis.record";
-  const auto band_file = [&](const char* kind, int y0) {
-    return checkpoint.dir() / (kind + std::to_string(y0));
+// The field's bands of `rows` rows, each pass over them showing its progress by rows. Split over
+// ranks a rank reads its own bands only (the others visited without values:
+// write_rti_file_in_bands leaves them to theirs).
+capture::FieldBands split_bands(FieldRows& stream, int rows, const RankSplit& split,
+                                const ProgressFn& progress) {
+  return [&stream, rows, split, progress, pass = 0](const capture::BandVisitor& visit) mutable {
+    const std::string label = "pass " + std::to_string(++pass) + " (rows)";
+    const int height = stream.height();
+    capture::ReflectanceField band;
+    for (int b = 0, y0 = 0; y0 < height; ++b, y0 += rows) {
+      const int y1 = std::min(height, y0 + rows);
+      if (split.mine(b)) {
+        stream.read_rows(y0, y1, band);
+        visit(band);
+      } else {
+        capture::ReflectanceField shell = capture::ReflectanceField::without_values(
+            stream.header().width(), y1 - y0, stream.header().lights());
+        shell.set_band(y0, height);
+        visit(shell);
+      }
+      report(progress, label, y1, height);
+    }
   };
-  std::optional<relight::PcaField> pca;
-  if (ranks.root()) pca = relight::PcaField::load_basis(basis_file, header, &summary);
-  std::vector<double> have = {double(pca.has_value())};
-  if (ranks.root() && !pca) {
-    // Bands projected on another basis (one that could not be read back) are not kept.
-    for (const auto& entry : fs::directory_iterator(checkpoint.dir())) {
-      if (entry.path().filename().string().starts_with("band_")) fs::remove(entry.path());
-    }
-  }
-  ranks.broadcast(have);  // After rank 0 cleared what the others will write again.
-  capture::ReflectanceField band;
-  if (have[0] == 0 && ranks.size() == 1) {
-    pca = relight::PcaField::build_basis(header, bands, options, &summary);
-    pca->save_basis(basis_file, summary);
-  } else if (have[0] == 0) {
-    if (options.rank_rule == relight::PcaRankRule::kHeldOutLights) {
-      throw InputError(
-          "compress: the held-out rank rule reads the whole field on one process: "
-          "run it without mpirun");
-    }
-    for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
-      stream.read_rows(y0, std::min(height, y0 + rows), band);
-      save_grams(band_file("grams_", y0), relight::PcaField::band_grams(band, options.tile_size));
-    }
-    ranks.barrier();  // Every band's grams are in their records.
-    if (ranks.root()) {
-      const relight::PcaGramBands grams =
-          [&](const std::function<void(const relight::PcaBandGrams&)>& visit) {
-            for (int y0 = 0; y0 < height; y0 += rows) visit(load_grams(band_file("grams_", y0)));
-          };
-      pca = relight::PcaField::build_basis(header, grams, bands, options, &summary);
-      pca->save_basis(basis_file, summary);
-    }
-  }
-  ranks.barrier();  // The basis is in its record.
-  if (!pca) pca = relight::PcaField::load_basis(basis_file, header, nullptr);
-  if (!pca) throw InputError(basis_file.string() + ": rank 0's basis cannot be read here");
-  const std::size_t row_floats = pca->coefficients_per_row();
-  ScratchFile spill(checkpoint.dir() / "coefficients.spill",
-                    "the coefficients of a field compressed in bands are spilled beside the "
-                    "output: they need its size free there",
-                    ScratchFile::Lifetime::kKept);
-  std::vector<float> coefs;
-  for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
-    const int y1 = std::min(height, y0 + rows);
-    const fs::path record = band_file("band_", y0);
-    const bool resumed = fs::exists(record);
-    if (resumed) {
-      resumed_rows += y1 - y0;
-    } else {
-      stream.read_rows(y0, y1, band);
-      coefs.resize(std::size_t(y1 - y0) * row_floats);
-      pca->project_band(band, coefs.data());
-      spill.write(coefs.data(), coefs.size(), std::size_t(y0) * row_floats);
-      spill.sync();  // The rows are there before their record says so.
-      write_file_atomic(record, "");
-    }
-    report(progress, "coefficients (rows)", y1, height, resumed ? "resumed" : "");
-  }
-  ranks.barrier();  // Every band's coefficients are in the spill.
-  if (!ranks.root()) return *std::move(pca);
-  spill.reopen();  // The others' rows as they wrote them (a file system shared between nodes).
-  pca->write(out,
-             [&](int y, float* row) { spill.read(row, row_floats, std::size_t(y) * row_floats); });
-  return *std::move(pca);
 }
 
 }  // namespace
@@ -337,7 +242,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
         "compress: under MPI only a field EXR splits its bands over the ranks; "
         "compress .lp sets as one process (without mpirun), or import them first");
   }
-  const RankSplit split{ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }};
+  const RankSplit split = ranks.split();
   capture::ReflectanceField whole;
   std::optional<CheckpointDir> checkpoint;
   capture::FieldBands bands;
@@ -354,41 +259,21 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
             ? std::lcm(stream.row_alignment(), relight::PcaField::band_alignment(
                                                    stream.header().width(), height, pca_options))
             : stream.row_alignment();
-    rows = std::max(align, stream.band_rows(options.memory) / align * align);
-    if (split.split()) rows = band_rows_for_ranks(rows, height, align, split.size);
+    rows = band_rows_for_ranks(std::max(align, stream.band_rows(options.memory) / align * align),
+                               height, align, split.size);
     if (rows < height || split.split()) {
       // What a compression in bands finished is kept beside the output for a killed run to
       // resume from (with the band height it was done in): the RTI fits' coefficients, or the
       // PCA's basis and coefficients. Rank 0 decides the band height before the others read it.
       checkpoint.emplace(options.out, input_identity(options.input, options.to_json()));
-      std::vector<double> decided = {double(split.rank == 0 ? checkpoint->band_rows(rows) : 0)};
-      ranks.broadcast(decided);
-      rows = int(decided[0]);
+      rows = agreed_band_rows(*checkpoint, rows, split);
     }
     if (rows >= height && !split.split()) {
       report(progress, "read", 0, 1, options.input.filename());
       stream.read_rows(0, height, whole);
       report(progress, "read", 1, 1);
     } else {
-      // Each pass over the field shows its progress by rows. Under MPI a rank reads its own bands
-      // only (the others visited without values: write_rti_file_in_bands leaves them to theirs).
-      bands = [&, height, pass = 0](const capture::BandVisitor& visit) mutable {
-        const std::string label = "pass " + std::to_string(++pass) + " (rows)";
-        capture::ReflectanceField band;
-        for (int b = 0, y0 = 0; y0 < height; ++b, y0 += rows) {
-          const int y1 = std::min(height, y0 + rows);
-          if (split.mine(b)) {
-            stream.read_rows(y0, y1, band);
-            visit(band);
-          } else {
-            capture::ReflectanceField shell = capture::ReflectanceField::without_values(
-                stream.header().width(), y1 - y0, stream.header().lights());
-            shell.set_band(y0, height);
-            visit(shell);
-          }
-          report(progress, label, y1, height);
-        }
-      };
+      bands = split_bands(stream, rows, split, progress);
     }
   }
   const capture::ReflectanceField& header = bands ? stream.header() : whole;
@@ -401,8 +286,15 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
     relight::PcaSummary pca_summary;
     relight::PcaField pca;
     if (rows > 0) {
-      pca = pca_in_bands(stream, rows, bands, pca_options, *checkpoint, options.out, progress,
-                         ranks, pca_summary, summary.resumed_rows);
+      const relight::PcaBandsInput input{
+          header,
+          [&](int y0, int y1, capture::ReflectanceField& band) { stream.read_rows(y0, y1, band); },
+          bands, rows};
+      pca = relight::pca_in_bands(input, pca_options, *checkpoint, options.out, split, pca_summary,
+                                  summary.resumed_rows, [&](int y1, int height, bool resumed) {
+                                    report(progress, "coefficients (rows)", y1, height,
+                                           resumed ? "resumed" : "");
+                                  });
       summary.ranks = ranks.size();
       if (!ranks.root()) return summary;  // Rank 0 wrote the file.
       checkpoint->remove();

@@ -22,7 +22,7 @@ struct FitJobOptions {
   std::string materials = "basis";  // "basis" or "per-pixel" (relight::FitMaterials).
   // For the field (capture::FieldStream::band_rows): a field larger is fitted in bands of rows,
   // read twice with basis materials (fits, blends). --time: for every step's field and fits
-  // together (fit_time_bands.h).
+  // together (relight/time/time_bands.h).
   MemoryBudget memory;
   std::string validate() const;
   std::string to_json() const;  // Recorded in the maps (kOptionsAttribute).

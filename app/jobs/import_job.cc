@@ -54,7 +54,7 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
   summary.band_rows = capture::import_olat_to_file(
       source, options, out, {{kOptionsAttribute, options_json(source, options)}},
       MemoryBudget(memory.bytes_or(MemoryBudget::kImageSetBytes)), keep_frontal, &summary.import,
-      {ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }});
+      ranks.split());
   summary.ranks = ranks.size();
   if (!ranks.root()) return summary;  // Rank 0 wrote the field (and writes the preview).
   summary.lights = summary.import.images;
