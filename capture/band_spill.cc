@@ -5,16 +5,14 @@
 
 #include <algorithm>
 
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
 
-int spill_band_rows(int width, int height, int num_lights, std::size_t memory_bytes) {
+int spill_band_rows(int width, int height, int num_lights, const MemoryBudget& memory) {
   const std::size_t row_bytes = ReflectanceField::bytes_for(width, 1, num_lights);
-  const std::size_t budget = memory_bytes > 0 ? memory_bytes
-                                              : std::min(2 * row_bytes * std::size_t(height),
-                                                         available_memory_bytes() / 2);
-  return int(std::clamp<std::size_t>(budget / (2 * row_bytes), 1, std::size_t(height)));
+  return rows_within(memory.bytes(), 2 * row_bytes, height);
 }
 
 SpillFile::SpillFile(const std::filesystem::path& field_file, int width, int height, int num_lights,

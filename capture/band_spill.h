@@ -16,10 +16,9 @@
 
 namespace ls::capture {
 
-// The rows per band for making a field of this size within memory_bytes (0: the whole field when
-// it takes at most half of the memory available, else bands within that half); a band is held
-// twice while it is written (as spilled, then pixel-major). The height: make it in memory.
-int spill_band_rows(int width, int height, int num_lights, std::size_t memory_bytes);
+// The rows per band for making a field of this size within `memory`; a band is held twice while
+// it is written (as spilled, then pixel-major). The height: make it in memory.
+int spill_band_rows(int width, int height, int num_lights, const MemoryBudget& memory);
 
 class SpillFile {
  public:

@@ -21,9 +21,9 @@ class BuildCheckpoint {
  public:
   BuildCheckpoint(const std::filesystem::path& out, const Session& session,
                   const BuildOptions& options);
-  // The band height: an earlier run's (its spill is laid out by it), else `proposed`.
-  int band_rows(int proposed) const { return dir_.band_rows(proposed); }
-  int recorded_rows() const { return dir_.recorded_rows(); }  // CheckpointDir's.
+  // Its folder: the band height the run agrees on (agreed_band_rows: an earlier run's, its spill
+  // laid out by it) and the rest.
+  const CheckpointDir& dir() const { return dir_; }
   std::filesystem::path spill_path() const { return dir_.dir() / "leds.spill"; }
 
   struct Led {

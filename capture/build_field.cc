@@ -24,6 +24,7 @@
 #include "capture/noise_estimate.h"
 #include "capture/reference_drift.h"
 #include "capture/response.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -107,11 +108,7 @@ class FieldBuild {
     prepare();
     const RankSplit& split = options_.split;
     BuildCheckpoint checkpoint(out, session_, options_);
-    // Rank 0 decides the band height (clearing an earlier run's checkpoint of another identity)
-    // before the others read it.
-    if (split.rank == 0) band_rows = checkpoint.band_rows(band_rows);
-    if (split.split()) split.barrier();
-    if (split.rank != 0) band_rows = checkpoint.recorded_rows();
+    band_rows = agreed_band_rows(checkpoint.dir(), band_rows, split);
     SpillFile spill(out, camera_.width, camera_.height, int(order_.size()), band_rows,
                     checkpoint.spill_path());
     resume_.emplace(Resume{checkpoint, spill});
@@ -465,8 +462,7 @@ class FieldBuild {
   void merge_brackets(const LedSink& sink, const std::function<bool(int)>& mine = {}) {
     const int width = camera_.width, height = camera_.height;
     const size_t per_led_bytes = merge_bytes_per_led(camera_, num_exposures_);
-    size_t spare = available_memory_bytes() / 2;
-    if (options_.memory_bytes > 0) spare = std::min(spare, options_.memory_bytes);
+    const size_t spare = std::min(MemoryBudget::default_bytes(), options_.memory.bytes());
     const int max_in_flight =
         int(std::clamp<size_t>(spare / std::max<size_t>(per_led_bytes, 1), 1,
                                std::max(1u, std::thread::hardware_concurrency())));
@@ -550,18 +546,16 @@ int build_field_file(const Session& session, const BuildOptions& options,
   const CameraSpec& camera = session.stage().camera;
   const size_t row_bytes =
       ReflectanceField::bytes_for(camera.width, 1, int(session.stage().leds.size()));
-  const size_t budget = options.memory_bytes > 0 ? options.memory_bytes
-                                                 : std::min(2 * row_bytes * size_t(camera.height),
-                                                            available_memory_bytes() / 2);
+  const size_t budget = options.memory.bytes();
   // The budget is shared: the merges of the LEDs in flight (a quarter of it, at least one LED),
   // then the band, held twice while it is written (as spilled, then pixel-major).
   const size_t per_led = merge_bytes_per_led(camera, int(camera.bracket.size()));
   const size_t in_flight = std::clamp<size_t>(budget / 4 / std::max<size_t>(per_led, 1), 1,
                                               std::max(1u, std::thread::hardware_concurrency()));
   BuildOptions banded = options;
-  banded.memory_bytes = per_led * in_flight;
-  const size_t band_budget = budget > banded.memory_bytes ? budget - banded.memory_bytes : 0;
-  const int rows = int(std::clamp<size_t>(band_budget / (2 * row_bytes), 1, size_t(camera.height)));
+  banded.memory = MemoryBudget(per_led * in_flight);
+  const size_t band_budget = budget > per_led * in_flight ? budget - per_led * in_flight : 0;
+  const int rows = rows_within(band_budget, 2 * row_bytes, camera.height);
   if (rows >= camera.height && !options.split.split()) {
     BuildSummary local;
     BuildSummary& sum = summary ? *summary : local;

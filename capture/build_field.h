@@ -28,10 +28,9 @@ struct BuildOptions {
   // reference LED (capture/reference_drift.h). Drift beyond 0.5% is reported either way.
   bool correct_drift = false;
   std::function<void(int done, int total)> on_progress;  // LEDs merged.
-  // build_field_file: the most memory the field's values take at once (bands of rows; 0: the
-  // whole field when it takes at most half of the memory available, else bands within that half),
-  // and the bands written so far.
-  std::size_t memory_bytes = 0;
+  // build_field_file: the most memory the field's values take at once (bands of rows), and the
+  // bands written so far. build_field: what the LEDs merged in flight may take.
+  MemoryBudget memory;
   std::function<void(int done, int total)> on_band_written;
   // build_field_file: how the file holds the values (capture/half_storage.h).
   StorageChoice storage = StorageChoice::kFloat;
@@ -64,7 +63,7 @@ ReflectanceField build_field(const Session& session, const BuildOptions& options
                              BuildSummary* summary = nullptr);
 
 // The field built straight into the file `out` (write_field's format, scanlines), holding no more
-// of it than options.memory_bytes at once: with less than the whole field, each LED's
+// of it than options.memory at once: with less than the whole field, each LED's
 // image is spilled in bands of rows to a file beside `out` (it needs the field's size free there,
 // and is removed), then each band is read back, turned pixel-major and written. The same values
 // and attributes as write_field(build_field(...)), byte for byte. Returns the band height used

@@ -17,6 +17,7 @@
 #include <unordered_map>
 
 #include "capture/exr_band_reader.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/image_file.h"
@@ -46,9 +47,10 @@ ReflectanceField::ReflectanceField(int width, int height, std::vector<FieldLight
                      "x" + std::to_string(height));
   }
   const std::size_t bytes = bytes_for(width, height, num_lights());
-  require_memory(bytes, "reflectance field " + std::to_string(width) + "x" +
-                            std::to_string(height) + " with " + std::to_string(num_lights()) +
-                            " LEDs");
+  require_memory(bytes,
+                 "reflectance field " + std::to_string(width) + "x" + std::to_string(height) +
+                     " with " + std::to_string(num_lights()) + " LEDs",
+                 "use a smaller crop or fewer LEDs");
   try {
     values_.assign(bytes / sizeof(float), 0.0f);
   } catch (const std::bad_alloc&) {
@@ -116,12 +118,6 @@ Eigen::Vector3d PixelLightDirs::operator()(int light) const {
     if (distance > 1e-9) return to_led / distance;
   }
   return l.dir_in_stage.normalized();
-}
-
-size_t available_memory_bytes() { return ls::available_memory_bytes(); }
-
-void require_memory(std::size_t bytes, const std::string& what) {
-  ls::require_memory(bytes, what, "use a smaller crop or fewer LEDs");
 }
 
 namespace {
@@ -485,23 +481,12 @@ int FieldStream::rows_within(std::size_t bytes) const {
   const image_file::Spec& spec = file_->spec;
   const std::size_t row_bytes = std::size_t(width()) * spec.channels * sizeof(float);
   // The band and the reader's buffer (a quarter of it at most: ExrBandReader).
-  const std::size_t band_bytes = bytes / 5 * 4;
-  int rows = int(std::min<std::size_t>(std::size_t(height()),
-                                       std::max<std::size_t>(1, band_bytes / row_bytes)));
-  if (spec.tile_height > 0)
-    rows = std::max(spec.tile_height, rows / spec.tile_height * spec.tile_height);
-  return std::min(rows, height());
+  return ls::rows_within(bytes / 5 * 4, row_bytes, height(), spec.tile_height);
 }
 
 int FieldStream::row_alignment() const { return std::max(1, file_->spec.tile_height); }
 
-int FieldStream::band_rows(std::size_t memory_bytes) const {
-  if (memory_bytes > 0) return rows_within(memory_bytes);
-  const std::size_t field_bytes =
-      ReflectanceField::bytes_for(width(), height(), header_.num_lights());
-  const std::size_t half_available = available_memory_bytes() / 2;
-  return rows_within(std::min(2 * field_bytes, half_available));
-}
+int FieldStream::band_rows(const MemoryBudget& budget) const { return rows_within(budget.bytes()); }
 
 FieldBands FieldStream::bands(int rows) {
   return [this, rows](const BandVisitor& visit) {

@@ -26,6 +26,7 @@
 #include "capture/exr_band_reader.h"
 #include "capture/half_storage.h"
 #include "lightstage/image.h"
+#include "lightstage/memory.h"
 
 namespace ls::capture {
 
@@ -169,11 +170,6 @@ class PixelLightDirs {
   std::optional<Eigen::Vector3d> reference_;  // Set when the field has a view.
 };
 
-// Memory the system can give us now (MemAvailable). Used to refuse what would not fit.
-std::size_t available_memory_bytes();
-// Throws InputError "<what> needs N GiB but only M GiB are available" when bytes > 80% available.
-void require_memory(std::size_t bytes, const std::string& what);
-
 // OpenEXR, float, one channel per LED and colour named "led042.R" etc., pixel-interleaved (which
 // is exactly the in-memory layout); LED directions, validity, (where finite) saturation ceilings
 // and (near LEDs) positions in the "lightstage:lights" attribute ({id, dir, valid, saturates_at:
@@ -245,10 +241,8 @@ class FieldStream {
   int rows_within(std::size_t bytes) const;
   // Bands start on multiples of this (the file's tile height; 1 for scanline files).
   int row_alignment() const;
-  // The rows of a band for a memory budget: rows_within(memory_bytes), or with 0 (the default)
-  // the whole field when it and its read buffer take at most half of the memory available, else
-  // bands within that half.
-  int band_rows(std::size_t memory_bytes) const;
+  // The rows of a band for a memory budget: rows_within(budget.bytes()).
+  int band_rows(const MemoryBudget& budget) const;
   // Rows [y0, y1) into band (reallocated only when its size changes).
   void read_rows(int y0, int y1, ReflectanceField& band);
   // Rows [y0, y1) into dst: (y1 - y0) * width() pixels in the field's layout.

@@ -5,6 +5,7 @@
 
 #include "capture/olat_images.h"
 #include "capture/olat_pixels.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {
@@ -71,7 +72,7 @@ int OlatBands::rows_within(std::size_t bytes) const {
   const std::size_t row_bytes =
       std::size_t(width()) * sizeof(float) *
       (3 * std::size_t(header_.num_lights()) + 2 * (std::size_t(channels) + 3));
-  return int(std::clamp<std::size_t>(bytes / row_bytes, 1, std::size_t(height())));
+  return ls::rows_within(bytes, row_bytes, height());
 }
 
 void OlatBands::read_rows(int y0, int y1, ReflectanceField& band) {

@@ -19,6 +19,7 @@
 
 #include "capture/band_spill.h"
 #include "capture/olat_pixels.h"
+#include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 
@@ -275,7 +276,7 @@ class SetImport {
 ReflectanceField read_whole(SetImport& set, const LightImageFn& on_light) {
   const ReflectanceField& header = set.header();
   require_memory(ReflectanceField::bytes_for(header.width(), header.height(), set.num_lights()),
-                 set.what());
+                 set.what(), "use --max-size, or --memory to import in bands");
   ReflectanceField field(header.width(), header.height(), header.lights());
   set.read_images([&](int l, const std::vector<float>& rgb) {
     if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
@@ -301,12 +302,12 @@ ReflectanceField import_images(OlatImageSet job, const OlatImportOptions& option
 }
 
 int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, const fs::path& out,
-                          const ExrAttributes& attributes, std::size_t memory_bytes,
+                          const ExrAttributes& attributes, const MemoryBudget& memory,
                           const LightImageFn& on_light, OlatImportSummary* summary,
                           const RankSplit& split) {
   SetImport set(std::move(job), options);
   const ReflectanceField& header = set.header();
-  int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory_bytes);
+  int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory);
   std::atomic<int> resumed{0};
   const StorageChoice choice = options.storage;
   FieldStorage storage;
@@ -323,10 +324,7 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
     for (const auto& [key, value] : attributes) identity[key] = value;
     identity["images"] = set.identity();
     const CheckpointDir checkpoint(out, input_identity(set.source(), identity.dump()));
-    int band_rows = split.rank == 0 ? checkpoint.band_rows(rows) : 0;
-    if (split.split())
-      split.barrier();  // Rank 0 decided the band height before the others read it.
-    if (split.rank != 0) band_rows = checkpoint.recorded_rows();
+    const int band_rows = agreed_band_rows(checkpoint, rows, split);
     SpillFile spill(out, header.width(), header.height(), set.num_lights(), band_rows,
                     checkpoint.dir() / "lights.spill");
     constexpr const char* kMagic = "lightstage import light 1";

@@ -45,7 +45,7 @@ ReflectanceField import_images(OlatImageSet set, const OlatImportOptions& option
                                OlatImportSummary* summary);
 
 // The same into the field file `out` (write_field's format), holding no more of the field than
-// memory_bytes at once (capture/band_spill.h: bands through a spill file beside `out` when the
+// `memory` at once (capture/band_spill.h: bands through a spill file beside `out` when the
 // field is larger; the same bytes either way). on_light (optional) sees each light's image.
 // In bands, the spill and a record per light are kept in OUT.partial/ until the field is written
 // (a killed import resumes from the lights it read; identity: the source and `attributes`), and
@@ -54,7 +54,7 @@ ReflectanceField import_images(OlatImageSet set, const OlatImportOptions& option
 // Returns the rows per band (the height: imported in memory).
 int import_images_to_file(OlatImageSet set, const OlatImportOptions& options,
                           const std::filesystem::path& out, const ExrAttributes& attributes,
-                          std::size_t memory_bytes, const LightImageFn& on_light,
+                          const MemoryBudget& memory, const LightImageFn& on_light,
                           OlatImportSummary* summary, const RankSplit& split = {});
 
 // OlatBands::open's work once the set is read (olat_bands.cc).

@@ -463,9 +463,9 @@ std::uintmax_t olat_image_bytes(const fs::path& source) {
 
 int import_olat_to_file(const fs::path& source, const OlatImportOptions& options,
                         const fs::path& out, const ExrAttributes& attributes,
-                        std::size_t memory_bytes, const LightImageFn& on_light,
+                        const MemoryBudget& memory, const LightImageFn& on_light,
                         OlatImportSummary* summary, const RankSplit& split) {
-  return import_images_to_file(read_set(source, options), options, out, attributes, memory_bytes,
+  return import_images_to_file(read_set(source, options), options, out, attributes, memory,
                                on_light, summary, split);
 }
 

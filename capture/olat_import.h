@@ -137,15 +137,14 @@ class OlatBands {
 using LightImageFn = std::function<void(int light, const Eigen::Vector3d& dir_in_stage,
                                         const std::vector<float>& rgb)>;
 // Detects the format and imports into the field file `out` (write_field's format), holding no
-// more of the field than memory_bytes at once (0: the whole field when it takes at most half of
-// the memory available): bands through a spill file beside `out` when the field is larger
-// (capture/band_spill.h), the same bytes either way. on_light (optional) sees each light's image
-// as it is read. In bands a killed import resumes, and under MPI the lights are split over the
-// ranks (capture/olat_images.h: import_images_to_file). Returns the rows per band (the height:
-// imported in memory).
+// more of the field than `memory` at once: bands through a spill file beside `out` when the field
+// is larger (capture/band_spill.h), the same bytes either way. on_light (optional) sees each
+// light's image as it is read. In bands a killed import resumes, and under MPI the lights are split
+// over the ranks (capture/olat_images.h: import_images_to_file). Returns the rows per band (the
+// height: imported in memory).
 int import_olat_to_file(const std::filesystem::path& source, const OlatImportOptions& options,
                         const std::filesystem::path& out, const ExrAttributes& attributes,
-                        std::size_t memory_bytes, const LightImageFn& on_light = {},
+                        const MemoryBudget& memory, const LightImageFn& on_light = {},
                         OlatImportSummary* summary = nullptr, const RankSplit& split = {});
 
 }  // namespace ls::capture

@@ -3,6 +3,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <optional>
@@ -39,7 +41,93 @@ std::optional<std::size_t> cgroup_available_bytes() {
   }
 }
 
+// The power of 1024 a unit names ("", "b", "k", "kb", "kib", ... "tib", lower case), or -1.
+int unit_power(const std::string& unit) {
+  if (unit.empty() || unit == "b") return 0;
+  static const std::string kPrefixes = "kmgt";
+  const std::size_t prefix = kPrefixes.find(unit[0]);
+  if (prefix == std::string::npos) return -1;
+  const std::string rest = unit.substr(1);
+  return rest.empty() || rest == "b" || rest == "ib" ? int(prefix) + 1 : -1;
+}
+
 }  // namespace
+
+std::string format_bytes(std::size_t bytes) {
+  static const char* const kUnits[] = {"KiB", "MiB", "GiB", "TiB", "PiB", "EiB"};
+  if (bytes < 1024) return std::to_string(bytes) + " bytes";
+  double value = double(bytes) / 1024;
+  int unit = 0;
+  while (value >= 1024 && unit < 5) value /= 1024, ++unit;
+  char text[32];
+  std::snprintf(text, sizeof(text), value == std::floor(value) ? "%.0f %s" : "%.1f %s", value,
+                kUnits[unit]);
+  return text;
+}
+
+MemoryBudget::MemoryBudget(std::size_t bytes) {
+  if (bytes > 0) bytes_ = bytes;
+}
+
+MemoryBudget MemoryBudget::parse(std::string_view text, std::string_view option) {
+  const std::string quoted = std::string(option) + " '" + std::string(text) + "'";
+  const std::string sizes =
+      "sizes are bytes or a number with K, M, G or T (powers of 1024), "
+      "e.g. 512M, 2G, 1.5GiB";
+  std::string s(text);
+  s.erase(std::remove_if(s.begin(), s.end(), [](unsigned char c) { return std::isspace(c); }),
+          s.end());
+  if (!s.empty() && s[0] == '-') throw InputError(quoted + ": a size cannot be negative");
+  std::size_t digits = 0;
+  while (digits < s.size() && (std::isdigit((unsigned char)s[digits]) || s[digits] == '.')) {
+    ++digits;
+  }
+  const std::string number = s.substr(0, digits);
+  std::string unit = s.substr(digits);
+  for (char& c : unit) c = char(std::tolower((unsigned char)c));
+  const int power = unit_power(unit);
+  const bool well_formed = !number.empty() && number.front() != '.' && number.back() != '.' &&
+                           std::count(number.begin(), number.end(), '.') <= 1;
+  if (!well_formed || power < 0) throw InputError(quoted + ": not a size; " + sizes);
+  if (power == 0 && number.find('.') != std::string::npos) {
+    throw InputError(quoted + ": a number of bytes must be whole; " + sizes);
+  }
+  // Exact for whole numbers up to 2^64 (long double's 64-bit mantissa), rounded down otherwise.
+  const long double value = std::strtold(number.c_str(), nullptr) * std::pow(1024.0L, power);
+  if (!(value < std::ldexp(1.0L, 64))) {
+    throw InputError(quoted + ": too large (at most 2^64 - 1 bytes)");
+  }
+  const auto bytes = std::size_t(std::floor(value));
+  if (bytes == 0) {
+    throw InputError(quoted + ": must be more than 0 (leave " + std::string(option) +
+                     " out for the default, half of the memory available)");
+  }
+  if (bytes < kMinimumBytes) {
+    throw InputError(quoted + ": below " + format_bytes(kMinimumBytes) +
+                     ", less than any field's row takes; " + sizes);
+  }
+  return MemoryBudget(bytes);
+}
+
+std::size_t MemoryBudget::default_bytes() { return available_memory_bytes() / 2; }
+
+std::size_t MemoryBudget::bytes() const { return bytes_ ? *bytes_ : default_bytes(); }
+
+std::size_t MemoryBudget::bytes_or(std::size_t unset_bytes) const {
+  return bytes_ ? *bytes_ : std::min(unset_bytes, default_bytes());
+}
+
+std::string MemoryBudget::note(std::string_view option) const {
+  if (!bytes_ || *bytes_ >= kSmallBytes) return {};
+  return std::string(option) + " " + format_bytes(*bytes_) + " is below " +
+         format_bytes(kSmallBytes) +
+         ": taken as given, the field goes in bands of few rows (slowly), a band holding at "
+         "least one row whatever the budget";
+}
+
+std::string MemoryBudget::to_string() const {
+  return bytes_ ? format_bytes(*bytes_) : "half of the memory available";
+}
 
 std::size_t peak_resident_bytes() {
   std::ifstream status("/proc/self/status");

@@ -2,10 +2,27 @@
 // Progress for long work, on stderr: a live bar on a terminal ("capture [#####     ] 120/453
 // 26% 0:14 left"), a line per 10% otherwise (logs, CI). Thread-safe; at most ~10 updates a second.
 #include <chrono>
+#include <functional>
 #include <mutex>
 #include <string>
 
 namespace ls {
+
+// Progress of one phase of a long job ("build", "fit (rows)", ...): `done` of `total` units, the
+// item just finished. done == total ends the phase. The CLI prints it with a ProgressReporter.
+using ProgressFn =
+    std::function<void(const std::string& phase, long done, long total, const std::string& item)>;
+
+inline void report(const ProgressFn& progress, const std::string& phase, long done, long total,
+                   const std::string& item = {}) {
+  if (progress) progress(phase, done, total, item);
+}
+
+// How long a job's phases took.
+using Clock = std::chrono::steady_clock;
+inline double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
 
 class ProgressReporter {
  public:

@@ -130,10 +130,10 @@ struct ViewerApp::Impl {
   // Brings the loaded data in line with the state. InputError on a file that cannot be read;
   // what was loaded before stays.
   void load();
-  // The field file whole, or reduced to fit memory_bytes (capture/reduced_field.h), field_note
+  // The field file whole, or reduced to fit `memory` (capture/reduced_field.h), field_note
   // saying so.
   capture::ReflectanceField read_field_within(const std::filesystem::path& file,
-                                              std::size_t memory_bytes);
+                                              const MemoryBudget& memory);
   void on_field_changed();
   const relight::ModelMaps& current_maps();
 

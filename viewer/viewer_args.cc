@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "lightstage/errors.h"
+#include "lightstage/memory_option.h"
 #include "viewer/viewer_state.h"
 
 namespace ls::viewer {
@@ -50,7 +51,7 @@ ViewState ViewArgs::to_state() const {
   }
   for (const std::string& spec : edits) state.edits.push_back(ViewEdit::parse_spec(spec, "--edit"));
   state.time_step = time_step;
-  state.memory_bytes = memory_bytes;
+  state.memory = memory;
   int w = 0, h = 0;
   char x = 0;
   std::istringstream size_text(size);
@@ -101,9 +102,9 @@ void add_view_options(CLI::App& cmd, ViewArgs& args) {
                  "A model edit, e.g. \"model=torrance_sparrow;tint=1,0.6,0.6;roughness=2;"
                  "specular=0.5;brush=X,Y,R/X,Y,R\" (repeatable; applied in order).");
   cmd.add_option("--time", args.time_step, "Time step of a session.")->capture_default_str();
-  cmd.add_option("--memory", args.memory_bytes,
-                 "Bytes a field may take in memory: a larger one opens at a reduced resolution, "
-                 "each pixel the mean of a block (default: half of what is available).");
+  add_memory_option(cmd, args.memory,
+                    "View: the field shown; a larger one opens at a reduced resolution, each "
+                    "pixel the mean of a block, instead of in bands.");
   cmd.add_option("--size", args.size, "Window size WxH.")->capture_default_str();
 }
 

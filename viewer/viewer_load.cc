@@ -109,9 +109,9 @@ void ViewerApp::Impl::set_leds_from_field() {
 }
 
 capture::ReflectanceField ViewerApp::Impl::read_field_within(const fs::path& file,
-                                                             std::size_t memory_bytes) {
+                                                             const MemoryBudget& memory) {
   capture::FieldStream stream(file);
-  const std::size_t budget = memory_bytes > 0 ? memory_bytes : available_memory_bytes() / 2;
+  const std::size_t budget = memory.bytes();
   const std::size_t bytes = capture::ReflectanceField::bytes_for(stream.width(), stream.height(),
                                                                  stream.header().num_lights());
   if (bytes <= budget) {
@@ -142,8 +142,7 @@ void ViewerApp::Impl::load() {
     capture::BuildOptions options;
     options.time_step = state.time_step;
     const CameraSpec& camera = session.stage().camera;
-    const std::size_t budget =
-        state.memory_bytes > 0 ? state.memory_bytes : available_memory_bytes() / 2;
+    const std::size_t budget = state.memory.bytes();
     if (capture::ReflectanceField::bytes_for(camera.width, camera.height,
                                              int(session.stage().leds.size())) <= budget) {
       field = capture::build_field(session, options);
@@ -153,9 +152,9 @@ void ViewerApp::Impl::load() {
       // build` does), opened reduced (read_field_within says so), then removed.
       const fs::path file =
           state.session_dir.string() + ".view_t" + std::to_string(state.time_step) + ".exr";
-      options.memory_bytes = budget;
+      options.memory = MemoryBudget(budget);
       capture::build_field_file(session, options, file, {});
-      capture::ReflectanceField reduced = read_field_within(file, state.memory_bytes);
+      capture::ReflectanceField reduced = read_field_within(file, state.memory);
       field = std::move(reduced);
       std::error_code ignored;
       fs::remove(file, ignored);
@@ -166,7 +165,7 @@ void ViewerApp::Impl::load() {
     on_field_changed();
   }
   if (!state.field_file.empty() && state.field_file != loaded_field) {
-    capture::ReflectanceField read = read_field_within(state.field_file, state.memory_bytes);
+    capture::ReflectanceField read = read_field_within(state.field_file, state.memory);
     field = std::move(read);
     time_steps = 1;
     loaded_field = state.field_file;

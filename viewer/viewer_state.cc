@@ -479,7 +479,7 @@ std::vector<std::string> ViewState::to_args() const {
   }
   for (const ViewEdit& edit : edits) option("--edit", edit.to_spec());
   if (time_step != 0) option("--time", std::to_string(time_step));
-  if (memory_bytes != 0) option("--memory", std::to_string(memory_bytes));
+  if (memory.given()) option("--memory", std::to_string(memory.given_bytes()));
   option("--size", std::to_string(window_width) + "x" + std::to_string(window_height));
   return args;
 }

@@ -12,6 +12,7 @@
 #include <string_view>
 #include <vector>
 
+#include "lightstage/memory.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/model_edit.h"
 
@@ -125,9 +126,9 @@ struct ViewState {
   std::filesystem::path models_file;
   std::filesystem::path pca_file;
   int time_step = 0;  // Sessions with several time steps.
-  // Bytes a field may take in memory; a larger one opens at a reduced resolution
-  // (capture/reduced_field.h). 0: half of what is available.
-  std::size_t memory_bytes = 0;
+  // What a field may take in memory; a larger one opens at a reduced resolution
+  // (capture/reduced_field.h).
+  MemoryBudget memory;
 
   // Lighting.
   std::string environment = "uniform";  // A file path or a builtin_environment_names() entry.
@@ -176,7 +177,7 @@ struct ViewArgs {
   double rotation_deg = 0, exposure_stops = 0, divider = 0.5;
   std::string source = "field", split = "none", map = "none", size = "1280x800";
   int rank = 16, time_step = 0;
-  std::size_t memory_bytes = 0;
+  MemoryBudget memory;
   bool difference = false;
   bool exact_models = false;
   std::vector<double> light;  // X Y Z: point-light mode.

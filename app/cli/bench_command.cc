@@ -27,6 +27,7 @@
 #include "evaluation/sun_bench.h"
 #include "evaluation/temporal_bench.h"
 #include "lightstage/errors.h"
+#include "lightstage/memory_option.h"
 
 namespace ls::cli {
 
@@ -158,10 +159,11 @@ void add_rti(CLI::App& bench) {
   cmd->add_flag("!--no-memory", *measure_memory,
                 "Skip the memory part (a 612x512, 96-light JPEG set through import, compress and "
                 "export, each a process of its own).");
-  cmd->add_option("--memory", memory->memory_bytes, "Bytes: the memory part's --memory.")
-      ->capture_default_str();
+  auto budget = std::make_shared<MemoryBudget>(memory->memory_bytes);
+  add_memory_option(*cmd, *budget, "Bench rti: the memory part's steps' --memory.");
   cmd->add_flag("--keep", memory->keep, "Keep the memory part's set and what was written from it.");
-  cmd->callback([args, memory, measure_memory] {
+  cmd->callback([args, memory, measure_memory, budget] {
+    memory->memory_bytes = budget->bytes();
     args->real_lp =
         data_dir().parent_path().parent_path() / "shared/data/rti/loewenkopf_klein/dirs.lp";
     const evaluation::RtiBenchSummary summary =
@@ -422,8 +424,8 @@ void add_scale(CLI::App& bench) {
       ->capture_default_str();
   cmd->add_option("--runs", args->runs, "Runs of each step (medians reported).")
       ->capture_default_str();
-  cmd->add_option("--memory", args->memory_bytes, "Bytes: every step's --memory.")
-      ->capture_default_str();
+  auto budget = std::make_shared<MemoryBudget>(args->memory_bytes);
+  add_memory_option(*cmd, *budget, "Bench scale: every step's --memory (at least 16 MiB).");
   cmd->add_option("--fit-max-size", args->fit_max_size,
                   "Larger sizes are not fitted (a fit's time grows with the pixels); MPI runs at "
                   "the largest size fitted.")
@@ -433,7 +435,8 @@ void add_scale(CLI::App& bench) {
   cmd->add_flag("--single-exposure", args->single_exposure,
                 "Capture one exposure per LED (the bracket's middle one), not three: a third of "
                 "the frames' disk, for the largest sizes.");
-  cmd->callback([args] {
+  cmd->callback([args, budget] {
+    args->memory_bytes = budget->bytes();
     args->executable = fs::read_symlink("/proc/self/exe");
     args->env_map = data_dir() / "envmaps/sky_sun.exr";
     print_scale(evaluation::run_scale_bench(*args, progress_printer(false)), args->memory_bytes);

@@ -6,6 +6,7 @@
 #include "app/cli/commands.h"
 #include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
+#include "lightstage/memory_option.h"
 
 namespace ls::cli {
 
@@ -78,11 +79,10 @@ void add_build_command(CLI::App& app) {
   cmd->add_flag("--all-time-steps", options->all_time_steps,
                 "Build one field per time step into the --out directory.")
       ->excludes(step);
-  cmd->add_option("--memory", options->memory_bytes,
-                  "Bytes of memory for the field: a larger one is built in bands of rows, each "
-                  "LED's image spilled to a file beside --out that needs the field's size free "
-                  "(default: in memory when the field takes at most half of what is available, "
-                  "else bands within that half).");
+  add_memory_option(*cmd, options->memory,
+                    "Build: the field's values and the LEDs merged in flight (a quarter of it); a "
+                    "larger field is built in bands, each LED's image spilled to a file beside "
+                    "--out that needs the field's size free.");
   cmd->add_option("--storage", options->storage,
                   "How the file holds the values: half floats (half the disk and the reading) "
                   "where the field relit from them stays within 1e-3 of the floats and their "

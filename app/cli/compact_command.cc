@@ -12,6 +12,7 @@
 #include "app/jobs/compress_job.h"
 #include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
+#include "lightstage/memory_option.h"
 
 namespace ls::cli {
 
@@ -40,11 +41,10 @@ void add_compress_command(CLI::App& app) {
                    "RTI files: srgb (the sRGB codes of the field, fitted as such: what RTIViewer, "
                    "relight and OpenLIME show) or linear (.rti only, for lightstage's own use).")
       ->capture_default_str();
-  compress->add_option("--memory", args->memory_bytes,
-                       "Bytes of memory for the field: a larger one is read in bands of rows "
-                       "(default: whole when it takes at most half of what is available). An .lp "
-                       "set is always read in bands straight from its images, of 32 MiB unless "
-                       "this is given.");
+  add_memory_option(*compress, args->memory,
+                    "Compress: the band of the field read at once (twice for PCA); an .lp set is "
+                    "read in bands straight from its images.",
+                    "half of the memory available; an .lp set's images 32 MiB");
   compress->callback([args] {
     // A bad --format or --rank is bad input (exit 2): jobs::compress validates them.
     const jobs::CompressSummary summary = jobs::compress(*args);
@@ -102,10 +102,10 @@ void add_export_command(CLI::App& app) {
       ->add_option("--gain", args->gain,
                    "Display units (white = 1) per field unit; 0: the brightest sample is white.")
       ->capture_default_str();
-  openlime->add_option("--memory", args->memory_bytes,
-                       "Bytes of memory for the field: a larger one is read in bands of rows, "
-                       "three passes (default: as compress; an .lp set is always read in bands "
-                       "straight from its images).");
+  add_memory_option(*openlime, args->memory,
+                    "Export: the band of the field read at once (three passes); an .lp set is "
+                    "read in bands straight from its images.",
+                    "half of the memory available; an .lp set's images 32 MiB");
   openlime->callback([args] {
     // Bad options are bad input (exit 2), as compress's.
     const jobs::OpenLimeExportSummary summary =

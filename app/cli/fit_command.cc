@@ -11,6 +11,7 @@
 #include "app/jobs/fit_job.h"
 #include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
+#include "lightstage/memory_option.h"
 
 namespace ls::cli {
 
@@ -157,11 +158,9 @@ void add_fit_command(CLI::App& app) {
                   "pixel chooses its model alone.")
       ->check(CLI::IsMember({"basis", "per-pixel"}))
       ->capture_default_str();
-  cmd->add_option("--memory", options->memory_bytes,
-                  "Bytes of memory for the field: a larger one is fitted in bands of rows within "
-                  "them, read twice with basis materials (default: the whole field when it "
-                  "takes at most half of what is available, else bands within that half). With "
-                  "--time: for every step's field and fits together.");
+  add_memory_option(*cmd, options->memory,
+                    "Fit: the band of the field fitted at once (read twice with basis materials); "
+                    "with --time, every step's band and its fits together.");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {
@@ -195,9 +194,7 @@ void add_normals_command(CLI::App& app) {
                   "squares over the lit samples.")
       ->check(CLI::IsMember({"robust", "ls"}))
       ->capture_default_str();
-  cmd->add_option("--memory", options->memory_bytes,
-                  "Bytes of memory for the field: a larger one is read in bands of rows within "
-                  "them (default as fit).");
+  add_memory_option(*cmd, options->memory, "Normals: the band of the field read at once.");
   cmd->add_flag("--quiet", *quiet, "No progress output.");
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {

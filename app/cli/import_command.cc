@@ -8,6 +8,7 @@
 #include "app/jobs/import_job.h"
 #include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
+#include "lightstage/memory_option.h"
 
 namespace ls::cli {
 namespace {
@@ -15,7 +16,8 @@ namespace {
 namespace fs = std::filesystem;
 
 int print_import(const fs::path& source, const fs::path& out,
-                 const capture::OlatImportOptions& options, std::size_t memory_bytes, bool quiet) {
+                 const capture::OlatImportOptions& options, const MemoryBudget& memory,
+                 bool quiet) {
   // Under MPI rank 0 reports and prints; the others are silent.
   const bool root = jobs::Ranks::world().root();
   if (root) {
@@ -23,7 +25,7 @@ int print_import(const fs::path& source, const fs::path& out,
                 capture::to_string(capture::detect_olat_format(source)));
   }
   const jobs::ImportJobSummary job =
-      jobs::import_set(source, out, options, memory_bytes, progress_printer(quiet || !root));
+      jobs::import_set(source, out, options, memory, progress_printer(quiet || !root));
   if (!root) return 0;
   const capture::OlatImportSummary& summary = job.import;
   std::printf("  %d images, %s, %dx%d", summary.images, summary.pixel_format.c_str(),
@@ -62,9 +64,9 @@ int print_import(const fs::path& source, const fs::path& out,
 
 int print_series(const std::vector<fs::path>& sources, const std::vector<double>& times,
                  double interval_s, const fs::path& out, const capture::OlatImportOptions& options,
-                 std::size_t memory_bytes, bool quiet) {
+                 const MemoryBudget& memory, bool quiet) {
   const jobs::ImportSeriesSummary series = jobs::import_series(
-      sources, times, interval_s, out, options, memory_bytes, progress_printer(quiet));
+      sources, times, interval_s, out, options, memory, progress_printer(quiet));
   for (size_t i = 0; i < series.steps.size(); ++i) {
     const capture::OlatImportSummary& s = series.steps[i].import;
     std::printf("%s -> %s: t = %g s, %d images, field %dx%d, %.3f%% samples saturated\n",
@@ -119,11 +121,11 @@ void add_import_command(CLI::App& app) {
   cmd->add_flag("--drop-saturated", options->zero_saturated,
                 "Write saturated samples (maximum code) as 0, so fits leave them out as shadowed; "
                 "default: keep them as lower bounds.");
-  auto memory = std::make_shared<std::size_t>(0);
-  cmd->add_option("--memory", *memory,
-                  "Bytes of memory for the field: a larger one is written in bands of rows, each "
-                  "image spilled to a file beside --out that needs the field's size free "
-                  "(default: 32 MiB; a field within it is written whole, without a spill).");
+  auto memory = std::make_shared<MemoryBudget>();
+  add_memory_option(*cmd, *memory,
+                    "Import: the field's values; a larger field is written in bands, each image "
+                    "spilled to a file beside --out that needs the field's size free.",
+                    "32 MiB (each image is read once: more rows do not make it faster)");
   auto storage = std::make_shared<std::string>("auto");
   cmd->add_option("--storage", *storage,
                   "How the field file holds the values: half floats where the field relit from "

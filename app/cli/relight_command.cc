@@ -7,6 +7,7 @@
 #include "app/jobs/ranks.h"
 #include "app/jobs/relight_job.h"
 #include "lightstage/memory.h"
+#include "lightstage/memory_option.h"
 #include "relight/time/temporal_fit.h"
 
 namespace ls::cli {
@@ -90,11 +91,12 @@ void add_relight_command(CLI::App& app) {
       ->capture_default_str();
   auto* exp_opt = cmd->add_option("--exposure", *exposure,
                                   "Preview exposure in stops (default: automatic per image).");
-  cmd->add_option("--memory", options->memory_bytes,
-                  "Bytes that rendering compact sources may hold (full-size images of the LEDs "
-                  "around them); over it they are relit by the LED cells, with a note. Default: "
-                  "half of the memory available. The field itself is read a few MiB at a time "
-                  "whatever its size; the sources' normals in bands within what they leave.");
+  auto memory = std::make_shared<MemoryBudget>();
+  add_memory_option(*cmd, *memory,
+                    "Relight: what rendering compact sources may hold (full-size images of the "
+                    "LEDs around them); over it they are relit by the LED cells, with a note. The "
+                    "field itself is read a few MiB at a time whatever its size; the sources' "
+                    "normals in bands within what they leave.");
   cmd->add_option("--coverage-deg", options->coverage_deg,
                   "Dome coverage radius around each LED, degrees (0: automatic).")
       ->capture_default_str();
@@ -118,7 +120,8 @@ void add_relight_command(CLI::App& app) {
   auto* time_opt = cmd->add_option("--time", *time_s,
                                    "With --temporal: scene time in seconds (any time; "
                                    "outside the captured steps it is flagged).");
-  cmd->callback([options, quiet, exposure, exp_opt, light, time_s, time_opt] {
+  cmd->callback([options, quiet, exposure, exp_opt, light, time_s, time_opt, memory] {
+    options->memory_bytes = memory->given_bytes();
     if (exp_opt->count() > 0) options->exposure_stops = *exposure;
     if (time_opt->count() > 0) options->time_s = *time_s;
     if (light->size() == 3)

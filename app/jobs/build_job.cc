@@ -46,13 +46,13 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   }
   capture::BuildOptions build;
   build.time_step = time_step;
-  build.memory_bytes = options.memory_bytes;
+  build.memory = options.memory;
   build.correct_drift = options.correct_drift;
   build.storage = capture::parse_storage_choice("--storage", options.storage);
   build.on_progress = [&](int done, int total) { report(progress, "build", done, total); };
   build.on_band_written = [&](int done, int total) { report(progress, "write", done, total); };
   const Ranks& ranks = Ranks::world();
-  build.split = {ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }};
+  build.split = ranks.split();
   BuiltField result;
   result.band_rows = capture::build_field_file(
       session, build, out, {{kOptionsAttribute, options.to_json()}}, &result.build);

@@ -15,8 +15,7 @@ struct BuildJobOptions {
   std::filesystem::path out;  // Field file; with all_time_steps, the directory of field_tNNN.exr.
   int time_step = 0;
   bool all_time_steps = false;
-  // Bytes of memory for the field's values (capture::BuildOptions::memory_bytes; 0: default).
-  std::size_t memory_bytes = 0;
+  MemoryBudget memory;  // For the field's values (capture::BuildOptions::memory).
   // How the file holds its values: "auto" (half where capture::check_half passes,
   // capture/half_storage.h), "half" or "float".
   std::string storage = "auto";

@@ -10,10 +10,10 @@
 #include <numeric>
 #include <optional>
 
-#include "app/jobs/fit_bands.h"
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "capture/olat_import.h"
+#include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
@@ -21,11 +21,11 @@
 #include "lightstage/rank_split.h"
 #include "lightstage/scratch_file.h"
 #include "physics/envmap.h"
+#include "relight/compact/pca_bands.h"
 #include "relight/compact/pca_field.h"
 #include "relight/compact/plane_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/compact/rti_io.h"
-#include "physics/envmap.h"
 #include "relight/sources/map_relight.h"
 
 namespace ls::jobs {
@@ -58,44 +58,6 @@ bool rti_basis(const std::string& format, relight::RtiFitOptions& options) {
   return true;
 }
 
-// Under MPI each rank finds the grams of its bands (PcaField::band_grams) and keeps them in a
-// record beside the output; rank 0 sums every band's in order (PcaGramBands).
-constexpr const char* kGramsMagic = "lightstage pca band grams 1";
-
-void save_grams(const fs::path& file, const relight::PcaBandGrams& band) {
-  std::vector<RecordBytes> blocks;
-  for (const Eigen::MatrixXd& g : band.grams) {
-    blocks.push_back({g.data(), std::size_t(g.size()) * sizeof(double)});
-  }
-  blocks.push_back({band.positive_sums.data(), band.positive_sums.size() * sizeof(double)});
-  write_record(file, kGramsMagic,
-               {{"first_row", band.first_row},
-                {"grams", band.grams.size()},
-                {"lights", band.grams.empty() ? 0 : band.grams[0].rows()},
-                {"units", band.positive_sums.size()}},
-               blocks);
-}
-
-relight::PcaBandGrams load_grams(const fs::path& file) {
-  relight::PcaBandGrams band;
-  const bool read = read_record(file, kGramsMagic, [&](const nlohmann::json& info) {
-    band.first_row = info.at("first_row").get<int>();
-    const auto lights = info.at("lights").get<Eigen::Index>();
-    band.grams.assign(info.at("grams").get<std::size_t>(), Eigen::MatrixXd(lights, lights));
-    band.positive_sums.resize(info.at("units").get<std::size_t>());
-    std::vector<RecordTarget> targets;
-    for (Eigen::MatrixXd& g : band.grams) {
-      targets.push_back({g.data(), std::size_t(g.size()) * sizeof(double)});
-    }
-    targets.push_back({band.positive_sums.data(), band.positive_sums.size() * sizeof(double)});
-    return std::optional<std::vector<RecordTarget>>{std::move(targets)};
-  });
-  if (!read) {
-    throw InputError(file.string() + ": a band's Gram matrices are missing (did its rank fail?)");
-  }
-  return band;
-}
-
 // A file beside the output for the job's length only.
 struct RemovedWhenDone {
   fs::path path;
@@ -113,23 +75,23 @@ bool is_olat_set(const fs::path& input) {
 }
 
 // The field file to read `input` from, an EXR as it is. An .lp set: empty (to be imported whole)
-// unless a budget is given or its field takes more than half of the memory available: then
+// unless a budget is given or its field takes more than the budget: then
 // imported into a field file beside `out` (in bands, see import_olat_to_file), read from there
 // and removed when `imported` goes.
-fs::path field_file_for(const fs::path& input, const fs::path& out, std::size_t memory_bytes,
+fs::path field_file_for(const fs::path& input, const fs::path& out, const MemoryBudget& memory,
                         std::optional<RemovedWhenDone>& imported, const ProgressFn& progress) {
   if (!is_olat_set(input)) return input;
-  if (memory_bytes == 0) {
+  if (!memory.given()) {
     const capture::ReflectanceField header = capture::olat_header(input, {});
     const std::size_t bytes =
         capture::ReflectanceField::bytes_for(header.width(), header.height(), header.num_lights());
-    if (bytes <= available_memory_bytes() / 2) return {};
+    if (bytes <= memory.bytes()) return {};
   }
   fs::path file = out;
   file += ".imported.exr";
   imported.emplace(file);
   report(progress, "import", 0, 1, input.filename());
-  capture::import_olat_to_file(input, capture::OlatImportOptions{}, file, {}, memory_bytes);
+  capture::import_olat_to_file(input, capture::OlatImportOptions{}, file, {}, memory);
   report(progress, "import", 1, 1);
   return file;
 }
@@ -137,20 +99,20 @@ fs::path field_file_for(const fs::path& input, const fs::path& out, std::size_t 
 // Where a command's field comes from: whole in memory, or band by band from a field file or
 // straight from an .lp set's images. An .lp set is read in bands from its images whatever its
 // size: that is faster than importing it whole (bench rti: compress ptm 2.7 s against 6.0 s on
-// 612x512x96 JPEGs) and holds kImageBandBytes (or --memory) of it, not the float field.
+// 612x512x96 JPEGs) and holds --memory of it (unset: MemoryBudget::kImageSetBytes), not the float
+// field.
 struct FieldRows {
-  static constexpr std::size_t kImageBandBytes = std::size_t{32} << 20;
   std::optional<RemovedWhenDone> imported;  // Removed after the stream reading it is closed.
   std::optional<capture::FieldStream> stream;
   std::unique_ptr<capture::OlatBands> images;
 
   // Opens `input`. An .lp set its images cannot give band by band (capture::OlatBands::open)
   // is imported whole, or into a field file beside `out` when that does not fit.
-  FieldRows(const fs::path& input, const fs::path& out, std::size_t memory_bytes,
+  FieldRows(const fs::path& input, const fs::path& out, const MemoryBudget& memory,
             const ProgressFn& progress) {
     if (is_olat_set(input)) images = capture::OlatBands::open(input, capture::OlatImportOptions{});
     if (images) return;
-    const fs::path file = field_file_for(input, out, memory_bytes, imported, progress);
+    const fs::path file = field_file_for(input, out, memory, imported, progress);
     if (!file.empty()) stream.emplace(file);
   }
   bool in_bands() const { return stream || images; }
@@ -159,11 +121,10 @@ struct FieldRows {
   }
   int height() const { return header().height(); }
   int row_alignment() const { return stream ? stream->row_alignment() : 1; }
-  // The rows of a band for a memory budget (0: a field file's default, FieldStream::band_rows;
-  // an .lp set's images kImageBandBytes).
-  int band_rows(std::size_t memory_bytes) const {
-    if (stream) return stream->band_rows(memory_bytes);
-    return images->rows_within(memory_bytes > 0 ? memory_bytes : kImageBandBytes);
+  // The rows of a band for a memory budget (an .lp set's images: unset, kImageSetBytes).
+  int band_rows(const MemoryBudget& memory) const {
+    if (stream) return stream->band_rows(memory);
+    return images->rows_within(memory.bytes_or(MemoryBudget::kImageSetBytes));
   }
   void read_rows(int y0, int y1, capture::ReflectanceField& band) {
     if (stream) {
@@ -174,87 +135,29 @@ struct FieldRows {
   }
 };
 
-// A PCA in bands, never holding its coefficients: the basis from the passes over the bands (kept
-// in the checkpoint: a rerun skips those passes), then each band's coefficients into a spill
-// beside the output (kept, with a record per band: a rerun projects only the bands not there),
-// then the file written from the spill. Under MPI every rank makes the grams and coefficients of
-// its own bands; rank 0 finds the basis and writes the file (the others return once their bands
-// are in). Returns the basis; `resumed_rows`: the rows a killed run had projected.
-relight::PcaField pca_in_bands(FieldRows& stream, int rows, const capture::FieldBands& bands,
-                               const relight::PcaOptions& options, const CheckpointDir& checkpoint,
-                               const fs::path& out, const ProgressFn& progress, const Ranks& ranks,
-                               relight::PcaSummary& summary, int& resumed_rows) {
-  const capture::ReflectanceField& header = stream.header();
-  const int height = header.height();
-  const fs::path basis_file = checkpoint.dir() / "basis.record";
-  const auto band_file = [&](const char* kind, int y0) {
-    return checkpoint.dir() / (kind + std::to_string(y0));
+// The field's bands of `rows` rows, each pass over them showing its progress by rows. Split over
+// ranks a rank reads its own bands only (the others visited without values:
+// write_rti_file_in_bands leaves them to theirs).
+capture::FieldBands split_bands(FieldRows& stream, int rows, const RankSplit& split,
+                                const ProgressFn& progress) {
+  return [&stream, rows, split, progress, pass = 0](const capture::BandVisitor& visit) mutable {
+    const std::string label = "pass " + std::to_string(++pass) + " (rows)";
+    const int height = stream.height();
+    capture::ReflectanceField band;
+    for (int b = 0, y0 = 0; y0 < height; ++b, y0 += rows) {
+      const int y1 = std::min(height, y0 + rows);
+      if (split.mine(b)) {
+        stream.read_rows(y0, y1, band);
+        visit(band);
+      } else {
+        capture::ReflectanceField shell = capture::ReflectanceField::without_values(
+            stream.header().width(), y1 - y0, stream.header().lights());
+        shell.set_band(y0, height);
+        visit(shell);
+      }
+      report(progress, label, y1, height);
+    }
   };
-  std::optional<relight::PcaField> pca;
-  if (ranks.root()) pca = relight::PcaField::load_basis(basis_file, header, &summary);
-  std::vector<double> have = {double(pca.has_value())};
-  if (ranks.root() && !pca) {
-    // Bands projected on another basis (one that could not be read back) are not kept.
-    for (const auto& entry : fs::directory_iterator(checkpoint.dir())) {
-      if (entry.path().filename().string().starts_with("band_")) fs::remove(entry.path());
-    }
-  }
-  ranks.broadcast(have);  // After rank 0 cleared what the others will write again.
-  capture::ReflectanceField band;
-  if (have[0] == 0 && ranks.size() == 1) {
-    pca = relight::PcaField::build_basis(header, bands, options, &summary);
-    pca->save_basis(basis_file, summary);
-  } else if (have[0] == 0) {
-    if (options.rank_rule == relight::PcaRankRule::kHeldOutLights) {
-      throw InputError(
-          "compress: the held-out rank rule reads the whole field on one process: "
-          "run it without mpirun");
-    }
-    for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
-      stream.read_rows(y0, std::min(height, y0 + rows), band);
-      save_grams(band_file("grams_", y0), relight::PcaField::band_grams(band, options.tile_size));
-    }
-    ranks.barrier();  // Every band's grams are in their records.
-    if (ranks.root()) {
-      const relight::PcaGramBands grams =
-          [&](const std::function<void(const relight::PcaBandGrams&)>& visit) {
-            for (int y0 = 0; y0 < height; y0 += rows) visit(load_grams(band_file("grams_", y0)));
-          };
-      pca = relight::PcaField::build_basis(header, grams, bands, options, &summary);
-      pca->save_basis(basis_file, summary);
-    }
-  }
-  ranks.barrier();  // The basis is in its record.
-  if (!pca) pca = relight::PcaField::load_basis(basis_file, header, nullptr);
-  if (!pca) throw InputError(basis_file.string() + ": rank 0's basis cannot be read here");
-  const std::size_t row_floats = pca->coefficients_per_row();
-  ScratchFile spill(checkpoint.dir() / "coefficients.spill",
-                    "the coefficients of a field compressed in bands are spilled beside the "
-                    "output: they need its size free there",
-                    ScratchFile::Lifetime::kKept);
-  std::vector<float> coefs;
-  for (int b = ranks.rank(), y0; (y0 = b * rows) < height; b += ranks.size()) {
-    const int y1 = std::min(height, y0 + rows);
-    const fs::path record = band_file("band_", y0);
-    const bool resumed = fs::exists(record);
-    if (resumed) {
-      resumed_rows += y1 - y0;
-    } else {
-      stream.read_rows(y0, y1, band);
-      coefs.resize(std::size_t(y1 - y0) * row_floats);
-      pca->project_band(band, coefs.data());
-      spill.write(coefs.data(), coefs.size(), std::size_t(y0) * row_floats);
-      spill.sync();  // The rows are there before their record says so.
-      write_file_atomic(record, "");
-    }
-    report(progress, "coefficients (rows)", y1, height, resumed ? "resumed" : "");
-  }
-  ranks.barrier();  // Every band's coefficients are in the spill.
-  if (!ranks.root()) return *std::move(pca);
-  spill.reopen();  // The others' rows as they wrote them (a file system shared between nodes).
-  pca->write(out,
-             [&](int y, float* row) { spill.read(row, row_floats, std::size_t(y) * row_floats); });
-  return *std::move(pca);
 }
 
 }  // namespace
@@ -288,7 +191,7 @@ std::string CompressOptions::to_json() const {
                         {"tile", tile},
                         {"gain", gain},
                         {"encoding", encoding},
-                        {"memory_bytes", memory_bytes}}
+                        {"memory_bytes", memory.given_bytes()}}
       .dump();
 }
 
@@ -339,12 +242,12 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
         "compress: under MPI only a field EXR splits its bands over the ranks; "
         "compress .lp sets as one process (without mpirun), or import them first");
   }
-  const RankSplit split{ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }};
+  const RankSplit split = ranks.split();
   capture::ReflectanceField whole;
   std::optional<CheckpointDir> checkpoint;
   capture::FieldBands bands;
   int rows = 0;
-  FieldRows stream(options.input, options.out, options.memory_bytes, progress);
+  FieldRows stream(options.input, options.out, options.memory, progress);
   if (!stream.in_bands()) {
     report(progress, "read", 0, 1, options.input.filename());
     whole = capture::import_olat(options.input, capture::OlatImportOptions{});
@@ -356,41 +259,21 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
             ? std::lcm(stream.row_alignment(), relight::PcaField::band_alignment(
                                                    stream.header().width(), height, pca_options))
             : stream.row_alignment();
-    rows = std::max(align, stream.band_rows(options.memory_bytes) / align * align);
-    if (split.split()) rows = band_rows_for_ranks(rows, height, align, split.size);
+    rows = band_rows_for_ranks(std::max(align, stream.band_rows(options.memory) / align * align),
+                               height, align, split.size);
     if (rows < height || split.split()) {
       // What a compression in bands finished is kept beside the output for a killed run to
       // resume from (with the band height it was done in): the RTI fits' coefficients, or the
       // PCA's basis and coefficients. Rank 0 decides the band height before the others read it.
       checkpoint.emplace(options.out, input_identity(options.input, options.to_json()));
-      std::vector<double> decided = {double(split.rank == 0 ? checkpoint->band_rows(rows) : 0)};
-      ranks.broadcast(decided);
-      rows = int(decided[0]);
+      rows = agreed_band_rows(*checkpoint, rows, split);
     }
     if (rows >= height && !split.split()) {
       report(progress, "read", 0, 1, options.input.filename());
       stream.read_rows(0, height, whole);
       report(progress, "read", 1, 1);
     } else {
-      // Each pass over the field shows its progress by rows. Under MPI a rank reads its own bands
-      // only (the others visited without values: write_rti_file_in_bands leaves them to theirs).
-      bands = [&, height, pass = 0](const capture::BandVisitor& visit) mutable {
-        const std::string label = "pass " + std::to_string(++pass) + " (rows)";
-        capture::ReflectanceField band;
-        for (int b = 0, y0 = 0; y0 < height; ++b, y0 += rows) {
-          const int y1 = std::min(height, y0 + rows);
-          if (split.mine(b)) {
-            stream.read_rows(y0, y1, band);
-            visit(band);
-          } else {
-            capture::ReflectanceField shell = capture::ReflectanceField::without_values(
-                stream.header().width(), y1 - y0, stream.header().lights());
-            shell.set_band(y0, height);
-            visit(shell);
-          }
-          report(progress, label, y1, height);
-        }
-      };
+      bands = split_bands(stream, rows, split, progress);
     }
   }
   const capture::ReflectanceField& header = bands ? stream.header() : whole;
@@ -403,8 +286,15 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
     relight::PcaSummary pca_summary;
     relight::PcaField pca;
     if (rows > 0) {
-      pca = pca_in_bands(stream, rows, bands, pca_options, *checkpoint, options.out, progress,
-                         ranks, pca_summary, summary.resumed_rows);
+      const relight::PcaBandsInput input{
+          header,
+          [&](int y0, int y1, capture::ReflectanceField& band) { stream.read_rows(y0, y1, band); },
+          bands, rows};
+      pca = relight::pca_in_bands(input, pca_options, *checkpoint, options.out, split, pca_summary,
+                                  summary.resumed_rows, [&](int y1, int height, bool resumed) {
+                                    report(progress, "coefficients (rows)", y1, height,
+                                           resumed ? "resumed" : "");
+                                  });
       summary.ranks = ranks.size();
       if (!ranks.root()) return summary;  // Rank 0 wrote the file.
       checkpoint->remove();
@@ -470,10 +360,10 @@ OpenLimeExportSummary export_openlime(const OpenLimeExportOptions& options,
     throw InputError("export openlime: " + problem);
   }
   // The field whole, or within --memory in bands (three passes).
-  FieldRows stream(options.input, options.out, options.memory_bytes, progress);
+  FieldRows stream(options.input, options.out, options.memory, progress);
   capture::ReflectanceField whole;
   capture::FieldBands bands;
-  const int rows = stream.in_bands() ? stream.band_rows(options.memory_bytes) : 0;
+  const int rows = stream.in_bands() ? stream.band_rows(options.memory) : 0;
   if (stream.in_bands() && rows < stream.height()) {
     bands = [&, pass = 0](const capture::BandVisitor& visit) mutable {
       const std::string label = "pass " + std::to_string(++pass) + " (rows)";

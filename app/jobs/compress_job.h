@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "app/jobs/job.h"
+#include "lightstage/memory.h"
 
 namespace ls::jobs {
 
@@ -21,11 +22,11 @@ struct CompressOptions {
   // RTI files: "srgb" fits and stores the sRGB codes of gain x the field, as the RTI viewers show
   // them; "linear" (.rti only: a .ptm cannot say so) stores gain x the field, for lightstage's use.
   std::string encoding = "srgb";
-  // Bytes of memory for the field: a larger one is read in bands of rows (twice for PCA, three
-  // times with the held-out rank rule). 0: FieldStream::band_rows' default (whole when it takes
-  // at most half of the memory available). An .lp set with a budget, or larger than that half,
-  // is imported into a field file beside `out` first (in bands), and compressed from it.
-  std::size_t memory_bytes = 0;
+  // For the field: a larger one is read in bands of rows (twice for PCA, three times with the
+  // held-out rank rule). An .lp set its images cannot give in bands, with a budget given or
+  // larger than the budget, is imported into a field file beside `out` first (in bands), and
+  // compressed from it.
+  MemoryBudget memory;
   std::string validate() const;
   std::string to_json() const;  // What a resumed run must share (CheckpointDir's identity).
 };
@@ -55,9 +56,8 @@ struct OpenLimeExportOptions {
   std::string image = "jpg";    // jpg (at `quality`, what relight writes) | png (lossless).
   int quality = 95;
   double gain = 0.0;  // Display units per field unit; 0: the brightest sample is white.
-  // Bytes of memory for the field: as CompressOptions::memory_bytes (a larger field, or an .lp
-  // set with a budget, read in bands of a field file, three passes).
-  std::size_t memory_bytes = 0;
+  // For the field: as CompressOptions::memory (three passes).
+  MemoryBudget memory;
   std::string validate() const;
 };
 

@@ -6,17 +6,18 @@
 #include <nlohmann/json.hpp>
 #include <tuple>
 
-#include "app/jobs/fit_bands.h"
-#include "app/jobs/fit_checkpoint.h"
-#include "app/jobs/fit_time_bands.h"
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
 #include "lightstage/memory.h"
 #include "relight/fit/basis_materials.h"
+#include "relight/fit/fit_bands.h"
+#include "relight/fit/fit_checkpoint.h"
 #include "relight/fit/noise_from_data.h"
 #include "relight/fit/normals.h"
+#include "relight/time/time_bands.h"
 
 namespace ls::jobs {
 
@@ -61,7 +62,7 @@ std::string FitJobOptions::to_json() const {
   j["phong"] = phong;
   j["method"] = method;
   j["materials"] = materials;
-  j["memory_bytes"] = memory_bytes;
+  j["memory_bytes"] = memory.given_bytes();
   return j.dump();
 }
 
@@ -162,20 +163,19 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
     throw InputError(options.field_file.string() + ": noise: " + error);
   }
   const Ranks& ranks = Ranks::world();
-  int rows = band_rows_for_ranks(stream.band_rows(options.memory_bytes), field.height(),
+  int rows = band_rows_for_ranks(stream.band_rows(options.memory), field.height(),
                                  stream.row_alignment(), ranks.size());
   auto start = Clock::now();
   const ExrAttributes attributes = {{kOptionsAttribute, options.to_json()}};
-  BandFit result;
-  BandFitTimes times;
+  relight::BandFit result;
+  relight::BandFitTimes times;
   if (rows < field.height() || ranks.size() > 1) {  // Under MPI, only rank 0 writes.
-    BandCheckpoints checkpoints(options.out, input_identity(options.field_file, options.to_json()));
+    relight::BandCheckpoints checkpoints(options.out,
+                                         input_identity(options.field_file, options.to_json()));
     // Rank 0 decides (and may clear an earlier run's checkpoints); the others follow.
-    std::vector<double> decided = {double(ranks.root() ? checkpoints.band_rows(rows) : 0)};
-    ranks.broadcast(decided);
-    rows = int(decided[0]);
-    result = fit_in_bands(stream, rows, fit, checkpoints, ranks, options.out, attributes, progress,
-                          times);
+    rows = checkpoints.agreed_rows(rows, ranks.split());
+    result = relight::fit_in_bands(stream, rows, fit, checkpoints, ranks.split(), options.out,
+                                   attributes, progress, times);
     ranks.barrier();  // Rank 0 has written the maps from every rank's checkpoints.
     if (ranks.root()) checkpoints.remove();
   } else {
@@ -235,18 +235,17 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   const int width = first.width(), height = first.height();
   // The whole series in memory when its fields and fits take at most the budget (by default half
   // of what is available); else bands of rows within it.
-  const std::size_t budget =
-      options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
-  const std::size_t row_bytes = time_band_row_bytes(first, int(steps.size()), fit.normal_source);
+  const std::size_t budget = options.memory.bytes();
+  const std::size_t row_bytes =
+      relight::time_band_row_bytes(first, int(steps.size()), fit.normal_source);
   const std::size_t whole_bytes =
       std::size_t(height) * (row_bytes + steps.size() * capture::ReflectanceField::bytes_for(
                                                             width, 1, first.header().num_lights()));
   const Ranks& ranks = Ranks::world();
   const int alignment = first.row_alignment();
-  int rows = whole_bytes <= budget ? height
-                                   : std::clamp(int(budget / row_bytes) / alignment * alignment,
-                                                alignment, std::max(alignment, height));
-  rows = band_rows_for_ranks(std::min(rows, height), height, alignment, ranks.size());
+  int rows = band_rows_for_ranks(
+      whole_bytes <= budget ? height : rows_within(budget, row_bytes, height, alignment), height,
+      alignment, ranks.size());
   const auto start = Clock::now();
   const ExrAttributes attributes = {{kOptionsAttribute, options.to_json()}};
   TemporalFitJobSummary summary;
@@ -255,11 +254,9 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
     for (const fs::path& f : files) identity.push_back(input_identity(f, options.to_json()));
     const CheckpointDir checkpoints(options.out, identity.dump());
     // Rank 0 decides (and may clear an earlier run's checkpoints); the others follow.
-    std::vector<double> decided = {double(ranks.root() ? checkpoints.band_rows(rows) : 0)};
-    ranks.broadcast(decided);
-    rows = int(decided[0]);
-    const TimeBandFit result = fit_over_time_in_bands(steps, rows, fit, checkpoints, ranks,
-                                                      options.out, attributes, progress);
+    rows = agreed_band_rows(checkpoints, rows, ranks.split());
+    const relight::TimeBandFit result = relight::fit_over_time_in_bands(
+        steps, rows, fit, checkpoints, ranks.split(), options.out, attributes, progress);
     ranks.barrier();  // Rank 0 has written the maps from every rank's checkpoints.
     if (ranks.root()) checkpoints.remove();
     summary.fit = result.summary;
@@ -313,7 +310,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   NormalsJobSummary summary;
   summary.width = header.width(), summary.height = header.height();
   summary.noise_source = fit.noise_source;
-  summary.band_rows = stream.band_rows(options.memory_bytes);
+  summary.band_rows = stream.band_rows(options.memory);
   const std::vector<std::string> names = {"normal.x", "normal.y", "normal.z",   "albedo.r",
                                           "albedo.g", "albedo.b", "confidence", "flags"};
   const nlohmann::json noise = {{"read_variance", normal_options.noise.a},
@@ -383,10 +380,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
         band_rows_for_ranks(summary.band_rows, height, stream.row_alignment(), ranks.size());
     const CheckpointDir checkpoints(options.out,
                                     input_identity(options.field_file, recorded.dump()));
-    std::vector<double> decided = {
-        double(ranks.root() ? checkpoints.band_rows(summary.band_rows) : 0)};
-    ranks.broadcast(decided);
-    summary.band_rows = int(decided[0]);
+    summary.band_rows = agreed_band_rows(checkpoints, summary.band_rows, ranks.split());
     constexpr const char* kMagic = "lightstage normals band 1";
     const auto record = [&](int y0) {
       return checkpoints.dir() / ("normals_" + std::to_string(y0) + ".band");

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "app/jobs/job.h"
+#include "lightstage/memory.h"
 #include "relight/fit/fit.h"
 #include "relight/time/temporal_fit.h"
 
@@ -19,10 +20,10 @@ struct FitJobOptions {
   bool phong = false;               // Also fit Lambert + Phong (comparison).
   std::string method = "robust";    // Photometric-stereo normals: "robust" or "ls".
   std::string materials = "basis";  // "basis" or "per-pixel" (relight::FitMaterials).
-  // Bytes for the field (capture::FieldStream::band_rows; 0: the default there). A field larger
-  // is fitted in bands of rows, read twice with basis materials (fits, blends). --time: for every
-  // step's field and fits (fit_time_bands.h), by default half of what is available.
-  std::size_t memory_bytes = 0;
+  // For the field (capture::FieldStream::band_rows): a field larger is fitted in bands of rows,
+  // read twice with basis materials (fits, blends). --time: for every step's field and fits
+  // together (relight/time/time_bands.h).
+  MemoryBudget memory;
   std::string validate() const;
   std::string to_json() const;  // Recorded in the maps (kOptionsAttribute).
 };
@@ -61,12 +62,12 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
 
 // lightstage normals: photometric-stereo normals alone (relight/fit/normals.h), with their
 // Lambertian albedo, confidence and flags, weighted by the field's measured noise; the field read
-// in bands within memory_bytes and the file written a band at a time, whatever its size.
+// in bands within `memory` and the file written a band at a time, whatever its size.
 struct NormalsJobOptions {
   std::filesystem::path field_file;
   std::filesystem::path out;      // An EXR: normal.x/y/z, albedo.r/g/b, confidence, flags.
   std::string method = "robust";  // "robust" or "ls".
-  std::size_t memory_bytes = 0;   // As FitJobOptions'.
+  MemoryBudget memory;            // As FitJobOptions'.
   std::string validate() const;
 };
 

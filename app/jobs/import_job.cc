@@ -31,7 +31,7 @@ std::string options_json(const fs::path& source, const capture::OlatImportOption
 }  // namespace
 
 ImportJobSummary import_set(const fs::path& source, const fs::path& out,
-                            capture::OlatImportOptions options, std::size_t memory_bytes,
+                            capture::OlatImportOptions options, const MemoryBudget& memory,
                             const ProgressFn& progress) {
   ImportJobSummary summary;
   summary.format = capture::detect_olat_format(source);
@@ -53,8 +53,8 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
   const Ranks& ranks = Ranks::world();
   summary.band_rows = capture::import_olat_to_file(
       source, options, out, {{kOptionsAttribute, options_json(source, options)}},
-      memory_bytes > 0 ? memory_bytes : kDefaultImportMemoryBytes, keep_frontal, &summary.import,
-      {ranks.rank(), ranks.size(), [&ranks] { ranks.barrier(); }});
+      MemoryBudget(memory.bytes_or(MemoryBudget::kImageSetBytes)), keep_frontal, &summary.import,
+      ranks.split());
   summary.ranks = ranks.size();
   if (!ranks.root()) return summary;  // Rank 0 wrote the field (and writes the preview).
   summary.lights = summary.import.images;
@@ -93,7 +93,7 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
                                   const std::vector<double>& times_s, double interval_s,
                                   const fs::path& out_dir,
                                   const capture::OlatImportOptions& options,
-                                  std::size_t memory_bytes, const ProgressFn& progress) {
+                                  const MemoryBudget& memory, const ProgressFn& progress) {
   ImportSeriesSummary out;
   out.sets = series_sets(sources);
   const size_t steps = out.sets.size();
@@ -121,7 +121,7 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
     capture::OlatImportOptions step = options;
     step.scene_time_s = out.times_s[i];
     out.fields.push_back(out_dir / name);
-    out.steps.push_back(import_set(out.sets[i], out.fields.back(), step, memory_bytes, {}));
+    out.steps.push_back(import_set(out.sets[i], out.fields.back(), step, memory, {}));
     report(progress, "import (time steps)", long(i + 1), long(steps), out.sets[i].filename());
   }
   return out;

@@ -22,15 +22,12 @@ struct ImportJobSummary {
   int ranks = 1;                  // Processes the lights were split over (MPI); rank 0 wrote.
 };
 
-// An import reads each image once and its field is written in bands: more memory than a few tens
-// of rows of it does not make it faster, so a field larger than this is spilled and written in
-// bands by default (so that peak memory stays within that of the RTI tools on the same set).
-inline constexpr std::size_t kDefaultImportMemoryBytes = std::size_t(32) << 20;
-
-// `options` as capture::import_olat takes them (validated there); memory_bytes as
-// capture::import_olat_to_file (0: kDefaultImportMemoryBytes); progress: "import".
+// `options` as capture::import_olat takes them (validated there); `memory` as
+// capture::import_olat_to_file takes it, unset MemoryBudget::kImageSetBytes (an import reads each
+// image once and writes its field in bands: more memory than a few tens of rows does not make it
+// faster); progress: "import".
 ImportJobSummary import_set(const std::filesystem::path& source, const std::filesystem::path& out,
-                            capture::OlatImportOptions options, std::size_t memory_bytes = 0,
+                            capture::OlatImportOptions options, const MemoryBudget& memory = {},
                             const ProgressFn& progress = {});
 
 // A time-lapse: one set per time step, each imported as OUT_DIR/field_tNNN.exr (the layout `fit
@@ -47,6 +44,6 @@ ImportSeriesSummary import_series(const std::vector<std::filesystem::path>& sour
                                   const std::vector<double>& times_s, double interval_s,
                                   const std::filesystem::path& out_dir,
                                   const capture::OlatImportOptions& options,
-                                  std::size_t memory_bytes = 0, const ProgressFn& progress = {});
+                                  const MemoryBudget& memory = {}, const ProgressFn& progress = {});
 
 }  // namespace ls::jobs

@@ -28,6 +28,11 @@ Ranks& Ranks::world() {
   return ranks;
 }
 
+RankSplit Ranks::split() const {
+  return {rank_, size_, [this] { barrier(); },
+          [this](std::vector<double>& values) { broadcast(values); }};
+}
+
 #if LIGHTSTAGE_HAVE_MPI
 
 namespace {

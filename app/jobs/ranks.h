@@ -4,6 +4,8 @@
 // rank 0, and every call below is trivial. Built with MPI when CMake finds it (find_package(MPI)).
 #include <vector>
 
+#include "lightstage/rank_split.h"
+
 namespace ls::jobs {
 
 class Ranks {
@@ -18,6 +20,8 @@ class Ranks {
   void barrier() const;
   // Rank 0's values, on every rank (resized to rank 0's size).
   void broadcast(std::vector<double>& values) const;
+  // The libraries' view of these processes (lightstage/rank_split.h); refers to *this.
+  RankSplit split() const;
   // Ends every rank's process with `exit_code`: one rank's error must not leave the others waiting.
   [[noreturn]] void abort(int exit_code) const;
 

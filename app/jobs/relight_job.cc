@@ -7,10 +7,10 @@
 #include <set>
 
 #include "app/jobs/contact_sheet.h"
-#include "app/jobs/fit_bands.h"
 #include "app/jobs/ranks.h"
 #include "app/jobs/relight_outputs.h"
 #include "capture/field.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/memory.h"

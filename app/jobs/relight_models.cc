@@ -5,8 +5,8 @@
 #include <functional>
 #include <optional>
 
-#include "app/jobs/fit_bands.h"
 #include "app/jobs/relight_outputs.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
 #include "relight/fit/model_edit.h"

@@ -91,7 +91,7 @@ FieldLights field_lights(const capture::ReflectanceField& field) {
 double coverage_rad(const RelightOptions& options) { return options.coverage_deg * M_PI / 180.0; }
 
 std::size_t memory_given(const RelightOptions& options) {
-  return options.memory_bytes > 0 ? options.memory_bytes : available_memory_bytes() / 2;
+  return MemoryBudget(options.memory_bytes).bytes();
 }
 
 bool gather_rows_over_ranks(const RelightOptions& options, const Ranks& ranks, int rows,

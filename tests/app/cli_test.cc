@@ -7,7 +7,9 @@
 #include <chrono>
 #include <fstream>
 #include <sstream>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include "lightstage/session.h"
 #include "lightstage/stage.h"
@@ -206,6 +208,47 @@ TEST(Cli, BenchChartsRedrawsFromTheCsvAlone) {
   ASSERT_EQ(run_command(cli, &out), 0) << out;
   EXPECT_TRUE(fs::exists(tmp / "temporal_error_vs_steps.png")) << out;
   EXPECT_TRUE(fs::exists(tmp / "temporal_time_vs_steps.gp")) << out;
+}
+
+// --memory is one option with one parser on every command that takes it: what is not a size is
+// refused (exit 2) naming the option and the text, before any work; a small one is taken with a
+// warning; each help says what the budget bounds there, with the units.
+TEST(Cli, EveryCommandRefusesABadMemoryBudgetNamingIt) {
+  testing::TempDir tmp;
+  const std::vector<std::string> commands = {"build",
+                                             "import",
+                                             "fit",
+                                             "fit --time " + tmp.path().string(),
+                                             "normals",
+                                             "compress",
+                                             "export openlime",
+                                             "relight",
+                                             "view",
+                                             "bench rti",
+                                             "bench scale"};
+  for (const std::string& cmd : commands) {
+    for (const std::string bad : {"-1", "0"}) {
+      ExpectCliError(cmd + " --memory " + bad, {"--memory '" + bad + "'"});
+    }
+  }
+  for (const std::string& cmd : {std::string("build"), std::string("view")}) {
+    ExpectCliError(cmd + " --memory -5", {"--memory '-5': a size cannot be negative"});
+    ExpectCliError(cmd + " --memory 1", {"--memory '1': below 16 KiB"});
+    ExpectCliError(cmd + " --memory 18446744073709551616",
+                   {"--memory '18446744073709551616': too large"});
+    ExpectCliError(cmd + " --memory 2X", {"--memory '2X': not a size", "512M, 2G"});
+  }
+  std::string out;
+  // Taken, with a warning; then fit stops for its missing --out (usage).
+  EXPECT_EQ(run_command(cli_path().string() + " fit --memory 20000", &out), 1) << out;
+  EXPECT_NE(out.find("warning: --memory 19.5 KiB is below 16 MiB"), std::string::npos) << out;
+  for (const std::string cmd : {"build", "import", "fit", "normals", "compress", "relight"}) {
+    ASSERT_EQ(run_command(cli_path().string() + " " + cmd + " --help", &out), 0) << cmd;
+    EXPECT_NE(out.find("--memory SIZE"), std::string::npos) << cmd << ": " << out;
+    EXPECT_NE(out.find("powers of 1024"), std::string::npos) << cmd << ": " << out;
+  }
+  ASSERT_EQ(run_command(cli_path().string() + " import --help", &out), 0);
+  EXPECT_NE(out.find("Default: 32 MiB"), std::string::npos) << out;
 }
 
 // Each subcommand's help names its own options and positionals (a few that only it has), and not

@@ -300,7 +300,8 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   (void)jobs::fit(fit);
   const capture::ReflectanceField field = capture::read_field(field_file);
   fit.out = dir / "maps.exr";
-  fit.memory_bytes = 3 * 2 * std::size_t(field.width()) * field.num_lights() * 3 * sizeof(float);
+  fit.memory =
+      MemoryBudget(3 * 2 * std::size_t(field.width()) * field.num_lights() * 3 * sizeof(float));
   EXPECT_THROW((void)jobs::fit(fit, killed_halfway_through("fit (rows)")), Killed);
   EXPECT_FALSE(fs::exists(fit.out));
   EXPECT_TRUE(fs::exists(dir / "maps.exr.partial"));
@@ -338,8 +339,8 @@ TEST_F(Jobs, AnInterruptedBuildInBandsResumesFromTheLedsItMerged) {
   build.out = dir / "whole.exr";
   (void)jobs::build(build);
   // A budget for a few rows at a time: built in bands through the kept spill.
-  build.memory_bytes =
-      4 * capture::ReflectanceField::bytes_for(stage.camera.width, 6, int(stage.leds.size()));
+  build.memory = MemoryBudget(
+      4 * capture::ReflectanceField::bytes_for(stage.camera.width, 6, int(stage.leds.size())));
   build.out = dir / "field.exr";
   EXPECT_THROW((void)jobs::build(build, killed_halfway_through("build")), Killed);
   EXPECT_FALSE(fs::exists(build.out));
@@ -378,8 +379,8 @@ TEST_F(Jobs, AnInterruptedCompressInBandsResumesFromTheBandsItFitted) {
     compress.out = dir / (std::string("whole.") + format);
     (void)jobs::compress(compress);
     compress.out = dir / (std::string("bands.") + format);
-    compress.memory_bytes =
-        5 * capture::ReflectanceField::bytes_for(field.width(), 4, field.num_lights());
+    compress.memory = MemoryBudget(
+        5 * capture::ReflectanceField::bytes_for(field.width(), 4, field.num_lights()));
     EXPECT_THROW((void)jobs::compress(compress, killed_halfway_through(phase)), Killed);
     EXPECT_FALSE(fs::exists(compress.out));
     EXPECT_TRUE(fs::exists(compress.out.string() + ".partial/coefficients.spill")) << format;

@@ -11,7 +11,6 @@
 #include <vector>
 
 #include "app/jobs/capture_job.h"
-#include "app/jobs/fit_bands.h"
 #include "capture/field.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/image.h"
@@ -210,30 +209,6 @@ TEST(MpiFit, ImportTwoRanksWriteTheBytesOfOneProcess) {
   EXPECT_TRUE(bytes_but_time(dir / "one.exr") == bytes_but_time(dir / "two.exr"));
   EXPECT_TRUE(bytes_but_time(dir / "one.preview.png") == bytes_but_time(dir / "two.preview.png"));
   EXPECT_FALSE(fs::exists(dir / "two.exr.partial"));
-}
-
-// Every rank fits about as many rows (9 bands of 115 rows over 2 ranks left one idle a ninth of
-// the fit), in at least 4 bands a rank, within the memory's band height and whole tiles.
-TEST(MpiFit, EveryRankGetsAsManyRows) {
-  constexpr int kHeight = 1024;
-  for (const int ranks : {2, 3, 8}) {
-    for (const int memory_rows : {7, 115, 1024}) {
-      const int rows = jobs::band_rows_for_ranks(memory_rows, kHeight, 1, ranks);
-      EXPECT_LE(rows, memory_rows);
-      std::vector<int> per_rank(size_t(ranks), 0);
-      int bands = 0;
-      for (int y = 0; y < kHeight; y += rows, ++bands) {
-        per_rank[size_t(bands % ranks)] += std::min(rows, kHeight - y);  // Round robin.
-      }
-      EXPECT_GE(bands, 4 * ranks);
-      const auto [fewest, most] = std::minmax_element(per_rank.begin(), per_rank.end());
-      EXPECT_LE(*most - *fewest, rows) << ranks << " ranks, " << memory_rows << " rows";
-    }
-  }
-  // 10 bands of 103 rows (515 and 509 rows a rank), not 9 of 115 (575 and 460).
-  EXPECT_EQ(jobs::band_rows_for_ranks(115, kHeight, 1, 2), 103);
-  EXPECT_EQ(jobs::band_rows_for_ranks(115, kHeight, 16, 2) % 16, 0);
-  EXPECT_EQ(jobs::band_rows_for_ranks(115, kHeight, 1, 1), 115);
 }
 
 // Any other command would run once per rank, each writing the same outputs: refused, on every rank.

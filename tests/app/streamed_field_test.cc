@@ -185,7 +185,7 @@ TEST(StreamedField, ModelsRenderedInBandsAreTheWholeMapsRender) {
     ASSERT_EQ(run_measured(args).code, 0);
   };
   render("whole", {});
-  render("bands", {"--memory", "1"});
+  render("bands", {"--memory", "16K"});
   for (const std::string name : {"sky.exr", "light.exr"}) {
     const Image whole = read_image(dir / "whole" / name);
     EXPECT_EQ(whole.height, 56);

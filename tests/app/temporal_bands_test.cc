@@ -64,7 +64,7 @@ class TemporalBands : public ::testing::Test {
     jobs::FitJobOptions o;
     o.time_inputs = {fields()};
     o.out = out;
-    o.memory_bytes = memory_bytes;
+    o.memory = MemoryBudget(memory_bytes);
     return o;
   }
   // A budget of about 4 rows of every step's fits: 8 bands.

@@ -292,7 +292,7 @@ TEST(BuildField, InBandsWithinAMemoryBudgetGivesTheFieldBuiltInMemory) {
   const ReflectanceField whole = build_field(c.session, {}, &whole_summary);
   BuildOptions options;
   // Bands of at most 7 rows (the merges of the LEDs in flight take their share of the budget).
-  options.memory_bytes = 2 * ReflectanceField::bytes_for(kSize, 7, kLeds);
+  options.memory = MemoryBudget(2 * ReflectanceField::bytes_for(kSize, 7, kLeds));
   int bands = 0, total_bands = 0;
   options.on_band_written = [&](int done, int total) {
     EXPECT_EQ(done, bands + 1);

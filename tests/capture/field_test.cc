@@ -288,7 +288,8 @@ TEST(Field, MappedRowsOutOfPlaceOrNotFiniteAreRefusedByName) {
 TEST(Field, MemoryRefusal) {
   EXPECT_GT(available_memory_bytes(), 0u);
   try {
-    require_memory(std::size_t(1) << 60, "reflectance field 4096x4096 with 150000 LEDs");
+    require_memory(std::size_t(1) << 60, "reflectance field 4096x4096 with 150000 LEDs",
+                   "use a smaller crop or fewer LEDs");
     FAIL() << "expected InputError";
   } catch (const InputError& e) {
     const std::string m = e.what();
@@ -297,7 +298,7 @@ TEST(Field, MemoryRefusal) {
     EXPECT_THAT(m, HasSubstr("GiB of memory are available"));
     EXPECT_THAT(m, HasSubstr("smaller crop or fewer LEDs"));
   }
-  EXPECT_NO_THROW(require_memory(1024, "a small buffer"));
+  EXPECT_NO_THROW(require_memory(1024, "a small buffer", ""));
   // Constructing a field far beyond memory throws before allocating (no crash, no OOM kill).
   try {
     ReflectanceField huge(65536, 65536, make_lights(200));

@@ -489,7 +489,7 @@ TEST(OlatImport, InBandsWithinAMemoryBudgetWritesTheFieldOfTheWholeImport) {
     EXPECT_EQ(rgb.size(), size_t(30 * 30 * 3));
     EXPECT_EQ(rgb[3 * (15 * 30 + 15) + 1], whole.at(15, 15, light, 1));
   };
-  const std::size_t budget = 2 * ReflectanceField::bytes_for(30, 4, 24);  // Bands of 4 rows.
+  const MemoryBudget budget(2 * ReflectanceField::bytes_for(30, 4, 24));  // Bands of 4 rows.
   OlatImportSummary summary;
   EXPECT_EQ(
       import_olat_to_file(tmp / "sphere", options, tmp / "bands.exr", {}, budget, count, &summary),
@@ -518,7 +518,7 @@ TEST(OlatImport, AKilledImportInBandsResumesFromTheImagesItRead) {
   write_diligent(set, tmp / "sphere", 9);
   OlatImportOptions options;
   const ReflectanceField whole = import_diligent(tmp / "sphere", options);
-  const std::size_t budget = 2 * ReflectanceField::bytes_for(40, 4, 24);  // Bands of 4 rows.
+  const MemoryBudget budget(2 * ReflectanceField::bytes_for(40, 4, 24));  // Bands of 4 rows.
   struct Killed {};
   OlatImportOptions killed = options;
   killed.on_progress = [](int done, int total) {

@@ -163,7 +163,7 @@ TEST(ViewState, CommandLineRoundTripsEveryField) {
   by_brush.specular_scale = 0.125;
   state.edits = {by_class, by_brush};
   state.time_step = 2;
-  state.memory_bytes = std::size_t(3) << 30;
+  state.memory = MemoryBudget(std::size_t(3) << 30);
   state.window_width = 1024;
   state.window_height = 700;
 
@@ -367,7 +367,7 @@ double flux_ratio(const Image& a, const Image& b) {
 TEST_F(ViewerApp_, AFieldOverTheMemoryBudgetOpensReducedAndSaysSo) {
   ViewState state = initial_state();
   state.models_file.clear();
-  state.memory_bytes = field_->bytes() / 2;  // Half of it for the reduced field: a quarter.
+  state.memory = MemoryBudget(field_->bytes() / 2);  // Half of it for the reduced field: a quarter.
   ViewerApp& app = fresh_app(state);
   ASSERT_TRUE(app.frame());
   EXPECT_EQ(app.error_message(), "");
@@ -391,7 +391,7 @@ TEST_F(ViewerApp_, AFieldOverTheMemoryBudgetOpensReducedAndSaysSo) {
   std::cout << "reduced field vs CPU block means: max " << error << " of the peak\n";
   EXPECT_LT(error, 2e-3);  // As the full field's: half floats on the GPU.
 
-  state.memory_bytes = 0;  // Half of what is available: the whole field.
+  state.memory = MemoryBudget();  // Half of what is available: the whole field.
   ViewerApp& whole = fresh_app(state);
   ASSERT_TRUE(whole.frame());
   EXPECT_EQ(whole.field_note(), "");
@@ -526,7 +526,7 @@ TEST_F(ViewerApp_, ASessionWithTimeStepsIsBuiltPerStep) {
   EXPECT_EQ(app.state().time_step, 1);
   // A session whose field is over the memory budget is built in bands into a file beside it,
   // opened reduced (and says so), and the file removed.
-  state.memory_bytes = field.bytes() / 2;
+  state.memory = MemoryBudget(field.bytes() / 2);
   ViewerApp& reduced = fresh_app(state);
   reduced.handle_drop({session_dir.string()});
   ASSERT_EQ(reduced.error_message(), "");

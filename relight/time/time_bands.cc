@@ -1,4 +1,4 @@
-#include "app/jobs/fit_time_bands.h"
+#include "relight/time/time_bands.h"
 
 #include <algorithm>
 #include <array>
@@ -11,7 +11,7 @@
 #include "lightstage/errors.h"
 #include "relight/fit/fit.h"
 
-namespace ls::jobs {
+namespace ls::relight {
 
 namespace fs = std::filesystem;
 
@@ -243,7 +243,7 @@ class TimeBands {
 };
 
 // The curves on every rank as rank 0 learnt them: families, knots a curve, then the knots.
-void broadcast(const Ranks& ranks, std::vector<relight::TemporalCurves>& curves) {
+void broadcast(const RankSplit& split, std::vector<relight::TemporalCurves>& curves) {
   std::vector<double> values = {double(curves.size()),
                                 curves.empty() ? 0.0 : double(curves[0].knots[0].size())};
   for (const relight::TemporalCurves& family : curves) {
@@ -251,7 +251,7 @@ void broadcast(const Ranks& ranks, std::vector<relight::TemporalCurves>& curves)
       values.insert(values.end(), knots.begin(), knots.end());
     }
   }
-  ranks.broadcast(values);
+  split.share(values);
   const size_t families = size_t(values[0]), knots = size_t(values[1]);
   curves.assign(families, {});
   const double* v = values.data() + 2;
@@ -282,17 +282,17 @@ std::size_t time_band_row_bytes(const capture::FieldStream& step, int steps,
 
 TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::FieldStream>>& steps,
                                    int rows, const relight::TemporalFitOptions& fit,
-                                   const CheckpointDir& checkpoints, const Ranks& ranks,
+                                   const CheckpointDir& checkpoints, const RankSplit& split,
                                    const fs::path& out, const ExrAttributes& attributes,
                                    const ProgressFn& progress) {
   const int width = steps.front()->width(), height = steps.front()->height();
   TimeBands bands(steps, rows, fit, checkpoints);
   TimeBandFit result;
   long own_rows = 0, done_rows = 0;
-  for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+  for (int b = split.rank; b < bands.count(); b += split.size) {
     own_rows += bands.end_row(b) - bands.first_row(b);
   }
-  for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+  for (int b = split.rank; b < bands.count(); b += split.size) {
     const int band_rows = bands.end_row(b) - bands.first_row(b);
     const bool resumed = bands.load(b, TimeStage::kProcesses);
     if (resumed) {
@@ -304,9 +304,9 @@ TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::Fi
     report(progress, "fit over time (rows)", done_rows += band_rows, own_rows,
            resumed ? "resumed" : "");
   }
-  ranks.barrier();  // Every band's processes are in its checkpoint.
+  split.wait();  // Every band's processes are in its checkpoint.
   std::vector<relight::TemporalCurves> curves;
-  if (fit.fit_curves && ranks.root()) {
+  if (fit.fit_curves && split.root()) {
     relight::CurveSample sample;
     for (int b = 0; b < bands.count(); ++b) {
       bands.load_finished(b, TimeStage::kProcesses);
@@ -319,9 +319,9 @@ TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::Fi
     }
     curves = sample.learn(bands.times());
   }
-  broadcast(ranks, curves);
+  broadcast(split, curves);
   done_rows = 0;
-  for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+  for (int b = split.rank; b < bands.count(); b += split.size) {
     const bool resumed = bands.load(b, TimeStage::kCurves);
     if (!resumed) {
       bands.load_finished(b, TimeStage::kProcesses);
@@ -331,8 +331,8 @@ TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::Fi
     report(progress, "curves offered (rows)", done_rows += bands.end_row(b) - bands.first_row(b),
            own_rows, resumed ? "resumed" : "");
   }
-  ranks.barrier();  // Every band is final.
-  if (!ranks.root()) return result;
+  split.wait();  // Every band is final.
+  if (!split.root()) return result;
   // The file's header needs what every band holds: whether any has step values, the largest rate.
   double max_rate = 0;
   bool step_values = false;
@@ -355,4 +355,4 @@ TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::Fi
   return result;
 }
 
-}  // namespace ls::jobs
+}  // namespace ls::relight

@@ -1,4 +1,4 @@
-#include "app/jobs/fit_checkpoint.h"
+#include "relight/fit/fit_checkpoint.h"
 
 #include <array>
 #include <nlohmann/json.hpp>
@@ -9,7 +9,7 @@
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 
-namespace ls::jobs {
+namespace ls::relight {
 
 namespace fs = std::filesystem;
 
@@ -162,4 +162,4 @@ void BandCheckpoints::save(int y0, const relight::NormalMap& normals,
                {{band.pixels.data(), band.pixels.size() * sizeof(float)}});
 }
 
-}  // namespace ls::jobs
+}  // namespace ls::relight

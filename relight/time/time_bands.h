@@ -1,7 +1,8 @@
 #pragma once
-// lightstage fit --time on time-step fields read in bands of rows (--memory, and every run under
-// MPI), never holding a field or the maps whole. Everything in a temporal fit is per
-// pixel but its data-driven curves, which are learnt from a sample of the whole image, so:
+// The temporal fit (temporal_fit.h) of time-step fields read in bands of rows (lightstage/bands.h:
+// fit --time --memory, and every run split over processes), never holding a field or the maps
+// whole. Everything in a temporal fit is per pixel but its data-driven curves, which are learnt
+// from a sample of the whole image, so:
 //   1. per band: normals (from the source step's band), each step's BRDF fit and each pixel's
 //      process, kept in a checkpoint (OUT.partial/steps_Y.band);
 //   2. rank 0 counts the pixels no process explains over every checkpoint, gathers its strided
@@ -9,19 +10,20 @@
 //   3. per band: the curves offered to its pixels, kept in a second checkpoint (curves_Y.band);
 //   4. rank 0 writes the maps from those a band at a time.
 // The same bytes as the fit of the whole fields (relight::fit_temporal); under MPI the bands are
-// split over the ranks round robin; a killed run resumes from the bands its checkpoints hold.
+// split over the ranks round robin (RankSplit); a killed run resumes from the bands its checkpoints
+// hold.
 #include <filesystem>
 #include <memory>
 #include <vector>
 
-#include "app/jobs/job.h"
-#include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/image.h"
+#include "lightstage/progress.h"
+#include "lightstage/rank_split.h"
 #include "relight/time/temporal_fit.h"
 
-namespace ls::jobs {
+namespace ls::relight {
 
 struct TimeBandFit {
   relight::TemporalSummary summary;  // Rank 0's (the others': their own bands' counts).
@@ -31,7 +33,7 @@ struct TimeBandFit {
 // `steps`: one open field per time step, sorted by scene time, of the same size and lights.
 TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::FieldStream>>& steps,
                                    int rows, const relight::TemporalFitOptions& fit,
-                                   const CheckpointDir& checkpoints, const Ranks& ranks,
+                                   const CheckpointDir& checkpoints, const RankSplit& split,
                                    const std::filesystem::path& out,
                                    const ExrAttributes& attributes, const ProgressFn& progress);
 
@@ -41,4 +43,4 @@ TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::Fi
 std::size_t time_band_row_bytes(const capture::FieldStream& step, int steps,
                                 relight::NormalSource source);
 
-}  // namespace ls::jobs
+}  // namespace ls::relight

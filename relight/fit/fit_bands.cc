@@ -1,4 +1,4 @@
-#include "app/jobs/fit_bands.h"
+#include "relight/fit/fit_bands.h"
 
 #include <algorithm>
 #include <chrono>
@@ -9,7 +9,7 @@
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/normals.h"
 
-namespace ls::jobs {
+namespace ls::relight {
 
 namespace {
 
@@ -17,13 +17,13 @@ namespace {
 // pixels and scene material, after the dispersion.
 constexpr size_t kMaterialValues = 9;
 
-void broadcast(const Ranks& ranks, relight::BasisMaterials& basis) {
+void broadcast(const RankSplit& split, relight::BasisMaterials& basis) {
   std::vector<double> values = {basis.dispersion};
   for (const relight::Material& m : basis.materials) {
     values.insert(values.end(), {double(m.model), m.albedo(0), m.albedo(1), m.albedo(2), m.sigma,
                                  m.ks, m.roughness, double(m.pixels), double(m.scene_material)});
   }
-  ranks.broadcast(values);
+  split.share(values);
   basis.dispersion = values[0];
   basis.materials.resize((values.size() - 1) / kMaterialValues);
   for (size_t k = 0; k < basis.materials.size(); ++k) {
@@ -35,22 +35,6 @@ void broadcast(const Ranks& ranks, relight::BasisMaterials& basis) {
     m.pixels = int(v[7]), m.scene_material = int(v[8]);
   }
 }
-
-}  // namespace
-
-int band_rows_for_ranks(int rows, int height, int alignment, int ranks) {
-  if (ranks == 1) return rows;
-  // As many bands as the memory needs, at least kBandsPerRank a rank, and a multiple of the ranks
-  // so that each rank fits as many (9 bands over 2 ranks kept one waiting a ninth of the fit).
-  constexpr int kBandsPerRank = 4;
-  int bands = std::max((height + rows - 1) / rows, kBandsPerRank * ranks);
-  bands = (bands + ranks - 1) / ranks * ranks;
-  const int share = (height + bands - 1) / bands;
-  const int aligned = (share + alignment - 1) / alignment * alignment;
-  return std::max(alignment, std::min(rows, aligned));
-}
-
-namespace {
 
 // One band's checkpoint at a time, and the field's band rows.
 class Bands {
@@ -108,7 +92,7 @@ class Bands {
   const capture::ReflectanceField& read_rows(int y0, int y1) {
     const auto t0 = Clock::now();
     stream_.read_rows(y0, y1, field_);
-    times_.read_seconds += std::chrono::duration<double>(Clock::now() - t0).count();
+    times_.read_seconds += seconds_since(t0);
     return field_;
   }
 
@@ -146,7 +130,7 @@ relight::FitSummary write_maps(Bands& bands, FitStage stage, const relight::Mode
 }  // namespace
 
 BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitOptions& fit,
-                     const BandCheckpoints& checkpoints, const Ranks& ranks,
+                     const BandCheckpoints& checkpoints, const RankSplit& split,
                      const std::filesystem::path& out, const ExrAttributes& attributes,
                      const ProgressFn& progress, BandFitTimes& times) {
   const capture::ReflectanceField& header = stream.header();
@@ -156,12 +140,12 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
   per_band.materials = relight::FitMaterials::kPerPixel;
   per_band.progress = {};
   long own_rows = 0, done_rows = 0;
-  for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+  for (int b = split.rank; b < bands.count(); b += split.size) {
     own_rows += bands.end_row(b) - bands.first_row(b);
   }
   // Each rank's bands: normals and per-pixel fits, from an earlier run's checkpoint when there
   // is one, else fitted and kept.
-  for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+  for (int b = split.rank; b < bands.count(); b += split.size) {
     const long band_rows = bands.end_row(b) - bands.first_row(b);
     if (bands.load(b, FitStage::kPerPixel)) {
       times.resumed_rows += int(band_rows);
@@ -173,7 +157,7 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
     }
     report(progress, "fit (rows)", done_rows += band_rows, own_rows);
   }
-  ranks.barrier();          // Every band is in its checkpoint.
+  split.wait();             // Every band is in its checkpoint.
   relight::ModelMaps file;  // The maps file's header: noise (as fit_models records it), materials.
   file.noise = fit.normals.noise;
   file.noise_source = fit.noise_source;
@@ -181,16 +165,16 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
   FitStage written = FitStage::kPerPixel;
   if (fit.materials == relight::FitMaterials::kBasis) {
     relight::BasisMaterials basis;
-    if (ranks.root()) {
+    if (split.root()) {
       basis = relight::find_basis_materials(header, bands.field_rows(),
                                             bands.maps_bands(FitStage::kPerPixel), fit);
     }
-    broadcast(ranks, basis);
+    broadcast(split, basis);
     if (!basis.materials.empty()) {
       written = FitStage::kMaterials;
       file.materials = basis.materials;  // Their pixels counted below, on rank 0.
       done_rows = 0;
-      for (int b = ranks.rank(); b < bands.count(); b += ranks.size()) {
+      for (int b = split.rank; b < bands.count(); b += split.size) {
         const bool resumed = bands.load(b, FitStage::kMaterials);
         if (!resumed) {
           bands.load_finished(b, FitStage::kPerPixel);
@@ -203,8 +187,8 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
         done_rows += bands.end_row(b) - bands.first_row(b);
         report(progress, "materials (rows)", done_rows, own_rows, resumed ? "resumed" : "");
       }
-      ranks.barrier();
-      if (ranks.root()) {
+      split.wait();
+      if (split.root()) {
         // Each material's pixels: those of its pool fit and those assigned it, counted in the
         // pass that groups the scene materials.
         const relight::MapsBands assigned = [&](const relight::MapsVisitor& visit) {
@@ -223,17 +207,17 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
   // Under MPI rank 1 writes the previews while rank 0 writes the maps.
   using Files = relight::ModelMapsWriter::Files;
   bands.release_field();
-  if (ranks.rank() == 1) {
+  if (split.rank == 1) {
     (void)write_maps(bands, written, file, width, height, out, attributes, Files::kPreviews, {});
   }
-  if (!ranks.root()) return result;
+  if (!split.root()) return result;
   const int scene_materials = result.summary.scene_materials;
   result.summary = write_maps(bands, written, file, width, height, out, attributes,
-                              ranks.size() > 1 ? Files::kMaps : Files::kMapsAndPreviews, progress);
+                              split.size > 1 ? Files::kMaps : Files::kMapsAndPreviews, progress);
   result.summary.materials = int(file.materials.size());
   result.summary.scene_materials = scene_materials;
   result.materials = file.materials;
   return result;
 }
 
-}  // namespace ls::jobs
+}  // namespace ls::relight
