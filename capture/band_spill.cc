@@ -5,6 +5,7 @@
 
 #include <algorithm>
 
+#include "capture/field_file.h"
 #include "lightstage/bands.h"
 #include "lightstage/errors.h"
 

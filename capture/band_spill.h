@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/scratch_file.h"
 
 namespace ls::capture {

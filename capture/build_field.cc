@@ -19,6 +19,7 @@
 
 #include "capture/band_spill.h"
 #include "capture/build_checkpoint.h"
+#include "capture/field_file.h"
 #include "capture/led_frames.h"
 #include "capture/light_calibration.h"
 #include "capture/noise_estimate.h"

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "capture/hdr_merge.h"
 #include "capture/noise_estimate.h"
 #include "lightstage/rank_split.h"

@@ -18,6 +18,7 @@
 #include <tuple>
 
 #include "capture/band_spill.h"
+#include "capture/field_file.h"
 #include "capture/olat_pixels.h"
 #include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "capture/olat_import.h"
 #include "lightstage/rank_split.h"
 

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/rank_split.h"
 
 namespace ls::capture {

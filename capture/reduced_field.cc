@@ -7,6 +7,7 @@
 #include <numeric>
 #include <vector>
 
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 
 namespace ls::capture {

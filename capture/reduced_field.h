@@ -9,6 +9,7 @@
 #include <functional>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 
 namespace ls::capture {
 

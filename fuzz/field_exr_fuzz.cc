@@ -4,6 +4,7 @@
 // relight and the banded jobs do: a row at a time and as raw planar rows), then each pixel's
 // directions to the lights.
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "fuzz/fuzz_support.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {

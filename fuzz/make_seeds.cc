@@ -9,6 +9,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "capture/field_file.h"
 #include "fuzz/fuzz_fixtures.h"
 #include "fuzz/fuzz_support.h"
 #include "lightstage/session.h"

@@ -21,6 +21,7 @@
 #include <optional>
 
 #include "capture/build_field.h"
+#include "capture/field_file.h"
 #include "capture/reduced_field.h"
 #include "lightstage/errors.h"
 #include "lightstage/memory.h"

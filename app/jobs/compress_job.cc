@@ -12,6 +12,7 @@
 
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "capture/olat_import.h"
 #include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"

@@ -8,6 +8,7 @@
 
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"

@@ -8,6 +8,7 @@
 #include <optional>
 #include <tuple>
 
+#include "capture/field_file.h"
 #include "capture/light_calibration.h"
 #include "capture/played_photo.h"
 #include "lightstage/backend_registry.h"

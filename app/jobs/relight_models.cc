@@ -6,6 +6,7 @@
 #include <optional>
 
 #include "app/jobs/relight_outputs.h"
+#include "capture/field_file.h"
 #include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"

@@ -36,7 +36,7 @@ std::string output_name(const fs::path& map_path, double rotation, bool several_
 MapRotations::MapRotations(const RelightOptions& options) {
   maps_.reserve(options.maps.size());  // all_ points into it.
   for (const fs::path& map_path : options.maps) {
-    maps_.push_back(relight::EnvironmentMap::load(map_path));
+    maps_.push_back(physics::EnvironmentMap::load(map_path));
   }
   std::set<std::string> used_names;  // Maps from different folders may share a file name.
   for (std::size_t m = 0; m < maps_.size(); ++m) {

@@ -5,6 +5,7 @@
 #include <optional>
 #include <vector>
 
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/normals.h"

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/image.h"
 #include "lightstage/progress.h"
 #include "lightstage/rank_split.h"

@@ -3,6 +3,7 @@
 #include <span>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/image.h"
 #include "relight/lighting/light_cells.h"
 

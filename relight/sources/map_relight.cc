@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <set>
 
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "relight/lighting/relight.h"
 
@@ -57,7 +58,7 @@ std::string MapRelightOptions::validate() const {
   return split.validate();
 }
 
-SplitLighting map_lighting(const EnvironmentMap& map,
+SplitLighting map_lighting(const physics::EnvironmentMap& map,
                            const std::vector<capture::FieldLight>& lights, double rotation_deg,
                            const MapRelightOptions& options) {
   return split_lighting(map, lights, rotation_deg, options.coverage_rad, options.bright_sources,
@@ -96,7 +97,8 @@ MapRelighter::MapRelighter(capture::FieldStream& stream, MapRelightOptions optio
 
 MapRelighter::~MapRelighter() = default;
 
-SplitLighting MapRelighter::lighting(const EnvironmentMap& map, double rotation_deg) const {
+SplitLighting MapRelighter::lighting(const physics::EnvironmentMap& map,
+                                     double rotation_deg) const {
   return map_lighting(map, lights_, rotation_deg, options_);
 }
 
@@ -153,7 +155,7 @@ void MapRelighter::render(const SplitLighting& lighting, Image& out,
   add_sources(lighting, out, visibility);
 }
 
-MapRelit MapRelighter::relight(const EnvironmentMap& map, double rotation_deg) {
+MapRelit MapRelighter::relight(const physics::EnvironmentMap& map, double rotation_deg) {
   MapRelit out;
   auto t0 = Clock::now();
   out.lighting = lighting(map, rotation_deg);

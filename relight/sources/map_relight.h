@@ -16,9 +16,10 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/image.h"
+#include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
-#include "relight/lighting/envmap.h"
 #include "relight/sources/bright_sources.h"
 #include "relight/sources/field_sources.h"
 
@@ -44,7 +45,7 @@ struct MapRelightOptions {
 // The map's light as a dome of `lights` takes it, turned by rotation_deg about +Y: the cells'
 // weights of the map without its bright sources (the whole map when !options.bright_sources),
 // and the sources placed between the LEDs.
-SplitLighting map_lighting(const EnvironmentMap& map,
+SplitLighting map_lighting(const physics::EnvironmentMap& map,
                            const std::vector<capture::FieldLight>& lights, double rotation_deg,
                            const MapRelightOptions& options);
 
@@ -55,7 +56,7 @@ using MapRelightProgress =
 
 // A map and a rotation about +Y, in degrees. The map must outlive the call it is given to.
 struct MapRotation {
-  const EnvironmentMap* map = nullptr;
+  const physics::EnvironmentMap* map = nullptr;
   double rotation_deg = 0.0;
 };
 
@@ -102,7 +103,7 @@ class MapRelighter {
 
   const MapRelightOptions& options() const { return options_; }
   // The map's light as this field takes it (map_lighting).
-  SplitLighting lighting(const EnvironmentMap& map, double rotation_deg) const;
+  SplitLighting lighting(const physics::EnvironmentMap& map, double rotation_deg) const;
   // The field relit under `lighting` into `out` (made the field's size): the cells, then the
   // sources (`visibility` as for add_sources). Not for a streamed field.
   void render(const SplitLighting& lighting, Image& out,
@@ -120,7 +121,7 @@ class MapRelighter {
                const MapRelightProgress& progress = {});
 
   // Relit under one map: lighting() and render(), timed. Not for a streamed field.
-  MapRelit relight(const EnvironmentMap& map, double rotation_deg);
+  MapRelit relight(const physics::EnvironmentMap& map, double rotation_deg);
   // Relit under each map and rotation, the sources within options.memory_bytes. A streamed field:
   // one pass over its rows (`pass`) for every map, then one over its bands for the sources (bands
   // within what the sources leave of the memory given).

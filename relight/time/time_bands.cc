@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "relight/fit/fit.h"
 

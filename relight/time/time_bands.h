@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/image.h"
 #include "lightstage/progress.h"

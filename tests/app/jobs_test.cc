@@ -17,6 +17,7 @@
 #include "app/jobs/relight_job.h"
 #include "app/jobs/relight_outputs.h"
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
@@ -520,7 +521,7 @@ TEST_F(Jobs, MapRotationsReadEachMapOnceUpFront) {
   const jobs::MapRotations map_rotations(relight);
   fs::remove(map_file);
   std::vector<std::string> names;
-  map_rotations.for_each([&](const relight::EnvironmentMap& map, double, const std::string& name) {
+  map_rotations.for_each([&](const physics::EnvironmentMap& map, double, const std::string& name) {
     EXPECT_GT(map.width(), 0);
     names.push_back(name);
   });

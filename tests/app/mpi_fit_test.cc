@@ -12,6 +12,7 @@
 
 #include "app/jobs/capture_job.h"
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/image.h"
 #include "lightstage/stage.h"

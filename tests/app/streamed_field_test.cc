@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/controller/sequencer.h"
 #include "lightstage/exr_channels.h"
 #include "lightstage/image.h"

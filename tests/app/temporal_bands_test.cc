@@ -11,6 +11,7 @@
 
 #include "app/jobs/fit_job.h"
 #include "app/jobs/relight_job.h"
+#include "capture/field_file.h"
 #include "lightstage/image.h"
 #include "relight/time/temporal_fit.h"
 #include "sim/scene.h"

@@ -8,6 +8,7 @@
 #include <fstream>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/controller/sequencer.h"
 #include "lightstage/errors.h"
 #include "sim/scene.h"

@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 #include <random>
 
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "tests/support/test_support.h"
 

@@ -14,6 +14,7 @@
 
 #include "capture/band_spill.h"
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "tests/support/test_support.h"
 

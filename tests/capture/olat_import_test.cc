@@ -15,6 +15,7 @@
 #include <random>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 #include "physics/envmap.h"

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "tests/support/test_support.h"
 
 namespace ls::capture {

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "capture/build_field.h"
+#include "capture/field_file.h"
 #include "lightstage/controller/sequencer.h"
 #include "lightstage/errors.h"
 #include "sim/ground_truth.h"

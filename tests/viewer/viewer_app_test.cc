@@ -12,6 +12,7 @@
 #include <iostream>
 
 #include "capture/build_field.h"
+#include "capture/field_file.h"
 #include "lightstage/controller/sequencer.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"

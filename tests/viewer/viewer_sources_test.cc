@@ -12,9 +12,9 @@
 #include <memory>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
-#include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "relight/sources/field_sources.h"

@@ -9,6 +9,7 @@
 
 #include "capture/build_field.h"
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "capture/light_calibration.h"
 #include "lightstage/controller/sequencer.h"
 #include "lightstage/session.h"

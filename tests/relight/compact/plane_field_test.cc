@@ -9,6 +9,7 @@
 #include <fstream>
 #include <tuple>
 
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "relight/compact/rti_io.h"

@@ -9,6 +9,7 @@
 #include <iostream>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 #include "relight/fit/model_render.h"

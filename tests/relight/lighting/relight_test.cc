@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "relight/lighting/half_relight.h"
 #include "tests/support/test_support.h"

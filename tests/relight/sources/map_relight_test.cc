@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
@@ -34,7 +35,7 @@ class MapRelighterTest : public ::testing::Test {
         field_path(),
         sim::render_noisy_field(stage, sim::rti_scene(sim::RtiScene::kShadowed), noise, 11));
     field_ = std::make_unique<capture::ReflectanceField>(capture::read_field(field_path()));
-    map_ = std::make_unique<relight::EnvironmentMap>(relight::EnvironmentMap::load(
+    map_ = std::make_unique<physics::EnvironmentMap>(physics::EnvironmentMap::load(
         testing::source_dir() / "data" / "envmaps" / "small_source.exr"));
   }
   static void TearDownTestSuite() {
@@ -46,11 +47,11 @@ class MapRelighterTest : public ::testing::Test {
 
   static std::unique_ptr<testing::TempDir> dir_;
   static std::unique_ptr<capture::ReflectanceField> field_;
-  static std::unique_ptr<relight::EnvironmentMap> map_;
+  static std::unique_ptr<physics::EnvironmentMap> map_;
 };
 std::unique_ptr<testing::TempDir> MapRelighterTest::dir_;
 std::unique_ptr<capture::ReflectanceField> MapRelighterTest::field_;
-std::unique_ptr<relight::EnvironmentMap> MapRelighterTest::map_;
+std::unique_ptr<physics::EnvironmentMap> MapRelighterTest::map_;
 
 TEST_F(MapRelighterTest, AFieldIsTheCellsOfTheRestPlusTheSourceCastByItsShape) {
   const double rotation = 30;

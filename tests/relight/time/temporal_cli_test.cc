@@ -5,6 +5,7 @@
 #include <string>
 
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "relight/time/temporal_fit.h"
 #include "sim/scene.h"
 #include "tests/relight/time/time_fixtures.h"
