@@ -92,7 +92,8 @@ TEST(PcaField, FullRankRelightsLikeTheFieldAtLedsAndUnderMaps) {
   }
   EXPECT_TRUE(testing::ImageNear(image, expected, 1e-4));
   // Environment: LED weights projected onto the basis once == field relighting.
-  const auto map = EnvironmentMap::load(testing::source_dir() / "data/envmaps/sky_sun.exr");
+  const auto map =
+      physics::EnvironmentMap::load(testing::source_dir() / "data/envmaps/sky_sun.exr");
   const auto dirs = sim::rti_dome_stage().led_directions();
   const LightWeights weights = integrate_environment(map, dirs);
   Image from_pca;

@@ -217,8 +217,8 @@ TEST_F(DemoMaterials, ModelRenderIsNoWorseThanPerPixelFits) {
   const std::vector<Eigen::Vector3d>& dirs = *dirs_;
   const double coverage = max_nearest_neighbour_angle(dirs);
   for (const std::string name : {"softbox_studio", "sky_sun", "small_source"}) {
-    const EnvironmentMap map =
-        EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / (name + ".exr"));
+    const physics::EnvironmentMap map =
+        physics::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / (name + ".exr"));
     sim::GroundTruthOptions covered;
     covered.directions_width = 128;
     covered.covered_by_leds = dirs;

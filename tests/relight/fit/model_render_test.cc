@@ -46,8 +46,9 @@ Image region_mask(const std::vector<sim::SurfaceHit>& hits, int width, int heigh
   return mask;
 }
 
-EnvironmentMap shipped_map(const std::string& name) {
-  return EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" / (name + ".exr"));
+physics::EnvironmentMap shipped_map(const std::string& name) {
+  return physics::EnvironmentMap::load(testing::source_dir() / "data" / "envmaps" /
+                                       (name + ".exr"));
 }
 
 class ModelRender : public ::testing::Test {
@@ -102,7 +103,7 @@ class SmallFit : public ::testing::Test {
 ModelMaps* SmallFit::maps_ = nullptr;
 
 TEST_F(ModelRender, LambertRegionMatchesGroundTruthAndTheGridConverges) {
-  const EnvironmentMap map = shipped_map("softbox_studio");
+  const physics::EnvironmentMap map = shipped_map("softbox_studio");
   sim::GroundTruthOptions truth_options;
   truth_options.directions_width = 128;
   // The matte sphere alone: the same pixels, with no neighbours to cast shadows the models cannot.
@@ -150,7 +151,7 @@ TEST_F(ModelRender, AgainstFieldRelightingAndGroundTruth) {
   for (const sim::SurfaceHit& h : sim_->hits)
     non_physical += maps_->at(h.pixel_x, h.pixel_y, kMapKs) > 1;
   for (const std::string name : {"softbox_studio", "sky_sun"}) {
-    const EnvironmentMap map = shipped_map(name);
+    const physics::EnvironmentMap map = shipped_map(name);
     sim::GroundTruthOptions full;
     full.directions_width = 128;
     sim::GroundTruthOptions covered = full;
