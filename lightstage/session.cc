@@ -13,6 +13,7 @@
 #include <iostream>
 #include <limits>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
 
 #include "lightstage/errors.h"
@@ -92,6 +93,80 @@ struct JournalLine {
   int step(const char* key) const { return int_in(key, 0, stage.plan.time_steps - 1); }
   int led(const char* key) const { return int_in(key, 0, int(stage.leds.size()) - 1); }
 };
+
+// A write killed mid-way leaves its temporary file (never journaled, so never a frame): removed.
+void sweep_temporary_frames(const fs::path& dir) {
+  std::error_code ec;
+  for (const auto& entry : fs::directory_iterator(dir / "frames", ec)) {
+    if (entry.path().filename().string().find(".tmp") != std::string::npos) {
+      fs::remove(entry.path(), ec);
+    }
+  }
+}
+
+// The journal's text as read (empty when there is none). A torn last line (killed mid-append) is
+// cut off the file, so that the next append starts on a line of its own.
+std::string read_journal(const fs::path& journal_path) {
+  const std::string text = fs::exists(journal_path) ? read_text(journal_path) : "";
+  if (text.empty() || text.back() == '\n') return text;
+  std::cerr << "warning: " << journal_path.string()
+            << ": incomplete last journal line ignored (interrupted write); that frame will be "
+               "captured again\n";
+  const size_t complete = text.rfind('\n');
+  std::error_code ec;
+  fs::resize_file(journal_path, complete == std::string::npos ? 0 : complete + 1, ec);
+  if (ec)
+    throw InputError(journal_path.string() + ": cannot cut the torn last line: " + ec.message());
+  return text;
+}
+
+// Journal line `line_no` as JSON; none (with a warning) when it is not JSON at all.
+std::optional<json> parse_journal_line(const std::string& line, const fs::path& journal_path,
+                                       int line_no) {
+  try {
+    return json::parse(line);
+  } catch (const json::parse_error&) {
+    // Not a torn write (only the last line can be one, and it was cut): damage.
+    std::cerr << "warning: " << journal_path.string() << ":" << line_no
+              << ": not a journal record (the journal is damaged here; a write cut short can "
+                 "only be the last line): ignored; the frame it named, if any, will be "
+                 "captured again\n";
+    return std::nullopt;
+  } catch (const json::exception& e) {  // E.g. a number beyond a double.
+    throw InputError(journal_path.string() + ":" + std::to_string(line_no) +
+                     ": not a journal line: " + e.what());
+  }
+}
+
+// The frame a journal line `j` records (`in` checks its integers); none (with a warning) when its
+// file is missing on disk.
+std::optional<FrameRecord> read_frame_record(json& j, const JournalLine& in, const FrameKey& key,
+                                             const fs::path& dir) {
+  FrameRecord rec;
+  rec.key = key;
+  rec.file = j["file"].get<std::string>();
+  rec.exposure_s = j["exposure_s"].get<double>();
+  rec.gain = j["gain"].get<double>();
+  rec.scene_time_s = j["scene_time_s"].get<double>();
+  rec.captured_at = j["at"].get<std::string>();
+  if (j.contains("timing")) {
+    const json& t = j["timing"];
+    rec.timing = {t.value("led_on_ns", int64_t(0)), t.value("requested_ns", int64_t(0)),
+                  t.value("delivered_ns", int64_t(0)), t.value("led_off_ns", int64_t(0)),
+                  t.value("sensor_ns", uint64_t(0))};
+  }
+  if (j.contains("crc32")) {
+    rec.bytes = in.unsigned_at_most("bytes", std::numeric_limits<uint64_t>::max());
+    rec.crc32 = uint32_t(in.unsigned_at_most("crc32", std::numeric_limits<uint32_t>::max()));
+  }
+  std::error_code missing;  // A symlink loop or an unreadable entry is a missing frame too.
+  if (!fs::exists(dir / rec.file, missing) || missing) {
+    std::cerr << "warning: " << (dir / rec.file).string()
+              << ": journaled frame is missing on disk; it will be captured again\n";
+    return std::nullopt;
+  }
+  return rec;
+}
 
 }  // namespace
 
@@ -218,47 +293,19 @@ Session Session::open(const fs::path& dir) {
   if (!seed.value().is_number_unsigned()) seed.fail("a non-negative integer");
   s.info_.seed = seed.value().get<uint64_t>();
 
-  // A write killed mid-way leaves its temporary file (never journaled, so never a frame): sweep.
-  std::error_code ec;
-  for (const auto& entry : fs::directory_iterator(dir / "frames", ec)) {
-    if (entry.path().filename().string().find(".tmp") != std::string::npos) {
-      fs::remove(entry.path(), ec);
-    }
-  }
+  sweep_temporary_frames(dir);
 
-  // Replay the journal. A torn last line (killed mid-append) is ignored, and cut off so that the
-  // next append starts on a line of its own; its frame is captured again.
+  // Replay the journal. A torn last line is ignored; its frame is captured again.
   const fs::path journal_path = dir / kJournal;
-  const std::string journal_text = fs::exists(journal_path) ? read_text(journal_path) : "";
-  if (!journal_text.empty() && journal_text.back() != '\n') {
-    std::cerr << "warning: " << journal_path.string()
-              << ": incomplete last journal line ignored (interrupted write); that frame will be "
-                 "captured again\n";
-    const size_t complete = journal_text.rfind('\n');
-    fs::resize_file(journal_path, complete == std::string::npos ? 0 : complete + 1, ec);
-    if (ec)
-      throw InputError(journal_path.string() + ": cannot cut the torn last line: " + ec.message());
-  }
-  std::istringstream journal(journal_text);
+  std::istringstream journal(read_journal(journal_path));
   std::string line;
   int line_no = 0;
   while (std::getline(journal, line)) {
     ++line_no;
     if (line.empty()) continue;
-    json j;
-    try {
-      j = json::parse(line);
-    } catch (const json::parse_error&) {
-      // Not a torn write (only the last line can be one, and it was cut above): damage.
-      std::cerr << "warning: " << (dir / kJournal).string() << ":" << line_no
-                << ": not a journal record (the journal is damaged here; a write cut short can "
-                   "only be the last line): ignored; the frame it named, if any, will be "
-                   "captured again\n";
-      continue;
-    } catch (const json::exception& e) {  // E.g. a number beyond a double.
-      throw InputError(journal_path.string() + ":" + std::to_string(line_no) +
-                       ": not a journal line: " + e.what());
-    }
+    std::optional<json> parsed = parse_journal_line(line, journal_path, line_no);
+    if (!parsed) continue;
+    json& j = *parsed;  // Not const: operator[] of a missing key gives null, then a type error.
     // Valid JSON of the wrong shape, or naming a step, LED or exposure the plan has not, is a
     // damaged journal: say where, never abort.
     const JournalLine in{j, journal_path.string() + ":" + std::to_string(line_no), s.stage_};
@@ -291,30 +338,9 @@ Session Session::open(const fs::path& dir) {
         s.dead_leds_[in.led("dead_led")] = j.value("reason", "");
         continue;
       }
-      FrameRecord rec;
-      rec.key = frame_key();
-      rec.file = j["file"].get<std::string>();
-      rec.exposure_s = j["exposure_s"].get<double>();
-      rec.gain = j["gain"].get<double>();
-      rec.scene_time_s = j["scene_time_s"].get<double>();
-      rec.captured_at = j["at"].get<std::string>();
-      if (j.contains("timing")) {
-        const json& t = j["timing"];
-        rec.timing = {t.value("led_on_ns", int64_t(0)), t.value("requested_ns", int64_t(0)),
-                      t.value("delivered_ns", int64_t(0)), t.value("led_off_ns", int64_t(0)),
-                      t.value("sensor_ns", uint64_t(0))};
+      if (const std::optional<FrameRecord> rec = read_frame_record(j, in, frame_key(), dir)) {
+        s.frames_[rec->key] = *rec;
       }
-      if (j.contains("crc32")) {
-        rec.bytes = in.unsigned_at_most("bytes", std::numeric_limits<uint64_t>::max());
-        rec.crc32 = uint32_t(in.unsigned_at_most("crc32", std::numeric_limits<uint32_t>::max()));
-      }
-      std::error_code missing;  // A symlink loop or an unreadable entry is a missing frame too.
-      if (!fs::exists(dir / rec.file, missing) || missing) {
-        std::cerr << "warning: " << (dir / rec.file).string()
-                  << ": journaled frame is missing on disk; it will be captured again\n";
-        continue;
-      }
-      s.frames_[rec.key] = rec;
     } catch (const json::exception& e) {
       throw InputError(
           journal_path.string() + ":" + std::to_string(line_no) +

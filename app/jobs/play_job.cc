@@ -15,7 +15,6 @@
 #include "lightstage/errors.h"
 #include "lightstage/session.h"
 #include "physics/envmap.h"
-#include "relight/fit/pixel_solver.h"
 #include "relight/lighting/light_cells.h"
 
 namespace ls::jobs {
@@ -26,11 +25,6 @@ namespace {
 
 // Software PWM: shorter on-times than this each period are lost in the timer's jitter.
 constexpr double kMinOnTimeS = 100e-6;
-
-double luminance(const Eigen::Vector3d& rgb) {
-  return relight::pixel::kLuma[0] * rgb[0] + relight::pixel::kLuma[1] * rgb[1] +
-         relight::pixel::kLuma[2] * rgb[2];
-}
 
 // The longest exposure that puts the relit field's brightest values (99.9th percentile) at 70%
 // of full scale: the photograph's bracket (capture/played_photo.h) reaches 16x below it.

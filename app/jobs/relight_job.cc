@@ -143,7 +143,7 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
     relight::MapRelit& out = relit.relit[i];
     double light = total_luma(out.lighting.weights.irradiance_rgb);
     for (const relight::PlacedSource& source : out.lighting.sources) {
-      light += luma(source.in_stage.irradiance_rgb);
+      light += luminance(source.in_stage.irradiance_rgb);
     }
     writer.write(map_rotations.name(i), out.image, relit_detail(out), light);
     report(progress, "relight", long(i + 1), long(relit.relit.size()), map_rotations.name(i));

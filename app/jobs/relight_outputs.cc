@@ -60,13 +60,10 @@ double preview_exposure(const Image& relit, double light_luma) {
   return std::min(own, -std::log2(light_luma / M_PI / 0.9) + kDarkSceneStops);
 }
 
-double luma(const Eigen::Vector3d& rgb) {
-  return 0.2126 * rgb.x() + 0.7152 * rgb.y() + 0.0722 * rgb.z();
-}
-
 double total_luma(const std::vector<Eigen::Vector3f>& irradiance_rgb) {
   double sum = 0;
-  for (const Eigen::Vector3f& e : irradiance_rgb) sum += luma(e.cast<double>());
+  for (const Eigen::Vector3f& e : irradiance_rgb)
+    sum += luminance(Eigen::Vector3d(e.cast<double>()));
   return sum;
 }
 
@@ -74,7 +71,8 @@ double total_luma(const std::vector<Eigen::Vector3f>& irradiance_rgb) {
 double total_luma(const std::vector<float>& irradiance_rgb) {
   double sum = 0;
   for (size_t i = 0; i + 2 < irradiance_rgb.size(); i += 3) {
-    sum += luma(Eigen::Vector3d(irradiance_rgb[i], irradiance_rgb[i + 1], irradiance_rgb[i + 2]));
+    sum +=
+        luminance(Eigen::Vector3d(irradiance_rgb[i], irradiance_rgb[i + 1], irradiance_rgb[i + 2]));
   }
   return sum;
 }

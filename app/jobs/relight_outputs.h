@@ -52,7 +52,6 @@ class MapRotations {
 // The PNG preview's exposure (preview_exposure in relight_outputs.cc), and the luminance of a
 // lighting's irradiance (per light, at normal incidence).
 double preview_exposure(const Image& relit, double light_luma);
-double luma(const Eigen::Vector3d& rgb);  // Rec. 709.
 double total_luma(const std::vector<Eigen::Vector3f>& irradiance_rgb);
 double total_luma(const std::vector<float>& irradiance_rgb);  // RGB triplets, one per light.
 

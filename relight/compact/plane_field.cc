@@ -141,16 +141,26 @@ double PlaneField::bytes_per_pixel() const {
 
 namespace {
 
-// PlaneField::build with every option given (gain resolved, planes > 0): two passes over the
-// bands, the covariance's and the coefficients'.
-PlaneField build_planes(const capture::ReflectanceField& field, const capture::FieldBands& bands,
-                        const PlaneFieldOptions& options) {
-  PlaneField out;
-  out.set_size(field.width(), field.height());
-  out.interpolation = options.interpolation;
-  out.planes = options.planes;
-  out.sigma = options.sigma;
-  out.resolution = options.resolution;
+// A pixel's vector: the display values at the `used` lights, resampled to the basis's directions.
+struct PixelVectors {
+  std::vector<int> used;     // The field's lights the basis is built on.
+  Eigen::MatrixXd resample;  // dims x used.
+  float gain = 1;
+
+  // `samples` (used x 3) is scratch; `v` (1 x dims * 3) receives the vector.
+  void operator()(const float* values, Eigen::MatrixXd& samples, Eigen::RowVectorXd& v) const {
+    for (Eigen::Index i = 0; i < Eigen::Index(used.size()); ++i) {
+      for (int k = 0; k < 3; ++k)
+        samples(i, k) = srgb_encode(gain * values[3 * used[size_t(i)] + k]);
+    }
+    const Eigen::MatrixXd g = resample * samples;  // dims x 3
+    for (Eigen::Index j = 0; j < g.rows(); ++j) v.segment<3>(3 * j) = g.row(j);
+  }
+};
+
+// The valid lights in front of the image plane: their directions into out.lights, their indices
+// returned.
+std::vector<int> place_lights(const capture::ReflectanceField& field, PlaneField& out) {
   std::vector<int> used;
   for (int l = 0; l < field.num_lights(); ++l) {
     const Eigen::Vector3d d = field.lights()[size_t(l)].dir_in_stage.normalized();
@@ -159,35 +169,23 @@ PlaneField build_planes(const capture::ReflectanceField& field, const capture::F
     // As info.json prints them (3 decimals), so that this and the files read back render alike.
     out.lights.push_back((d * 1000).array().round() / 1000);
   }
-  const Eigen::Index n = Eigen::Index(used.size());
-  const Eigen::Index d = Eigen::Index(out.dims()) * 3;
-  if (n < 3 || d < out.planes) {
-    throw InputError(field.source + ": lights: " + std::to_string(out.planes) + " planes need " +
-                     std::to_string(out.planes / 3) + " or more valid LEDs in front of the image " +
-                     "plane, got " + std::to_string(n));
-  }
-  out.gain = options.gain;
-  const Eigen::MatrixXd resample = options.interpolation == PlaneInterpolation::kRbf
-                                       ? Eigen::MatrixXd::Identity(n, n)
-                                       : bilinear_resampling(out.lights, options.resolution,
-                                                             options.sigma, options.regularization);
-  // A pixel's vector: the display values at the lights, resampled to the basis's directions.
-  const auto gain = float(out.gain);
-  const auto pixel_vector = [&](const float* values, Eigen::MatrixXd& samples,
-                                Eigen::RowVectorXd& v) {
-    for (Eigen::Index i = 0; i < n; ++i) {
-      for (int k = 0; k < 3; ++k)
-        samples(i, k) = srgb_encode(gain * values[3 * used[size_t(i)] + k]);
-    }
-    const Eigen::MatrixXd g = resample * samples;  // dims x 3
-    for (Eigen::Index j = 0; j < g.rows(); ++j) v.segment<3>(3 * j) = g.row(j);
-  };
-  // The covariance over evenly strided pixels (frame index a multiple of the stride), in blocks.
-  const long width = field.width(), pixels = width * field.height();
-  const long stride = std::max(1L, pixels / options.max_pca_pixels);
+  return used;
+}
+
+struct PixelStatistics {
+  Eigen::RowVectorXd mean;
+  Eigen::MatrixXd covariance;
+};
+
+// The mean and covariance of the pixel vectors over evenly strided pixels (frame index a multiple
+// of the stride), accumulated in blocks.
+PixelStatistics strided_statistics(const capture::ReflectanceField& field,
+                                   const capture::FieldBands& bands,
+                                   const PixelVectors& pixel_vector, Eigen::Index d, long stride) {
+  const long width = field.width();
   Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(d, d);
   Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(d);
-  Eigen::MatrixXd block(1024, d), samples(n, 3);
+  Eigen::MatrixXd block(1024, d), samples(Eigen::Index(pixel_vector.used.size()), 3);
   Eigen::RowVectorXd v(d);
   long taken = 0, rows = 0;
   const auto flush = [&] {
@@ -205,16 +203,22 @@ PlaneField build_planes(const capture::ReflectanceField& field, const capture::F
     }
   });
   flush();
-  const Eigen::RowVectorXd mean = sum / double(taken);
-  const Eigen::MatrixXd covariance =
-      Eigen::MatrixXd(gram.selfadjointView<Eigen::Lower>()) / double(taken) -
-      mean.transpose() * mean;
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(covariance);
-  // The basis as stored: the mean truncated to a byte, each eigenvector scaled to +-127.
+  PixelStatistics out;
+  out.mean = sum / double(taken);
+  out.covariance = Eigen::MatrixXd(gram.selfadjointView<Eigen::Lower>()) / double(taken) -
+                   out.mean.transpose() * out.mean;
+  return out;
+}
+
+// The basis as stored, into out.basis and out.range: the mean truncated to a byte, each of the
+// covariance's largest eigenvectors scaled to +-127.
+void store_basis(const PixelStatistics& statistics, PlaneField& out) {
+  const Eigen::Index d = statistics.mean.size();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(statistics.covariance);
   out.basis.resize(size_t(out.planes + 1) * size_t(d));
   out.range.resize(size_t(out.planes));
   for (Eigen::Index i = 0; i < d; ++i) {
-    out.basis[size_t(i)] = uint8_t(std::clamp(mean(i) * 255.0, 0.0, 255.0));
+    out.basis[size_t(i)] = uint8_t(std::clamp(statistics.mean(i) * 255.0, 0.0, 255.0));
   }
   for (int p = 0; p < out.planes; ++p) {
     const Eigen::VectorXd e = eigen.eigenvectors().col(d - 1 - p);  // Largest first.
@@ -225,13 +229,21 @@ PlaneField build_planes(const capture::ReflectanceField& field, const capture::F
           uint8_t(std::clamp(127.0 + out.range[size_t(p)] * e(i), 0.0, 255.0));
     }
   }
-  // Each pixel's coefficients fitted to the basis as stored (least squares; relight projects on
-  // the unquantised one), in code units (0..255 scale).
-  const Eigen::MatrixXd stored = decoded_basis(out);
-  const Eigen::MatrixXd eigen_rows = stored.bottomRows(out.planes);
+}
+
+// Each pixel's coefficients (pixels x planes) fitted to the basis as stored (least squares;
+// relight projects on the unquantised one), in code units (0..255 scale).
+std::vector<float> fit_coefficients(const capture::FieldBands& bands,
+                                    const PixelVectors& pixel_vector, const PlaneField& f,
+                                    long pixels) {
+  const Eigen::Index n = Eigen::Index(pixel_vector.used.size());
+  const Eigen::Index d = Eigen::Index(f.dims()) * 3;
+  const size_t width = size_t(f.width());
+  const Eigen::MatrixXd stored = decoded_basis(f);
+  const Eigen::MatrixXd eigen_rows = stored.bottomRows(f.planes);
   const Eigen::MatrixXd solve =
       (eigen_rows * eigen_rows.transpose()).ldlt().solve(eigen_rows) * 255.0;  // planes x D
-  std::vector<float> coefficients(size_t(pixels) * size_t(out.planes));
+  std::vector<float> coefficients(size_t(pixels) * size_t(f.planes));
   bands([&](const capture::ReflectanceField& band) {
     tbb::parallel_for(tbb::blocked_range<int>(0, band.height()), [&](const auto& band_rows) {
       Eigen::MatrixXd s(n, 3);
@@ -240,15 +252,20 @@ PlaneField build_planes(const capture::ReflectanceField& field, const capture::F
         for (int x = 0; x < band.width(); ++x) {
           pixel_vector(band.pixel(x, y), s, row);
           const Eigen::VectorXd c = solve * (row - stored.row(0)).transpose();
-          float* to =
-              coefficients.data() +
-              (size_t(band.first_row() + y) * size_t(width) + size_t(x)) * size_t(out.planes);
-          for (int p = 0; p < out.planes; ++p) to[p] = float(c(p));
+          float* to = coefficients.data() +
+                      (size_t(band.first_row() + y) * width + size_t(x)) * size_t(f.planes);
+          for (int p = 0; p < f.planes; ++p) to[p] = float(c(p));
         }
       }
     });
   });
-  // Scale and bias per plane from the 0.25% and 99.75% quantiles (relight's rangeQuantile).
+  return coefficients;
+}
+
+// Scale and bias per plane from the 0.25% and 99.75% quantiles of every stride-th pixel's
+// coefficients (relight's rangeQuantile), and the coefficients as byte codes with them.
+void quantise_coefficients(const std::vector<float>& coefficients, long stride, PlaneField& out) {
+  const long pixels = long(coefficients.size() / size_t(out.planes));
   out.scale.resize(size_t(out.planes));
   out.bias.resize(size_t(out.planes));
   std::vector<float> sample;
@@ -272,6 +289,37 @@ PlaneField build_planes(const capture::ReflectanceField& field, const capture::F
     const double code = 255.0 * (coefficients[i] / 255.0 / out.scale[p] + out.bias[p]);
     out.codes[i] = uint8_t(std::clamp(std::round(code), 0.0, 255.0));
   }
+}
+
+// PlaneField::build with every option given (gain resolved, planes > 0): two passes over the
+// bands, the covariance's and the coefficients'.
+PlaneField build_planes(const capture::ReflectanceField& field, const capture::FieldBands& bands,
+                        const PlaneFieldOptions& options) {
+  PlaneField out;
+  out.set_size(field.width(), field.height());
+  out.interpolation = options.interpolation;
+  out.planes = options.planes;
+  out.sigma = options.sigma;
+  out.resolution = options.resolution;
+  PixelVectors pixel_vector;
+  pixel_vector.used = place_lights(field, out);
+  const Eigen::Index n = Eigen::Index(pixel_vector.used.size());
+  const Eigen::Index d = Eigen::Index(out.dims()) * 3;
+  if (n < 3 || d < out.planes) {
+    throw InputError(field.source + ": lights: " + std::to_string(out.planes) + " planes need " +
+                     std::to_string(out.planes / 3) + " or more valid LEDs in front of the image " +
+                     "plane, got " + std::to_string(n));
+  }
+  out.gain = options.gain;
+  pixel_vector.resample = options.interpolation == PlaneInterpolation::kRbf
+                              ? Eigen::MatrixXd::Identity(n, n)
+                              : bilinear_resampling(out.lights, options.resolution, options.sigma,
+                                                    options.regularization);
+  pixel_vector.gain = float(out.gain);
+  const long pixels = long(field.width()) * field.height();
+  const long stride = std::max(1L, pixels / options.max_pca_pixels);
+  store_basis(strided_statistics(field, bands, pixel_vector, d, stride), out);
+  quantise_coefficients(fit_coefficients(bands, pixel_vector, out, pixels), stride, out);
   return out;
 }
 

@@ -253,6 +253,119 @@ ModelMaps read_model_maps(const std::filesystem::path& path) {
   return read_model_map_rows(path, 0, -1);
 }
 
+namespace {
+
+// The fit's noise model, from attribute lightstage:fit_noise when the file has it, into `out`.
+void read_fit_noise(const NamedChannelFile& file, const std::string& name, ModelMaps& out) {
+  out.noise_source = "unknown (no '" + std::string(kFitNoiseAttribute) + "' attribute)";
+  const std::string* noise = file.attribute(kFitNoiseAttribute);
+  if (!noise) return;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(*noise);
+    out.noise.a = j.at("read_variance").get<double>();
+    out.noise.b = j.at("shot_variance_per_unit").get<double>();
+    out.noise_source = j.value("source", std::string());
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(name + ": attribute '" + kFitNoiseAttribute +
+                     "': expected {read_variance, shot_variance_per_unit, source}: " + e.what());
+  }
+  if (!(std::isfinite(out.noise.a) && out.noise.a >= 0 && std::isfinite(out.noise.b) &&
+        out.noise.b >= 0)) {
+    throw InputError(name + ": attribute '" + kFitNoiseAttribute +
+                     "': expected finite non-negative variances");
+  }
+}
+
+// The shadow words of the file's `shadow_words` channels after the maps', and their LEDs from
+// attribute lightstage:shadow_leds; none when the file has neither.
+FitShadows read_shadows(const NamedChannelFile& file, int shadow_words, const std::string& name) {
+  const std::string* shadow_leds = file.attribute(kShadowLedsAttribute);
+  if (shadow_leds == nullptr && shadow_words == 0) return {};
+  if (shadow_leds == nullptr) {
+    throw InputError(name + ": shadow channels without attribute '" + kShadowLedsAttribute + "'");
+  }
+  std::vector<Eigen::Vector3f> leds = shadow_leds_from(*shadow_leds, name);
+  if (FitShadows::words_for(int(leds.size())) != shadow_words) {
+    throw InputError(name + ": channels 'shadow.N': expected " +
+                     std::to_string(FitShadows::words_for(int(leds.size()))) + " for the " +
+                     std::to_string(leds.size()) + " LEDs of attribute '" + kShadowLedsAttribute +
+                     "', got " + std::to_string(shadow_words));
+  }
+  const Image& all = file.image;
+  FitShadows out = FitShadows::all_lit(std::move(leds), all.width, all.height);
+  for (size_t i = 0; i < all.num_pixels(); ++i) {
+    std::copy_n(&all.pixels[i * size_t(all.channels) + kMapChannelCount], shadow_words,
+                &out.words.pixels[i * size_t(shadow_words)]);
+  }
+  check_shadow_words(out.words, name);
+  return out;
+}
+
+// Checks that every pixel of `maps` holds valid parameters for its model (`materials` basis
+// materials), and counts them into `summary`.
+void check_model_maps(const Image& maps, size_t materials, const std::string& name, int y0,
+                      FitSummary& summary) {
+  const std::vector<std::string>& names = model_map_channel_names();
+  summary.pixels = maps.width * maps.height;
+  auto fail = [&](int channel, int x, int y, const std::string& expected) {
+    char where[96];
+    std::snprintf(where, sizeof where, " at (%d, %d), got %.9g", x, y0 + y,
+                  double(maps.at(x, y, channel)));
+    throw InputError(name + ": channel '" + names[channel] + "': expected " + expected + where);
+  };
+  for (int y = 0; y < maps.height; ++y) {
+    for (int x = 0; x < maps.width; ++x) {
+      for (int c = 0; c < kMapChannelCount; ++c) {
+        if (!std::isfinite(maps.at(x, y, c))) fail(c, x, y, "a finite value");
+      }
+      const float model = maps.at(x, y, kMapModel);
+      if (!(model == std::floor(model) && model >= 0 && model <= 4)) {
+        fail(kMapModel, x, y, "an integer in 0..4 (FitModel)");
+      }
+      const float flags = maps.at(x, y, kMapFlags);
+      if (!(flags == std::floor(flags) && flags >= 0 && flags <= kMaxFlags)) {
+        fail(kMapFlags, x, y, "flag bits, an integer in 0.." + std::to_string(kMaxFlags));
+      }
+      for (int j = 0; j < 2; ++j) {
+        const float material = maps.at(x, y, kMapMaterial + 2 * j);
+        if (!(material == std::floor(material) && material >= 0 && material <= float(materials))) {
+          fail(kMapMaterial + 2 * j, x, y,
+               "an integer in 0.." + std::to_string(materials) + " (the materials in attribute '" +
+                   kMaterialsAttribute + "')");
+        }
+        if (!(maps.at(x, y, kMapMaterialWeight + 2 * j) >= 0)) {
+          fail(kMapMaterialWeight + 2 * j, x, y, "a weight >= 0");
+        }
+      }
+      summary.material_pixels += maps.at(x, y, kMapMaterial) > 0;
+      if (model == 0) {
+        ++((int(flags) & kNoSignal) != 0 ? summary.empty : summary.flagged);
+        continue;
+      }
+      ++summary.fitted;
+      ++summary.per_model[int(model)];
+      summary.not_converged += (int(flags) & kFitNotConverged) != 0;
+      const Eigen::Vector3d n(maps.at(x, y, kMapNormalX), maps.at(x, y, kMapNormalY),
+                              maps.at(x, y, kMapNormalZ));
+      if (std::abs(n.norm() - 1) > 1e-3) fail(kMapNormalX, x, y, "a unit normal (x, y, z)");
+      for (int c = kMapAlbedoR; c <= kMapAlbedoB; ++c) {
+        if (maps.at(x, y, c) < 0) fail(c, x, y, "an albedo >= 0");
+      }
+      const float sigma = maps.at(x, y, kMapSigma);
+      if (!(sigma >= 0 && sigma <= kMaxSigma)) fail(kMapSigma, x, y, "sigma in [0, pi/2] rad");
+      if (!(maps.at(x, y, kMapKs) >= 0)) fail(kMapKs, x, y, "k_s >= 0");
+      const float roughness = maps.at(x, y, kMapRoughness);
+      const bool has_lobe = model == float(FitModel::kLambertTorranceSparrow) ||
+                            model == float(FitModel::kLambertPhong);
+      if (has_lobe && !(roughness > 0 && roughness <= 1)) {
+        fail(kMapRoughness, x, y, "a roughness in (0, 1] on a pixel with a specular lobe");
+      }
+    }
+  }
+}
+
+}  // namespace
+
 ModelMaps read_model_map_rows(const std::filesystem::path& path, int y0, int y1) {
   const std::string name = path.string();
   const std::vector<std::string>& names = model_map_channel_names();
@@ -266,23 +379,7 @@ ModelMaps read_model_map_rows(const std::filesystem::path& path, int y0, int y1)
       path, with_shadows, "model maps", "'lightstage fit'", /*exact=*/true,
       /*required=*/kMapMaterial, y0, y1);  // kMapMaterial: maps from before basis materials.
   ModelMaps out;
-  out.noise_source = "unknown (no '" + std::string(kFitNoiseAttribute) + "' attribute)";
-  if (const std::string* noise = file.attribute(kFitNoiseAttribute)) {
-    try {
-      const nlohmann::json j = nlohmann::json::parse(*noise);
-      out.noise.a = j.at("read_variance").get<double>();
-      out.noise.b = j.at("shot_variance_per_unit").get<double>();
-      out.noise_source = j.value("source", std::string());
-    } catch (const nlohmann::json::exception& e) {
-      throw InputError(name + ": attribute '" + kFitNoiseAttribute +
-                       "': expected {read_variance, shot_variance_per_unit, source}: " + e.what());
-    }
-    if (!(std::isfinite(out.noise.a) && out.noise.a >= 0 && std::isfinite(out.noise.b) &&
-          out.noise.b >= 0)) {
-      throw InputError(name + ": attribute '" + kFitNoiseAttribute +
-                       "': expected finite non-negative variances");
-    }
-  }
+  read_fit_noise(file, name, out);
   if (const std::string* materials = file.attribute(kMaterialsAttribute)) {
     out.materials = materials_from(*materials, name);
     out.summary.materials = int(out.materials.size());
@@ -290,92 +387,14 @@ ModelMaps read_model_map_rows(const std::filesystem::path& path, int y0, int y1)
       out.summary.scene_materials = std::max(out.summary.scene_materials, m.scene_material);
     }
   }
-  const int shadow_words = int(with_shadows.size() - names.size());
-  const std::string* shadow_leds = file.attribute(kShadowLedsAttribute);
-  if (shadow_leds != nullptr || shadow_words > 0) {
-    if (shadow_leds == nullptr) {
-      throw InputError(name + ": shadow channels without attribute '" + kShadowLedsAttribute + "'");
-    }
-    std::vector<Eigen::Vector3f> leds = shadow_leds_from(*shadow_leds, name);
-    if (FitShadows::words_for(int(leds.size())) != shadow_words) {
-      throw InputError(name + ": channels 'shadow.N': expected " +
-                       std::to_string(FitShadows::words_for(int(leds.size()))) + " for the " +
-                       std::to_string(leds.size()) + " LEDs of attribute '" + kShadowLedsAttribute +
-                       "', got " + std::to_string(shadow_words));
-    }
-    const Image& all = file.image;
-    out.shadows = FitShadows::all_lit(std::move(leds), all.width, all.height);
-    for (size_t i = 0; i < all.num_pixels(); ++i) {
-      std::copy_n(&all.pixels[i * size_t(all.channels) + kMapChannelCount], shadow_words,
-                  &out.shadows.words.pixels[i * size_t(shadow_words)]);
-    }
-    check_shadow_words(out.shadows.words, name);
-  }
+  out.shadows = read_shadows(file, int(with_shadows.size() - names.size()), name);
   out.maps = Image(file.image.width, file.image.height, kMapChannelCount);
   out.maps.channel_names = names;
   for (size_t i = 0; i < out.maps.num_pixels(); ++i) {
     std::copy_n(&file.image.pixels[i * size_t(file.image.channels)], kMapChannelCount,
                 &out.maps.pixels[i * size_t(kMapChannelCount)]);
   }
-  const int width = out.maps.width, height = out.maps.height;
-  FitSummary& summary = out.summary;
-  summary.pixels = width * height;
-  auto fail = [&](int channel, int x, int y, const std::string& expected) {
-    char where[96];
-    std::snprintf(where, sizeof where, " at (%d, %d), got %.9g", x, y0 + y,
-                  double(out.maps.at(x, y, channel)));
-    throw InputError(name + ": channel '" + names[channel] + "': expected " + expected + where);
-  };
-  for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) {
-      for (int c = 0; c < kMapChannelCount; ++c) {
-        if (!std::isfinite(out.maps.at(x, y, c))) fail(c, x, y, "a finite value");
-      }
-      const float model = out.maps.at(x, y, kMapModel);
-      if (!(model == std::floor(model) && model >= 0 && model <= 4)) {
-        fail(kMapModel, x, y, "an integer in 0..4 (FitModel)");
-      }
-      const float flags = out.maps.at(x, y, kMapFlags);
-      if (!(flags == std::floor(flags) && flags >= 0 && flags <= kMaxFlags)) {
-        fail(kMapFlags, x, y, "flag bits, an integer in 0.." + std::to_string(kMaxFlags));
-      }
-      for (int j = 0; j < 2; ++j) {
-        const float material = out.maps.at(x, y, kMapMaterial + 2 * j);
-        if (!(material == std::floor(material) && material >= 0 &&
-              material <= float(out.materials.size()))) {
-          fail(kMapMaterial + 2 * j, x, y,
-               "an integer in 0.." + std::to_string(out.materials.size()) +
-                   " (the materials in attribute '" + kMaterialsAttribute + "')");
-        }
-        if (!(out.maps.at(x, y, kMapMaterialWeight + 2 * j) >= 0)) {
-          fail(kMapMaterialWeight + 2 * j, x, y, "a weight >= 0");
-        }
-      }
-      summary.material_pixels += out.maps.at(x, y, kMapMaterial) > 0;
-      if (model == 0) {
-        ++((int(flags) & kNoSignal) != 0 ? summary.empty : summary.flagged);
-        continue;
-      }
-      ++summary.fitted;
-      ++summary.per_model[int(model)];
-      summary.not_converged += (int(flags) & kFitNotConverged) != 0;
-      const Eigen::Vector3d n(out.maps.at(x, y, kMapNormalX), out.maps.at(x, y, kMapNormalY),
-                              out.maps.at(x, y, kMapNormalZ));
-      if (std::abs(n.norm() - 1) > 1e-3) fail(kMapNormalX, x, y, "a unit normal (x, y, z)");
-      for (int c = kMapAlbedoR; c <= kMapAlbedoB; ++c) {
-        if (out.maps.at(x, y, c) < 0) fail(c, x, y, "an albedo >= 0");
-      }
-      const float sigma = out.maps.at(x, y, kMapSigma);
-      if (!(sigma >= 0 && sigma <= kMaxSigma)) fail(kMapSigma, x, y, "sigma in [0, pi/2] rad");
-      if (!(out.maps.at(x, y, kMapKs) >= 0)) fail(kMapKs, x, y, "k_s >= 0");
-      const float roughness = out.maps.at(x, y, kMapRoughness);
-      const bool has_lobe = model == float(FitModel::kLambertTorranceSparrow) ||
-                            model == float(FitModel::kLambertPhong);
-      if (has_lobe && !(roughness > 0 && roughness <= 1)) {
-        fail(kMapRoughness, x, y, "a roughness in (0, 1] on a pixel with a specular lobe");
-      }
-    }
-  }
+  check_model_maps(out.maps, out.materials.size(), name, y0, out.summary);
   return out;
 }
 

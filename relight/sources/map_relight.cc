@@ -272,7 +272,7 @@ void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const 
     const std::size_t need = FieldSources::bytes_needed(
         width_, height_, int(leds.size()), triangles, geometry_ ? int(lights_.size()) : 0);
     const int rows = options_.memory_bytes > 0 ? stream_->rows_within(options_.memory_bytes - need)
-                                               : stream_->band_rows(0);
+                                               : stream_->band_rows(MemoryBudget{});
     const FieldSources streamed(stream_->header(), stream_->bands(rows), {leds.begin(), leds.end()},
                                 geometry_, [&](int done, int total) {
                                   report(progress, "bright sources (the scene's shape)", done,

@@ -16,6 +16,17 @@ namespace {
 
 constexpr const char* kTemporalAttribute = "lightstage:temporal";
 
+// The channels of the per-step fits of `steps` steps: step.I.<param>.
+std::vector<std::string> step_channel_names(int steps) {
+  std::vector<std::string> names;
+  for (int i = 0; i < steps; ++i) {
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      names.push_back("step." + std::to_string(i) + "." + temporal_param_name(p));
+    }
+  }
+  return names;
+}
+
 }  // namespace
 
 TemporalMapsWriter::TemporalMapsWriter(const std::filesystem::path& path, int width, int height,
@@ -32,11 +43,8 @@ TemporalMapsWriter::TemporalMapsWriter(const std::filesystem::path& path, int wi
     meta["curve_families"] = families;
   }
   std::vector<std::string> names = temporal_channel_names();
-  for (int i = 0; i < step_channels_ / kTemporalParamCount; ++i) {
-    for (int p = 0; p < kTemporalParamCount; ++p) {
-      names.push_back("step." + std::to_string(i) + "." + temporal_param_name(p));
-    }
-  }
+  const std::vector<std::string> steps = step_channel_names(step_channels_ / kTemporalParamCount);
+  names.insert(names.end(), steps.begin(), steps.end());
   ExrAttributes exr = attributes;
   exr.emplace_back(kTemporalAttribute, meta.dump());
   maps_ = std::make_unique<ImageRowWriter>(path, width, height, int(names.size()), names, exr);
@@ -108,25 +116,11 @@ TemporalMaps read_temporal_maps(const std::filesystem::path& path) {
   return read_temporal_map_rows(path, 0, -1);
 }
 
-TemporalMaps read_temporal_map_rows(const std::filesystem::path& path, int y0, int y1) {
-  const std::string name = path.string();
-  const std::vector<std::string>& names = temporal_channel_names();
-  // The degenerate pixels' per-step fits, when the file has them: step.I.<param>.
-  std::vector<std::string> with_steps = names;
-  const std::vector<std::string> in_file = exr_channel_names(path);
-  const auto step_channels = std::count_if(in_file.begin(), in_file.end(),
-                                           [](const auto& c) { return c.starts_with("step."); });
-  for (int i = 0; i < int(step_channels) / kTemporalParamCount; ++i) {
-    for (int p = 0; p < kTemporalParamCount; ++p) {
-      with_steps.push_back("step." + std::to_string(i) + "." + temporal_param_name(p));
-    }
-  }
-  // 'curve', 'curve_seen' and the step channels are optional: files before curve families read as
-  // one family whose pixels saw all of it (curve_seen 1).
-  NamedChannelFile file = read_named_channels(path, with_steps, "temporal maps",
-                                              "'lightstage fit --time'", /*exact=*/false,
-                                              /*required=*/kTCurve, y0, y1);
-  TemporalMaps out;
+namespace {
+
+// The step times, noise model and curve families of attribute lightstage:temporal, into `out`.
+void read_temporal_attribute(const NamedChannelFile& file, const std::string& name,
+                             TemporalMaps& out) {
   const std::string* meta = file.attribute(kTemporalAttribute);
   if (!meta) {
     throw InputError(name + ": attribute '" + kTemporalAttribute + "': missing (step times)");
@@ -167,67 +161,81 @@ TemporalMaps read_temporal_map_rows(const std::filesystem::path& path, int y0, i
     throw InputError(name + ": attribute '" + kTemporalAttribute +
                      "': step_times_s: expected a non-empty increasing list");
   }
-  const int width = file.image.width, height = file.image.height;
-  if (step_channels > 0) {
-    if (step_channels != long(out.step_times_s.size()) * kTemporalParamCount) {
-      throw InputError(name + ": channels 'step.I.<param>': expected " +
-                       std::to_string(out.step_times_s.size() * kTemporalParamCount) + " for the " +
-                       std::to_string(out.step_times_s.size()) + " steps, got " +
-                       std::to_string(step_channels));
-    }
-    out.step_values = Image(width, height, int(step_channels));
-    out.step_values.channel_names.assign(with_steps.begin() + kTemporalChannelCount,
-                                         with_steps.end());
-    for (size_t i = 0; i < out.step_values.num_pixels(); ++i) {
-      const float* from = &file.image.pixels[i * size_t(file.image.channels)];
-      for (int c = 0; c < out.step_values.channels; ++c) {
-        const float v = from[kTemporalChannelCount + c];
-        if (!std::isfinite(v)) {
-          throw InputError(name + ": channel '" + out.step_values.channel_names[size_t(c)] +
-                           "': expected a finite value at (" + std::to_string(i % width) + ", " +
-                           std::to_string(y0 + int(i / width)) + ")");
-        }
-        out.step_values.pixels[i * size_t(step_channels) + size_t(c)] = v;
+}
+
+// The degenerate pixels' per-step fits: the file's channels after the maps', named `step_names`;
+// `step_channels` (those named step.*) must be kTemporalParamCount per step.
+Image read_step_values(const NamedChannelFile& file, const std::vector<std::string>& step_names,
+                       long step_channels, size_t steps, const std::string& name, int y0) {
+  const Image& all = file.image;
+  if (step_channels != long(steps) * kTemporalParamCount) {
+    throw InputError(name + ": channels 'step.I.<param>': expected " +
+                     std::to_string(steps * kTemporalParamCount) + " for the " +
+                     std::to_string(steps) + " steps, got " + std::to_string(step_channels));
+  }
+  Image out(all.width, all.height, int(step_channels));
+  out.channel_names = step_names;
+  for (size_t i = 0; i < out.num_pixels(); ++i) {
+    const float* from = &all.pixels[i * size_t(all.channels)];
+    for (int c = 0; c < out.channels; ++c) {
+      const float v = from[kTemporalChannelCount + c];
+      if (!std::isfinite(v)) {
+        throw InputError(name + ": channel '" + out.channel_names[size_t(c)] +
+                         "': expected a finite value at (" + std::to_string(i % all.width) + ", " +
+                         std::to_string(y0 + int(i / all.width)) + ")");
       }
+      out.pixels[i * size_t(step_channels) + size_t(c)] = v;
     }
   }
-  out.maps = Image(width, height, kTemporalChannelCount);
-  out.maps.channel_names = names;
-  const bool has_seen = std::find(in_file.begin(), in_file.end(), "curve_seen") != in_file.end();
-  for (size_t i = 0; i < out.maps.num_pixels(); ++i) {
-    float* to = &out.maps.pixels[i * size_t(kTemporalChannelCount)];
+  return out;
+}
+
+// The maps' channels of the file; curve_seen 1 where the file has no such channel.
+Image copy_temporal_maps(const NamedChannelFile& file, bool has_seen) {
+  Image out(file.image.width, file.image.height, kTemporalChannelCount);
+  out.channel_names = temporal_channel_names();
+  for (size_t i = 0; i < out.num_pixels(); ++i) {
+    float* to = &out.pixels[i * size_t(kTemporalChannelCount)];
     std::copy_n(&file.image.pixels[i * size_t(file.image.channels)], kTemporalChannelCount, to);
     if (!has_seen) to[kTCurveSeen] = 1;
   }
-  TemporalSummary& summary = out.summary;
-  summary.pixels = width * height;
-  summary.curve_families = int(out.curves.size());
-  for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) {
+  return out;
+}
+
+// Checks that every pixel of `maps` holds a valid model, flags and curve family (of `families`),
+// and counts them.
+TemporalSummary check_temporal_maps(const Image& maps, size_t families, const std::string& name,
+                                    int y0) {
+  const std::vector<std::string>& names = temporal_channel_names();
+  TemporalSummary summary;
+  summary.pixels = maps.width * maps.height;
+  summary.curve_families = int(families);
+  for (int y = 0; y < maps.height; ++y) {
+    for (int x = 0; x < maps.width; ++x) {
       for (int c = 0; c < kTemporalChannelCount; ++c) {
-        const float v = out.maps.at(x, y, c);
+        const float v = maps.at(x, y, c);
         if (!std::isfinite(v)) {
           throw InputError(name + ": channel '" + names[c] + "': expected a finite value at (" +
                            std::to_string(x) + ", " + std::to_string(y0 + y) + ")");
         }
       }
-      const float model = out.maps.at(x, y, kTModel);
+      const float model = maps.at(x, y, kTModel);
       if (!(model == std::floor(model) && model >= 0 && model < kTemporalModelCount)) {
         throw InputError(name + ": channel 'model': expected an integer in 0.." +
                          std::to_string(kTemporalModelCount - 1) + " at (" + std::to_string(x) +
                          ", " + std::to_string(y0 + y) + "), got " + std::to_string(model));
       }
-      const float flags = out.maps.at(x, y, kTFlags);
+      const float flags = maps.at(x, y, kTFlags);
       if (!(flags == std::floor(flags) && flags >= 0)) {
         throw InputError(name + ": channel 'flags': expected a non-negative integer at (" +
                          std::to_string(x) + ", " + std::to_string(y0 + y) + ")");
       }
-      const float family = out.maps.at(x, y, kTCurve);
+      const float family = maps.at(x, y, kTCurve);
       if (model == float(TemporalModel::kCurve) &&
-          !(family == std::floor(family) && family >= 0 && family < float(out.curves.size()))) {
+          !(family == std::floor(family) && family >= 0 && family < float(families))) {
         throw InputError(name + ": channel 'curve': a curve at (" + std::to_string(x) + ", " +
                          std::to_string(y0 + y) + ") of family " + std::to_string(family) +
-                         " but " + std::to_string(out.curves.size()) + " families in attribute '" +
+                         " but " + std::to_string(families) + " families in attribute '" +
                          kTemporalAttribute + "'");
       }
       if (model == 0) {
@@ -239,6 +247,35 @@ TemporalMaps read_temporal_map_rows(const std::filesystem::path& path, int y0, i
       }
     }
   }
+  return summary;
+}
+
+}  // namespace
+
+TemporalMaps read_temporal_map_rows(const std::filesystem::path& path, int y0, int y1) {
+  const std::string name = path.string();
+  // The degenerate pixels' per-step fits, when the file has them: step.I.<param>.
+  const std::vector<std::string> in_file = exr_channel_names(path);
+  const auto step_channels = std::count_if(in_file.begin(), in_file.end(),
+                                           [](const auto& c) { return c.starts_with("step."); });
+  const std::vector<std::string> step_names =
+      step_channel_names(int(step_channels) / kTemporalParamCount);
+  std::vector<std::string> with_steps = temporal_channel_names();
+  with_steps.insert(with_steps.end(), step_names.begin(), step_names.end());
+  // 'curve', 'curve_seen' and the step channels are optional: files before curve families read as
+  // one family whose pixels saw all of it (curve_seen 1).
+  NamedChannelFile file = read_named_channels(path, with_steps, "temporal maps",
+                                              "'lightstage fit --time'", /*exact=*/false,
+                                              /*required=*/kTCurve, y0, y1);
+  TemporalMaps out;
+  read_temporal_attribute(file, name, out);
+  if (step_channels > 0) {
+    out.step_values =
+        read_step_values(file, step_names, step_channels, out.step_times_s.size(), name, y0);
+  }
+  const bool has_seen = std::find(in_file.begin(), in_file.end(), "curve_seen") != in_file.end();
+  out.maps = copy_temporal_maps(file, has_seen);
+  out.summary = check_temporal_maps(out.maps, out.curves.size(), name, y0);
   return out;
 }
 
