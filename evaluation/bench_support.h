@@ -9,22 +9,17 @@
 #include <vector>
 
 #include "capture/field.h"
+#include "lightstage/progress.h"
 #include "lightstage/stage.h"
 #include "physics/envmap.h"
 #include "sim/scene.h"
 
 namespace ls::evaluation {
 
-// Progress of one phase of a bench: `done` of `total` units, the item just finished; done ==
-// total ends the phase. The same signature as the jobs' (app/jobs/job.h), so the CLI's printer
+// Progress of a bench's phases: the jobs' callback (lightstage/progress.h), so the CLI's printer
 // serves both.
-using ProgressFn =
-    std::function<void(const std::string& phase, long done, long total, const std::string& item)>;
-
-inline void report(const ProgressFn& progress, const std::string& phase, long done, long total,
-                   const std::string& item = {}) {
-  if (progress) progress(phase, done, total, item);
-}
+using ls::ProgressFn;
+using ls::report;
 
 // Median wall time of `repeats` calls of f, in milliseconds.
 template <class F>

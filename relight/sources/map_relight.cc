@@ -20,7 +20,7 @@ double ms_since(Clock::time_point start) {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
 
-void report(const MapRelightProgress& progress, const std::string& phase, long done, long total) {
+void report(const ProgressFn& progress, const std::string& phase, long done, long total) {
   if (progress) progress(phase, done, total, {});
 }
 
@@ -107,7 +107,7 @@ bool MapRelighter::renders_sources(const SplitLighting& lighting) {
                      [](const PlacedSource& s) { return s.triangle.has_value(); });
 }
 
-FieldSources& MapRelighter::sources(const MapRelightProgress& progress) {
+FieldSources& MapRelighter::sources(const ProgressFn& progress) {
   if (sources_) return *sources_;
   LS_CHECK(stream_ == nullptr, "MapRelighter: a streamed field's sources are made in relight_all");
   if (field_ != nullptr) {
@@ -127,7 +127,7 @@ FieldSources& MapRelighter::sources(const MapRelightProgress& progress) {
 }
 
 void MapRelighter::prepare(const std::vector<SplitLighting>& lightings,
-                           const MapRelightProgress& progress) {
+                           const ProgressFn& progress) {
   std::set<int> leds;
   for (const SplitLighting& lighting : lightings) {
     for (const int led : lighting.leds()) leds.insert(led);
@@ -198,7 +198,7 @@ std::string MapRelighter::fit_in_memory(const std::vector<MapRotation>& maps,
 }
 
 MapRelitSet MapRelighter::relight_all(const std::vector<MapRotation>& maps, const RowPass& pass,
-                                      const MapRelightProgress& progress) {
+                                      const ProgressFn& progress) {
   MapRelitSet out;
   if (stream_ != nullptr) {
     relight_streamed(maps, pass, progress, out);
@@ -227,7 +227,7 @@ MapRelitSet MapRelighter::relight_all(const std::vector<MapRotation>& maps, cons
 // its size: each piece relit under every map before the next is read, into full-size images.
 // Then the sources, from a second pass in bands.
 void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const RowPass& pass,
-                                    const MapRelightProgress& progress, MapRelitSet& out) {
+                                    const ProgressFn& progress, MapRelitSet& out) {
   std::vector<MapRelit>& relit = out.relit;
   for (const MapRotation& m : maps) {
     const auto t0 = Clock::now();

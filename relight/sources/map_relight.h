@@ -18,6 +18,7 @@
 #include "capture/field.h"
 #include "capture/field_file.h"
 #include "lightstage/image.h"
+#include "lightstage/progress.h"
 #include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
 #include "relight/sources/bright_sources.h"
@@ -48,11 +49,6 @@ struct MapRelightOptions {
 SplitLighting map_lighting(const physics::EnvironmentMap& map,
                            const std::vector<capture::FieldLight>& lights, double rotation_deg,
                            const MapRelightOptions& options);
-
-// Progress of a phase ("relight (rows)", "bright sources (normals)", ...): `done` of `total`;
-// the jobs' callback (app/jobs/job.h).
-using MapRelightProgress =
-    std::function<void(const std::string& phase, long done, long total, const std::string& item)>;
 
 // A map and a rotation about +Y, in degrees. The map must outlive the call it is given to.
 struct MapRotation {
@@ -117,8 +113,7 @@ class MapRelighter {
   static bool renders_sources(const SplitLighting& lighting);
   // The sources' normals and shape (as the options say) and the shadows of the LEDs around the
   // sources of `lightings`, now rather than when first rendered (a bench times them apart).
-  void prepare(const std::vector<SplitLighting>& lightings,
-               const MapRelightProgress& progress = {});
+  void prepare(const std::vector<SplitLighting>& lightings, const ProgressFn& progress = {});
 
   // Relit under one map: lighting() and render(), timed. Not for a streamed field.
   MapRelit relight(const physics::EnvironmentMap& map, double rotation_deg);
@@ -126,15 +121,15 @@ class MapRelighter {
   // one pass over its rows (`pass`) for every map, then one over its bands for the sources (bands
   // within what the sources leave of the memory given).
   MapRelitSet relight_all(const std::vector<MapRotation>& maps, const RowPass& pass = {},
-                          const MapRelightProgress& progress = {});
+                          const ProgressFn& progress = {});
 
  private:
   // Under options.memory_bytes: the shape left out, or the sources relit by the cells (`relit`'s
   // lightings redone from `maps`); the note says which (empty: they fit).
   std::string fit_in_memory(const std::vector<MapRotation>& maps, std::vector<MapRelit>& relit);
   void relight_streamed(const std::vector<MapRotation>& maps, const RowPass& pass,
-                        const MapRelightProgress& progress, MapRelitSet& out);
-  FieldSources& sources(const MapRelightProgress& progress = {});
+                        const ProgressFn& progress, MapRelitSet& out);
+  FieldSources& sources(const ProgressFn& progress = {});
   void render_cells(const SplitLighting& lighting, Image& out) const;
 
   const capture::ReflectanceField* field_ = nullptr;
