@@ -12,7 +12,6 @@
 #include "lightstage/image.h"
 #include "physics/envmap.h"
 #include "relight/compact/pca_field.h"
-#include "physics/envmap.h"
 #include "relight/sources/map_relight.h"
 #include "viewer/gpu_relight.h"
 

@@ -17,7 +17,6 @@ namespace {
 
 constexpr double kDegToRad = std::numbers::pi / 180.0;
 
-
 // The 8-connected pixels of a lat-long map at or above a luminance, grown from a seed (wrapping
 // in u), and whether all of them lie within max_angle of the seed's direction.
 struct Region {

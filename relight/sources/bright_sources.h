@@ -36,7 +36,8 @@ struct BrightSourceOptions {
 };
 
 struct SplitEnvironment {
-  physics::EnvironmentMap rest;  // The map without its sources: rest + sources == the map, per channel.
+  physics::EnvironmentMap
+      rest;  // The map without its sources: rest + sources == the map, per channel.
   std::vector<BrightSource> sources;  // Brightest first.
 };
 

@@ -9,7 +9,6 @@
 #include "lightstage/direction_index.h"
 #include "physics/envmap.h"
 #include "relight/fit/normals.h"
-#include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "relight/sources/field_sources.h"
