@@ -7,11 +7,10 @@
 // relight::relight (field), PcaField::relight_led_weights_into (PCA) and render_models (models)
 // give for the same lighting; tests read the framebuffer back and compare with those.
 //
-// Additions by vcore (nothing declared before was changed): FieldPrecision and the `precision`
-// argument of upload_field (defaulted; benchmarks force half or float), GpuSource::bytes().
-// Additions by vpre: ModelShading and the `shading` argument of upload_models (defaulted: kExact,
-// as before).
-// Additions for issue 16 (compact sources): ViewLighting::split and field_irradiance_rgb(),
+// Precision and cost: FieldPrecision and the `precision` argument of upload_field (defaulted;
+// benchmarks force half or float), GpuSource::bytes(); ModelShading and the `shading` argument of
+// upload_models (defaulted: kExact).
+// Bright sources: ViewLighting::split and field_irradiance_rgb(),
 // GpuSource::adds_bright_sources(); field sources add the split-off sources
 // (relight::FieldSources) to the cells' image.
 //

@@ -264,7 +264,7 @@ void ViewerApp::Impl::lighting_section() {
     ImGui::Text("light dir %.2f %.2f %.2f", state.light_dir.x(), state.light_dir.y(),
                 state.light_dir.z());
   } else if (lighting.split && shows(Source::kField)) {
-    // Issue 16: what the field renders at its true direction instead of by LED cells.
+    // What the field renders at its true direction instead of by LED cells.
     ImGui::TextWrapped("field: bright sources at their true direction (orange on the strip): %s",
                        lighting.split->report().c_str());
   }

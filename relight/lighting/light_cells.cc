@@ -11,6 +11,7 @@
 #include <string>
 
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 #include "physics/sphere.h"
 
 namespace ls::relight {
@@ -215,10 +216,8 @@ LightCells LightCells::compute(const std::vector<Eigen::Vector3d>& led_dirs,
 }
 
 double LightWeights::uncovered_fraction() const {
-  // Rec. 709 luminance.
-  const Eigen::Vector3d y_weights(0.2126, 0.7152, 0.0722);
-  const double total = total_irradiance_rgb.dot(y_weights);
-  return total > 0.0 ? uncovered_irradiance_rgb.dot(y_weights) / total : 0.0;
+  const double total = luminance(total_irradiance_rgb);
+  return total > 0.0 ? luminance(uncovered_irradiance_rgb) / total : 0.0;
 }
 
 LightWeights integrate_environment(const physics::EnvironmentMap& map,

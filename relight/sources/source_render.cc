@@ -12,6 +12,7 @@
 
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
+#include "lightstage/image.h"
 #include "relight/sources/shadow_geometry.h"
 
 namespace ls::relight {
@@ -29,10 +30,6 @@ constexpr double kDarkShare = 0.02;
 // sample under this share is a shadow (a cast shadow there is near black).
 constexpr double kGrazingCosine = 0.2;
 constexpr double kGrazingShadowRatio = 0.15;
-
-double luminance(const Eigen::Vector3d& rgb) {
-  return rgb.dot(Eigen::Vector3d(0.2126, 0.7152, 0.0722));
-}
 
 Eigen::Vector3d pixel3(const Image& image, size_t p) {
   const float* v = &image.pixels[3 * p];
@@ -62,7 +59,7 @@ cv::Mat gloss_image(const LedShadow& led) {
   float peak = 0;
   for (size_t p = 0; p < pixels; ++p) {
     const float* g = &led.gloss_rgb[3 * p];
-    y[p] = std::max(0.0f, 0.2126f * g[0] + 0.7152f * g[1] + 0.0722f * g[2]);
+    y[p] = std::max(0.0f, luminance(g));
     peak = std::max(peak, y[p]);
   }
   cv::Mat image(led.height, led.width, CV_8U);

@@ -147,7 +147,7 @@ TEST(EndToEnd, DemoSceneRelitMatchesGroundTruthUnderEachShippedMap) {
   // cell: its shadows and highlights come from the LED's direction, not the source's). Asserted
   // with ~1.4x margin.
   // With bright sources, their shadows cast by the scene's shape recovered from the LEDs' shadows
-  // where it agrees with them: sky_sun measured 0.0457, asserted at issue 16's figure 0.05;
+  // where it agrees with them: sky_sun measured 0.0457, asserted at the target 0.05;
   // small_source 0.0643 here (0.056 in the demo's 256^2, under the issue's 0.06), asserted at 0.07:
   // by the flows alone it measured 0.096 (the spheres' shadows on the relief move 20-40 pixels
   // between LEDs and change shape). softbox_studio has no bright source.
