@@ -158,6 +158,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
     relight::MapRelighter cells(field, by_cells), sources(field, with_sources);
     const std::array<relight::MapRelighter*, 2> relighters{&cells, &sources};
     std::vector<relight::SplitLighting> splits;
+    splits.reserve(maps.size());
     for (const physics::EnvironmentMap& map : maps) splits.push_back(sources.lighting(map, 0.0));
     // Reading the field for the sources' normals, the scene's shape and the LEDs' shadows, once.
     const double sources_ms = median_ms(1, [&] { sources.prepare(splits); });

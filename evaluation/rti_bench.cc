@@ -132,10 +132,11 @@ void write_csv(const fs::path& path, const std::vector<RtiBenchRow>& rows) {
     // After the real set's rows: relight's figures on it (no size when it gave none).
     for (const ReferenceFigure& f : relight_loewenkopf_figures()) {
       csv << csv_field(r.scene) << ",relight's figures," << f.name << ",,";
-      if (f.bytes > 0)
+      if (f.bytes > 0) {
         csv << f.bytes << ',' << f.bytes / 1024;
-      else
+      } else {
         csv << ',';
+      }
       csv << ',' << f.psnr_db << ",,\n";
     }
   }

@@ -105,7 +105,7 @@ ScaleMpiModel mpi_model(double one_rank_s, double two_ranks_s, double io_floor_s
 
 // scale_medians.csv beside `runs` (a scale.csv): per size and step, the medians over the runs.
 fs::path write_medians(const CsvTable& runs) {
-  const fs::path path = fs::path(runs.path).replace_filename("scale_medians.csv");
+  fs::path path = fs::path(runs.path).replace_filename("scale_medians.csv");
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "size,leds,step,megapixels,seconds,peak_mib,field_mib,budget_mib,field_mib_per_s\n";
@@ -150,7 +150,7 @@ std::optional<fs::path> write_mpi_model(const CsvTable& runs) {
   // Basis materials read the field three times (fits, pool, blends).
   const ScaleMpiModel m = mpi_model(median(by_step["fit mpi 1"]), median(by_step["fit mpi 2"]),
                                     3 * median(by_step["read (disk)"]));
-  const fs::path path = fs::path(runs.path).replace_filename("scale_mpi.csv");
+  fs::path path = fs::path(runs.path).replace_filename("scale_mpi.csv");
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "size,ranks,measured_s,model_s,io_floor_s\n";

@@ -107,7 +107,7 @@ void sweep_temporary_frames(const fs::path& dir) {
 // The journal's text as read (empty when there is none). A torn last line (killed mid-append) is
 // cut off the file, so that the next append starts on a line of its own.
 std::string read_journal(const fs::path& journal_path) {
-  const std::string text = fs::exists(journal_path) ? read_text(journal_path) : "";
+  std::string text = fs::exists(journal_path) ? read_text(journal_path) : "";
   if (text.empty() || text.back() == '\n') return text;
   std::cerr << "warning: " << journal_path.string()
             << ": incomplete last journal line ignored (interrupted write); that frame will be "

@@ -183,6 +183,7 @@ CalibrateDirectionsSummary calibrate_directions(const CalibrateDirectionsOptions
     summary.found_outlines = outlines;
   }
   std::vector<capture::MirrorSphere> spheres;
+  spheres.reserve(outlines.size());
   for (const auto& o : outlines) {
     spheres.push_back(
         capture::locate_sphere(o, camera, options.sphere_radius_m, options.sphere_z_m));
@@ -334,6 +335,7 @@ CalibrateCameraSummary calibrate_camera(const CalibrateCameraOptions& options,
     }
   }
   std::vector<const Image*> pointers;
+  pointers.reserve(images.size());
   for (const Image& im : images) pointers.push_back(&im);
   capture::CameraCalibrationOptions calibration_options;
   calibration_options.fix_aspect_ratio = options.square_pixels;

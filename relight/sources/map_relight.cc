@@ -67,7 +67,7 @@ SplitLighting map_lighting(const physics::EnvironmentMap& map,
 
 MapRelighter::MapRelighter(const capture::ReflectanceField& field, MapRelightOptions options)
     : field_(&field),
-      options_(std::move(options)),
+      options_(options),
       lights_(field.lights()),
       width_(field.width()),
       height_(field.height()),
@@ -77,7 +77,7 @@ MapRelighter::MapRelighter(const capture::ReflectanceField& field, MapRelightOpt
 
 MapRelighter::MapRelighter(const PcaField& pca, MapRelightOptions options)
     : pca_(&pca),
-      options_(std::move(options)),
+      options_(options),
       lights_(pca.header().lights()),
       width_(pca.width()),
       height_(pca.height()),
@@ -87,7 +87,7 @@ MapRelighter::MapRelighter(const PcaField& pca, MapRelightOptions options)
 
 MapRelighter::MapRelighter(capture::FieldStream& stream, MapRelightOptions options)
     : stream_(&stream),
-      options_(std::move(options)),
+      options_(options),
       lights_(stream.header().lights()),
       width_(stream.width()),
       height_(stream.height()),
@@ -255,6 +255,7 @@ void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const 
   for (const auto& [y0, y1] : pass.rows) relight_rows(y0, y1);
   if (pass.gather) {
     std::vector<Image*> images;
+    images.reserve(relit.size());
     for (MapRelit& r : relit) images.push_back(&r.image);
     if (!pass.gather(images)) {
       out.complete = false;
