@@ -93,7 +93,7 @@ void add_relight_command(CLI::App& app) {
                                   "Preview exposure in stops (default: automatic per image).");
   auto memory = std::make_shared<MemoryBudget>();
   add_memory_option(*cmd, *memory,
-                    "Relight: what rendering compact sources may hold (full-size images of the "
+                    "Relight: what rendering bright sources may hold (full-size images of the "
                     "LEDs around them); over it they are relit by the LED cells, with a note. The "
                     "field itself is read a few MiB at a time whatever its size; the sources' "
                     "normals in bands within what they leave.");
