@@ -34,6 +34,12 @@ BandPlan BandPlan::within(const MemoryBudget& budget, std::size_t row_bytes, int
 
 int BandPlan::end_row(int band) const { return std::min(height_, (band + 1) * rows_); }
 
+long BandPlan::rows_mine(const RankSplit& split) const {
+  long rows = 0;
+  for_each_mine(split, [&](int, int y0, int y1) { rows += y1 - y0; });
+  return rows;
+}
+
 void BandPlan::for_each_mine(const RankSplit& split,
                              const std::function<void(int band, int y0, int y1)>& visit) const {
   for (int b = 0; b < count(); ++b) {

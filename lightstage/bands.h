@@ -37,6 +37,8 @@ class BandPlan {
   int count() const { return (height_ + rows_ - 1) / rows_; }
   int first_row(int band) const { return band * rows_; }
   int end_row(int band) const;
+  // Rows of the bands this process takes (split.mine(band)), together.
+  long rows_mine(const RankSplit& split) const;
   // Rows [y0, y1) of each band this process takes (split.mine(band)), in order.
   void for_each_mine(const RankSplit& split,
                      const std::function<void(int band, int y0, int y1)>& visit) const;

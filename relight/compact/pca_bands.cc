@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/scratch_file.h"
@@ -85,10 +86,10 @@ PcaField basis_in_bands(const PcaBandsInput& input, const PcaOptions& options,
           "run it without mpirun");
     }
     capture::ReflectanceField band;
-    for (int b = split.rank, y0; (y0 = b * rows) < height; b += split.size) {
-      input.read_rows(y0, std::min(height, y0 + rows), band);
+    BandPlan(height, rows).for_each_mine(split, [&](int, int y0, int y1) {
+      input.read_rows(y0, y1, band);
       save_grams(grams_file(y0), PcaField::band_grams(band, options.tile_size));
-    }
+    });
     split.wait();  // Every band's grams are in their records.
     if (split.root()) {
       const PcaGramBands grams = [&](const std::function<void(const PcaBandGrams&)>& visit) {
@@ -119,8 +120,7 @@ PcaField pca_in_bands(const PcaBandsInput& input, const PcaOptions& options,
                     ScratchFile::Lifetime::kKept);
   capture::ReflectanceField band;
   std::vector<float> coefs;
-  for (int b = split.rank, y0; (y0 = b * rows) < height; b += split.size) {
-    const int y1 = std::min(height, y0 + rows);
+  BandPlan(height, rows).for_each_mine(split, [&](int, int y0, int y1) {
     const fs::path record = checkpoint.dir() / ("band_" + std::to_string(y0));
     const bool resumed = fs::exists(record);
     if (resumed) {
@@ -134,7 +134,7 @@ PcaField pca_in_bands(const PcaBandsInput& input, const PcaOptions& options,
       write_file_atomic(record, "");
     }
     if (on_rows) on_rows(y1, height, resumed);
-  }
+  });
   split.wait();  // Every band's coefficients are in the spill.
   if (!split.root()) return pca;
   spill.reopen();  // The others' rows as they wrote them (a file system shared between nodes).

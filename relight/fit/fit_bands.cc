@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "capture/field_file.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/normals.h"
@@ -38,20 +39,15 @@ void broadcast(const RankSplit& split, relight::BasisMaterials& basis) {
 }
 
 // One band's checkpoint at a time, and the field's band rows.
-class Bands {
+class Bands : public BandPlan {
  public:
   Bands(capture::FieldStream& stream, int rows, const BandCheckpoints& checkpoints,
         BandFitTimes& times)
-      : stream_(stream),
-        rows_(rows),
-        count_((stream.header().height() + rows - 1) / rows),
+      : BandPlan(stream.header().height(), rows),
+        stream_(stream),
         checkpoints_(checkpoints),
         led_dirs_(relight::led_dirs_of(stream.header())),
         times_(times) {}
-
-  int count() const { return count_; }
-  int first_row(int b) const { return b * rows_; }
-  int end_row(int b) const { return std::min(stream_.header().height(), (b + 1) * rows_); }
 
   const capture::ReflectanceField& read_field(int b) { return read_rows(first_row(b), end_row(b)); }
   // The field's band given back once the last band is read (the maps' writer needs the room).
@@ -71,7 +67,7 @@ class Bands {
   // The maps of every band as loaded from its checkpoints, in order.
   relight::MapsBands maps_bands(FitStage stage) {
     return [this, stage](const relight::MapsVisitor& visit) {
-      for (int b = 0; b < count_; ++b) load_finished(b, stage), visit(maps.maps, first_row(b));
+      for (int b = 0; b < count(); ++b) load_finished(b, stage), visit(maps.maps, first_row(b));
     };
   }
   // The field's rows on demand: the file's row (or tile row) holding y, read when not held.
@@ -98,7 +94,6 @@ class Bands {
   }
 
   capture::FieldStream& stream_;
-  const int rows_, count_;
   const BandCheckpoints& checkpoints_;
   const std::vector<Eigen::Vector3f> led_dirs_;
   BandFitTimes& times_;
@@ -140,10 +135,8 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
   relight::FitOptions per_band = fit;
   per_band.materials = relight::FitMaterials::kPerPixel;
   per_band.progress = {};
-  long own_rows = 0, done_rows = 0;
-  for (int b = split.rank; b < bands.count(); b += split.size) {
-    own_rows += bands.end_row(b) - bands.first_row(b);
-  }
+  const long own_rows = bands.rows_mine(split);
+  long done_rows = 0;
   // Each rank's bands: normals and per-pixel fits, from an earlier run's checkpoint when there
   // is one, else fitted and kept.
   for (int b = split.rank; b < bands.count(); b += split.size) {

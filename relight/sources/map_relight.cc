@@ -1,28 +1,21 @@
 #include "relight/sources/map_relight.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <set>
+#include <utility>
 
 #include "capture/field_file.h"
 #include "lightstage/errors.h"
+#include "lightstage/progress.h"
 #include "relight/lighting/relight.h"
 
 namespace ls::relight {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double ms_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
-
-void report(const ProgressFn& progress, const std::string& phase, long done, long total) {
-  if (progress) progress(phase, done, total, {});
-}
+double ms_since(Clock::time_point start) { return 1e3 * seconds_since(start); }
 
 // The LEDs whose images the sources of `relit` need, and how many LED triangles they fall in.
 std::set<int> source_leds(const std::vector<MapRelit>& relit, int* triangles = nullptr) {
@@ -65,34 +58,29 @@ SplitLighting map_lighting(const physics::EnvironmentMap& map,
                         options.split);
 }
 
-MapRelighter::MapRelighter(const capture::ReflectanceField& field, MapRelightOptions options)
-    : field_(&field),
-      options_(options),
-      lights_(field.lights()),
-      width_(field.width()),
-      height_(field.height()),
+MapRelighter::MapRelighter(std::vector<capture::FieldLight> lights, int width, int height,
+                           MapRelightOptions options)
+    : options_(options),
+      lights_(std::move(lights)),
+      width_(width),
+      height_(height),
       geometry_(options_.source_geometry) {
   check_options(options_);
+}
+
+MapRelighter::MapRelighter(const capture::ReflectanceField& field, MapRelightOptions options)
+    : MapRelighter(field.lights(), field.width(), field.height(), options) {
+  field_ = &field;
 }
 
 MapRelighter::MapRelighter(const PcaField& pca, MapRelightOptions options)
-    : pca_(&pca),
-      options_(options),
-      lights_(pca.header().lights()),
-      width_(pca.width()),
-      height_(pca.height()),
-      geometry_(options_.source_geometry) {
-  check_options(options_);
+    : MapRelighter(pca.header().lights(), pca.width(), pca.height(), options) {
+  pca_ = &pca;
 }
 
 MapRelighter::MapRelighter(capture::FieldStream& stream, MapRelightOptions options)
-    : stream_(&stream),
-      options_(options),
-      lights_(stream.header().lights()),
-      width_(stream.width()),
-      height_(stream.height()),
-      geometry_(options_.source_geometry) {
-  check_options(options_);
+    : MapRelighter(stream.header().lights(), stream.width(), stream.height(), options) {
+  stream_ = &stream;
 }
 
 MapRelighter::~MapRelighter() = default;
@@ -155,18 +143,22 @@ void MapRelighter::render(const SplitLighting& lighting, Image& out,
   add_sources(lighting, out, visibility);
 }
 
+void MapRelighter::render_timed(MapRelit& r) {
+  auto t0 = Clock::now();
+  render_cells(r.lighting, r.image);
+  r.relight_ms = ms_since(t0);
+  t0 = Clock::now();
+  add_sources(r.lighting, r.image);
+  r.sources_ms = ms_since(t0);
+  r.geometry = geometry_ && renders_sources(r.lighting);
+}
+
 MapRelit MapRelighter::relight(const physics::EnvironmentMap& map, double rotation_deg) {
   MapRelit out;
-  auto t0 = Clock::now();
+  const auto t0 = Clock::now();
   out.lighting = lighting(map, rotation_deg);
   out.weights_ms = ms_since(t0);
-  t0 = Clock::now();
-  render_cells(out.lighting, out.image);
-  out.relight_ms = ms_since(t0);
-  t0 = Clock::now();
-  add_sources(out.lighting, out.image);
-  out.sources_ms = ms_since(t0);
-  out.geometry = geometry_ && renders_sources(out.lighting);
+  render_timed(out);
   return out;
 }
 
@@ -211,13 +203,7 @@ MapRelitSet MapRelighter::relight_all(const std::vector<MapRotation>& maps, cons
   }
   const std::string note = fit_in_memory(maps, out.relit);
   for (MapRelit& r : out.relit) {
-    auto t0 = Clock::now();
-    render_cells(r.lighting, r.image);
-    r.relight_ms = ms_since(t0);
-    t0 = Clock::now();
-    add_sources(r.lighting, r.image);
-    r.sources_ms = ms_since(t0);
-    r.geometry = geometry_ && renders_sources(r.lighting);
+    render_timed(r);
     r.note = note;
   }
   return out;
@@ -237,7 +223,8 @@ void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const 
     r.image = Image(width_, height_, 3);
   }
   const std::string note = fit_in_memory(maps, relit);
-  const std::set<int> leds = source_leds(relit);
+  int triangles = 0;
+  const std::set<int> leds = source_leds(relit, &triangles);
   // Relighting sums over each pixel's values: it needs no pixel-major band.
   const auto pass_start = Clock::now();
   const auto relight_rows = [&](int y0, int y1) {
@@ -268,8 +255,6 @@ void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const 
     const auto t0 = Clock::now();
     report(progress, "bright sources (normals)", 0, 1);
     // Bands within what the sources' images leave of the memory given.
-    int triangles = 0;
-    (void)source_leds(relit, &triangles);
     const std::size_t need = FieldSources::bytes_needed(
         width_, height_, int(leds.size()), triangles, geometry_ ? int(lights_.size()) : 0);
     const int rows = options_.memory_bytes > 0 ? stream_->rows_within(options_.memory_bytes - need)

@@ -124,6 +124,11 @@ class MapRelighter {
                           const ProgressFn& progress = {});
 
  private:
+  // What every source shares: its lights and size, the options checked.
+  MapRelighter(std::vector<capture::FieldLight> lights, int width, int height,
+               MapRelightOptions options);
+  // The cells then the sources into r.image under r.lighting, each timed.
+  void render_timed(MapRelit& r);
   // Under options.memory_bytes: the shape left out, or the sources relit by the cells (`relit`'s
   // lightings redone from `maps`); the note says which (empty: they fit).
   std::string fit_in_memory(const std::vector<MapRotation>& maps, std::vector<MapRelit>& relit);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "capture/field_file.h"
+#include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "relight/fit/fit.h"
 
@@ -87,22 +88,18 @@ auto step_images(Step& step) {
 }
 
 // The bands of the steps' fields, one band's fits at a time, and their checkpoints.
-class TimeBands {
+class TimeBands : public BandPlan {
  public:
   TimeBands(const std::vector<std::unique_ptr<capture::FieldStream>>& steps, int rows,
             const relight::TemporalFitOptions& options, const CheckpointDir& checkpoints)
-      : steps_(steps),
-        rows_(rows),
-        height_(steps.front()->height()),
+      : BandPlan(steps.front()->height(), rows),
+        steps_(steps),
         options_(options),
         checkpoints_(checkpoints) {
     for (const auto& step : steps) times_.push_back(step->header().scene_time_s);
     options_.progress = {};
   }
 
-  int count() const { return (height_ + rows_ - 1) / rows_; }
-  int first_row(int b) const { return b * rows_; }
-  int end_row(int b) const { return std::min(height_, (b + 1) * rows_); }
   const std::vector<double>& times() const { return times_; }
 
   // Band b's normals (from its source step's rows), each step's BRDF fit and each pixel's process.
@@ -237,7 +234,6 @@ class TimeBands {
                                  std::to_string(first_row(b)) + ".band");
   }
   const std::vector<std::unique_ptr<capture::FieldStream>>& steps_;
-  const int rows_, height_;
   relight::TemporalFitOptions options_;
   const CheckpointDir& checkpoints_;
   std::vector<double> times_;
@@ -289,10 +285,8 @@ TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::Fi
   const int width = steps.front()->width(), height = steps.front()->height();
   TimeBands bands(steps, rows, fit, checkpoints);
   TimeBandFit result;
-  long own_rows = 0, done_rows = 0;
-  for (int b = split.rank; b < bands.count(); b += split.size) {
-    own_rows += bands.end_row(b) - bands.first_row(b);
-  }
+  const long own_rows = bands.rows_mine(split);
+  long done_rows = 0;
   for (int b = split.rank; b < bands.count(); b += split.size) {
     const int band_rows = bands.end_row(b) - bands.first_row(b);
     const bool resumed = bands.load(b, TimeStage::kProcesses);
