@@ -246,6 +246,22 @@ const char* to_string(OlatFormat format) {
   return format == OlatFormat::kDiligent ? "DiLiGenT folder" : "RTI .lp file";
 }
 
+TransferCurve default_transfer(OlatFormat format) {
+  return format == OlatFormat::kDiligent ? TransferCurve::kLinear : TransferCurve::kSrgb;
+}
+
+const char* to_string(TransferCurve curve) {
+  switch (curve) {
+    case TransferCurve::kSrgb:
+      return "srgb";
+    case TransferCurve::kGamma:
+      return "gamma";
+    case TransferCurve::kLinear:
+      return "linear";
+  }
+  return "?";
+}
+
 std::string OlatImportOptions::validate() const {
   if (!(gamma > 0 && gamma <= 10)) {
     return "gamma: expected a number in (0, 10], got " + std::to_string(gamma);
@@ -311,7 +327,7 @@ OlatImageSet read_rti_lp_set(const fs::path& lp_path, const OlatImportOptions& o
   OlatImageSet job;
   job.format = OlatFormat::kRtiLp;
   job.source = lp_file;
-  job.transfer = options.transfer.value_or(TransferCurve::kSrgb);
+  job.transfer = options.transfer.value_or(default_transfer(job.format));
   ImageFinder finder(lp_file.parent_path());
   std::vector<double> norms;
   for (int i = 1; i <= count; ++i) {
@@ -364,7 +380,7 @@ OlatImageSet read_diligent_set(const fs::path& folder, const OlatImportOptions& 
   OlatImageSet job;
   job.format = OlatFormat::kDiligent;
   job.source = folder;
-  job.transfer = options.transfer.value_or(TransferCurve::kLinear);
+  job.transfer = options.transfer.value_or(default_transfer(job.format));
   std::vector<double> norms;
   for (int i = 0; i < n; ++i) {
     OlatLight entry;

@@ -84,6 +84,11 @@ struct OlatImportSummary {
 // Which format `source` is: an .lp file, a folder with exactly one .lp file, or a folder with
 // filenames.txt and light_directions.txt (DiLiGenT). InputError naming it otherwise.
 OlatFormat detect_olat_format(const std::filesystem::path& source);
+// The curve a format's images are undone by when OlatImportOptions::transfer is empty: sRGB for
+// RTI sets (usually JPEGs), linear for DiLiGenT (raw 16-bit sensor data).
+TransferCurve default_transfer(OlatFormat format);
+// "srgb", "gamma", "linear".
+const char* to_string(TransferCurve curve);
 
 // `lp_file` may also be a folder holding exactly one .lp file.
 ReflectanceField import_rti_lp(const std::filesystem::path& lp_file,

@@ -27,6 +27,7 @@ RedrawnCharts redraw_bench_charts(const fs::path& dir) {
       {"fit_sweeps.csv", write_fit_sweeps_charts},
       {"temporal.csv", write_temporal_charts},
       {"temporal_held_out.csv", write_temporal_held_out_chart},
+      {"temporal_held_out_dark.csv", write_temporal_held_out_chart},
       {"compact.csv", write_compact_charts},
       {"rti.csv", write_rti_charts},
       {"scale.csv", write_scale_charts}};

@@ -191,52 +191,77 @@ void write_temporal_held_out_chart(const fs::path& csv) {
   if (table.has("lapse_steps") && !table.rows.empty()) {
     of = " of " + table.rows[0][table.column("lapse_steps")] + " over 1200 s";
   }
-  write_chart(
-      fs::path(csv).replace_filename("temporal_held_out_vs_steps.png"),
-      {.csv = csv,
-       .x = "captured_steps",
-       .series = {{.title = "curves (and processes)", .y = "curves"},
-                  {.title = "processes only", .y = "processes_only"},
-                  {.title = "linear interpolation", .y = "linear_interpolation"},
-                  {.title = "nearest captured step", .y = "nearest_step"}},
-       .title = "Held-out time steps of the rise-and-fall scene: relative error vs steps captured",
-       .x_label = "steps captured" + of,
-       .y_label = "relative RMS error"});
+  const std::string stem = csv.stem().string();
+  const bool dark = table.has("exposure") && !table.rows.empty() &&
+                    std::stod(table.rows[0][table.column("exposure")]) < 1;
+  write_chart(fs::path(csv).replace_filename(stem + "_vs_steps.png"),
+              {.csv = csv,
+               .x = "captured_steps",
+               .series = {{.title = "temporal fit", .y = "temporal_fit"},
+                          {.title = "models by BIC alone", .y = "by_bic_alone"},
+                          {.title = "processes only", .y = "processes_only"},
+                          {.title = "per-step fits interpolated", .y = "step_fits_interpolated"},
+                          {.title = "photos: linear interpolation", .y = "linear_interpolation"},
+                          {.title = "photos: nearest captured step", .y = "nearest_step"}},
+               .title = std::string("Held-out time steps of the rise-and-fall scene") +
+                        (dark ? ", 5x darker capture" : "") + ": relative error vs steps captured",
+               .x_label = "steps captured" + of,
+               .y_label = "relative RMS error"});
 }
 
 namespace {
 
-// The held-out part (see the header): one row per number of captured steps, its CSV and chart, and
-// the time-edit figure from the capture of every other step.
-std::vector<HeldOutBenchRow> run_held_out(const TemporalBenchOptions& options,
-                                          const ProgressFn& progress) {
-  const TimeLapse lapse = rise_and_fall_time_lapse(151, 32, 24, options.lapse_steps, 1200.0);
-  std::vector<HeldOutBenchRow> rows;
-  for (const int n : options.captured) {
-    const HeldOutScores s = score_held_out(lapse, evenly_spaced_steps(options.lapse_steps, n));
-    rows.push_back({n, total(s.curves).relative(), total(s.processes_only).relative(),
-                    total(s.linear).relative(), total(s.nearest).relative(),
-                    int(s.maps.curves.size())});
-    report(progress, "held-out steps", long(rows.size()), long(options.captured.size()),
-           std::to_string(n) + " captured");
-  }
-  std::ofstream csv(options.out / "temporal_held_out.csv");
-  if (!csv) throw InputError((options.out / "temporal_held_out.csv").string() + ": cannot write");
-  csv << "captured_steps,curves,processes_only,linear_interpolation,nearest_step,curve_families,"
+void write_held_out_csv(const fs::path& path, const std::vector<HeldOutBenchRow>& rows,
+                        int lapse_steps) {
+  std::ofstream csv(path);
+  if (!csv) throw InputError(path.string() + ": cannot write");
+  csv << "exposure,captured_steps,temporal_fit,by_bic_alone,processes_only,step_fits_interpolated,"
+         "linear_interpolation,nearest_step,fit_at_captured,step_fits_at_captured,curve_families,"
          "lapse_steps\n";
   for (const HeldOutBenchRow& r : rows) {
-    csv << r.captured << ',' << r.curves << ',' << r.processes_only << ',' << r.linear << ','
-        << r.nearest << ',' << r.curve_families << ',' << options.lapse_steps << '\n';
+    csv << r.exposure << ',' << r.captured << ',' << r.fit << ',' << r.by_bic_alone << ','
+        << r.processes_only << ',' << r.step_fits_interpolated << ',' << r.linear << ','
+        << r.nearest << ',' << r.fit_at_captured << ',' << r.step_fits_at_captured << ','
+        << r.curve_families << ',' << lapse_steps << '\n';
   }
   csv.close();
-  write_temporal_held_out_chart(options.out / "temporal_held_out.csv");
-  std::vector<capture::ReflectanceField> every_other;
-  for (const int i : evenly_spaced_steps(options.lapse_steps, (options.lapse_steps + 1) / 2)) {
-    every_other.push_back(lapse.noisy[size_t(i)]);
+  write_temporal_held_out_chart(path);
+}
+
+// The held-out part (see the header): per exposure one row per number of captured steps, its CSV
+// and chart, and the time-edit figure from the capture of every other step.
+std::vector<HeldOutBenchRow> run_held_out(const TemporalBenchOptions& options,
+                                          const ProgressFn& progress) {
+  std::vector<HeldOutBenchRow> all;
+  const long runs = 2 * long(options.captured.size());
+  for (const double exposure : {1.0, 0.2}) {
+    const TimeLapse lapse =
+        rise_and_fall_time_lapse(151, 32, 24, options.lapse_steps, 1200.0, 40, exposure);
+    std::vector<HeldOutBenchRow> rows;
+    for (const int n : options.captured) {
+      const HeldOutScores s = score_held_out(lapse, evenly_spaced_steps(options.lapse_steps, n));
+      rows.push_back({exposure, n, total(s.fit).relative(), total(s.by_bic_alone).relative(),
+                      total(s.processes_only).relative(),
+                      total(s.step_fits_interpolated).relative(), total(s.linear).relative(),
+                      total(s.nearest).relative(), total(s.fit_at_captured).relative(),
+                      total(s.step_fits_at_captured).relative(), int(s.maps.curves.size())});
+      report(progress, "held-out steps", long(all.size() + rows.size()), runs,
+             std::to_string(n) + " captured at exposure " + std::to_string(exposure));
+    }
+    write_held_out_csv(
+        options.out / (exposure < 1 ? "temporal_held_out_dark.csv" : "temporal_held_out.csv"), rows,
+        options.lapse_steps);
+    if (exposure == 1.0) {
+      std::vector<capture::ReflectanceField> every_other;
+      for (const int i : evenly_spaced_steps(options.lapse_steps, (options.lapse_steps + 1) / 2)) {
+        every_other.push_back(lapse.noisy[size_t(i)]);
+      }
+      write_time_edit_figure(options.out / "temporal_edits.png", lapse,
+                             relight::fit_temporal(every_other, {}));
+    }
+    all.insert(all.end(), rows.begin(), rows.end());
   }
-  write_time_edit_figure(options.out / "temporal_edits.png", lapse,
-                         relight::fit_temporal(every_other, {}));
-  return rows;
+  return all;
 }
 
 }  // namespace

@@ -5,9 +5,11 @@
 // times, and the recovered rates). Writes temporal.csv, temporal_error_vs_steps.png and
 // temporal_time_vs_steps.png. Then the rise-and-fall scene's time lapse
 // (evaluation/temporal_held_out.h) captured at a growing number of its steps: the error at the
-// steps held out of the curves, the processes alone, linear interpolation of the captured images
-// and the nearest captured image (temporal_held_out.csv, temporal_held_out_vs_steps.png), and a
-// time edit and an effect transfer on its curves over time (temporal_edits.png).
+// steps held out of the temporal fit, of its models chosen by BIC alone, of the processes alone, of
+// the per-step fits interpolated, of linear interpolation of the captured images and of the nearest
+// captured image, as captured and five times darker (temporal_held_out{,_dark}.csv and
+// temporal_held_out{,_dark}_vs_steps.png), and a time edit and an effect transfer on its curves
+// over time (temporal_edits.png).
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -31,9 +33,13 @@ struct TemporalBenchOptions {
 };
 
 struct HeldOutBenchRow {
+  double exposure = 1;  // 1: as captured; 0.2: five times darker, the same sensor noise.
   int captured = 0;
-  // Relative RMS at the steps held out, both varying materials together.
-  double curves = 0, processes_only = 0, linear = 0, nearest = 0;
+  // Relative RMS at the steps held out, both varying materials together (HeldOutScores).
+  double fit = 0, by_bic_alone = 0, processes_only = 0, step_fits_interpolated = 0, linear = 0,
+         nearest = 0;
+  // At the captured steps: the temporal fit and each step's own fit.
+  double fit_at_captured = 0, step_fits_at_captured = 0;
   int curve_families = 0;
 };
 
@@ -59,7 +65,8 @@ TemporalBenchSummary run_temporal_bench(const TemporalBenchOptions& options,
 // temporal_error_vs_steps.png and temporal_time_vs_steps.png beside `csv` (a temporal.csv), from
 // it alone.
 void write_temporal_charts(const std::filesystem::path& csv);
-// temporal_held_out_vs_steps.png beside `csv` (a temporal_held_out.csv), from it alone.
+// temporal_held_out_vs_steps.png beside `csv` (a temporal_held_out.csv; for
+// temporal_held_out_dark.csv, temporal_held_out_dark_vs_steps.png), from it alone.
 void write_temporal_held_out_chart(const std::filesystem::path& csv);
 
 }  // namespace ls::evaluation

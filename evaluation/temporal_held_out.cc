@@ -22,7 +22,7 @@ ErrorSum total(const ErrorsByMaterial& errors) {
 }
 
 TimeLapse rise_and_fall_time_lapse(int leds, int width, int height, int steps, double duration_s,
-                                   uint64_t seed) {
+                                   uint64_t seed, double exposure) {
   TimeLapse out;
   out.stage = stage_with_directions(fibonacci_dome_directions(leds, -11.5));
   out.stage.camera.width = width;
@@ -33,6 +33,12 @@ TimeLapse rise_and_fall_time_lapse(int leds, int width, int height, int steps, d
     sim::SimFieldOptions at;
     at.scene_time_s = steps > 1 ? duration_s * i / (steps - 1) : 0;
     out.ideal.push_back(sim::render_ideal_field(out.stage, out.scene, at));
+    for (int y = 0; y < height; ++y) {
+      float* row = out.ideal.back().pixel(0, y);
+      for (size_t v = 0; v < size_t(width) * out.ideal.back().num_lights() * 3; ++v) {
+        row[v] *= float(exposure);
+      }
+    }
     out.noisy.push_back(out.ideal.back());
     sim::add_sensor_noise(out.noisy.back(), relight::NoiseModel{}.as_field_noise(), seed + i);
     out.noisy.back().source = "sim t=" + std::to_string(at.scene_time_s);
@@ -80,6 +86,20 @@ SampleValue rendered(const relight::TemporalMaps& maps, double t,
   return [images](int x, int y, int k, int c) { return (*images)[size_t(k)].at(x, y, c); };
 }
 
+// `maps` with every fitted pixel rendering from its per-step fits (relight::TemporalModel::kSteps).
+relight::TemporalMaps every_pixel_from_its_steps(relight::TemporalMaps maps,
+                                                 const std::vector<relight::StepFit>& steps) {
+  for (size_t i = 0; i < maps.maps.num_pixels(); ++i) {
+    float* m = &maps.maps.pixels[i * relight::kTemporalChannelCount];
+    if (int(m[relight::kTModel]) == int(relight::TemporalModel::kNone)) continue;
+    m[relight::kTModel] = float(relight::TemporalModel::kSteps);
+    m[relight::kTRate] = 1;
+    m[relight::kTFlags] = float(int(m[relight::kTFlags]) & ~relight::kTemporalDegenerate);
+  }
+  relight::count_temporal_models(steps, maps);
+  return maps;
+}
+
 }  // namespace
 
 HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured) {
@@ -95,25 +115,34 @@ HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& cap
   const relight::TemporalFitOptions options;
   HeldOutScores out;
   out.maps = relight::fit_temporal(fields, options);
-  relight::TemporalFitOptions without_curves = options;
-  without_curves.fit_curves = false;
-  const relight::TemporalMaps processes = relight::fit_temporal(fields, without_curves);
+  relight::TemporalFitOptions bic_alone = options;
+  bic_alone.hold_out_steps = false;
+  const relight::TemporalMaps by_bic = relight::fit_temporal(fields, bic_alone);
+  bic_alone.fit_curves = false;
+  const relight::TemporalMaps processes = relight::fit_temporal(fields, bic_alone);
   const relight::NormalMap normals = relight::estimate_temporal_normals(fields, options);
+  std::vector<relight::StepFit> step_fits;
+  for (const capture::ReflectanceField& field : fields) {
+    step_fits.push_back(relight::fit_step(field, normals, options));
+  }
+  const relight::TemporalMaps interpolated = every_pixel_from_its_steps(out.maps, step_fits);
   const capture::ValidLights lights = capture::valid_lights(lapse.ideal[0]);
   size_t next = 0;  // Index into `captured` of the first captured step at or after `step`.
   for (int step = 0; step < steps; ++step) {
     while (captured[next] < step) ++next;
     const double t = lapse.ideal[size_t(step)].scene_time_s;
     if (captured[next] == step) {
-      accumulate(lapse, step, rendered(out.maps, t, lights), out.curves_at_captured);
+      accumulate(lapse, step, rendered(out.maps, t, lights), out.fit_at_captured);
       // A one-step temporal model is that step's fit: its constant.
-      const relight::TemporalMaps alone = relight::fit_temporal_models(
-          {relight::fit_step(lapse.noisy[size_t(step)], normals, options)}, normals, options);
+      const relight::TemporalMaps alone =
+          relight::fit_temporal_models({step_fits[next]}, normals, options);
       accumulate(lapse, step, rendered(alone, t, lights), out.step_fits_at_captured);
       continue;
     }
-    accumulate(lapse, step, rendered(out.maps, t, lights), out.curves);
+    accumulate(lapse, step, rendered(out.maps, t, lights), out.fit);
+    accumulate(lapse, step, rendered(by_bic, t, lights), out.by_bic_alone);
     accumulate(lapse, step, rendered(processes, t, lights), out.processes_only);
+    accumulate(lapse, step, rendered(interpolated, t, lights), out.step_fits_interpolated);
     const capture::ReflectanceField &before = lapse.noisy[size_t(captured[next - 1])],
                                     &after = lapse.noisy[size_t(captured[next])];
     const double w = (t - before.scene_time_s) / (after.scene_time_s - before.scene_time_s);

@@ -4,7 +4,8 @@
 // falls, a stone slab wetted and drying), some steps captured with noise, the temporal models
 // fitted from those and rendered under every LED at every step, against the simulator's
 // noise-free images. Beside them: the two captured neighbours' images interpolated linearly in
-// time, the nearest captured step's image, and at the captured steps each step's own BRDF fit.
+// time, the nearest captured step's image, each pixel's per-step BRDF fits interpolated in time,
+// and at the captured steps each step's own BRDF fit.
 //
 // Error: relative RMS sqrt(sum (model - truth)^2 / sum truth^2) over a material's pixels and the
 // LEDs that reach them (n . l > 0 and no cast shadow: a shadow is in the images and in no model,
@@ -30,9 +31,11 @@ struct TimeLapse {
 };
 
 // `steps` evenly spaced steps over [0, duration_s] of the rise-and-fall scene on a Fibonacci dome
-// of `leds` LEDs, at the fit's default noise (relight::NoiseModel), seeded.
+// of `leds` LEDs, at the fit's default noise (relight::NoiseModel), seeded. exposure: the scene's
+// radiance scale (0.2: a capture five times darker, the same sensor noise); the truth is as
+// exposed.
 TimeLapse rise_and_fall_time_lapse(int leds, int width, int height, int steps, double duration_s,
-                                   uint64_t seed = 40);
+                                   uint64_t seed = 40, double exposure = 1.0);
 
 struct ErrorSum {
   double err2 = 0, ref2 = 0;
@@ -44,14 +47,16 @@ ErrorSum total(const ErrorsByMaterial& errors);
 
 struct HeldOutScores {
   // At the steps held out.
-  ErrorsByMaterial curves;          // Temporal fit with data-driven curves (the default).
-  ErrorsByMaterial processes_only;  // Temporal fit without them (fit_curves = false).
-  ErrorsByMaterial linear;          // The captured neighbours' images, linear in time.
-  ErrorsByMaterial nearest;         // The nearest captured step's image.
+  ErrorsByMaterial fit;  // The temporal fit (default: processes, curves, held-out model choice).
+  ErrorsByMaterial by_bic_alone;    // Processes and curves chosen by BIC (hold_out_steps = false).
+  ErrorsByMaterial processes_only;  // The processes chosen by BIC (no curves, no held-out choice).
+  ErrorsByMaterial step_fits_interpolated;  // Every pixel's per-step fits, linear in time (kSteps).
+  ErrorsByMaterial linear;                  // The captured neighbours' images, linear in time.
+  ErrorsByMaterial nearest;                 // The nearest captured step's image.
   // At the captured steps.
-  ErrorsByMaterial curves_at_captured;
+  ErrorsByMaterial fit_at_captured;
   ErrorsByMaterial step_fits_at_captured;  // Each step's own BRDF fit (fit_step, same normals).
-  relight::TemporalMaps maps;              // The curves' fit.
+  relight::TemporalMaps maps;              // The temporal fit.
 };
 
 // Fits the steps `captured` (indices into the time lapse, increasing, at least two, the first and

@@ -19,8 +19,19 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// A fit weighed by the default noise model, not this camera's: said even under --quiet.
+void warn_default_noise(const std::string& source, const relight::NoiseModel&) {
+  if (source.starts_with("default")) {
+    std::fprintf(stderr,
+                 "warning: noise: %s; the weights and the shadow threshold are the simulated "
+                 "camera's, not this data's\n",
+                 source.c_str());
+  }
+}
+
 void print_noise(const std::string& source, const relight::NoiseModel& noise) {
   std::fprintf(stderr, "noise: %s: variance = %.3g + %.3g * v\n", source.c_str(), noise.a, noise.b);
+  warn_default_noise(source, noise);
 }
 
 // "read in bands of N rows split over R MPI ranks (...); peak memory M MiB".
@@ -43,7 +54,7 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
   // Under MPI rank 0 reports (its own share of the bands) and prints; the others are silent.
   quiet = quiet || !jobs::Ranks::world().root();
   const jobs::FitJobSummary summary =
-      jobs::fit(options, progress_printer(quiet), quiet ? jobs::NoiseNoticeFn{} : print_noise);
+      jobs::fit(options, progress_printer(quiet), quiet ? warn_default_noise : print_noise);
   if (!jobs::Ranks::world().root()) return 0;
   const relight::FitSummary& s = summary.fit;
   std::printf("%s: %dx%d pixels, %d fitted, %d flagged", options.out.c_str(), summary.width,
@@ -95,9 +106,7 @@ int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
   // Under MPI rank 0 reports and prints; the others are silent.
   quiet = quiet || !jobs::Ranks::world().root();
   const jobs::TemporalFitJobSummary summary = jobs::fit_over_time(
-      options, progress_printer(quiet), [&](const std::string& source, const relight::NoiseModel&) {
-        if (!quiet) std::fprintf(stderr, "time steps: noise: %s\n", source.c_str());
-      });
+      options, progress_printer(quiet), quiet ? warn_default_noise : print_noise);
   if (!jobs::Ranks::world().root()) return 0;
   const relight::TemporalSummary& s = summary.fit;
   std::printf("%s: %dx%d pixels, %zu steps from %.1f s to %.1f s, %d fitted, %d flagged\n",
@@ -110,11 +119,19 @@ int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
     if (relight::TemporalModel(m) == relight::TemporalModel::kCurve && s.curve_families > 0) {
       std::printf(", %d curve families", s.curve_families);
     }
+    if (relight::TemporalModel(m) == relight::TemporalModel::kSteps) {
+      std::printf(
+          ": the per-step fits interpolated, where no model predicted left-out steps better");
+    }
     std::printf("\n");
   }
   std::printf(
-      "  flagged: %d faster than sampling, %d too few steps, %d with a dropped step, %d degenerate "
-      "(rendered from their nearest step)\n",
+      "  not fitted: %d without a normal (background, too few lit LEDs), %d without a "
+      "usable step\n",
+      s.no_normal, s.no_usable_step);
+  std::printf(
+      "  notes on fitted pixels: %d faster than sampling, %d with too few steps for a process, %d "
+      "with a dropped step, %d degenerate (rendered from their nearest step)\n",
       s.faster_than_sampling, s.too_few_steps, s.step_dropped, s.degenerate);
   std::printf("  %.2f s: per-step BRDF fits %.2f s, temporal fits %.2f s (%.1f us/pixel)\n",
               summary.seconds, s.seconds_steps, s.seconds_temporal,

@@ -97,25 +97,32 @@ std::vector<fs::path> expand_time_inputs(const std::vector<fs::path>& inputs) {
   return files;
 }
 
-// The field's own measured noise when it carries one (a capture's dark frames and bracket); else
-// the noise of its data, from the residuals of a robust Lambertian fit (an imported set:
-// relight/fit/noise_from_data.h) over rows spread evenly down the field, about 8k pixels' worth
-// (4 to 32 rows) whatever --memory, estimated on rank 0 and shared, so that whole, banded and
-// MPI fits weigh alike; else NoiseModel's defaults (the simulated 12-bit camera near mid
-// exposure). Said in fit.noise_source.
-void choose_noise(capture::FieldStream& stream, relight::FitOptions& fit) {
-  const capture::ReflectanceField& header = stream.header();
-  fit.use_noise_of(header);
-  if (header.noise.measured) return;
+// The fields' own measured noise when one carries it (a capture's dark frames and bracket: the same
+// camera for every step of a time series); else the noise of their data, from the residuals of a
+// robust Lambertian fit (an imported set: relight/fit/noise_from_data.h) over rows spread evenly
+// down each field, about 8k pixels' worth per field (4 to 32 rows) whatever --memory, pooled over
+// the fields (the steps of a time series: one camera, one exposure; a dark step alone may hold
+// too few lit pixels), estimated on rank 0 and shared, so that whole, banded and MPI fits weigh
+// alike; else NoiseModel's defaults (the simulated 12-bit camera near mid exposure). Said in
+// fit.noise_source.
+void choose_noise(const std::vector<capture::FieldStream*>& fields, relight::FitOptions& fit) {
+  const auto measured = std::find_if(fields.begin(), fields.end(),
+                                     [](const auto* f) { return f->header().noise.measured; });
+  fit.use_noise_of((measured != fields.end() ? *measured : fields.front())->header());
+  if (measured != fields.end()) return;
   const Ranks& ranks = Ranks::world();
   std::vector<double> found(5, 0.0);  // Estimated (1), a, b, samples, pixels.
   if (ranks.root()) {
+    const capture::ReflectanceField& header = fields.front()->header();
     const int rows =
         std::min(header.height(), std::clamp((8192 + header.width() - 1) / header.width(), 4, 32));
-    capture::ReflectanceField sample(header.width(), rows, header.lights());
-    for (int k = 0; k < rows; ++k) {
-      const int y = int((k + 0.5) * header.height() / rows);
-      stream.read_rows_into(y, y + 1, sample.pixel(0, k));
+    capture::ReflectanceField sample(header.width(), rows * int(fields.size()), header.lights());
+    int row = 0;
+    for (capture::FieldStream* field : fields) {
+      for (int k = 0; k < rows; ++k) {
+        const int y = int((k + 0.5) * header.height() / rows);
+        field->read_rows_into(y, y + 1, sample.pixel(0, row++));
+      }
     }
     if (const auto noise = relight::noise_from_data(sample, fit.normals)) {
       found = {1, noise->model.a, noise->model.b, double(noise->samples), double(noise->pixels)};
@@ -158,7 +165,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
                                                    : relight::FitMaterials::kBasis;
   fit.normals.method = normal_method(options.method);
   // The noise model weights every residual and sets the shadow threshold (choose_noise).
-  choose_noise(stream, fit);
+  choose_noise({&stream}, fit);
   if (noise_notice) noise_notice(fit.noise_source, fit.normals.noise);
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(options.field_file.string() + ": noise: " + error);
@@ -216,14 +223,18 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   for (const fs::path& f : files) {
     headers.push_back(&steps.emplace_back(std::make_unique<capture::FieldStream>(f))->header());
   }
+  if (files.size() < 2) {
+    throw InputError(files.front().string() +
+                     ": --time: expected the fields of at least two time steps, got one (a single "
+                     "step is fitted by 'lightstage fit FIELD')");
+  }
   relight::TemporalFitOptions fit;
   fit.brdf.normals.method = normal_method(options.method);
-  // The noise of the first field that measured it (same camera for every step).
-  fit.brdf.noise_source = "default NoiseModel (no field carries a measured noise)";
-  const auto measured = std::find_if(steps.begin(), steps.end(),
-                                     [](const auto& s) { return s->header().noise.measured; });
-  if (measured != steps.end()) fit.brdf.use_noise_of((*measured)->header());
   headers = relight::steps_by_time(headers);
+  // The noise as plain fit's: measured by a step, else estimated from every step's data.
+  std::vector<capture::FieldStream*> streams;
+  for (const auto& step : steps) streams.push_back(step.get());
+  choose_noise(streams, fit.brdf);
   std::sort(steps.begin(), steps.end(), [&](const auto& a, const auto& b) {
     return std::find(headers.begin(), headers.end(), &a->header()) <
            std::find(headers.begin(), headers.end(), &b->header());
@@ -302,7 +313,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   capture::FieldStream stream(options.field_file);
   const capture::ReflectanceField& header = stream.header();
   relight::FitOptions fit;
-  choose_noise(stream, fit);
+  choose_noise({&stream}, fit);
   relight::NormalOptions normal_options = fit.normals;
   normal_options.method = normal_method(options.method);
   if (const std::string error = normal_options.validate(); !error.empty()) {

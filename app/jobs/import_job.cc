@@ -17,11 +17,16 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string options_json(const fs::path& source, const capture::OlatImportOptions& options) {
+// What the import did, as given or as the format's default (the transfer curve undone; its
+// exponent only for a gamma curve).
+std::string options_json(const fs::path& source, capture::OlatFormat format,
+                         const capture::OlatImportOptions& options) {
   nlohmann::json j;
   j["source"] = source.string();
-  if (options.transfer) j["transfer"] = int(*options.transfer);
-  j["gamma"] = options.gamma;
+  const capture::TransferCurve transfer =
+      options.transfer.value_or(capture::default_transfer(format));
+  j["transfer"] = capture::to_string(transfer);
+  if (transfer == capture::TransferCurve::kGamma) j["gamma"] = options.gamma;
   j["max_size"] = options.max_size;
   j["drop_saturated"] = options.zero_saturated;
   j["scene_time_s"] = options.scene_time_s;
@@ -52,7 +57,7 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
   };
   const Ranks& ranks = Ranks::world();
   summary.band_rows = capture::import_olat_to_file(
-      source, options, out, {{kOptionsAttribute, options_json(source, options)}},
+      source, options, out, {{kOptionsAttribute, options_json(source, summary.format, options)}},
       MemoryBudget(memory.bytes_or(MemoryBudget::kImageSetBytes)), keep_frontal, &summary.import,
       ranks.split());
   summary.ranks = ranks.size();

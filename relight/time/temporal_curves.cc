@@ -251,10 +251,9 @@ bool curve_runs_away(const Series& series, const CurveFit& f, const TemporalCurv
 // wet and dry: the exponential's count) is lower than its process's by kCurveEvidence and its
 // endpoints stay near its data. A pixel a process explains keeps it.
 constexpr size_t kCurveSample = 1500;
-// The curve must win by strong evidence (a BIC difference above 6, Kass and Raftery 1995): a
-// process the data follow keeps its model, whose rate and onset mean something; the curve is
-// learnt from every process of the scene together and fits any of them a little by chance.
-constexpr double kCurveEvidence = 6;
+// The curve must win by strong evidence (kCurveEvidence): a process the data follow keeps its
+// model, whose rate and onset mean something; the curve is learnt from every process of the scene
+// together and fits any of them a little by chance.
 
 // A pixel that no process explains: its best leaves a reduced chi^2 above kUnexplainedResidual, or
 // ran away.
@@ -309,6 +308,7 @@ using temporal_internal::learn_families;
 using temporal_internal::process_in_curve_space;
 using temporal_internal::Series;
 using temporal_internal::unexplained;
+using temporal_internal::write_curve;
 
 namespace {
 
@@ -376,18 +376,7 @@ void offer_temporal_curves(const std::vector<StepFit>& steps, const std::vector<
         curve_runs_away(series, f, out.curves[size_t(best.family)])) {
       return;
     }
-    m[kTCurve] = float(best.family);
-    m[kTCurveSeen] = float(f.rate * (t_first + span - f.onset));
-    m[kTModel] = float(TemporalModel::kCurve);
-    m[kTRate] = float(f.rate);
-    m[kTOnset] = float(f.onset);
-    // In the curves' space (temporal_fit.h) and not clamped: where the curve bottoms or peaks
-    // may lie beyond a parameter's bound that the curve never reaches over the span (renders
-    // clamp the value at each time).
-    for (int p = 0; p < kTemporalParamCount; ++p) {
-      m[kTWet + p] = float(f.wet[p]);
-      m[kTDry + p] = float(f.dry[p]);
-    }
+    write_curve(f, best.family, t_first + span, m);
     // The BIC weight of the curve against the process it replaces.
     m[kTConfidence] = float(1 / (1 + std::exp(-0.5 * (current_bic - bic))));
     m[kTResidual] = float(f.chi2 / std::max(1.0, n - kCurveParameters));
@@ -396,6 +385,21 @@ void offer_temporal_curves(const std::vector<StepFit>& steps, const std::vector<
 }
 
 namespace temporal_internal {
+
+void write_curve(const CurveFit& f, int family, double seen_until, float* m) {
+  m[kTCurve] = float(family);
+  m[kTCurveSeen] = float(f.rate * (seen_until - f.onset));
+  m[kTModel] = float(TemporalModel::kCurve);
+  m[kTRate] = float(f.rate);
+  m[kTOnset] = float(f.onset);
+  // In the curves' space (temporal_fit.h) and not clamped: where the curve bottoms or peaks may
+  // lie beyond a parameter's bound that the curve never reaches over the span (renders clamp the
+  // value at each time).
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    m[kTWet + p] = float(f.wet[p]);
+    m[kTDry + p] = float(f.dry[p]);
+  }
+}
 
 void params_at(const float* m, double t, double first_time_s, const TemporalCurves* curves,
                double* q) {

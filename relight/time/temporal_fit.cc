@@ -81,6 +81,8 @@ const char* to_string(TemporalModel model) {
       return "dust";
     case TemporalModel::kCurve:
       return "curve";
+    case TemporalModel::kSteps:
+      return "steps";
   }
   return "?";
 }
@@ -117,7 +119,8 @@ std::string TemporalFitOptions::validate() const {
 
 std::string TemporalSummary::to_string() const {
   std::ostringstream s;
-  s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged; models:";
+  s << fitted << " of " << pixels << " pixels fitted, " << flagged << " flagged (" << no_normal
+    << " no normal, " << no_usable_step << " no usable step); models:";
   for (int m = 1; m < kTemporalModelCount; ++m) {
     s << ' ' << relight::to_string(TemporalModel(m)) << '=' << per_model[m];
   }

@@ -24,7 +24,10 @@
 //      The simplest model by BIC = chi^2 + k ln(n) (n: residuals used; ties to the simpler) wins,
 //      the criterion of relight/fit/fit.h. A model with as many parameters per series as usable
 //      steps or more (constant 1, exponential/sigmoid/dust 4) is not considered (flag
-//      kTooFewSteps).
+//      kTooFewSteps);
+//   4. the chosen model kept only where it predicts the steps left out of its fit at least as
+//      well as interpolating the per-step fits does (hold_out_steps), else those fits (kSteps):
+//      in-sample BIC alone lets a model that misses the data win over the data.
 //
 // Times are seconds of scene time (ReflectanceField::scene_time_s). Rates are 1/s. The rate is
 // bounded by max_rate_times_interval / (smallest step interval): a faster process is a step
@@ -53,9 +56,14 @@ enum class TemporalModel : int {
   kDust = 4,
   // A data-driven curve (TemporalMaps::curves) through a per-pixel time warp.
   kCurve = 5,
+  // The per-step fits themselves (TemporalMaps::step_values), interpolated linearly in time in
+  // the space a render sees (as the curves'): where no model predicts the steps it was not given
+  // better than this does (hold_out_steps). Rate edits warp its time; it is never a transfer's
+  // source.
+  kSteps = 6,
 };
 const char* to_string(TemporalModel model);
-inline constexpr int kTemporalModelCount = 6;
+inline constexpr int kTemporalModelCount = 7;
 
 // The per-step BRDF parameters, in order.
 enum TemporalParam : int {
@@ -123,6 +131,9 @@ struct TemporalFitOptions {
   int max_iterations = 60;  // Per temporal model fit (brdf.max_iterations: per step fit).
   // Learn data-driven curves (TemporalCurves) and offer them to every pixel.
   bool fit_curves = true;
+  // Keep a pixel's model only where it predicts each step left out of its fit at least as well as
+  // interpolating the neighbouring steps' fits does; elsewhere the per-step fits (kSteps).
+  bool hold_out_steps = true;
   // Phase "fit over time", rows (each step's fit, then the models'): called as rows finish, from
   // worker threads; must be thread-safe.
   ProgressFn progress;
@@ -186,8 +197,10 @@ const std::vector<std::string>& temporal_channel_names();
 struct TemporalSummary {
   int pixels = 0;
   int fitted = 0;
-  int flagged = 0;  // Not fitted.
-  int per_model[kTemporalModelCount] = {0, 0, 0, 0, 0, 0};
+  int flagged = 0;         // Not fitted: no_normal + no_usable_step.
+  int no_normal = 0;       // kTemporalNoNormal: background, too few lit lights.
+  int no_usable_step = 0;  // kTemporalFitFailed: no step's fit usable, or no model fitted.
+  int per_model[kTemporalModelCount] = {0, 0, 0, 0, 0, 0, 0};
   int faster_than_sampling = 0;
   int too_few_steps = 0;
   int step_dropped = 0;
@@ -229,8 +242,8 @@ struct TemporalMaps {
   Image maps;  // kTemporalChannelCount named channels.
   std::vector<double> step_times_s;
   // The per-step fits (step i's parameter p in channel i * kTemporalParamCount + p, named
-  // "step.I.<param>") of the pixels flagged kTemporalDegenerate, 0 elsewhere (a step unusable at
-  // the pixel holds its nearest usable step's). Empty when no pixel is.
+  // "step.I.<param>") of the pixels flagged kTemporalDegenerate or modelled kSteps, 0 elsewhere
+  // (a step unusable at the pixel holds its nearest usable step's). Empty when no pixel is.
   Image step_values;
   // The curve families of the pixels whose model is kCurve; stored in the attribute.
   std::vector<TemporalCurves> curves;
@@ -294,7 +307,20 @@ class CurveSample {
 // misses the albedo a render sees), and written where they win; band.curves = curves.
 void offer_temporal_curves(const std::vector<StepFit>& steps, const std::vector<double>& best_bic,
                            const std::vector<TemporalCurves>& curves, TemporalMaps& band);
-// The band's model and flag counts into its summary, and its degenerate pixels' step values.
+// Model choice that cannot lose to the data (options.hold_out_steps), on a band after the curves
+// were offered: per pixel whose model leaves its steps unexplained (reduced chi^2 above 4), each
+// interior usable step is left out in turn, the pixel's model fitted again
+// without it (a process refined from its fit, a curve of its family, the constant) and its
+// prediction at that step compared with the linear interpolation of its neighbouring steps' fits
+// (the nearest one's at either end), both in the space a render sees (the curves'), weighted by
+// the left-out fit's deviations, the model's misfit at the captured steps beyond their noise added
+// to its side. Where interpolation wins by strong evidence (a chi^2 difference above 6) the pixel
+// takes kSteps; its confidence is then the weight of interpolation against the model, exp(-chi^2
+// / 2) of each, and its residual the held-out chi^2 per sample.
+void hold_out_steps(const std::vector<StepFit>& steps, const TemporalFitOptions& options,
+                    TemporalMaps& band);
+// The band's model and flag counts into its summary, and the step values of its pixels that
+// render from them (degenerate, kSteps).
 void count_temporal_models(const std::vector<StepFit>& steps, TemporalMaps& band);
 // All of it. Fields must share size and lights (same LED ids, in order); they are sorted by
 // scene_time_s, and two with the same time are an InputError.

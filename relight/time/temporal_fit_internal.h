@@ -6,6 +6,8 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <vector>
 
 #include "physics/brdf.h"
 #include "relight/fit/pixel_solver.h"
@@ -139,6 +141,43 @@ inline double fit_endpoints(const Series& series, int p, const double* shape, do
   return chi2;
 }
 
+// The processes (temporal_processes.cc). Each parameter follows p(t) = dry + (wet - dry) s(t), s =
+// 1 at the wet end, 0 at the dry end; the roughness series is fitted as 1/m (the processes' space).
+// s(t) of a model at time t (0 for constant).
+double shape_weight(TemporalModel model, double rate, double onset, double t);
+// Bounds of the nonlinear parameters.
+struct ShapeBounds {
+  double log_rate_lo, log_rate_hi;
+  double onset_lo, onset_hi;
+};
+// Rates from 5% of the change over 100 spans to max_rate_times_interval / the smallest interval;
+// onsets within the steps' span. Zero for fewer than two steps.
+ShapeBounds shape_bounds(const std::vector<double>& step_times, double max_rate_times_interval);
+struct TemporalResult {
+  bool ok = false;
+  pixel::SolverStatus status = pixel::SolverStatus::kConverged;  // Of LM (none: closed form).
+  double chi2 = std::numeric_limits<double>::infinity();
+  int k = 0;
+  double rate = 0, onset = 0;
+  double wet[kTemporalParamCount] = {}, dry[kTemporalParamCount] = {};  // The processes' space.
+};
+TemporalResult fit_constant(const Series& s);
+// A process (exponential, sigmoid, dust; constant for any other model) by a grid start over
+// (rate, onset) refined by Levenberg-Marquardt, or refined from `start` (a fit of the same model).
+TemporalResult fit_process(TemporalModel model, const Series& s, const ShapeBounds& bounds,
+                           int iterations, const TemporalResult* start = nullptr);
+// A value of the processes' space back in the BRDF's (the roughness from 1/m).
+double to_physical(int p, double v);
+// BRDF parameters a linear blend (1 - w) a + w b of two steps', as a render between two per-step
+// fits sees them (TemporalModel::kSteps): in the BRDF's own space, where the lobe's energy (k_s)
+// and width (m) move apart (the peak k_s / m^2 and 1/m, blended, make a sharp lobe of a broad
+// one's energy); the roughness of a step without a lobe (k_s 0), which it does not measure, is the
+// other's.
+void interpolate_params(const double* a, const double* b, double w, double* q);
+// A process's fit into a pixel's channels (temporal_fit.h, TemporalChannel): model, rate, onset
+// (t_first for the constant), wet and dry in the BRDF's space, clamped to its bounds.
+void write_process(TemporalModel model, const TemporalResult& f, double t_first, float* m);
+
 // The data-driven curves (temporal_curves.cc): learnt from a sample of changing pixels' series,
 // and one pixel's best time warp and endpoints under them.
 // start: the curves to refine (null: every curve starts as 1 - tau).
@@ -150,11 +189,17 @@ struct CurveFit {
   double wet[kTemporalParamCount] = {}, dry[kTemporalParamCount] = {};
 };
 CurveFit fit_curve(const Series& series, const TemporalCurves& curves, double t_first, double span);
+// A curve's fit into a pixel's channels (model, family, rate, onset, wet, dry, and the curve
+// position its steps saw up to time seen_until).
+void write_curve(const CurveFit& f, int family, double seen_until, float* m);
 
 // A series no model explains leaves a reduced chi^2 above this (the per-step parameters carry
 // their own uncertainties and a floor for model error, so a right model leaves about 1; the
 // simulator's paint, an exponential, leaves up to 3 on a few pixels).
 inline constexpr double kUnexplainedResidual = 4;
+// Strong evidence for one model over another: a BIC (or chi^2) difference above 6 (Kass and
+// Raftery 1995).
+inline constexpr double kCurveEvidence = 6;
 // A curve's parameters: rate, onset, wet and dry of each parameter (the exponential's count).
 inline constexpr int kCurveParameters = 2 + 2 * kTemporalParamCount;
 // A curve family is learnt from at least this many series.

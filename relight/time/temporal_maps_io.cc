@@ -204,8 +204,8 @@ Image copy_temporal_maps(const NamedChannelFile& file, bool has_seen) {
 
 // Checks that every pixel of `maps` holds a valid model, flags and curve family (of `families`),
 // and counts them.
-TemporalSummary check_temporal_maps(const Image& maps, size_t families, const std::string& name,
-                                    int y0) {
+TemporalSummary check_temporal_maps(const Image& maps, size_t families, bool step_values,
+                                    const std::string& name, int y0) {
   const std::vector<std::string>& names = temporal_channel_names();
   TemporalSummary summary;
   summary.pixels = maps.width * maps.height;
@@ -238,8 +238,14 @@ TemporalSummary check_temporal_maps(const Image& maps, size_t families, const st
                          " but " + std::to_string(families) + " families in attribute '" +
                          kTemporalAttribute + "'");
       }
+      if (model == float(TemporalModel::kSteps) && !step_values) {
+        throw InputError(name + ": channel 'model': per-step fits (\"steps\") at (" +
+                         std::to_string(x) + ", " + std::to_string(y0 + y) +
+                         ") but no step.I.<param> channels to render them from");
+      }
       if (model == 0) {
         ++summary.flagged;
+        ++((int(flags) & kTemporalNoNormal) != 0 ? summary.no_normal : summary.no_usable_step);
       } else {
         ++summary.fitted;
         ++summary.per_model[int(model)];
@@ -275,7 +281,7 @@ TemporalMaps read_temporal_map_rows(const std::filesystem::path& path, int y0, i
   }
   const bool has_seen = std::find(in_file.begin(), in_file.end(), "curve_seen") != in_file.end();
   out.maps = copy_temporal_maps(file, has_seen);
-  out.summary = check_temporal_maps(out.maps, out.curves.size(), name, y0);
+  out.summary = check_temporal_maps(out.maps, out.curves.size(), step_channels > 0, name, y0);
   return out;
 }
 

@@ -15,13 +15,16 @@ namespace ls::relight {
 namespace {
 
 using temporal_internal::clamp_param;
+using temporal_internal::interpolate_params;
 using temporal_internal::kMinRoughness;
 using temporal_internal::params_at;
 using temporal_internal::to_fitted_space;
 
 TemporalModel read_temporal_model_name(const JsonReader& r) {
-  const std::string name = r.one_of({"constant", "exponential", "sigmoid", "dust", "curve"});
+  const std::string name =
+      r.one_of({"constant", "exponential", "sigmoid", "dust", "curve", "steps"});
   if (name == "constant") return TemporalModel::kConstant;
+  if (name == "steps") return TemporalModel::kSteps;
   if (name == "curve") return TemporalModel::kCurve;
   if (name == "exponential") return TemporalModel::kExponential;
   if (name == "sigmoid") return TemporalModel::kSigmoid;
@@ -55,9 +58,75 @@ double median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
-}  // namespace
+// Where time t falls among a kSteps pixel's steps: the step before, the step after and the weight
+// of the one after; its time scaled about the first step by its rate (1 unless edited), held at
+// the first and the last step beyond them.
+struct StepBlend {
+  int before = 0, after = 0;
+  double w = 0;
+};
+StepBlend step_blend(const std::vector<double>& times, float rate, double t) {
+  const double warped = times.front() + rate * (t - times.front());
+  StepBlend b;
+  b.after =
+      int(std::min(size_t(std::upper_bound(times.begin(), times.end(), warped) - times.begin()),
+                   times.size() - 1));
+  b.before = std::max(b.after - 1, 0);
+  if (b.after != b.before) {
+    b.w = std::clamp(
+        (warped - times[size_t(b.before)]) / (times[size_t(b.after)] - times[size_t(b.before)]),
+        0.0, 1.0);
+  }
+  return b;
+}
 
-TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
+// Which parameters a kSteps pixel takes in a state: its steps' blended (models_at_time), or the
+// step before's or after's alone (render_temporal blends their renders).
+enum class StepsSide { kBlended, kBefore, kAfter };
+
+void steps_params(const TemporalMaps& maps, const float* m, int x, int y, double t, StepsSide side,
+                  double* q) {
+  const StepBlend b = step_blend(maps.step_times_s, m[kTRate], t);
+  double before[kTemporalParamCount], after[kTemporalParamCount];
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    before[p] = clamp_param(p, maps.step_values.at(x, y, b.before * kTemporalParamCount + p));
+    after[p] = clamp_param(p, maps.step_values.at(x, y, b.after * kTemporalParamCount + p));
+  }
+  if (side == StepsSide::kBlended) {
+    interpolate_params(before, after, b.w, q);
+  } else {
+    std::copy_n(side == StepsSide::kBefore ? before : after, kTemporalParamCount, q);
+  }
+}
+
+TemporalState models_at(const TemporalMaps& maps, double time_s, StepsSide side);
+
+// The diffuse (Oren-Nayar) and the lobe (Torrance-Sparrow) parts of a state rendered through
+// render_models, summed (render_models is linear in the BRDF).
+Image render_state(const ModelMaps& state, const LightingForModels& lighting,
+                   const ModelRenderOptions& options) {
+  ModelMaps diffuse = state, lobe = state;
+  for (size_t i = 0; i < diffuse.maps.num_pixels(); ++i) {
+    float* d = &diffuse.maps.pixels[i * kMapChannelCount];
+    float* l = &lobe.maps.pixels[i * kMapChannelCount];
+    if (d[kMapModel] == 0) continue;
+    d[kMapModel] = float(FitModel::kOrenNayar);
+    d[kMapKs] = 0;
+    l[kMapModel] = float(FitModel::kLambertTorranceSparrow);
+    l[kMapAlbedoR] = l[kMapAlbedoG] = l[kMapAlbedoB] = 0;
+  }
+  Image out = render_models(diffuse, lighting, options);
+  ModelRenderOptions lobe_options = options;
+  lobe_options.flagged_fallback = nullptr;  // Already in the diffuse part.
+  const Image specular = render_models(lobe, lighting, lobe_options);
+  for (size_t i = 0; i < out.pixels.size(); ++i) {
+    const float v = out.pixels[i] + specular.pixels[i];
+    out.pixels[i] = std::isfinite(v) ? v : 0.0f;
+  }
+  return out;
+}
+
+TemporalState models_at(const TemporalMaps& maps, double time_s, StepsSide side) {
   const int width = maps.maps.width, height = maps.maps.height;
   TemporalState out;
   out.maps.maps = Image(width, height, kMapChannelCount);
@@ -90,7 +159,9 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
         ++out.extrapolated_pixels;
       }
       double q[kTemporalParamCount];
-      if ((flags & kTemporalDegenerate) != 0 && nearest_step >= 0) {
+      if (model == TemporalModel::kSteps && !maps.step_values.pixels.empty()) {
+        steps_params(maps, m, x, y, time_s, side, q);
+      } else if ((flags & kTemporalDegenerate) != 0 && nearest_step >= 0) {
         for (int p = 0; p < kTemporalParamCount; ++p) {
           q[p] = clamp_param(p, maps.step_values.at(x, y, nearest_step * kTemporalParamCount + p));
         }
@@ -114,29 +185,39 @@ TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
   return out;
 }
 
+}  // namespace
+
+TemporalState models_at_time(const TemporalMaps& maps, double time_s) {
+  return models_at(maps, time_s, StepsSide::kBlended);
+}
+
 Image render_temporal(const TemporalMaps& maps, double time_s, const LightingForModels& lighting,
                       const ModelRenderOptions& options, int* extrapolated_pixels) {
-  const TemporalState state = models_at_time(maps, time_s);
-  if (extrapolated_pixels) *extrapolated_pixels = state.extrapolated_pixels;
-  // Oren-Nayar + Torrance-Sparrow is the sum of an Oren-Nayar render and a lobe-only render
-  // (render_models is linear in the BRDF).
-  ModelMaps diffuse = state.maps, lobe = state.maps;
-  for (size_t i = 0; i < diffuse.maps.num_pixels(); ++i) {
-    float* d = &diffuse.maps.pixels[i * kMapChannelCount];
-    float* l = &lobe.maps.pixels[i * kMapChannelCount];
-    if (d[kMapModel] == 0) continue;
-    d[kMapModel] = float(FitModel::kOrenNayar);
-    d[kMapKs] = 0;
-    l[kMapModel] = float(FitModel::kLambertTorranceSparrow);
-    l[kMapAlbedoR] = l[kMapAlbedoG] = l[kMapAlbedoB] = 0;
+  const int width = maps.maps.width, height = maps.maps.height;
+  // A kSteps pixel between two steps is the blend of their renders (a blend of their BRDFs): a
+  // blend of their parameters would make a lobe of one's width with the other's energy.
+  std::vector<float> blend(size_t(width) * height, 0.0f);
+  bool any_steps = false;
+  for (int y = 0; y < height && !maps.step_values.pixels.empty(); ++y) {
+    for (int x = 0; x < width; ++x) {
+      if (maps.model(x, y) != TemporalModel::kSteps) continue;
+      any_steps = true;
+      const float rate = maps.at(x, y, kTRate);
+      blend[size_t(y) * width + x] = float(step_blend(maps.step_times_s, rate, time_s).w);
+    }
   }
-  Image out = render_models(diffuse, lighting, options);
-  ModelRenderOptions lobe_options = options;
-  lobe_options.flagged_fallback = nullptr;  // Already in the diffuse part.
-  const Image specular = render_models(lobe, lighting, lobe_options);
-  for (size_t i = 0; i < out.pixels.size(); ++i) {
-    const float v = out.pixels[i] + specular.pixels[i];
-    out.pixels[i] = std::isfinite(v) ? v : 0.0f;
+  const TemporalState state =
+      models_at(maps, time_s, any_steps ? StepsSide::kBefore : StepsSide::kBlended);
+  if (extrapolated_pixels) *extrapolated_pixels = state.extrapolated_pixels;
+  Image out = render_state(state.maps, lighting, options);
+  if (!any_steps) return out;
+  const Image after =
+      render_state(models_at(maps, time_s, StepsSide::kAfter).maps, lighting, options);
+  for (size_t i = 0; i < out.num_pixels(); ++i) {
+    for (int c = 0; c < out.channels; ++c) {
+      float& v = out.pixels[i * size_t(out.channels) + size_t(c)];
+      v += blend[i] * (after.pixels[i * size_t(out.channels) + size_t(c)] - v);
+    }
   }
   return out;
 }
@@ -212,6 +293,8 @@ struct SourceGather {
   bool choose() {
     int best = 0;
     for (int k = 2; k < kTemporalModelCount; ++k) {
+      // Per-step fits are the pixel's own data: nothing to move onto another.
+      if (TemporalModel(k) == TemporalModel::kSteps) continue;
       if (votes[k] > votes[best]) best = k;
     }
     model = TemporalModel(best);

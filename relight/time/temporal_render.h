@@ -49,7 +49,9 @@ struct TemporalState {
 TemporalState models_at_time(const TemporalMaps& maps, double time_s);
 
 // Renders the temporal maps at time t under the lighting: the diffuse (Oren-Nayar) and the lobe
-// (Torrance-Sparrow) parts through render_models, summed. 3-channel radiance, never NaN.
+// (Torrance-Sparrow) parts through render_models, summed; a kSteps pixel as the blend of its two
+// neighbouring steps' renders (models_at_time holds its blended parameters instead, one BRDF for
+// what takes parameters). 3-channel radiance, never NaN.
 Image render_temporal(const TemporalMaps& maps, double time_s, const LightingForModels& lighting,
                       const ModelRenderOptions& options = {}, int* extrapolated_pixels = nullptr);
 

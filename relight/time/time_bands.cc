@@ -22,13 +22,15 @@ namespace {
 // A band's checkpoint after its processes (its per-step fits, maps and BICs), or after the curves
 // were offered to it (its maps and the degenerate pixels' step values).
 enum class TimeStage { kProcesses, kCurves };
-constexpr const char* kProcessesMagic = "lightstage fit --time band 1";
-constexpr const char* kCurvesMagic = "lightstage fit --time curves band 1";
+constexpr const char* kProcessesMagic = "lightstage fit --time band 2";
+constexpr const char* kCurvesMagic = "lightstage fit --time curves band 2";
 
 nlohmann::json summary_json(const relight::TemporalSummary& s) {
   return {{"pixels", s.pixels},
           {"fitted", s.fitted},
           {"flagged", s.flagged},
+          {"no_normal", s.no_normal},
+          {"no_usable_step", s.no_usable_step},
           {"per_model", s.per_model},
           {"faster_than_sampling", s.faster_than_sampling},
           {"too_few_steps", s.too_few_steps},
@@ -44,6 +46,8 @@ relight::TemporalSummary summary_from(const nlohmann::json& j) {
   s.pixels = j.at("pixels").get<int>();
   s.fitted = j.at("fitted").get<int>();
   s.flagged = j.at("flagged").get<int>();
+  s.no_normal = j.at("no_normal").get<int>();
+  s.no_usable_step = j.at("no_usable_step").get<int>();
   for (size_t m = 0; m < std::size(s.per_model); ++m) {
     s.per_model[m] = j.at("per_model").at(m).get<int>();
   }
@@ -61,6 +65,8 @@ void add(relight::TemporalSummary& to, const relight::TemporalSummary& band) {
   to.pixels += band.pixels;
   to.fitted += band.fitted;
   to.flagged += band.flagged;
+  to.no_normal += band.no_normal;
+  to.no_usable_step += band.no_usable_step;
   for (size_t m = 0; m < std::size(to.per_model); ++m) to.per_model[m] += band.per_model[m];
   to.faster_than_sampling += band.faster_than_sampling;
   to.too_few_steps += band.too_few_steps;
@@ -142,6 +148,7 @@ class TimeBands : public BandPlan {
   void offer(const std::vector<relight::TemporalCurves>& curves) {
     const auto start = Clock::now();
     relight::offer_temporal_curves(fits, best_bic, curves, maps);
+    relight::hold_out_steps(fits, options_, maps);
     relight::count_temporal_models(fits, maps);
     maps.summary.seconds_temporal += seconds_since(start);
   }

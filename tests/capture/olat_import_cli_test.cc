@@ -1,5 +1,6 @@
 // `lightstage import` end to end: a real RTI set, a bad .lp refused with exit 2, a time-lapse of
 // sets with their times.
+#include <OpenImageIO/imageio.h>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -34,6 +35,12 @@ TEST(OlatImport, CliImportsRealSetAndRejectsBadLpWithExitTwo) {
   EXPECT_EQ(field.width(), 64);
   EXPECT_EQ(field.height(), 43);
   EXPECT_TRUE(fs::exists(tmp / "lion.preview.png"));
+  // The options record the curve undone (the .lp default, sRGB), and no gamma beside it.
+  const auto in = OIIO::ImageInput::open((tmp / "lion.exr").string());
+  ASSERT_TRUE(in);
+  const std::string recorded = in->spec().get_string_attribute("lightstage:options");
+  EXPECT_NE(recorded.find("\"transfer\":\"srgb\""), std::string::npos) << recorded;
+  EXPECT_EQ(recorded.find("gamma"), std::string::npos) << recorded;
 
   write_text(tmp / "bad.lp", "2\nnothing.jpg 0 0 1\n");
   // stdout to /dev/null: what comes back is stderr only.

@@ -32,26 +32,28 @@ TEST(TemporalCurves, RiseAndFallHeldOutAgainstInterpolationAndPerStepFits) {
   const evaluation::TimeLapse lapse = evaluation::rise_and_fall_time_lapse(151, 32, 24, 13, 1200.0);
   const evaluation::HeldOutScores s = evaluation::score_held_out(lapse, {0, 2, 4, 6, 8, 10, 12});
   std::printf("%s\n", s.maps.summary.to_string().c_str());
-  print("held out: curves", s.curves);
+  print("held out: temporal fit", s.fit);
+  print("held out: models by BIC alone", s.by_bic_alone);
   print("held out: processes only", s.processes_only);
+  print("held out: per-step fits interpolated", s.step_fits_interpolated);
   print("held out: linear interpolation", s.linear);
   print("held out: nearest captured step", s.nearest);
-  print("captured: curves", s.curves_at_captured);
+  print("captured: temporal fit", s.fit_at_captured);
   print("captured: per-step fits", s.step_fits_at_captured);
   const std::string metal = "corroding-metal", slab = "stone-slab";
-  ASSERT_EQ(s.curves.size(), 2u);
+  ASSERT_EQ(s.fit.size(), 2u);
   const auto error = [&](const ErrorsByMaterial& e, const std::string& name) {
     return e.at(name).relative();
   };
   EXPECT_GT(s.maps.curves.size(), 1u);  // The two materials change differently.
   for (const std::string& name : {metal, slab}) {
-    EXPECT_LE(error(s.curves, name), error(s.linear, name)) << name;
-    EXPECT_LT(error(s.curves, name), error(s.nearest, name)) << name;
+    EXPECT_LE(error(s.fit, name), error(s.linear, name)) << name;
+    EXPECT_LT(error(s.fit, name), error(s.nearest, name)) << name;
   }
   // The slab's two phases: the curves follow them better than any process does.
-  EXPECT_LT(error(s.curves, slab), 0.8 * error(s.processes_only, slab));
+  EXPECT_LT(error(s.fit, slab), 0.8 * error(s.processes_only, slab));
   for (const std::string& name : {metal, slab}) {
-    EXPECT_LE(error(s.curves_at_captured, name), 1.1 * error(s.step_fits_at_captured, name))
+    EXPECT_LE(error(s.fit_at_captured, name), 1.1 * error(s.step_fits_at_captured, name))
         << name;
   }
 }

@@ -39,9 +39,11 @@ TEST(TemporalFit, RecoversEachProcessAndKeepsStaticPixelsConstant) {
   EXPECT_GE(paint.right_model, 0.55 * paint.pixels);
   EXPECT_GE(dust.right_model, dust.pixels - 4);
   EXPECT_GE(wet.right_model, wet.pixels - 4);
-  // Rates (measured medians: paint 0.052, dust 0.0086, wet 0.018 relative).
-  EXPECT_LT(median(paint.rate_error), 0.07);
-  EXPECT_LT(median(dust.rate_error), 0.012);
+  // Rates (measured medians: paint 0.074, dust 0.0110, wet 0.018 relative; the paint 0.052 and
+  // the dust 0.0086 when models are chosen by BIC alone: the held-out choice gives 3 paint pixels
+  // whose exponential leaves their steps unexplained their per-step fits).
+  EXPECT_LT(median(paint.rate_error), 0.085);
+  EXPECT_LT(median(dust.rate_error), 0.0125);
   EXPECT_LT(median(wet.rate_error), 0.025);
   // Onsets (measured: paint 1.2 s: it starts at 0 = the first step; dust 0.96 s; wet 0.6 s).
   EXPECT_LT(median(paint.onset_error), 1.6);
@@ -112,12 +114,15 @@ TEST(TemporalFit, DriestStepNormalsAreTheMostAccurate) {
 }
 
 // Three steps: fewer than a process needs (4 parameters per series + 1): only the constant model,
-// every fitted pixel flagged kTooFewSteps, all values finite.
+// or the per-step fits where the constant leaves the steps unexplained (a varying pixel); every
+// fitted pixel flagged kTooFewSteps, all values finite.
 TEST(TemporalFit, TooFewStepsGivesFlaggedConstant) {
   const World w = make_world(40, 16, 12);
   const TemporalMaps maps = fit_temporal(capture_steps(w, {0, 120, 300}), TemporalFitOptions{});
   EXPECT_GT(maps.summary.fitted, 100);
-  EXPECT_EQ(maps.summary.per_model[1], maps.summary.fitted);
+  const int steps = maps.summary.per_model[int(TemporalModel::kSteps)];
+  EXPECT_EQ(maps.summary.per_model[1] + steps, maps.summary.fitted);
+  EXPECT_GT(maps.summary.per_model[1], 2 * steps);  // Most of the scene is static.
   EXPECT_EQ(maps.summary.too_few_steps, maps.summary.fitted);
   for (const float v : maps.maps.pixels) EXPECT_TRUE(std::isfinite(v));
 }

@@ -138,6 +138,88 @@ TEST(TemporalEdit, RateScaleAndTransfer) {
                InputError);
 }
 
+// Every fitted pixel of the scene's fit taken as its per-step fits (TemporalModel::kSteps).
+TemporalMaps from_the_steps(const Fitted& f, std::vector<StepFit>* step_fits) {
+  const std::vector<capture::ReflectanceField> fields = capture_steps(f.world, kTimes);
+  const NormalMap normals = estimate_temporal_normals(fields, TemporalFitOptions{});
+  for (const auto& field : fields) step_fits->push_back(fit_step(field, normals, {}));
+  TemporalMaps maps = f.maps;
+  for (size_t i = 0; i < maps.maps.num_pixels(); ++i) {
+    float* m = &maps.maps.pixels[i * kTemporalChannelCount];
+    if (int(m[kTModel]) == 0) continue;
+    m[kTModel] = float(TemporalModel::kSteps);
+    m[kTRate] = 1;
+    m[kTFlags] = float(int(m[kTFlags]) & ~kTemporalDegenerate);
+  }
+  count_temporal_models(*step_fits, maps);
+  return maps;
+}
+
+TEST(TemporalEdit, PerStepFitsRenderTheirStepsTakeRateEditsAndTransfers) {
+  const Fitted& f = fitted_scene();
+  const int width = f.maps.maps.width, height = f.maps.maps.height;
+  std::vector<StepFit> fits;
+  const TemporalMaps maps = from_the_steps(f, &fits);
+  ASSERT_FALSE(maps.step_values.pixels.empty());
+  // At a captured step: that step's own fit (where it was usable at the pixel).
+  const TemporalState at_step = models_at_time(maps, kTimes[3]);
+  const TemporalState midway = models_at_time(maps, 0.5 * (kTimes[3] + kTimes[4]));
+  int compared = 0;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      if (maps.model(x, y) != TemporalModel::kSteps || !(fits[3].sigma.at(x, y, 0) > 0)) continue;
+      ++compared;
+      EXPECT_NEAR(at_step.maps.maps.at(x, y, kMapAlbedoR), fits[3].value.at(x, y, kParamAlbedoR),
+                  1e-4);
+      // Between two steps: between their values (sigma the same at both: the albedo is linear).
+      const double a = fits[3].value.at(x, y, kParamAlbedoR),
+                   b = fits[4].value.at(x, y, kParamAlbedoR);
+      if (fits[3].value.at(x, y, kParamSigma) == fits[4].value.at(x, y, kParamSigma)) {
+        EXPECT_GE(midway.maps.maps.at(x, y, kMapAlbedoR), std::min(a, b) - 1e-5);
+        EXPECT_LE(midway.maps.maps.at(x, y, kMapAlbedoR), std::max(a, b) + 1e-5);
+      }
+    }
+  }
+  EXPECT_GT(compared, width * height / 4);
+  // Twice as fast: at 100 s what the steps showed at 200 s.
+  TemporalMaps faster = maps;
+  const TemporalEdits speed =
+      parse_temporal_edits(R"({"time": [{"select": {"model": "steps"}, "rate_scale": 2.0}]})",
+                           "speed.json", ".", width, height);
+  EXPECT_EQ(apply_temporal_edits(speed, faster)[0],
+            maps.summary.per_model[int(TemporalModel::kSteps)]);
+  const TemporalState fast = models_at_time(faster, 100), slow = models_at_time(maps, 200);
+  EXPECT_EQ(fast.maps.maps.pixels, slow.maps.maps.pixels);
+  // A transfer's target: every pixel takes the scene fit's sigmoid; never its source.
+  TemporalEdits transfer;
+  transfer.source = "transfer";
+  TemporalEdit take;
+  take.select.model = TemporalModel::kSteps;
+  take.transfer_from = TemporalSelection{TemporalModel::kSigmoid, {}, {}};
+  transfer.edits.push_back(take);
+  TemporalMaps mixed = f.maps;  // The fit's sigmoid pixels, and some of the steps' pixels.
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; x += 2) {
+      if (maps.model(x, y) != TemporalModel::kSteps ||
+          f.maps.model(x, y) == TemporalModel::kSigmoid) {
+        continue;
+      }
+      std::copy_n(pixel_of(maps, x, y), kTemporalChannelCount, &mixed.maps.at(x, y, 0));
+    }
+  }
+  count_temporal_models(fits, mixed);
+  const int steps_pixels = mixed.summary.per_model[int(TemporalModel::kSteps)];
+  ASSERT_GT(steps_pixels, 10);
+  apply_temporal_edits(transfer, mixed);
+  count_temporal_models(fits, mixed);
+  EXPECT_EQ(mixed.summary.per_model[int(TemporalModel::kSteps)], 0);
+  TemporalEdits from_steps = transfer;
+  from_steps.edits[0].select.model = TemporalModel::kSigmoid;
+  from_steps.edits[0].transfer_from = TemporalSelection{TemporalModel::kSteps, {}, {}};
+  TemporalMaps copy = maps;
+  EXPECT_THROW(apply_temporal_edits(from_steps, copy), InputError);
+}
+
 TEST(TemporalMapsFile, RoundTrips) {
   const World w = make_world(40, 16, 12);
   Fitted f{w, fit_temporal(capture_steps(w, {0, 60, 120, 180, 300, 600}), TemporalFitOptions{})};
