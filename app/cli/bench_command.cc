@@ -119,7 +119,8 @@ void print_temporal(const evaluation::TemporalBenchSummary& summary) {
                summary.csv.c_str());
   if (summary.held_out.empty()) return;
   std::printf(
-      "\nrise-and-fall scene, relative RMS error at the steps held out, and at the captured steps:\n"
+      "\nrise-and-fall scene, relative RMS error at the steps held out, and at the captured "
+      "steps:\n"
       "%8s %8s %9s %9s %10s %10s %9s %9s %11s %11s\n",
       "exposure", "captured", "fit", "BIC alone", "processes", "step fits", "linear", "nearest",
       "fit@capt", "steps@capt");

@@ -53,8 +53,7 @@ TEST(TemporalCurves, RiseAndFallHeldOutAgainstInterpolationAndPerStepFits) {
   // The slab's two phases: the curves follow them better than any process does.
   EXPECT_LT(error(s.fit, slab), 0.8 * error(s.processes_only, slab));
   for (const std::string& name : {metal, slab}) {
-    EXPECT_LE(error(s.fit_at_captured, name), 1.1 * error(s.step_fits_at_captured, name))
-        << name;
+    EXPECT_LE(error(s.fit_at_captured, name), 1.1 * error(s.step_fits_at_captured, name)) << name;
   }
 }
 
