@@ -28,8 +28,8 @@ class Imported:
 
 @dataclass
 class Relit:
-    """Relit images (H x W x 3 float32, linear) by label: the map's name, with the rotation when
-    several were asked for ("sky_sun_r90"). ``out``: the folder holding their EXR and PNG files and
+    """Relit images (H x W x 3 float32, linear) by name, their files' names: the map's, with the
+    rotation when several were asked for ("sky_sun_rot090"). ``out``: the folder holding their EXR and PNG files and
     the contact sheet (None when none was asked for: the files were temporary)."""
     images: Dict[str, Any]
     out: Optional[PathLike] = None

@@ -51,7 +51,7 @@ py::array channel_view(const std::shared_ptr<Image>& image, int first, int count
   return view(std::move(b));
 }
 
-py::array image_view(std::shared_ptr<Image> image, const std::string& what) {
+py::array image_view(const std::shared_ptr<Image>& image, const std::string& what) {
   const int channels = image->channels;
   return channel_view(image, 0, channels, what);
 }

@@ -29,7 +29,7 @@ void bind_arrays(py::module_& m);
 py::array view(Buffer buffer);
 
 // An image (H x W x C, or H x W for one channel) over the image `owner` holds.
-py::array image_view(std::shared_ptr<Image> image, const std::string& what);
+py::array image_view(const std::shared_ptr<Image>& image, const std::string& what);
 
 // Channels [first, first + count) of an interleaved image as an H x W x count array (H x W for
 // one channel), viewing the image's memory.

@@ -26,6 +26,8 @@ void throw_storage_error(const std::string& message, const std::string& file) {
 }
 
 void bind_errors(py::module_& /*m*/) {
+  // pybind11's translator type takes the exception_ptr by value.
+  // NOLINTNEXTLINE(performance-unnecessary-value-param)
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);

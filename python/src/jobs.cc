@@ -102,13 +102,20 @@ py::object relight(const py::object& field, const py::object& env, const py::obj
   options.out_dir = temp ? temp->path() / "relit" : to_path(out);
 
   jobs::RelightSummary summary;
-  run_job(progress, [&](const JobContext& job) { summary = jobs::relight(options, job.progress); });
+  std::vector<std::shared_ptr<Image>> pixels;
+  run_job(progress, [&](const JobContext& job) {
+    summary = jobs::relight(options, job.progress);
+    for (const jobs::RelitImage& image : summary.images) {
+      pixels.push_back(std::make_shared<Image>(read_image(image.exr)));
+    }
+  });
 
   py::dict images, details;
-  for (const jobs::RelitImage& image : summary.images) {
-    auto pixels = std::make_shared<Image>(read_image(image.exr));
-    images[py::str(image.label)] = image_view(pixels, "relit image " + image.label);
-    details[py::str(image.label)] = image.detail;
+  for (size_t i = 0; i < summary.images.size(); ++i) {
+    // By the file's name: the map's, with the rotation when several were asked for.
+    const std::string name = summary.images[i].exr.stem().string();
+    images[py::str(name)] = image_view(pixels[i], "relit image " + name);
+    details[py::str(name)] = summary.images[i].detail;
   }
   py::dict s;
   s["details"] = details;

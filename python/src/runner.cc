@@ -29,10 +29,13 @@ class Channel {
     if (!forward_) return;
     std::lock_guard lock(mutex_);
     // Only the newest report of a phase waits: a slow callable sees fewer, never stale, updates.
-    if (!queue_.empty() && queue_.back().phase == phase && queue_.back().done < queue_.back().total)
+    const bool replace =
+        !queue_.empty() && queue_.back().phase == phase && queue_.back().done < queue_.back().total;
+    if (replace) {
       queue_.back() = Report{phase, item, done, total};
-    else
+    } else {
       queue_.push_back(Report{phase, item, done, total});
+    }
     wake_.notify_one();
   }
   void finish() {
