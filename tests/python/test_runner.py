@@ -141,3 +141,21 @@ def test_jobs_in_two_threads(field_file):
     with concurrent.futures.ThreadPoolExecutor(2) as pool:
         fits = list(pool.map(lambda _: ls.fit(field_file).maps["albedo"], range(2)))
     assert fits[0].tobytes() == fits[1].tobytes()
+
+
+def test_ctrl_c_stops_a_capture_resumably(stage_file, tmp_path):
+    frames = []
+
+    def progress(phase, done, total, item):
+        frames.append(done)
+        if len(frames) == 5:
+            raise KeyboardInterrupt  # As Ctrl-C during the capture.
+
+    with pytest.raises(KeyboardInterrupt):
+        ls.capture(stage_file, out=tmp_path / "s", progress=progress)
+    # The capture stopped cleanly: the frames it saved are kept, and resume completes the rest.
+    resumed = ls.capture(out=tmp_path / "s", resume=True)
+    summary = resumed.summary
+    assert not summary["already_complete"]
+    assert summary["frames_present_before"] >= 5 and summary["frames_missing_before"] > 0
+    assert summary["frames_captured"] == summary["frames_missing_before"]
