@@ -127,10 +127,10 @@ def capture(stage: Optional[_Path] = None, scene: Optional[_Path] = None, *, out
 
     stage: Stage file (JSON: LEDs, camera, plan). Default: the built-in ~150-LED dome.
     scene: Scene file for the simulated stage (JSON). Default: the built-in demo scene.
-    out: New session directory to create (with resume: the existing session directory to
-        complete).
+    out: New session directory to create. With resume=True (--resume): the existing session
+        directory to complete.
     seed: Noise seed of the simulated camera.
-    verify_frames: False: save frames unchecked (--no-frame-checks). By default each frame is
+    verify_frames: False (--no-frame-checks): Save frames unchecked. By default each frame is
         checked on arrival (dark frames dark, a bracket's frames consistent with each other) and
         a bad one shot again; turn this off only for a camera whose frames do not follow the
         LEDs, such as Aravis' test-pattern Fake_1.
@@ -146,10 +146,10 @@ def build(session: _Path, *, out: _Path, time_step: int = 0, all_time_steps: boo
     response, division by each LED's calibrated irradiance and colour. Writes an OpenEXR with one
     channel per LED and colour (led042.R, ...).
 
-    out: Field file to write (.exr); with all_time_steps, the directory to write field_t000.exr,
-        field_t001.exr, ... into.
+    out: Field file to write (.exr); with --all-time-steps, the directory to write
+        field_t000.exr, field_t001.exr, ... into.
     time_step: Time step to build (time-varying sessions).
-    all_time_steps: Build one field per time step into the out directory.
+    all_time_steps: Build one field per time step into the --out directory.
     memory: Build: the field's values and the LEDs merged in flight (a quarter of it); a larger
         field is built in bands, each LED's image spilled to a file beside out that needs the
         field's size free. SIZE: bytes, or with K, M, G, T (powers of 1024: 512M, 2G, 1.5GiB).
@@ -185,11 +185,11 @@ def relight(field: Optional[_FieldLike] = None, *, env: Union[None, _Path, Seque
         covers, as the field does.
     temporal: Temporal maps from 'lightstage fit --time', rendered at time (with edits: a time
         edit file, see relight/time/temporal_render.h).
-    time: With temporal: scene time in seconds (any time; outside the captured steps it is
+    time: With --temporal: scene time in seconds (any time; outside the captured steps it is
         flagged).
     edits: Edit file (JSON: selections by model or mask, albedo tint, roughness / specular /
         sigma scales, model swaps) applied to models before rendering.
-    light: With models: also render under one distant light from direction X Y Z (stage frame,
+    light: With --models: also render under one distant light from direction X Y Z (stage frame,
         toward the light) of unit irradiance, as light.exr/png.
     exposure: Preview exposure in stops (default: automatic per image).
     coverage_deg: Dome coverage radius around each LED, degrees (0: automatic).
@@ -200,8 +200,8 @@ def relight(field: Optional[_FieldLike] = None, *, env: Union[None, _Path, Seque
         between the LEDs' shadows alone, without the scene's shape recovered from them.
     memory: Relight: what rendering bright sources may hold (full-size images of the LEDs around
         them); over it they are relit by the LED cells, with a note.
-    directions: With models: the map is integrated on a lat-long grid of N x N/2 directions.
-    out: Output directory (None: the files are temporary, only the arrays are returned).
+    directions: With --models: the map is integrated on a lat-long grid of N x N/2 directions.
+    out: Output directory. None: the files are temporary, only the arrays are returned.
     """
 
 def fit(field: _FieldLike, *, out: Optional[_Path] = None, phong: bool = False,
@@ -213,7 +213,7 @@ def fit(field: _FieldLike, *, out: Optional[_Path] = None, phong: bool = False,
     confidence, residual, flags, material ids and weights); with out, writes MAPS.exr and a PNG
     preview per map beside it, as the CLI does.
 
-    out: Model maps to write (.exr); None: a temporary file.
+    out: Model maps to write (.exr). None: a temporary file.
     phong: Also fit Lambert + Phong (for comparison).
     method: Photometric-stereo normals: robust (trimmed start + Tukey IRLS, ignores highlights)
         or ls (weighted least squares).
@@ -242,14 +242,14 @@ def import_set(source: _Path, *, out: _Path, linear: bool = False, srgb: bool = 
     folder. Undoes the transfer curve (default: sRGB for .lp sets, linear for DiLiGenT), divides
     by each light's intensity, and writes the field plus FIELD.preview.png.
 
-    out: Field file to write (.exr).
+    out: Field file to write (.exr)
     linear: The images are linear already.
     srgb: Undo the sRGB curve (default for .lp sets).
     gamma: Undo a plain gamma curve: linear = code^G (G in (0, 10]).
     max_size: Downsize (area averaging) so that the larger side is at most N pixels.
     drop_saturated: Write saturated samples (maximum code) as 0, so fits leave them out as
         shadowed; default: keep them as lower bounds.
-    time: Scene time of the set in seconds.
+    time: Scene time of the set in seconds (default 0)
     storage: How the field file holds the values: half floats where the field relit from them
         stays within 1e-3 of the floats, else floats (auto); or always half or float.
     memory: Import: the field's values; a larger field is written in bands.
@@ -275,4 +275,14 @@ def render(input: _Path, *, light: Optional[Sequence[float]] = None, env: Option
            progress: _Progress = None) -> Rendered:
     """Relights a compact file (.ptm, .rti, the lightstage PCA format, or an OpenLIME folder)
     under one distant light or an environment map: a linear image in field units (and, with out,
-    the EXR and a PNG preview)."""
+    the EXR and a PNG preview).
+
+    light: X Y Z: direction toward the light, stage frame (+Y up, camera on +Z), unit irradiance
+        at normal incidence.
+    env: Environment map (EXR/HDR) instead of --light.
+    rotate: Rotation of the map about +Y, degrees.
+    bright_sources: False (--no-bright-sources): A PCA under a map with a sun or small lamp:
+        relight it by the LED cells too instead of rendering it at its true direction with moving
+        shadows.
+    out: Output image (.exr; a .png preview beside it). None: only the array is returned.
+    """

@@ -47,3 +47,37 @@ def test_job_parameters_match():
             expected += ["*"] + [a.arg for a in stub.args.kwonlyargs]
         assert runtime_parameters(getattr(ls, name)) == expected, name
         assert ast.get_docstring(stub), name
+
+
+COMMANDS = {"capture": "capture", "build": "build", "relight": "relight", "fit": "fit",
+            "normals": "normals", "import_set": "import", "compress": "compress",
+            "render": "render"}
+
+
+def documented_parameters(docstring):
+    """The stub's "name: text" entries (text joined across its indented lines)."""
+    entries, name = {}, None
+    for line in docstring.splitlines():
+        match = re.match(r"^(\w+): (.*)$", line)
+        if match:
+            name = match.group(1)
+            entries[name] = match.group(2)
+        elif name and line.startswith("    "):
+            entries[name] += " " + line.strip()
+        else:
+            name = None
+    return entries
+
+
+def test_docstrings_are_the_help_texts(cli):
+    stubs = stub_functions()
+    for function, command in COMMANDS.items():
+        help_text = " ".join(cli(command, "--help").stdout.split())
+        entries = documented_parameters(ast.get_docstring(stubs[function]))
+        assert entries, function
+        for name, text in entries.items():
+            # A flag that turns an option off says which first: "False (--no-x): help".
+            text = re.sub(r"^False(?: \(--[\w-]+\))?: ", "", text)
+            # Its first sentence (what follows may say what the keyword adds, e.g. out=None).
+            sentence = " ".join(text.split()).split(". ")[0][:40]
+            assert sentence in help_text, (function, name, sentence)
