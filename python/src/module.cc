@@ -35,9 +35,7 @@ std::vector<fs::path> to_paths(const py::handle& object) {
 }
 
 std::vector<double> to_numbers(const py::handle& object) {
-  if (py::isinstance<py::float_>(object) || py::isinstance<py::int_>(object)) {
-    return {object.cast<double>()};
-  }
+  if (!py::hasattr(object, "__iter__")) return {object.cast<double>()};  // A number (NumPy's too).
   std::vector<double> numbers;
   for (const py::handle item : object) numbers.push_back(item.cast<double>());
   return numbers;

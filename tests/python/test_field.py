@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import lightstage as ls
-from conftest import RESOLUTION
+from conftest import RESOLUTION, ROOT
 
 
 def test_header(field, stage_file):
@@ -86,3 +86,27 @@ def test_missing_file(tmp_path):
     with pytest.raises(ls.InputError) as error:
         ls.Field.open(missing)
     assert error.value.file == str(missing)
+
+
+def test_save_rows(field, tmp_path):
+    field.save_rows(tmp_path / "band.exr", 8, 20, storage="float")
+    band = ls.Field.open(tmp_path / "band.exr")
+    assert band.shape == (12,) + field.shape[1:]
+    assert band.values().tobytes() == field.rows(8, 20).tobytes()
+    np.testing.assert_array_equal(band.lights.directions, field.lights.directions)
+    assert band.noise.read_variance == field.noise.read_variance
+
+
+def test_save_rows_refuses_near_leds(tmp_path):
+    # The hand-written small dome has two near LEDs (positions, not directions).
+    stage = json.loads(
+        "\n".join(line for line in (ROOT / "data" / "stages" / "small_dome.json").read_text()
+                  .splitlines() if not line.strip().startswith("//")))
+    stage["camera"]["width"] = stage["camera"]["height"] = 16
+    (tmp_path / "stage.json").write_text(json.dumps(stage))
+    ls.capture(tmp_path / "stage.json", out=tmp_path / "s")
+    near = ls.build(tmp_path / "s", out=tmp_path / "near.exr").fields[0]
+    assert np.isfinite(near.lights.positions).any(axis=1).sum() == 2
+    with pytest.raises(ls.InputError) as error:
+        near.save_rows(tmp_path / "band.exr", 0, 8)
+    assert "near LEDs" in error.value.message and error.value.field == "save_rows"

@@ -41,7 +41,7 @@ def test_relight_equals_the_cli(cli, field_file, tmp_path):
         assert channels == ["R", "G", "B"]
         assert image.tobytes() == expected.tobytes()
     # Without out: the same images, from files that are gone.
-    again = ls.relight(field_file, env=[ENVMAP], rotate=[0, 90])
+    again = ls.relight(field_file, env=[ENVMAP], rotate=np.array([0, 90]))
     assert again.out is None
     for label, image in again.images.items():
         assert image.tobytes() == relit[label].tobytes()
