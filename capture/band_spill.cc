@@ -74,8 +74,8 @@ void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& 
 
 FieldStorage SpillFile::write_field(const std::filesystem::path& out,
                                     const ReflectanceField& header, const ExrAttributes& attributes,
-                                    const std::function<void(int done, int total)>& on_band,
-                                    StorageChoice choice, HalfCheck* check) {
+                                    const ProgressFn& progress, StorageChoice choice,
+                                    HalfCheck* check) {
   FieldStorage storage;
   if (choice != StorageChoice::kFloat) storage = {true, half_scale_for(largest_.load())};
   std::vector<float> scratch;
@@ -94,7 +94,7 @@ FieldStorage SpillFile::write_field(const std::filesystem::path& out,
       }
       if (refused) break;
       writer.write_rows(band_first_row(b), band);
-      if (on_band) on_band(b + 1, bands());
+      report(progress, "write", b + 1, bands());
     }
     if (!refused) {
       writer.finish();

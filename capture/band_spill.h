@@ -13,6 +13,7 @@
 
 #include "capture/field.h"
 #include "capture/field_file.h"
+#include "lightstage/progress.h"
 #include "lightstage/scratch_file.h"
 
 namespace ls::capture {
@@ -46,12 +47,11 @@ class SpillFile {
   // `scratch` holds the band as spilled.
   void read_band(int b, std::vector<float>& scratch, ReflectanceField& band);
   // Every band into the field file `out` (FieldWriter; header: its lights and attributes), band
-  // by band; on_band(done, total) after each. Stored as `choice` asks (half scaled by the largest
-  // value put; auto: half, written again in float when a band fails check_half). Returns the
-  // storage written; *check, when given, the half check (half or auto).
+  // by band; progress "write" (bands written) after each. Stored as `choice` asks (half scaled by
+  // the largest value put; auto: half, written again in float when a band fails check_half).
+  // Returns the storage written; *check, when given, the half check (half or auto).
   FieldStorage write_field(const std::filesystem::path& out, const ReflectanceField& header,
-                           const ExrAttributes& attributes,
-                           const std::function<void(int done, int total)>& on_band,
+                           const ExrAttributes& attributes, const ProgressFn& progress,
                            StorageChoice choice = StorageChoice::kFloat,
                            HalfCheck* check = nullptr);
 

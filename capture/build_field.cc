@@ -128,8 +128,8 @@ class FieldBuild {
     resume_.reset();
     finish();
     HalfCheck check;
-    sum_.storage = spill.write_field(out, header_, attributes, options_.on_band_written,
-                                     options_.storage, &check);
+    sum_.storage =
+        spill.write_field(out, header_, attributes, options_.progress, options_.storage, &check);
     if (options_.storage != StorageChoice::kFloat) sum_.half_check = check;
     checkpoint.remove();
     return band_rows;
@@ -475,9 +475,9 @@ class FieldBuild {
     std::mutex progress_mutex;
     int done = 0;
     auto report = [&] {
-      if (!options_.on_progress) return;
+      if (!options_.progress) return;
       std::lock_guard<std::mutex> lock(progress_mutex);
-      options_.on_progress(++done, total);
+      options_.progress("build", ++done, total, {});
     };
     tbb::task_arena arena(max_in_flight);
     arena.execute([&] {

@@ -17,6 +17,7 @@
 #include "capture/field_file.h"
 #include "capture/hdr_merge.h"
 #include "capture/noise_estimate.h"
+#include "lightstage/progress.h"
 #include "lightstage/rank_split.h"
 #include "lightstage/session.h"
 
@@ -28,11 +29,11 @@ struct BuildOptions {
   // Divide each LED's image by the dome's output drift while it was shot, measured on the plan's
   // reference LED (capture/reference_drift.h). Drift beyond 0.5% is reported either way.
   bool correct_drift = false;
-  std::function<void(int done, int total)> on_progress;  // LEDs merged.
+  // Phases "build" (LEDs merged) and, for build_field_file, "write" (bands written).
+  ProgressFn progress;
   // build_field_file: the most memory the field's values take at once (bands of rows), and the
-  // bands written so far. build_field: what the LEDs merged in flight may take.
+  // build_field: what the LEDs merged in flight may take.
   MemoryBudget memory;
-  std::function<void(int done, int total)> on_band_written;
   // build_field_file: how the file holds the values (capture/half_storage.h).
   StorageChoice storage = StorageChoice::kFloat;
   // build_field_file under MPI: this process merges its share of the LEDs (RankSplit::mine)

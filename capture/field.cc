@@ -10,6 +10,20 @@
 
 namespace ls::capture {
 
+std::vector<FieldLight> lights_along(const std::vector<Eigen::Vector3d>& dirs_in_stage) {
+  std::vector<FieldLight> lights;
+  lights.reserve(dirs_in_stage.size());
+  for (size_t l = 0; l < dirs_in_stage.size(); ++l) lights.push_back({int(l), dirs_in_stage[l]});
+  return lights;
+}
+
+std::vector<Eigen::Vector3d> light_directions(const std::vector<FieldLight>& lights) {
+  std::vector<Eigen::Vector3d> dirs;
+  dirs.reserve(lights.size());
+  for (const FieldLight& light : lights) dirs.push_back(light.dir_in_stage);
+  return dirs;
+}
+
 ReflectanceField::ReflectanceField(int width, int height, std::vector<FieldLight> lights)
     : width_(width), height_(height), lights_(std::move(lights)) {
   if (width <= 0 || height <= 0) {

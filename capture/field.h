@@ -38,6 +38,11 @@ struct FieldLight {
   std::optional<Eigen::Vector3d> position_in_stage;
 };
 
+// Valid distant lights along `dirs_in_stage`, led_id their index: a dome known by directions only.
+std::vector<FieldLight> lights_along(const std::vector<Eigen::Vector3d>& dirs_in_stage);
+// The dir_in_stage of every light, valid or not, in order.
+std::vector<Eigen::Vector3d> light_directions(const std::vector<FieldLight>& lights);
+
 // Where a field's pixels lie in the stage: the camera's geometry (CameraSpec's, lightstage/
 // stage.h: on +Z looking toward -Z, square pixels, row 0 at the top) and the reference surface, the
 // plane z = reference_z_m that stands in for the unknown surface when near LEDs need a distance.

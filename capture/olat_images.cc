@@ -212,9 +212,9 @@ class SetImport {
         if (done_with) done_with(l, saturated);
       }
       const int finished = ++done;
-      if (options_.on_progress) {
+      if (options_.progress) {
         const std::lock_guard<std::mutex> lock(progress_mutex);
-        options_.on_progress(finished, n);
+        options_.progress("import", finished, n, {});
       }
     });
   }

@@ -26,6 +26,7 @@
 
 #include "capture/field.h"
 #include "capture/field_file.h"
+#include "lightstage/progress.h"
 #include "lightstage/rank_split.h"
 
 namespace ls::capture {
@@ -51,8 +52,8 @@ struct OlatImportOptions {
   // The scene time the field records (ReflectanceField::scene_time_s), seconds: a set's place in
   // a time-lapse, for `lightstage fit --time`. Finite.
   double scene_time_s = 0.0;
-  // Called as images finish, from worker threads but never two at a time.
-  std::function<void(int done, int total)> on_progress;
+  // Phase "import", images read; called from worker threads but never two at a time.
+  ProgressFn progress;
   // Imports into a file: how it holds the values (capture/half_storage.h).
   StorageChoice storage = StorageChoice::kFloat;
 

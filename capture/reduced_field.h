@@ -10,6 +10,7 @@
 
 #include "capture/field.h"
 #include "capture/field_file.h"
+#include "lightstage/progress.h"
 
 namespace ls::capture {
 
@@ -17,10 +18,10 @@ namespace ls::capture {
 int reduction_factor(int width, int height, int num_lights, std::size_t bytes);
 
 // The file's field reduced by `factor`, read band by band (bands of at most band_bytes, whole
-// blocks of rows); progress(rows read, rows) after each band. Its noise is the mean's of factor^2
-// pixels: both variances divided by factor^2 (edge blocks, with fewer pixels, are a little
+// blocks of rows); progress "read reduced (rows)" after each band. Its noise is the mean's of
+// factor^2 pixels: both variances divided by factor^2 (edge blocks, with fewer pixels, are a little
 // noisier than stated).
 ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t band_bytes,
-                                    const std::function<void(int done, int total)>& progress = {});
+                                    const ProgressFn& progress = {});
 
 }  // namespace ls::capture

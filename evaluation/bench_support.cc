@@ -31,8 +31,8 @@ capture::ReflectanceField capture_sim_field(const Stage& stage, const sim::Scene
     const long total = long(plan_frames(stage).size());
     SequencerOptions options;
     options.sleep = [](double) {};
-    options.on_progress = [&](const CaptureProgress& p) {
-      if (p.done < total) report(progress, phase, p.done, total);
+    options.on_progress = [&](const std::string&, long done, long, const std::string&) {
+      if (done < total) report(progress, phase, done, total);
     };
     run_capture(session, sim_stage.lights(), sim_stage.camera(), options);
     report(progress, phase, total, total);

@@ -93,7 +93,7 @@ Fits fit_all(const capture::ReflectanceField& field, const relight::FitOptions& 
     options.solver = config.solver;
     options.materials = config.materials;
     const std::string phase = "fit " + config.name;
-    options.progress = [&](long done, long total) {
+    options.progress = [&](const std::string&, long done, long total, const std::string&) {
       if (done < total) report(progress, phase, done, total);
     };
     const auto start = std::chrono::steady_clock::now();

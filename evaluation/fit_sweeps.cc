@@ -498,7 +498,7 @@ std::vector<SweepPoint> run_fit_sweeps(const FitSweepOptions& options) {
       point.axis = axis;
       point.value = value;
       points.push_back(point);
-      if (options.on_progress) options.on_progress(++done, total);
+      report(options.progress, "fit sweeps", ++done, total);
     }
   }
   return points;

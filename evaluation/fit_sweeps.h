@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "lightstage/progress.h"
+
 namespace ls::evaluation {
 
 enum class SweepAxis {
@@ -43,7 +45,7 @@ struct FitSweepOptions {
   uint64_t seed = 1;
   bool quick = false;  // Three values per axis instead of five to nine.
   std::vector<SweepAxis> axes{std::begin(kAllSweepAxes), std::end(kAllSweepAxes)};
-  std::function<void(int done, int total)> on_progress;
+  ProgressFn progress;  // Phase "fit sweeps", points.
 
   std::vector<double> values(SweepAxis axis) const;
   std::string validate() const;  // Empty when valid.

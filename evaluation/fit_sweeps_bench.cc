@@ -37,7 +37,7 @@ FitSweepsBenchSummary run_fit_sweeps_bench(const FitSweepsBenchOptions& options,
   throw_if_invalid(options.validate());
   std::filesystem::create_directories(options.out);
   FitSweepOptions sweeps = options.sweeps;
-  sweeps.on_progress = [&](int done, int total) { report(progress, "fit sweeps", done, total); };
+  sweeps.progress = progress;
   FitSweepsBenchSummary summary;
   summary.points = run_fit_sweeps(sweeps);
   summary.csv = options.out / "fit_sweeps.csv";

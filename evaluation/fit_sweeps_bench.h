@@ -13,7 +13,7 @@ namespace ls::evaluation {
 
 struct FitSweepsBenchOptions {
   std::filesystem::path out = "bench-out";
-  FitSweepOptions sweeps;  // on_progress is set by the bench.
+  FitSweepOptions sweeps;  // progress is set by the bench.
   std::string validate() const { return sweeps.validate(); }
 };
 

@@ -167,17 +167,11 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 // The lighting the viewer makes for the field alone under sky_sun.exr turned by rotation_deg
 // (viewer/view_lighting.h), the sun split off or not.
 ls::viewer::ViewLighting sky_sun_lighting(double rotation_deg, bool split) {
-  static const std::vector<Eigen::Vector3d> dirs = [] {
-    std::vector<Eigen::Vector3d> d;
-    for (const auto& light : field().lights()) d.push_back(light.dir_in_stage);
-    return d;
-  }();
-  static const std::vector<bool> valid(dirs.size(), true);
   ls::viewer::EnvironmentNeeds needs;
   needs.field_sources = split;
   needs.whole_map_led_weights = false;  // Only the field is shown.
   needs.model_lights = false;
-  return ls::viewer::environment_lighting(sky_sun(), rotation_deg, dirs, valid, needs);
+  return ls::viewer::environment_lighting(sky_sun(), rotation_deg, field().lights(), needs);
 }
 
 std::string sources_label(const ls::viewer::ViewLighting& lighting) {

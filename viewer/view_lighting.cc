@@ -22,16 +22,10 @@ relight::MapRelightOptions view_options(bool bright_sources) {
 }  // namespace
 
 ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rotation_deg,
-                                  const std::vector<Eigen::Vector3d>& led_dirs,
-                                  const std::vector<bool>& led_valid,
+                                  const std::vector<capture::FieldLight>& leds,
                                   const EnvironmentNeeds& needs) {
   ViewLighting l;
-  if (!led_dirs.empty()) {
-    std::vector<capture::FieldLight> leds;
-    leds.reserve(led_dirs.size());
-    for (size_t i = 0; i < led_dirs.size(); ++i) {
-      leds.push_back({int(i), led_dirs[i], i >= led_valid.size() || led_valid[i]});
-    }
+  if (!leds.empty()) {
     if (needs.field_sources) {
       relight::SplitLighting split =
           relight::map_lighting(map, leds, rotation_deg, view_options(/*bright_sources=*/true));
@@ -46,7 +40,7 @@ ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rot
   }
   if (needs.model_lights) {
     relight::EnvironmentSampling sampling;
-    sampling.covered_by_leds = led_dirs;
+    sampling.covered_by_leds = capture::light_directions(leds);
     l.lights = relight::LightingForModels::environment(map, rotation_deg, sampling);
   }
   return l;

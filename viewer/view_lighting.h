@@ -36,8 +36,7 @@ struct EnvironmentNeeds {
 // (integrate_environment over the LEDs' cells) unless a split makes it unneeded; `lights` when
 // needs.model_lights. Without LEDs, only `lights`.
 ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rotation_deg,
-                                  const std::vector<Eigen::Vector3d>& led_dirs,
-                                  const std::vector<bool>& led_valid,
+                                  const std::vector<capture::FieldLight>& leds,
                                   const EnvironmentNeeds& needs);
 
 // Whether the lighting has a bright source a field renders (one inside the dome's coverage).

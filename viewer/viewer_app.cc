@@ -181,7 +181,7 @@ const ViewLighting& ViewerApp::Impl::current_lighting() {
                         .rotation_deg = state.rotation_deg,
                         .point_light = state.point_light,
                         .light_dir = state.light_dir,
-                        .led_count = led_dirs.size(),
+                        .led_count = leds.size(),
                         .needs = needs};
   if (lighting_key && *lighting_key == key) return lighting;
   const auto t0 = std::chrono::steady_clock::now();
@@ -189,21 +189,21 @@ const ViewLighting& ViewerApp::Impl::current_lighting() {
   if (state.point_light) {
     l.lights = relight::LightingForModels::directional(state.light_dir.normalized(),
                                                        Eigen::Vector3d(1, 1, 1));
-    if (!led_dirs.empty()) {
+    if (!leds.empty()) {
       // Between the LEDs the field is interpolated (relight/compact/pca_field.h LightInterpolator).
-      const relight::LightInterpolator interpolator(led_dirs, led_valid);
+      const relight::LightInterpolator interpolator(leds);
       l.led_irradiance_rgb = interpolator.led_irradiance(l.lights);
     }
   } else {
     // With LEDs known the models get the light the dome covers, as `lightstage relight`
     // --models with a field does, so field and models are lit alike.
-    l = environment_lighting(*env, state.rotation_deg, led_dirs, led_valid, needs);
+    l = environment_lighting(*env, state.rotation_deg, leds, needs);
   }
   // The LED weights shown: the whole map's, or the field's when only those were made.
   const std::vector<float>& weights =
       l.led_irradiance_rgb.empty() ? l.field_irradiance_rgb() : l.led_irradiance_rgb;
-  led_luminance.assign(led_dirs.size(), 0.0f);
-  for (size_t i = 0; i < led_dirs.size() && 3 * i + 2 < weights.size(); ++i)
+  led_luminance.assign(leds.size(), 0.0f);
+  for (size_t i = 0; i < leds.size() && 3 * i + 2 < weights.size(); ++i)
     led_luminance[i] = luminance(&weights[3 * i]);
   lighting = std::move(l);
   lighting_key = key;

@@ -71,8 +71,7 @@ struct ViewerApp::Impl {
   std::optional<relight::ModelMaps> base_maps, edited_maps;
   std::optional<std::vector<ViewEdit>> edits_in_maps;
   std::optional<relight::PcaField> pca_from_file, pca_from_field;
-  std::vector<Eigen::Vector3d> led_dirs;
-  std::vector<bool> led_valid;
+  std::vector<capture::FieldLight> leds;  // The field's lights, or the PCA's without a field.
   std::optional<physics::EnvironmentMap> env;
   std::string loaded_env;
   double env_display_stops = 0;

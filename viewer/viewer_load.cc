@@ -17,7 +17,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <optional>
 
 #include "capture/build_field.h"
@@ -47,33 +46,6 @@ fs::path data_dir() {
   return LIGHTSTAGE_DATA_DIR;
 }
 
-// LED directions and validity from a .lspca header (layout in relight/compact/pca_field.cc):
-// "LSPCA1\n", int32 width, height, lights, rank, tile_size, float64 sigma, per LED float64 x, y, z,
-// uint8 valid.
-void read_pca_leds(const fs::path& path, std::vector<Eigen::Vector3d>& dirs,
-                   std::vector<bool>& valid) {
-  std::ifstream in(path, std::ios::binary);
-  char magic[7];
-  int32_t header[5];
-  double sigma = 0;
-  in.read(magic, 7);
-  in.read(reinterpret_cast<char*>(header), sizeof header);
-  in.read(reinterpret_cast<char*>(&sigma), sizeof sigma);
-  if (!in || header[2] < 0 || header[2] > 100000)
-    throw InputError(path.string() + ": header: expected a lightstage PCA file");
-  dirs.resize(header[2]);
-  valid.resize(header[2]);
-  for (int l = 0; l < header[2]; ++l) {
-    double xyz[3];
-    uint8_t v = 0;
-    in.read(reinterpret_cast<char*>(xyz), sizeof xyz);
-    in.read(reinterpret_cast<char*>(&v), 1);
-    dirs[l] = Eigen::Vector3d(xyz[0], xyz[1], xyz[2]);
-    valid[l] = v != 0;
-  }
-  if (!in) throw InputError(path.string() + ": LED directions: expected more data");
-}
-
 physics::EnvironmentMap load_environment(const std::string& name) {
   if (name == "uniform") return physics::EnvironmentMap(Image(64, 32, 3, 1.0f), "uniform");
   const auto names = builtin_environment_names();
@@ -100,12 +72,7 @@ void ViewerApp::Impl::check_size(int w, int h, const fs::path& path) const {
 }
 
 void ViewerApp::Impl::set_leds_from_field() {
-  led_dirs.clear();
-  led_valid.clear();
-  for (const auto& light : field->lights()) {
-    led_dirs.push_back(light.dir_in_stage);
-    led_valid.push_back(light.valid);
-  }
+  leds = field->lights();
   strip_nearest_led.clear();
 }
 
@@ -177,15 +144,11 @@ void ViewerApp::Impl::load() {
   if (!state.pca_file.empty() && state.pca_file != loaded_pca) {
     relight::PcaField pca = relight::PcaField::read(state.pca_file);
     if (field) check_size(pca.width(), pca.height(), state.pca_file);
-    std::vector<Eigen::Vector3d> dirs;
-    std::vector<bool> valid;
-    read_pca_leds(state.pca_file, dirs, valid);
-    pca_from_file = std::move(pca);
     if (!field) {
-      led_dirs = dirs;
-      led_valid = valid;
+      leds = pca.lights();
       strip_nearest_led.clear();
     }
+    pca_from_file = std::move(pca);
     loaded_pca = state.pca_file;
     gpu_pca.reset();
     lighting_key.reset();

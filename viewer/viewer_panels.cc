@@ -41,17 +41,18 @@ void ViewerApp::Impl::update_strip() {
   if (!strip_texture) glGenTextures(1, &strip_texture);
   if (strip_nearest_led.empty()) {
     strip_nearest_led.assign(kStripWidth * kStripHeight, -1);
-    const double coverage = led_dirs.size() > 1 ? max_nearest_neighbour_angle(led_dirs)
-                                                : M_PI;  // Cells stop at the dome's coverage.
+    const double coverage = leds.size() > 1
+                                ? max_nearest_neighbour_angle(capture::light_directions(leds))
+                                : M_PI;  // Cells stop at the dome's coverage.
     for (int y = 0; y < kStripHeight; ++y) {
       for (int x = 0; x < kStripWidth; ++x) {
         const Eigen::Vector3d d =
             physics::EnvironmentMap::direction((x + 0.5) / kStripWidth, (y + 0.5) / kStripHeight);
         double best = -2;
         int best_led = -1;
-        for (size_t l = 0; l < led_dirs.size(); ++l) {
-          if (!led_valid[l]) continue;
-          const double c = d.dot(led_dirs[l].normalized());
+        for (size_t l = 0; l < leds.size(); ++l) {
+          if (!leds[l].valid) continue;
+          const double c = d.dot(leds[l].dir_in_stage.normalized());
           if (c > best) {
             best = c;
             best_led = int(l);
@@ -479,14 +480,14 @@ void ViewerApp::Impl::strip_panel() {
   ImDrawList* draw = ImGui::GetWindowDrawList();
   const float max_weight =
       led_luminance.empty() ? 0.0f : *std::max_element(led_luminance.begin(), led_luminance.end());
-  for (size_t l = 0; l < led_dirs.size(); ++l) {
-    const Eigen::Vector2d uv = physics::EnvironmentMap::uv(led_dirs[l].normalized());
+  for (size_t l = 0; l < leds.size(); ++l) {
+    const Eigen::Vector2d uv = physics::EnvironmentMap::uv(leds[l].dir_in_stage.normalized());
     const float weight = max_weight > 0 && l < led_luminance.size()
                              ? std::sqrt(std::max(0.0f, led_luminance[l]) / max_weight)
                              : 0.0f;
     draw->AddCircleFilled(ImVec2(p.x + float(uv.x()) * w, p.y + float(uv.y()) * h),
                           1.5f + 4.0f * weight,
-                          led_valid[l] ? IM_COL32(255, 230, 60, 220) : IM_COL32(255, 60, 60, 220));
+                          leds[l].valid ? IM_COL32(255, 230, 60, 220) : IM_COL32(255, 60, 60, 220));
   }
   if (state.point_light) {
     const Eigen::Vector2d uv = physics::EnvironmentMap::uv(state.light_dir.normalized());

@@ -76,7 +76,9 @@ int capture_session(const jobs::CaptureOptions& options, bool quiet) {
     }
     progress.emplace("capture", long(total_frames), quiet);
   };
-  callbacks.on_progress = [&](const CaptureProgress& p) { progress->update(p.done, p.current); };
+  callbacks.on_progress = [&](const std::string&, long done, long, const std::string& frame) {
+    progress->update(done, frame);
+  };
   const jobs::CaptureJobSummary job = jobs::capture(options, callbacks);
   if (job.already_complete) {
     print_frame_check(options, job.frame_check);

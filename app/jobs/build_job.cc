@@ -49,8 +49,7 @@ BuiltField build_step(const Session& session, const BuildJobOptions& options, in
   build.memory = options.memory;
   build.correct_drift = options.correct_drift;
   build.storage = capture::parse_storage_choice("--storage", options.storage);
-  build.on_progress = [&](int done, int total) { report(progress, "build", done, total); };
-  build.on_band_written = [&](int done, int total) { report(progress, "write", done, total); };
+  build.progress = progress;
   const Ranks& ranks = Ranks::world();
   build.split = ranks.split();
   BuiltField result;

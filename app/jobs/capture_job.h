@@ -50,7 +50,7 @@ struct CaptureCallbacks {
   const std::atomic<bool>* stop_requested = nullptr;  // Set (e.g. by a signal): stop cleanly.
   // Called once the session is open, before any LED turns on.
   std::function<void(const CaptureJobSummary& before, int total_frames)> on_start;
-  std::function<void(const CaptureProgress&)> on_progress;
+  ProgressFn on_progress;  // As SequencerOptions::on_progress.
 };
 
 // Opens the devices of the stage's back-end (ls::backend_registry()) before anything is created or

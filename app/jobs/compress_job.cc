@@ -292,10 +292,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
           [&](int y0, int y1, capture::ReflectanceField& band) { stream.read_rows(y0, y1, band); },
           bands, rows};
       pca = relight::pca_in_bands(input, pca_options, *checkpoint, options.out, split, pca_summary,
-                                  summary.resumed_rows, [&](int y1, int height, bool resumed) {
-                                    report(progress, "coefficients (rows)", y1, height,
-                                           resumed ? "resumed" : "");
-                                  });
+                                  summary.resumed_rows, progress);
       summary.ranks = ranks.size();
       if (!ranks.root()) return summary;  // Rank 0 wrote the file.
       checkpoint->remove();

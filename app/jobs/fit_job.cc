@@ -186,7 +186,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
     report(progress, "normals", 0, 1, "photometric stereo");
     const relight::NormalMap normals = relight::estimate_normals(whole, fit.normals);
     report(progress, "normals", 1, 1);
-    fit.progress = [&](long done, long total) { report(progress, "fit", done, total); };
+    fit.progress = progress;
     const relight::ModelMaps maps = relight::fit_models(whole, normals, fit);
     relight::write_model_maps(options.out, maps, attributes);
     result = {maps.summary, maps.materials};
@@ -270,7 +270,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
       report(progress, "read fields", long(fields.size()), long(steps.size()),
              fs::path(field.source).filename());
     }
-    fit.progress = [&](long done, long total) { report(progress, "fit over time", done, total); };
+    fit.progress = progress;
     const relight::TemporalMaps maps = relight::fit_temporal(fields, fit);
     relight::write_temporal_maps(options.out, maps, attributes);
     summary.fit = maps.summary;

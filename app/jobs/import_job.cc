@@ -35,7 +35,7 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
                             const ProgressFn& progress) {
   ImportJobSummary summary;
   summary.format = capture::detect_olat_format(source);
-  options.on_progress = [&](int done, int total) { report(progress, "import", done, total); };
+  options.progress = progress;
   // The preview: the light nearest the camera (+Z), the most evenly lit of the images (the first
   // of equals), kept as the images are read.
   std::mutex preview_mutex;

@@ -124,7 +124,7 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
     edits = relight::read_model_edits(options.edits_file, width, height);
   }
   std::optional<capture::FieldStream> field;
-  FieldLights lights;
+  std::vector<capture::FieldLight> lights;
   if (!options.field_file.empty()) {
     field.emplace(options.field_file);
     if (field->width() != width || field->height() != height) {
@@ -133,13 +133,13 @@ void relight_models(const RelightOptions& options, RelightSummary& summary,
                        options.models_file.string() + "), got " + std::to_string(field->width()) +
                        "x" + std::to_string(field->height()));
     }
-    lights = field_lights(field->header());
+    lights = field->header().lights();
   }
   // With a field, the models get the light the field gets (the dome's coverage): the fit saw no
   // other, and a lobe aimed below the dome is not bounded by any measurement.
   relight::EnvironmentSampling sampling;
   sampling.directions_width = options.directions_width;
-  sampling.covered_by_leds = lights.dirs;
+  sampling.covered_by_leds = capture::light_directions(lights);
   sampling.coverage_radius_rad = coverage_rad(options);
   std::vector<ModelOutput> outputs;
   if (options.light_dir) {

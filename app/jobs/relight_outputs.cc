@@ -77,15 +77,6 @@ double total_luma(const std::vector<float>& irradiance_rgb) {
   return sum;
 }
 
-FieldLights field_lights(const capture::ReflectanceField& field) {
-  FieldLights out;
-  for (const auto& light : field.lights()) {
-    out.dirs.push_back(light.dir_in_stage);
-    out.valid.push_back(light.valid);
-  }
-  return out;
-}
-
 double coverage_rad(const RelightOptions& options) { return options.coverage_deg * M_PI / 180.0; }
 
 std::size_t memory_given(const RelightOptions& options) {

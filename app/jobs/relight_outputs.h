@@ -80,11 +80,6 @@ class RelitWriter {
   ExrAttributes attributes_;
 };
 
-struct FieldLights {
-  std::vector<Eigen::Vector3d> dirs;
-  std::vector<bool> valid;
-};
-FieldLights field_lights(const capture::ReflectanceField& field);
 double coverage_rad(const RelightOptions& options);
 // What the run may hold: options.memory_bytes, or (0) half of the memory available.
 std::size_t memory_given(const RelightOptions& options);

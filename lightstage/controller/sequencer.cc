@@ -496,8 +496,9 @@ class CaptureRun {
       for (size_t k = i; k < end; ++k) {
         frames.push_back(led >= 0 ? capture_with_retries(missing_[k]) : capture_dark(missing_[k]));
         if (options_.on_progress) {
-          options_.on_progress({summary_.frames_already_present + frames_taken_ + int(k - i) + 1,
-                                total_, missing_[k].key.name(stage_)});
+          options_.on_progress("capture",
+                               summary_.frames_already_present + frames_taken_ + long(k - i) + 1,
+                               total_, missing_[k].key.name(stage_));
         }
       }
       if (led >= 0) still_bad = verify_bracket(i, frames, darks);

@@ -11,20 +11,17 @@
 
 #include "lightstage/controller/frame_checks.h"
 #include "lightstage/hardware.h"
+#include "lightstage/progress.h"
 #include "lightstage/session.h"
 
 namespace ls {
 
-struct CaptureProgress {
-  int done = 0;         // Frames in the session, this run and earlier runs.
-  int total = 0;        // Frames in the plan.
-  std::string current;  // Name of the frame just written.
-};
-
 struct SequencerOptions {
   // Set asynchronously (e.g. by a SIGINT handler); checked before every frame.
   const std::atomic<bool>* stop_requested = nullptr;
-  std::function<void(const CaptureProgress&)> on_progress;
+  // Phase "capture": frames in the session (this run and earlier runs) of the plan's; the item is
+  // the name of the frame just written.
+  ProgressFn on_progress;
   // Dead LEDs. An LED is dark when its brightest bracket frame exceeds the dark frame by less than
   // dead_led_threshold of full scale (99.9th percentile). A dark LED is judged broken, and flagged,
   // only when nearly all its neighbours on the dome (80%; those within 1.6x the angle to its

@@ -14,11 +14,11 @@ namespace ls::relight {
 // ---------------------------------------------------------------------------------------------
 // LightInterpolator
 
-LightInterpolator::LightInterpolator(const std::vector<Eigen::Vector3d>& led_dirs,
-                                     const std::vector<bool>& valid, double sigma_rad) {
-  for (const auto& d : led_dirs) dirs_.push_back(d.normalized());
-  for (int l = 0; l < int(dirs_.size()); ++l) {
-    if (valid.empty() || valid[l]) active_.push_back(l);
+LightInterpolator::LightInterpolator(const std::vector<capture::FieldLight>& leds,
+                                     double sigma_rad) {
+  for (int l = 0; l < int(leds.size()); ++l) {
+    dirs_.push_back(leds[size_t(l)].dir_in_stage.normalized());
+    if (leds[size_t(l)].valid) active_.push_back(l);
   }
   const int n = int(active_.size());
   if (n == 0) return;
@@ -112,13 +112,7 @@ RawCompactField::RawCompactField(capture::ReflectanceField&& field, double sigma
 }
 
 void RawCompactField::init(double sigma_rad) {
-  std::vector<Eigen::Vector3d> dirs;
-  std::vector<bool> valid;
-  for (const auto& light : field_->lights()) {
-    dirs.push_back(light.dir_in_stage);
-    valid.push_back(light.valid);
-  }
-  interpolator_ = LightInterpolator(dirs, valid, sigma_rad);
+  interpolator_ = LightInterpolator(field_->lights(), sigma_rad);
 }
 
 void RawCompactField::relight_into(const LightingForModels& lights, Image& out) const {

@@ -109,8 +109,7 @@ PcaField basis_in_bands(const PcaBandsInput& input, const PcaOptions& options,
 
 PcaField pca_in_bands(const PcaBandsInput& input, const PcaOptions& options,
                       const CheckpointDir& checkpoint, const fs::path& out, const RankSplit& split,
-                      PcaSummary& summary, int& resumed_rows,
-                      const std::function<void(int y1, int height, bool resumed)>& on_rows) {
+                      PcaSummary& summary, int& resumed_rows, const ProgressFn& progress) {
   const int height = input.header.height(), rows = input.rows;
   PcaField pca = basis_in_bands(input, options, checkpoint, split, summary);
   const std::size_t row_floats = pca.coefficients_per_row();
@@ -133,7 +132,7 @@ PcaField pca_in_bands(const PcaBandsInput& input, const PcaOptions& options,
       spill.sync();  // The rows are there before their record says so.
       write_file_atomic(record, "");
     }
-    if (on_rows) on_rows(y1, height, resumed);
+    report(progress, "coefficients (rows)", y1, height, resumed ? "resumed" : "");
   });
   split.wait();  // Every band's coefficients are in the spill.
   if (!split.root()) return pca;

@@ -11,6 +11,7 @@
 
 #include "capture/field.h"
 #include "lightstage/checkpoint_dir.h"
+#include "lightstage/progress.h"
 #include "lightstage/rank_split.h"
 #include "relight/compact/pca_field.h"
 
@@ -25,10 +26,11 @@ struct PcaBandsInput {
 };
 
 // Writes the PCA of `input` to `out`; returns its basis. `resumed_rows`: rows a killed run had
-// projected; on_rows(y1, height, resumed) after each of this rank's bands.
+// projected; progress "coefficients (rows)" after each of this rank's bands ("resumed" for one a
+// killed run had done).
 PcaField pca_in_bands(const PcaBandsInput& input, const PcaOptions& options,
                       const CheckpointDir& checkpoint, const std::filesystem::path& out,
                       const RankSplit& split, PcaSummary& summary, int& resumed_rows,
-                      const std::function<void(int y1, int height, bool resumed)>& on_rows = {});
+                      const ProgressFn& progress = {});
 
 }  // namespace ls::relight

@@ -94,7 +94,7 @@ std::vector<double> held_out_errors(const capture::ReflectanceField& field,
   const Eigen::MatrixXd basis = spectrum.vectors.leftCols(k_max);  // nt x K
   std::vector<Eigen::Vector3d> train_dirs;
   for (int l : train) train_dirs.push_back(field.lights()[l].dir_in_stage);
-  const LightInterpolator interpolator(train_dirs, {}, sigma_rad);
+  const LightInterpolator interpolator(capture::lights_along(train_dirs), sigma_rad);
   Eigen::MatrixXd r(nh, nt);
   std::vector<double> w;
   for (int h = 0; h < nh; ++h) {
@@ -369,12 +369,9 @@ PcaField PcaField::build_basis(const capture::ReflectanceField& field, const Pca
   out.width_ = width;
   out.height_ = height;
   out.tile_size_ = options.tile_size >= std::max(width, height) ? 0 : options.tile_size;
-  for (const auto& light : field.lights()) {
-    out.led_dirs_.push_back(light.dir_in_stage);
-    out.led_valid_.push_back(light.valid);
-  }
+  out.lights_ = kept_lights(field.lights());
   int valid_lights = 0;
-  for (bool v : out.led_valid_) valid_lights += v ? 1 : 0;
+  for (const capture::FieldLight& light : out.lights_) valid_lights += light.valid ? 1 : 0;
 
   // Gram matrices per tile (global: bands of rows, summed).
   const int tx = out.tiles_x();
@@ -414,7 +411,7 @@ PcaField PcaField::build_basis(const capture::ReflectanceField& field, const Pca
   for (const Spectrum& s : spectra) out.bases_.push_back(s.vectors.leftCols(rank).cast<float>());
 
   out.sigma_rad_ = options.rbf_sigma_rad;
-  out.interpolator_ = LightInterpolator(out.led_dirs_, out.led_valid_, options.rbf_sigma_rad);
+  out.interpolator_ = LightInterpolator(out.lights_, options.rbf_sigma_rad);
   out.sigma_rad_ = out.interpolator_.sigma_rad();
 
   sum.rank = rank;
@@ -443,12 +440,18 @@ float PcaField::reconstruct(int x, int y, int light, int c) const {
   return v;
 }
 
-capture::ReflectanceField PcaField::header() const {
-  std::vector<capture::FieldLight> lights;
-  for (size_t l = 0; l < led_dirs_.size(); ++l) {
-    lights.push_back({int(l), led_dirs_[l], bool(led_valid_[l])});
+std::vector<capture::FieldLight> PcaField::kept_lights(
+    const std::vector<capture::FieldLight>& lights) {
+  std::vector<capture::FieldLight> kept;
+  kept.reserve(lights.size());
+  for (size_t l = 0; l < lights.size(); ++l) {
+    kept.push_back({int(l), lights[l].dir_in_stage, lights[l].valid});
   }
-  return capture::ReflectanceField::without_values(width_, height_, lights);
+  return kept;
+}
+
+capture::ReflectanceField PcaField::header() const {
+  return capture::ReflectanceField::without_values(width_, height_, lights_);
 }
 
 capture::FieldBands PcaField::reconstruction_bands(int rows) const {

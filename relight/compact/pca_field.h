@@ -60,9 +60,8 @@ namespace ls::relight {
 class LightInterpolator {
  public:
   LightInterpolator() = default;
-  // Only LEDs with valid[l] (all when empty) take part; others get weight 0.
-  LightInterpolator(const std::vector<Eigen::Vector3d>& led_dirs, const std::vector<bool>& valid,
-                    double sigma_rad = 0.0);
+  // Only the valid LEDs take part; the others get weight 0. Near LEDs count by their directions.
+  explicit LightInterpolator(const std::vector<capture::FieldLight>& leds, double sigma_rad = 0.0);
 
   int num_leds() const { return int(dirs_.size()); }
   double sigma_rad() const { return sigma_rad_; }
@@ -198,9 +197,9 @@ class PcaField : public CompactField {
   void relight_led_weights_into(const float* led_irradiance_rgb, Image& out) const;
 
   int rank() const { return rank_; }
-  int num_lights() const { return int(led_dirs_.size()); }
-  const std::vector<Eigen::Vector3d>& led_dirs() const { return led_dirs_; }
-  const std::vector<bool>& led_valid() const { return led_valid_; }
+  int num_lights() const { return int(lights_.size()); }
+  // The field's lights as the file keeps them: led_id (the index), direction and validity.
+  const std::vector<capture::FieldLight>& lights() const { return lights_; }
   int tile_size() const { return tile_size_; }
   // The reconstruction of one pixel's value under LED l.
   float reconstruct(int x, int y, int light, int c) const;
@@ -237,8 +236,10 @@ class PcaField : public CompactField {
   int tile_of(int x, int y) const;
 
   int width_ = 0, height_ = 0, rank_ = 0, tile_size_ = 0;
-  std::vector<Eigen::Vector3d> led_dirs_;
-  std::vector<bool> led_valid_;
+  // What the file keeps of a field's lights: their directions and validity (led_id: the index).
+  static std::vector<capture::FieldLight> kept_lights(
+      const std::vector<capture::FieldLight>& lights);
+  std::vector<capture::FieldLight> lights_;
   double sigma_rad_ = 0.0;
   std::vector<Eigen::MatrixXf> bases_;  // Per tile: L x k, orthonormal columns.
   std::vector<float> coefs_;            // Per pixel: k x 3, [j * 3 + c].

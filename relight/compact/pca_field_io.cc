@@ -49,8 +49,8 @@ void PcaField::write(const std::filesystem::path& path, const CoefficientRows& r
   for (int v : {width_, height_, num_lights(), rank_, tile_size_}) write_pod<int32_t>(out, v);
   write_pod<double>(out, sigma_rad_);
   for (int l = 0; l < num_lights(); ++l) {
-    for (int i = 0; i < 3; ++i) write_pod<double>(out, led_dirs_[l](i));
-    write_pod<uint8_t>(out, led_valid_[l] ? 1 : 0);
+    for (int i = 0; i < 3; ++i) write_pod<double>(out, lights_[size_t(l)].dir_in_stage(i));
+    write_pod<uint8_t>(out, lights_[size_t(l)].valid ? 1 : 0);
   }
   for (const auto& basis : bases_) {
     out.write(reinterpret_cast<const char*>(basis.data()), basis.size() * sizeof(float));
@@ -136,11 +136,8 @@ std::optional<PcaField> PcaField::load_basis(const std::filesystem::path& file,
       size_t(out.tile_size_ > 0 ? out.tiles_x() * ((out.height_ - 1) / out.tile_size_ + 1) : 1)) {
     return std::nullopt;
   }
-  for (const auto& light : header.lights()) {
-    out.led_dirs_.push_back(light.dir_in_stage);
-    out.led_valid_.push_back(light.valid);
-  }
-  out.interpolator_ = LightInterpolator(out.led_dirs_, out.led_valid_, out.sigma_rad_);
+  out.lights_ = kept_lights(header.lights());
+  out.interpolator_ = LightInterpolator(out.lights_, out.sigma_rad_);
   if (summary) *summary = sum;
   return out;
 }
@@ -182,8 +179,8 @@ PcaField PcaField::read(const std::filesystem::path& path) {
       throw InputError(file + ": lights[" + std::to_string(l) +
                        "].direction: expected a unit vector");
     }
-    out.led_dirs_.push_back(d);
-    out.led_valid_.push_back(read_pod<uint8_t>(in, file, "lights") != 0);
+    const bool valid = read_pod<uint8_t>(in, file, "lights") != 0;
+    out.lights_.push_back({l, d, valid});
   }
   const int64_t tiles =
       out.tile_size_ > 0 ? int64_t(out.tiles_x()) * ((out.height_ - 1) / out.tile_size_ + 1) : 1;
@@ -221,7 +218,7 @@ PcaField PcaField::read(const std::filesystem::path& path) {
   }
   in.peek();
   if (!in.eof()) throw InputError(file + ": coefficients: expected end of file, got more data");
-  out.interpolator_ = LightInterpolator(out.led_dirs_, out.led_valid_, out.sigma_rad_);
+  out.interpolator_ = LightInterpolator(out.lights_, out.sigma_rad_);
   return out;
 }
 

@@ -440,7 +440,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
         fit_pixel(d, options, m, local);
       }
       const long done = ++rows_done;
-      if (options.progress) options.progress(done, height);
+      report(options.progress, "fit", done, height);
     }
     const std::lock_guard lock(summary_mutex);
     summary.add(local);

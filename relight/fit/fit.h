@@ -45,6 +45,7 @@
 #include "capture/field.h"
 #include "lightstage/exr_channels.h"
 #include "lightstage/image.h"
+#include "lightstage/progress.h"
 #include "relight/fit/fit_shadows.h"
 #include "relight/fit/normals.h"
 
@@ -112,9 +113,9 @@ struct FitOptions {
   std::vector<Eigen::Vector3d> view_dir_per_pixel;
   // Where normals.noise came from, stored with the maps (e.g. "measured: dark-frame pairs").
   std::string noise_source = "default NoiseModel";
-  // Called as rows finish with (rows done, rows in all), from TBB worker threads, concurrently:
-  // it must be thread-safe (ProgressReporter::update is). Empty: no progress.
-  std::function<void(long done, long total)> progress;
+  // Phase "fit", rows: called as rows finish, from TBB worker threads, concurrently: it must be
+  // thread-safe (ProgressReporter::update is). Empty: no progress.
+  ProgressFn progress;
 
   std::string validate() const;
   // Weighs the fit with the field's own measured noise (capture/noise_estimate.h) when it carries

@@ -94,7 +94,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
 
 FieldSources::FieldSources(const capture::ReflectanceField& header,
                            const capture::FieldBands& bands, const std::vector<int>& leds,
-                           bool with_geometry, const std::function<void(int, int)>& progress) {
+                           bool with_geometry, const ProgressFn& progress) {
   const size_t pixels = size_t(header.width()) * header.height();
   std::map<int, std::vector<float>> images;
   for (const int led : leds) {
@@ -121,7 +121,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
   }
 }
 
-void FieldSources::recover_geometry(const std::function<void(int, int)>& progress) {
+void FieldSources::recover_geometry(const ProgressFn& progress) {
   LS_CHECK(led_image_ != nullptr,
            "FieldSources: the geometry needs every LED's image; this field was streamed");
   const std::lock_guard<std::mutex> lock(mutex_);
@@ -144,7 +144,7 @@ void FieldSources::prepare(const std::vector<int>& leds) {
 }
 
 void FieldSources::build_geometry(const std::function<LitMask(int led)>& mask_of,
-                                  const std::function<void(int, int)>& progress) {
+                                  const ProgressFn& progress) {
   std::vector<int> leds;
   std::vector<Eigen::Vector3d> dirs;
   for (int led = 0; led < int(led_dirs_.size()); ++led) {

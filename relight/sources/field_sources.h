@@ -50,7 +50,7 @@ class FieldSources {
   // every LED's image held during the pass.
   FieldSources(const capture::ReflectanceField& header, const capture::FieldBands& bands,
                const std::vector<int>& leds, bool with_geometry = false,
-               const std::function<void(int, int)>& progress = {});
+               const ProgressFn& progress = {});
   // A field in memory (it must outlive this): the fit now, each LED's shadow when a source first
   // falls next to it (a sun turning with the map in the viewer).
   explicit FieldSources(const capture::ReflectanceField& field);
@@ -61,9 +61,9 @@ class FieldSources {
                LedImageFn led_image);
   // The scene's shape from every usable LED's shadows (shadow_geometry.h), for add() to cast the
   // sources' shadows by where it agrees with the LEDs: seconds at 256^2 (more LEDs, larger maps:
-  // longer). Needs the LEDs' images (not the streamed constructor's). progress(done, total) per
-  // LED.
-  void recover_geometry(const std::function<void(int, int)>& progress = {});
+  // longer). Needs the LEDs' images (not the streamed constructor's). Progress per LED and
+  // region placed.
+  void recover_geometry(const ProgressFn& progress = {});
   // The geometry `other` recovered, for this view of the same field (no second recovery).
   void use_geometry_of(const FieldSources& other);
   // The shadows of `leds` now rather than when a source first falls next to them.
@@ -91,8 +91,7 @@ class FieldSources {
   LambertianFit fit_;
   std::vector<Eigen::Vector3d> led_dirs_;
   // From each usable LED's lit mask (mask_of(led)).
-  void build_geometry(const std::function<LitMask(int led)>& mask_of,
-                      const std::function<void(int, int)>& progress);
+  void build_geometry(const std::function<LitMask(int led)>& mask_of, const ProgressFn& progress);
 
   LedImageFn led_image_;      // Set: shadows made on demand.
   std::vector<bool> usable_;  // Per LED: not flagged dead.

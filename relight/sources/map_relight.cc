@@ -107,9 +107,7 @@ FieldSources& MapRelighter::sources(const ProgressFn& progress) {
                                        [pca = pca_](int led) { return pca->led_image(led); });
   }
   if (geometry_) {
-    sources_->recover_geometry([&](int done, int total) {
-      report(progress, "bright sources (the scene's shape)", done, total);
-    });
+    sources_->recover_geometry(progress);
   }
   return *sources_;
 }
@@ -260,10 +258,7 @@ void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const 
     const int rows = options_.memory_bytes > 0 ? stream_->rows_within(options_.memory_bytes - need)
                                                : stream_->band_rows(MemoryBudget{});
     const FieldSources streamed(stream_->header(), stream_->bands(rows), {leds.begin(), leds.end()},
-                                geometry_, [&](int done, int total) {
-                                  report(progress, "bright sources (the scene's shape)", done,
-                                         total);
-                                });
+                                geometry_, progress);
     for (MapRelit& r : relit) streamed.add(r.lighting, r.image);
     sources_ms = ms_since(t0);
   }

@@ -19,6 +19,8 @@ namespace ls::relight {
 
 namespace {
 
+const char* const kPhase = "bright sources (the scene's shape)";
+
 // Normals steeper than this (n_z, toward the camera) do not seed a region: their gradients are too
 // large to integrate reliably (limbs, flanks); those over kLimbNz join a neighbouring region.
 constexpr float kSeedNz = 0.5f;
@@ -438,7 +440,7 @@ void fill_holes(Depth& depth, std::vector<int> region, const std::vector<char>& 
 ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
                                const std::vector<Eigen::Vector3d>& led_dirs,
                                const std::function<LitMask(int led)>& lit_mask,
-                               const std::function<void(int, int)>& progress)
+                               const ProgressFn& progress)
     : field_width_(fit.normal.width), field_height_(fit.normal.height) {
   LS_CHECK(field_width_ > 0 && field_height_ > 0, "ShadowGeometry: the Lambertian fit is empty");
   scale_ = (std::max(field_width_, field_height_) + kDepthMapSize - 1) / kDepthMapSize;
@@ -453,7 +455,8 @@ ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
     led_dirs_.push_back(led_dirs[size_t(l)].normalized().cast<float>());
     led_lit_bits_.push_back(pack_lit_bits(mask));
     lit.push_back(reduce_mask(mask, field_width_, field_height_, in, scale_));
-    if (progress) progress(l + 1, int(led_dirs.size()) + 1);  // The carving still to come.
+    // The carving still to come: one more.
+    report(progress, kPhase, l + 1, long(led_dirs.size()) + 1);
   }
   const Surfaces surfaces = split_surfaces(in);
   Depth depth{width_, height_, {}, {}};
@@ -474,9 +477,8 @@ ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
       to_place += r != surfaces.background && placed_by_carving(surfaces, r, depth.top.size());
     }
     const int leds = int(led_dirs.size());
-    place_regions(depth, surfaces, relief, floating, lit, led_dirs_, [&] {
-      if (progress) progress(leds + ++placed, leds + to_place);
-    });
+    place_regions(depth, surfaces, relief, floating, lit, led_dirs_,
+                  [&] { report(progress, kPhase, leds + ++placed, leds + to_place); });
     continue_small_regions(depth, surfaces, floating, in);
     fill_holes(depth, surfaces.region, floating);
   }

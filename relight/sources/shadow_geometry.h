@@ -29,6 +29,7 @@
 #include <optional>
 #include <vector>
 
+#include "lightstage/progress.h"
 #include "relight/sources/source_render.h"
 
 namespace ls::relight {
@@ -63,10 +64,10 @@ class ShadowGeometry {
   static constexpr int kAgreeing = 7;        // and how many must agree.
 
   // `lit_mask(l)`: LED l's led_lit_mask, for each of `led_dirs` (unit, stage frame);
-  // `progress(done, total)`, where set, after each LED's mask and each region placed.
+  // progress, phase "bright sources (the scene's shape)", after each LED's mask and each region
+  // placed.
   ShadowGeometry(const LambertianFit& fit, const std::vector<Eigen::Vector3d>& led_dirs,
-                 const std::function<LitMask(int led)>& lit_mask,
-                 const std::function<void(int, int)>& progress = {});
+                 const std::function<LitMask(int led)>& lit_mask, const ProgressFn& progress = {});
 
   // A source's view: its disc (angular radius) and the LEDs nearest it.
   SourceShadowView view(const Eigen::Vector3d& dir, double radius_rad) const;

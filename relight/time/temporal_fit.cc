@@ -173,14 +173,17 @@ TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
   for (auto* f : order) {
     steps.push_back(fit_step(*f, normals, options));
     done_rows += f->height();
-    if (options.progress) options.progress(done_rows, total_rows);
+    report(options.progress, "fit over time", done_rows, total_rows);
   }
   const double seconds_steps =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
   TemporalFitOptions temporal = options;
   const long base = done_rows;
   if (options.progress) {
-    temporal.progress = [&, base](long done, long) { options.progress(base + done, total_rows); };
+    temporal.progress = [&, base](const std::string& phase, long done, long,
+                                  const std::string& item) {
+      options.progress(phase, base + done, total_rows, item);
+    };
   }
   TemporalMaps out = fit_temporal_models(steps, normals, temporal);
   out.summary.seconds_steps = seconds_steps;

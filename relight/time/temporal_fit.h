@@ -39,6 +39,7 @@
 #include "capture/field.h"
 #include "lightstage/exr_channels.h"
 #include "lightstage/image.h"
+#include "lightstage/progress.h"
 #include "relight/fit/fit.h"
 #include "relight/fit/normals.h"
 
@@ -122,8 +123,9 @@ struct TemporalFitOptions {
   int max_iterations = 60;  // Per temporal model fit (brdf.max_iterations: per step fit).
   // Learn data-driven curves (TemporalCurves) and offer them to every pixel.
   bool fit_curves = true;
-  // Called as rows finish (rows done, rows in all) from worker threads; must be thread-safe.
-  std::function<void(long done, long total)> progress;
+  // Phase "fit over time", rows (each step's fit, then the models'): called as rows finish, from
+  // worker threads; must be thread-safe.
+  ProgressFn progress;
   std::string validate() const;
 };
 

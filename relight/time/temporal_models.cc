@@ -444,7 +444,7 @@ TemporalMaps fit_temporal_processes(const std::vector<StepFit>& steps, const Nor
         best_bic[size_t(y) * width + x] = fit_pixel_models(series, flags, context, m, local);
       }
       const long done = ++rows_done;
-      if (options.progress) options.progress(done, height);
+      report(options.progress, "fit over time", done, height);
     }
     const std::lock_guard lock(mutex);
     summary.fitted += local.fitted;

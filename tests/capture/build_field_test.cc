@@ -110,7 +110,7 @@ TEST(BuildField, LinearCameraMatchesNoiseFreeOneLightRenders) {
   ASSERT_TRUE(c.session.complete());
   BuildOptions options;
   int progress_calls = 0, last_done = 0;
-  options.on_progress = [&](int done, int total) {
+  options.progress = [&](const std::string&, long done, long total, const std::string&) {
     ++progress_calls;
     EXPECT_EQ(total, kLeds);
     EXPECT_EQ(done, last_done + 1);
@@ -189,8 +189,8 @@ TEST(BuildField, DeadAndIncompleteLedsAreInvalidAndZero) {
   SequencerOptions options = instant();
   options.stop_requested = &stop;
   const int darks = stage.plan.dark_frames * int(stage.camera.bracket.size());
-  options.on_progress = [&](const CaptureProgress& p) {
-    if (p.done == darks + 3 * 6 + 2) stop = true;
+  options.on_progress = [&](const std::string&, long done, long, const std::string&) {
+    if (done == darks + 3 * 6 + 2) stop = true;
   };
   Captured c = capture(dir / "s", stage, options);
   ASSERT_FALSE(c.session.complete());
@@ -295,7 +295,8 @@ TEST(BuildField, InBandsWithinAMemoryBudgetGivesTheFieldBuiltInMemory) {
   // Bands of at most 7 rows (the merges of the LEDs in flight take their share of the budget).
   options.memory = MemoryBudget(2 * ReflectanceField::bytes_for(kSize, 7, kLeds));
   int bands = 0, total_bands = 0;
-  options.on_band_written = [&](int done, int total) {
+  options.progress = [&](const std::string& phase, long done, long total, const std::string&) {
+    if (phase != "write") return;
     EXPECT_EQ(done, bands + 1);
     bands = done;
     total_bands = total;
@@ -331,7 +332,7 @@ TEST(BuildField, InBandsWithinAMemoryBudgetGivesTheFieldBuiltInMemory) {
   // Where the spill cannot be written (beside the field, under a file), the build stops with the
   // place named and writes nothing.
   write_file_atomic(dir / "blocker", "a file, not a folder");
-  options.on_band_written = {};
+  options.progress = {};
   try {
     build_field_file(c.session, options, dir / "blocker" / "f.exr");
     ADD_FAILURE() << "expected an InputError";

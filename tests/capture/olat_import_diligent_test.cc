@@ -140,7 +140,7 @@ TEST(OlatImport, AKilledImportInBandsResumesFromTheImagesItRead) {
   const MemoryBudget budget(2 * ReflectanceField::bytes_for(40, 4, 24));  // Bands of 4 rows.
   struct Killed {};
   OlatImportOptions killed = options;
-  killed.on_progress = [](int done, int total) {
+  killed.progress = [](const std::string&, long done, long total, const std::string&) {
     if (2 * done >= total) throw Killed{};
   };
   EXPECT_THROW((void)import_olat_to_file(tmp / "sphere", killed, tmp / "bands.exr", {}, budget),

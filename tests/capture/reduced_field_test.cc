@@ -57,8 +57,8 @@ TEST(ReducedField, EachPixelIsTheMeanOfItsBlockInEveryLayout) {
     FieldStream stream(dir / name);
     int bands = 0;
     // A band of one block of rows (16 for the tiled file) at a time.
-    const ReflectanceField reduced =
-        read_reduced_field(stream, kFactor, 1, [&](int, int) { ++bands; });
+    const ReflectanceField reduced = read_reduced_field(
+        stream, kFactor, 1, [&](const std::string&, long, long, const std::string&) { ++bands; });
     EXPECT_EQ(reduced.width(), 10) << name;
     EXPECT_EQ(reduced.height(), 8) << name;
     EXPECT_GT(bands, 1) << name;

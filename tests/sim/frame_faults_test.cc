@@ -147,8 +147,8 @@ TEST_F(FrameFaults, ALineTriggeredCaptureMatchesTheSoftwareOneAndABrokenWireStop
   EXPECT_THROW(software.lights().pulse_trigger(), HardwareError);
   wire_trigger(wired.camera, sim.lights(), sim.camera());
   SequencerOptions options = Instant();
-  options.on_progress = [&](const CaptureProgress& p) {
-    if (p.done == 20) sim.set_trigger_wire_broken(true);
+  options.on_progress = [&](const std::string&, long done, long, const std::string&) {
+    if (done == 20) sim.set_trigger_wire_broken(true);
   };
   Session session = Session::create(tmp_ / "line", wired, {});
   const CaptureSummary broken = run_capture(session, sim.lights(), sim.camera(), options);

@@ -102,7 +102,7 @@ class GpuRelight : public ::testing::Test {
     ViewLighting lighting;
     lighting.lights = relight::LightingForModels::directional(Eigen::Vector3d(0.4, 0.5, 0.8),
                                                               Eigen::Vector3d(2.0, 1.5, 1.0));
-    const relight::LightInterpolator interpolator(led_dirs_, {});
+    const relight::LightInterpolator interpolator(field_->lights());
     lighting.led_irradiance_rgb = interpolator.led_irradiance(lighting.lights);
     return lighting;
   }

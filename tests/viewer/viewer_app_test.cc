@@ -326,7 +326,7 @@ TEST_F(ViewerApp_, ScriptedSequenceMatchesTheCpuRelighting) {
   app.apply(parse_one(R"({"action": "split", "source": "none"})"));
   app.apply(parse_one(R"({"action": "point_light", "dir": [0.3, 0.4, 0.8]})"));
   app.frame();
-  const relight::LightInterpolator interpolator(dirs_, valid_);
+  const relight::LightInterpolator interpolator(field_->lights());
   const auto lights = relight::LightingForModels::directional(
       Eigen::Vector3d(0.3, 0.4, 0.8).normalized(), Eigen::Vector3d(1, 1, 1));
   Image cpu_point;

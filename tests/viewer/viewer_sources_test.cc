@@ -213,7 +213,7 @@ TEST_F(ViewerBrightSources, GpuFieldAddsTheSources) {
   needs.field_sources = true;
   needs.model_lights = false;
   for (const double deg : {0.0, 1.0, 300.0}) {
-    const ViewLighting lighting = environment_lighting(*map_, deg, dirs_, valid_, needs);
+    const ViewLighting lighting = environment_lighting(*map_, deg, field_->lights(), needs);
     ASSERT_TRUE(lighting.split.has_value());
     ASSERT_TRUE(renders_bright_sources(lighting)) << "at " << deg << " deg";
     GpuTarget target(source->width(), source->height());
@@ -226,7 +226,7 @@ TEST_F(ViewerBrightSources, GpuFieldAddsTheSources) {
   // A map without a bright source: no split, the shader adds nothing.
   const physics::EnvironmentMap studio = physics::EnvironmentMap::load(
       testing::source_dir() / "data" / "envmaps" / "softbox_studio.exr");
-  const ViewLighting plain = environment_lighting(studio, 30, dirs_, valid_, needs);
+  const ViewLighting plain = environment_lighting(studio, 30, field_->lights(), needs);
   EXPECT_FALSE(plain.split.has_value());
   GpuTarget target(source->width(), source->height());
   source->render(plain, target);

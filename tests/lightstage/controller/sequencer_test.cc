@@ -85,8 +85,8 @@ TEST(Sequencer, StopRequestLeavesLedsOffAndResumeCompletesOnlyWhatIsMissing) {
   std::atomic<bool> stop{false};
   SequencerOptions options = Instant();
   options.stop_requested = &stop;
-  options.on_progress = [&](const CaptureProgress& p) {
-    if (p.done == 14) stop = true;  // Mid-capture, as SIGINT would.
+  options.on_progress = [&](const std::string&, long done, long, const std::string&) {
+    if (done == 14) stop = true;  // Mid-capture, as SIGINT would.
   };
   const CaptureSummary first = run_capture(session, lights, camera, options);
   EXPECT_EQ(first.status, CaptureSummary::Status::kInterrupted);
@@ -256,8 +256,8 @@ TEST(Sequencer, ADeadLedIsFlaggedWhateverMomentTheCaptureWasKilledAt) {
       std::atomic<bool> stop{false};
       SequencerOptions options = Instant();
       options.stop_requested = &stop;
-      options.on_progress = [&](const CaptureProgress& p) {
-        if (split_bracket && p.current == first_of_dead) stop = true;
+      options.on_progress = [&](const std::string&, long, long, const std::string& frame) {
+        if (split_bracket && frame == first_of_dead) stop = true;
       };
       run_capture(session, lights, camera, options);
     }

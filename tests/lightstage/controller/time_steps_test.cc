@@ -184,8 +184,8 @@ TEST(TimeSteps, ResumeOfAnInterruptedMultiStepCaptureTakesExactlyTheMissingFrame
   options.clock_s = [&] { return now; };
   options.stop_requested = &stop;
   const int stop_at = frames_per_step + 5;  // In the middle of step 1.
-  options.on_progress = [&](const CaptureProgress& p) {
-    if (p.done == stop_at) stop = true;
+  options.on_progress = [&](const std::string&, long done, long, const std::string&) {
+    if (done == stop_at) stop = true;
   };
   const CaptureSummary first = run_capture(session, lights, camera, options);
   ASSERT_EQ(first.status, CaptureSummary::Status::kInterrupted);

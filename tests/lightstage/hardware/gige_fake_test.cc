@@ -196,7 +196,9 @@ TEST_F(GigeFake, LineTriggeredSessionWaitsForEveryPulseAndABrokenWireStopsItResu
   options.verify_frames = false;  // The fake camera draws a test pattern, whatever the LEDs do.
   options.sleep = [](double) {};
   const int broken_after = 5;
-  options.on_progress = [&](const CaptureProgress& p) { connected = p.done < broken_after; };
+  options.on_progress = [&](const std::string&, long done, long, const std::string&) {
+    connected = done < broken_after;
+  };
   Session session = Session::create(tmp / "s", stage, {});
   const CaptureSummary stopped = run_capture(session, lights, camera, options);
   EXPECT_EQ(stopped.status, CaptureSummary::Status::kCameraFailed);

@@ -174,7 +174,7 @@ TEST(PcaField, HeldOutRankRuleIsNearTheBestRankBetweenLeds) {
 
 TEST(LightInterpolator, ExactAtLedsAndSmoothBetween) {
   const auto dirs = sim::rti_dome_stage().led_directions();
-  const LightInterpolator interpolator(dirs, {});
+  const LightInterpolator interpolator(capture::lights_along(dirs));
   std::vector<double> r;
   interpolator.weights_at(dirs[10], r);
   for (size_t l = 0; l < r.size(); ++l) EXPECT_NEAR(r[l], l == 10 ? 1.0 : 0.0, 1e-9);
@@ -182,7 +182,7 @@ TEST(LightInterpolator, ExactAtLedsAndSmoothBetween) {
   // fifth LED left out; sigma = mean nearest-neighbour angle).
   std::vector<Eigen::Vector3d> train, test;
   for (size_t i = 0; i < dirs.size(); ++i) (i % 5 == 2 ? test : train).push_back(dirs[i]);
-  const LightInterpolator sparse(train, {});
+  const LightInterpolator sparse(capture::lights_along(train));
   double sum = 0;
   int n = 0;
   const Eigen::Vector3d normal = Eigen::Vector3d(0.6, 0, 0.8);
