@@ -59,10 +59,7 @@ py::object capture(const py::object& stage, const py::object& scene, const py::o
     jobs::CaptureCallbacks callbacks;
     // A capture stops cleanly at the flag, before its next frame, with every LED off.
     callbacks.stop_requested = job.stop_requested;
-    callbacks.on_progress = [&job](const std::string& phase, long done, long total,
-                                   const std::string& frame) {
-      job.observe(phase, done, total, frame);
-    };
+    callbacks.on_progress = job.observe;
     summary = jobs::capture(options, callbacks);
   });
   using Status = CaptureSummary::Status;
