@@ -135,8 +135,7 @@ void score_scene(const std::string& scene_name, const capture::ReflectanceField&
                  const physics::EnvironmentMap& map, const CompactBenchOptions& options,
                  const std::vector<Candidate>& list, std::vector<CompactBenchRow>& rows,
                  const ProgressFn& progress, long& done, long total) {
-  std::vector<Eigen::Vector3d> dirs;
-  for (const auto& l : field.lights()) dirs.push_back(l.dir_in_stage);
+  const std::vector<Eigen::Vector3d> dirs = capture::light_directions(field.lights());
   const relight::LightWeights weights = relight::integrate_environment(map, dirs);
   const auto lighting = relight::LightingForModels::led_cells(dirs, weights);
   for (const Candidate& c : list) {

@@ -74,7 +74,7 @@ MapRelighter::MapRelighter(const capture::ReflectanceField& field, MapRelightOpt
 }
 
 MapRelighter::MapRelighter(const PcaField& pca, MapRelightOptions options)
-    : MapRelighter(pca.header().lights(), pca.width(), pca.height(), options) {
+    : MapRelighter(pca.lights(), pca.width(), pca.height(), options) {
   pca_ = &pca;
 }
 
