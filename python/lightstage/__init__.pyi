@@ -70,6 +70,11 @@ class Lights:
     @property
     def saturates_at(self) -> _F32:
         """Per LED and colour, the value of a sample clipped in every exposure (inf: never)."""
+    @property
+    def colours(self) -> npt.NDArray[np.float64]:
+        """Each light's RGB colour in field units (L x 3): ones, since a field is stored per unit of
+        each LED's calibrated irradiance and colour (build divides by them; an imported set is taken
+        as white lights)."""
 
 class Field:
     """A reflectance field file (OpenEXR, 'lightstage build' or 'import'): R(x, l), pixel x's

@@ -3,6 +3,7 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -114,6 +115,11 @@ class Field {
   std::mutex mutex_;
 };
 
+constexpr const char* kColoursDoc =
+    "Each light's RGB colour in field units (L x 3): ones, since a field is stored per unit of "
+    "each LED's calibrated irradiance and colour (build divides by them; an imported set is taken "
+    "as white lights).";
+
 // A field's lights as arrays (small: copied).
 struct Lights {
   std::vector<capture::FieldLight> lights;
@@ -173,7 +179,17 @@ void bind_lights(py::module_& m) {
             return out;
           },
           "Per LED and colour, the value of a sample clipped in every exposure (inf: never) "
-          "(L x 3).");
+          "(L x 3).")
+      .def_property_readonly(
+          "colours",
+          [](const Lights& l) {
+            // Values are per unit of each LED's irradiance and colour (build divides by the
+            // calibration; an import has none to divide by): every light is white in field units.
+            py::array_t<double> out({py::ssize_t(l.lights.size()), py::ssize_t(3)});
+            std::fill_n(out.mutable_data(), out.size(), 1.0);
+            return out;
+          },
+          kColoursDoc);
 }
 
 void bind_noise(py::module_& m) {

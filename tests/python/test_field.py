@@ -24,6 +24,8 @@ def test_header(field, stage_file):
     assert lights.valid.all()
     assert np.isnan(lights.positions).all()  # The built-in dome's LEDs are distant.
     assert lights.saturates_at.shape == (len(leds), 3)
+    # Stored per unit of each LED's calibrated colour: white lights.
+    np.testing.assert_array_equal(lights.colours, np.ones((len(leds), 3)))
     # A simulated capture measures its noise: both terms positive.
     noise = field.noise
     assert noise.measured
