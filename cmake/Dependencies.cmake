@@ -53,3 +53,29 @@ endif()
 
 # Runs across machines (MPI): optional. Without MPI everything builds and runs as one process.
 find_package(MPI COMPONENTS CXX)
+
+# Python bindings (python/): optional, built when pybind11 and NumPy are found (Debian:
+# pybind11-dev, python3-numpy). The static libraries are then position-independent, since the
+# extension module is a shared object that links them.
+option(LIGHTSTAGE_PYTHON "Build the Python bindings when pybind11 and NumPy are found" ON)
+set(LIGHTSTAGE_WITH_PYTHON OFF)
+if(LIGHTSTAGE_PYTHON AND NOT LIGHTSTAGE_FUZZ)
+  # The system's Python (Debian's, with python3-numpy), not whichever a version manager puts first
+  # on PATH; -DPython3_EXECUTABLE=... chooses another.
+  if(NOT DEFINED Python3_EXECUTABLE AND EXISTS /usr/bin/python3)
+    set(Python3_EXECUTABLE /usr/bin/python3 CACHE FILEPATH "Python the bindings are built for")
+  endif()
+  find_package(Python3 COMPONENTS Interpreter Development.Module NumPy)
+  set(PYBIND11_FINDPYTHON ON)
+  find_package(pybind11 2.10 CONFIG QUIET)
+  if(NOT Python3_FOUND)
+    message(STATUS "Python bindings skipped: no Python 3 with its headers (python3-dev)")
+  elseif(NOT Python3_NumPy_FOUND)
+    message(STATUS "Python bindings skipped: NumPy not found (python3-numpy)")
+  elseif(NOT pybind11_FOUND)
+    message(STATUS "Python bindings skipped: pybind11 not found (pybind11-dev)")
+  else()
+    set(LIGHTSTAGE_WITH_PYTHON ON)
+    message(STATUS "Python bindings: pybind11 ${pybind11_VERSION}, Python ${Python3_VERSION}")
+  endif()
+endif()

@@ -15,6 +15,14 @@ function(lightstage_library name)
   target_include_directories(${name} PUBLIC ${PROJECT_SOURCE_DIR})
   target_compile_options(${name} PRIVATE ${LIGHTSTAGE_WARNINGS})
   target_link_libraries(${name} PUBLIC ${ARG_PUBLIC_LINKS} PRIVATE ${ARG_PRIVATE_LINKS})
+  if(LIGHTSTAGE_WITH_PYTHON)
+    # Linked into the Python module too (a shared object). No semantic interposition: calls within
+    # a library are optimised as in the executables' position-independent code.
+    set_target_properties(${name} PROPERTIES POSITION_INDEPENDENT_CODE ON)
+    if(CMAKE_CXX_COMPILER_ID STREQUAL "GNU")
+      target_compile_options(${name} PRIVATE -fno-semantic-interposition)
+    endif()
+  endif()
 endfunction()
 
 # lightstage_test(NAME SOURCES ... LINKS ... [LABELS ...]): one GoogleTest binary, registered with CTest.

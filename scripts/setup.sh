@@ -20,6 +20,8 @@ PACKAGES=(
   libopenmpi-dev openmpi-bin
   xvfb xauth mesa-utils
   gnuplot-nox  # the benches' charts (its pngcairo terminal)
+  # The Python bindings (python/, docs/python.md), their tests and worked examples.
+  python3-dev pybind11-dev python3-numpy python3-pytest python3-dask python3-matplotlib
 )
 
 missing=()
