@@ -122,6 +122,7 @@ HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& cap
   const relight::TemporalMaps processes = relight::fit_temporal(fields, bic_alone);
   const relight::NormalMap normals = relight::estimate_temporal_normals(fields, options);
   std::vector<relight::StepFit> step_fits;
+  step_fits.reserve(fields.size());
   for (const capture::ReflectanceField& field : fields) {
     step_fits.push_back(relight::fit_step(field, normals, options));
   }

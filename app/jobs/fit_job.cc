@@ -233,6 +233,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   headers = relight::steps_by_time(headers);
   // The noise as plain fit's: measured by a step, else estimated from every step's data.
   std::vector<capture::FieldStream*> streams;
+  streams.reserve(steps.size());
   for (const auto& step : steps) streams.push_back(step.get());
   choose_noise(streams, fit.brdf);
   std::sort(steps.begin(), steps.end(), [&](const auto& a, const auto& b) {

@@ -4,8 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 #include <vector>
 
 #include "relight/time/temporal_fit.h"
@@ -53,8 +51,8 @@ double step_chi2(const Series& s, int k, const double* q) {
   return chi2;
 }
 
-// Interpolation's prediction of step k of `processes` from its neighbours there (as kSteps renders
-// it: interpolate_params), in the curves' space.
+// Interpolation's prediction of step k of `processes` from its neighbours there (the blend of
+// their parameters that models_at_time gives a kSteps pixel), in the curves' space.
 void interpolated_step(const Series& processes, int k, double* q) {
   const int before = k - 1, after = k + 1;
   const double w =

@@ -169,14 +169,8 @@ TemporalResult fit_process_of(const Series& s, const ShapeBounds& bounds, int it
              : 0.0;
   int k = 2;
   for (int p = 0; p < kTemporalParamCount; ++p) {
-    if (!param_moves(M, p)) {
-      x(k++) = wet[p];
-    } else if (dry_pinned_to_zero(M, p)) {
-      x(k++) = wet[p];
-    } else {
-      x(k++) = wet[p];
-      x(k++) = dry[p];
-    }
+    x(k++) = wet[p];  // A constant parameter's value, or its wet end.
+    if (param_moves(M, p) && !dry_pinned_to_zero(M, p)) x(k++) = dry[p];
   }
   const TemporalCost<M> cost{&s, bounds};
   const pixel::SolveResult<K> solved = pixel::solve(cost, x, iterations);
