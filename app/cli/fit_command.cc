@@ -42,6 +42,7 @@ void print_bands(int band_rows, int height, int ranks, int resumed_rows) {
 int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
   // Under MPI rank 0 reports (its own share of the bands) and prints; the others are silent.
   quiet = quiet || !jobs::Ranks::world().root();
+  const auto lock = lock_output(options.out);
   const jobs::FitJobSummary summary =
       jobs::fit(options, progress_printer(quiet), quiet ? jobs::NoiseNoticeFn{} : print_noise);
   if (!jobs::Ranks::world().root()) return 0;
@@ -94,6 +95,7 @@ namespace {
 int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
   // Under MPI rank 0 reports and prints; the others are silent.
   quiet = quiet || !jobs::Ranks::world().root();
+  const auto lock = lock_output(options.out);
   const jobs::TemporalFitJobSummary summary = jobs::fit_over_time(
       options, progress_printer(quiet), [&](const std::string& source, const relight::NoiseModel&) {
         if (!quiet) std::fprintf(stderr, "time steps: noise: %s\n", source.c_str());
@@ -202,6 +204,7 @@ void add_normals_command(CLI::App& app) {
     }
     // Under MPI rank 0 reports and prints; the others are silent.
     const bool root = jobs::Ranks::world().root();
+    const auto lock = lock_output(options->out);
     const jobs::NormalsJobSummary s =
         jobs::estimate_normals(*options, progress_printer(*quiet || !root));
     if (!root) return;
