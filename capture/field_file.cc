@@ -110,6 +110,12 @@ struct FieldWriter::File {
   int tile_size = 0;
   FieldStorage storage;
   std::vector<std::uint16_t> halves;  // Rows converted for writing (half storage).
+
+  // A StorageError when the file refused a write (a full disk), else an InputError.
+  [[noreturn]] void fail(const std::string& what) const {
+    if (file.failed()) throw StorageError(name + ": " + what);
+    throw InputError(name + ": " + what);
+  }
 };
 
 FieldWriter::FieldWriter(const std::filesystem::path& path, const ReflectanceField& header,
@@ -122,7 +128,7 @@ FieldWriter::FieldWriter(const std::filesystem::path& path, const ReflectanceFie
   f.storage = storage;
   std::string error;
   f.out = image_file::create("field.exr", spec, f.file, error);  // EXR, whatever the name.
-  if (!f.out) throw InputError(f.name + ": cannot open for writing: " + error);
+  if (!f.out) f.fail("cannot open for writing: " + error);
 }
 
 FieldWriter::~FieldWriter() = default;
@@ -152,8 +158,8 @@ void FieldWriter::write_rows(int y0, const ReflectanceField& band) {
     ok = f.out->write_rows(y0, y1, Sample::kFloat, band.values().data());
   }
   if (!ok) {
-    throw InputError(f.name + ": writing the reflectance field failed (rows " + std::to_string(y0) +
-                     ".." + std::to_string(y1 - 1) + "): " + f.out->error());
+    f.fail("writing the reflectance field failed (rows " + std::to_string(y0) + ".." +
+           std::to_string(y1 - 1) + "): " + f.out->error());
   }
   next_row_ = y1;
 }
@@ -163,9 +169,7 @@ void FieldWriter::finish() {
   if (next_row_ != height_) {
     throw std::logic_error(f.name + ": FieldWriter::finish before every row was written");
   }
-  if (!f.out->close()) {
-    throw InputError(f.name + ": writing the reflectance field failed: " + f.out->error());
-  }
+  if (!f.out->close()) f.fail("writing the reflectance field failed: " + f.out->error());
   f.out.reset();
   f.file.commit();
 }

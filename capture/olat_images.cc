@@ -251,8 +251,9 @@ class SetImport {
     s.masked_out_pixels = int(all - inside);
     s.saturated_fraction =
         inside > 0 ? double(s.saturated_samples) / (double(inside) * 3 * num_lights()) : 0;
-    s.intensities_divided = job_.format == OlatFormat::kDiligent;
+    s.intensities_divided = job_.format == OlatFormat::kDiligent && job_.warnings.empty();
     s.notes = std::move(job_.notes);
+    s.warnings = std::move(job_.warnings);
     if (s.saturated_samples > 0) {
       s.notes.push_back(
           std::to_string(s.saturated_samples) + " samples at the maximum code (saturated): " +

@@ -34,6 +34,7 @@ struct OlatImageSet {
   int mask_width = 0, mask_height = 0;
   std::string mask_name;
   std::vector<std::string> notes;
+  std::vector<std::string> warnings;  // What was assumed for what the set does not say.
 };
 
 // The field's size and lights without its values: only the first image's header is read.

@@ -347,6 +347,12 @@ OlatImageSet read_rti_lp_set(const fs::path& lp_path, const OlatImportOptions& o
     entry.where = at;
     // .lp: x right, y up in the image, z toward the camera = stage +X, +Y, +Z (identity).
     entry.dir_in_stage = unit_direction(raw, at);
+    if (entry.dir_in_stage.z() < 0) {
+      throw InputError(at +
+                       ": light direction: expected a light on the camera's side of the "
+                       "object (z >= 0, toward the camera), got " +
+                       vector_text(raw) + ", behind it");
+    }
     entry.image = finder.find(written, at);
     norms.push_back(raw.norm());
     job.lights.push_back(std::move(entry));
@@ -426,8 +432,8 @@ OlatImageSet read_diligent_set(const fs::path& folder, const OlatImportOptions& 
       job.lights[i].intensity_rgb = rgb.cast<float>();
     }
   } else {
-    job.notes.push_back(intensities_file.string() +
-                        ": not found; every light taken as intensity 1");
+    job.warnings.push_back(intensities_file.string() +
+                           ": not found; every light taken as intensity 1 (white, equal)");
   }
 
   // Mask: non-zero = object (DiLiGenT's mask.png is 0 / 255). Pixels outside get zero samples,

@@ -75,6 +75,7 @@ struct OlatImportSummary {
   int masked_out_pixels = 0;                // DiLiGenT: pixels outside mask.png (set to 0).
   bool intensities_divided = false;         // DiLiGenT: light_intensities.txt divided out.
   std::vector<std::string> notes;           // E.g. image paths found by file name only.
+  std::vector<std::string> warnings;        // What was assumed: e.g. no light_intensities.txt.
   double seconds = 0.0;
   FieldStorage storage;                 // Into a file: how it holds the values,
   std::optional<HalfCheck> half_check;  // and (half or auto storage) what half would cost.

@@ -1,7 +1,9 @@
 #include "lightstage/checkpoint_dir.h"
 
 #include <fstream>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <set>
 #include <utility>
 
 #include "lightstage/errors.h"
@@ -15,6 +17,22 @@ CheckpointDir::CheckpointDir(const fs::path& out, std::string identity)
     : dir_(out.string() + ".partial"), identity_(std::move(identity)) {}
 
 namespace {
+
+// CheckpointDir::left_for_resume(): the folders in use, by path.
+std::mutex kept_mutex;
+std::set<fs::path>& kept_dirs() {
+  static std::set<fs::path> dirs;
+  return dirs;
+}
+
+void keep(const fs::path& dir, bool kept) {
+  const std::lock_guard lock(kept_mutex);
+  if (kept) {
+    kept_dirs().insert(dir);
+  } else {
+    kept_dirs().erase(dir);
+  }
+}
 
 // The rows run.json records for `identity`, if it does.
 std::optional<int> rows_recorded(const fs::path& dir, const std::string& identity) {
@@ -37,13 +55,18 @@ int CheckpointDir::recorded_rows() const {
 }
 
 int CheckpointDir::band_rows(int proposed) const {
-  if (const std::optional<int> rows = rows_recorded(dir_, identity_)) return *rows;
+  if (const std::optional<int> rows = rows_recorded(dir_, identity_)) {
+    keep(dir_, true);
+    return *rows;
+  }
   remove();  // None, unreadable or another run's: start afresh.
+  keep(dir_, true);
   std::error_code error;
   fs::create_directories(dir_, error);
   if (error) {
-    throw InputError(dir_.string() + ": cannot create the folder that lets a killed run resume (" +
-                     error.message() + ")");
+    throw StorageError(dir_.string() +
+                       ": cannot create the folder that lets a killed run resume (" +
+                       error.message() + ")");
   }
   write_file_atomic(dir_ / "run.json",
                     nlohmann::json{{"identity", identity_}, {"rows", proposed}}.dump());
@@ -97,6 +120,22 @@ bool read_record(
 void CheckpointDir::remove() const {
   std::error_code ignored;
   fs::remove_all(dir_, ignored);
+  keep(dir_, false);
+}
+
+std::vector<fs::path> CheckpointDir::left_for_resume() {
+  const std::lock_guard lock(kept_mutex);
+  std::vector<fs::path> there;
+  std::error_code ignored;
+  for (const fs::path& dir : kept_dirs()) {
+    if (!fs::is_directory(dir, ignored)) continue;
+    if (fs::is_empty(dir, ignored)) {
+      fs::remove(dir, ignored);
+    } else {
+      there.push_back(dir);
+    }
+  }
+  return there;
 }
 
 }  // namespace ls

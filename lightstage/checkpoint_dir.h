@@ -26,6 +26,10 @@ class CheckpointDir {
   const std::filesystem::path& dir() const { return dir_; }
   // Once the output is written.
   void remove() const;
+  // After a run failed: the folders this process made or reused (band_rows()) and did not remove,
+  // where they still are and hold something, for the next run to resume from (the CLI names them);
+  // those holding nothing are removed.
+  static std::vector<std::filesystem::path> left_for_resume();
 
  private:
   std::filesystem::path dir_;

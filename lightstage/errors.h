@@ -1,9 +1,11 @@
 #pragma once
 // Two tiers of errors (STYLE.md):
 //  * InputError / HardwareError: recoverable, caused by the user's files or the devices. The
-//  message
-//    names the file (or device), the field and what was expected; the CLI prints it and exits
-//    non-zero.
+//    message names the file (or device), the field and what was expected; the CLI prints it and
+//    exits non-zero.
+//  * StorageError: an output that cannot be written (a full disk, no permission, a folder that
+//    vanished); the message names the path. It is an InputError, so that code which reports an
+//    input's failure reports it too; the CLI exits 4 for it, not 2.
 //  * LS_CHECK: a broken invariant inside the program; it prints the values involved and aborts.
 #include <stdexcept>
 #include <string>
@@ -13,6 +15,11 @@ namespace ls {
 class InputError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
+};
+
+class StorageError : public InputError {
+ public:
+  using InputError::InputError;
 };
 
 class HardwareError : public std::runtime_error {

@@ -45,14 +45,16 @@ void commit_temp(const fs::path& tmp, const fs::path& path) {
   std::error_code ec;
   if (const int error = fsync_path(tmp, false); error != 0) {
     fs::remove(tmp, ec);
-    throw InputError(path.string() +
-                     ": cannot make the file durable (fsync): " + std::strerror(error));
+    throw StorageError(path.string() +
+                       ": cannot make the file durable (fsync): " + std::strerror(error));
   }
   fs::rename(tmp, path, ec);
   if (ec) {
-    const std::string why = fs::is_directory(path) ? "it is a folder" : ec.message();
+    const bool folder = fs::is_directory(path);
+    const std::string why = folder ? "it is a folder" : ec.message();
     fs::remove(tmp, ec);
-    throw InputError(path.string() + ": cannot write the file there: " + why);
+    if (folder) throw InputError(path.string() + ": cannot write the file there: " + why);
+    throw StorageError(path.string() + ": cannot write the file there: " + why);
   }
   fsync_path(path.parent_path().empty() ? fs::path(".") : path.parent_path(), true);
 }
@@ -61,7 +63,9 @@ void commit_temp(const fs::path& tmp, const fs::path& path) {
 
 AtomicFileWriter::AtomicFileWriter(const fs::path& path) : path_(path), temp_(temp_sibling(path)) {
   fd_ = ::open(temp_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  if (fd_ < 0) throw InputError(path.string() + ": cannot create file: " + std::strerror(errno));
+  if (fd_ < 0) {
+    throw StorageError(path.string() + ": cannot create file: " + std::strerror(errno));
+  }
 }
 
 AtomicFileWriter::~AtomicFileWriter() {
@@ -79,7 +83,7 @@ void AtomicFileWriter::write(const void* data, size_t size) {
     if (n > 0) {
       done += size_t(n);
     } else if (n < 0 && errno != EINTR) {
-      throw InputError(path_.string() + ": cannot write: " + std::strerror(errno));
+      fail(errno);
     }
   }
 }
@@ -92,7 +96,7 @@ void AtomicFileWriter::write_at(uint64_t offset, const void* data, size_t size) 
     if (n > 0) {
       done += size_t(n);
     } else if (n < 0 && errno != EINTR) {
-      throw InputError(path_.string() + ": cannot write: " + std::strerror(errno));
+      fail(errno);
     }
   }
 }
@@ -105,9 +109,19 @@ void AtomicFileWriter::commit() {
   if (error != 0) {
     std::error_code ec;
     fs::remove(temp_, ec);
-    throw InputError(path_.string() + ": cannot write: " + std::strerror(error));
+    fail(error);
   }
-  commit_temp(temp_, path_);
+  try {
+    commit_temp(temp_, path_);
+  } catch (const StorageError&) {
+    failed_ = true;
+    throw;
+  }
+}
+
+void AtomicFileWriter::fail(int error) {
+  failed_ = true;
+  throw StorageError(path_.string() + ": cannot write: " + std::strerror(error));
 }
 
 namespace {
@@ -247,8 +261,11 @@ struct ImageRowWriter::Output {
   int width = 0, height = 0, channels = 0, next_row = 0;
   std::vector<uint8_t> bytes;
 
+  // A write the file refused (a full disk) is a StorageError; the encoder's own, an InputError.
   [[noreturn]] void fail(const std::string& what) const {
-    throw InputError(path.string() + ": " + what + ": " + out->error());
+    const std::string message = path.string() + ": " + what + ": " + out->error();
+    if (file.failed()) throw StorageError(message);
+    throw InputError(message);
   }
 };
 
@@ -272,7 +289,11 @@ ImageRowWriter::ImageRowWriter(const fs::path& path, int width, int height, int 
   }
   std::string error;
   o.out = image_file::create(path, spec, o.file, error);
-  if (!o.out) throw InputError(path.string() + ": cannot start writing: " + error);
+  if (!o.out) {
+    const std::string message = path.string() + ": cannot start writing: " + error;
+    if (o.file.failed()) throw StorageError(message);
+    throw InputError(message);
+  }
 }
 
 ImageRowWriter::~ImageRowWriter() = default;

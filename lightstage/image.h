@@ -104,13 +104,13 @@ RawFrame read_raw_frame(const std::filesystem::path& path, int bit_depth);
 // CRC-32 as zlib computes it (the checksum PNG and gzip use).
 uint32_t crc32_of(const void* data, size_t size);
 
-// Writes `contents` to `path` atomically (temp + fsync + rename). Throws InputError on failure.
+// Writes `contents` to `path` atomically (temp + fsync + rename). Throws StorageError on failure.
 void write_file_atomic(const std::filesystem::path& path, const std::string& contents);
 
 // The same for a file written piece by piece (larger than memory): bytes go to a temporary
 // sibling, commit() makes it durable and renames it over `path`; destroyed before commit(), the
-// temporary file is removed, so no partial file is ever left at `path`. InputError naming the path
-// when a write fails (a full disk fails here, not silently later).
+// temporary file is removed, so no partial file is ever left at `path`. StorageError naming the
+// path when a write fails (a full disk fails here, not silently later).
 class AtomicFileWriter final : public image_file::Sink {
  public:
   explicit AtomicFileWriter(const std::filesystem::path& path);
@@ -121,17 +121,23 @@ class AtomicFileWriter final : public image_file::Sink {
   // At `offset` (a header's table filled in after the rows; the next write() is unaffected).
   void write_at(uint64_t offset, const void* data, size_t size) override;
   void commit();
+  // A write, the fsync or the rename failed: an encoder that wraps the error in its own message
+  // (an InputError) is reporting a StorageError.
+  bool failed() const { return failed_; }
 
  private:
+  [[noreturn]] void fail(int error);
+
   std::filesystem::path path_, temp_;
   int fd_ = -1;
+  bool failed_ = false;
 };
 
 // An image written a band of rows at a time, top to bottom, never held whole (maps of a field
 // larger than memory): the format from the extension, OpenEXR (float, zip, the
 // attributes in its header) as write_exr writes it, or an 8-bit PNG preview as write_png_preview
 // writes it (exposure 0), the same bytes. Atomic like AtomicFileWriter: nothing at `path` until
-// commit(); InputError naming the path when a write fails.
+// commit(); StorageError naming the path when a write fails.
 class ImageRowWriter {
  public:
   ImageRowWriter(const std::filesystem::path& path, int width, int height, int channels,

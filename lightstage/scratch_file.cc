@@ -59,9 +59,9 @@ void ScratchFile::transfer(Io io, char* bytes, std::size_t count, std::size_t at
 }
 
 void ScratchFile::fail(const std::string& what, bool with_errno) const {
-  throw InputError(path_.string() + ": " + what +
-                   (with_errno ? std::string(": ") + std::strerror(errno) : "") + " (" + needs_ +
-                   ")");
+  throw StorageError(path_.string() + ": " + what +
+                     (with_errno ? std::string(": ") + std::strerror(errno) : "") + " (" + needs_ +
+                     ")");
 }
 
 }  // namespace ls

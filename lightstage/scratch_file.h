@@ -14,15 +14,16 @@ class ScratchFile {
   // kept (a resumed build), and the file stays (its owner removes it once done with it).
   enum class Lifetime { kTemporary, kKept };
   // `needs`: what a failure means for the user, added to every error (e.g. "a field built in bands
-  // needs free space for the whole field beside it"). InputError naming the file when it cannot be
-  // created.
+  // needs free space for the whole field beside it"). StorageError naming the file when it cannot
+  // be created.
   ScratchFile(std::filesystem::path path, std::string needs,
               Lifetime lifetime = Lifetime::kTemporary);
   ~ScratchFile();
   ScratchFile(const ScratchFile&) = delete;
   ScratchFile& operator=(const ScratchFile&) = delete;
 
-  // `count` floats at float offset `at`; InputError naming the file on a failed or short transfer.
+  // `count` floats at float offset `at`; StorageError naming the file on a failed or short
+  // transfer.
   void write(const float* values, std::size_t count, std::size_t at);
   void read(float* values, std::size_t count, std::size_t at);
   // What was written, made durable (fdatasync): before a record that says it is there.

@@ -116,7 +116,7 @@ std::string read_journal(const fs::path& journal_path) {
   std::error_code ec;
   fs::resize_file(journal_path, complete == std::string::npos ? 0 : complete + 1, ec);
   if (ec)
-    throw InputError(journal_path.string() + ": cannot cut the torn last line: " + ec.message());
+    throw StorageError(journal_path.string() + ": cannot cut the torn last line: " + ec.message());
   return text;
 }
 
@@ -225,13 +225,13 @@ Session Session::create(const fs::path& dir, const Stage& stage, const SessionIn
   }
   std::error_code ec;
   fs::create_directories(dir / "frames", ec);
-  if (ec) throw InputError(dir.string() + ": cannot create session directory: " + ec.message());
+  if (ec) throw StorageError(dir.string() + ": cannot create session directory: " + ec.message());
   // Detect an unwritable directory before any LED is switched on.
   const fs::path probe = dir / ".write-test";
   {
     std::ofstream out(probe);
     out << "ok";
-    if (!out.flush()) throw InputError(dir.string() + ": session directory is not writable");
+    if (!out.flush()) throw StorageError(dir.string() + ": session directory is not writable");
   }
   fs::remove(probe, ec);
 
@@ -245,33 +245,14 @@ Session Session::create(const fs::path& dir, const Stage& stage, const SessionIn
   return s;
 }
 
-SessionWriterLock::SessionWriterLock(const fs::path& session_dir) {
-  const fs::path path = session_dir / "capture.lock";
-  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd_ < 0) {
-    throw InputError(path.string() + ": cannot open the session's lock: " + std::strerror(errno));
-  }
-  struct flock lock {};
-  lock.l_type = F_WRLCK;
-  lock.l_whence = SEEK_SET;
-  if (::fcntl(fd_, F_SETLK, &lock) != 0) {
-    struct flock holder {};
-    holder.l_type = F_WRLCK;
-    holder.l_whence = SEEK_SET;
-    const bool known = ::fcntl(fd_, F_GETLK, &holder) == 0 && holder.l_type != F_UNLCK;
-    ::close(fd_);
-    throw InputError(session_dir.string() + ": another capture is writing this session" +
-                     (known ? " (process " + std::to_string(holder.l_pid) + ")" : "") +
-                     ": wait for it to end, or stop it, then resume");
-  }
-  // For people looking: who holds it (the lock itself is the kernel's).
-  const std::string pid = std::to_string(::getpid()) + "\n";
-  if (::ftruncate(fd_, 0) != 0 || ::write(fd_, pid.data(), pid.size()) < 0) {
-    // The lock holds without the note.
-  }
-}
+SessionWriterLock::SessionWriterLock(const fs::path& session_dir)
+    : lock_(session_dir / "capture.lock",
+            session_dir.string() + ": another capture is writing this session", ", then resume",
+            /*remove_file=*/false) {}
 
-SessionWriterLock::~SessionWriterLock() { ::close(fd_); }  // Releases the lock.
+std::optional<pid_t> SessionWriterLock::capturing(const fs::path& session_dir) {
+  return WriterLock::holder(session_dir / "capture.lock");
+}
 
 Session Session::open(const fs::path& dir) {
   const fs::path manifest_path = dir / kManifest;
@@ -363,7 +344,10 @@ std::vector<PlannedFrame> Session::missing_frames() const {
 void Session::append_journal(const std::string& lines) const {
   const fs::path path = dir_ / kJournal;
   const int fd = ::open(path.c_str(), O_WRONLY | O_APPEND | O_CREAT, 0644);
-  if (fd < 0) throw InputError(path.string() + ": cannot open journal for appending");
+  if (fd < 0) {
+    throw StorageError(path.string() +
+                       ": cannot open journal for appending: " + std::strerror(errno));
+  }
   const off_t end_before = ::lseek(fd, 0, SEEK_END);
   const ssize_t n = ::write(fd, lines.data(), lines.size());
   const int write_errno = errno;
@@ -374,8 +358,8 @@ void Session::append_journal(const std::string& lines) const {
   }
   ::close(fd);
   if (!ok) {
-    throw InputError(path.string() +
-                     ": cannot append to journal: " + std::strerror(n < 0 ? write_errno : errno));
+    throw StorageError(path.string() +
+                       ": cannot append to journal: " + std::strerror(n < 0 ? write_errno : errno));
   }
 }
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "lightstage/hardware.h"
+#include "lightstage/output_lock.h"
 #include "lightstage/stage.h"
 
 namespace ls {
@@ -79,19 +80,18 @@ struct SessionInfo {
   uint64_t seed = 1;
 };
 
-// One capture writes a session at a time: an exclusive lock on SESSION/capture.lock,
-// held while this lives. A POSIX record lock, so the kernel drops it when its process ends: the
-// lock of a killed capture is stale by construction and the next capture takes it. InputError
-// naming the holding process when another capture holds it.
+// One capture writes a session at a time: an exclusive lock on SESSION/capture.lock (a
+// WriterLock), held while this lives. InputError naming the holding process when another capture
+// holds it.
 class SessionWriterLock {
  public:
   explicit SessionWriterLock(const std::filesystem::path& session_dir);
-  ~SessionWriterLock();
-  SessionWriterLock(const SessionWriterLock&) = delete;
-  SessionWriterLock& operator=(const SessionWriterLock&) = delete;
+
+  // The process of a capture writing the session now, if one is.
+  static std::optional<pid_t> capturing(const std::filesystem::path& session_dir);
 
  private:
-  int fd_ = -1;
+  WriterLock lock_;
 };
 
 class Session {

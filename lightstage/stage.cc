@@ -176,7 +176,12 @@ CapturePlan parse_plan(const JsonReader& r, const std::vector<Led>& leds, int br
   if (r.has("reference_led")) {
     plan.reference_led = led_id(r["reference_led"]);
   }
-  if (r.has("reference_every")) plan.reference_every = r["reference_every"].integer_in(1, 100000);
+  if (r.has("reference_every")) {
+    if (!r.has("reference_led")) {
+      r["reference_every"].fail("a \"reference_led\" beside it (the LED shot every N LEDs)");
+    }
+    plan.reference_every = r["reference_every"].integer_in(1, 100000);
+  }
   // A frame's plan key holds 8 bits of repeat (session.cc: sequence_key).
   if (plan.reference_shots(int(leds.size())) > 255) {
     (r.has("reference_every") ? r["reference_every"] : r["reference_led"])
@@ -249,6 +254,38 @@ std::vector<Eigen::Vector3d> layout_directions(const JsonReader& r) {
   if (type == "geodesic")
     return geodesic_dome_directions(r["frequency"].integer_in(1, 32), min_elev);
   return fibonacci_dome_directions(r["count"].integer_in(1, 100000), min_elev);
+}
+
+// What the camera section says of the LEDs: a trigger line of its own (not an LED's), and
+// simulated dead LEDs that are LEDs of the stage, each once, not all of them.
+void check_camera_against_leds(const JsonReader& r, const Stage& stage) {
+  const CameraSync& sync = stage.camera.sync;
+  if (sync.line_triggered()) {
+    const JsonReader s = r["sync"];
+    if (!s.has("gpio")) {
+      s.fail(
+          "a \"gpio\" {\"chip\", \"line\"} with \"trigger\": \"line\" (the line the stage "
+          "pulses to trigger the camera)");
+    }
+    for (const Led& led : stage.leds) {
+      if (led.gpio_line == sync.gpio_line && led.gpio_chip == sync.gpio_chip) {
+        s["gpio"].fail("a trigger line that no LED uses (LED " + std::to_string(led.id) +
+                       " is on " + sync.gpio_chip + " line " + std::to_string(sync.gpio_line) +
+                       ")");
+      }
+    }
+  }
+  if (!r.has("simulated_sensor") || !r["simulated_sensor"].has("dead_leds")) return;
+  const JsonReader ids = r["simulated_sensor"]["dead_leds"];
+  const std::vector<int>& dead = stage.camera.simulated.dead_led_ids;
+  std::set<int> seen;
+  for (std::size_t i = 0; i < dead.size(); ++i) {
+    if (stage.led_index(dead[i]) < 0) ids[i].fail("the id of an LED in \"leds\"");
+    if (!seen.insert(dead[i]).second) ids[i].fail("each LED id once (this one repeats)");
+  }
+  if (seen.size() == stage.leds.size()) {
+    ids.fail("some LED left alive (every LED is listed: the field would hold nothing)");
+  }
 }
 
 json vec_json(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
@@ -329,7 +366,10 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
   } else {
     stage.leds = stage_with_directions(layout_directions(r["layout"])).leds;
   }
-  if (r.has("camera")) stage.camera = parse_camera(r["camera"], base_dir);
+  if (r.has("camera")) {
+    stage.camera = parse_camera(r["camera"], base_dir);
+    check_camera_against_leds(r["camera"], stage);
+  }
   if (stage.camera.bracket.empty()) stage.camera.bracket = default_stage().camera.bracket;
   if (r.has("plan")) {
     stage.plan = parse_plan(r["plan"], stage.leds, int(stage.camera.bracket.size()));
@@ -347,6 +387,21 @@ Stage load_stage(const fs::path& path) {
   std::stringstream text;
   text << in.rdbuf();
   return parse_stage(text.str(), path.string());
+}
+
+void require_stage_files(const Stage& stage) {
+  const auto require_file = [&](const fs::path& file, const std::string& field) {
+    std::error_code ignored;
+    if (!fs::is_regular_file(file, ignored)) {
+      throw InputError(stage.source + ": " + field + ": " + file.string() + " not found");
+    }
+  };
+  if (!stage.calibration.flat_field.empty()) {
+    require_file(stage.calibration.flat_field, "calibration.flat_field");
+  }
+  if (stage.camera.response.kind == CameraResponse::Kind::kTable) {
+    require_file(stage.camera.response.table_file, "camera.response.file");
+  }
 }
 
 std::string stage_to_json(const Stage& stage) {

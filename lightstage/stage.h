@@ -153,6 +153,9 @@ struct Stage {
 // Loads and validates a stage file (JSON). Every problem is an InputError of the form
 // "<file>: <field>: <what was expected>, got <what was found>".
 Stage load_stage(const std::filesystem::path& path);
+// InputError naming the stage file and the field when a file the stage names (the flat field, a
+// response table) is not there: what a capture's build will read.
+void require_stage_files(const Stage& stage);
 Stage parse_stage(std::string_view json_text, const std::string& source_name);
 std::string stage_to_json(const Stage& stage);  // Round-trips through parse_stage.
 

@@ -13,6 +13,7 @@ namespace ls::cli {
 int build_field_file(const jobs::BuildJobOptions& options, bool quiet) {
   // Under MPI rank 0 reports (its own share of the LEDs, then the writing) and prints.
   const bool root = jobs::Ranks::world().root();
+  const auto lock = lock_output(options.out);
   const jobs::BuildJobSummary summary = jobs::build(options, progress_printer(quiet || !root));
   if (!root) return 0;
   const bool several = summary.fields.size() > 1;

@@ -1,8 +1,9 @@
 #pragma once
 // The lightstage subcommands. Each adds itself to the CLI11 app; parsing and printing live here,
 // the work in the libraries. Exit codes: 0 done, 1 usage, 2 bad input, 3 hardware fault,
-// 4 frames could not be saved (resumable), 130 interrupted (resumable).
+// 4 storage (an output or frame could not be written), 130 interrupted (resumable).
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "app/jobs/fit_job.h"
 #include "app/jobs/job.h"
 #include "app/jobs/relight_job.h"
+#include "lightstage/output_lock.h"
 
 namespace CLI {
 class App;
@@ -21,7 +23,7 @@ namespace ls::cli {
 
 inline constexpr int kExitInputError = 2;
 inline constexpr int kExitHardwareError = 3;
-inline constexpr int kExitStorageError = 4;  // Frames could not be saved (disk full); resumable.
+inline constexpr int kExitStorageError = 4;  // An output or frame could not be written.
 inline constexpr int kExitInterrupted = 130;
 
 void add_capture_command(CLI::App& app);
@@ -48,6 +50,10 @@ void add_view_command(CLI::App& app);  // view_command.cc: the interactive viewe
 std::string storage_line(const capture::FieldStorage& storage,
                          const std::optional<capture::HalfCheck>& half_check,
                          double file_mebibytes);
+
+// The lock on an output file or folder while this process writes it: a second writer is refused
+// naming the first (InputError). None on the other ranks of an MPI run: rank 0 holds it.
+std::unique_ptr<OutputLock> lock_output(const std::filesystem::path& out);
 
 // Prints a job's progress on stderr, one bar per phase (lightstage/progress.h); silent when quiet.
 jobs::ProgressFn progress_printer(bool quiet);

@@ -18,6 +18,7 @@ namespace ls::cli {
 
 void add_compress_command(CLI::App& app) {
   auto args = std::make_shared<jobs::CompressOptions>();
+  auto quiet = std::make_shared<bool>(false);
   auto* compress = app.add_subcommand(
       "compress",
       "Writes a compact representation of a field (EXR, or an .lp capture imported directly): "
@@ -36,19 +37,25 @@ void add_compress_command(CLI::App& app) {
                    "RTI files: display units (white = 1) per field unit; 0: the brightest "
                    "sample is white.")
       ->capture_default_str();
-  compress
-      ->add_option("--encoding", args->encoding,
-                   "RTI files: srgb (the sRGB codes of the field, fitted as such: what RTIViewer, "
-                   "relight and OpenLIME show) or linear (.rti only, for lightstage's own use).")
-      ->capture_default_str();
+  compress->add_option(
+      "--encoding", args->encoding,
+      "RTI files: srgb (the sRGB codes of the field, fitted as such: what RTIViewer, "
+      "relight and OpenLIME show) or linear (.rti only, for lightstage's own use). "
+      "Default: srgb.");
   add_memory_option(*compress, args->memory,
                     "Compress: the band of the field read at once (twice for PCA); an .lp set is "
                     "read in bands straight from its images.",
                     "half of the memory available; an .lp set's images 32 MiB");
-  compress->callback([args] {
+  compress->add_flag("--quiet", *quiet, "No progress output.");
+  compress->callback([args, quiet] {
     // A bad --format or --rank is bad input (exit 2): jobs::compress validates them.
-    const jobs::CompressSummary summary = jobs::compress(*args);
+    const auto lock = lock_output(args->out);
+    const jobs::CompressSummary summary =
+        jobs::compress(*args, progress_printer(*quiet || !jobs::Ranks::world().root()));
     if (!jobs::Ranks::world().root()) return;  // Under MPI rank 0 wrote the file and prints.
+    for (const std::string& warning : summary.warnings) {
+      std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    }
     if (args->format == "pca") {
       std::printf("%s\n%s: %.1f bytes per pixel\n", summary.details.c_str(), args->out.c_str(),
                   summary.bytes_per_pixel);
@@ -80,6 +87,7 @@ void add_export_command(CLI::App& app) {
   auto* exporter = app.add_subcommand("export", "Writes a field in another program's format.");
   exporter->require_subcommand(1);
   auto args = std::make_shared<jobs::OpenLimeExportOptions>();
+  auto quiet = std::make_shared<bool>(false);
   auto* openlime = exporter->add_subcommand(
       "openlime",
       "An OpenLIME folder (info.json and its planes, as relight writes them) of a field or an .lp "
@@ -106,10 +114,12 @@ void add_export_command(CLI::App& app) {
                     "Export: the band of the field read at once (three passes); an .lp set is "
                     "read in bands straight from its images.",
                     "half of the memory available; an .lp set's images 32 MiB");
-  openlime->callback([args] {
+  openlime->add_flag("--quiet", *quiet, "No progress output.");
+  openlime->callback([args, quiet] {
     // Bad options are bad input (exit 2), as compress's.
+    const auto lock = lock_output(args->out);
     const jobs::OpenLimeExportSummary summary =
-        jobs::export_openlime(*args, progress_printer(false));
+        jobs::export_openlime(*args, progress_printer(*quiet));
     const auto mib = [](std::uintmax_t bytes) { return double(bytes) / (1 << 20); };
     std::printf("%s: OpenLIME %s (%s), %dx%d from %d lights\n", args->out.c_str(),
                 summary.representation.c_str(), summary.chosen.c_str(), summary.width,
@@ -152,6 +162,7 @@ void add_render_command(CLI::App& app) {
     if (const std::string problem = args->validate(); !problem.empty()) {
       throw CLI::ValidationError("render", problem);
     }
+    const auto lock = lock_output(args->out);
     const jobs::RenderSummary summary = jobs::render_compact(*args);
     std::printf("%s: %dx%d, %s relit\n", args->out.c_str(), summary.width, summary.height,
                 summary.representation.c_str());

@@ -53,6 +53,7 @@ void print_bands(int band_rows, int height, int ranks, int resumed_rows) {
 int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
   // Under MPI rank 0 reports (its own share of the bands) and prints; the others are silent.
   quiet = quiet || !jobs::Ranks::world().root();
+  const auto lock = lock_output(options.out);
   const jobs::FitJobSummary summary =
       jobs::fit(options, progress_printer(quiet), quiet ? warn_default_noise : print_noise);
   if (!jobs::Ranks::world().root()) return 0;
@@ -105,6 +106,7 @@ namespace {
 int fit_time_fields(const jobs::FitJobOptions& options, bool quiet) {
   // Under MPI rank 0 reports and prints; the others are silent.
   quiet = quiet || !jobs::Ranks::world().root();
+  const auto lock = lock_output(options.out);
   const jobs::TemporalFitJobSummary summary = jobs::fit_over_time(
       options, progress_printer(quiet), quiet ? warn_default_noise : print_noise);
   if (!jobs::Ranks::world().root()) return 0;
@@ -219,6 +221,7 @@ void add_normals_command(CLI::App& app) {
     }
     // Under MPI rank 0 reports and prints; the others are silent.
     const bool root = jobs::Ranks::world().root();
+    const auto lock = lock_output(options->out);
     const jobs::NormalsJobSummary s =
         jobs::estimate_normals(*options, progress_printer(*quiet || !root));
     if (!root) return;

@@ -24,6 +24,7 @@ int print_import(const fs::path& source, const fs::path& out,
     std::printf("%s: %s\n", source.c_str(),
                 capture::to_string(capture::detect_olat_format(source)));
   }
+  const auto lock = lock_output(out);
   const jobs::ImportJobSummary job =
       jobs::import_set(source, out, options, memory, progress_printer(quiet || !root));
   if (!root) return 0;
@@ -43,6 +44,9 @@ int print_import(const fs::path& source, const fs::path& out,
   std::printf("  %.3f%% samples saturated (%lld)\n", 100.0 * summary.saturated_fraction,
               summary.saturated_samples);
   for (const std::string& note : summary.notes) std::printf("  note: %s\n", note.c_str());
+  for (const std::string& warning : summary.warnings) {
+    std::fprintf(stderr, "warning: %s\n", warning.c_str());
+  }
   std::printf(
       "wrote %s (%.1f MiB on disk, %.1f MiB as float in memory) and %s (light %d), %.2f s\n",
       out.c_str(), double(fs::file_size(out)) / (1 << 20), job.mebibytes, job.preview.c_str(),
@@ -65,6 +69,7 @@ int print_import(const fs::path& source, const fs::path& out,
 int print_series(const std::vector<fs::path>& sources, const std::vector<double>& times,
                  double interval_s, const fs::path& out, const capture::OlatImportOptions& options,
                  const MemoryBudget& memory, bool quiet) {
+  const auto lock = lock_output(out);
   const jobs::ImportSeriesSummary series = jobs::import_series(
       sources, times, interval_s, out, options, memory, progress_printer(quiet));
   for (size_t i = 0; i < series.steps.size(); ++i) {

@@ -2,11 +2,14 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <exception>
+#include <filesystem>
+#include <new>
 #include <string>
 
 #include "app/cli/commands.h"
 #include "app/cli/register_backends.h"
 #include "app/jobs/ranks.h"
+#include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
 
 namespace {
@@ -30,6 +33,17 @@ void check_split_over_ranks(const CLI::App& app, int argc, char** argv) {
         " ranks) only 'lightstage build', 'import', 'fit', 'normals', 'compress' and 'relight' "
         "split their work over ranks");
   }
+}
+
+// A run that failed says what it kept for the next one to resume from (OUT.partial/).
+int failed(int code) {
+  for (const auto& dir : ls::CheckpointDir::left_for_resume()) {
+    std::fprintf(stderr,
+                 "note: %s/ kept for resuming: running the same command again resumes from it; "
+                 "delete it to start over\n",
+                 dir.c_str());
+  }
+  return code;
 }
 
 int run(int argc, char** argv) {
@@ -62,22 +76,33 @@ int run(int argc, char** argv) {
     check_split_over_ranks(app, argc, argv);
     app.parse(argc, argv);
   } catch (const CLI::RuntimeError& e) {
-    return e.get_exit_code();  // A subcommand's own exit code (2, 3, 4, 130).
+    return failed(e.get_exit_code());  // A subcommand's own exit code (2, 3, 4, 130).
   } catch (const CLI::ParseError& e) {
     // Prints the message (or the help); any usage error exits with the documented 1.
     return app.exit(e) == 0 ? 0 : 1;
+  } catch (const ls::StorageError& e) {
+    std::fprintf(stderr, "storage error: %s\n", e.what());
+    return failed(ls::cli::kExitStorageError);
   } catch (const ls::InputError& e) {
     std::fprintf(stderr, "error: %s\n", e.what());
-    return ls::cli::kExitInputError;
+    return failed(ls::cli::kExitInputError);
   } catch (const ls::HardwareError& e) {
     std::fprintf(stderr, "hardware error: %s\n", e.what());
-    return ls::cli::kExitHardwareError;
+    return failed(ls::cli::kExitHardwareError);
+  } catch (const std::filesystem::filesystem_error& e) {  // A folder that cannot be made or read.
+    std::fprintf(stderr, "storage error: %s\n", e.what());
+    return failed(ls::cli::kExitStorageError);
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr,
+                 "error: out of memory: an allocation failed (give a smaller --memory where the "
+                 "command takes one, or free memory)\n");
+    return failed(ls::cli::kExitInputError);
   } catch (const std::exception& e) {  // Not one of ours: said (and, under MPI, ends every rank).
     std::fprintf(stderr, "error: %s\n", e.what());
-    return ls::cli::kExitInputError;
+    return failed(ls::cli::kExitInputError);
   } catch (...) {
     std::fprintf(stderr, "error: unknown exception\n");
-    return ls::cli::kExitInputError;
+    return failed(ls::cli::kExitInputError);
   }
   return 0;
 }

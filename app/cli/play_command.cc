@@ -35,7 +35,8 @@ void add_play_command(CLI::App& app) {
   cmd->add_option("--audit-groups", options->play.audit_group_size,
                   "Also play the LEDs in groups of this many neighbours, each fully on, and "
                   "bisect the groups that disagree: finds an LED the map hardly uses (0: off).")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1 << 20));
   cmd->add_option("--gain-tolerance", options->play.gain_tolerance,
                   "How much brighter or dimmer than the relit field the photograph may be.")
       ->capture_default_str();

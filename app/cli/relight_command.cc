@@ -17,6 +17,7 @@ namespace fs = std::filesystem;
 jobs::RelightSummary relight_and_report(const jobs::RelightOptions& options, bool quiet) {
   // Under MPI rank 0 reports and prints; the others are silent.
   const bool root = jobs::Ranks::world().root();
+  const auto lock = lock_output(options.out_dir);
   jobs::RelightSummary summary = jobs::relight(options, progress_printer(quiet || !root));
   if (!root) return summary;
   if (!quiet) {

@@ -29,6 +29,7 @@ void add_stage_command(CLI::App& app) {
   cmd->add_option("--write", args->write, "Write the stage (built-in or FILE) as JSON here.");
   cmd->callback([args] {
     const Stage stage = args->file.empty() ? default_stage() : load_stage(args->file);
+    require_stage_files(stage);
     if (!args->write.empty()) {
       write_file_atomic(args->write, stage_to_json(stage));
       std::printf("wrote %s\n", args->write.c_str());

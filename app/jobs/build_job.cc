@@ -76,6 +76,11 @@ BuildJobSummary build(const BuildJobOptions& options, const ProgressFn& progress
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("build: " + problem);
   }
+  if (const std::optional<pid_t> capture = SessionWriterLock::capturing(options.session_dir)) {
+    throw InputError(options.session_dir.string() + ": a capture (process " +
+                     std::to_string(*capture) +
+                     ") is writing this session: build it once the capture has ended");
+  }
   const Session session = Session::open(options.session_dir);
   BuildJobSummary summary;
   summary.reference_z_m = session.stage().calibration.reference_z_m;

@@ -17,20 +17,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// The files a stage names for the build (flat field, response table): a capture that would end
-// unbuildable is refused before its first frame, naming the stage file and the field.
-void check_calibration_files(const Stage& stage) {
-  const fs::path& flat = stage.calibration.flat_field;
-  if (!flat.empty() && !fs::is_regular_file(flat)) {
-    throw InputError(stage.source + ": calibration.flat_field: " + flat.string() + " not found");
-  }
-  const CameraResponse& response = stage.camera.response;
-  if (response.kind == CameraResponse::Kind::kTable && !fs::is_regular_file(response.table_file)) {
-    throw InputError(stage.source + ": camera.response.file: " + response.table_file.string() +
-                     " not found");
-  }
-}
-
 void collect_dead_leds(const Session& session, CaptureJobSummary& summary) {
   for (const auto& [index, reason] : session.dead_leds()) {
     summary.dead_leds.emplace_back(session.stage().leds[size_t(index)].id, reason);
@@ -125,7 +111,7 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   } else {
     Stage stage = options.stage_file.empty() ? default_stage() : load_stage(options.stage_file);
     if (!options.exposures_from.empty()) choose_exposures(options.exposures_from, stage, summary);
-    check_calibration_files(stage);
+    require_stage_files(stage);  // A capture that would end unbuildable: refused first.
     const Backend& backend = backend_registry().find(stage.camera.backend, stage.source);
     if (!options.scene_file.empty() && backend.input_file_name.empty()) {
       throw InputError(options.scene_file.string() + ": the \"" + backend.name + "\" back-end (" +

@@ -173,8 +173,12 @@ std::string CompressOptions::validate() const {
   }
   if (tile < 0) return "--tile: expected a tile size in pixels >= 0 (0: one global basis)";
   if (!(gain >= 0 && gain < 1e30)) return "--gain: expected a finite gain >= 0";
-  if (encoding != "srgb" && encoding != "linear") {
+  if (!encoding.empty() && encoding != "srgb" && encoding != "linear") {
     return "--encoding: expected srgb or linear, got \"" + encoding + "\"";
+  }
+  if (!encoding.empty() && format == "pca") {
+    return "--encoding " + encoding +
+           ": for RTI files (.ptm, .rti) only; a PCA file holds the field's linear values";
   }
   if (encoding == "linear" && format.starts_with("ptm")) {
     return "--encoding linear: a .ptm has no room to say its values are linear, and every viewer "
@@ -302,13 +306,18 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
     }
     summary.representation = pca.name();
     summary.details = pca_summary.to_string();
+    if (pca_options.rank > pca.rank()) {
+      summary.warnings.push_back("--rank " + options.rank +
+                                 ": more than this field allows (its usable lights); rank " +
+                                 std::to_string(pca.rank()) + " used");
+    }
     summary.bytes_per_pixel = pca.bytes_per_pixel();
     summary.output_bytes = fs::file_size(options.out);
     return summary;
   }
   relight::RtiFitOptions rti_options;
   rti_basis(options.format, rti_options);
-  if (options.encoding == "srgb") {
+  if (options.encoding != "linear") {
     rti_options.srgb_gain = options.gain > 0
                                 ? options.gain
                                 : white_gain(rows > 0 ? &stream : nullptr, rows, whole, ranks);

@@ -19,9 +19,10 @@ struct CompressOptions {
   std::string rank = "auto";   // PCA: a positive number, or auto (from the noise floor).
   int tile = 0;                // PCA tile size in pixels; 0: one global basis.
   double gain = 0.0;           // RTI files: display units per field unit; 0: brightest = white.
-  // RTI files: "srgb" fits and stores the sRGB codes of gain x the field, as the RTI viewers show
-  // them; "linear" (.rti only: a .ptm cannot say so) stores gain x the field, for lightstage's use.
-  std::string encoding = "srgb";
+  // RTI files: "srgb" (empty: the default) fits and stores the sRGB codes of gain x the field, as
+  // the RTI viewers show them; "linear" (.rti only: a .ptm cannot say so) stores gain x the field,
+  // for lightstage's use. A PCA takes none: it holds the field's own values.
+  std::string encoding;
   // For the field: a larger one is read in bands of rows (twice for PCA, three times with the
   // held-out rank rule). An .lp set its images cannot give in bands, with a budget given or
   // larger than the budget, is imported into a field file beside `out` first (in bands), and
@@ -41,6 +42,7 @@ struct CompressSummary {
   int band_rows = 0;     // Rows read at once: the height when read whole.
   int resumed_rows = 0;  // In bands: rows an earlier, killed run finished.
   int ranks = 1;         // .ptm/.rti: processes the bands were split over (MPI); rank 0 wrote.
+  std::vector<std::string> warnings;  // What was assumed (a --rank above what the field gives).
 };
 
 // Throws InputError for bad options or inputs; the output is written only on success.

@@ -10,6 +10,7 @@
 #include "capture/field.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/run_outputs.h"
 
 namespace ls::jobs {
 
@@ -119,6 +120,7 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
                        std::to_string(out.times_s[i - 1]) + " s (" + out.sets[i].string() + ")");
     }
   }
+  RunOutputs outputs(out_dir);  // A series refused part-way leaves no fields.
   fs::create_directories(out_dir);
   for (size_t i = 0; i < steps; ++i) {
     char name[32];
@@ -126,9 +128,23 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
     capture::OlatImportOptions step = options;
     step.scene_time_s = out.times_s[i];
     out.fields.push_back(out_dir / name);
+    outputs.add(out.fields.back());
+    outputs.add(fs::path(out.fields.back()).replace_extension(".preview.png"));
     out.steps.push_back(import_set(out.sets[i], out.fields.back(), step, memory, {}));
+    // One scene over time: every step the same pixels under the same number of lights.
+    const capture::OlatImportSummary& first = out.steps.front().import;
+    const capture::OlatImportSummary& now = out.steps.back().import;
+    if (now.width != first.width || now.height != first.height || now.images != first.images) {
+      const auto shape = [](const capture::OlatImportSummary& s) {
+        return std::to_string(s.width) + "x" + std::to_string(s.height) + ", " +
+               std::to_string(s.images) + " images";
+      };
+      throw InputError(out.sets[i].string() + ": expected a set like " + out.sets[0].string() +
+                       " (" + shape(first) + ": the time steps of one scene), got " + shape(now));
+    }
     report(progress, "import (time steps)", long(i + 1), long(steps), out.sets[i].filename());
   }
+  outputs.keep();
   return out;
 }
 

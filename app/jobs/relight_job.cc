@@ -15,6 +15,7 @@
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/memory.h"
+#include "lightstage/run_outputs.h"
 #include "physics/envmap.h"
 #include "relight/fit/model_edit.h"
 #include "relight/fit/model_render.h"
@@ -53,7 +54,12 @@ std::string RelightOptions::validate() const {
   }
   if (exposure_stops && !std::isfinite(*exposure_stops)) return "--exposure: expected a number";
   for (double r : rotations_deg) {
-    if (!std::isfinite(r)) return "--rotate: expected finite angles in degrees";
+    // Within 100 turns: an output's name carries the angle in whole degrees.
+    if (!(std::abs(r) <= 36000)) {
+      char got[64];
+      std::snprintf(got, sizeof got, "%g", r);
+      return std::string("--rotate: expected angles in degrees within [-36000, 36000], got ") + got;
+    }
   }
   if (!(std::isfinite(coverage_deg) && coverage_deg >= 0)) {
     return "--coverage-deg: expected a finite angle >= 0";
@@ -150,13 +156,8 @@ void relight_field(const RelightOptions& options, RelightSummary& summary,
   }
 }
 
-}  // namespace
-
-RelightSummary relight(const RelightOptions& options, const ProgressFn& progress) {
-  if (const std::string problem = options.validate(); !problem.empty()) {
-    throw InputError("relight: " + problem);
-  }
-  RelightSummary summary;
+void relight_into(const RelightOptions& options, RelightSummary& summary,
+                  const ProgressFn& progress) {
   std::string title;
   const Ranks& ranks = Ranks::world();
   if (!options.temporal_file.empty()) {
@@ -169,12 +170,30 @@ RelightSummary relight(const RelightOptions& options, const ProgressFn& progress
     relight_field(options, summary, progress);
     title = "relit: " + options.field_file.filename().string();
   }
-  if (!ranks.root()) return summary;  // Under MPI rank 0 wrote the images.
+  if (!ranks.root()) return;  // Under MPI rank 0 wrote the images.
   if (!options.edits_file.empty()) title += " + " + options.edits_file.filename().string();
   std::vector<Preview> previews;
   for (const RelitImage& image : summary.images) previews.push_back({image.png, image.label});
   summary.contact_sheet = options.out_dir / "contact_sheet.png";
   write_contact_sheet(summary.contact_sheet, previews, title);
+}
+
+}  // namespace
+
+RelightSummary relight(const RelightOptions& options, const ProgressFn& progress) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("relight: " + problem);
+  }
+  RelightSummary summary;
+  RunOutputs outputs(options.out_dir);  // A run that fails leaves none of its images.
+  try {
+    relight_into(options, summary, progress);
+  } catch (...) {
+    for (const RelitImage& image : summary.images) outputs.add(image.exr), outputs.add(image.png);
+    outputs.add(summary.contact_sheet);
+    throw;
+  }
+  outputs.keep();
   return summary;
 }
 

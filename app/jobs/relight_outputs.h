@@ -66,12 +66,13 @@ class RelitWriter {
              double light_luma = 0) {
     std::filesystem::create_directories(options_.out_dir);
     relit.channel_names = {"R", "G", "B"};
-    RelitImage out{options_.out_dir / (name + ".exr"), options_.out_dir / (name + ".png"), name,
-                   std::move(detail)};
+    // Listed before it is written: a run that fails removes what it wrote (relight()).
+    const RelitImage& out = summary_.images.emplace_back(
+        RelitImage{options_.out_dir / (name + ".exr"), options_.out_dir / (name + ".png"), name,
+                   std::move(detail)});
     write_exr(out.exr, relit, ExrPixelType::kFloat, attributes_);
     write_png_preview(out.png, relit,
                       options_.exposure_stops.value_or(preview_exposure(relit, light_luma)));
-    summary_.images.push_back(std::move(out));
   }
 
  private:

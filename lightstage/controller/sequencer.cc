@@ -117,7 +117,7 @@ void require_free_space(const Session& session, const std::vector<PlannedFrame>&
                   ": the %zu frames still to capture need up to %.1f MiB, but the disk has only "
                   "%.1f MiB free; free some space or capture to another disk",
                   missing.size(), needed / (1 << 20), available / (1 << 20));
-    throw InputError(session.dir().string() + message);
+    throw StorageError(session.dir().string() + message);
   }
 }
 

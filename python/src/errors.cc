@@ -31,6 +31,9 @@ void bind_errors(py::module_& /*m*/) {
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
+    } catch (const StorageError& e) {
+      // An output that cannot be written: the message names the path first.
+      set_error("StorageError", e.what());
     } catch (const InputError& e) {
       set_error("InputError", e.what());
     } catch (const HardwareError& e) {

@@ -9,7 +9,9 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/image_file.h"
 #include "lightstage/json_reader.h"
+#include "lightstage/run_outputs.h"
 #include "lightstage/scratch_file.h"
 #include "relight/compact/plane_field.h"
 
@@ -31,11 +33,34 @@ std::vector<float> floats(const JsonReader& array, size_t count) {
   return out;
 }
 
+// A plane is the 8-bit image info.json's format says: a 16-bit PNG named .jpg is not one.
+void require_8bit_plane(const fs::path& plane, const std::string& format) {
+  std::ifstream in(plane, std::ios::binary);
+  unsigned char magic[3] = {0, 0, 0};
+  in.read(reinterpret_cast<char*>(magic), 3);
+  const bool jpeg = magic[0] == 0xFF && magic[1] == 0xD8 && magic[2] == 0xFF;
+  const bool png = magic[0] == 0x89 && magic[1] == 'P' && magic[2] == 'N';
+  if (in && (format == "jpg" ? !jpeg : !png)) {
+    throw InputError(plane.string() + ": expected a " + (format == "jpg" ? "JPEG" : "PNG") +
+                     " (info.json's format), got " +
+                     (jpeg  ? "a JPEG"
+                      : png ? "a PNG"
+                            : "another format"));
+  }
+  std::string error;
+  const auto reader = image_file::open(plane, error);
+  if (reader && reader->spec().format != image_file::Sample::kUInt8) {
+    throw InputError(plane.string() + ": expected 8-bit planes, got " +
+                     image_file::sample_name(reader->spec().format) + " samples");
+  }
+}
+
 }  // namespace
 
 PlaneField write_openlime(const fs::path& folder, const PlaneField& field,
                           const std::string& format, int jpeg_quality) {
   LS_CHECK(format == "jpg" || format == "png", "planes are jpg or png");
+  RunOutputs outputs(folder);  // A write that fails leaves no planes.
   fs::create_directories(folder);
   const size_t pixels = size_t(field.width()) * field.height();
   std::vector<uint8_t> rgb(pixels * 3);
@@ -44,6 +69,7 @@ PlaneField write_openlime(const fs::path& folder, const PlaneField& field,
       for (int k = 0; k < 3; ++k)
         rgb[i * 3 + k] = field.codes[i * size_t(field.planes) + size_t(3 * j + k)];
     }
+    outputs.add(plane_file(folder, j, format));
     write_rgb8(plane_file(folder, j, format), field.width(), field.height(), rgb.data(),
                jpeg_quality);
   }
@@ -67,7 +93,9 @@ PlaneField write_openlime(const fs::path& folder, const PlaneField& field,
   info["materials"] = {{{"range", field.range}, {"scale", field.scale}, {"bias", field.bias}}};
   // Not OpenLIME's: how the display values relate to the field (display units per field unit).
   info["lightstage"] = {{"gain", field.gain}, {"encoding", "sRGB"}};
+  outputs.add(folder / "info.json");
   write_file_atomic(folder / "info.json", info.dump() + "\n");
+  outputs.keep();
   return read_openlime(folder);
 }
 
@@ -110,7 +138,16 @@ PlaneField read_openlime(const fs::path& folder) {
   out.scale = floats(material["scale"], size_t(out.planes));
   out.bias = floats(material["bias"], size_t(out.planes));
   for (int p = 0; p < out.planes; ++p) {
-    if (!(out.range[size_t(p)] > 0)) material["range"][size_t(p)].fail("a positive number");
+    // As floats (what the planes are dequantised with): 1e308 is no scale.
+    if (!(out.range[size_t(p)] > 0) || !std::isfinite(out.range[size_t(p)])) {
+      material["range"][size_t(p)].fail("a positive number within float range");
+    }
+    if (!std::isfinite(out.scale[size_t(p)])) {
+      material["scale"][size_t(p)].fail("a number within float range");
+    }
+    if (!std::isfinite(out.bias[size_t(p)])) {
+      material["bias"][size_t(p)].fail("a number within float range");
+    }
   }
   out.gain = info.has("lightstage") ? info["lightstage"]["gain"].positive() : 1.0;
   out.stored_bytes = fs::file_size(file);
@@ -118,6 +155,7 @@ PlaneField read_openlime(const fs::path& folder) {
   out.codes.resize(pixels * size_t(out.planes));
   for (int j = 0; j < out.planes / 3; ++j) {
     const fs::path plane = plane_file(folder, j, format);
+    require_8bit_plane(plane, format);
     const Image image = read_image(plane);
     if (image.width != width || image.height != height || image.channels != 3) {
       throw InputError(plane.string() + ": expected a " + std::to_string(width) + "x" +

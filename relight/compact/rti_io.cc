@@ -200,6 +200,11 @@ RtiFile decode_hsh(const std::string& bytes, const std::string& name) {
   if (file.terms != 4 && file.terms != 9 && file.terms != 16) {
     throw InputError(name + ": terms: expected 4, 9 or 16 (HSH orders 2..4), got " + basis[0]);
   }
+  // RTIViewer's basis types: 2 is HSH, the one basis this reader evaluates.
+  if (basis[1] != "2") {
+    throw InputError(name + ": basis_type: expected 2 (HSH), got \"" + basis[1].substr(0, 40) +
+                     "\"");
+  }
   parse_int(basis[2], name, "element_size", 1, 1);
   if (header.remaining() < 8 * size_t(file.terms)) {
     throw InputError(name + ": scale and bias: expected " + std::to_string(8 * file.terms) +

@@ -6,6 +6,8 @@
 
 #include <fstream>
 #include <set>
+#include <string>
+#include <vector>
 
 #include "lightstage/image.h"
 #include "lightstage/session.h"
@@ -39,6 +41,10 @@ class SmallDisk {
   bool make_read_only() {
     return ::mount(nullptr, dir_.c_str(), nullptr, MS_REMOUNT | MS_RDONLY, nullptr) == 0;
   }
+  bool resize(const std::string& size) {
+    const std::string options = "size=" + size;
+    return ::mount(nullptr, dir_.c_str(), nullptr, MS_REMOUNT, options.c_str()) == 0;
+  }
 
  private:
   fs::path dir_;
@@ -64,7 +70,7 @@ TEST(StorageFault, CaptureThatCannotFitIsRefusedBeforeItStarts) {
   const int code = run_command(cli_path().string() + " capture --quiet --stage " + stage.string() +
                                    " --out " + (tmp / "disk" / "s").string(),
                                &out);
-  EXPECT_EQ(code, 2) << out;
+  EXPECT_EQ(code, 4) << out;
   EXPECT_NE(out.find("frames still to capture need up to"), std::string::npos) << out;
   EXPECT_NE(out.find((tmp / "disk" / "s").string()), std::string::npos) << out;
   EXPECT_EQ(CountLines(tmp / "disk" / "s" / "frames.jsonl"), 0) << "nothing may be captured";
@@ -80,7 +86,7 @@ TEST(StorageFault, ReadOnlySessionDiskIsRefusedBeforeCapture) {
   const int code = run_command(cli_path().string() + " capture --quiet --stage " + stage.string() +
                                    " --out " + (tmp / "disk" / "s").string(),
                                &out);
-  EXPECT_EQ(code, 2) << out;
+  EXPECT_EQ(code, 4) << out;
   EXPECT_NE(out.find((tmp / "disk" / "s").string()), std::string::npos) << out;
 }
 
@@ -136,6 +142,82 @@ TEST(StorageFault, DiskFullDuringCaptureStopsCleanlyAndResumes) {
   }
   EXPECT_EQ(files.size(), planned) << "stray or temporary files left in frames/";
   EXPECT_NE(Slurp(session_dir / "manifest.json").find("\"complete\""), std::string::npos);
+}
+
+// What is on the disk at dir, by name.
+std::set<std::string> Listing(const fs::path& dir) {
+  std::set<std::string> names;
+  for (const auto& e : fs::directory_iterator(dir)) names.insert(e.path().filename().string());
+  return names;
+}
+
+// A field built off the small disk, for the commands that write onto it.
+fs::path CaptureAndBuild(const testing::TempDir& tmp) {
+  const fs::path stage = WriteSmallStage(tmp.path());
+  const std::string cli = cli_path().string();
+  std::string out;
+  EXPECT_EQ(run_command(cli + " capture --quiet --stage " + stage.string() + " --out " +
+                            (tmp / "s").string(),
+                        &out),
+            0)
+      << out;
+  EXPECT_EQ(run_command(cli + " build --quiet " + (tmp / "s").string() + " --out " +
+                            (tmp / "f.exr").string(),
+                        &out),
+            0)
+      << out;
+  return tmp / "f.exr";
+}
+
+// A full disk under every command that writes: exit 4 (storage), the path named, and nothing left
+// on the disk by the run.
+TEST(StorageFault, EveryCommandOnAFullDiskExitsFourNamingThePathAndLeavesNothing) {
+  testing::TempDir tmp;
+  const fs::path field = CaptureAndBuild(tmp);
+  SmallDisk disk(tmp / "disk", "1m");
+  ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
+  FillDisk(tmp / "disk");
+  const std::set<std::string> before = Listing(tmp / "disk");
+  const std::string on_disk = (tmp / "disk").string() + "/";
+  const std::string map = (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string();
+  const std::vector<std::string> commands = {
+      "build --quiet " + (tmp / "s").string() + " --out " + on_disk + "f.exr",
+      "relight --quiet " + field.string() + " --env " + map + " --out " + on_disk + "r",
+      "fit --quiet " + field.string() + " --out " + on_disk + "m.exr",
+      "normals --quiet " + field.string() + " --out " + on_disk + "n.exr",
+      "compress --quiet " + field.string() + " --format pca --out " + on_disk + "p.lspca",
+      "export openlime --quiet " + field.string() + " --out " + on_disk + "ol",
+      "stage --write " + on_disk + "stage.json",
+  };
+  for (const std::string& command : commands) {
+    std::string out;
+    EXPECT_EQ(run_command(cli_path().string() + " " + command, &out), 4) << command << "\n" << out;
+    EXPECT_NE(out.find("storage error: " + on_disk), std::string::npos) << command << "\n" << out;
+    EXPECT_EQ(Listing(tmp / "disk"), before) << command << " left files behind";
+  }
+}
+
+// A build in bands that runs out of space keeps what it finished for the next run, and says so;
+// with space again, the same command completes and removes it.
+TEST(StorageFault, BuildInBandsOnAFullDiskKeepsItsPartialFolderAndSaysSo) {
+  testing::TempDir tmp;
+  CaptureAndBuild(tmp);
+  SmallDisk disk(tmp / "disk", "256k");  // The field's spill needs about 1 MiB.
+  ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
+  const fs::path out_file = tmp / "disk" / "f.exr";
+  const std::string command = cli_path().string() + " build --quiet --memory 64K " +
+                              (tmp / "s").string() + " --out " + out_file.string();
+  std::string out;
+  EXPECT_EQ(run_command(command, &out), 4) << out;
+  EXPECT_NE(out.find("note: " + out_file.string() + ".partial/ kept for resuming"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("delete it to start over"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(out_file));
+  ASSERT_TRUE(disk.resize("8m"));
+  ASSERT_EQ(run_command(command, &out), 0) << out;
+  EXPECT_TRUE(fs::exists(out_file));
+  EXPECT_EQ(Listing(tmp / "disk"), std::set<std::string>{"f.exr"});
 }
 
 }  // namespace

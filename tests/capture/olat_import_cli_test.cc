@@ -94,6 +94,20 @@ TEST(OlatImport, CliImportsATimeLapseWithItsTimesInOneCommand) {
   EXPECT_NE(output.find("--time: expected one time per set (3 sets), got 2"), std::string::npos)
       << output;
   EXPECT_FALSE(fs::exists(tmp / "short"));
+  // A step with other lights than the others is not a time step of the same scene: refused naming
+  // it, and the steps already written are removed.
+  write_lp(render_sphere(12, 16), tmp / "series" / "d_night", ".png", 16,
+           [](double v) { return v; });
+  rc = ls::testing::run_command("{ " + cli + " import '" + (tmp / "series").string() +
+                                    "' --interval 60 --out '" + (tmp / "mixed").string() +
+                                    "' 2>&1 >/dev/null; }",
+                                &output);
+  EXPECT_EQ(rc, 2) << output;
+  EXPECT_NE(output.find("d_night: expected a set like"), std::string::npos) << output;
+  EXPECT_NE(output.find("(12x12, 20 images: the time steps of one scene), got 12x12, 16 images"),
+            std::string::npos)
+      << output;
+  EXPECT_FALSE(fs::exists(tmp / "mixed"));
 }
 
 }  // namespace

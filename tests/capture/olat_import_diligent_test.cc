@@ -61,7 +61,13 @@ TEST(OlatImport, DiligentFromSimMatchesGroundTruthNormalsAndColours) {
   fs::remove(tmp / "sphere/light_intensities.txt");
   OlatImportSummary undivided_summary;
   const ReflectanceField undivided = import_diligent(tmp / "sphere", {}, &undivided_summary);
-  EXPECT_FALSE(undivided_summary.notes.empty());
+  // Said as a warning, with what was assumed; nothing claims the intensities were divided out.
+  ASSERT_EQ(undivided_summary.warnings.size(), 1u);
+  EXPECT_NE(undivided_summary.warnings[0].find(
+                "light_intensities.txt: not found; every light taken as intensity 1"),
+            std::string::npos)
+      << undivided_summary.warnings[0];
+  EXPECT_FALSE(undivided_summary.intensities_divided);
   const Eigen::Vector3d wrong = median_albedo_ratio(robust_normals(undivided));
   std::cout << "without light_intensities.txt: albedo R/G " << wrong.x() << " B/G " << wrong.z()
             << "\n";

@@ -64,6 +64,13 @@ TEST(OlatImport, LpErrorsNameFileLineAndField) {
   e = input_error(
       [&] { import_rti_lp(set.lp("3\na0.png 0 0 1\na1.png 0 1 1\na2.png nan 0 1"), {}); });
   EXPECT_NE(e.find("set.lp:4: light direction"), std::string::npos) << e;
+  // A light behind the object lights nothing the camera sees.
+  e = input_error(
+      [&] { import_rti_lp(set.lp("3\na0.png 0 0 1\na1.png 0 0 -1\na2.png 1 0 1"), {}); });
+  EXPECT_NE(e.find("set.lp:3: light direction: expected a light on the camera's side"),
+            std::string::npos)
+      << e;
+  EXPECT_NE(e.find("(0, 0, -1), behind it"), std::string::npos) << e;
   e = input_error(
       [&] { import_rti_lp(set.lp("3\na0.png 0 0 1\na1.png 0 x 1\na2.png 1 0 1"), {}); });
   EXPECT_NE(e.find("set.lp:3: light direction: expected a number, got 'x'"), std::string::npos)

@@ -164,6 +164,59 @@ TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
                    {"camera.sync.exposure_active_output", "other than the trigger input"});
 }
 
+// Fields each valid alone that contradict each other, or the LEDs: refused naming the field.
+TEST(Stage, SettingsThatContradictTheLedsAreRefusedNamingTheField) {
+  const std::string led0 =
+      R"({"id": 0, "direction": [0, 1, 0], "gpio": {"chip": "gpiochip0", "line": 4}})";
+  const std::string led1 =
+      R"({"id": 1, "direction": [1, 1, 0], "gpio": {"chip": "gpiochip0", "line": 5}})";
+  const std::string leds = R"("leds": [)" + led0 + ", " + led1 + "]";
+  // A line-triggered camera with no line to pulse, or with an LED's line.
+  ExpectStageError("{" + leds + R"(, "camera": {"sync": {"trigger": "line", "input": "Line0"}}})",
+                   {"camera.sync", "\"gpio\"", "\"trigger\": \"line\""});
+  ExpectStageError("{" + leds + R"(, "camera": {"sync": {"trigger": "line", "input": "Line0",
+                                   "gpio": {"chip": "gpiochip0", "line": 4}}}})",
+                   {"camera.sync.gpio", "no LED uses", "LED 0"});
+  // The same line on another chip is another line.
+  EXPECT_NO_THROW(parse_stage("{" + leds + R"(, "camera": {"sync": {"trigger": "line",
+      "input": "Line0", "gpio": {"chip": "gpiochip1", "line": 4}}}})",
+                              "ok.json"));
+  // A reference period without a reference LED.
+  ExpectStageError("{" + leds + R"(, "plan": {"reference_every": 3}})",
+                   {"plan.reference_every", "\"reference_led\""});
+  // Simulated dead LEDs: every LED (a field of nothing), one twice, one that is not there.
+  ExpectStageError("{" + leds + R"(, "camera": {"simulated_sensor": {"dead_leds": [0, 1]}}})",
+                   {"camera.simulated_sensor.dead_leds", "some LED left alive"});
+  ExpectStageError("{" + leds + R"(, "camera": {"simulated_sensor": {"dead_leds": [1, 1]}}})",
+                   {"camera.simulated_sensor.dead_leds[1]", "once"});
+  ExpectStageError("{" + leds + R"(, "camera": {"simulated_sensor": {"dead_leds": [7]}}})",
+                   {"camera.simulated_sensor.dead_leds[0]", "id of an LED"});
+}
+
+// The files a stage names for the build are there, or the stage is refused naming the field.
+TEST(Stage, MissingSideCarFilesAreNamedWithTheirField) {
+  testing::TempDir tmp;
+  std::ofstream(tmp / "flat.json") << R"({"layout": {"type": "fibonacci", "count": 10},
+    "calibration": {"flat_field": "gone.exr"}})";
+  std::ofstream(tmp / "table.json") << R"({"layout": {"type": "fibonacci", "count": 10},
+    "camera": {"response": {"type": "table", "file": "gone.txt"}}})";
+  for (const auto& [file, field] :
+       {std::pair<std::string, std::string>{"flat.json", "calibration.flat_field"},
+        {"table.json", "camera.response.file"}}) {
+    const Stage stage = load_stage(tmp / file);  // Parsing alone does not read side cars.
+    try {
+      require_stage_files(stage);
+      ADD_FAILURE() << file << ": accepted";
+    } catch (const InputError& e) {
+      const std::string msg = e.what();
+      EXPECT_NE(msg.find(file + ": " + field), std::string::npos) << msg;
+      EXPECT_NE(msg.find("not found"), std::string::npos) << msg;
+    }
+  }
+  std::ofstream(tmp / "gone.txt") << "0 0\n";
+  EXPECT_NO_THROW(require_stage_files(load_stage(tmp / "table.json")));
+}
+
 TEST(Stage, LoadStageNamesAMissingFile) {
   try {
     load_stage("/nonexistent/dome.json");

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <tuple>
 
 #include "capture/field_file.h"
@@ -77,6 +78,25 @@ TEST(PlaneField, MalformedFoldersAreRefusedByFileAndField) {
     }
     return std::string();
   };
+  // A scale beyond float range, then a PNG named .jpg: refused naming the field, the file.
+  std::string info;
+  {
+    std::ifstream in(dir / "info.json");
+    info.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  std::string huge = info;
+  const size_t scale = huge.find("\"scale\":[") + 9;
+  huge.replace(scale, huge.find(',', scale) - scale, "1e308");
+  std::ofstream(dir / "info.json") << huge;
+  EXPECT_NE(error().find("materials[0].scale[0]"), std::string::npos) << error();
+  std::ofstream(dir / "info.json") << info;
+  EXPECT_EQ(error(), "");
+  const uint8_t rgb[3] = {1, 2, 3};
+  write_rgb8(dir / "plane.png", 1, 1, rgb);
+  fs::rename(dir / "plane.png", dir / "plane_0.jpg");
+  EXPECT_NE(error().find("plane_0.jpg: expected a JPEG (info.json's format), got a PNG"),
+            std::string::npos)
+      << error();
   fs::remove(dir / "plane_0.jpg");
   EXPECT_NE(error().find("plane_0.jpg"), std::string::npos) << error();
   std::ofstream(dir / "info.json") << R"({"width": 4, "height": 4, "type": "ptm"})";

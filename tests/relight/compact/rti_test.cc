@@ -231,6 +231,7 @@ TEST(RtiIo, MalformedFilesNameFileAndField) {
   expect_error(good_ptm.substr(0, 30), "scale");
   expect_error(replace(good_hsh, "\n3\n", "\n1\n"), "type");
   expect_error(replace(good_hsh, "9 2 1", "7 2 1"), "terms");
+  expect_error(replace(good_hsh, "9 2 1", "9 9 1"), "basis_type: expected 2 (HSH)");
   expect_error(good_hsh.substr(0, good_hsh.size() - 5), "data");
 }
 

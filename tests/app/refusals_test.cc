@@ -1,0 +1,120 @@
+// What the CLI refuses as a new user meets it: each refusal names the file and the field (or the
+// option); what it accepts is said with a warning; one process writes an output at a time.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include "lightstage/output_lock.h"
+#include "lightstage/session.h"
+#include "tests/app/cli_process.h"
+#include "tests/support/test_support.h"
+
+namespace ls {
+namespace {
+
+namespace fs = std::filesystem;
+using testing::cli_path;
+using testing::run_command;
+
+// A captured session (s) and its field (f.exr), shared by the tests.
+class Refusals : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    tmp_ = std::make_unique<testing::TempDir>();
+    const fs::path stage = testing::WriteSmallStage(tmp_->path());
+    std::string out;
+    ASSERT_EQ(Run("capture --quiet --stage " + stage.string() + " --out " + Path("s"), &out), 0)
+        << out;
+    ASSERT_EQ(Run("build --quiet " + Path("s") + " --out " + Path("f.exr"), &out), 0) << out;
+  }
+  static void TearDownTestSuite() { tmp_.reset(); }
+
+  static std::string Path(const std::string& name) { return (*tmp_ / name).string(); }
+  static int Run(const std::string& args, std::string* out) {
+    return run_command(cli_path().string() + " " + args, out);
+  }
+  // Runs args; expects `code` and every fragment in the output.
+  static void Expect(const std::string& args, int code,
+                     std::initializer_list<std::string> fragments) {
+    std::string out;
+    EXPECT_EQ(Run(args, &out), code) << args << "\n" << out;
+    for (const std::string& f : fragments) {
+      EXPECT_NE(out.find(f), std::string::npos) << "'" << f << "' not in: " << out;
+    }
+  }
+
+  static std::unique_ptr<testing::TempDir> tmp_;
+};
+
+std::unique_ptr<testing::TempDir> Refusals::tmp_;
+
+TEST_F(Refusals, StageNamesAMissingSideCarFileWithItsField) {
+  std::ofstream(*tmp_ / "flat.json") << R"({"layout": {"type": "fibonacci", "count": 10},
+    "calibration": {"flat_field": "gone.exr"}})";
+  Expect("stage " + Path("flat.json"), 2, {"flat.json: calibration.flat_field", "not found"});
+  std::ofstream(*tmp_ / "table.json") << R"({"layout": {"type": "fibonacci", "count": 10},
+    "camera": {"response": {"type": "table", "file": "gone.txt"}}})";
+  Expect("stage " + Path("table.json"), 2, {"table.json: camera.response.file", "not found"});
+}
+
+TEST_F(Refusals, OptionsOutsideTheirUseAreRefusedNamingThem) {
+  // --encoding is for RTI files; a PCA holds linear values.
+  Expect("compress " + Path("f.exr") + " --format pca --encoding linear --out " + Path("e.lspca"),
+         2, {"--encoding linear", "RTI files"});
+  EXPECT_FALSE(fs::exists(Path("e.lspca")));
+  // A rotation that cannot be named in whole degrees.
+  Expect("relight --quiet " + Path("f.exr") + " --env " +
+             (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string() +
+             " --rotate 1e300 --out " + Path("rot"),
+         1, {"--rotate", "1e+300"});
+  EXPECT_FALSE(fs::exists(Path("rot")));
+  // A negative group size.
+  Expect("play " + Path("s") + " --env " +
+             (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string() +
+             " --audit-groups -3 --out " + Path("p"),
+         1, {"--audit-groups: Value -3 not in range 0"});
+}
+
+TEST_F(Refusals, WhatIsAssumedIsSaid) {
+  Expect("compress " + Path("f.exr") + " --format pca --rank 100000 --out " + Path("r.lspca"), 0,
+         {"warning: --rank 100000: more than this field allows", "used"});
+}
+
+// --quiet means the same on every command: no progress output.
+TEST_F(Refusals, QuietIsTakenByEveryCommandThatWrites) {
+  Expect("compress --quiet " + Path("f.exr") + " --format pca --out " + Path("q.lspca"), 0, {});
+  Expect("export openlime --quiet " + Path("f.exr") + " --out " + Path("q_ol"), 0, {});
+  std::string out;
+  ASSERT_EQ(Run("export openlime " + Path("f.exr") + " --out " + Path("loud_ol"), &out), 0);
+  std::string quiet;
+  ASSERT_EQ(Run("export openlime --quiet " + Path("f.exr") + " --out " + Path("quiet_ol"), &quiet),
+            0);
+  EXPECT_LT(quiet.size(), out.size()) << "--quiet printed as much as without it: " << quiet;
+}
+
+// One process writes an output at a time: a second is refused naming the first; a build does not
+// read a session that a capture is writing.
+TEST_F(Refusals, ASecondWriterIsRefusedNamingTheFirst) {
+  const std::string me = "(process " + std::to_string(getpid()) + ")";
+  {
+    const OutputLock held(Path("busy.exr"));
+    Expect("build --quiet " + Path("s") + " --out " + Path("busy.exr"), 2,
+           {Path("busy.exr") + ": another lightstage run is writing it " + me});
+    Expect("fit --quiet " + Path("f.exr") + " --out " + Path("busy.exr"), 2, {me});
+    EXPECT_FALSE(fs::exists(Path("busy.exr")));
+  }
+  Expect("build --quiet " + Path("s") + " --out " + Path("busy.exr"), 0, {});
+  EXPECT_FALSE(fs::exists(Path("busy.exr.lock"))) << "the lock outlived the run";
+  {
+    const SessionWriterLock capturing(*tmp_ / "s");
+    Expect("build --quiet " + Path("s") + " --out " + Path("during.exr"), 2,
+           {Path("s") + ": a capture " + me + " is writing this session"});
+    EXPECT_FALSE(fs::exists(Path("during.exr.partial")));
+  }
+}
+
+}  // namespace
+}  // namespace ls
