@@ -82,7 +82,7 @@ fs::path lock_file_of(const fs::path& out) {
 }
 
 fs::path made_lock_file(const fs::path& out) {
-  const fs::path file = lock_file_of(out);
+  fs::path file = lock_file_of(out);
   if (!file.parent_path().empty()) {
     std::error_code error;
     fs::create_directories(file.parent_path(), error);

@@ -261,7 +261,7 @@ def import_set(source: _Path, *, out: _Path, linear: bool = False, srgb: bool = 
     """
 
 def compress(input: _FieldLike, *, out: _Path, format: str = "pca", rank: Union[str, int] = "auto",
-             tile: int = 0, gain: float = 0.0, encoding: str = "srgb", memory: _Memory = None,
+             tile: int = 0, gain: float = 0.0, encoding: str = "", memory: _Memory = None,
              progress: _Progress = None) -> Compressed:
     """Writes a compact representation of a field (EXR, or an .lp capture imported directly):
     .ptm (PTM_1.2 RGB/LRGB), .rti (HSH) or the lightstage PCA format.

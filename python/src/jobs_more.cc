@@ -232,7 +232,7 @@ void bind_more_jobs(py::module_& m) {
         py::arg("progress") = py::none());
   m.def("compress", &compress, py::arg("input"), py::kw_only(), py::arg("out"),
         py::arg("format") = "pca", py::arg("rank") = "auto", py::arg("tile") = 0,
-        py::arg("gain") = 0.0, py::arg("encoding") = "srgb", py::arg("memory") = py::none(),
+        py::arg("gain") = 0.0, py::arg("encoding") = "", py::arg("memory") = py::none(),
         py::arg("progress") = py::none());
   m.def("render", &render, py::arg("input"), py::kw_only(), py::arg("light") = py::none(),
         py::arg("env") = py::none(), py::arg("rotate") = 0.0, py::arg("bright_sources") = true,

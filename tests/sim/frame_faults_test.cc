@@ -142,6 +142,8 @@ TEST_F(FrameFaults, ALineTriggeredCaptureMatchesTheSoftwareOneAndABrokenWireStop
 
   Stage wired = stage_;
   wired.camera.sync.trigger = "line";
+  wired.camera.sync.gpio_chip = "gpiochip1";  // The controller's trigger output, no LED's line.
+  wired.camera.sync.gpio_line = 23;
   SimStage sim(wired, sim::default_scene(), 7);
   EXPECT_THROW(software.camera().set_trigger_line([] {}), HardwareError);  // Not line-triggered.
   EXPECT_THROW(software.lights().pulse_trigger(), HardwareError);
