@@ -86,20 +86,6 @@ SampleValue rendered(const relight::TemporalMaps& maps, double t,
   return [images](int x, int y, int k, int c) { return (*images)[size_t(k)].at(x, y, c); };
 }
 
-// `maps` with every fitted pixel rendering from its per-step fits (relight::TemporalModel::kSteps).
-relight::TemporalMaps every_pixel_from_its_steps(relight::TemporalMaps maps,
-                                                 const std::vector<relight::StepFit>& steps) {
-  for (size_t i = 0; i < maps.maps.num_pixels(); ++i) {
-    float* m = &maps.maps.pixels[i * relight::kTemporalChannelCount];
-    if (int(m[relight::kTModel]) == int(relight::TemporalModel::kNone)) continue;
-    m[relight::kTModel] = float(relight::TemporalModel::kSteps);
-    m[relight::kTRate] = 1;
-    m[relight::kTFlags] = float(int(m[relight::kTFlags]) & ~relight::kTemporalDegenerate);
-  }
-  relight::count_temporal_models(steps, maps);
-  return maps;
-}
-
 }  // namespace
 
 HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured) {
@@ -126,7 +112,8 @@ HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& cap
   for (const capture::ReflectanceField& field : fields) {
     step_fits.push_back(relight::fit_step(field, normals, options));
   }
-  const relight::TemporalMaps interpolated = every_pixel_from_its_steps(out.maps, step_fits);
+  const relight::TemporalMaps interpolated =
+      relight::every_pixel_from_its_steps(out.maps, step_fits);
   const capture::ValidLights lights = capture::valid_lights(lapse.ideal[0]);
   size_t next = 0;  // Index into `captured` of the first captured step at or after `step`.
   for (int step = 0; step < steps; ++step) {

@@ -307,6 +307,12 @@ std::string NormalsJobOptions::validate() const {
   return {};
 }
 
+const std::vector<std::string>& normals_channel_names() {
+  static const std::vector<std::string> names = {"normal.x", "normal.y", "normal.z",   "albedo.r",
+                                                 "albedo.g", "albedo.b", "confidence", "flags"};
+  return names;
+}
+
 NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const ProgressFn& progress) {
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("normals: " + problem);
@@ -324,8 +330,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   summary.width = header.width(), summary.height = header.height();
   summary.noise_source = fit.noise_source;
   summary.band_rows = stream.band_rows(options.memory);
-  const std::vector<std::string> names = {"normal.x", "normal.y", "normal.z",   "albedo.r",
-                                          "albedo.g", "albedo.b", "confidence", "flags"};
+  const std::vector<std::string>& names = normals_channel_names();
   const nlohmann::json noise = {{"read_variance", normal_options.noise.a},
                                 {"shot_variance_per_unit", normal_options.noise.b},
                                 {"source", fit.noise_source}};

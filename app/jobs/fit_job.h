@@ -81,6 +81,8 @@ struct NormalsJobSummary {
   int ranks = 1;  // Processes the bands were split over (MPI); rank 0 wrote the file.
 };
 
+// The channels of the normals file, in order.
+const std::vector<std::string>& normals_channel_names();
 NormalsJobSummary estimate_normals(const NormalsJobOptions& options,
                                    const ProgressFn& progress = {});
 

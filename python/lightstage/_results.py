@@ -40,27 +40,24 @@ class Relit:
 
 
 @dataclass
-class Fitted:
+class _Maps:
+    """Per-pixel maps by name; ``out``: their file (None: it was temporary)."""
+    maps: Dict[str, Any]
+    out: Optional[PathLike] = None
+    summary: Dict[str, Any] = field(default_factory=dict)
+
+    def __getitem__(self, name):
+        return self.maps[name]
+
+
+class Fitted(_Maps):
     """Model maps by name: normal, albedo (H x W x 3); sigma, ks, roughness, model (FitModel
     codes), confidence, residual, flags, material, material_weight, material2, material2_weight
     (H x W). ``out``: the maps file (None: it was temporary)."""
-    maps: Dict[str, Any]
-    out: Optional[PathLike] = None
-    summary: Dict[str, Any] = field(default_factory=dict)
-
-    def __getitem__(self, name):
-        return self.maps[name]
 
 
-@dataclass
-class Normals:
+class Normals(_Maps):
     """Photometric-stereo normals: normal, albedo (H x W x 3), confidence, flags (H x W)."""
-    maps: Dict[str, Any]
-    out: Optional[PathLike] = None
-    summary: Dict[str, Any] = field(default_factory=dict)
-
-    def __getitem__(self, name):
-        return self.maps[name]
 
 
 @dataclass

@@ -198,10 +198,8 @@ py::object normals(const py::object& field, const py::object& out, const std::st
   auto image = std::make_shared<Image>();
   run_job(progress, [&](const JobContext& job) {
     s = jobs::estimate_normals(options, job.progress);
-    *image = read_named_channels(options.out,
-                                 {"normal.x", "normal.y", "normal.z", "albedo.r", "albedo.g",
-                                  "albedo.b", "confidence", "flags"},
-                                 "normals", "'lightstage normals'", /*exact=*/true)
+    *image = read_named_channels(options.out, jobs::normals_channel_names(), "normals",
+                                 "'lightstage normals'", /*exact=*/true)
                  .image;
   });
   py::dict d;

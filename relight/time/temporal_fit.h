@@ -319,6 +319,9 @@ void offer_temporal_curves(const std::vector<StepFit>& steps, const std::vector<
 // / 2) of each, and its residual the held-out chi^2 per sample.
 void hold_out_steps(const std::vector<StepFit>& steps, const TemporalFitOptions& options,
                     TemporalMaps& band);
+// `maps` with every fitted pixel rendering from its per-step fits (kSteps, time scale 1; a
+// degenerate flag cleared): the per-step fits alone, the baseline the model choice is held to.
+TemporalMaps every_pixel_from_its_steps(TemporalMaps maps, const std::vector<StepFit>& steps);
 // The band's model and flag counts into its summary, and the step values of its pixels that
 // render from them (degenerate, kSteps).
 void count_temporal_models(const std::vector<StepFit>& steps, TemporalMaps& band);

@@ -192,4 +192,16 @@ void hold_out_steps(const std::vector<StepFit>& steps, const TemporalFitOptions&
   });
 }
 
+TemporalMaps every_pixel_from_its_steps(TemporalMaps maps, const std::vector<StepFit>& steps) {
+  for (size_t i = 0; i < maps.maps.num_pixels(); ++i) {
+    float* m = &maps.maps.pixels[i * kTemporalChannelCount];
+    if (int(m[kTModel]) == int(TemporalModel::kNone)) continue;
+    m[kTModel] = float(TemporalModel::kSteps);
+    m[kTRate] = 1;
+    m[kTFlags] = float(int(m[kTFlags]) & ~kTemporalDegenerate);
+  }
+  count_temporal_models(steps, maps);
+  return maps;
+}
+
 }  // namespace ls::relight

@@ -143,16 +143,7 @@ TemporalMaps from_the_steps(const Fitted& f, std::vector<StepFit>* step_fits) {
   const std::vector<capture::ReflectanceField> fields = capture_steps(f.world, kTimes);
   const NormalMap normals = estimate_temporal_normals(fields, TemporalFitOptions{});
   for (const auto& field : fields) step_fits->push_back(fit_step(field, normals, {}));
-  TemporalMaps maps = f.maps;
-  for (size_t i = 0; i < maps.maps.num_pixels(); ++i) {
-    float* m = &maps.maps.pixels[i * kTemporalChannelCount];
-    if (int(m[kTModel]) == 0) continue;
-    m[kTModel] = float(TemporalModel::kSteps);
-    m[kTRate] = 1;
-    m[kTFlags] = float(int(m[kTFlags]) & ~kTemporalDegenerate);
-  }
-  count_temporal_models(*step_fits, maps);
-  return maps;
+  return every_pixel_from_its_steps(f.maps, *step_fits);
 }
 
 TEST(TemporalEdit, PerStepFitsRenderTheirStepsTakeRateEditsAndTransfers) {
