@@ -1,5 +1,6 @@
 #include "lightstage/memory.h"
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -39,6 +40,17 @@ std::optional<std::size_t> cgroup_available_bytes() {
   } catch (const std::exception&) {
     return std::nullopt;
   }
+}
+
+// What an address-space limit (ulimit -v) leaves this process, if one is set.
+std::optional<std::size_t> address_space_left_bytes() {
+  rlimit limit{};
+  if (getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) return std::nullopt;
+  std::ifstream statm("/proc/self/statm");
+  std::size_t pages = 0;
+  if (!(statm >> pages)) return std::nullopt;
+  const std::size_t used = pages * std::size_t(sysconf(_SC_PAGESIZE));
+  return limit.rlim_cur > used ? std::size_t(limit.rlim_cur) - used : 0;
 }
 
 // The power of 1024 a unit names ("", "b", "k", "kb", "kib", ... "tib", lower case), or -1.
@@ -158,6 +170,7 @@ std::size_t available_memory_bytes() {
     available = pages > 0 && page_size > 0 ? std::size_t(pages) * std::size_t(page_size) : 0;
   }
   if (const auto cgroup = cgroup_available_bytes()) available = std::min(*available, *cgroup);
+  if (const auto left = address_space_left_bytes()) available = std::min(*available, *left);
   return *available;
 }
 

@@ -9,7 +9,8 @@
 
 namespace ls {
 
-// Memory the system can give now: MemAvailable (or free pages), within a tighter cgroup limit.
+// Memory the system can give now: MemAvailable (or free pages), within a tighter cgroup limit or
+// what an address-space limit (ulimit -v) leaves.
 std::size_t available_memory_bytes();
 
 // This process's peak resident memory so far (VmHWM of /proc/self/status: this program's own,

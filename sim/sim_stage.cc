@@ -16,6 +16,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/memory.h"
 #include "sim/time_varying.h"
 #include "sim/tracer.h"
 
@@ -340,6 +341,16 @@ SimStage::SimStage(Stage stage, Scene scene, uint64_t seed) : state_(std::make_u
                        ": expected a positive distance, got " + std::to_string(*led.distance_m));
     }
   }
+  // Per pixel: the camera's hits (at time zero and now), two one-light images (the fewest a frame
+  // renders from) and the frame with the previous one a fault replays.
+  const CameraSpec& camera = state_->stage.camera;
+  const std::size_t bytes_per_pixel =
+      2 * sizeof(SurfaceHit) + 2 * 3 * sizeof(float) + 2 * camera.channels * sizeof(uint16_t);
+  require_memory(std::size_t(camera.width) * std::size_t(camera.height) * bytes_per_pixel,
+                 state_->stage.source + ": camera.width, camera.height: the simulated stage's " +
+                     std::to_string(camera.width) + "x" + std::to_string(camera.height) +
+                     " camera",
+                 "give the simulated camera fewer pixels");
   state_->tracer = std::make_unique<Tracer>(state_->scene);
   state_->hits_at_zero = trace_camera(state_->scene, state_->stage.camera);
   state_->hits = state_->hits_at_zero;

@@ -41,6 +41,7 @@ void print_problems(const std::vector<capture::ImageProblem>& problems) {
 }
 
 int print_directions(const jobs::CalibrateDirectionsOptions& options, bool quiet) {
+  const auto lock = lock_output(options.out);
   const jobs::CalibrateDirectionsSummary job =
       jobs::calibrate_directions(options, progress_printer(quiet));
   for (size_t s = 0; s < job.found_outlines.size(); ++s) {
@@ -73,6 +74,7 @@ int print_directions(const jobs::CalibrateDirectionsOptions& options, bool quiet
 }
 
 int print_intensities(const jobs::CalibrateIntensitiesOptions& options, bool quiet) {
+  const auto lock = lock_output(options.out);
   const jobs::CalibrateIntensitiesSummary job =
       jobs::calibrate_intensities(options, progress_printer(quiet));
   std::printf("%6s %12s %10s %20s %10s\n", "LED", "intensity", "change %", "colour (R G B)",
@@ -101,6 +103,8 @@ int print_intensities(const jobs::CalibrateIntensitiesOptions& options, bool qui
 }
 
 int print_camera(const jobs::CalibrateCameraOptions& options, bool quiet) {
+  std::unique_ptr<OutputLock> lock;
+  if (!options.out.empty()) lock = lock_output(options.out);
   const jobs::CalibrateCameraSummary job = jobs::calibrate_camera(options, progress_printer(quiet));
   const capture::CameraCalibration& cal = job.calibration;
   for (const auto& v : cal.views) {

@@ -30,6 +30,8 @@ struct DemoArgs {
 };
 
 void run_demo(const DemoArgs& args) {
+  // The demo's folder as a whole: its steps lock their own outputs inside it as well.
+  const auto lock = lock_output(args.out);
   fs::create_directories(args.out);
   const fs::path session_dir = args.out / "session";
   std::fprintf(stderr, "== 1/4 capture on the simulated stage -> %s\n", session_dir.c_str());

@@ -41,6 +41,7 @@ void add_play_command(CLI::App& app) {
                   "How much brighter or dimmer than the relit field the photograph may be.")
       ->capture_default_str();
   cmd->callback([options] {
+    const auto lock = lock_output(options->play.out_dir);
     const jobs::PlayResult r = jobs::play_session(*options);
     std::printf(
         "played %s: PSNR %.1f dB, relative RMSE %.2f%%, brightness %+.2f%%, %d of %d "

@@ -7,6 +7,7 @@
 
 #include "app/cli/commands.h"
 #include "lightstage/image.h"
+#include "lightstage/run_outputs.h"
 #include "lightstage/session.h"
 #include "lightstage/stage.h"
 #include "relight/lighting/light_cells.h"
@@ -31,6 +32,7 @@ void add_stage_command(CLI::App& app) {
     const Stage stage = args->file.empty() ? default_stage() : load_stage(args->file);
     require_stage_files(stage);
     if (!args->write.empty()) {
+      const auto lock = lock_output(args->write);
       write_file_atomic(args->write, stage_to_json(stage));
       std::printf("wrote %s\n", args->write.c_str());
       return;
@@ -69,8 +71,12 @@ void add_envmaps_command(CLI::App& app) {
       "Write the procedural lat-long radiance maps that ship for the demo: sky_sun.exr, "
       "softbox_studio.exr, small_source.exr (and PNG previews).");
   cmd->add_option("--out", args->out, "Directory.")->capture_default_str();
-  cmd->add_option("--width", args->width, "Map width (height is half).")->capture_default_str();
+  cmd->add_option("--width", args->width, "Map width (height is half).")
+      ->capture_default_str()
+      ->check(CLI::Range(8, 16384));
   cmd->callback([args] {
+    const auto lock = lock_output(args->out);
+    RunOutputs outputs(args->out);  // A run that fails leaves none of its maps.
     fs::create_directories(args->out);
     const std::pair<const char*, Image> maps[] = {
         {"sky_sun", sim::make_sky_with_sun(args->width)},
@@ -79,11 +85,14 @@ void add_envmaps_command(CLI::App& app) {
     for (auto& [name, image] : maps) {
       Image copy = image;
       copy.channel_names = {"R", "G", "B"};
+      outputs.add(args->out / (std::string(name) + ".exr"));
+      outputs.add(args->out / (std::string(name) + ".png"));
       write_exr(args->out / (std::string(name) + ".exr"), copy);
       write_png_preview(args->out / (std::string(name) + ".png"), copy,
                         auto_exposure_stops(copy, 0.95));
       std::printf("wrote %s\n", (args->out / (std::string(name) + ".exr")).c_str());
     }
+    outputs.keep();
   });
 }
 

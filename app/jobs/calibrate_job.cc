@@ -10,6 +10,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/run_outputs.h"
 
 namespace ls::jobs {
 
@@ -253,6 +254,9 @@ CalibrateIntensitiesSummary calibrate_intensities(const CalibrateIntensitiesOpti
   summary.flat_field = options.flat_field_file();
   if (summary.update.intensities_changed == 0) return summary;
   const fs::path& flat = summary.flat_field;
+  // A stage that cannot be written takes its side car with it: nothing half-calibrated is left.
+  RunOutputs outputs(fs::absolute(flat).parent_path());
+  outputs.add(flat);
   write_exr(flat,
             capture::flat_field_image(summary.calibration, stage, 64,
                                       std::max(1, 64 * stage.camera.height / stage.camera.width)));
@@ -263,6 +267,7 @@ CalibrateIntensitiesSummary calibrate_intensities(const CalibrateIntensitiesOpti
                                                   ? flat.filename()
                                                   : fs::absolute(flat).lexically_normal();
   write_file_atomic(options.out, stage_to_json(summary.calibrated));
+  outputs.keep();
   summary.written = true;
   return summary;
 }

@@ -9,6 +9,7 @@
 #include "capture/response.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
+#include "lightstage/memory.h"
 #include "lightstage/session.h"
 
 namespace ls::jobs {
@@ -71,6 +72,21 @@ void choose_exposures(const fs::path& previous_dir, Stage& stage, CaptureJobSumm
   summary.exposure_s_chosen = choice.exposure_s_after;
 }
 
+// What a capture holds per pixel and channel whatever the back-end: a dark mean (float) per
+// exposure of the bracket and the one being checked, and a frame three times over (captured,
+// read back to be checked, encoded). Refused before any device opens or file is written.
+void require_capture_memory(const Stage& stage) {
+  const CameraSpec& camera = stage.camera;
+  const std::size_t bytes_per_value =
+      sizeof(float) * (camera.bracket.size() + 2) + 3 * sizeof(uint16_t);
+  require_memory(std::size_t(camera.width) * std::size_t(camera.height) *
+                     std::size_t(camera.channels) * bytes_per_value,
+                 stage.source + ": camera.width, camera.height: a capture at " +
+                     std::to_string(camera.width) + "x" + std::to_string(camera.height) + "x" +
+                     std::to_string(camera.channels),
+                 "capture at a lower resolution (camera.width, camera.height)");
+}
+
 }  // namespace
 
 std::string CaptureOptions::validate() const {
@@ -112,6 +128,7 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
     Stage stage = options.stage_file.empty() ? default_stage() : load_stage(options.stage_file);
     if (!options.exposures_from.empty()) choose_exposures(options.exposures_from, stage, summary);
     require_stage_files(stage);  // A capture that would end unbuildable: refused first.
+    require_capture_memory(stage);
     const Backend& backend = backend_registry().find(stage.camera.backend, stage.source);
     if (!options.scene_file.empty() && backend.input_file_name.empty()) {
       throw InputError(options.scene_file.string() + ": the \"" + backend.name + "\" back-end (" +

@@ -13,6 +13,7 @@
 #include "capture/played_photo.h"
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
+#include "lightstage/run_outputs.h"
 #include "lightstage/session.h"
 #include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
@@ -289,9 +290,16 @@ std::string SuspectLed::describe() const {
 PlayResult play_map(const Stage& stage, const capture::ReflectanceField& field,
                     LightController& lights, Camera& camera, const PlayOptions& options,
                     const ProgressFn& progress) {
+  std::optional<RunOutputs> outputs;  // A run that fails leaves none of its files.
+  if (!options.out_dir.empty()) {
+    outputs.emplace(options.out_dir);
+    for (const char* file : {"photo.exr", "relit.exr", "compare.png", "report.json"}) {
+      outputs->add(options.out_dir / file);
+    }
+  }
   Player player(stage, field, lights, camera, options, progress);
   PlayResult result = player.run();
-  if (!options.out_dir.empty()) {
+  if (outputs) {
     nlohmann::json suspects = nlohmann::json::array();
     for (const SuspectLed& s : result.suspects) {
       suspects.push_back({{"led_id", s.led_id},
@@ -314,6 +322,7 @@ PlayResult play_map(const Stage& stage, const capture::ReflectanceField& field,
                                    {"suspects", suspects},
                                    {"unresolved_groups", result.unresolved_groups}};
     write_file_atomic(options.out_dir / "report.json", report.dump(2) + "\n");
+    outputs->keep();
   }
   return result;
 }

@@ -95,6 +95,24 @@ TEST_F(Refusals, QuietIsTakenByEveryCommandThatWrites) {
   EXPECT_LT(quiet.size(), out.size()) << "--quiet printed as much as without it: " << quiet;
 }
 
+// A capture whose frames cannot fit in memory is refused before a device opens or a file is
+// written, naming the stage's fields; the address-space limit stands for a smaller machine.
+TEST_F(Refusals, ACaptureLargerThanMemoryIsRefusedBeforeItStarts) {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(30, -10));
+  stage.camera.width = stage.camera.height = 16384;
+  write_file_atomic(*tmp_ / "huge.json", stage_to_json(stage));
+  std::string out;
+  EXPECT_EQ(run_command("ulimit -v 4000000; " + cli_path().string() + " capture --quiet --stage " +
+                            Path("huge.json") + " --out " + Path("huge"),
+                        &out),
+            2)
+      << out;
+  EXPECT_NE(out.find(Path("huge.json") + ": camera.width, camera.height"), std::string::npos)
+      << out;
+  EXPECT_NE(out.find("of memory are available"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(Path("huge")));
+}
+
 // One process writes an output at a time: a second is refused naming the first; a build does not
 // read a session that a capture is writing.
 TEST_F(Refusals, ASecondWriterIsRefusedNamingTheFirst) {
@@ -105,6 +123,17 @@ TEST_F(Refusals, ASecondWriterIsRefusedNamingTheFirst) {
            {Path("busy.exr") + ": another lightstage run is writing it " + me});
     Expect("fit --quiet " + Path("f.exr") + " --out " + Path("busy.exr"), 2, {me});
     EXPECT_FALSE(fs::exists(Path("busy.exr")));
+  }
+  {
+    // The commands that write a stage file, maps or a folder of results lock them too.
+    const OutputLock stage_file(Path("busy.json"));
+    const OutputLock folder(Path("busy"));
+    Expect("stage --write " + Path("busy.json"), 2, {Path("busy.json") + ": another", me});
+    Expect("envmaps --width 32 --out " + Path("busy"), 2, {Path("busy") + ": another", me});
+    Expect("demo --quiet --no-truth --out " + Path("busy"), 2, {Path("busy") + ": another", me});
+    Expect("calibrate camera --images " + Path("s") + " --out " + Path("busy.json"), 2, {me});
+    EXPECT_FALSE(fs::exists(Path("busy.json")));
+    EXPECT_FALSE(fs::exists(Path("busy")));
   }
   Expect("build --quiet " + Path("s") + " --out " + Path("busy.exr"), 0, {});
   EXPECT_FALSE(fs::exists(Path("busy.exr.lock"))) << "the lock outlived the run";

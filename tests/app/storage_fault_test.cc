@@ -4,6 +4,8 @@
 #include <gtest/gtest.h>
 #include <sys/mount.h>
 
+#include <cmath>
+#include <cstdint>
 #include <fstream>
 #include <set>
 #include <string>
@@ -169,6 +171,30 @@ fs::path CaptureAndBuild(const testing::TempDir& tmp) {
   return tmp / "f.exr";
 }
 
+// An .lp set of 8-bit PNGs: a lit-from-the-light gradient per image, eight lights on a cone.
+fs::path WriteLpSet(const fs::path& dir) {
+  constexpr int kSize = 24;
+  constexpr int kLights = 8;
+  fs::create_directories(dir);
+  std::string lp = std::to_string(kLights) + "\n";
+  for (int l = 0; l < kLights; ++l) {
+    const double phi = 2 * 3.14159265358979 * l / kLights;
+    const double x = 0.6 * std::cos(phi), y = 0.6 * std::sin(phi), z = 0.8;
+    std::vector<uint8_t> rgb(size_t(kSize) * kSize * 3);
+    for (int py = 0; py < kSize; ++py) {
+      for (int px = 0; px < kSize; ++px) {
+        const double shade = 0.5 + 0.4 * (x * (px - kSize / 2) - y * (py - kSize / 2)) / kSize;
+        for (int c = 0; c < 3; ++c) rgb[(size_t(py) * kSize + px) * 3 + c] = uint8_t(200 * shade);
+      }
+    }
+    const std::string name = "light_" + std::to_string(l) + ".png";
+    write_rgb8(dir / name, kSize, kSize, rgb.data());
+    lp += name + " " + std::to_string(x) + " " + std::to_string(y) + " " + std::to_string(z) + "\n";
+  }
+  std::ofstream(dir / "set.lp") << lp;
+  return dir / "set.lp";
+}
+
 // A full disk under every command that writes: exit 4 (storage), the path named, and nothing left
 // on the disk by the run.
 TEST(StorageFault, EveryCommandOnAFullDiskExitsFourNamingThePathAndLeavesNothing) {
@@ -177,6 +203,12 @@ TEST(StorageFault, EveryCommandOnAFullDiskExitsFourNamingThePathAndLeavesNothing
   SmallDisk disk(tmp / "disk", "1m");
   ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
   FillDisk(tmp / "disk");
+  std::string made;
+  ASSERT_EQ(run_command(cli_path().string() + " compress --quiet " + field.string() +
+                            " --format ptm --out " + (tmp / "r.ptm").string(),
+                        &made),
+            0)
+      << made;
   const std::set<std::string> before = Listing(tmp / "disk");
   const std::string on_disk = (tmp / "disk").string() + "/";
   const std::string map = (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string();
@@ -188,6 +220,13 @@ TEST(StorageFault, EveryCommandOnAFullDiskExitsFourNamingThePathAndLeavesNothing
       "compress --quiet " + field.string() + " --format pca --out " + on_disk + "p.lspca",
       "export openlime --quiet " + field.string() + " --out " + on_disk + "ol",
       "stage --write " + on_disk + "stage.json",
+      "import --quiet " + WriteLpSet(tmp / "lp").string() + " --out " + on_disk + "i.exr",
+      "import --quiet --memory 64K " + (tmp / "lp" / "set.lp").string() + " --out " + on_disk +
+          "ib.exr",
+      "render " + (tmp / "r.ptm").string() + " --light 0 0 1 --out " + on_disk + "r.exr",
+      "envmaps --width 64 --out " + on_disk + "maps",
+      "play " + (tmp / "s").string() + " --field " + field.string() + " --env " + map +
+          " --out " + on_disk + "play",
   };
   for (const std::string& command : commands) {
     std::string out;
