@@ -348,8 +348,7 @@ SimStage::SimStage(Stage stage, Scene scene, uint64_t seed) : state_(std::make_u
       2 * sizeof(SurfaceHit) + 2 * 3 * sizeof(float) + 2 * camera.channels * sizeof(uint16_t);
   require_memory(std::size_t(camera.width) * std::size_t(camera.height) * bytes_per_pixel,
                  state_->stage.source + ": camera.width, camera.height: the simulated stage's " +
-                     std::to_string(camera.width) + "x" + std::to_string(camera.height) +
-                     " camera",
+                     std::to_string(camera.width) + "x" + std::to_string(camera.height) + " camera",
                  "give the simulated camera fewer pixels");
   state_->tracer = std::make_unique<Tracer>(state_->scene);
   state_->hits_at_zero = trace_camera(state_->scene, state_->stage.camera);

@@ -225,8 +225,8 @@ TEST(StorageFault, EveryCommandOnAFullDiskExitsFourNamingThePathAndLeavesNothing
           "ib.exr",
       "render " + (tmp / "r.ptm").string() + " --light 0 0 1 --out " + on_disk + "r.exr",
       "envmaps --width 64 --out " + on_disk + "maps",
-      "play " + (tmp / "s").string() + " --field " + field.string() + " --env " + map +
-          " --out " + on_disk + "play",
+      "play " + (tmp / "s").string() + " --field " + field.string() + " --env " + map + " --out " +
+          on_disk + "play",
   };
   for (const std::string& command : commands) {
     std::string out;
