@@ -9,6 +9,7 @@
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
 #include "capture/field_file.h"
+#include "capture/object_sample.h"
 #include "lightstage/bands.h"
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
@@ -16,6 +17,7 @@
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/fit_bands.h"
 #include "relight/fit/fit_checkpoint.h"
+#include "relight/fit/noise_choice.h"
 #include "relight/fit/noise_from_data.h"
 #include "relight/fit/normals.h"
 #include "relight/time/time_bands.h"
@@ -98,34 +100,42 @@ std::vector<fs::path> expand_time_inputs(const std::vector<fs::path>& inputs) {
 }
 
 // The fields' own measured noise when one carries it (a capture's dark frames and bracket: the same
-// camera for every step of a time series); else the noise of their data, from the residuals of a
-// robust Lambertian fit (an imported set: relight/fit/noise_from_data.h) over rows spread evenly
-// down each field, about 8k pixels' worth per field (4 to 32 rows) whatever --memory, pooled over
-// the fields (the steps of a time series: one camera, one exposure; a dark step alone may hold
-// too few lit pixels), estimated on rank 0 and shared, so that whole, banded and MPI fits weigh
-// alike; else NoiseModel's defaults (the simulated 12-bit camera near mid exposure). Said in
+// camera for every step of a time series); else the noise of their data (an imported set): from
+// the residuals of a robust Lambertian fit (relight/fit/noise_from_data.h) over about 8k of the
+// object's pixels (capture/object_sample.h: the same pixels however the frame is cropped), pooled
+// over the fields (the steps of a time series: one camera, one exposure; a dark step alone may
+// hold too few lit pixels), then scaled or flattened as held-out lights say
+// (relight/fit/noise_choice.h); estimated on rank 0 and shared, so that whole, banded and MPI fits
+// weigh alike; else NoiseModel's defaults (the simulated 12-bit camera near mid exposure). Said in
 // fit.noise_source.
+constexpr long kNoiseSamplePixels = 8192;
+constexpr std::size_t kNoiseScanBytes = std::size_t(64) << 20;
+
 void choose_noise(const std::vector<capture::FieldStream*>& fields, relight::FitOptions& fit) {
   const auto measured = std::find_if(fields.begin(), fields.end(),
                                      [](const auto* f) { return f->header().noise.measured; });
   fit.use_noise_of((measured != fields.end() ? *measured : fields.front())->header());
   if (measured != fields.end()) return;
   const Ranks& ranks = Ranks::world();
-  std::vector<double> found(5, 0.0);  // Estimated (1), a, b, samples, pixels.
+  // Estimated (1), the estimate's a, b, samples and pixels; the chosen candidate, its a, b, error.
+  std::vector<double> found(9, 0.0);
   if (ranks.root()) {
-    const capture::ReflectanceField& header = fields.front()->header();
-    const int rows =
-        std::min(header.height(), std::clamp((8192 + header.width() - 1) / header.width(), 4, 32));
-    capture::ReflectanceField sample(header.width(), rows * int(fields.size()), header.lights());
-    int row = 0;
-    for (capture::FieldStream* field : fields) {
-      for (int k = 0; k < rows; ++k) {
-        const int y = int((k + 0.5) * header.height() / rows);
-        field->read_rows_into(y, y + 1, sample.pixel(0, row++));
+    const capture::ReflectanceField sample =
+        capture::object_sample(fields, kNoiseSamplePixels, kNoiseScanBytes);
+    if (sample.height() > 0) {
+      if (const auto noise = relight::noise_from_data(sample, fit.normals)) {
+        const relight::NoiseChoice choice =
+            relight::choose_noise_by_held_out_lights(sample, fit, noise->model);
+        found = {1,
+                 noise->model.a,
+                 noise->model.b,
+                 double(noise->samples),
+                 double(noise->pixels),
+                 double(choice.chosen),
+                 choice.best().model.a,
+                 choice.best().model.b,
+                 choice.best().held_out_error};
       }
-    }
-    if (const auto noise = relight::noise_from_data(sample, fit.normals)) {
-      found = {1, noise->model.a, noise->model.b, double(noise->samples), double(noise->pixels)};
     }
   }
   ranks.broadcast(found);
@@ -133,12 +143,13 @@ void choose_noise(const std::vector<capture::FieldStream*>& fields, relight::Fit
     fit.noise_source += "; too few lit pixels to estimate it from the data";
     return;
   }
-  relight::DataNoise noise;
-  noise.model = {found[1], found[2]};
-  noise.samples = long(found[3]);
-  noise.pixels = int(found[4]);
-  fit.normals.noise = noise.model;
-  fit.noise_source = noise.describe();
+  relight::DataNoise estimate;
+  estimate.model = {found[1], found[2]};
+  estimate.samples = long(found[3]);
+  estimate.pixels = int(found[4]);
+  fit.normals.noise = {found[6], found[7]};
+  fit.noise_source = estimate.describe() + "; assumed: " +
+                     relight::describe_noise_choice(int(found[5]), found[8]);
 }
 
 // Pixels of `rows` whose flags (channel `flags`) say they hold no signal (relight::kNoSignal).

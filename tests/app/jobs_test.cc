@@ -329,6 +329,62 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   EXPECT_EQ(read_image(fit.out).pixels, read_image(dir / "whole.exr").pixels);
 }
 
+// The noise of a field without measured noise (an imported set) is estimated from its object's
+// pixels, so the empty frame around an object changes nothing: the same field padded with black
+// borders is fitted with the same noise and gives the same normals, to 0.1 degrees.
+TEST_F(Jobs, TheEmptyFrameAroundAnImportedObjectDoesNotChangeItsFit) {
+  const testing::TempDir dir;
+  capture::ReflectanceField object = capture::read_field(built_field(dir.path()));
+  object.noise = {};  // As an import: no dark frames, no bracket.
+  constexpr int kLeft = 37, kTop = 21;
+  capture::ReflectanceField framed(object.width() + kLeft + 50, object.height() + kTop + 9,
+                                   object.lights());
+  capture::copy_attributes(object, framed);
+  for (int y = 0; y < object.height(); ++y) {
+    for (int x = 0; x < object.width(); ++x) {
+      std::copy_n(object.pixel(x, y), 3 * object.num_lights(), framed.pixel(kLeft + x, kTop + y));
+    }
+  }
+  capture::write_field(dir / "object.exr", object);
+  capture::write_field(dir / "framed.exr", framed);
+  jobs::FitJobOptions fit;
+  fit.field_file = dir / "object.exr";
+  fit.out = dir / "object_maps.exr";
+  const jobs::FitJobSummary alone = jobs::fit(fit);
+  fit.field_file = dir / "framed.exr";
+  fit.out = dir / "framed_maps.exr";
+  const jobs::FitJobSummary in_frame = jobs::fit(fit);
+  EXPECT_NE(alone.noise_source.find("estimated from the data"), std::string::npos)
+      << alone.noise_source;
+  EXPECT_EQ(alone.noise_source, in_frame.noise_source);
+  EXPECT_EQ(alone.noise.a, in_frame.noise.a);
+  EXPECT_EQ(alone.noise.b, in_frame.noise.b);
+  const Image a = read_image(dir / "object_maps.exr");
+  const Image b = read_image(dir / "framed_maps.exr");
+  int normal[3];
+  for (int c = 0; c < 3; ++c) {
+    const std::string name = std::string("normal.") + "xyz"[c];
+    normal[c] = int(std::find(a.channel_names.begin(), a.channel_names.end(), name) -
+                    a.channel_names.begin());
+    ASSERT_LT(normal[c], a.channels) << name;
+    ASSERT_EQ(b.channel_names[size_t(normal[c])], name);
+  }
+  double worst_deg = 0;
+  for (int y = 0; y < a.height; ++y) {
+    for (int x = 0; x < a.width; ++x) {
+      Eigen::Vector3d na, nb;
+      for (int c = 0; c < 3; ++c) {
+        na(c) = a.at(x, y, normal[c]);
+        nb(c) = b.at(kLeft + x, kTop + y, normal[c]);
+      }
+      if (na.squaredNorm() == 0) continue;
+      worst_deg = std::max(worst_deg, std::acos(std::clamp(na.normalized().dot(nb.normalized()),
+                                                           -1.0, 1.0)) * 180 / M_PI);
+    }
+  }
+  EXPECT_LE(worst_deg, 0.1);
+}
+
 // A build in bands that is stopped halfway through merging the LEDs (as by a kill) resumes from
 // the LEDs it merged: it merges only the rest, and writes the bytes of an uninterrupted build;
 // the kept LEDs are removed once the field is written.
