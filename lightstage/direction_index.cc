@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <nanoflann.hpp>
 #include <numbers>
 
@@ -93,6 +94,9 @@ double max_nearest_neighbour_angle(const std::vector<Eigen::Vector3d>& dirs) {
 std::optional<Eigen::Vector3d> unit_vector(const Eigen::Vector3d& v, double min_length) {
   const double length = v.stableNorm();
   if (!v.allFinite() || !(length > min_length) || !std::isfinite(length)) return std::nullopt;
+  // Unit already, to rounding: kept as it is, so that a direction read back from a file it was
+  // written to (a resumed session's stage) is the same bits, not renormalised an ulp away.
+  if (std::abs(length - 1) <= 4 * std::numeric_limits<double>::epsilon()) return v;
   return v / length;
 }
 

@@ -97,6 +97,9 @@ JsonReader JsonReader::operator[](const std::string& key) const {
 
 JsonReader JsonReader::operator[](size_t index) const {
   expect_array();
+  if (index >= value_.size()) {
+    fail("an array of at least " + std::to_string(index + 1) + " entries");
+  }
   return JsonReader(value_.at(index), source_, path_ + "[" + std::to_string(index) + "]");
 }
 

@@ -220,6 +220,11 @@ std::vector<PlannedFrame> plan_frames(const Stage& stage) {
 
 Session Session::create(const fs::path& dir, const Stage& stage, const SessionInfo& info) {
   if (fs::exists(dir / kManifest)) {
+    if (const auto pid = SessionWriterLock::capturing(dir)) {
+      throw InputError(dir.string() + ": a capture (process " + std::to_string(*pid) +
+                       ") is writing this session: wait for it to end, or stop it and resume it " +
+                       "with --resume " + dir.string());
+    }
     throw InputError(dir.string() + ": already holds a session; resume it with --resume " +
                      dir.string() + " or choose another directory");
   }

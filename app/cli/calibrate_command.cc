@@ -10,22 +10,11 @@
 #include <memory>
 
 #include "app/cli/commands.h"
+#include "app/cli/validators.h"
 #include "app/jobs/calibrate_job.h"
 
 namespace ls::cli {
 namespace {
-
-// CLI11's numeric checks let NaN through (every comparison with it is false): the measurements
-// given on the command line must be finite numbers.
-const CLI::Validator kFinite(
-    [](std::string& text) {
-      double value = 0;
-      const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-      const bool ok =
-          error == std::errc() && end == text.data() + text.size() && std::isfinite(value);
-      return ok ? std::string() : "expected a finite number, got " + text;
-    },
-    "FINITE");
 
 void print_problems(const std::vector<capture::ImageProblem>& problems) {
   if (problems.empty()) return;

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include "app/cli/commands.h"
+#include "app/cli/validators.h"
 #include "app/jobs/capture_job.h"
 #include "lightstage/progress.h"
 
@@ -151,7 +152,8 @@ void add_capture_command(CLI::App& app) {
       cmd->add_option("--resume", options->session_dir, "Existing session directory to complete.");
   out->excludes(resume);
   cmd->add_option("--seed", options->seed, "Noise seed of the simulated camera.")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(kSeed);
   cmd->add_option("--exposures-from", options->exposures_from,
                   "An earlier session of the same stage and scene: each LED is shot only at the "
                   "bracket steps that were the best exposure of its pixels there (fewer frames, "

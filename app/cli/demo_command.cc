@@ -6,6 +6,7 @@
 #include <cstdio>
 
 #include "app/cli/commands.h"
+#include "app/cli/validators.h"
 #include "app/jobs/contact_sheet.h"
 #include "capture/field.h"
 #include "lightstage/image_metrics.h"
@@ -125,7 +126,8 @@ void add_demo_command(CLI::App& app) {
       ->check(CLI::Range(16, 2048))
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "Noise seed of the simulated camera.")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(kSeed);
   cmd->add_flag("!--no-shared-maps", args->shared_maps,
                 "Only the maps in data/envmaps, not ../shared/data/envmaps.");
   cmd->add_flag("!--no-truth", args->truth, "Skip the ground-truth comparison.");

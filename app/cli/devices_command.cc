@@ -96,7 +96,8 @@ void add_check_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_flag("--blink", request->blink, "Switch each LED on once, in stage-file order.");
   cmd->add_option("--blink-seconds", request->blink_s, "How long each LED stays on.")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 3600.0));
   cmd->add_flag("!--no-frame", request->frame, "Do not capture a test frame.");
   cmd->callback([request] {
     const int code = check_stage(*request);

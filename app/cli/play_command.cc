@@ -4,6 +4,7 @@
 #include <cstdio>
 
 #include "app/cli/commands.h"
+#include "app/cli/validators.h"
 #include "app/jobs/play_job.h"
 
 namespace ls::cli {
@@ -27,7 +28,8 @@ void add_play_command(CLI::App& app) {
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("--rotate", options->play.rotate_deg, "Rotate the map about +Y (degrees).")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(kFinite);
   cmd->add_option("--out", options->play.out_dir,
                   "Folder for photo.exr, relit.exr, compare.png (photograph | relit | "
                   "difference x 8) and report.json.")
@@ -39,7 +41,8 @@ void add_play_command(CLI::App& app) {
       ->check(CLI::Range(0, 1 << 20));
   cmd->add_option("--gain-tolerance", options->play.gain_tolerance,
                   "How much brighter or dimmer than the relit field the photograph may be.")
-      ->capture_default_str();
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   cmd->callback([options] {
     const auto lock = lock_output(options->play.out_dir);
     const jobs::PlayResult r = jobs::play_session(*options);

@@ -75,6 +75,10 @@ void add_envmaps_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(8, 16384));
   cmd->callback([args] {
+    if (args->width % 2 != 0) {
+      throw CLI::ValidationError("--width", "expected an even width (the height is half), got " +
+                                            std::to_string(args->width));
+    }
     const auto lock = lock_output(args->out);
     RunOutputs outputs(args->out);  // A run that fails leaves none of its maps.
     fs::create_directories(args->out);

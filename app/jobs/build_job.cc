@@ -91,15 +91,23 @@ BuildJobSummary build(const BuildJobOptions& options, const ProgressFn& progress
   }
   // One field per time step: DIR/field_t000.exr, ... (each stores its scene time, capture/field.h).
   std::error_code ec;
+  const bool existed = fs::exists(options.out, ec);
   fs::create_directories(options.out, ec);
   if (ec || !fs::is_directory(options.out)) {
     throw InputError(options.out.string() + ": --out: expected a directory for --all-time-steps (" +
                      (ec ? ec.message() : std::string("not a directory")) + ")");
   }
-  for (int t = 0; t < session.stage().plan.time_steps; ++t) {
-    char name[32];
-    std::snprintf(name, sizeof name, "field_t%03d.exr", t);
-    summary.fields.push_back(build_step(session, options, t, options.out / name, progress));
+  try {
+    for (int t = 0; t < session.stage().plan.time_steps; ++t) {
+      char name[32];
+      std::snprintf(name, sizeof name, "field_t%03d.exr", t);
+      summary.fields.push_back(build_step(session, options, t, options.out / name, progress));
+    }
+  } catch (...) {
+    // The folder this run made goes with it when nothing in it (a field, a step's .partial/ kept
+    // for resuming) is worth keeping.
+    if (!existed && fs::is_empty(options.out, ec)) fs::remove(options.out, ec);
+    throw;
   }
   return summary;
 }

@@ -99,13 +99,13 @@ std::string CaptureOptions::validate() const {
   return {};
 }
 
-CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks& callbacks) {
-  if (const std::string problem = options.validate(); !problem.empty()) {
-    throw InputError("capture: " + problem);
-  }
+namespace {
+
+// The capture itself; `session` and `writer_lock` are the caller's, so that it can clean up.
+CaptureJobSummary capture_frames(const CaptureOptions& options, const CaptureCallbacks& callbacks,
+                                 std::optional<Session>& session,
+                                 std::optional<SessionWriterLock>& writer_lock) {
   CaptureJobSummary summary;
-  std::optional<Session> session;
-  std::optional<SessionWriterLock> writer_lock;  // One capture writes a session at a time.
   OpenedBackend devices;
   if (options.resume) {
     // Locked before the journal is read (as the last writer left it); a folder that is no session
@@ -180,6 +180,29 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
   }
   collect_dead_leds(*session, summary);
   return summary;
+}
+
+}  // namespace
+
+CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks& callbacks) {
+  if (const std::string problem = options.validate(); !problem.empty()) {
+    throw InputError("capture: " + problem);
+  }
+  // A new session that fails before its first frame (refused for its disk, a side file that does
+  // not read) is removed: there is nothing in it to resume.
+  const bool fresh = !options.resume && !fs::exists(options.session_dir);
+  std::optional<Session> session;
+  std::optional<SessionWriterLock> writer_lock;  // One capture writes a session at a time.
+  try {
+    return capture_frames(options, callbacks, session, writer_lock);
+  } catch (...) {
+    if (fresh && session && session->frames().empty()) {
+      writer_lock.reset();
+      std::error_code ignored;
+      fs::remove_all(options.session_dir, ignored);
+    }
+    throw;
+  }
 }
 
 }  // namespace ls::jobs

@@ -172,6 +172,19 @@ std::string CompressOptions::validate() const {
     return "--rank: expected a positive integer or \"auto\", got \"" + rank + "\"";
   }
   if (tile < 0) return "--tile: expected a tile size in pixels >= 0 (0: one global basis)";
+  if (format != "pca" && rank != CompressOptions{}.rank) {
+    return "--rank " + rank + ": for --format pca only (an RTI basis has its own size)";
+  }
+  if (format != "pca" && tile != 0) return "--tile: for --format pca only";
+  // A name that says another of these formats misleads every reader that goes by it.
+  const std::string wanted = format == "pca"              ? ".lspca"
+                             : format.starts_with("ptm") ? ".ptm"
+                                                         : ".rti";
+  const std::string named = out.extension().string();
+  if ((named == ".lspca" || named == ".ptm" || named == ".rti") && named != wanted) {
+    return "--out " + out.string() + ": --format " + format + " writes a " + wanted +
+           " file, not a " + named + " (viewers and render tell the formats apart by the name)";
+  }
   if (!(gain >= 0 && gain < 1e30)) return "--gain: expected a finite gain >= 0";
   if (!encoding.empty() && encoding != "srgb" && encoding != "linear") {
     return "--encoding: expected srgb or linear, got \"" + encoding + "\"";
@@ -355,6 +368,9 @@ std::string OpenLimeExportOptions::validate() const {
     return "--image: expected jpg or png, got \"" + image + "\"";
   }
   if (quality < 1 || quality > 100) return "--quality: expected a JPEG quality in 1..100";
+  if (image == "png" && quality != OpenLimeExportOptions{}.quality) {
+    return "--quality: for --image jpg only (PNG planes are lossless)";
+  }
   if (!(gain >= 0 && gain < 1e30)) return "--gain: expected a finite gain >= 0";
   if (input.empty()) return "give the field (or .lp set) to export";
   if (out.empty()) return "--out: give the folder to write";
@@ -434,6 +450,7 @@ std::string RenderOptions::validate() const {
     if (!dir.allFinite() || !(dir.norm() > 0)) return "--light: expected a non-zero direction";
   }
   if (!std::isfinite(rotation_deg)) return "--rotate: expected a number of degrees";
+  if (!light.empty() && rotation_deg != 0) return "--rotate: turns an --env map; a --light has none";
   return {};
 }
 

@@ -61,8 +61,13 @@ std::string RelightOptions::validate() const {
       return std::string("--rotate: expected angles in degrees within [-36000, 36000], got ") + got;
     }
   }
-  if (!(std::isfinite(coverage_deg) && coverage_deg >= 0)) {
-    return "--coverage-deg: expected a finite angle >= 0";
+  if (!(coverage_deg >= 0 && coverage_deg <= 180)) {
+    return "--coverage-deg: expected an angle in 0..180 degrees (0: automatic), as a stage file's "
+           "coverage";
+  }
+  if (directions_width != RelightOptions{}.directions_width && !models && temporal_file.empty()) {
+    return "--directions: the grid models are lit on: give --models (a field is lit by its LEDs' "
+           "cells)";
   }
   if (out_dir.empty()) return "--out: give the output directory";
   return {};

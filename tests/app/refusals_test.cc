@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <string>
 
@@ -76,6 +77,79 @@ TEST_F(Refusals, OptionsOutsideTheirUseAreRefusedNamingThem) {
              (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string() +
              " --audit-groups -3 --out " + Path("p"),
          1, {"--audit-groups: Value -3 not in range 0"});
+}
+
+// Options a command would ignore, or values it would wrap, are refused naming the option.
+TEST_F(Refusals, OptionsThatWouldBeIgnoredOrWrappedAreRefused) {
+  const std::string map = (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string();
+  Expect("envmaps --width 63 --out " + Path("odd_maps"), 1, {"--width", "even"});
+  EXPECT_FALSE(fs::exists(Path("odd_maps")));
+  Expect("relight --quiet " + Path("f.exr") + " --env " + map + " --coverage-deg 500 --out " +
+             Path("cov"),
+         1, {"--coverage-deg", "0..180"});
+  Expect("relight --quiet " + Path("f.exr") + " --env " + map + " --directions 16 --out " +
+             Path("dirs"),
+         1, {"--directions", "--models"});
+  Expect("compress " + Path("f.exr") + " --format ptm --rank 5 --out " + Path("r.ptm"), 2,
+         {"--rank 5", "--format pca only"});
+  Expect("compress " + Path("f.exr") + " --format hsh2 --tile 16 --out " + Path("t.rti"), 2,
+         {"--tile", "--format pca only"});
+  Expect("compress " + Path("f.exr") + " --format pca --out " + Path("pca.ptm"), 2,
+         {"pca.ptm", "writes a .lspca file, not a .ptm"});
+  Expect("export openlime " + Path("f.exr") + " --image png --quality 50 --out " + Path("q50"), 2,
+         {"--quality", "jpg only"});
+  ASSERT_EQ(Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("l.ptm"),
+                nullptr),
+            0);
+  Expect("render " + Path("l.ptm") + " --light 0 0 1 --rotate 45 --out " + Path("l.exr"), 1,
+         {"--rotate", "--light"});
+  Expect("capture --seed -1 --out " + Path("seed"), 1, {"--seed", "0..18446744073709551615"});
+  Expect("capture --seed 99999999999999999999999 --out " + Path("seed"), 1, {"--seed"});
+  Expect("play " + Path("s") + " --field " + Path("f.exr") + " --env " + map +
+             " --gain-tolerance -1 --out " + Path("gain"),
+         1, {"--gain-tolerance"});
+  Expect("play " + Path("s") + " --field " + Path("f.exr") + " --env " + map +
+             " --rotate nan --out " + Path("nan"),
+         1, {"--rotate", "finite"});
+  for (const char* made : {"cov", "dirs", "r.ptm", "t.rti", "pca.ptm", "q50", "l.exr", "seed",
+                           "gain", "nan"}) {
+    EXPECT_FALSE(fs::exists(Path(made))) << made;
+  }
+}
+
+// A capture refused before its first frame leaves no session behind; a capture into a session
+// another capture is writing names that process.
+TEST_F(Refusals, ACaptureRefusedBeforeItsFirstFrameLeavesNoSession) {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(12, -10));
+  stage.camera.width = stage.camera.height = 16;
+  stage.camera.response.kind = CameraResponse::Kind::kTable;
+  stage.camera.response.table_file = *tmp_ / "table.csv";
+  write_file_atomic(*tmp_ / "tabled.json", stage_to_json(stage));
+  std::ofstream(*tmp_ / "table.csv") << "not a number\n";
+  Expect("capture --quiet --stage " + Path("tabled.json") + " --out " + Path("tabled"), 2,
+         {"table.csv"});
+  EXPECT_FALSE(fs::exists(Path("tabled")));
+  const SessionWriterLock capturing(*tmp_ / "s");
+  Expect("capture --quiet --out " + Path("s"), 2,
+         {Path("s") + ": a capture (process " + std::to_string(getpid()) + ")"});
+}
+
+// An OpenLIME folder whose info.json lacks what it must hold is refused naming the field.
+TEST_F(Refusals, AnOpenLimeFolderWithoutMaterialsIsRefusedNamingTheField) {
+  ASSERT_EQ(Run("export openlime --quiet " + Path("f.exr") + " --out " + Path("nomat"), nullptr),
+            0);
+  std::string info;
+  {
+    std::ifstream in(*tmp_ / "nomat" / "info.json");
+    info.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  const size_t at = info.find("\"materials\"");
+  ASSERT_NE(at, std::string::npos);
+  const size_t open = info.find('[', at), close = info.find(']', info.find('}', at));
+  info.replace(open, close - open + 1, "[]");
+  std::ofstream(*tmp_ / "nomat" / "info.json") << info;
+  Expect("render " + Path("nomat") + " --light 0 0 1 --out " + Path("nomat.exr"), 2,
+         {"info.json: materials: expected an array of at least 1 entries"});
 }
 
 TEST_F(Refusals, WhatIsAssumedIsSaid) {

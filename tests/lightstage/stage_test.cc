@@ -107,6 +107,17 @@ TEST(Stage, JsonRoundTripPreservesEverything) {
   EXPECT_EQ(back.capture_order(), (std::vector<int>{2, 1, 0}));
 }
 
+// A session's stage is read back on every resume and written again: its text must not move, so
+// that a resumed capture writes the bytes of an uninterrupted one (directions are not
+// renormalised an ulp away each time).
+TEST(Stage, ReadingAndWritingAgainGivesTheSameText) {
+  Stage stage = stage_with_directions(fibonacci_dome_directions(40, -10));
+  const std::string once = stage_to_json(stage);
+  const std::string twice = stage_to_json(parse_stage(once, "once.json"));
+  EXPECT_EQ(stage_to_json(parse_stage(twice, "twice.json")), twice);
+  EXPECT_EQ(twice, once);
+}
+
 TEST(Stage, GeneratedLayoutAndPositions) {
   const Stage s = parse_stage(R"({"layout": {"type": "fibonacci", "count": 40}})", "s.json");
   EXPECT_EQ(s.leds.size(), 40u);
