@@ -48,7 +48,8 @@ ReflectanceField object_sample(const std::vector<FieldStream*>& fields, long wan
   std::vector<int> per_row(std::size_t(height), 0);
   int top = -1, bottom = -1;
   for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) per_row[size_t(y)] += brightest[size_t(y) * width + x] > threshold;
+    for (int x = 0; x < width; ++x)
+      per_row[size_t(y)] += brightest[size_t(y) * width + x] > threshold;
     if (per_row[size_t(y)] > 0) {
       if (top < 0) top = y;
       bottom = y;

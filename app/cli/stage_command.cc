@@ -77,7 +77,7 @@ void add_envmaps_command(CLI::App& app) {
   cmd->callback([args] {
     if (args->width % 2 != 0) {
       throw CLI::ValidationError("--width", "expected an even width (the height is half), got " +
-                                            std::to_string(args->width));
+                                                std::to_string(args->width));
     }
     const auto lock = lock_output(args->out);
     RunOutputs outputs(args->out);  // A run that fails leaves none of its maps.

@@ -177,7 +177,7 @@ std::string CompressOptions::validate() const {
   }
   if (format != "pca" && tile != 0) return "--tile: for --format pca only";
   // A name that says another of these formats misleads every reader that goes by it.
-  const std::string wanted = format == "pca"              ? ".lspca"
+  const std::string wanted = format == "pca"             ? ".lspca"
                              : format.starts_with("ptm") ? ".ptm"
                                                          : ".rti";
   const std::string named = out.extension().string();
@@ -450,7 +450,8 @@ std::string RenderOptions::validate() const {
     if (!dir.allFinite() || !(dir.norm() > 0)) return "--light: expected a non-zero direction";
   }
   if (!std::isfinite(rotation_deg)) return "--rotate: expected a number of degrees";
-  if (!light.empty() && rotation_deg != 0) return "--rotate: turns an --env map; a --light has none";
+  if (!light.empty() && rotation_deg != 0)
+    return "--rotate: turns an --env map; a --light has none";
   return {};
 }
 

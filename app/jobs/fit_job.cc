@@ -148,8 +148,8 @@ void choose_noise(const std::vector<capture::FieldStream*>& fields, relight::Fit
   estimate.samples = long(found[3]);
   estimate.pixels = int(found[4]);
   fit.normals.noise = {found[6], found[7]};
-  fit.noise_source = estimate.describe() + "; assumed: " +
-                     relight::describe_noise_choice(int(found[5]), found[8]);
+  fit.noise_source =
+      estimate.describe() + "; assumed: " + relight::describe_noise_choice(int(found[5]), found[8]);
 }
 
 // Pixels of `rows` whose flags (channel `flags`) say they hold no signal (relight::kNoSignal).

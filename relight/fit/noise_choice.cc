@@ -43,8 +43,9 @@ void score_held_out(const capture::ReflectanceField& sample, const std::vector<i
   for (int y = 0; y < sample.height(); ++y) {
     for (int x = 0; x < sample.width(); ++x) {
       if (maps.model(x, y) == FitModel::kNone) continue;
-      const float* m =
-          maps.maps.pixels.data() + (std::size_t(y) * std::size_t(maps.maps.width) + std::size_t(x)) * std::size_t(maps.maps.channels);
+      const float* m = maps.maps.pixels.data() +
+                       (std::size_t(y) * std::size_t(maps.maps.width) + std::size_t(x)) *
+                           std::size_t(maps.maps.channels);
       for (const int l : held_out) {
         const capture::FieldLight& light = sample.lights()[size_t(l)];
         const float* v = sample.pixel(x, y) + 3 * size_t(l);

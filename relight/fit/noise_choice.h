@@ -23,7 +23,7 @@ std::string describe_noise_choice(int index, double held_out_error);
 
 struct NoiseCandidate {
   NoiseModel model;
-  double held_out_error = 0;    // Mean |luminance - model's|, field units.
+  double held_out_error = 0;  // Mean |luminance - model's|, field units.
   long held_out_samples = 0;
 };
 

@@ -378,8 +378,9 @@ TEST_F(Jobs, TheEmptyFrameAroundAnImportedObjectDoesNotChangeItsFit) {
         nb(c) = b.at(kLeft + x, kTop + y, normal[c]);
       }
       if (na.squaredNorm() == 0) continue;
-      worst_deg = std::max(worst_deg, std::acos(std::clamp(na.normalized().dot(nb.normalized()),
-                                                           -1.0, 1.0)) * 180 / M_PI);
+      worst_deg = std::max(
+          worst_deg,
+          std::acos(std::clamp(na.normalized().dot(nb.normalized()), -1.0, 1.0)) * 180 / M_PI);
     }
   }
   EXPECT_LE(worst_deg, 0.1);

@@ -98,9 +98,9 @@ TEST_F(Refusals, OptionsThatWouldBeIgnoredOrWrappedAreRefused) {
          {"pca.ptm", "writes a .lspca file, not a .ptm"});
   Expect("export openlime " + Path("f.exr") + " --image png --quality 50 --out " + Path("q50"), 2,
          {"--quality", "jpg only"});
-  ASSERT_EQ(Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("l.ptm"),
-                nullptr),
-            0);
+  ASSERT_EQ(
+      Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("l.ptm"), nullptr),
+      0);
   Expect("render " + Path("l.ptm") + " --light 0 0 1 --rotate 45 --out " + Path("l.exr"), 1,
          {"--rotate", "--light"});
   Expect("capture --seed -1 --out " + Path("seed"), 1, {"--seed", "0..18446744073709551615"});
@@ -111,8 +111,8 @@ TEST_F(Refusals, OptionsThatWouldBeIgnoredOrWrappedAreRefused) {
   Expect("play " + Path("s") + " --field " + Path("f.exr") + " --env " + map +
              " --rotate nan --out " + Path("nan"),
          1, {"--rotate", "finite"});
-  for (const char* made : {"cov", "dirs", "r.ptm", "t.rti", "pca.ptm", "q50", "l.exr", "seed",
-                           "gain", "nan"}) {
+  for (const char* made :
+       {"cov", "dirs", "r.ptm", "t.rti", "pca.ptm", "q50", "l.exr", "seed", "gain", "nan"}) {
     EXPECT_FALSE(fs::exists(Path(made))) << made;
   }
 }
