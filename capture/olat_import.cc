@@ -1,6 +1,7 @@
 #include "capture/olat_import.h"
 
 #include <algorithm>
+#include <array>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -330,6 +331,10 @@ OlatImageSet read_rti_lp_set(const fs::path& lp_path, const OlatImportOptions& o
   job.transfer = options.transfer.value_or(default_transfer(job.format));
   ImageFinder finder(lp_file.parent_path());
   std::vector<double> norms;
+  // One light per image and per direction: a repeated one is a copying slip that would weigh one
+  // light twice (or give one image two directions).
+  std::map<fs::path, std::string> image_lines;
+  std::map<std::array<long long, 3>, std::string> direction_lines;
   for (int i = 1; i <= count; ++i) {
     const TextLine& line = lines[i];
     const std::string at = where(lp_file, line.number);
@@ -354,6 +359,17 @@ OlatImageSet read_rti_lp_set(const fs::path& lp_path, const OlatImportOptions& o
                        vector_text(raw) + ", behind it");
     }
     entry.image = finder.find(written, at);
+    if (const auto [it, added] = image_lines.emplace(entry.image, at); !added) {
+      throw InputError(at + ": image: " + written + " is listed already, at " + it->second +
+                       " (each image is one light's)");
+    }
+    std::array<long long, 3> key;
+    for (int c = 0; c < 3; ++c) key[size_t(c)] = std::llround(entry.dir_in_stage(c) * 1e7);
+    if (const auto [it, added] = direction_lines.emplace(key, at); !added) {
+      throw InputError(at + ": light direction: " + vector_text(raw) +
+                       " is the direction of the light at " + it->second +
+                       " already (each light has a direction of its own)");
+    }
     norms.push_back(raw.norm());
     job.lights.push_back(std::move(entry));
   }

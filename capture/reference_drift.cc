@@ -102,6 +102,11 @@ std::optional<ReferenceDrift> build_drift(const Session& session, int time_step,
                                           const ResponseCurve& response, bool correct,
                                           std::vector<std::string>* warnings) {
   std::optional<ReferenceDrift> drift;
+  if (correct && session.stage().plan.reference_led < 0) {
+    throw InputError(session.stage().source +
+                     ": plan.reference_led: --correct-drift divides out the drift of a reference "
+                     "LED shot through the capture, and this plan shoots none");
+  }
   try {
     drift = measure_reference_drift(session, time_step, response);
   } catch (const InputError& e) {

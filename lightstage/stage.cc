@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "lightstage/errors.h"
+#include "lightstage/direction_index.h"
 #include "lightstage/json_reader.h"
 
 namespace ls {
@@ -19,6 +20,7 @@ using nlohmann::json;
 namespace {
 
 constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
+constexpr double kSameDirectionRad = 1e-6;
 
 Led parse_led(const JsonReader& r, size_t index) {
   r.expect_object({"id", "direction", "position", "color", "intensity", "gpio"});
@@ -117,8 +119,13 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
       const JsonReader step = b[i];
       step.expect_object({"exposure_s", "gain"});
       ExposureStep s;
-      s.exposure_s = step["exposure_s"].positive("(seconds)");
+      s.exposure_s = step["exposure_s"].number_in(1e-9, 3600, "(seconds, at most an hour)");
       if (step.has("gain")) s.gain = step["gain"].positive("(linear gain)");
+      for (const ExposureStep& earlier : cam.bracket) {
+        if (earlier.exposure_s * earlier.gain == s.exposure_s * s.gain) {
+          step.fail("an exposure (exposure_s x gain) the bracket has not had yet");
+        }
+      }
       cam.bracket.push_back(s);
     }
   }
@@ -359,9 +366,28 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
     if (leds.size() == 0) leds.fail("at least one LED");
     stage.leds.clear();
     std::set<int> ids;
+    std::set<std::pair<std::string, int>> lines;
     for (size_t i = 0; i < leds.size(); ++i) {
       stage.leds.push_back(parse_led(leds[i], i));
-      if (!ids.insert(stage.leds.back().id).second) leds[i]["id"].fail("a unique LED id");
+      const Led& led = stage.leds.back();
+      if (!ids.insert(led.id).second) leds[i]["id"].fail("a unique LED id");
+      if (led.gpio_line >= 0 && !lines.insert({led.gpio_chip, led.gpio_line}).second) {
+        leds[i]["gpio"].fail("a line no other LED drives (two LEDs on one line light together)");
+      }
+    }
+    // Two LEDs in one place are one light counted twice: every per-LED solid angle and fit
+    // would weigh it double.
+    std::vector<Eigen::Vector3d> directions;
+    for (const Led& led : stage.leds) directions.push_back(led.dir_in_stage);
+    const DirectionIndex index(directions);
+    for (size_t i = 0; i < directions.size(); ++i) {
+      if (!(index.nearest_other_angle(int(i)) < kSameDirectionRad)) continue;
+      for (const int j : index.within(directions[i], kSameDirectionRad)) {
+        if (size_t(j) < i) {
+          leds[i].fail("an LED in a place of its own (LED " + std::to_string(stage.leds[size_t(j)].id) +
+                       " is in the same direction)");
+        }
+      }
     }
   } else {
     stage.leds = stage_with_directions(layout_directions(r["layout"])).leds;

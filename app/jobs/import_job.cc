@@ -107,6 +107,15 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
     throw InputError("import: --time: expected one time per set (" + std::to_string(steps) +
                      " sets), got " + std::to_string(times_s.size()));
   }
+  if (steps < 2) {
+    throw InputError("import: --interval: a time-lapse needs two sets or more, got " +
+                     std::to_string(steps) + " (one set: give its scene time with --time S)");
+  }
+  // Three centuries: beyond that it is a typing slip (1e308 overflows the later steps' times).
+  if (interval_s > 1e10) {
+    throw InputError("import: --interval: expected at most 1e10 s (three centuries) between "
+                     "sets, got " + std::to_string(interval_s) + " s");
+  }
   if (times_s.empty() && !(interval_s > 0 && std::isfinite(interval_s))) {
     throw InputError("import: " + std::to_string(steps) +
                      " sets: give each its scene time (--time S...) or the interval between them "

@@ -12,6 +12,7 @@
 #include "capture/light_calibration.h"
 #include "capture/played_photo.h"
 #include "lightstage/backend_registry.h"
+#include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 #include "lightstage/run_outputs.h"
 #include "lightstage/session.h"
@@ -273,6 +274,9 @@ class Player {
   PlayResult result_;
 };
 
+// A field's LED within this of the stage's is the same LED (calibration moves them less).
+constexpr double kSameLedRad = 0.01;
+
 }  // namespace
 
 std::string SuspectLed::describe() const {
@@ -330,6 +334,20 @@ PlayResult play_map(const Stage& stage, const capture::ReflectanceField& field,
 PlayResult play_session(const PlaySessionOptions& options, const ProgressFn& progress) {
   const Session session = Session::open(options.session_dir);
   const capture::ReflectanceField field = capture::read_field(options.field);
+  // The field must be this session's (its LEDs, where the stage has them): another capture's
+  // would be judged a faulty dome.
+  const Stage& stage = session.stage();
+  for (const capture::FieldLight& light : field.lights()) {
+    const int led = stage.led_index(light.led_id);
+    if (led < 0 || angle_between(stage.leds[size_t(led)].dir_in_stage, light.dir_in_stage) >
+                       kSameLedRad) {
+      throw InputError(options.field.string() + ": --field: LED " + std::to_string(light.led_id) +
+                       (led < 0 ? " is not one of the session's stage"
+                                : " is not where the session's stage has it") +
+                       " (" + stage.source + "): give the field built from " +
+                       options.session_dir.string());
+    }
+  }
   const OpenedBackend devices = open_session_backend(session);
   return play_map(session.stage(), field, *devices.lights, *devices.camera, options.play, progress);
 }
