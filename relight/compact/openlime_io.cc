@@ -11,6 +11,7 @@
 #include "lightstage/image.h"
 #include "lightstage/image_file.h"
 #include "lightstage/json_reader.h"
+#include "lightstage/memory.h"
 #include "lightstage/run_outputs.h"
 #include "lightstage/scratch_file.h"
 #include "relight/compact/plane_field.h"
@@ -152,6 +153,11 @@ PlaneField read_openlime(const fs::path& folder) {
   out.gain = info.has("lightstage") ? info["lightstage"]["gain"].positive() : 1.0;
   out.stored_bytes = fs::file_size(file);
   const size_t pixels = size_t(width) * height;
+  // The planes' codes, a plane read as floats, and a render's image: before any is made.
+  require_memory(pixels * (size_t(out.planes) + 2 * 3 * sizeof(float)),
+                 file.string() + ": width, height: " + std::to_string(width) + "x" +
+                     std::to_string(height) + " with " + std::to_string(out.planes) + " planes",
+                 "this folder cannot be rendered on this machine");
   out.codes.resize(pixels * size_t(out.planes));
   for (int j = 0; j < out.planes / 3; ++j) {
     const fs::path plane = plane_file(folder, j, format);
