@@ -8,8 +8,8 @@
 #include <set>
 #include <sstream>
 
-#include "lightstage/errors.h"
 #include "lightstage/direction_index.h"
+#include "lightstage/errors.h"
 #include "lightstage/json_reader.h"
 
 namespace ls {
@@ -384,8 +384,8 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
       if (!(index.nearest_other_angle(int(i)) < kSameDirectionRad)) continue;
       for (const int j : index.within(directions[i], kSameDirectionRad)) {
         if (size_t(j) < i) {
-          leds[i].fail("an LED in a place of its own (LED " + std::to_string(stage.leds[size_t(j)].id) +
-                       " is in the same direction)");
+          leds[i].fail("an LED in a place of its own (LED " +
+                       std::to_string(stage.leds[size_t(j)].id) + " is in the same direction)");
         }
       }
     }

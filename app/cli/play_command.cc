@@ -64,9 +64,10 @@ void add_play_command(CLI::App& app) {
     }
     if (r.check.blocks == 0) {
       // Nothing was compared: saying that the dome reproduces the field would be a guess.
-      std::printf("%s: nothing checked: the light %s plays reaches no part of the view; play a "
-                  "map whose light falls on the LEDs that light the scene\n",
-                  options->play.out_dir.c_str(), options->play.env_map.filename().c_str());
+      std::printf(
+          "%s: nothing checked: the light %s plays reaches no part of the view; play a "
+          "map whose light falls on the LEDs that light the scene\n",
+          options->play.out_dir.c_str(), options->play.env_map.filename().c_str());
       throw CLI::RuntimeError(kExitInputError);
     }
     const bool found = !r.agrees || !r.suspects.empty() || !r.unresolved_groups.empty();

@@ -113,8 +113,10 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
   }
   // Three centuries: beyond that it is a typing slip (1e308 overflows the later steps' times).
   if (interval_s > 1e10) {
-    throw InputError("import: --interval: expected at most 1e10 s (three centuries) between "
-                     "sets, got " + std::to_string(interval_s) + " s");
+    throw InputError(
+        "import: --interval: expected at most 1e10 s (three centuries) between "
+        "sets, got " +
+        std::to_string(interval_s) + " s");
   }
   if (times_s.empty() && !(interval_s > 0 && std::isfinite(interval_s))) {
     throw InputError("import: " + std::to_string(steps) +

@@ -339,8 +339,8 @@ PlayResult play_session(const PlaySessionOptions& options, const ProgressFn& pro
   const Stage& stage = session.stage();
   for (const capture::FieldLight& light : field.lights()) {
     const int led = stage.led_index(light.led_id);
-    if (led < 0 || angle_between(stage.leds[size_t(led)].dir_in_stage, light.dir_in_stage) >
-                       kSameLedRad) {
+    if (led < 0 ||
+        angle_between(stage.leds[size_t(led)].dir_in_stage, light.dir_in_stage) > kSameLedRad) {
       throw InputError(options.field.string() + ": --field: LED " + std::to_string(light.led_id) +
                        (led < 0 ? " is not one of the session's stage"
                                 : " is not where the session's stage has it") +
