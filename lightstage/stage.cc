@@ -119,7 +119,8 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
       const JsonReader step = b[i];
       step.expect_object({"exposure_s", "gain"});
       ExposureStep s;
-      s.exposure_s = step["exposure_s"].number_in(1e-9, 3600, "(seconds, at most an hour)");
+      s.exposure_s = step["exposure_s"].positive("(seconds)");
+      if (s.exposure_s > 3600) step["exposure_s"].fail("an exposure of at most an hour (3600 s)");
       if (step.has("gain")) s.gain = step["gain"].positive("(linear gain)");
       for (const ExposureStep& earlier : cam.bracket) {
         if (earlier.exposure_s * earlier.gain == s.exposure_s * s.gain) {

@@ -7,7 +7,9 @@
 #include <iterator>
 #include <memory>
 #include <string>
+#include <vector>
 
+#include "lightstage/image.h"
 #include "lightstage/output_lock.h"
 #include "lightstage/session.h"
 #include "tests/app/cli_process.h"
@@ -150,6 +152,47 @@ TEST_F(Refusals, AnOpenLimeFolderWithoutMaterialsIsRefusedNamingTheField) {
   std::ofstream(*tmp_ / "nomat" / "info.json") << info;
   Expect("render " + Path("nomat") + " --light 0 0 1 --out " + Path("nomat.exr"), 2,
          {"info.json: materials: expected an array of at least 1 entries"});
+}
+
+// An .lp set's lines, with 8-bit images of a gradient: "name x y z" per light.
+void WriteLp(const fs::path& dir, const std::vector<std::string>& lines) {
+  fs::create_directories(dir);
+  std::string lp = std::to_string(lines.size()) + "\n";
+  for (const std::string& line : lines) {
+    const std::string image = line.substr(0, line.find(' '));
+    std::vector<uint8_t> rgb(16 * 16 * 3);
+    for (size_t i = 0; i < rgb.size(); ++i) rgb[i] = uint8_t(40 + i % 150);
+    write_rgb8(dir / image, 16, 16, rgb.data());
+    lp += line + "\n";
+  }
+  std::ofstream(dir / "set.lp") << lp;
+}
+
+// What an input says twice, or a step no plan made, is refused naming its line or field.
+TEST_F(Refusals, InputsThatSayAThingTwiceOrAskForWhatIsNotThereAreRefused) {
+  const std::vector<std::string> lights = {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866",
+                                           "c.png 0 0.5 0.866", "d.png 0 -0.5 0.866"};
+  WriteLp(*tmp_ / "lp_twice", {lights[0], lights[1], lights[2], "a.png 0 -0.5 0.866"});
+  Expect("import --quiet " + Path("lp_twice/set.lp") + " --out " + Path("twice.exr"), 2,
+         {"set.lp:5: image: a.png is listed already, at " + Path("lp_twice/set.lp") + ":2"});
+  WriteLp(*tmp_ / "lp_same", {lights[0], lights[1], lights[2], "d.png 1 0 1.732"});
+  Expect("import --quiet " + Path("lp_same/set.lp") + " --out " + Path("same.exr"), 2,
+         {"set.lp:5: light direction", "is the direction of the light at"});
+  WriteLp(*tmp_ / "lp", lights);
+  Expect("import --quiet " + Path("lp/set.lp") + " --interval 60 --out " + Path("one"), 2,
+         {"--interval", "two sets or more"});
+  ASSERT_EQ(Run("import --quiet " + Path("lp/set.lp") + " --out " + Path("lp.exr"), nullptr), 0);
+  // Another capture's field is not this session's to play.
+  Expect("play " + Path("s") + " --field " + Path("lp.exr") + " --env " +
+             (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string() + " --out " +
+             Path("other"),
+         2, {Path("lp.exr") + ": --field: LED 0", "give the field built from " + Path("s")});
+  // No reference LED was shot: there is no drift to divide out.
+  Expect("build --quiet --correct-drift " + Path("s") + " --out " + Path("drift.exr"), 2,
+         {"plan.reference_led", "--correct-drift"});
+  for (const char* made : {"twice.exr", "same.exr", "one", "other", "drift.exr"}) {
+    EXPECT_FALSE(fs::exists(Path(made))) << made;
+  }
 }
 
 TEST_F(Refusals, WhatIsAssumedIsSaid) {

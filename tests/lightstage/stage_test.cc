@@ -192,6 +192,19 @@ TEST(Stage, SettingsThatContradictTheLedsAreRefusedNamingTheField) {
   EXPECT_NO_THROW(parse_stage("{" + leds + R"(, "camera": {"sync": {"trigger": "line",
       "input": "Line0", "gpio": {"chip": "gpiochip1", "line": 4}}}})",
                               "ok.json"));
+  // Two LEDs in one direction, or driven by one line; a bracket that repeats an exposure or
+  // lasts beyond an hour.
+  ExpectStageError(
+      R"({"leds": [{"id": 0, "direction": [0, 1, 0]}, {"id": 1, "direction": [0, 2, 0]}]})",
+      {"leds[1]", "a place of its own", "LED 0"});
+  ExpectStageError(R"({"leds": [{"id": 0, "direction": [0, 1, 0], "gpio": {"chip": "c", "line": 4}},
+                                {"id": 1, "direction": [1, 0, 0], "gpio": {"chip": "c", "line": 4}}]})",
+                   {"leds[1].gpio", "no other LED drives"});
+  ExpectStageError("{" + leds + R"(, "camera": {"bracket": [{"exposure_s": 0.01},
+                                                            {"exposure_s": 0.005, "gain": 2}]}})",
+                   {"camera.bracket[1]", "has not had yet"});
+  ExpectStageError("{" + leds + R"(, "camera": {"bracket": [{"exposure_s": 1e9}]}})",
+                   {"camera.bracket[0].exposure_s", "at most an hour"});
   // A reference period without a reference LED.
   ExpectStageError("{" + leds + R"(, "plan": {"reference_every": 3}})",
                    {"plan.reference_every", "\"reference_led\""});
