@@ -344,8 +344,8 @@ SimStage::SimStage(Stage stage, Scene scene, uint64_t seed) : state_(std::make_u
   // Per pixel: the camera's hits (at time zero and now), two one-light images (the fewest a frame
   // renders from) and the frame with the previous one a fault replays.
   const CameraSpec& camera = state_->stage.camera;
-  const std::size_t bytes_per_pixel =
-      2 * sizeof(SurfaceHit) + 2 * 3 * sizeof(float) + 2 * camera.channels * sizeof(uint16_t);
+  const std::size_t bytes_per_pixel = 2 * sizeof(SurfaceHit) + std::size_t(2 * 3) * sizeof(float) +
+                                      std::size_t(2 * camera.channels) * sizeof(uint16_t);
   require_memory(std::size_t(camera.width) * std::size_t(camera.height) * bytes_per_pixel,
                  state_->stage.source + ": camera.width, camera.height: the simulated stage's " +
                      std::to_string(camera.width) + "x" + std::to_string(camera.height) + " camera",

@@ -154,7 +154,7 @@ PlaneField read_openlime(const fs::path& folder) {
   out.stored_bytes = fs::file_size(file);
   const size_t pixels = size_t(width) * height;
   // The planes' codes, a plane read as floats, and a render's image: before any is made.
-  require_memory(pixels * (size_t(out.planes) + 2 * 3 * sizeof(float)),
+  require_memory(pixels * (size_t(out.planes) + std::size_t(2 * 3) * sizeof(float)),
                  file.string() + ": width, height: " + std::to_string(width) + "x" +
                      std::to_string(height) + " with " + std::to_string(out.planes) + " planes",
                  "this folder cannot be rendered on this machine");

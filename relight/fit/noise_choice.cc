@@ -22,6 +22,7 @@ constexpr int kChoicePixels = 2048;  // Every k-th pixel of the sample, at most 
 capture::ReflectanceField thinned(const capture::ReflectanceField& sample, long stride,
                                   const std::vector<int>& kept) {
   std::vector<capture::FieldLight> lights;
+  lights.reserve(kept.size());
   for (const int l : kept) lights.push_back(sample.lights()[size_t(l)]);
   const long pixels = long(sample.width()) * sample.height();
   capture::ReflectanceField out(int((pixels + stride - 1) / stride), 1, lights);
