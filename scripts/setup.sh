@@ -22,6 +22,7 @@ PACKAGES=(
   gnuplot-nox  # the benches' charts (its pngcairo terminal)
   # The Python bindings (python/, docs/python.md), their tests and worked examples.
   python3-dev pybind11-dev python3-numpy python3-pytest python3-dask python3-matplotlib
+  python3-scipy  # scripts/diligent_normals.py reads the benchmark's Normal_gt.mat
 )
 
 missing=()
