@@ -58,9 +58,10 @@ class Bands : public BandPlan {
   // A band every earlier step left in its checkpoint.
   void load_finished(int b, FitStage stage) {
     if (!load(b, stage)) {
-      throw InputError(checkpoints_.file(first_row(b), stage).string() +
-                       ": a finished band's checkpoint is missing or unreadable (removed while "
-                       "the fit ran?)");
+      // What this run wrote itself and cannot read back: its storage failed.
+      throw StorageError(checkpoints_.file(first_row(b), stage).string() +
+                         ": a finished band's checkpoint is missing or unreadable (removed while "
+                         "the fit ran?)");
     }
   }
   void save(int b, FitStage stage) const { checkpoints_.save(first_row(b), normals, maps, stage); }

@@ -214,9 +214,10 @@ class TimeBands : public BandPlan {
   }
   void load_finished(int b, TimeStage stage) {
     if (!load(b, stage)) {
-      throw InputError(file(b, stage).string() +
-                       ": a finished band's checkpoint is missing or unreadable (removed while "
-                       "the fit ran?)");
+      // What this run wrote itself and cannot read back: its storage failed.
+      throw StorageError(file(b, stage).string() +
+                         ": a finished band's checkpoint is missing or unreadable (removed while "
+                         "the fit ran?)");
     }
   }
 
