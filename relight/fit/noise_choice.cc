@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <numeric>
 
 #include "lightstage/image.h"
@@ -38,7 +37,7 @@ capture::ReflectanceField thinned(const capture::ReflectanceField& sample, long 
 
 void score_held_out(const capture::ReflectanceField& sample, const std::vector<int>& held_out,
                     const ModelMaps& maps, float max_ks, NoiseCandidate& candidate) {
-  const Eigen::Vector3f wo(0, 0, 1);  // The sample's rows come from all over the frame.
+  const Eigen::Vector3f wo(0, 0, 1);  // As the fits: the sample's pixels have no place.
   double sum = 0;
   long count = 0;
   for (int y = 0; y < sample.height(); ++y) {
@@ -110,6 +109,7 @@ NoiseChoice choose_noise_by_held_out_lights(const capture::ReflectanceField& sam
   FitOptions fit = options;
   fit.materials = FitMaterials::kPerPixel;
   fit.progress = {};
+  fit.view_dir_per_pixel.clear();  // The sample's pixels come from all over the frame.
   for (size_t k = 0; k < choice.candidates.size(); ++k) {
     NoiseCandidate& candidate = choice.candidates[k];
     fit.normals.noise = candidate.model;
