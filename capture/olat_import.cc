@@ -11,6 +11,7 @@
 #include "capture/olat_images.h"
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
+#include "lightstage/raw_photo.h"
 
 namespace ls::capture {
 namespace {
@@ -375,6 +376,18 @@ OlatImageSet read_rti_lp_set(const fs::path& lp_path, const OlatImportOptions& o
   }
   finder.add_notes(name, &job.notes);
   note_direction_norms(norms, name, &job.notes);
+  // Camera raw files decode to linear sensor values (raw_photo.h): nothing to undo. A set that
+  // mixes them with JPEGs would be undone by one curve for both.
+  const auto raw_count =
+      std::count_if(job.lights.begin(), job.lights.end(),
+                    [](const OlatLight& l) { return is_raw_photo_name(l.image); });
+  if (raw_count > 0 && raw_count < std::ptrdiff_t(job.lights.size())) {
+    throw InputError(name + ": image: " + std::to_string(raw_count) + " of the " +
+                     std::to_string(job.lights.size()) +
+                     " images are camera raw files and the others are not: one set, one kind "
+                     "(convert them alike)");
+  }
+  if (raw_count > 0 && !options.transfer) job.transfer = TransferCurve::kLinear;
   return job;
 }
 

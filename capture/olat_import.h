@@ -42,7 +42,8 @@ enum class TransferCurve {
 };
 
 struct OlatImportOptions {
-  // Empty: the format's default (RTI .lp sets: sRGB, they are usually JPEGs; DiLiGenT: linear).
+  // Empty: the format's default (RTI .lp sets: sRGB, they are usually JPEGs, linear when their
+  // images are camera raw files; DiLiGenT: linear).
   std::optional<TransferCurve> transfer;
   double gamma = 2.2;  // For TransferCurve::kGamma; in (0, 10].
   // > 0: downsizes (area averaging) so that max(width, height) <= max_size. 0 keeps the size.

@@ -36,6 +36,11 @@ set_property(TARGET opencv::video APPEND PROPERTY INTERFACE_LINK_LIBRARIES openc
 # (which needs libusb-1.0-0-dev for pkg-config to resolve it).
 pkg_check_modules(GPIOD REQUIRED IMPORTED_TARGET libgpiodcxx)
 pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
+# DSLR domes: tethered cameras through libgphoto2 2.5, their raw files through LibRaw 0.20 (the
+# thread-safe libraw_r), test DNGs written through libtiff.
+pkg_check_modules(GPHOTO2 REQUIRED IMPORTED_TARGET libgphoto2)
+pkg_check_modules(LIBRAW REQUIRED IMPORTED_TARGET libraw_r)
+find_package(TIFF REQUIRED)
 
 # The viewer: GLFW window + OpenGL 3.3 core (no loader: GL_GLEXT_PROTOTYPES against
 # libglvnd's libOpenGL), Dear ImGui from Debian's pkg-config file (includes the GLFW/GL3 back-ends).

@@ -4,6 +4,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "lightstage/image.h"
@@ -73,6 +74,10 @@ struct CapturedFrame {
   double exposure_s = 0.0;  // As reported by the camera after the request.
   double gain = 1.0;
   FrameTiming timing;  // The camera sets sensor_ns; the sequencer the host times.
+  // The file as the camera wrote it (a DSLR's raw file), which the session keeps beside the frame;
+  // empty for cameras that deliver pixels.
+  std::string original_name;  // e.g. "IMG_0042.CR2".
+  std::vector<std::uint8_t> original_file;
 };
 
 class Camera {
@@ -85,6 +90,9 @@ class Camera {
   // controller pulsing the line wired to the camera's trigger input) instead of triggering by
   // software. Throws HardwareError when the camera takes no trigger line (the default).
   virtual void set_trigger_line(const std::function<void()>& pulse);
+  // The camera's settings as it reports them (a DSLR's aperture, image format, ...), for the
+  // session's record; none by default.
+  virtual std::vector<std::pair<std::string, std::string>> reported_settings() const { return {}; }
 };
 
 // Wires the camera's trigger to the controller's trigger line when the spec asks for it

@@ -7,6 +7,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/module.h"
+#include "lightstage/raw_photo.h"
 
 namespace ls::image_file {
 
@@ -128,6 +129,8 @@ Kind kind_of_name(const fs::path& path) {
 
 std::unique_ptr<Reader> open(const fs::path& path, std::string& error) {
   error.clear();
+  // Most raw formats are TIFF inside: the extension tells them from a TIFF.
+  if (is_raw_photo_name(path)) return raw_codecs().open(path, error);
   const Kind kind = kind_of_content(path);
   if (kind != Kind::kOther) {
     std::unique_ptr<Reader> reader = built_in(kind).open(path, error);
@@ -141,6 +144,7 @@ std::unique_ptr<Reader> open(const fs::path& path, std::string& error) {
 std::unique_ptr<Writer> create(const fs::path& named_like, const Spec& spec, Sink& sink,
                                std::string& error) {
   error.clear();
+  if (is_raw_photo_name(named_like)) return raw_codecs().create(named_like, spec, sink, error);
   const Kind kind = kind_of_name(named_like);
   if (kind != Kind::kOther) return built_in(kind).create(named_like, spec, sink, error);
   return oiio_codecs().create(named_like, spec, sink, error);

@@ -94,9 +94,9 @@ class Writer {
   virtual std::string error() = 0;
 };
 
-// Opens a file of any format either library reads, by its content: EXR, JPEG and PNG here, the rest
-// through OpenImageIO. Null with `error` set (naming neither the file: the caller does) when it
-// cannot be opened or its format is unknown.
+// Opens a file of any format either library reads, by its content: EXR, JPEG and PNG here, camera
+// raw files (by their extension) through LibRaw, the rest through OpenImageIO. Null with `error`
+// set (naming neither the file: the caller does) when it cannot be opened or its format is unknown.
 std::unique_ptr<Reader> open(const std::filesystem::path& path, std::string& error);
 
 // A writer of the format `named_like`'s extension says, into `sink`, which must outlive it. Null
@@ -117,6 +117,8 @@ class Codecs {
 Codecs& exr_codecs();
 Codecs& jpeg_codecs();
 Codecs& png_codecs();
+// Camera raw files through LibRaw, chosen by extension (raw_photo.h): read only.
+Codecs& raw_codecs();
 // The OpenImageIO module, loaded on first use. InputError when it cannot be found or loaded.
 Codecs& oiio_codecs();
 // True once the module has been loaded in this process (for tests that show a job never needs it).

@@ -159,6 +159,12 @@ std::optional<FrameRecord> read_frame_record(json& j, const JournalLine& in, con
     rec.bytes = in.unsigned_at_most("bytes", std::numeric_limits<uint64_t>::max());
     rec.crc32 = uint32_t(in.unsigned_at_most("crc32", std::numeric_limits<uint32_t>::max()));
   }
+  if (j.contains("original")) {
+    const json& o = j["original"];
+    rec.original_file = o.at("file").get<std::string>();
+    rec.original.bytes = o.at("bytes").get<uint64_t>();
+    rec.original.crc32 = o.at("crc32").get<uint32_t>();
+  }
   std::error_code missing;  // A symlink loop or an unreadable entry is a missing frame too.
   if (!fs::exists(dir / rec.file, missing) || missing) {
     std::cerr << "warning: " << (dir / rec.file).string()
@@ -275,6 +281,11 @@ Session Session::open(const fs::path& dir) {
   s.stage_ = parse_stage(r["stage"].value().dump(), source + " (stage)");
   s.info_.backend = r["backend"].string();
   s.info_.scene_file = r.has("scene_file") ? r["scene_file"].string() : "";
+  if (r.has("camera_settings") && r["camera_settings"].value().is_object()) {
+    for (const auto& [name, value] : r["camera_settings"].value().items()) {
+      s.info_.camera_settings.emplace_back(name, r["camera_settings"][name].string());
+    }
+  }
   const JsonReader seed = r["seed"];
   if (!seed.value().is_number_unsigned()) seed.fail("a non-negative integer");
   s.info_.seed = seed.value().get<uint64_t>();
@@ -384,31 +395,45 @@ FrameRecord Session::write_frame_file(const PlannedFrame& planned,
   const StoredFile stored = write_raw_frame(dir_ / rec.file, raw);
   rec.bytes = stored.bytes;
   rec.crc32 = stored.crc32;
+  if (!frame.original_file.empty()) {
+    rec.original_file = "originals/" + planned.key.name(stage_) +
+                        fs::path(frame.original_name).extension().string();
+    std::error_code ignored;  // A folder that cannot be made fails the write below, naming it.
+    fs::create_directories(dir_ / "originals", ignored);
+    write_file_atomic(dir_ / rec.original_file,
+                      std::string(frame.original_file.begin(), frame.original_file.end()));
+    rec.original = {frame.original_file.size(),
+                    crc32_of(frame.original_file.data(), frame.original_file.size())};
+  }
   return rec;
 }
 
 void Session::journal_frames(const std::vector<FrameRecord>& records) {
   std::string lines;
   for (const FrameRecord& rec : records) {
-    lines += json{{"t", rec.key.time_step},
-                  {"led", rec.key.led_index},
-                  {"e", rec.key.exposure_index},
-                  {"r", rec.key.repeat},
-                  {"file", rec.file},
-                  {"exposure_s", rec.exposure_s},
-                  {"gain", rec.gain},
-                  {"scene_time_s", rec.scene_time_s},
-                  {"at", rec.captured_at},
-                  {"bytes", rec.bytes},
-                  {"crc32", rec.crc32},
-                  {"timing",
-                   {{"led_on_ns", rec.timing.led_on_ns},
-                    {"requested_ns", rec.timing.requested_ns},
-                    {"delivered_ns", rec.timing.delivered_ns},
-                    {"led_off_ns", rec.timing.led_off_ns},
-                    {"sensor_ns", rec.timing.sensor_ns}}}}
-                 .dump() +
-             "\n";
+    json line{{"t", rec.key.time_step},
+              {"led", rec.key.led_index},
+              {"e", rec.key.exposure_index},
+              {"r", rec.key.repeat},
+              {"file", rec.file},
+              {"exposure_s", rec.exposure_s},
+              {"gain", rec.gain},
+              {"scene_time_s", rec.scene_time_s},
+              {"at", rec.captured_at},
+              {"bytes", rec.bytes},
+              {"crc32", rec.crc32},
+              {"timing",
+               {{"led_on_ns", rec.timing.led_on_ns},
+                {"requested_ns", rec.timing.requested_ns},
+                {"delivered_ns", rec.timing.delivered_ns},
+                {"led_off_ns", rec.timing.led_off_ns},
+                {"sensor_ns", rec.timing.sensor_ns}}}};
+    if (!rec.original_file.empty()) {
+      line["original"] = {{"file", rec.original_file},
+                          {"bytes", rec.original.bytes},
+                          {"crc32", rec.original.crc32}};
+    }
+    lines += line.dump() + "\n";
   }
   if (lines.empty()) return;
   append_journal(lines);
@@ -478,6 +503,8 @@ void Session::write_manifest(const std::string& status) const {
     problems.push_back(
         {{"frame", p.key.name(stage_)}, {"attempt", p.attempt}, {"problem", p.problem}});
   }
+  json camera_settings = json::object();
+  for (const auto& [name, value] : info_.camera_settings) camera_settings[name] = value;
   const size_t planned = plan_frames(stage_).size();
   const json doc = {{"format", kFormat},
                     {"status", status},
@@ -485,6 +512,7 @@ void Session::write_manifest(const std::string& status) const {
                     {"backend", info_.backend},
                     {"scene_file", info_.scene_file},
                     {"seed", info_.seed},
+                    {"camera_settings", camera_settings},
                     {"frames_planned", planned},
                     {"frames_captured", frames_.size()},
                     {"journal", kJournal},
@@ -496,6 +524,25 @@ void Session::write_manifest(const std::string& status) const {
 }
 
 namespace {
+
+// What is wrong with a file saved as `stored`, or "" when it is as saved.
+std::string stored_file_problem(const fs::path& path, const StoredFile& stored,
+                                uint64_t& bytes_read) {
+  std::error_code ec;
+  const uint64_t size = fs::file_size(path, ec);
+  if (ec) return "cannot read its size: " + ec.message();
+  if (size != stored.bytes) {
+    return std::to_string(size) + " bytes, the journal says " + std::to_string(stored.bytes);
+  }
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> bytes(size);
+  if (!in.read(bytes.data(), std::streamsize(size))) return "cannot read it";
+  bytes_read += size;
+  if (crc32_of(bytes.data(), bytes.size()) != stored.crc32) {
+    return "its bytes changed since it was saved (CRC-32 differs from the journal's)";
+  }
+  return {};
+}
 
 // What is wrong with a journaled frame's file, or "" when it is as saved.
 std::string frame_file_problem(const fs::path& path, const FrameRecord& rec, const Stage& stage,
@@ -516,20 +563,7 @@ std::string frame_file_problem(const fs::path& path, const FrameRecord& rec, con
       return e.what();
     }
   }
-  std::error_code ec;
-  const uint64_t size = fs::file_size(path, ec);
-  if (ec) return "cannot read its size: " + ec.message();
-  if (size != rec.bytes) {
-    return std::to_string(size) + " bytes, the journal says " + std::to_string(rec.bytes);
-  }
-  std::ifstream in(path, std::ios::binary);
-  std::vector<char> bytes(size);
-  if (!in.read(bytes.data(), std::streamsize(size))) return "cannot read it";
-  bytes_read += size;
-  if (crc32_of(bytes.data(), bytes.size()) != rec.crc32) {
-    return "its bytes changed since it was saved (CRC-32 differs from the journal's)";
-  }
-  return {};
+  return stored_file_problem(path, {rec.bytes, rec.crc32}, bytes_read);
 }
 
 }  // namespace
@@ -537,8 +571,12 @@ std::string frame_file_problem(const fs::path& path, const FrameRecord& rec, con
 FrameCheck Session::verify_frames() {
   FrameCheck check;
   for (auto it = frames_.begin(); it != frames_.end();) {
-    const fs::path path = dir_ / it->second.file;
-    const std::string problem = frame_file_problem(path, it->second, stage_, check.bytes_read);
+    fs::path path = dir_ / it->second.file;
+    std::string problem = frame_file_problem(path, it->second, stage_, check.bytes_read);
+    if (problem.empty() && !it->second.original_file.empty()) {
+      path = dir_ / it->second.original_file;
+      problem = stored_file_problem(path, it->second.original, check.bytes_read);
+    }
     if (problem.empty()) {
       ++check.verified;
       ++it;

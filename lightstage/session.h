@@ -4,6 +4,7 @@
 //   SESSION/frames.jsonl    journal: one line per frame, appended (and fsync'ed) after the frame's
 //                           image is durably renamed into place; a torn last line is ignored
 //   SESSION/frames/*.png    16-bit frames, each written to a temporary name then renamed
+//   SESSION/originals/*     the camera's own files where it writes them (a DSLR's raw files)
 // What is missing is always "the plan minus the journal", so a killed capture resumes exactly.
 #include <filesystem>
 #include <map>
@@ -51,6 +52,10 @@ struct FrameRecord {
   uint64_t bytes = 0;
   uint32_t crc32 = 0;
   FrameTiming timing;  // Journaled as "timing" (absent in older journals: all 0).
+  // The camera's own file (a DSLR's raw), kept as written: SESSION/originals/<frame><.ext>.
+  // Journaled as "original" {"file", "bytes", "crc32"}; empty when the camera delivered pixels.
+  std::string original_file;
+  StoredFile original;
 };
 
 // What Session::verify_frames found: frames whose files are not what was saved.
@@ -78,6 +83,9 @@ struct SessionInfo {
   std::string backend = "sim";
   std::string scene_file;  // Simulated stage only.
   uint64_t seed = 1;
+  // The camera's settings as it reported them once set (a DSLR's shutter, ISO, aperture, format):
+  // manifest "camera_settings".
+  std::vector<std::pair<std::string, std::string>> camera_settings;
 };
 
 // One capture writes a session at a time: an exclusive lock on SESSION/capture.lock (a

@@ -10,6 +10,7 @@
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 #include "lightstage/json_reader.h"
+#include "lightstage/stage_devices.h"
 
 namespace ls {
 
@@ -21,7 +22,7 @@ namespace {
 constexpr double kSameDirectionRad = 1e-6;
 
 Led parse_led(const JsonReader& r, size_t index) {
-  r.expect_object({"id", "direction", "position", "color", "intensity", "gpio"});
+  r.expect_object({"id", "direction", "position", "color", "intensity", "gpio", "channel"});
   Led led;
   led.id = r.has("id") ? r["id"].integer_in(0, 1 << 20) : int(index);
   if (r.has("direction") == r.has("position")) {
@@ -51,6 +52,7 @@ Led parse_led(const JsonReader& r, size_t index) {
     led.gpio_line = g["line"].integer_in(0, 4095);
     if (g.has("active_low")) led.active_low = g["active_low"].boolean();
   }
+  if (r.has("channel")) led.board_channel = r["channel"].integer_in(0, 4095);
   return led;
 }
 
@@ -98,9 +100,12 @@ CameraSync parse_sync(const JsonReader& r) {
 CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
   r.expect_object({"backend", "device", "width", "height", "channels", "bit_depth", "bracket",
                    "response", "radiometric_scale", "fov_y_deg", "distance_m", "ortho_height_m",
-                   "timeout_s", "retries", "sync", "simulated_sensor"});
+                   "timeout_s", "retries", "sync", "simulated_sensor", "gphoto2"});
   CameraSpec cam;
-  if (r.has("backend")) cam.backend = r["backend"].one_of({"sim", "aravis", "v4l2"});
+  if (r.has("backend")) {
+    cam.backend = r["backend"].one_of({"sim", "aravis", "v4l2", "gphoto2", "sim-dslr"});
+  }
+  if (r.has("gphoto2")) cam.tether = parse_tether(r["gphoto2"]);
   if (r.has("device")) cam.device_id = r["device"].string();
   if (r.has("width")) cam.width = r["width"].integer_in(1, 16384);
   if (r.has("height")) cam.height = r["height"].integer_in(1, 16384);
@@ -350,8 +355,8 @@ std::vector<Eigen::Vector3d> Stage::led_directions() const {
 Stage parse_stage(std::string_view json_text, const std::string& source_name) {
   const json doc = JsonReader::parse(json_text, source_name);
   const JsonReader r(doc, source_name);
-  r.expect_object(
-      {"name", "leds", "layout", "camera", "plan", "coverage_radius_deg", "calibration"});
+  r.expect_object({"name", "leds", "layout", "led_driver", "camera", "plan", "coverage_radius_deg",
+                   "calibration"});
   const fs::path base_dir = fs::path(source_name).parent_path();
 
   Stage stage = default_stage();
@@ -374,6 +379,7 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
         leds[i]["gpio"].fail("a line no other LED drives (two LEDs on one line light together)");
       }
     }
+    check_board_channels(leds, stage.leds);
     // Two LEDs in one place are one light counted twice: every per-LED solid angle and fit
     // would weigh it double.
     std::vector<Eigen::Vector3d> directions;
@@ -391,6 +397,7 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
   } else {
     stage.leds = stage_with_directions(layout_directions(r["layout"])).leds;
   }
+  if (r.has("led_driver")) stage.led_driver = parse_led_driver(r["led_driver"]);
   if (r.has("camera")) {
     stage.camera = parse_camera(r["camera"], base_dir);
     check_camera_against_leds(r["camera"], stage);
@@ -442,6 +449,7 @@ std::string stage_to_json(const Stage& stage) {
       j["gpio"] = {
           {"chip", led.gpio_chip}, {"line", led.gpio_line}, {"active_low", led.active_low}};
     }
+    if (led.board_channel >= 0) j["channel"] = led.board_channel;
     leds.push_back(j);
   }
   const CameraSpec& c = stage.camera;
@@ -492,6 +500,7 @@ std::string stage_to_json(const Stage& stage) {
   if (c.sync.gpio_line >= 0) {
     camera["sync"]["gpio"] = {{"chip", c.sync.gpio_chip}, {"line", c.sync.gpio_line}};
   }
+  if (c.backend == "gphoto2" || c.backend == "sim-dslr") camera["gphoto2"] = tether_json(c.tether);
   json plan = {{"dark_frames", stage.plan.dark_frames}, {"settle_s", stage.plan.settle_s}};
   if (stage.plan.times_s.empty()) {
     plan["time_steps"] = stage.plan.time_steps;
@@ -516,6 +525,7 @@ std::string stage_to_json(const Stage& stage) {
               {"leds", leds},
               {"camera", camera},
               {"plan", plan}};
+  if (stage.led_driver.serial()) doc["led_driver"] = led_driver_json(stage.led_driver);
   if (!stage.calibration.flat_field.empty() || stage.calibration.reference_z_m != 0.0) {
     json calibration = {{"reference_z_m", stage.calibration.reference_z_m}};
     if (!stage.calibration.flat_field.empty()) {

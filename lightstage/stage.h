@@ -10,6 +10,8 @@
 #include <string_view>
 #include <vector>
 
+#include "lightstage/raw_photo.h"
+
 namespace ls {
 
 struct Led {
@@ -21,6 +23,7 @@ struct Led {
   std::string gpio_chip;   // For the gpiod back-end, e.g. "gpiochip0".
   int gpio_line = -1;
   bool active_low = false;
+  int board_channel = -1;  // For a serial LED board: its output; -1: the LED's index in "leds".
 
   // The irradiance at the origin per channel: intensity * color_gain.
   Eigen::Vector3d irradiance_rgb() const { return intensity * color_gain; }
@@ -70,8 +73,23 @@ struct CameraSync {
   bool line_triggered() const { return trigger == "line"; }
 };
 
+// A camera tethered through libgphoto2 (camera.backend "gphoto2"; stage file "camera":
+// {"gphoto2": {...}}): how lightstage sets it up and decodes its files.
+struct TetherSpec {
+  // Camera configuration set before the first shot, by libgphoto2's widget names and values as
+  // `gphoto2 --list-config` / `--get-config` show them: {"f-number": "f/8", "imageformat": "RAW"}.
+  std::vector<std::pair<std::string, std::string>> settings;
+  double base_iso = 100;  // The ISO of gain 1: a bracket step of gain g shoots at g * base_iso.
+  // The widgets exposure and gain are set through (names differ by maker).
+  std::string shutter_setting = "shutterspeed";
+  std::string iso_setting = "iso";
+  RawDecodeOptions raw;  // Demosaiced or binned, one white balance for the session.
+  // A shot's files are deleted from the camera's card once downloaded and kept in the session.
+  bool delete_from_camera = true;
+};
+
 struct CameraSpec {
-  std::string backend = "sim";  // sim | aravis | v4l2
+  std::string backend = "sim";  // sim | aravis | v4l2 | gphoto2 | sim-dslr
   std::string device_id;        // Back-end specific (Aravis id, /dev/videoN).
   int width = 256;
   int height = 256;
@@ -90,6 +108,7 @@ struct CameraSpec {
   int retries = 2;              // Retries of a timed-out frame before the session stops.
   CameraSync sync;
   SimulatedSensor simulated;
+  TetherSpec tether;  // gphoto2 and sim-dslr.
 };
 
 struct CapturePlan {
@@ -132,9 +151,23 @@ struct StageCalibration {
   double reference_z_m = 0.0;
 };
 
+// What switches the LEDs of a real dome: GPIO lines (Led::gpio_chip, gpio_line) or a board on a
+// serial line speaking docs/hardware.md's protocol (Led::board_channel). Stage file:
+// "led_driver": {"backend": "serial", "port": "/dev/ttyACM0", "baud": 115200}.
+struct LedDriverSpec {
+  std::string backend = "gpio";  // gpio | serial
+  std::string port;              // serial: the board's device, e.g. /dev/ttyACM0.
+  int baud = 115200;
+  std::string protocol = "lsled1";  // The only one so far.
+  double timeout_s = 1.0;           // For the board's reply to one command.
+  double startup_s = 3.0;  // A board that resets when its port opens (an Arduino) answers after.
+  bool serial() const { return backend == "serial"; }
+};
+
 struct Stage {
   std::string name = "stage";
   std::vector<Led> leds;
+  LedDriverSpec led_driver;
   CameraSpec camera;
   CapturePlan plan;
   StageCalibration calibration;

@@ -13,6 +13,7 @@ PACKAGES=(
   libopencv-calib3d-dev libopencv-videoio-dev libopencv-video-dev
   libopenexr-dev libimath-dev libjpeg-dev libpng-dev libopenimageio-dev openimageio-tools
   libgpiod-dev gpiod libaravis-dev libusb-1.0-0-dev aravis-tools-cli
+  libgphoto2-dev libraw-dev libtiff-dev  # DSLR domes: tethered cameras, raw files, test DNGs
   libeigen3-dev libglfw3-dev libgl-dev libegl-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libceres-dev libtbb-dev nlohmann-json3-dev libcli11-dev libimgui-dev zlib1g-dev

@@ -28,6 +28,7 @@ struct DemoArgs {
   bool shared_maps = true;
   bool truth = true;
   bool quiet = false;
+  bool dslr = false;
 };
 
 void run_demo(const DemoArgs& args) {
@@ -35,7 +36,9 @@ void run_demo(const DemoArgs& args) {
   const auto lock = lock_output(args.out);
   fs::create_directories(args.out);
   const fs::path session_dir = args.out / "session";
-  std::fprintf(stderr, "== 1/4 capture on the simulated stage -> %s\n", session_dir.c_str());
+  std::fprintf(stderr, "== 1/4 capture on the simulated %s -> %s\n",
+               args.dslr ? "DSLR dome (raw files, serial LED board)" : "stage",
+               session_dir.c_str());
   if (fs::exists(session_dir / "manifest.json")) {
     jobs::CaptureOptions resume;
     resume.session_dir = session_dir;
@@ -46,6 +49,12 @@ void run_demo(const DemoArgs& args) {
     // The built-in dome at the demo's resolution.
     Stage stage = default_stage();
     stage.camera.width = stage.camera.height = args.resolution;
+    if (args.dslr) {  // The same dome and scene through the DSLR path (sim/dslr_backend.h).
+      stage.camera.backend = "sim-dslr";
+      stage.camera.bit_depth = 16;
+      // Binned: a pixel's colour from its own block of sites, as the 3-channel camera has it.
+      stage.camera.tether.raw.mode = RawDecodeOptions::Mode::kBin2x2;
+    }
     const fs::path stage_file = args.out / "stage.json";
     write_file_atomic(stage_file, stage_to_json(stage));
     jobs::CaptureOptions capture;
@@ -132,6 +141,10 @@ void add_demo_command(CLI::App& app) {
                 "Only the maps in data/envmaps, not ../shared/data/envmaps.");
   cmd->add_flag("!--no-truth", args->truth, "Skip the ground-truth comparison.");
   cmd->add_flag("--quiet", args->quiet, "No progress output.");
+  cmd->add_flag("--dslr", args->dslr,
+                "Capture on the simulated DSLR dome: every frame a raw (DNG) file from a "
+                "gphoto2-like camera, decoded by LibRaw (binned 2x2), the LEDs on a serial "
+                "board.");
   cmd->callback([args] { run_demo(*args); });
 }
 

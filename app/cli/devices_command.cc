@@ -36,7 +36,12 @@ int check_stage(const CheckRequest& request) {
   // Opening requests every LED line (all off) and opens the camera; any failure throws a
   // HardwareError that names the device (exit 3).
   Hardware hw = open_hardware(stage);
-  std::printf("LEDs: %d lines requested and switched off\n", hw.lights->num_lights());
+  if (stage.led_driver.serial()) {
+    std::printf("LEDs: %d on the board on %s, switched off\n", hw.lights->num_lights(),
+                stage.led_driver.port.c_str());
+  } else {
+    std::printf("LEDs: %d lines requested and switched off\n", hw.lights->num_lights());
+  }
   const CameraInfo info = hw.camera->info();
   std::printf("camera: %s (%s) %dx%d, %d channel(s), %d bit\n", info.id.c_str(), info.model.c_str(),
               info.width, info.height, info.channels, info.bit_depth);
@@ -70,7 +75,8 @@ void add_devices_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "devices",
       "List the hardware present: GPIO chips (libgpiod), GenICam cameras (Aravis discovery, "
-      "which broadcasts on every network interface) and V4L2 video devices.");
+      "which broadcasts on every network interface), V4L2 video devices, DSLRs on USB "
+      "(libgphoto2) and serial ports for LED boards.");
   cmd->add_flag("--no-cameras", *no_cameras,
                 "Skip Aravis camera discovery (sends nothing on the network).");
   cmd->callback([no_cameras] {
@@ -82,6 +88,9 @@ void add_devices_command(CLI::App& app) {
       print_list("Aravis cameras", list.aravis_cameras, "none found");
     }
     print_list("V4L2 devices", list.video_devices, "none: no /dev/video*");
+    print_list("gphoto2 cameras (USB)", list.gphoto2_cameras, "none detected");
+    print_list("Serial ports (LED boards)", list.serial_ports,
+               "none: no /dev/ttyACM*, /dev/ttyUSB*");
   });
 }
 
@@ -90,7 +99,8 @@ void add_check_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "check",
       "Check that a stage's hardware can be opened: every LED's GPIO line (requested and "
-      "switched off) and the camera (opened, one test frame). --blink lights each LED once.");
+      "switched off) or its serial board, and the camera (opened, one test frame; a DSLR "
+      "takes one shot). --blink lights each LED once.");
   cmd->add_option("stage", request->stage_file, "Stage file (JSON).")
       ->required()
       ->check(CLI::ExistingFile);

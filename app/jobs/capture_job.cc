@@ -140,6 +140,7 @@ CaptureJobSummary capture_frames(const CaptureOptions& options, const CaptureCal
     SessionInfo info;
     info.backend = stage.camera.backend;
     info.seed = options.seed;
+    info.camera_settings = devices.camera->reported_settings();
     session.emplace(Session::create(options.session_dir, stage, info));
     writer_lock.emplace(options.session_dir);
     if (!options.scene_file.empty()) {
