@@ -146,7 +146,7 @@ TetherEvent SimulatedDslr::wait_event(double timeout_s) {
                          std::chrono::duration<double>(std::max(0.0, timeout_s)));
   if (!events_.empty() && events_.front().ready <= deadline) {
     std::this_thread::sleep_until(events_.front().ready);
-    const TetherEvent event = events_.front().event;
+    TetherEvent event = events_.front().event;
     events_.pop_front();
     return event;
   }
