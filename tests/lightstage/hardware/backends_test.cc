@@ -15,13 +15,7 @@ namespace ls {
 namespace {
 
 std::string HardwareErrorText(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const HardwareError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected HardwareError";
-  return {};
+  return testing::error_of<HardwareError>(f);
 }
 
 TEST(Backends, LedsAreOpenedFirstAndAMissingChipNamesTheLed) {

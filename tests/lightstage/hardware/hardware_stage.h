@@ -1,5 +1,10 @@
 #pragma once
-// A small stage on the Aravis fake camera for back-end and fault tests.
+// A small stage on the Aravis fake camera for back-end and fault tests, and what an error said.
+#include <gtest/gtest.h>
+
+#include <functional>
+#include <string>
+
 #include "lightstage/stage.h"
 
 namespace ls::testing {
@@ -23,6 +28,18 @@ inline Stage FakeAravisStage(int leds = 4) {
   stage.camera.retries = 1;
   stage.plan.dark_frames = 1;
   return stage;
+}
+
+// The message of the `Error` that `f` throws (a test failure when it throws none).
+template <typename Error>
+std::string error_of(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const Error& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "expected an error";
+  return {};
 }
 
 }  // namespace ls::testing

@@ -10,6 +10,7 @@
 
 #include "lightstage/errors.h"
 #include "sim/led_board_emulator.h"
+#include "tests/lightstage/hardware/hardware_stage.h"
 
 namespace ls {
 namespace {
@@ -53,13 +54,7 @@ struct Rig {
 };
 
 std::string hardware_error(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const HardwareError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected a HardwareError";
-  return {};
+  return testing::error_of<HardwareError>(f);
 }
 
 TEST(SerialLights, SwitchesTheBoardsChannelsAsTheStageWiresThem) {

@@ -12,6 +12,7 @@
 #include "lightstage/raw_photo.h"
 #include "sim/dslr_backend.h"
 #include "sim/scene.h"
+#include "tests/lightstage/hardware/hardware_stage.h"
 
 namespace ls {
 namespace {
@@ -27,16 +28,7 @@ Stage dslr_stage() {
   return stage;
 }
 
-template <typename Error>
-std::string error_of(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an error";
-  return {};
-}
+using testing::error_of;
 
 TEST(TetheredCamera, ShootsAtTheCamerasNearestChoiceAndReportsWhatItShot) {
   const Stage stage = dslr_stage();
