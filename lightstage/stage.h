@@ -152,7 +152,7 @@ struct StageCalibration {
 };
 
 // What switches the LEDs of a real dome: GPIO lines (Led::gpio_chip, gpio_line) or a board on a
-// serial line speaking docs/hardware.md's protocol (Led::board_channel). Stage file:
+// serial line speaking the README's lsled1 protocol (Led::board_channel). Stage file:
 // "led_driver": {"backend": "serial", "port": "/dev/ttyACM0", "baud": 115200}.
 struct LedDriverSpec {
   std::string backend = "gpio";  // gpio | serial

@@ -9,6 +9,7 @@ BUILD_DIR=${BUILD_DIR:-build}
 PACKAGES=(
   g++ cmake ninja-build pkg-config ccache clang-format clang-tidy git
   clang libclang-rt-14-dev
+  libomp-dev  # clang's OpenMP runtime: the sanitizer build links LibRaw, whose flags ask -fopenmp
   libopencv-core-dev libopencv-imgproc-dev libopencv-photo-dev libopencv-imgcodecs-dev
   libopencv-calib3d-dev libopencv-videoio-dev libopencv-video-dev
   libopenexr-dev libimath-dev libjpeg-dev libpng-dev libopenimageio-dev openimageio-tools

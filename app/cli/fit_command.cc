@@ -95,6 +95,7 @@ int fit_field_file(const jobs::FitJobOptions& options, bool quiet) {
   const double seconds = summary.seconds;
   std::printf("  %.2f s (normals + fit): %.0f pixels/s, %.0f fitted pixels/s\n", seconds,
               seconds > 0 ? s.pixels / seconds : 0.0, seconds > 0 ? s.fitted / seconds : 0.0);
+  std::printf("  time: %s\n", s.times.to_string().c_str());
   std::printf("  noise: %s, variance = %.3g + %.3g * v\n", summary.noise_source.c_str(),
               summary.noise.a, summary.noise.b);
   print_bands(summary.band_rows, summary.height, summary.ranks, summary.resumed_rows);

@@ -176,7 +176,9 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
                                                    : relight::FitMaterials::kBasis;
   fit.normals.method = normal_method(options.method);
   // The noise model weights every residual and sets the shadow threshold (choose_noise).
+  const auto noise_start = Clock::now();
   choose_noise({&stream}, fit);
+  const double noise_s = seconds_since(noise_start);
   if (noise_notice) noise_notice(fit.noise_source, fit.normals.noise);
   if (const std::string error = fit.validate(); !error.empty()) {
     throw InputError(options.field_file.string() + ": noise: " + error);
@@ -203,12 +205,17 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
     start = Clock::now();
     report(progress, "normals", 0, 1, "photometric stereo");
     const relight::NormalMap normals = relight::estimate_normals(whole, fit.normals);
+    const double normals_s = seconds_since(start);
     report(progress, "normals", 1, 1);
     fit.progress = progress;
     const relight::ModelMaps maps = relight::fit_models(whole, normals, fit);
+    const auto writing_start = Clock::now();
     relight::write_model_maps(options.out, maps, attributes);
     result = {maps.summary, maps.materials};
+    result.summary.times.normals = normals_s;
+    result.summary.times.writing = seconds_since(writing_start);
   }
+  result.summary.times.noise = noise_s;
   FitJobSummary summary{result.summary,
                         result.materials,
                         field.width(),

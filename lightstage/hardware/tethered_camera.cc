@@ -146,8 +146,8 @@ CameraInfo TetheredCamera::info() const {
   info.model = tether_->describe();
   info.width = spec_.width;
   info.height = spec_.height;
-  info.channels = 3;
-  info.bit_depth = 16;
+  info.channels = spec_.channels;
+  info.bit_depth = spec_.bit_depth == 8 ? 8 : 16;  // A JPEG camera's codes, or decoded raw.
   return info;
 }
 

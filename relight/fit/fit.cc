@@ -11,6 +11,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <iomanip>
 #include <sstream>
 
 #include "lightstage/errors.h"
@@ -343,7 +344,27 @@ std::string FitOptions::validate() const {
   return {};
 }
 
+void FitTimes::add(const FitTimes& part) {
+  noise += part.noise;
+  normals += part.normals;
+  candidates += part.candidates;
+  materials += part.materials;
+  shadows += part.shadows;
+  writing += part.writing;
+  reading += part.reading;
+}
+
+std::string FitTimes::to_string() const {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(2) << "noise " << noise << " s, normals " << normals << " s, candidate models " << candidates
+    << " s, basis materials " << materials << " s, shadows " << shadows << " s, writing " << writing
+    << " s";
+  if (reading > 0) s << ", reading " << reading << " s";
+  return s.str();
+}
+
 void FitSummary::add(const FitSummary& part) {
+  times.add(part.times);
   pixels += part.pixels;
   fitted += part.fitted;
   flagged += part.flagged;
@@ -445,12 +466,19 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
     const std::lock_guard lock(summary_mutex);
     summary.add(local);
   });
+  const auto since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
+  summary.times.candidates = since(start_time);
+  const auto materials_start = std::chrono::steady_clock::now();
   if (options.materials == FitMaterials::kBasis) {
     fit_basis_materials(field, normals, options, out);  // Measures the shadows of its models.
   }
+  summary.times.materials = since(materials_start);
+  const auto shadows_start = std::chrono::steady_clock::now();
   if (out.shadows.empty()) measure_fit_shadows(field, options, field.first_row(), out);
-  summary.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
+  summary.times.shadows = since(shadows_start);
+  summary.seconds = since(start_time);
   return out;
 }
 

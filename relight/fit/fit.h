@@ -177,6 +177,19 @@ struct Material {
   int scene_material = 0;
 };
 
+// Where a fit's time went, wall-clock seconds, so that a slow case explains itself.
+struct FitTimes {
+  double noise = 0;       // The noise estimated from the data (0 when the field measured it).
+  double normals = 0;     // Photometric stereo.
+  double candidates = 0;  // Each pixel's candidate models fitted and one chosen.
+  double materials = 0;   // Basis materials found and assigned (with their models' shadows).
+  double shadows = 0;     // The per-pixel models' shadows (without basis materials).
+  double writing = 0;     // The maps and previews written.
+  double reading = 0;     // The field read, in bands (a whole field is read before any of this).
+  void add(const FitTimes& part);
+  std::string to_string() const;  // "noise 0.12 s, normals 0.31 s, ..."
+};
+
 struct FitSummary {
   int pixels = 0;
   int fitted = 0;
@@ -192,8 +205,9 @@ struct FitSummary {
   int scene_materials = 0;              // Their scene materials (Material::scene_material).
   int material_pixels = 0;              // Fitted pixels explained by basis materials.
   double seconds = 0;
+  FitTimes times;
   std::string to_string() const;
-  // Adds the pixel counts of another part of the image (a band fitted on its own).
+  // Adds the pixel counts and times of another part of the image (a band fitted on its own).
   void add(const FitSummary& part);
 };
 

@@ -138,6 +138,7 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
   per_band.progress = {};
   const long own_rows = bands.rows_mine(split);
   long done_rows = 0;
+  relight::FitTimes spent;  // This rank's, this run's.
   // Each rank's bands: normals and per-pixel fits, from an earlier run's checkpoint when there
   // is one, else fitted and kept.
   for (int b = split.rank; b < bands.count(); b += split.size) {
@@ -146,8 +147,11 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
       times.resumed_rows += int(band_rows);
     } else {
       const capture::ReflectanceField& band = bands.read_field(b);
+      const auto normals_start = Clock::now();
       bands.normals = relight::estimate_normals(band, fit.normals);
+      spent.normals += seconds_since(normals_start);
       bands.maps = relight::fit_models(band, bands.normals, per_band);
+      spent.add(bands.maps.summary.times);
       bands.save(b, FitStage::kPerPixel);
     }
     report(progress, "fit (rows)", done_rows += band_rows, own_rows);
@@ -158,6 +162,7 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
   file.noise_source = fit.noise_source;
   BandFit result;
   FitStage written = FitStage::kPerPixel;
+  const auto materials_start = Clock::now();
   if (fit.materials == relight::FitMaterials::kBasis) {
     relight::BasisMaterials basis;
     if (split.root()) {
@@ -199,6 +204,7 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
       }
     }
   }
+  spent.materials += seconds_since(materials_start);
   // Under MPI rank 1 writes the previews while rank 0 writes the maps.
   using Files = relight::ModelMapsWriter::Files;
   bands.release_field();
@@ -207,8 +213,12 @@ BandFit fit_in_bands(capture::FieldStream& stream, int rows, const relight::FitO
   }
   if (!split.root()) return result;
   const int scene_materials = result.summary.scene_materials;
+  const auto writing_start = Clock::now();
   result.summary = write_maps(bands, written, file, width, height, out, attributes,
                               split.size > 1 ? Files::kMaps : Files::kMapsAndPreviews, progress);
+  spent.writing = seconds_since(writing_start);
+  spent.reading = times.read_seconds;
+  result.summary.times = spent;
   result.summary.materials = int(file.materials.size());
   result.summary.scene_materials = scene_materials;
   result.materials = file.materials;

@@ -298,8 +298,22 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   jobs::FitJobOptions fit;
   fit.field_file = field_file;
   fit.out = dir / "whole.exr";
-  (void)jobs::fit(fit);
+  const jobs::FitJobSummary whole = jobs::fit(fit);
   const capture::ReflectanceField field = capture::read_field(field_file);
+  // The summary says where the time went, whole or in bands: each part measured, their sum
+  // within the fit's own time (which excludes the noise, and the reading that the bands' basis
+  // materials include).
+  const auto expect_time_split = [](const jobs::FitJobSummary& s, bool bands) {
+    const relight::FitTimes& t = s.fit.times;
+    EXPECT_GT(t.normals, 0);
+    EXPECT_GT(t.candidates, 0);
+    EXPECT_GT(t.materials, 0);  // Basis materials (the default).
+    EXPECT_GT(t.writing, 0);
+    EXPECT_EQ(t.reading > 0, bands);
+    EXPECT_LE(t.normals + t.candidates + t.materials + t.shadows + t.writing,
+              s.seconds + t.reading + 1e-3);
+  };
+  expect_time_split(whole, false);
   fit.out = dir / "maps.exr";
   fit.memory =
       MemoryBudget(3 * 2 * std::size_t(field.width()) * field.num_lights() * 3 * sizeof(float));
@@ -307,6 +321,7 @@ TEST_F(Jobs, AnInterruptedFitInBandsResumesFromTheBandsItFinished) {
   EXPECT_FALSE(fs::exists(fit.out));
   EXPECT_TRUE(fs::exists(dir / "maps.exr.partial"));
   const jobs::FitJobSummary resumed = jobs::fit(fit);
+  expect_time_split(resumed, true);
   ASSERT_LT(resumed.band_rows, field.height());
   EXPECT_GE(2 * resumed.resumed_rows, field.height());
   EXPECT_LT(resumed.resumed_rows, field.height());
