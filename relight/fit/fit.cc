@@ -9,9 +9,9 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <iomanip>
 #include <limits>
 #include <mutex>
-#include <iomanip>
 #include <sstream>
 
 #include "lightstage/errors.h"
@@ -356,9 +356,9 @@ void FitTimes::add(const FitTimes& part) {
 
 std::string FitTimes::to_string() const {
   std::ostringstream s;
-  s << std::fixed << std::setprecision(2) << "noise " << noise << " s, normals " << normals << " s, candidate models " << candidates
-    << " s, basis materials " << materials << " s, shadows " << shadows << " s, writing " << writing
-    << " s";
+  s << std::fixed << std::setprecision(2) << "noise " << noise << " s, normals " << normals
+    << " s, candidate models " << candidates << " s, basis materials " << materials
+    << " s, shadows " << shadows << " s, writing " << writing << " s";
   if (reading > 0) s << ", reading " << reading << " s";
   return s.str();
 }
