@@ -240,6 +240,20 @@ double white_gain(FieldRows* stream, int rows, const capture::ReflectanceField& 
   return brightest[0] > 0 ? 1.0 / brightest[0] : 1.0;
 }
 
+// The largest PCA rank whose file (relight/compact/pca_field_io.cc's layout: a header, per tile
+// an L x k float basis, per pixel k x 3 float coefficients) is no larger than `input_bytes`; at
+// least 1.
+int rank_within(std::uintmax_t input_bytes, const capture::ReflectanceField& header, int tile) {
+  const double lights = header.num_lights();
+  const double tiles = tile > 0 ? double((header.width() + tile - 1) / tile) *
+                                      double((header.height() + tile - 1) / tile)
+                                : 1.0;
+  const double header_bytes = 64 + 25 * lights;
+  const double per_rank =
+      sizeof(float) * (tiles * lights + 3.0 * double(header.width()) * header.height());
+  return std::max(1, int((double(input_bytes) - header_bytes) / per_rank));
+}
+
 }  // namespace
 
 CompressSummary compress(const CompressOptions& options, const ProgressFn& progress) {
@@ -301,6 +315,12 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   summary.input_bytes = input_bytes(options.input);
   summary.band_rows = rows;
   if (options.format == "pca") {
+    // A compression's default never writes more than it was given: the automatic rank is held
+    // to what the input's bytes hold.
+    const int within_input = rank_within(summary.input_bytes, header, options.tile);
+    if (pca_options.rank == 0) {
+      pca_options.max_rank = std::min(pca_options.max_rank, within_input);
+    }
     relight::PcaSummary pca_summary;
     relight::PcaField pca;
     if (rows > 0) {
@@ -323,6 +343,13 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
       summary.warnings.push_back("--rank " + options.rank +
                                  ": more than this field allows (its usable lights); rank " +
                                  std::to_string(pca.rank()) + " used");
+    }
+    if (pca_options.rank == 0 && pca.rank() == within_input) {
+      summary.warnings.push_back(
+          "--rank auto: held at " + std::to_string(within_input) +
+          ", the largest rank whose file is no larger than the input (" +
+          std::to_string(summary.input_bytes >> 10) +
+          " KiB), which the automatic choice reached; --rank N gives a larger, closer file");
     }
     summary.bytes_per_pixel = pca.bytes_per_pixel();
     summary.output_bytes = fs::file_size(options.out);
