@@ -245,8 +245,8 @@ double white_gain(FieldRows* stream, int rows, const capture::ReflectanceField& 
 // least 1.
 int rank_within(std::uintmax_t input_bytes, const capture::ReflectanceField& header, int tile) {
   const double lights = header.num_lights();
-  const double tiles = tile > 0 ? double((header.width() + tile - 1) / tile) *
-                                      double((header.height() + tile - 1) / tile)
+  const double tiles = tile > 0 ? std::ceil(double(header.width()) / tile) *
+                                      std::ceil(double(header.height()) / tile)
                                 : 1.0;
   const double header_bytes = 64 + 25 * lights;
   const double per_rank =
