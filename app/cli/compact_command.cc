@@ -5,6 +5,7 @@
 // relights one (an OpenLIME folder too). lightstage export openlime FIELD --out DIR: the OpenLIME
 // planes. `lightstage bench compact` is in bench_command.cc.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 
@@ -167,6 +168,11 @@ void add_render_command(CLI::App& app) {
     std::printf("%s: %dx%d, %s relit\n", args->out.c_str(), summary.width, summary.height,
                 summary.representation.c_str());
     if (!summary.sources.empty()) std::printf("  %s\n", summary.sources.c_str());
+    std::filesystem::path png = args->out;
+    png.replace_extension(".png");
+    std::printf(
+        "  preview %s: exposed %+.2f stops (x%.3g) from the EXR's linear values, then sRGB\n",
+        png.c_str(), summary.preview_stops, std::exp2(summary.preview_stops));
   });
 }
 

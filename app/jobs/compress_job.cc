@@ -522,7 +522,8 @@ RenderSummary render_compact(const RenderOptions& options) {
   write_exr(options.out, image);
   fs::path png = options.out;
   png.replace_extension(".png");
-  write_png_preview(png, image, auto_exposure_stops(image));
+  summary.preview_stops = auto_exposure_stops(image);
+  write_png_preview(png, image, summary.preview_stops);
   return summary;
 }
 

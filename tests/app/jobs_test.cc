@@ -504,6 +504,8 @@ TEST_F(Jobs, RenderRelightsACompactFileUnderALightAsItsFormatHoldsIt) {
     EXPECT_EQ(summary.width, field.width()) << format;
     const Image rendered = read_image(render.out);
     EXPECT_TRUE(fs::exists(dir / (format + ".png"))) << format;
+    // The preview's exposure is said: the one it was written with.
+    EXPECT_DOUBLE_EQ(summary.preview_stops, auto_exposure_stops(rendered)) << format;
     const Image expected =
         format == "pca"
             ? relight::PcaField::read(compress.out).relight_point(dir_to_led)
