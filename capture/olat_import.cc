@@ -65,22 +65,6 @@ std::optional<double> parse_number(std::string_view text) {
   return value;
 }
 
-// A line of the file as a message may quote it: bytes that are not printable ASCII as \xNN (a
-// binary file named as an .lp must not write raw bytes to the terminal), at most 80 characters.
-std::string printable(const std::string& text) {
-  std::string out;
-  for (const unsigned char c : text.substr(0, 80)) {
-    if (c >= 0x20 && c < 0x7f) {
-      out += char(c);
-    } else {
-      char hex[8];
-      std::snprintf(hex, sizeof hex, "\\x%02x", c);
-      out += hex;
-    }
-  }
-  return text.size() > 80 ? out + "..." : out;
-}
-
 std::string vector_text(const Eigen::Vector3d& v) {
   char text[96];
   std::snprintf(text, sizeof(text), "(%g, %g, %g)", v.x(), v.y(), v.z());

@@ -9,8 +9,14 @@
 //  * LS_CHECK: a broken invariant inside the program; it prints the values involved and aborts.
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace ls {
+
+// Bytes as a message may quote them (a line of a file, a device's reply): those that are not
+// printable ASCII as \xNN, so that a binary file or a garbled line never writes raw bytes to the
+// terminal; at most `max_chars` of them, then "...".
+std::string printable(std::string_view bytes, std::size_t max_chars = 80);
 
 class InputError : public std::runtime_error {
  public:

@@ -420,4 +420,8 @@ void write_file_atomic(const fs::path& path, const std::string& contents) {
   write_bytes_atomic(path, contents.data(), contents.size());
 }
 
+void write_file_atomic(const fs::path& path, const void* data, size_t size) {
+  write_bytes_atomic(path, data, size);
+}
+
 }  // namespace ls

@@ -106,6 +106,7 @@ uint32_t crc32_of(const void* data, size_t size);
 
 // Writes `contents` to `path` atomically (temp + fsync + rename). Throws StorageError on failure.
 void write_file_atomic(const std::filesystem::path& path, const std::string& contents);
+void write_file_atomic(const std::filesystem::path& path, const void* data, size_t size);
 
 // The same for a file written piece by piece (larger than memory): bytes go to a temporary
 // sibling, commit() makes it durable and renames it over `path`; destroyed before commit(), the

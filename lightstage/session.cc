@@ -400,8 +400,8 @@ FrameRecord Session::write_frame_file(const PlannedFrame& planned,
                         fs::path(frame.original_name).extension().string();
     std::error_code ignored;  // A folder that cannot be made fails the write below, naming it.
     fs::create_directories(dir_ / "originals", ignored);
-    write_file_atomic(dir_ / rec.original_file,
-                      std::string(frame.original_file.begin(), frame.original_file.end()));
+    write_file_atomic(dir_ / rec.original_file, frame.original_file.data(),
+                      frame.original_file.size());
     rec.original = {frame.original_file.size(),
                     crc32_of(frame.original_file.data(), frame.original_file.size())};
   }

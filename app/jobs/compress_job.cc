@@ -240,18 +240,13 @@ double white_gain(FieldRows* stream, int rows, const capture::ReflectanceField& 
   return brightest[0] > 0 ? 1.0 / brightest[0] : 1.0;
 }
 
-// The largest PCA rank whose file (relight/compact/pca_field_io.cc's layout: a header, per tile
-// an L x k float basis, per pixel k x 3 float coefficients) is no larger than `input_bytes`; at
-// least 1.
+// The largest PCA rank whose file is no larger than `input_bytes`; at least 1.
 int rank_within(std::uintmax_t input_bytes, const capture::ReflectanceField& header, int tile) {
-  const double lights = header.num_lights();
-  const double tiles = tile > 0 ? std::ceil(double(header.width()) / tile) *
-                                      std::ceil(double(header.height()) / tile)
-                                : 1.0;
-  const double header_bytes = 64 + 25 * lights;
+  const int lights = header.num_lights();
   const double per_rank =
-      sizeof(float) * (tiles * lights + 3.0 * double(header.width()) * header.height());
-  return std::max(1, int((double(input_bytes) - header_bytes) / per_rank));
+      relight::PcaField::data_bytes(header.width(), header.height(), lights, 1, tile);
+  return std::max(1,
+                  int((double(input_bytes) - relight::PcaField::header_bytes(lights)) / per_rank));
 }
 
 }  // namespace

@@ -13,12 +13,11 @@
 #include <sstream>
 
 #include "lightstage/errors.h"
+#include "lightstage/progress.h"
 
 namespace ls {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
 
 constexpr int kFullLevel = 1000;
 constexpr size_t kLongestReply = 256;
@@ -33,24 +32,8 @@ speed_t speed_of(int baud) {
   return it == kSpeeds.end() ? B115200 : it->second;
 }
 
-// A reply as it can be shown: control bytes and non-ASCII as \xNN.
-std::string printable(const std::string& bytes) {
-  std::string out;
-  for (const unsigned char c : bytes) {
-    if (c >= 32 && c < 127) {
-      out += char(c);
-    } else {
-      char hex[8];
-      std::snprintf(hex, sizeof hex, "\\x%02x", c);
-      out += hex;
-    }
-  }
-  return out;
-}
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+// Replies are quoted whole (they are at most kLongestReply bytes and a line end).
+constexpr std::size_t kWhole = std::string::npos;
 
 }  // namespace
 
@@ -103,7 +86,7 @@ void SerialLights::start_board(const LedDriverSpec& driver) {
       std::istringstream in(reply);
       std::string protocol;
       if (in >> protocol >> board_channels_ && protocol == driver.protocol) break;
-      last_reply = "LED board on " + port_ + ": answered 'OK " + printable(reply) +
+      last_reply = "LED board on " + port_ + ": answered 'OK " + printable(reply, kWhole) +
                    "' to 'ID' (expected 'OK " + driver.protocol + " <channels>')";
     } catch (const HardwareError& e) {
       last_reply = e.what();
@@ -144,12 +127,13 @@ void SerialLights::write_all(const std::string& bytes) {
       continue;
     }
     if (n < 0 && errno != EAGAIN && errno != EINTR) {
-      throw HardwareError("LED board on " + port_ + ": writing '" + printable(bytes) +
+      throw HardwareError("LED board on " + port_ + ": writing '" + printable(bytes, kWhole) +
                           "' failed: " + std::strerror(errno) + " (unplugged?)");
     }
     if (seconds_since(start) > timeout_s_) {
-      throw HardwareError("LED board on " + port_ + ": the line did not take '" + printable(bytes) +
-                          "' within " + std::to_string(timeout_s_) + " s");
+      throw HardwareError("LED board on " + port_ + ": the line did not take '" +
+                          printable(bytes, kWhole) + "' within " + std::to_string(timeout_s_) +
+                          " s");
     }
     pollfd p{fd_, POLLOUT, 0};
     ::poll(&p, 1, 10);
@@ -167,16 +151,17 @@ std::string SerialLights::read_line(double timeout_s, const std::string& sent) {
       return line;
     }
     if (pending_.size() > kLongestReply) {
-      const std::string shown = printable(pending_.substr(0, 64));
+      const std::string shown = printable(pending_.substr(0, 64), kWhole);
       pending_.clear();
       throw HardwareError("LED board on " + port_ + ": answered '" + shown + "...' to '" + sent +
                           "' (no line end: wrong baud rate or not an lsled1 board?)");
     }
     const double left = timeout_s - seconds_since(start);
     if (left <= 0) {
-      throw HardwareError("LED board on " + port_ + ": no answer to '" + sent + "' within " +
-                          std::to_string(timeout_s) + " s (led_driver.timeout_s)" +
-                          (pending_.empty() ? "" : "; it sent '" + printable(pending_) + "'"));
+      throw HardwareError(
+          "LED board on " + port_ + ": no answer to '" + sent + "' within " +
+          std::to_string(timeout_s) + " s (led_driver.timeout_s)" +
+          (pending_.empty() ? "" : "; it sent '" + printable(pending_, kWhole) + "'"));
     }
     pollfd p{fd_, POLLIN, 0};
     const int ready = ::poll(&p, 1, int(std::ceil(left * 1000)));
@@ -201,7 +186,7 @@ std::string SerialLights::command(const std::string& line, double timeout_s) {
   if (reply == "OK") return "";
   if (reply.rfind("OK ", 0) == 0) return reply.substr(3);
   throw HardwareError(
-      "LED board on " + port_ + ": answered '" + printable(reply) + "' to '" + line + "'" +
+      "LED board on " + port_ + ": answered '" + printable(reply, kWhole) + "' to '" + line + "'" +
       (reply.rfind("ERR", 0) == 0 ? "" : " (expected OK or ERR: not an lsled1 board?)"));
 }
 

@@ -11,17 +11,12 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/image_file.h"
+#include "lightstage/progress.h"
 #include "lightstage/raw_photo.h"
 
 namespace ls {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 bool parse_number(const std::string& text, double& value) {
   char* end = nullptr;
@@ -119,21 +114,19 @@ TetheredCamera::TetheredCamera(const CameraSpec& spec, std::unique_ptr<Tether> t
       accepted_.emplace_back(widget, s->value);
     }
   }
-  const auto require = [&](const std::string& widget, const char* field,
-                           std::vector<std::string>& choices, std::string& now) {
-    const std::optional<TetherSetting> s = tether_->setting(widget);
+  const auto require = [&](const std::string& name, const char* field) {
+    const std::optional<TetherSetting> s = tether_->setting(name);
     if (!s || s->choices.empty()) {
       throw HardwareError(stage_source + ": camera.gphoto2." + field + ": " + name_ +
-                          " has no setting \"" + widget +
+                          " has no setting \"" + name +
                           "\" with choices (its exposure is set "
                           "through it; name the camera's own with " +
                           field + ")");
     }
-    choices = s->choices;
-    now = s->value;
+    return Widget{name, s->value, s->choices};
   };
-  require(spec_.tether.shutter_setting, "shutter_setting", shutter_choices_, shutter_now_);
-  require(spec_.tether.iso_setting, "iso_setting", iso_choices_, iso_now_);
+  shutter_ = require(spec_.tether.shutter_setting, "shutter_setting");
+  iso_ = require(spec_.tether.iso_setting, "iso_setting");
 }
 
 std::vector<std::pair<std::string, std::string>> TetheredCamera::reported_settings() const {
@@ -151,15 +144,13 @@ CameraInfo TetheredCamera::info() const {
   return info;
 }
 
-// The choice whose value is nearest `wanted` on a log scale (stops); sets `chosen` to it.
-std::string TetheredCamera::choose(const std::string& widget, double wanted,
+// The widget's choice whose value is nearest `wanted` on a log scale (stops); sets `chosen` to it.
+std::string TetheredCamera::choose(const Widget& widget, double wanted,
                                    bool (*parse)(const std::string&, double&),
                                    double& chosen) const {
-  const std::vector<std::string>& choices =
-      widget == spec_.tether.shutter_setting ? shutter_choices_ : iso_choices_;
   std::string best;
   double best_distance = INFINITY;
-  for (const std::string& c : choices) {
+  for (const std::string& c : widget.choices) {
     double value = 0;
     if (!parse(c, value)) continue;
     const double distance = std::abs(std::log2(value / wanted));
@@ -170,16 +161,15 @@ std::string TetheredCamera::choose(const std::string& widget, double wanted,
     }
   }
   if (best.empty()) {
-    throw HardwareError(name_ + ": no choice of \"" + widget + "\" reads as a number");
+    throw HardwareError(name_ + ": no choice of \"" + widget.name + "\" reads as a number");
   }
   return best;
 }
 
-void TetheredCamera::set_if_changed(const std::string& widget, const std::string& value) {
-  std::string& now = widget == spec_.tether.shutter_setting ? shutter_now_ : iso_now_;
-  if (now == value) return;
-  tether_->set_setting(widget, value);
-  now = value;
+void TetheredCamera::set_if_changed(Widget& widget, const std::string& value) {
+  if (widget.value == value) return;
+  tether_->set_setting(widget.name, value);
+  widget.value = value;
 }
 
 void TetheredCamera::trigger_when_ready(double deadline_s) {
@@ -201,14 +191,13 @@ void TetheredCamera::trigger_when_ready(double deadline_s) {
 
 CapturedFrame TetheredCamera::capture(const FrameRequest& request) {
   CapturedFrame out;
-  const std::string shutter = choose(spec_.tether.shutter_setting, request.exposure_s,
-                                     parse_shutter_seconds, out.exposure_s);
+  const std::string shutter =
+      choose(shutter_, request.exposure_s, parse_shutter_seconds, out.exposure_s);
   double iso = 0;
-  const std::string iso_choice =
-      choose(spec_.tether.iso_setting, request.gain * spec_.tether.base_iso, parse_iso, iso);
+  const std::string iso_choice = choose(iso_, request.gain * spec_.tether.base_iso, parse_iso, iso);
   out.gain = iso / spec_.tether.base_iso;
-  set_if_changed(spec_.tether.shutter_setting, shutter);
-  set_if_changed(spec_.tether.iso_setting, iso_choice);
+  set_if_changed(shutter_, shutter);
+  set_if_changed(iso_, iso_choice);
   tether_->prepare(request);
   const double allowed_s = out.exposure_s + spec_.timeout_s;
   trigger_when_ready(allowed_s);

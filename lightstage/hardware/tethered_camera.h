@@ -34,17 +34,21 @@ class TetheredCamera : public Camera {
   std::vector<std::pair<std::string, std::string>> reported_settings() const override;
 
  private:
-  std::string choose(const std::string& widget, double wanted,
+  // A widget exposure or gain is set through: its name, value now, and choices.
+  struct Widget {
+    std::string name, value;
+    std::vector<std::string> choices;
+  };
+  std::string choose(const Widget& widget, double wanted,
                      bool (*parse)(const std::string&, double&), double& chosen) const;
-  void set_if_changed(const std::string& widget, const std::string& value);
+  void set_if_changed(Widget& widget, const std::string& value);
   void trigger_when_ready(double deadline_s);
 
   CameraSpec spec_;
   std::unique_ptr<Tether> tether_;
   std::string name_;
   std::vector<std::pair<std::string, std::string>> accepted_;
-  std::vector<std::string> shutter_choices_, iso_choices_;
-  std::string shutter_now_, iso_now_;
+  Widget shutter_, iso_;
 };
 
 // "1/125", "0.5", "2", "30s", "2.0000s" in seconds; false for "bulb", "Auto" and the like.

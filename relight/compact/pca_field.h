@@ -172,6 +172,10 @@ class PcaField : public CompactField {
   static PcaField build_basis(const capture::ReflectanceField& header, const PcaGramBands& grams,
                               const capture::FieldBands& bands, const PcaOptions& options,
                               PcaSummary* summary = nullptr);
+  // A file's bytes (pca_field_io.cc's layout): its header, and its bases and coefficients (per
+  // tile an L x k float basis, per pixel k x 3 float coefficients).
+  static double header_bytes(int lights);
+  static double data_bytes(int width, int height, int lights, int rank, int tile_size);
   // A band's grams: the band (rows of a field, whole sub-bands or tile rows as band_alignment
   // gives them) and the tile size asked (PcaOptions::tile_size).
   static PcaBandGrams band_grams(const capture::ReflectanceField& band, int tile_size);

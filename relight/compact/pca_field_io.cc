@@ -43,6 +43,18 @@ void PcaField::write(const std::filesystem::path& path) const {
   });
 }
 
+double PcaField::header_bytes(int lights) {
+  return double(sizeof(kPcaMagic) - 1) + 5 * sizeof(int32_t) + sizeof(double) +
+         double(lights) * (3 * sizeof(double) + sizeof(uint8_t));
+}
+
+double PcaField::data_bytes(int width, int height, int lights, int rank, int tile_size) {
+  const double tiles =
+      tile_size > 0 ? std::ceil(double(width) / tile_size) * std::ceil(double(height) / tile_size)
+                    : 1.0;
+  return sizeof(float) * (tiles * lights * rank + double(width) * height * rank * 3);
+}
+
 void PcaField::write(const std::filesystem::path& path, const CoefficientRows& rows) const {
   std::ostringstream out;
   out.write(kPcaMagic, sizeof(kPcaMagic) - 1);
@@ -185,8 +197,8 @@ PcaField PcaField::read(const std::filesystem::path& path) {
   const int64_t tiles =
       out.tile_size_ > 0 ? int64_t(out.tiles_x()) * ((out.height_ - 1) / out.tile_size_ + 1) : 1;
   // The sizes the header claims must be in the file before anything of that size is allocated.
-  const double claimed_bytes = sizeof(float) * (double(tiles) * lights * out.rank_ +
-                                                double(out.width_) * out.height_ * out.rank_ * 3);
+  const double claimed_bytes =
+      data_bytes(out.width_, out.height_, lights, out.rank_, out.tile_size_);
   std::error_code error;
   const double left_bytes = double(std::filesystem::file_size(path, error)) - double(in.tellg());
   if (!error && claimed_bytes > left_bytes) {

@@ -416,7 +416,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
       !error.empty()) {
     throw InputError("fit options: " + error);
   }
-  const auto start_time = std::chrono::steady_clock::now();
+  const auto start_time = Clock::now();
   ModelMaps out;
   out.maps = Image(width, height, kMapChannelCount);
   out.maps.channel_names = model_map_channel_names();
@@ -466,19 +466,16 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
     const std::lock_guard lock(summary_mutex);
     summary.add(local);
   });
-  const auto since = [](std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-  };
-  summary.times.candidates = since(start_time);
-  const auto materials_start = std::chrono::steady_clock::now();
+  summary.times.candidates = seconds_since(start_time);
+  const auto materials_start = Clock::now();
   if (options.materials == FitMaterials::kBasis) {
     fit_basis_materials(field, normals, options, out);  // Measures the shadows of its models.
   }
-  summary.times.materials = since(materials_start);
-  const auto shadows_start = std::chrono::steady_clock::now();
+  summary.times.materials = seconds_since(materials_start);
+  const auto shadows_start = Clock::now();
   if (out.shadows.empty()) measure_fit_shadows(field, options, field.first_row(), out);
-  summary.times.shadows = since(shadows_start);
-  summary.seconds = since(start_time);
+  summary.times.shadows = seconds_since(shadows_start);
+  summary.seconds = seconds_since(start_time);
   return out;
 }
 
