@@ -79,6 +79,22 @@ Eigen::Vector3d reference_point(const FieldView& view, int width, int height, in
   return {ndc_x * tan_half * aspect * depth, ndc_y * tan_half * depth, view.reference_z_m};
 }
 
+void camera_ray(const FieldView& view, int width, int height, int x, int y, Eigen::Vector3d* origin,
+                Eigen::Vector3d* dir) {
+  const double aspect = double(width) / height;
+  const double ndc_x = 2.0 * (x + 0.5) / width - 1.0;
+  const double ndc_y = 1.0 - 2.0 * (y + 0.5) / height;
+  if (view.fov_y_deg <= 0) {
+    const double half_h = 0.5 * view.ortho_height_m;
+    *origin = Eigen::Vector3d(ndc_x * half_h * aspect, ndc_y * half_h, 100.0);
+    *dir = Eigen::Vector3d(0, 0, -1);
+    return;
+  }
+  const double tan_half = std::tan(0.5 * view.fov_y_deg * std::numbers::pi / 180.0);
+  *origin = Eigen::Vector3d(0, 0, view.camera_distance_m);
+  *dir = Eigen::Vector3d(ndc_x * tan_half * aspect, ndc_y * tan_half, -1.0).normalized();
+}
+
 bool has_near_lights(const ReflectanceField& field) {
   if (!field.view) return false;
   for (const FieldLight& light : field.lights()) {

@@ -154,6 +154,10 @@ ValidLights valid_lights(const ReflectanceField& field);
 // meets the plane z = view.reference_z_m. A pinhole camera at or behind the plane sees it nowhere:
 // the point straight below the camera is returned.
 Eigen::Vector3d reference_point(const FieldView& view, int width, int height, int x, int y);
+// The camera ray through pixel (x, y)'s centre: origin and unit direction (toward -Z); an
+// orthographic camera's rays start at z = 100, in front of anything on the stage.
+void camera_ray(const FieldView& view, int width, int height, int x, int y, Eigen::Vector3d* origin,
+                Eigen::Vector3d* dir);
 // Whether any light of the field has a position and the field knows its view (per-pixel lights).
 bool has_near_lights(const ReflectanceField& field);
 // Unit directions toward the lights seen from pixel (x, y) of a field (of a band: its row

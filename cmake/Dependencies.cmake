@@ -13,6 +13,7 @@ find_package(Ceres REQUIRED)
 find_package(Threads REQUIRED)
 find_package(ZLIB REQUIRED)  # CRC-32 of saved frames (zlib1g-dev).
 find_package(nanoflann REQUIRED)  # k-d tree over LED directions (libnanoflann-dev).
+find_package(tinyobjloader REQUIRED)  # OBJ meshes for render --shape (libtinyobjloader-dev).
 
 # Debian's split OpenCV module packages ship no OpenCVConfig.cmake: define imported targets.
 find_path(OPENCV_INCLUDE_DIR opencv2/core.hpp PATH_SUFFIXES opencv4 REQUIRED)

@@ -182,6 +182,19 @@ void write_rgb8(const fs::path& path, int width, int height, const uint8_t* rgb,
   write_encoded(path, spec, Sample::kUInt8, rgb);
 }
 
+void write_png_codes(const fs::path& path, int width, int height, int channels, int bits,
+                     const uint16_t* codes) {
+  LS_CHECK(bits == 8 || bits == 16, "PNG codes of " + std::to_string(bits) + " bits");
+  if (bits == 16) {
+    write_encoded(path, spec_of(width, height, channels, Sample::kUInt16), Sample::kUInt16, codes);
+    return;
+  }
+  std::vector<uint8_t> bytes(size_t(width) * height * channels);
+  for (size_t i = 0; i < bytes.size(); ++i) bytes[i] = uint8_t(std::min<uint16_t>(codes[i], 255));
+  write_encoded(path, spec_of(width, height, channels, Sample::kUInt8), Sample::kUInt8,
+                bytes.data());
+}
+
 float srgb_encode(float linear) {
   if (!(linear > 0.0f)) return 0.0f;  // Also NaN.
   linear = std::min(linear, 1.0f);

@@ -68,6 +68,11 @@ void write_png_preview(const std::filesystem::path& path, const Image& image,
 void write_rgb8(const std::filesystem::path& path, int width, int height, const uint8_t* rgb,
                 int jpeg_quality = 95);
 
+// A PNG of integer codes as given (no transfer curve applied): 8- or 16-bit, 1 to 4 channels
+// interleaved, rows top to bottom; 8-bit codes above 255 are clamped. Atomic.
+void write_png_codes(const std::filesystem::path& path, int width, int height, int channels,
+                     int bits, const uint16_t* codes);
+
 // The sRGB transfer curve (IEC 61966-2-1): linear [0, 1] <-> display-referred [0, 1]. Both clamp
 // their input to [0, 1] first, and NaN gives 0: a preview or a display shows black, never NaN.
 float srgb_encode(float linear);

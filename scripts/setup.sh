@@ -19,6 +19,8 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libceres-dev libtbb-dev nlohmann-json3-dev libcli11-dev libimgui-dev zlib1g-dev
   libnanoflann-dev
+  libtinyobjloader-dev  # OBJ meshes: render --shape MESH.obj
+  blender  # the exported glTF rendered by a real renderer (tests/relight/material)
   libopenmpi-dev openmpi-bin
   xvfb xauth mesa-utils
   gnuplot-nox  # the benches' charts (its pngcairo terminal)
@@ -26,6 +28,11 @@ PACKAGES=(
   python3-dev pybind11-dev python3-numpy python3-pytest python3-dask python3-matplotlib
   python3-scipy  # scripts/diligent_normals.py reads the benchmark's Normal_gt.mat
 )
+
+# Node.js runs the validators of exported glTF and MaterialX files (tests/tools); a machine with a
+# Node.js of its own (which brings npm) keeps it.
+command -v node >/dev/null || PACKAGES+=(nodejs)
+command -v npm >/dev/null || PACKAGES+=(npm)
 
 missing=()
 for p in "${PACKAGES[@]}"; do
@@ -47,3 +54,13 @@ export CCACHE_BASEDIR=${CCACHE_BASEDIR:-$PWD}
 cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release -DLIGHTSTAGE_WERROR=ON "${launcher[@]}" >/dev/null
 echo "setup: building in $BUILD_DIR"
 cmake --build "$BUILD_DIR" -j "$(nproc)"
+# The validators the tests run on exported materials, from the npm registry (pinned): the Khronos
+# glTF validator, and MaterialX's own core (WASM, with its standard libraries). Its peer
+# dependency three.js is a renderer the validation does not load.
+tools="$BUILD_DIR/node-tools"
+if [ ! -f "$tools/.installed-1" ]; then
+  echo "setup: installing the glTF and MaterialX validators into $tools"
+  npm install --prefix "$tools" --no-audit --no-fund --legacy-peer-deps --loglevel=error \
+    gltf-validator@2.0.0-dev.3.10 @needle-tools/materialx@1.4.6 >/dev/null
+  touch "$tools/.installed-1"
+fi

@@ -33,9 +33,10 @@ void add_demo_command(CLI::App& app);
 void add_stage_command(CLI::App& app);
 void add_envmaps_command(CLI::App& app);
 void add_bench_command(CLI::App& app);
-void add_compress_command(CLI::App& app);  // compact_command.cc
-void add_render_command(CLI::App& app);    // compact_command.cc
-void add_export_command(CLI::App& app);    // compact_command.cc
+void add_compress_command(CLI::App& app);       // compact_command.cc
+void add_render_command(CLI::App& app);         // compact_command.cc
+void add_export_command(CLI::App& app);         // compact_command.cc
+void add_material_exports(CLI::App& exporter);  // material_command.cc: export gltf, materialx
 void add_devices_command(CLI::App& app);
 void add_check_command(CLI::App& app);
 void add_play_command(CLI::App& app);  // play_command.cc: the superposition check.

@@ -11,6 +11,7 @@
 
 #include "app/cli/commands.h"
 #include "app/jobs/compress_job.h"
+#include "app/jobs/material_job.h"
 #include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
 #include "lightstage/memory_option.h"
@@ -131,6 +132,7 @@ void add_export_command(CLI::App& app) {
     if (summary.band_rows > 0) std::printf("read in bands of %d rows\n", summary.band_rows);
     std::printf("peak memory %.1f MiB\n", double(peak_resident_bytes()) / (1 << 20));
   });
+  add_material_exports(*exporter);
 }
 
 void add_render_command(CLI::App& app) {
@@ -139,8 +141,10 @@ void add_render_command(CLI::App& app) {
       "render",
       "Relights a compact file (.ptm, .rti, the lightstage PCA format, or an OpenLIME folder) "
       "under one distant light or an environment map: a linear EXR in field units and a PNG "
-      "preview.");
-  render->add_option("compact", args->input, "Compact file, or OpenLIME folder.")
+      "preview. With --shape, renders fitted model maps (lightstage fit's MAPS.exr) on a new "
+      "shape instead.");
+  render
+      ->add_option("compact", args->input, "Compact file, OpenLIME folder, or (--shape) MAPS.exr.")
       ->required()
       ->check(CLI::ExistingPath);
   render->add_option("--out", args->out, "Output image (.exr; a .png preview beside it).")
@@ -159,12 +163,25 @@ void add_render_command(CLI::App& app) {
   render
       ->add_flag("!--no-compact-sources", args->bright_sources, "Deprecated: --no-bright-sources.")
       ->group("");
+  render
+      ->add_option("--shape", args->shape,
+                   "sphere | cylinder | plane | MESH.obj: the material of MAPS.exr on that shape "
+                   "(mapped by the shape's UVs, the fitted normals on top of its own), seen "
+                   "from +Z by an orthographic camera 2.4 tall; the shapes are 2 units across.")
+      ->group("Material on a shape");
+  render->add_option("--tiles", args->tiles, "--shape: repeats of the maps over the shape's UVs.")
+      ->capture_default_str()
+      ->group("Material on a shape");
+  render->add_option("--resolution", args->resolution, "--shape: image width and height.")
+      ->capture_default_str()
+      ->group("Material on a shape");
   render->callback([args] {
     if (const std::string problem = args->validate(); !problem.empty()) {
       throw CLI::ValidationError("render", problem);
     }
     const auto lock = lock_output(args->out);
-    const jobs::RenderSummary summary = jobs::render_compact(*args);
+    const jobs::RenderSummary summary =
+        args->shape.empty() ? jobs::render_compact(*args) : jobs::render_material(*args);
     std::printf("%s: %dx%d, %s relit\n", args->out.c_str(), summary.width, summary.height,
                 summary.representation.c_str());
     if (!summary.sources.empty()) std::printf("  %s\n", summary.sources.c_str());

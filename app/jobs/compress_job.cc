@@ -460,7 +460,16 @@ OpenLimeExportSummary export_openlime(const OpenLimeExportOptions& options,
 }
 
 std::string RenderOptions::validate() const {
-  if (input.empty()) return "a compact file (.ptm, .rti, PCA or an OpenLIME folder) is required";
+  if (input.empty()) {
+    return shape.empty() ? "a compact file (.ptm, .rti, PCA or an OpenLIME folder) is required"
+                         : "the model maps (lightstage fit's MAPS.exr) are required";
+  }
+  if (!shape.empty()) {
+    if (!(tiles > 0) || !std::isfinite(tiles) || tiles > 1e4) {
+      return "--tiles: expected a positive number of repeats (at most 10000)";
+    }
+    if (resolution < 1 || resolution > 16384) return "--resolution: expected 1 to 16384 pixels";
+  }
   if (out.extension() != ".exr") {
     return "--out: the render is an OpenEXR file (linear): give a path ending in .exr, got \"" +
            out.string() + "\"";

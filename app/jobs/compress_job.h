@@ -89,6 +89,12 @@ struct RenderOptions {
   // source split off and rendered at its true direction from the PCA's reconstruction, as
   // `relight` does for a field (relight/sources/map_relight.h), the rest of the map by LED cells.
   bool bright_sources = true;
+  // Fitted model maps (lightstage fit) on a shape instead of a compact file: "sphere",
+  // "cylinder", "plane" or an OBJ mesh's path (relight/material/shape_render.h), the maps repeated
+  // `tiles` times over it, a square image of `resolution` pixels (app/jobs/material_job.h).
+  std::string shape;
+  double tiles = 1.0;
+  int resolution = 256;
   std::string validate() const;
 };
 

@@ -179,6 +179,14 @@ Eigen::Vector3f shade(const Lights& lights, const PixelModel& p, const Eigen::Ve
 
 }  // namespace
 
+Eigen::Vector3f model_brdf(const float* m, const physics::brdf::Geometry<float>& g, float max_ks) {
+  PixelModel p;
+  if (!p.read(m, max_ks) || !g.above()) return Eigen::Vector3f::Zero();
+  Eigen::Vector3f out = p.albedo * p.diffuse(g);
+  if (p.lobe) out.array() += p.ks * p.lobe_f(g);
+  return out;
+}
+
 Eigen::Vector3f model_radiance(const float* m, const Eigen::Vector3f& wi, const Eigen::Vector3f& wo,
                                float max_ks) {
   PixelModel p;

@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "lightstage/image.h"
+#include "physics/brdf.h"
 #include "physics/envmap.h"
 #include "relight/fit/fit.h"
 #include "relight/lighting/compact_field.h"
@@ -54,6 +55,10 @@ struct ModelRenderOptions {
 // k_s clamped to max_ks. 0 for a pixel without a normal or facing away.
 Eigen::Vector3f model_radiance(const float* m, const Eigen::Vector3f& wi, const Eigen::Vector3f& wo,
                                float max_ks);
+
+// A fitted pixel's BRDF (1/sr, cos not inside) per channel at local geometry g (cosines to its
+// normal, which is not read): m, max_ks as model_radiance's. 0 for a pixel without a model.
+Eigen::Vector3f model_brdf(const float* m, const physics::brdf::Geometry<float>& g, float max_ks);
 
 // 3-channel linear radiance image the size of the maps. Rows in parallel (TBB); never NaN (the maps
 // are finite, read_model_maps checks that). Throws InputError when the options do not fit the
