@@ -2,6 +2,7 @@
 
 #include <cctype>
 #include <cmath>
+#include <vector>
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
@@ -55,17 +56,20 @@ MaterialExportSummary export_material(const MaterialExportOptions& options,
   RunOutputs outputs(options.out);  // Removed, with the folder if this made it, on failure.
   const std::string name =
       element_name(options.name.empty() ? options.maps.stem().string() : options.name);
-  for (const char* file :
-       {"base_color.png", "normal.png", "metallic_roughness.png", "specular_strength.png",
-        "roughness.png", "specular.png", "conversion_error.png"}) {
+  // What this format writes (and only that: another format's files in the folder stay).
+  const bool gltf = options.format == "gltf";
+  const std::vector<std::string> files =
+      gltf ? std::vector<std::string>{"metallic_roughness.png", "specular_strength.png",
+                                      name + ".gltf", name + ".bin"}
+           : std::vector<std::string>{"roughness.png", "specular.png", name + ".mtlx"};
+  for (const std::string& file : files) outputs.add(options.out / file);
+  for (const char* file : {"base_color.png", "normal.png", "conversion_error.png"}) {
     outputs.add(options.out / file);
   }
-  for (const char* ext : {".gltf", ".bin", ".mtlx"}) outputs.add(options.out / (name + ext));
   report(progress, "write", 0, 1);
   MaterialExportSummary summary;
-  summary.files = options.format == "gltf"
-                      ? relight::write_gltf(material, options.out, name, options.height_m)
-                      : relight::write_materialx(material, options.out, name);
+  summary.files = gltf ? relight::write_gltf(material, options.out, name, options.height_m)
+                       : relight::write_materialx(material, options.out, name);
   // The error per pixel as an image: white at 20% relative error.
   Image error(material.width, material.height, 3);
   for (size_t i = 0; i < error.num_pixels(); ++i) {
