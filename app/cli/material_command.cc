@@ -25,8 +25,13 @@ void add_material_export(CLI::App& exporter, const std::string& format,
       ->required();
   command->add_option("--name", args->name, "Name of the material and its files. Default: MAPS.");
   if (format == "gltf") {
-    command->add_option("--height", args->height_m, "The plane's height in metres.")
+    command->add_option("--height", args->height_m, "The captured view's height in metres.")
         ->capture_default_str();
+    command
+        ->add_option("--shape-from", args->shape_from,
+                     "The field the maps were fitted from: the mesh is the scene's shape "
+                     "recovered from it (normals and the LEDs' shadows), not a plane.")
+        ->check(CLI::ExistingFile);
   }
   command->add_flag("--quiet", *quiet, "No progress output.");
   command->callback([args, quiet] {
@@ -40,6 +45,8 @@ void add_material_export(CLI::App& exporter, const std::string& format,
         "conversion error (relative RMS of f cos over the hemisphere, 3 views): median "
         "%.1f%%, 95th percentile %.1f%%, max %.1f%%; per pixel: %s\n",
         100 * s.median_error, 100 * s.p95_error, 100 * s.max_error, s.error_preview.c_str());
+    std::printf("mesh: %zu vertices, %zu triangles%s\n", s.vertices, s.triangles,
+                args->shape_from.empty() ? " (a plane)" : " (the recovered shape)");
     for (const relight::WrittenTexture& t : s.files.textures) {
       std::printf("  %s: %d-bit PNG\n", t.file.c_str(), t.bits);
     }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <vector>
 
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/run_outputs.h"
@@ -11,6 +12,8 @@
 #include "relight/fit/fit.h"
 #include "relight/material/ggx_conversion.h"
 #include "relight/material/shape_render.h"
+#include "relight/material/surface_mesh.h"
+#include "relight/sources/field_sources.h"
 
 namespace ls::jobs {
 namespace fs = std::filesystem;
@@ -34,6 +37,7 @@ std::string MaterialExportOptions::validate() const {
     return "format: expected gltf or materialx, got \"" + format + "\"";
   }
   if (!(height_m > 0) || !std::isfinite(height_m)) return "--height: expected a positive size";
+  if (!shape_from.empty() && format != "gltf") return "--shape-from: glTF only (a mesh)";
   return {};
 }
 
@@ -53,6 +57,21 @@ MaterialExportSummary export_material(const MaterialExportOptions& options,
   const relight::GgxConversion material = relight::convert_to_ggx(maps);
   report(progress, "convert to GGX", 1, 1);
 
+  relight::SurfaceMesh mesh =
+      relight::plane_mesh(maps.maps.width, maps.maps.height, options.height_m);
+  if (!options.shape_from.empty()) {
+    const capture::ReflectanceField field = capture::read_field(options.shape_from);
+    if (field.width() != maps.maps.width || field.height() != maps.maps.height) {
+      throw InputError(options.shape_from.string() + ": --shape-from: a " +
+                       std::to_string(field.width()) + "x" + std::to_string(field.height()) +
+                       " field, but the maps are " + std::to_string(maps.maps.width) + "x" +
+                       std::to_string(maps.maps.height) + ": give the field they were fitted from");
+    }
+    relight::FieldSources sources(field);
+    sources.recover_geometry(progress);
+    mesh =
+        relight::shape_mesh(*sources.geometry(), field.width(), field.height(), options.height_m);
+  }
   RunOutputs outputs(options.out);  // Removed, with the folder if this made it, on failure.
   const std::string name =
       element_name(options.name.empty() ? options.maps.stem().string() : options.name);
@@ -68,7 +87,7 @@ MaterialExportSummary export_material(const MaterialExportOptions& options,
   }
   report(progress, "write", 0, 1);
   MaterialExportSummary summary;
-  summary.files = gltf ? relight::write_gltf(material, options.out, name, options.height_m)
+  summary.files = gltf ? relight::write_gltf(material, options.out, name, mesh)
                        : relight::write_materialx(material, options.out, name);
   // The error per pixel as an image: white at 20% relative error.
   Image error(material.width, material.height, 3);
@@ -79,6 +98,8 @@ MaterialExportSummary export_material(const MaterialExportOptions& options,
   write_png_preview(summary.error_preview, error);
   report(progress, "write", 1, 1);
   outputs.keep();
+  summary.vertices = mesh.positions.size();
+  summary.triangles = mesh.indices.size() / 3;
   summary.pixels = material.pixels;
   summary.distinct_lobes = material.distinct_lobes;
   summary.f0 = material.f0;

@@ -17,12 +17,16 @@ struct MaterialExportOptions {
   std::filesystem::path out;   // Folder (made; its files replaced).
   std::string format;          // gltf | materialx
   std::string name;            // Of the document and the material; empty: the maps' stem.
-  double height_m = 1.0;       // glTF: the plane's height.
+  double height_m = 1.0;       // glTF: the captured surface's height (the view's).
+  // glTF: the field the maps were fitted from; then the mesh is the scene's shape recovered from
+  // it (relight/sources/shadow_geometry.h), not a plane.
+  std::filesystem::path shape_from;
   std::string validate() const;
 };
 
 struct MaterialExportSummary {
   relight::MaterialExport files;
+  size_t vertices = 0, triangles = 0;   // The glTF's mesh.
   std::filesystem::path error_preview;  // The conversion's error per pixel, as an image.
   int pixels = 0, distinct_lobes = 0;
   double f0 = 0, median_error = 0, p95_error = 0, max_error = 0;

@@ -69,9 +69,9 @@ double base_color_impact(const GgxConversion& m, size_t i, const float* v, const
   return worst;
 }
 
-TextureValues normal_values(const GgxConversion& m) {
-  TextureValues t{"normal.png", 3, std::vector<float>(m.normal.pixels.size())};
-  for (size_t i = 0; i < t.encoded.size(); ++i) t.encoded[i] = 0.5f + 0.5f * m.normal.pixels[i];
+TextureValues normal_values(const Image& normals) {
+  TextureValues t{"normal.png", 3, std::vector<float>(normals.pixels.size())};
+  for (size_t i = 0; i < t.encoded.size(); ++i) t.encoded[i] = 0.5f + 0.5f * normals.pixels[i];
   return t;
 }
 // A normal tilted by d radians moves a diffuse response by about d, a lobe of width a by 2d / a.
@@ -135,13 +135,13 @@ int add_view(std::string& buffer, nlohmann::json& views, const void* bytes, size
 }
 
 constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
-constexpr int kFloat = 5126, kUnsignedShort = 5123;
+constexpr int kFloat = 5126, kUnsignedInt = 5125;
 constexpr int kLinear = 9729, kLinearMipmapLinear = 9987, kRepeat = 10497;
 
 }  // namespace
 
 MaterialExport write_gltf(const GgxConversion& m, const fs::path& dir, const std::string& name,
-                          double height_m) {
+                          const SurfaceMesh& mesh) {
   make_dir(dir);
   MaterialExport out;
   out.textures.push_back(write_texture(
@@ -150,39 +150,44 @@ MaterialExport write_gltf(const GgxConversion& m, const fs::path& dir, const std
   out.textures.push_back(
       write_texture(dir, m, roughness_values(m, 3, 1), roughness_impact(m, 3, 1)));
   out.textures.push_back(write_texture(
-      dir, m, normal_values(m),
+      dir, m, normal_values(tangent_space_normals(m.normal, mesh)),
       [&m](size_t i, const float* v, const float* e) { return normal_impact(m, i, v, e); }));
   out.textures.push_back(write_texture(dir, m, strength_values(m, 4), strength_impact(m, 4)));
 
-  // The plane: corners top-left, top-right, bottom-right, bottom-left; UV (0, 0) at the top left
-  // (glTF's), counter-clockwise seen from +Z.
-  const float h = float(height_m) / 2, w = h * float(m.width) / float(m.height);
-  const float positions[] = {-w, h, 0, w, h, 0, w, -h, 0, -w, -h, 0};
-  const float normals[] = {0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1};
-  const float tangents[] = {1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1};
-  const float uvs[] = {0, 0, 1, 0, 1, 1, 0, 1};
-  const uint16_t indices[] = {0, 3, 2, 0, 2, 1};
   std::string buffer;
   nlohmann::json views = nlohmann::json::array();
-  const int position_view = add_view(buffer, views, positions, sizeof positions, kArrayBuffer);
-  const int normal_view = add_view(buffer, views, normals, sizeof normals, kArrayBuffer);
-  const int tangent_view = add_view(buffer, views, tangents, sizeof tangents, kArrayBuffer);
-  const int uv_view = add_view(buffer, views, uvs, sizeof uvs, kArrayBuffer);
-  const int index_view = add_view(buffer, views, indices, sizeof indices, kElementArrayBuffer);
-  const nlohmann::json accessors = nlohmann::json::array(
-      {{{"bufferView", position_view},
-        {"componentType", kFloat},
-        {"count", 4},
-        {"type", "VEC3"},
-        {"min", {-w, -h, 0}},
-        {"max", {w, h, 0}}},
-       {{"bufferView", normal_view}, {"componentType", kFloat}, {"count", 4}, {"type", "VEC3"}},
-       {{"bufferView", tangent_view}, {"componentType", kFloat}, {"count", 4}, {"type", "VEC4"}},
-       {{"bufferView", uv_view}, {"componentType", kFloat}, {"count", 4}, {"type", "VEC2"}},
-       {{"bufferView", index_view},
-        {"componentType", kUnsignedShort},
-        {"count", 6},
-        {"type", "SCALAR"}}});
+  Eigen::Vector3f lo = mesh.positions.front(), hi = lo;
+  for (const Eigen::Vector3f& p : mesh.positions) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const auto view_of = [&](const auto& values, int target) {
+    return add_view(buffer, views, values.data(), values.size() * sizeof(values[0]), target);
+  };
+  const int count = int(mesh.positions.size());
+  const nlohmann::json accessors =
+      nlohmann::json::array({{{"bufferView", view_of(mesh.positions, kArrayBuffer)},
+                              {"componentType", kFloat},
+                              {"count", count},
+                              {"type", "VEC3"},
+                              {"min", {lo.x(), lo.y(), lo.z()}},
+                              {"max", {hi.x(), hi.y(), hi.z()}}},
+                             {{"bufferView", view_of(mesh.normals, kArrayBuffer)},
+                              {"componentType", kFloat},
+                              {"count", count},
+                              {"type", "VEC3"}},
+                             {{"bufferView", view_of(mesh.tangents, kArrayBuffer)},
+                              {"componentType", kFloat},
+                              {"count", count},
+                              {"type", "VEC4"}},
+                             {{"bufferView", view_of(mesh.uvs, kArrayBuffer)},
+                              {"componentType", kFloat},
+                              {"count", count},
+                              {"type", "VEC2"}},
+                             {{"bufferView", view_of(mesh.indices, kElementArrayBuffer)},
+                              {"componentType", kUnsignedInt},
+                              {"count", mesh.indices.size()},
+                              {"type", "SCALAR"}}});
 
   nlohmann::json images = nlohmann::json::array(), textures = nlohmann::json::array();
   for (const WrittenTexture& t : out.textures) {
@@ -242,7 +247,7 @@ MaterialExport write_materialx(const GgxConversion& m, const fs::path& dir,
   out.textures.push_back(
       write_texture(dir, m, roughness_values(m, 1, 0), roughness_impact(m, 1, 0)));
   out.textures.push_back(write_texture(
-      dir, m, normal_values(m),
+      dir, m, normal_values(m.normal),
       [&m](size_t i, const float* v, const float* e) { return normal_impact(m, i, v, e); }));
   out.textures.push_back(write_texture(dir, m, strength_values(m, 1), strength_impact(m, 1)));
   // Standard Surface's dielectric F0 comes from its index of refraction.

@@ -66,6 +66,8 @@ class FieldSources {
   void recover_geometry(const ProgressFn& progress = {});
   // The geometry `other` recovered, for this view of the same field (no second recovery).
   void use_geometry_of(const FieldSources& other);
+  // The shape recover_geometry found (null before): for a mesh of the scene (export gltf).
+  const ShadowGeometry* geometry() const { return geometry_.get(); }
   // The shadows of `leds` now rather than when a source first falls next to them.
   void prepare(const std::vector<int>& leds);
   // Memory it takes for a field of width x height with `leds` LED shadows and the flows of

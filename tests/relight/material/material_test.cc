@@ -18,6 +18,8 @@
 #include "relight/material/ggx_conversion.h"
 #include "relight/material/material_export.h"
 #include "relight/material/shape_render.h"
+#include "relight/material/surface_mesh.h"
+#include "relight/sources/field_sources.h"
 #include "sim/ground_truth.h"
 #include "sim/noisy_field.h"
 #include "sim/scene.h"
@@ -254,17 +256,21 @@ class DemoExport : public ::testing::Test {
     const capture::ReflectanceField field = sim::render_noisy_field(
         swatch_stage(64), sim::default_scene(), options.normals.noise.as_field_noise(), 3);
     maps_ = new ModelMaps(fit_models(field, options));
+    field_ = new capture::ReflectanceField(field);
     material_ = new GgxConversion(convert_to_ggx(*maps_));
     std::cout << "demo conversion: median " << material_->median_error << ", p95 "
               << material_->p95_error << ", f0 " << material_->f0 << "\n";
   }
   static void TearDownTestSuite() {
+    delete field_;
     delete material_;
     delete maps_;
   }
   static ModelMaps* maps_;
   static GgxConversion* material_;
+  static capture::ReflectanceField* field_;
 };
+capture::ReflectanceField* DemoExport::field_ = nullptr;
 ModelMaps* DemoExport::maps_ = nullptr;
 GgxConversion* DemoExport::material_ = nullptr;
 
@@ -283,7 +289,8 @@ std::string validator(const std::string& script) {
 
 TEST_F(DemoExport, GltfPassesTheKhronosValidatorWithNoErrorsOrWarnings) {
   testing::TempDir tmp;
-  const MaterialExport files = write_gltf(*material_, tmp / "gltf", "demo");
+  const MaterialExport files =
+      write_gltf(*material_, tmp / "gltf", "demo", plane_mesh(64, 64, 1.0));
   ASSERT_EQ(files.textures.size(), 4u);
   // The base colour comes back from its PNG as written: sRGB-encoded, within half a code.
   const Image base = read_image(tmp / "gltf" / files.textures[0].file);
@@ -325,7 +332,8 @@ TEST_F(DemoExport, BlenderRendersTheGltfAsLightstageRendersTheMaps) {
     GTEST_SKIP();
   }
   testing::TempDir tmp;
-  const MaterialExport files = write_gltf(*material_, tmp / "gltf", "demo", 2.0);
+  const MaterialExport files =
+      write_gltf(*material_, tmp / "gltf", "demo", plane_mesh(64, 64, 2.0));
   const fs::path env = testing::source_dir() / "data/envmaps/softbox_studio.exr";
   constexpr int kResolution = 64;
   std::string out;
@@ -405,6 +413,35 @@ TEST_F(DemoExport, CommandsExportAndRenderOnAShape) {
       << out;
   EXPECT_NE(out.find("--shape"), std::string::npos) << out;
   EXPECT_FALSE(fs::exists(tmp / "d.exr"));
+}
+
+// The glTF on the scene's shape recovered from the field: valid, and its matte sphere stands above
+// the backdrop by the simulator's 0.94 m (top at z = 0.34, backdrop at z = -0.6).
+TEST_F(DemoExport, GltfOnTheRecoveredShapeIsValidAndStandsAsTheSceneDid) {
+  FieldSources sources(*field_);
+  sources.recover_geometry();
+  const SurfaceMesh mesh = shape_mesh(*sources.geometry(), 64, 64, 2.4);
+  ASSERT_GT(mesh.indices.size(), 3000u);
+  const auto z_near = [&](float x, float y) {
+    size_t best = 0;
+    for (size_t v = 0; v < mesh.positions.size(); ++v) {
+      if ((mesh.positions[v].head<2>() - Eigen::Vector2f(x, y)).norm() <
+          (mesh.positions[best].head<2>() - Eigen::Vector2f(x, y)).norm()) {
+        best = v;
+      }
+    }
+    return mesh.positions[best].z();
+  };
+  const float relief = z_near(-0.74f, 0.48f) - z_near(-1.1f, 1.1f);
+  std::cout << "matte sphere's top above the backdrop: " << relief << " m (truth 0.94)\n";
+  EXPECT_NEAR(relief, 0.94, 0.15);
+  testing::TempDir tmp;
+  const MaterialExport files = write_gltf(*material_, tmp / "shape", "demo", mesh);
+  const std::string command = validator("validate_gltf.js");
+  if (command.empty()) GTEST_SKIP();
+  std::string out;
+  EXPECT_EQ(testing::run_command(command + files.document.string(), &out), 0) << out;
+  EXPECT_NE(out.find("errors=0 warnings=0"), std::string::npos) << out;
 }
 
 }  // namespace
