@@ -474,6 +474,7 @@ void add_bench_command(CLI::App& app) {
   add_leds(*bench);
   add_sun(*bench);
   add_exposures(*bench);
+  add_material_bench(*bench);
   add_fit_sweeps(*bench);
   add_fit(*bench);
   add_temporal(*bench);

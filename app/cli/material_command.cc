@@ -1,12 +1,14 @@
 // lightstage export gltf|materialx MAPS.exr --out DIR: the fitted models as a material other
 // renderers read (app/jobs/material_job.h). lightstage render MAPS.exr --shape ... is bound with
-// the rest of render in compact_command.cc.
+// the rest of render in compact_command.cc; lightstage bench material measures them.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 
 #include "app/cli/commands.h"
 #include "app/jobs/material_job.h"
+#include "evaluation/material_bench.h"
 
 namespace ls::cli {
 
@@ -67,6 +69,39 @@ void add_material_exports(CLI::App& exporter) {
       exporter, "materialx",
       "A MaterialX document (Standard Surface, MaterialX 1.38) of fitted model maps with its PNG "
       "textures, for USD and film pipelines; the same conversion as export gltf.");
+}
+
+void add_material_bench(CLI::App& bench) {
+  auto args = std::make_shared<evaluation::MaterialBenchOptions>();
+  for (const char* map : {"sky_sun", "softbox_studio", "small_source"}) {
+    args->maps.push_back(data_dir() / "envmaps" / (std::string(map) + ".exr"));
+  }
+  args->blender_script = data_dir().parent_path() / "tests/tools/blender_render_gltf.py";
+  auto* cmd = bench.add_subcommand(
+      "material",
+      "The demo's fitted maps exported as glTF and rendered by Blender (Cycles, CPU) under each "
+      "shipped map, against lightstage's render of the maps: per pixel the difference against "
+      "the conversion's reported error (CSV, chart), per map the mean difference, and the "
+      "times. Needs blender.");
+  cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
+  cmd->add_option("--resolution", args->resolution, "Capture and render width and height.")
+      ->capture_default_str();
+  cmd->add_option("--samples", args->samples, "Cycles samples per pixel.")->capture_default_str();
+  cmd->callback([args] {
+    const evaluation::MaterialBenchSummary s =
+        evaluation::run_material_bench(*args, progress_printer(false));
+    std::printf(
+        "conversion: %d pixels in %.3f s (%.0f pixels/s); error median %.1f%%, p95 %.1f%%\n",
+        s.pixels, s.conversion_s, s.pixels / std::max(s.conversion_s, 1e-9), 100 * s.median_error,
+        100 * s.p95_error);
+    std::printf("%-16s %22s %14s %11s\n", "map", "Blender vs lightstage", "lightstage s",
+                "Blender s");
+    for (const evaluation::MaterialBenchRow& r : s.rows) {
+      std::printf("%-16s %21.1f%% %14.3f %11.1f\n", r.map.c_str(), 100 * r.mean_difference,
+                  r.lightstage_s, r.blender_s);
+    }
+    std::fprintf(stderr, "wrote %s and %s\n", s.csv.c_str(), s.chart.c_str());
+  });
 }
 
 }  // namespace ls::cli
