@@ -444,8 +444,9 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
     }
     checkpoints.remove();
   }
-  file->commit();
-  for (auto& preview : previews) preview->commit();
+  std::vector<ImageRowWriter*> files = {&*file};
+  for (auto& preview : previews) files.push_back(&preview->file());
+  commit_together(files);
   summary.seconds = seconds_since(start) - read_seconds;
   return summary;
 }
