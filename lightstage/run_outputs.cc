@@ -6,19 +6,41 @@ namespace ls {
 
 namespace fs = std::filesystem;
 
-RunOutputs::RunOutputs(fs::path folder) : folder_(std::move(folder)) {
+namespace {
+
+// `folder` absolute and normal, without a trailing separator ("out/" names "out").
+fs::path normal_folder(const fs::path& folder) {
   std::error_code ignored;
-  folder_existed_ = fs::exists(folder_, ignored);
+  fs::path normal = fs::absolute(folder, ignored).lexically_normal();
+  if (!normal.has_filename()) normal = normal.parent_path();
+  return normal;
+}
+
+// The outermost folder of `normal` that is missing (empty: none), and the nearest one there.
+std::pair<fs::path, fs::path> missing_and_there(const fs::path& normal) {
+  std::error_code ignored;
+  fs::path missing, there = normal;
+  while (!fs::exists(there, ignored) && there.parent_path() != there) {
+    missing = there;
+    there = there.parent_path();
+  }
+  return {missing, there};
+}
+
+}  // namespace
+
+RunOutputs::RunOutputs(fs::path folder) : folder_(std::move(folder)) {
+  made_ = missing_and_there(normal_folder(folder_)).first;
 }
 
 RunOutputs::~RunOutputs() {
   if (kept_) return;
   std::error_code ignored;
-  if (!folder_existed_) {
-    fs::remove_all(folder_, ignored);
+  if (!made_.empty()) {
+    fs::remove_all(made_, ignored);
     return;
   }
-  for (const fs::path& file : files_) fs::remove(file, ignored);
+  for (const fs::path& file : files_) fs::remove_all(file, ignored);
 }
 
 }  // namespace ls

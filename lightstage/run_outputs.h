@@ -1,8 +1,8 @@
 #pragma once
 // What a run writes into an output folder, removed when the run fails: a run that fails for good
 // leaves nothing behind. Destroyed before keep(), it removes the folder with all in it when the
-// run made it, else the files it was told of (they may have replaced an earlier run's: what is
-// left of that is no longer whole).
+// run made it (and the folders above it that it made too), else the files and folders it was told
+// of (they may have replaced an earlier run's: what is left of that is no longer whole).
 #include <filesystem>
 #include <vector>
 
@@ -16,14 +16,14 @@ class RunOutputs {
   RunOutputs(const RunOutputs&) = delete;
   RunOutputs& operator=(const RunOutputs&) = delete;
 
-  // A file about to be written (inside the folder or beside it).
+  // A file (or folder) about to be written (inside the folder or beside it).
   void add(const std::filesystem::path& file) { files_.push_back(file); }
   // The run succeeded: everything stays.
   void keep() { kept_ = true; }
 
  private:
   std::filesystem::path folder_;
-  bool folder_existed_ = false;
+  std::filesystem::path made_;  // The outermost folder missing at the start; empty: none.
   bool kept_ = false;
   std::vector<std::filesystem::path> files_;
 };

@@ -244,6 +244,40 @@ TEST(StorageFault, EveryCommandOnAFullDiskExitsFourNamingThePathAndLeavesNothing
   }
 }
 
+// A capture or demo that fails on a full disk before its first frame says why ("No space left")
+// and removes the session folder it made, and the folders above it that it made; a folder that
+// was there stays, as it was.
+TEST(StorageFault, CaptureThatFailsBeforeItsFirstFrameLeavesNoSession) {
+  testing::TempDir tmp;
+  const fs::path stage = WriteSmallStage(tmp.path());
+  SmallDisk disk(tmp / "disk", "1m");
+  ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
+  fs::create_directories(tmp / "disk" / "mine");
+  std::ofstream(tmp / "disk" / "mine" / "notes.txt") << "the user's";
+  const std::string cli = cli_path().string();
+  const std::string on_disk = (tmp / "disk").string() + "/";
+  const std::vector<std::string> commands = {
+      "capture --quiet --stage " + stage.string() + " --out " + on_disk + "a/b/sess",
+      "capture --quiet --stage " + stage.string() + " --out " + on_disk + "mine",
+      "demo --quiet --resolution 16 --no-truth --no-shared-maps --out " + on_disk + "demo",
+  };
+  for (const int free_kib : {0, 8, 16, 32}) {
+    for (const std::string& command : commands) {
+      const fs::path filler = FillDiskLeaving(tmp / "disk", free_kib);
+      std::string out;
+      const int code = run_command(cli + " " + command, &out);
+      const std::string what = command + " with " + std::to_string(free_kib) + " KiB free\n" + out;
+      EXPECT_EQ(code, 4) << what;
+      if (free_kib == 0) {
+        EXPECT_NE(out.find("No space left"), std::string::npos) << what;
+      }
+      EXPECT_EQ(Listing(tmp / "disk"), (std::set<std::string>{"filler", "mine"})) << what;
+      EXPECT_EQ(Listing(tmp / "disk" / "mine"), std::set<std::string>{"notes.txt"}) << what;
+      fs::remove(filler);
+    }
+  }
+}
+
 // fit, normals and fit --time on a disk with room for part of what they write (the maps, then
 // their previews): each completes, or fails with exit 4 leaving neither maps nor previews; a run
 // in bands may keep only its .partial/ folder, which it names.
