@@ -2,6 +2,8 @@
 
 #include <utility>
 
+#include "lightstage/errors.h"
+
 namespace ls {
 
 namespace fs = std::filesystem;
@@ -29,7 +31,18 @@ std::pair<fs::path, fs::path> missing_and_there(const fs::path& normal) {
 
 }  // namespace
 
+void require_folder_can_be_made(const fs::path& folder) {
+  const fs::path normal = normal_folder(folder);
+  const fs::path there = missing_and_there(normal).second;
+  std::error_code ignored;
+  if (!fs::is_directory(there, ignored)) {  // Said before a write fails on it.
+    throw InputError((there == normal ? folder : there).string() +
+                     ": expected a folder to write into, found a file");
+  }
+}
+
 RunOutputs::RunOutputs(fs::path folder) : folder_(std::move(folder)) {
+  require_folder_can_be_made(folder_);
   made_ = missing_and_there(normal_folder(folder_)).first;
 }
 

@@ -8,9 +8,14 @@
 
 namespace ls {
 
+// InputError naming the path when `folder`, or a folder above it, is there as a file: no folder
+// can be made there (bad input, not a storage fault).
+void require_folder_can_be_made(const std::filesystem::path& folder);
+
 class RunOutputs {
  public:
-  // Notes whether `folder` is there already; it is made by whoever writes first.
+  // Notes whether `folder` is there already; it is made by whoever writes first. InputError
+  // as require_folder_can_be_made's.
   explicit RunOutputs(std::filesystem::path folder);
   ~RunOutputs();
   RunOutputs(const RunOutputs&) = delete;

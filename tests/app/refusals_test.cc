@@ -195,6 +195,30 @@ TEST_F(Refusals, InputsThatSayAThingTwiceOrAskForWhatIsNotThereAreRefused) {
   }
 }
 
+// An --out that is a file where a folder is written is bad input (exit 2) naming it, not a
+// storage fault; the file stays as it was.
+TEST_F(Refusals, AnOutputFolderThatIsAFileIsRefusedNamingIt) {
+  const std::string map = (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string();
+  std::ofstream(*tmp_ / "afile") << "junk";
+  WriteLp(*tmp_ / "lp_file",
+          {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866", "c.png 0 0.5 0.866", "d.png 0 -0.5 0.866"});
+  const std::string lp = Path("lp_file/set.lp");
+  for (const std::string& command : std::vector<std::string>{
+           "relight --quiet " + Path("f.exr") + " --env " + map + " --out ",
+           "export openlime --quiet " + Path("f.exr") + " --out ",
+           "play " + Path("s") + " --field " + Path("f.exr") + " --env " + map + " --out ",
+           "envmaps --width 32 --out ",
+           "import --quiet " + lp + " " + lp + " --interval 5 --out ",
+           "capture --quiet --out ",
+       }) {
+    Expect(command + Path("afile"), 2, {Path("afile") + ": expected a folder"});
+    Expect(command + Path("afile/below"), 2, {Path("afile") + ": expected a folder"});
+  }
+  std::ifstream in(*tmp_ / "afile");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()),
+            "junk");
+}
+
 TEST_F(Refusals, WhatIsAssumedIsSaid) {
   Expect("compress " + Path("f.exr") + " --format pca --rank 100000 --out " + Path("r.lspca"), 0,
          {"warning: --rank 100000: more than this field allows", "used"});
