@@ -23,6 +23,7 @@
 #include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
+#include "lightstage/run_outputs.h"
 
 namespace ls::capture {
 namespace {
@@ -307,6 +308,8 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
                           const ExrAttributes& attributes, const MemoryBudget& memory,
                           const LightImageFn& on_light, OlatImportSummary* summary,
                           const RankSplit& split) {
+  refuse_output_over_input(out, job.source);
+  for (const OlatLight& light : job.lights) refuse_output_over_input(out, light.image);
   SetImport set(std::move(job), options);
   const ReflectanceField& header = set.header();
   int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory);

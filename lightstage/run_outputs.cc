@@ -8,6 +8,14 @@ namespace ls {
 
 namespace fs = std::filesystem;
 
+void refuse_output_over_input(const fs::path& out, const fs::path& input) {
+  std::error_code ignored;
+  if (fs::exists(out, ignored) && fs::equivalent(out, input, ignored)) {
+    throw InputError(out.string() + ": --out is the input " + input.string() +
+                     ": writing it would destroy what is read; give another output file");
+  }
+}
+
 namespace {
 
 // `folder` absolute and normal, without a trailing separator ("out/" names "out").

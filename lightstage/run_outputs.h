@@ -12,6 +12,10 @@ namespace ls {
 // can be made there (bad input, not a storage fault).
 void require_folder_can_be_made(const std::filesystem::path& folder);
 
+// InputError naming both when the output file `out` is (or resolves to: a link, another path to
+// it) the input `input`: writing it would destroy what is being read.
+void refuse_output_over_input(const std::filesystem::path& out, const std::filesystem::path& input);
+
 class RunOutputs {
  public:
   // Notes whether `folder` is there already; it is made by whoever writes first. InputError

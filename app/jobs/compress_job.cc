@@ -20,6 +20,7 @@
 #include "lightstage/image.h"
 #include "lightstage/memory.h"
 #include "lightstage/rank_split.h"
+#include "lightstage/run_outputs.h"
 #include "lightstage/scratch_file.h"
 #include "physics/envmap.h"
 #include "relight/compact/pca_bands.h"
@@ -255,6 +256,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("compress: " + problem);
   }
+  refuse_output_over_input(options.out, options.input);
   relight::PcaOptions pca_options;
   pca_options.rank = parse_rank(options.rank);
   pca_options.tile_size = options.tile;

@@ -219,6 +219,26 @@ TEST_F(Refusals, AnOutputFolderThatIsAFileIsRefusedNamingIt) {
             "junk");
 }
 
+// An output that is one of the inputs (or a link to it) is refused naming both, the input intact.
+TEST_F(Refusals, AnOutputThatIsAnInputIsRefusedNamingBoth) {
+  fs::copy_file(*tmp_ / "f.exr", *tmp_ / "in.exr", fs::copy_options::overwrite_existing);
+  fs::create_symlink(*tmp_ / "in.exr", *tmp_ / "link.exr");
+  const std::string in = Path("in.exr");
+  const std::string bytes = testing::Slurp(*tmp_ / "in.exr");
+  Expect("fit --quiet " + in + " --out " + in, 2, {in + ": --out is the input " + in});
+  Expect("fit --quiet " + in + " --out " + Path("link.exr"), 2, {"--out is the input " + in});
+  Expect("normals --quiet " + in + " --out " + in, 2, {in + ": --out is the input " + in});
+  Expect("compress --quiet " + in + " --out " + in, 2, {in});
+  WriteLp(*tmp_ / "lp_over",
+          {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866", "c.png 0 0.5 0.866", "d.png 0 -0.5 0.866"});
+  const std::string image = Path("lp_over/b.png");
+  const std::string png = testing::Slurp(image);
+  Expect("import --quiet " + Path("lp_over/set.lp") + " --out " + image, 2,
+         {image + ": --out is the input " + image});
+  EXPECT_EQ(testing::Slurp(*tmp_ / "in.exr"), bytes) << "the input was overwritten";
+  EXPECT_EQ(testing::Slurp(image), png) << "the image was overwritten";
+}
+
 TEST_F(Refusals, WhatIsAssumedIsSaid) {
   Expect("compress " + Path("f.exr") + " --format pca --rank 100000 --out " + Path("r.lspca"), 0,
          {"warning: --rank 100000: more than this field allows", "used"});
