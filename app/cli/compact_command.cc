@@ -47,7 +47,7 @@ void add_compress_command(CLI::App& app) {
                     "Compress: the band of the field read at once (twice for PCA); an .lp set is "
                     "read in bands straight from its images.",
                     "half of the memory available; an .lp set's images 32 MiB");
-  compress->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*compress, *quiet);
   compress->callback([args, quiet] {
     // A bad --format or --rank is bad input (exit 2): jobs::compress validates them.
     const auto lock = lock_output(args->out);
@@ -115,7 +115,7 @@ void add_export_command(CLI::App& app) {
                     "Export: the band of the field read at once (three passes); an .lp set is "
                     "read in bands straight from its images.",
                     "half of the memory available; an .lp set's images 32 MiB");
-  openlime->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*openlime, *quiet);
   openlime->callback([args, quiet] {
     // Bad options are bad input (exit 2), as compress's.
     const auto lock = lock_output(args->out);
@@ -159,6 +159,7 @@ void add_render_command(CLI::App& app) {
   render
       ->add_flag("!--no-compact-sources", args->bright_sources, "Deprecated: --no-bright-sources.")
       ->group("");
+  add_quiet_flag(*render);
   render->callback([args] {
     if (const std::string problem = args->validate(); !problem.empty()) {
       throw CLI::ValidationError("render", problem);

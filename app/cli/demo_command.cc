@@ -161,7 +161,7 @@ void add_demo_command(CLI::App& app) {
   cmd->add_flag("!--no-shared-maps", args->shared_maps,
                 "Only the maps in data/envmaps, not ../shared/data/envmaps.");
   cmd->add_flag("!--no-truth", args->truth, "Skip the ground-truth comparison.");
-  cmd->add_flag("--quiet", args->quiet, "No progress output.");
+  add_quiet_flag(*cmd, args->quiet);
   cmd->add_flag("--dslr", args->dslr,
                 "Capture on the simulated DSLR dome: every frame a raw (DNG) file from a "
                 "gphoto2-like camera, decoded by LibRaw (binned 2x2), the LEDs on a serial "

@@ -138,7 +138,7 @@ void add_import_command(CLI::App& app) {
                   "a measured noise), else floats (auto); or always half or float.")
       ->check(CLI::IsMember({"auto", "half", "float"}))
       ->capture_default_str();
-  cmd->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*cmd, *quiet);
   cmd->callback(
       [options, sources, out, times, interval, quiet, linear, srgb, gamma, memory, storage] {
         options->storage = capture::parse_storage_choice("--storage", *storage);

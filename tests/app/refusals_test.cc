@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -254,6 +255,29 @@ TEST_F(Refusals, QuietIsTakenByEveryCommandThatWrites) {
   ASSERT_EQ(Run("export openlime --quiet " + Path("f.exr") + " --out " + Path("quiet_ol"), &quiet),
             0);
   EXPECT_LT(quiet.size(), out.size()) << "--quiet printed as much as without it: " << quiet;
+}
+
+// --quiet is taken by every command and subcommand, those that show no progress too.
+TEST_F(Refusals, QuietIsTakenByEveryCommand) {
+  // Every command and subcommand, separated by commas.
+  std::istringstream commands(
+      "capture,build,relight,fit,normals,view,import,compress,export openlime,render,play,"
+      "calibrate directions,calibrate intensities,calibrate camera,stage,envmaps,devices,check,"
+      "demo,bench leds,bench sun,bench exposures,bench fit,bench fit-sweeps,bench temporal,"
+      "bench compact,bench rti,bench charts,bench scale");
+  for (std::string command; std::getline(commands, command, ',');) {
+    Expect(command + " --help", 0, {"--quiet"});
+  }
+  ASSERT_EQ(Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("quiet.ptm"),
+                nullptr),
+            0);
+  Expect("stage --quiet", 0, {"LEDs"});
+  Expect("stage --quiet --write " + Path("quiet_stage.json"), 0, {});
+  Expect("envmaps --quiet --width 32 --out " + Path("quiet_maps"), 0, {});
+  Expect("render --quiet " + Path("quiet.ptm") + " --light 0 0 1 --out " + Path("quiet.exr"), 0,
+         {});
+  Expect("devices --quiet --no-cameras", 0, {});
+  Expect("bench charts --quiet --dir " + Path("quiet_maps"), 2, {"no bench CSV file"});
 }
 
 // A capture whose frames cannot fit in memory is refused before a device opens or a file is
