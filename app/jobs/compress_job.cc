@@ -182,7 +182,10 @@ std::string CompressOptions::validate() const {
                              : format.starts_with("ptm") ? ".ptm"
                                                          : ".rti";
   const std::string named = out.extension().string();
-  if ((named == ".lspca" || named == ".ptm" || named == ".rti") && named != wanted) {
+  const bool pca_name = named == ".lspca" || named == ".pca";
+  const bool other_format = named == ".ptm" || named == ".rti" || pca_name || named == ".exr" ||
+                            named == ".png" || named == ".jpg" || named == ".hdr";
+  if (other_format && named != wanted && !(format == "pca" && pca_name)) {
     return "--out " + out.string() + ": --format " + format + " writes a " + wanted +
            " file, not a " + named + " (viewers and render tell the formats apart by the name)";
   }

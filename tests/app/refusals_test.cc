@@ -99,6 +99,10 @@ TEST_F(Refusals, OptionsThatWouldBeIgnoredOrWrappedAreRefused) {
          {"--tile", "--format pca only"});
   Expect("compress " + Path("f.exr") + " --format pca --out " + Path("pca.ptm"), 2,
          {"pca.ptm", "writes a .lspca file, not a .ptm"});
+  Expect("compress " + Path("f.exr") + " --format ptm --out " + Path("ptm.pca"), 2,
+         {"ptm.pca", "writes a .ptm file, not a .pca"});
+  Expect("compress " + Path("f.exr") + " --out " + Path("pca.exr"), 2,
+         {"pca.exr", "writes a .lspca file, not a .exr"});
   Expect("export openlime " + Path("f.exr") + " --image png --quality 50 --out " + Path("q50"), 2,
          {"--quality", "jpg only"});
   ASSERT_EQ(
@@ -114,8 +118,8 @@ TEST_F(Refusals, OptionsThatWouldBeIgnoredOrWrappedAreRefused) {
   Expect("play " + Path("s") + " --field " + Path("f.exr") + " --env " + map +
              " --rotate nan --out " + Path("nan"),
          1, {"--rotate", "finite"});
-  for (const char* made :
-       {"cov", "dirs", "r.ptm", "t.rti", "pca.ptm", "q50", "l.exr", "seed", "gain", "nan"}) {
+  for (const char* made : {"cov", "dirs", "r.ptm", "t.rti", "pca.ptm", "ptm.pca", "pca.exr", "q50",
+                           "l.exr", "seed", "gain", "nan"}) {
     EXPECT_FALSE(fs::exists(Path(made))) << made;
   }
 }
