@@ -45,6 +45,9 @@ void add_play_command(CLI::App& app) {
       ->check(CLI::Range(0.0, 1.0));
   add_quiet_flag(*cmd);
   cmd->callback([options] {
+    if (std::string problem = jobs::rotation_problem(options->play.rotate_deg); !problem.empty()) {
+      throw CLI::ValidationError("play", problem);
+    }
     const auto lock = lock_output(options->play.out_dir);
     const jobs::PlayResult r = jobs::play_session(*options);
     std::printf(

@@ -476,7 +476,7 @@ std::string RenderOptions::validate() const {
     const Eigen::Vector3d dir(light[0], light[1], light[2]);
     if (!dir.allFinite() || !(dir.norm() > 0)) return "--light: expected a non-zero direction";
   }
-  if (!std::isfinite(rotation_deg)) return "--rotate: expected a number of degrees";
+  if (std::string problem = rotation_problem(rotation_deg); !problem.empty()) return problem;
   if (!light.empty() && rotation_deg != 0)
     return "--rotate: turns an --env map; a --light has none";
   return {};

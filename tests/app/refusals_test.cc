@@ -75,6 +75,22 @@ TEST_F(Refusals, OptionsOutsideTheirUseAreRefusedNamingThem) {
              " --rotate 1e300 --out " + Path("rot"),
          1, {"--rotate", "1e+300"});
   EXPECT_FALSE(fs::exists(Path("rot")));
+  // The same bound on every command that turns a map; an exposure beyond any scene's range.
+  const std::string map = (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string();
+  ASSERT_EQ(
+      Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("rot.ptm"), nullptr),
+      0);
+  Expect("render " + Path("rot.ptm") + " --env " + map + " --rotate 1e300 --out " + Path("rot.exr"),
+         1, {"--rotate", "[-36000, 36000]", "1e+300"});
+  Expect("play " + Path("s") + " --field " + Path("f.exr") + " --env " + map +
+             " --rotate 1e300 --out " + Path("rot_play"),
+         1, {"--rotate", "[-36000, 36000]", "1e+300"});
+  Expect("relight --quiet " + Path("f.exr") + " --env " + map + " --exposure 1e300 --out " +
+             Path("exposed"),
+         1, {"--exposure", "[-64, 64]", "1e+300"});
+  for (const char* made : {"rot.exr", "rot_play", "exposed"}) {
+    EXPECT_FALSE(fs::exists(Path(made))) << made;
+  }
   // A negative group size.
   Expect("play " + Path("s") + " --env " +
              (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string() +
