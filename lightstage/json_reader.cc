@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "lightstage/direction_index.h"
@@ -128,6 +129,25 @@ void JsonReader::expect_object(std::initializer_list<std::string_view> allowed) 
 
 void JsonReader::expect_array() const {
   if (!value_.is_array()) fail("an array");
+}
+
+const JsonReader& JsonReader::fits_float() const {
+  const auto fits = [](const nlohmann::json& v) {
+    if (!v.is_number()) return true;  // Its reader says what it expected.
+    const double x = std::abs(v.get<double>());
+    return x == 0 ||
+           (x >= std::numeric_limits<float>::min() && x <= std::numeric_limits<float>::max());
+  };
+  bool ok = fits(value_);
+  if (value_.is_array()) {
+    for (const nlohmann::json& v : value_) ok = ok && fits(v);
+  }
+  if (!ok) {
+    fail(
+        "numbers a 32-bit float holds (0, or 1.2e-38 to 3.4e38 in size: the pipeline computes in "
+        "floats)");
+  }
+  return *this;
 }
 
 double JsonReader::number() const {
