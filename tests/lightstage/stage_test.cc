@@ -147,6 +147,13 @@ TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
                    {"leds[0].intensty", "unknown field"});
   ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensity": -2}]})",
                    {"leds[0].intensity", "positive"});
+  // A key given twice: the second would silently replace the first.
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
+                       "camera": {"width": 32, "width": 64}})",
+                   {"camera.width: given twice"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 1, 0]}, {"direction": [1, 0, 0], "id": 3,
+                       "direction": [0, 0, 1]}]})",
+                   {"leds[1].direction: given twice"});
   // Values that overflow (or vanish in) the floats the pipeline computes in (a direction is
   // normalised in double first: GeneratedLayoutAndPositions).
   ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensity": 1e39}]})",
