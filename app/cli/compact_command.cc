@@ -166,6 +166,9 @@ void add_render_command(CLI::App& app) {
     }
     const auto lock = lock_output(args->out);
     const jobs::RenderSummary summary = jobs::render_compact(*args);
+    for (const std::string& warning : summary.warnings) {
+      std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    }
     std::printf("%s: %dx%d, %s relit\n", args->out.c_str(), summary.width, summary.height,
                 summary.representation.c_str());
     if (!summary.sources.empty()) std::printf("  %s\n", summary.sources.c_str());

@@ -1,6 +1,7 @@
 #include "app/jobs/compress_job.h"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -177,7 +178,8 @@ std::string CompressOptions::validate() const {
     return "--rank " + rank + ": for --format pca only (an RTI basis has its own size)";
   }
   if (format != "pca" && tile != 0) return "--tile: for --format pca only";
-  // A name that says another of these formats misleads every reader that goes by it.
+  // A name that says another format misleads every reader that goes by it (render reads what is
+  // not .ptm or .rti as PCA; an .exr is taken for a field or an image).
   const std::string wanted = format == "pca"             ? ".lspca"
                              : format.starts_with("ptm") ? ".ptm"
                                                          : ".rti";
@@ -482,6 +484,39 @@ std::string RenderOptions::validate() const {
   return {};
 }
 
+namespace {
+
+// Why a point light at `light` is extrapolated from the PCA's lights: farther from every one of
+// them than any is from its nearest neighbour (outside the dome's coverage); empty when it is not.
+std::string beyond_the_lights(const Eigen::Vector3d& light, const relight::PcaField& pca) {
+  std::vector<Eigen::Vector3d> dirs;
+  for (const capture::FieldLight& l : pca.lights()) {
+    if (l.valid) dirs.push_back(l.dir_in_stage.normalized());
+  }
+  if (dirs.size() < 2) return {};
+  const auto angle = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return std::atan2(a.cross(b).norm(), a.dot(b));
+  };
+  double widest_gap = 0, nearest = M_PI;
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    double own = M_PI;
+    for (size_t j = 0; j < dirs.size(); ++j) {
+      if (j != i) own = std::min(own, angle(dirs[i], dirs[j]));
+    }
+    widest_gap = std::max(widest_gap, own);
+    nearest = std::min(nearest, angle(light, dirs[i]));
+  }
+  if (nearest <= widest_gap) return {};
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "extrapolated beyond the captured lights: the nearest is %.1f degrees away (they "
+                "are at most %.1f degrees apart); the image is a guess",
+                nearest * 180 / M_PI, widest_gap * 180 / M_PI);
+  return text;
+}
+
+}  // namespace
+
 RenderSummary render_compact(const RenderOptions& options) {
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("render: " + problem);
@@ -501,8 +536,21 @@ RenderSummary render_compact(const RenderOptions& options) {
   Image image;
   const auto* pca = dynamic_cast<const relight::PcaField*>(field.get());
   if (options.environment.empty()) {
-    image = field->relight_point(
-        Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized());
+    const Eigen::Vector3d light =
+        Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized();
+    if (pca) {
+      if (std::string beyond = beyond_the_lights(light, *pca); !beyond.empty()) {
+        summary.warnings.push_back(options.input.string() + ": --light: " + beyond);
+      }
+    } else if (!(light.z() > 0)) {
+      // An RTI basis is fitted to lights in front of the object only: behind, its polynomial is
+      // made up.
+      throw InputError(options.input.string() + ": --light: a light with z <= 0 is behind the " +
+                       "object (the camera is on +Z); a " + field->name() +
+                       " basis is fitted on the hemisphere toward the camera: give a light with "
+                       "z > 0");
+    }
+    image = field->relight_point(light);
   } else {
     const physics::EnvironmentMap map = physics::EnvironmentMap::load(options.environment);
     // A PCA under a map with a bright source the dome covers: the rest by LED cells, each source

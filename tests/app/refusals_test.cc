@@ -260,6 +260,27 @@ TEST_F(Refusals, AnOutputThatIsAnInputIsRefusedNamingBoth) {
   EXPECT_EQ(testing::Slurp(image), png) << "the image was overwritten";
 }
 
+// A light behind the object (z <= 0) is refused for an RTI basis (fitted on the hemisphere toward
+// the camera); a PCA lit from beyond its captured lights (from below the dome) is rendered with
+// a warning that says so.
+TEST_F(Refusals, ALightACompactFileCannotShowIsRefusedOrWarned) {
+  ASSERT_EQ(Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("below.ptm"),
+                nullptr),
+            0);
+  ASSERT_EQ(Run("compress --quiet " + Path("f.exr") + " --out " + Path("below.lspca"), nullptr), 0);
+  Expect("render " + Path("below.ptm") + " --light 0 0 -1 --out " + Path("below_ptm.exr"), 2,
+         {Path("below.ptm") + ": --light", "z > 0"});
+  EXPECT_FALSE(fs::exists(Path("below_ptm.exr")));
+  Expect(
+      "render " + Path("below.lspca") + " --light 0 -1 0 --out " + Path("below_pca.exr"), 0,
+      {"warning: " + Path("below.lspca") + ": --light: extrapolated beyond the captured lights"});
+  std::string out;
+  ASSERT_EQ(
+      Run("render " + Path("below.lspca") + " --light 0 1 0.3 --out " + Path("above.exr"), &out),
+      0);
+  EXPECT_EQ(out.find("extrapolated"), std::string::npos) << out;
+}
+
 TEST_F(Refusals, WhatIsAssumedIsSaid) {
   Expect("compress " + Path("f.exr") + " --format pca --rank 100000 --out " + Path("r.lspca"), 0,
          {"warning: --rank 100000: more than this field allows", "used"});
