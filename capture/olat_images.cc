@@ -73,7 +73,7 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   const OlatLight& entry = job.lights[light];
   const auto in = open_olat_image(entry.image, entry.where);
   const ImageHeader h = header_of(*in);
-  check_same_size(first, job.lights[0].where, job.lights[0].image, h, entry.where, entry.image);
+  check_like_first(first, job.lights[0].where, job.lights[0].image, h, entry.where, entry.image);
   std::vector<float> raw(std::size_t(h.width) * h.height * h.channels);
   if (!in->read_rows(0, h.height, image_file::Sample::kFloat, raw.data())) {
     throw InputError(entry.where + ": image: cannot decode " + entry.image.string() + ": " +
