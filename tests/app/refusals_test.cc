@@ -281,6 +281,27 @@ TEST_F(Refusals, ALightACompactFileCannotShowIsRefusedOrWarned) {
   EXPECT_EQ(out.find("extrapolated"), std::string::npos) << out;
 }
 
+// The time steps of a time-lapse are one kind of set lit from the same directions: a step lit
+// otherwise, or a DiLiGenT folder (linear) among .lp sets (sRGB), is refused naming the step.
+TEST_F(Refusals, ATimeLapseWhoseStepsAreLitUnlikeIsRefusedNamingTheStep) {
+  const std::vector<std::string> lights = {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866",
+                                           "c.png 0 0.5 0.866", "d.png 0 -0.5 0.866"};
+  WriteLp(*tmp_ / "tl" / "t0", lights);
+  WriteLp(*tmp_ / "tl" / "t1", {lights[0], lights[1], lights[2], "d.png 0 -0.6 0.8"});
+  Expect("import --quiet " + Path("tl/t0/set.lp") + " " + Path("tl/t1/set.lp") +
+             " --interval 5 --out " + Path("tl_out"),
+         2, {Path("tl/t1/set.lp") + ": time step 1: light 4 is", "from light 4 of"});
+  WriteLp(*tmp_ / "dil", lights);
+  std::ofstream(*tmp_ / "dil" / "filenames.txt") << "a.png\nb.png\nc.png\nd.png\n";
+  std::ofstream(*tmp_ / "dil" / "light_directions.txt")
+      << "0.5 0 0.866\n-0.5 0 0.866\n0 0.5 0.866\n0 -0.5 0.866\n";
+  fs::remove(*tmp_ / "dil" / "set.lp");
+  Expect("import --quiet " + Path("tl/t0/set.lp") + " " + Path("dil") + " --interval 5 --out " +
+             Path("tl_out"),
+         2, {Path("dil") + ": time step 1: expected RTI .lp file", "got DiLiGenT folder"});
+  EXPECT_FALSE(fs::exists(Path("tl_out")));
+}
+
 TEST_F(Refusals, WhatIsAssumedIsSaid) {
   Expect("compress " + Path("f.exr") + " --format pca --rank 100000 --out " + Path("r.lspca"), 0,
          {"warning: --rank 100000: more than this field allows", "used"});
