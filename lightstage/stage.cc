@@ -416,6 +416,10 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
 }
 
 Stage load_stage(const fs::path& path) {
+  std::error_code ignored;
+  if (fs::is_directory(path, ignored)) {
+    throw InputError(path.string() + ": a folder, not a stage file (give the stage's .json file)");
+  }
   std::ifstream in(path);
   if (!in) throw InputError(path.string() + ": cannot open stage file");
   std::stringstream text;
@@ -427,7 +431,9 @@ void require_stage_files(const Stage& stage) {
   const auto require_file = [&](const fs::path& file, const std::string& field) {
     std::error_code ignored;
     if (!fs::is_regular_file(file, ignored)) {
-      throw InputError(stage.source + ": " + field + ": " + file.string() + " not found");
+      throw InputError(
+          stage.source + ": " + field + ": " + file.string() +
+          (fs::is_directory(file, ignored) ? " is a folder, not a file" : " not found"));
     }
   };
   if (!stage.calibration.flat_field.empty()) {

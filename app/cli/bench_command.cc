@@ -14,6 +14,7 @@
 #include <string>
 
 #include "app/cli/commands.h"
+#include "app/cli/validators.h"
 #include "app/jobs/contact_sheet.h"
 #include "evaluation/bench_charts.h"
 #include "evaluation/chart.h"
@@ -362,7 +363,7 @@ void add_temporal(CLI::App& bench) {
   cmd->add_option("--width", args->width, "Image width.")->check(CLI::Range(4, 1024));
   cmd->add_option("--height", args->height, "Image height.")->check(CLI::Range(4, 1024));
   cmd->add_option("--duration", args->duration_s, "Scene seconds covered by the steps.")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   cmd->add_option("--captured", args->captured,
                   "Numbers of the time lapse's steps captured for the held-out part (empty: "

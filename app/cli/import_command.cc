@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "app/cli/commands.h"
+#include "app/cli/validators.h"
 #include "app/jobs/import_job.h"
 #include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
@@ -113,7 +114,7 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("--interval", *interval,
                   "Time-lapse: seconds between consecutive sets (set i at i * S), instead of "
                   "--time.")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   auto* gamma = cmd->add_option("--gamma", options->gamma,
                                 "Undo a plain gamma curve: linear = code^G (G in (0, 10]).");
   auto* linear_flag = cmd->add_flag("--linear", *linear, "The images are linear already.");

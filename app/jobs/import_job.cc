@@ -87,6 +87,8 @@ std::vector<fs::path> series_sets(const std::vector<fs::path>& sources) {
   for (const auto& entry : fs::directory_iterator(sources[0])) {
     if (entry.is_directory()) sets.push_back(entry.path());
   }
+  // A folder of .lp files (not of sets): why it is none of them, from the format's own check.
+  if (sets.empty()) (void)capture::detect_olat_format(sources[0]);
   if (sets.empty()) {
     throw InputError(sources[0].string() +
                      ": expected an .lp set, a DiLiGenT folder, or a folder of them (one per time "
@@ -152,10 +154,11 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
   }
   // Three centuries: beyond that it is a typing slip (1e308 overflows the later steps' times).
   if (interval_s > 1e10) {
+    char got[32];
+    std::snprintf(got, sizeof got, "%g", interval_s);
     throw InputError(
-        "import: --interval: expected at most 1e10 s (three centuries) between "
-        "sets, got " +
-        std::to_string(interval_s) + " s");
+        "import: --interval: expected at most 1e10 s (three centuries) between sets, got " +
+        std::string(got) + " s");
   }
   if (times_s.empty() && !(interval_s > 0 && std::isfinite(interval_s))) {
     throw InputError("import: " + std::to_string(steps) +

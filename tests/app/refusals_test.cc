@@ -302,6 +302,27 @@ TEST_F(Refusals, ATimeLapseWhoseStepsAreLitUnlikeIsRefusedNamingTheStep) {
   EXPECT_FALSE(fs::exists(Path("tl_out")));
 }
 
+// A refusal says what is wrong, not a cause that only looks like it.
+TEST_F(Refusals, ARefusalNamesWhatIsWrongNotAnotherCause) {
+  fs::create_directories(*tmp_ / "a_folder");
+  Expect("stage " + Path("a_folder"), 2, {Path("a_folder") + ": a folder, not a stage file"});
+  std::ofstream(*tmp_ / "flat_folder.json") << R"({"layout": {"type": "fibonacci", "count": 10},
+    "calibration": {"flat_field": "a_folder"}})";
+  Expect("stage " + Path("flat_folder.json"), 2,
+         {"calibration.flat_field", "a_folder is a folder, not a file"});
+  WriteLp(*tmp_ / "two_lp", {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866", "c.png 0 0.5 0.866"});
+  fs::copy_file(*tmp_ / "two_lp" / "set.lp", *tmp_ / "two_lp" / "copy.lp");
+  Expect("import --quiet " + Path("two_lp") + " --out " + Path("two_lp.exr"), 2,
+         {"expected exactly one .lp file in the folder, found 2"});
+  std::string out;
+  EXPECT_EQ(Run("import --quiet " + Path("two_lp/set.lp") + " " + Path("two_lp/copy.lp") +
+                    " --interval 0 --out " + Path("iv0"),
+                &out),
+            1);
+  EXPECT_NE(out.find("--interval: expected a positive number, got 0"), std::string::npos) << out;
+  EXPECT_LT(out.size(), 200u) << out;
+}
+
 TEST_F(Refusals, WhatIsAssumedIsSaid) {
   Expect("compress " + Path("f.exr") + " --format pca --rank 100000 --out " + Path("r.lspca"), 0,
          {"warning: --rank 100000: more than this field allows", "used"});
