@@ -36,8 +36,8 @@ struct OlatBands::Images {
       headers[size_t(l)] = header_of(*in[size_t(l)]);
     });
     for (size_t l = 1; l < headers.size(); ++l) {
-      check_same_size(headers[0], set.lights[0].where, set.lights[0].image, headers[l],
-                      set.lights[l].where, set.lights[l].image);
+      check_like_first(headers[0], set.lights[0].where, set.lights[0].image, headers[l],
+                       set.lights[l].where, set.lights[l].image);
     }
     next_row = 0;
   }

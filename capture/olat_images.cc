@@ -23,6 +23,7 @@
 #include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"
 #include "lightstage/errors.h"
+#include "lightstage/run_outputs.h"
 
 namespace ls::capture {
 namespace {
@@ -72,7 +73,7 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   const OlatLight& entry = job.lights[light];
   const auto in = open_olat_image(entry.image, entry.where);
   const ImageHeader h = header_of(*in);
-  check_same_size(first, job.lights[0].where, job.lights[0].image, h, entry.where, entry.image);
+  check_like_first(first, job.lights[0].where, job.lights[0].image, h, entry.where, entry.image);
   std::vector<float> raw(std::size_t(h.width) * h.height * h.channels);
   if (!in->read_rows(0, h.height, image_file::Sample::kFloat, raw.data())) {
     throw InputError(entry.where + ": image: cannot decode " + entry.image.string() + ": " +
@@ -307,6 +308,8 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
                           const ExrAttributes& attributes, const MemoryBudget& memory,
                           const LightImageFn& on_light, OlatImportSummary* summary,
                           const RankSplit& split) {
+  refuse_output_over_input(out, job.source);
+  for (const OlatLight& light : job.lights) refuse_output_over_input(out, light.image);
   SetImport set(std::move(job), options);
   const ReflectanceField& header = set.header();
   int rows = spill_band_rows(header.width(), header.height(), set.num_lights(), memory);

@@ -28,15 +28,24 @@ void check_decoded(image_file::Reader& in, const std::string& at,
   }
 }
 
-void check_same_size(const ImageHeader& first, const std::string& first_at,
-                     const std::filesystem::path& first_image, const ImageHeader& h,
-                     const std::string& at, const std::filesystem::path& image) {
-  if (h.width == first.width && h.height == first.height) return;
+void check_like_first(const ImageHeader& first, const std::string& first_at,
+                      const std::filesystem::path& first_image, const ImageHeader& h,
+                      const std::string& at, const std::filesystem::path& image) {
   const auto size = [](const ImageHeader& i) {
     return std::to_string(i.width) + "x" + std::to_string(i.height);
   };
-  throw InputError(at + ": image size: expected " + size(first) + " like " + first_at + " (" +
-                   first_image.string() + "), got " + size(h) + " (" + image.string() + ")");
+  if (h.width != first.width || h.height != first.height) {
+    throw InputError(at + ": image size: expected " + size(first) + " like " + first_at + " (" +
+                     first_image.string() + "), got " + size(h) + " (" + image.string() + ")");
+  }
+  const auto format = [](const ImageHeader& i) {
+    return std::string(image_file::sample_name(i.format)) + (i.channels < 3 ? " grey" : " colour");
+  };
+  if (format(h) != format(first)) {
+    throw InputError(at + ": image format: expected " + format(first) + " like " + first_at + " (" +
+                     first_image.string() + "), got " + format(h) + " (" + image.string() +
+                     "): a set's images come from one camera and one export");
+  }
 }
 
 bool is_integer_format(image_file::Sample format) {

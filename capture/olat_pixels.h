@@ -32,11 +32,12 @@ int max_code_of(image_file::Sample format);
 void check_decoded(image_file::Reader& in, const std::string& at,
                    const std::filesystem::path& image);
 
-// InputError naming `at` and both images when `h` is not the size of `first` (the set's first
-// image, named by first_at and first_image).
-void check_same_size(const ImageHeader& first, const std::string& first_at,
-                     const std::filesystem::path& first_image, const ImageHeader& h,
-                     const std::string& at, const std::filesystem::path& image);
+// InputError naming `at` and both images when `h` is not the size or the pixel format (bit
+// depth; grey or colour) of `first`, the set's first image named by first_at and first_image: a
+// set mixing them was not taken by one camera in one export, and would be linearised unlike.
+void check_like_first(const ImageHeader& first, const std::string& first_at,
+                      const std::filesystem::path& first_image, const ImageHeader& h,
+                      const std::string& at, const std::filesystem::path& image);
 
 // Code (normalised to [0, 1]) -> linear value, tabulated per code for 8- and 16-bit files.
 class Linearizer {

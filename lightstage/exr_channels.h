@@ -51,6 +51,7 @@ class PreviewRowWriter {
                    int height, int channels, Values values);
   void write_rows(const Image& maps) { file_.write_rows(values_(maps)); }
   void commit() { file_.commit(); }
+  ImageRowWriter& file() { return file_; }
 
  private:
   static std::filesystem::path png_beside(std::filesystem::path path, const std::string& name);

@@ -337,6 +337,19 @@ void ImageRowWriter::commit() {
   o.file.commit();
 }
 
+const fs::path& ImageRowWriter::path() const { return output_->path; }
+
+void commit_together(const std::vector<ImageRowWriter*>& writers) {
+  size_t committed = 0;
+  try {
+    for (; committed < writers.size(); ++committed) writers[committed]->commit();
+  } catch (...) {
+    std::error_code ignored;
+    for (size_t i = 0; i < committed; ++i) fs::remove(writers[i]->path(), ignored);
+    throw;
+  }
+}
+
 void write_exr(const fs::path& path, const Image& image, ExrPixelType type,
                const ExrAttributes& attributes) {
   LS_CHECK(image.pixels.size() == image.num_pixels() * image.channels, "image size mismatch");

@@ -156,10 +156,16 @@ class ImageRowWriter {
   // 2^exposure_stops.
   void write_rows(const Image& rows, double exposure_stops = 0.0);
   void commit();
+  const std::filesystem::path& path() const;
 
  private:
   struct Output;
   std::unique_ptr<Output> output_;
 };
+
+// Commits each writer in turn, all or none: when one fails (a full disk), the files already
+// committed are removed before its error goes on, so that a failed run leaves no maps without
+// their previews, nor previews without their maps.
+void commit_together(const std::vector<ImageRowWriter*>& writers);
 
 }  // namespace ls

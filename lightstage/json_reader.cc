@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
+#include <vector>
 
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
@@ -39,6 +41,65 @@ int nesting_depth(std::string_view text) {
   return deepest;
 }
 
+// Refuses a key given twice in one object, which nlohmann would let the last one win: the path
+// of each open object or array is kept to name where (camera.width, leds[3].color).
+class DuplicateKeys {
+ public:
+  explicit DuplicateKeys(const std::string& source) : source_(source) {}
+
+  bool operator()(int /*depth*/, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+    using Event = nlohmann::json::parse_event_t;
+    switch (event) {
+      case Event::object_start:
+      case Event::array_start:
+        frames_.push_back({event == Event::array_start, {}, {}, 0});
+        break;
+      case Event::key: {
+        Frame& object = frames_.back();
+        object.key = parsed.get<std::string>();
+        if (!object.keys.insert(object.key).second) {
+          throw InputError(source_ + ": " + path() + ": given twice in one object (the second " +
+                           "would silently replace the first)");
+        }
+        break;
+      }
+      case Event::object_end:
+      case Event::array_end:
+        frames_.pop_back();
+        element_done();
+        break;
+      case Event::value:
+        element_done();
+        break;
+    }
+    return true;
+  }
+
+ private:
+  struct Frame {
+    bool array = false;
+    std::set<std::string> keys;
+    std::string key;  // The object's member being read.
+    int index = 0;    // The array's elements read.
+  };
+  void element_done() {
+    if (!frames_.empty() && frames_.back().array) ++frames_.back().index;
+  }
+  std::string path() const {
+    std::string out;
+    for (const Frame& f : frames_) {
+      if (f.array) {
+        out += "[" + std::to_string(f.index) + "]";
+      } else {
+        out += (out.empty() ? "" : ".") + f.key;
+      }
+    }
+    return out;
+  }
+  const std::string& source_;
+  std::vector<Frame> frames_;
+};
+
 }  // namespace
 
 nlohmann::json JsonReader::parse(std::string_view text, const std::string& source) {
@@ -47,8 +108,8 @@ nlohmann::json JsonReader::parse(std::string_view text, const std::string& sourc
                      std::to_string(kMaxNesting) + " levels");
   }
   try {
-    return nlohmann::json::parse(text.begin(), text.end(), nullptr, /*allow_exceptions=*/true,
-                                 /*ignore_comments=*/true);
+    return nlohmann::json::parse(text.begin(), text.end(), DuplicateKeys(source),
+                                 /*allow_exceptions=*/true, /*ignore_comments=*/true);
   } catch (const nlohmann::json::parse_error& e) {
     // Convert the byte offset into line:column for humans.
     size_t line = 1, col = 1;
@@ -128,6 +189,25 @@ void JsonReader::expect_object(std::initializer_list<std::string_view> allowed) 
 
 void JsonReader::expect_array() const {
   if (!value_.is_array()) fail("an array");
+}
+
+const JsonReader& JsonReader::fits_float() const {
+  const auto fits = [](const nlohmann::json& v) {
+    if (!v.is_number()) return true;  // Its reader says what it expected.
+    const double x = std::abs(v.get<double>());
+    return x == 0 ||
+           (x >= std::numeric_limits<float>::min() && x <= std::numeric_limits<float>::max());
+  };
+  bool ok = fits(value_);
+  if (value_.is_array()) {
+    for (const nlohmann::json& v : value_) ok = ok && fits(v);
+  }
+  if (!ok) {
+    fail(
+        "numbers a 32-bit float holds (0, or 1.2e-38 to 3.4e38 in size: the pipeline computes in "
+        "floats)");
+  }
+  return *this;
 }
 
 double JsonReader::number() const {

@@ -30,6 +30,10 @@ class JsonReader {
   void expect_object(std::initializer_list<std::string_view> allowed) const;
   void expect_array() const;
 
+  // Checks that every number here (a number, or an array of them) is one a 32-bit float holds:
+  // 0 or 1.2e-38 <= |x| <= 3.4e38, since the pipeline computes in floats (1e39 would be Inf,
+  // 1e-39 zero). Returns *this: r["intensity"].fits_float().positive().
+  const JsonReader& fits_float() const;
   double number() const;
   double number_in(double lo, double hi, std::string_view what = "") const;
   double positive(std::string_view what = "") const;

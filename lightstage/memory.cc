@@ -130,7 +130,14 @@ std::size_t MemoryBudget::bytes_or(std::size_t unset_bytes) const {
 }
 
 std::string MemoryBudget::note(std::string_view option) const {
-  if (!bytes_ || *bytes_ >= kSmallBytes) return {};
+  if (!bytes_) return {};
+  if (const std::size_t available = available_memory_bytes(); *bytes_ > available) {
+    return std::string(option) + " " + format_bytes(*bytes_) + " is more than the " +
+           format_bytes(available) +
+           " of memory available: used as given, so bands as large as that are tried and work "
+           "that needs more than is available fails for want of memory";
+  }
+  if (*bytes_ >= kSmallBytes) return {};
   return std::string(option) + " " + format_bytes(*bytes_) + " is below " +
          format_bytes(kSmallBytes) +
          ": taken as given, the field goes in bands of few rows (slowly), a band holding at "

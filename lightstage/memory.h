@@ -81,7 +81,8 @@ class MemoryBudget {
   std::size_t bytes_or(std::size_t unset_bytes) const;
   // As given, else 0: what options files record (0: the default).
   std::size_t given_bytes() const { return bytes_.value_or(0); }
-  // A warning for a given budget below kSmallBytes, naming `option`; empty otherwise.
+  // A warning for a given budget below kSmallBytes or above the memory available, naming
+  // `option`; empty otherwise.
   std::string note(std::string_view option = "--memory") const;
   // "512 MiB", or "half of the memory available" when unset.
   std::string to_string() const;

@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include "lightstage/errors.h"
+#include "lightstage/run_outputs.h"
 
 namespace ls {
 
@@ -84,6 +85,7 @@ fs::path lock_file_of(const fs::path& out) {
 fs::path made_lock_file(const fs::path& out) {
   fs::path file = lock_file_of(out);
   if (!file.parent_path().empty()) {
+    require_folder_can_be_made(file.parent_path());
     std::error_code error;
     fs::create_directories(file.parent_path(), error);
     if (error) {

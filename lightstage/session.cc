@@ -18,6 +18,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/json_reader.h"
+#include "lightstage/run_outputs.h"
 
 namespace ls {
 
@@ -234,17 +235,26 @@ Session Session::create(const fs::path& dir, const Stage& stage, const SessionIn
     throw InputError(dir.string() + ": already holds a session; resume it with --resume " +
                      dir.string() + " or choose another directory");
   }
+  // What it makes is removed when it fails (a full disk): a session without its manifest is none.
+  RunOutputs made(dir);
   std::error_code ec;
+  if (!fs::exists(dir / "frames", ec)) made.add(dir / "frames");
+  made.add(dir / kManifest);
+  made.add(dir / kJournal);
   fs::create_directories(dir / "frames", ec);
   if (ec) throw StorageError(dir.string() + ": cannot create session directory: " + ec.message());
-  // Detect an unwritable directory before any LED is switched on.
+  // Detect a directory that takes no file (read-only, full) before any LED is switched on, with
+  // the system's reason.
   const fs::path probe = dir / ".write-test";
-  {
-    std::ofstream out(probe);
-    out << "ok";
-    if (!out.flush()) throw StorageError(dir.string() + ": session directory is not writable");
-  }
+  const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  const bool written = fd >= 0 && ::write(fd, "ok", 2) == 2 && ::fsync(fd) == 0;
+  const int error = errno;
+  if (fd >= 0) ::close(fd);
   fs::remove(probe, ec);
+  if (!written) {
+    throw StorageError(dir.string() +
+                       ": cannot write in the session directory: " + std::strerror(error));
+  }
 
   Session s;
   s.dir_ = dir;
@@ -252,7 +262,9 @@ Session Session::create(const fs::path& dir, const Stage& stage, const SessionIn
   s.info_ = info;
   s.write_manifest("capturing");
   // Truncate any stale journal (no manifest means no session).
-  std::ofstream(dir / kJournal, std::ios::trunc);
+  std::ofstream journal(dir / kJournal, std::ios::trunc);
+  if (!journal) throw StorageError((dir / kJournal).string() + ": cannot create the journal");
+  made.keep();
   return s;
 }
 

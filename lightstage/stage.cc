@@ -41,10 +41,11 @@ Led parse_led(const JsonReader& r, size_t index) {
   }
   if (r.has("color")) {
     const JsonReader c = r["color"];
-    led.color_gain = c.vec3();
+    led.color_gain = c.fits_float().vec3();
     if ((led.color_gain.array() < 0).any()) c.fail("three non-negative colour gains");
   }
-  if (r.has("intensity")) led.intensity = r["intensity"].positive("(irradiance at the origin)");
+  if (r.has("intensity"))
+    led.intensity = r["intensity"].fits_float().positive("(irradiance at the origin)");
   if (r.has("gpio")) {
     const JsonReader g = r["gpio"];
     g.expect_object({"chip", "line", "active_low"});
@@ -134,7 +135,8 @@ CameraSpec parse_camera(const JsonReader& r, const fs::path& base_dir) {
     }
   }
   if (r.has("response")) cam.response = parse_response(r["response"], base_dir);
-  if (r.has("radiometric_scale")) cam.radiometric_scale = r["radiometric_scale"].positive();
+  if (r.has("radiometric_scale"))
+    cam.radiometric_scale = r["radiometric_scale"].fits_float().positive();
   if (r.has("fov_y_deg")) cam.fov_y_deg = r["fov_y_deg"].number_in(0, 170, "(0 = orthographic)");
   if (r.has("distance_m")) cam.distance_m = r["distance_m"].positive("(metres)");
   if (r.has("ortho_height_m")) cam.ortho_height_m = r["ortho_height_m"].positive("(metres)");
@@ -414,6 +416,10 @@ Stage parse_stage(std::string_view json_text, const std::string& source_name) {
 }
 
 Stage load_stage(const fs::path& path) {
+  std::error_code ignored;
+  if (fs::is_directory(path, ignored)) {
+    throw InputError(path.string() + ": a folder, not a stage file (give the stage's .json file)");
+  }
   std::ifstream in(path);
   if (!in) throw InputError(path.string() + ": cannot open stage file");
   std::stringstream text;
@@ -425,7 +431,9 @@ void require_stage_files(const Stage& stage) {
   const auto require_file = [&](const fs::path& file, const std::string& field) {
     std::error_code ignored;
     if (!fs::is_regular_file(file, ignored)) {
-      throw InputError(stage.source + ": " + field + ": " + file.string() + " not found");
+      throw InputError(
+          stage.source + ": " + field + ": " + file.string() +
+          (fs::is_directory(file, ignored) ? " is a folder, not a file" : " not found"));
     }
   };
   if (!stage.calibration.flat_field.empty()) {

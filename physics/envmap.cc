@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <numbers>
@@ -156,7 +157,29 @@ long long repair_negative_values(Image& rgb, const std::string& source) {
 }  // namespace
 
 EnvironmentMap EnvironmentMap::load(const std::filesystem::path& path) {
-  return EnvironmentMap(read_image(path), path.string(), /*repair_negatives=*/true);
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  if (ext == ".png" || ext == ".jpg" || ext == ".jpeg") {
+    throw InputError(path.string() + ": an 8-bit " + ext.substr(1) +
+                     " image is display-referred (tone-mapped, clipped to white), not radiance: "
+                     "lighting needs an HDR map (.exr or .hdr)");
+  }
+  Image image = read_image(path);
+  // A file says what its channels hold: a grey or XYZ map is not the RGB radiance lighting sums.
+  const bool names_rgb = std::all_of(
+      image.channel_names.begin(), image.channel_names.end(),
+      [](const std::string& n) { return n == "R" || n == "G" || n == "B" || n == "A"; });
+  if (image.channels == 1 || (image.channels <= 4 && !names_rgb)) {
+    std::string names;
+    for (const std::string& n : image.channel_names) names += (names.empty() ? "" : ", ") + n;
+    const std::string what =
+        image.channels == 1 ? ": channels: 1 (" + names + "), a grey map" : ": channels " + names;
+    throw InputError(path.string() + what +
+                     ": expected RGB radiance (channels R, G, B, and A if any); a map of other "
+                     "quantities (grey, XYZ) would be lit as if it were RGB: convert it first");
+  }
+  return EnvironmentMap(std::move(image), path.string(), /*repair_negatives=*/true);
 }
 
 EnvironmentMap::EnvironmentMap(Image radiance_rgb, std::string source)

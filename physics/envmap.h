@@ -19,6 +19,8 @@ class EnvironmentMap {
   // bright sources (published maps carry lobes down to -15% of the sun), while it keeps each
   // block's mean. So per 8x8 block and channel, negatives become 0 and the block's positive values
   // are scaled to keep the block's integral (a block whose integral is negative becomes 0).
+  // Refused: an 8-bit PNG or JPEG (display-referred), and a file whose channels are not R, G, B
+  // (A): a grey or XYZ map.
   static EnvironmentMap load(const std::filesystem::path& path);
   // In-memory maps are strict: every value finite and >= 0 (a negative here is a bug upstream).
   explicit EnvironmentMap(Image radiance_rgb, std::string source = "<memory>");

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "app/cli/commands.h"
+#include "app/cli/validators.h"
 #include "app/jobs/contact_sheet.h"
 #include "evaluation/bench_charts.h"
 #include "evaluation/chart.h"
@@ -34,6 +35,12 @@ namespace ls::cli {
 namespace fs = std::filesystem;
 
 namespace {
+
+// --quiet of the bench that runs (one a process): no progress output.
+bool& bench_quiet() {
+  static bool quiet = false;
+  return quiet;
+}
 
 void print_leds(const evaluation::LedBenchSummary& summary) {
   std::printf("%6s %-14s %-15s %10s %8s %11s %11s %10s\n", "LEDs", "map", "method", "rel.RMSE",
@@ -170,7 +177,7 @@ void add_rti(CLI::App& bench) {
     args->real_lp =
         data_dir().parent_path().parent_path() / "shared/data/rti/loewenkopf_klein/dirs.lp";
     const evaluation::RtiBenchSummary summary =
-        evaluation::run_rti_bench(*args, progress_printer(false));
+        evaluation::run_rti_bench(*args, progress_printer(bench_quiet()));
     for (const std::string& note : summary.notes) std::fprintf(stderr, "note: %s\n", note.c_str());
     std::printf("%-18s %-20s %10s %12s %12s\n", "scene", "format", "KiB", "sRGB8 dB", "linear dB");
     for (const evaluation::RtiBenchRow& r : summary.rows) {
@@ -186,7 +193,7 @@ void add_rti(CLI::App& bench) {
     memory->out = args->out;
     memory->executable = fs::read_symlink("/proc/self/exe");
     const evaluation::RtiMemorySummary m =
-        evaluation::run_rti_memory_bench(*memory, progress_printer(false));
+        evaluation::run_rti_memory_bench(*memory, progress_printer(bench_quiet()));
     std::printf("\npeak memory, %dx%d, %d lights (JPEGs %.1f MiB); --memory %zu MiB:\n", m.width,
                 m.height, m.lights, m.jpeg_mib, memory->memory_bytes >> 20);
     for (const evaluation::RtiMemoryRow& r : m.rows) {
@@ -217,7 +224,7 @@ void add_sun(CLI::App& bench) {
       ->capture_default_str();
   cmd->callback([args] {
     const evaluation::SunBenchSummary summary =
-        evaluation::run_sun_bench(*args, progress_printer(false));
+        evaluation::run_sun_bench(*args, progress_printer(bench_quiet()));
     std::printf("%-6s %9s %12s %11s %11s %13s %9s %9s %11s\n", "path", "position", "nearest LED",
                 "cells RMSE", "flows RMSE", "sources RMSE", "cells ms", "flows ms", "sources ms");
     for (const evaluation::SunBenchRow& r : summary.rows) {
@@ -250,7 +257,7 @@ void add_exposures(CLI::App& bench) {
       ->capture_default_str();
   cmd->callback([args] {
     const evaluation::ExposureBenchSummary summary =
-        evaluation::run_exposure_bench(*args, progress_printer(false));
+        evaluation::run_exposure_bench(*args, progress_printer(bench_quiet()));
     std::printf("%-6s %-14s %10s %11s %10s %11s %9s\n", "scene", "plan", "LED frames", "exposure s",
                 "capture s", "median err", "p90 err");
     for (const evaluation::ExposureBenchRow& r : summary.rows) {
@@ -285,7 +292,7 @@ void add_leds(CLI::App& bench) {
                 "Also the real maps in ../shared/data/envmaps (ground truth rendered under each).");
   cmd->callback([args, shared_maps] {
     args->maps = shipped_environment_maps(*shared_maps);
-    print_leds(evaluation::run_led_bench(*args, progress_printer(false)));
+    print_leds(evaluation::run_led_bench(*args, progress_printer(bench_quiet())));
   });
 }
 
@@ -306,7 +313,7 @@ void add_fit_sweeps(CLI::App& bench) {
       ->capture_default_str();
   cmd->callback([args] {
     args->sweeps.width = 3 * args->sweeps.height;
-    print_fit_sweeps(evaluation::run_fit_sweeps_bench(*args, progress_printer(false)));
+    print_fit_sweeps(evaluation::run_fit_sweeps_bench(*args, progress_printer(bench_quiet())));
   });
 }
 
@@ -331,7 +338,7 @@ void add_fit(CLI::App& bench) {
       ->capture_default_str();
   cmd->callback([args] {
     args->maps = shipped_environment_maps(false);
-    print_fit(evaluation::run_fit_bench(*args, progress_printer(false)));
+    print_fit(evaluation::run_fit_bench(*args, progress_printer(bench_quiet())));
   });
 }
 
@@ -356,7 +363,7 @@ void add_temporal(CLI::App& bench) {
   cmd->add_option("--width", args->width, "Image width.")->check(CLI::Range(4, 1024));
   cmd->add_option("--height", args->height, "Image height.")->check(CLI::Range(4, 1024));
   cmd->add_option("--duration", args->duration_s, "Scene seconds covered by the steps.")
-      ->check(CLI::PositiveNumber)
+      ->check(kPositive)
       ->capture_default_str();
   cmd->add_option("--captured", args->captured,
                   "Numbers of the time lapse's steps captured for the held-out part (empty: "
@@ -364,8 +371,9 @@ void add_temporal(CLI::App& bench) {
       ->delimiter(',')
       ->check(CLI::Range(2, 64))
       ->capture_default_str();
-  cmd->callback(
-      [args] { print_temporal(evaluation::run_temporal_bench(*args, progress_printer(false))); });
+  cmd->callback([args] {
+    print_temporal(evaluation::run_temporal_bench(*args, progress_printer(bench_quiet())));
+  });
 }
 
 void add_compact(CLI::App& bench) {
@@ -384,7 +392,7 @@ void add_compact(CLI::App& bench) {
     // The real RTI set beside the checkout (../shared/data, as the tests find it).
     args->real_lp =
         data_dir().parent_path().parent_path() / "shared/data/rti/loewenkopf_klein/dirs.lp";
-    print_compact(evaluation::run_compact_bench(*args, progress_printer(false)));
+    print_compact(evaluation::run_compact_bench(*args, progress_printer(bench_quiet())));
   });
 }
 
@@ -442,7 +450,8 @@ void add_scale(CLI::App& bench) {
     args->memory_bytes = budget->bytes();
     args->executable = fs::read_symlink("/proc/self/exe");
     args->env_map = data_dir() / "envmaps/sky_sun.exr";
-    print_scale(evaluation::run_scale_bench(*args, progress_printer(false)), args->memory_bytes);
+    print_scale(evaluation::run_scale_bench(*args, progress_printer(bench_quiet())),
+                args->memory_bytes);
   });
 }
 
@@ -482,6 +491,9 @@ void add_bench_command(CLI::App& app) {
   add_rti(*bench);
   add_scale(*bench);
   add_charts(*bench);
+  for (CLI::App* sub : bench->get_subcommands([](CLI::App*) { return true; })) {
+    add_quiet_flag(*sub, bench_quiet());
+  }
   // After a bench (its own callback first): charts need gnuplot; without it, their scripts alone.
   bench->callback([bench] {
     const auto missing = evaluation::chart_tool_missing();

@@ -95,7 +95,7 @@ void add_build_command(CLI::App& app) {
                 "Divide each LED's image by the dome's output drift while it was shot, measured "
                 "on the stage plan's reference LED (plan.reference_led, shot again every "
                 "plan.reference_every LEDs). Drift beyond 0.5% is reported either way.");
-  cmd->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*cmd, *quiet);
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {
       throw CLI::ValidationError("build", problem);

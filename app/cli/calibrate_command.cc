@@ -159,7 +159,7 @@ void add_directions_command(CLI::App* cmd) {
   sub->add_option("--saturation", options->saturation, "Clipped value of the images (0: none).")
       ->check(kFinite);
   sub->add_option("--out", options->out, "Calibrated stage file to write.")->required();
-  sub->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*sub, *quiet);
   sub->callback([options, quiet] { exit_with(print_directions(*options, *quiet)); });
 }
 
@@ -186,7 +186,7 @@ void add_intensities_command(CLI::App* cmd) {
   sub->add_option("--flat-field", options->flat_field,
                   "Where to write the flat fields (default: OUT with .flatfield.exr).");
   sub->add_option("--out", options->out, "Calibrated stage file to write.")->required();
-  sub->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*sub, *quiet);
   sub->callback([options, quiet] { exit_with(print_intensities(*options, *quiet)); });
 }
 
@@ -208,7 +208,7 @@ void add_camera_command(CLI::App* cmd) {
   sub->add_option("--stage", options->stage_file, "Stage file to update (with --out).")
       ->check(CLI::ExistingFile);
   sub->add_option("--out", options->out, "Stage file to write with the fitted field of view.");
-  sub->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*sub, *quiet);
   sub->callback([options, quiet] { exit_with(print_camera(*options, *quiet)); });
 }
 

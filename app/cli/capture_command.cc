@@ -165,7 +165,7 @@ void add_capture_command(CLI::App& app) {
       "dark, a bracket's frames consistent with each other) and a bad one shot again; "
       "turn this off only for a camera whose frames do not follow the LEDs, such as "
       "Aravis' test-pattern Fake_1.");
-  cmd->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*cmd, *quiet);
   cmd->callback([options, quiet, resume] {
     options->resume = resume->count() > 0;
     if (const std::string problem = options->validate(); !problem.empty()) {

@@ -60,6 +60,12 @@ std::unique_ptr<OutputLock> lock_output(const std::filesystem::path& out);
 // Prints a job's progress on stderr, one bar per phase (lightstage/progress.h); silent when quiet.
 jobs::ProgressFn progress_printer(bool quiet);
 
+// --quiet, one meaning on every command: no progress output (warnings and results are printed
+// all the same). A command that shows no progress takes it too, so that one script line serves
+// every command.
+void add_quiet_flag(CLI::App& cmd, bool& quiet);
+void add_quiet_flag(CLI::App& cmd);
+
 // The jobs with the operator's messages, shared by the demo and the single-step commands; each
 // returns the exit code.
 int capture_session(const jobs::CaptureOptions& options, bool quiet);

@@ -48,7 +48,7 @@ void add_compress_command(CLI::App& app) {
                     "Compress: the band of the field read at once (twice for PCA); an .lp set is "
                     "read in bands straight from its images.",
                     "half of the memory available; an .lp set's images 32 MiB");
-  compress->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*compress, *quiet);
   compress->callback([args, quiet] {
     // A bad --format or --rank is bad input (exit 2): jobs::compress validates them.
     const auto lock = lock_output(args->out);
@@ -116,7 +116,7 @@ void add_export_command(CLI::App& app) {
                     "Export: the band of the field read at once (three passes); an .lp set is "
                     "read in bands straight from its images.",
                     "half of the memory available; an .lp set's images 32 MiB");
-  openlime->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*openlime, *quiet);
   openlime->callback([args, quiet] {
     // Bad options are bad input (exit 2), as compress's.
     const auto lock = lock_output(args->out);
@@ -175,6 +175,7 @@ void add_render_command(CLI::App& app) {
   render->add_option("--resolution", args->resolution, "--shape: image width and height.")
       ->capture_default_str()
       ->group("Material on a shape");
+  add_quiet_flag(*render);
   render->callback([args] {
     if (const std::string problem = args->validate(); !problem.empty()) {
       throw CLI::ValidationError("render", problem);
@@ -182,6 +183,9 @@ void add_render_command(CLI::App& app) {
     const auto lock = lock_output(args->out);
     const jobs::RenderSummary summary =
         args->shape.empty() ? jobs::render_compact(*args) : jobs::render_material(*args);
+    for (const std::string& warning : summary.warnings) {
+      std::fprintf(stderr, "warning: %s\n", warning.c_str());
+    }
     std::printf("%s: %dx%d, %s relit\n", args->out.c_str(), summary.width, summary.height,
                 summary.representation.c_str());
     if (!summary.sources.empty()) std::printf("  %s\n", summary.sources.c_str());

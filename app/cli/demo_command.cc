@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 
 #include "app/cli/commands.h"
 #include "app/cli/validators.h"
@@ -34,6 +35,7 @@ struct DemoArgs {
 void run_demo(const DemoArgs& args) {
   // The demo's folder as a whole: its steps lock their own outputs inside it as well.
   const auto lock = lock_output(args.out);
+  const bool out_existed = fs::exists(args.out);
   fs::create_directories(args.out);
   const fs::path session_dir = args.out / "session";
   std::fprintf(stderr, "== 1/4 capture on the simulated %s -> %s\n",
@@ -56,13 +58,32 @@ void run_demo(const DemoArgs& args) {
       stage.camera.tether.raw.mode = RawDecodeOptions::Mode::kBin2x2;
     }
     const fs::path stage_file = args.out / "stage.json";
-    write_file_atomic(stage_file, stage_to_json(stage));
     jobs::CaptureOptions capture;
     capture.stage_file = stage_file;
     capture.session_dir = session_dir;
     capture.seed = args.seed;
-    if (const int code = capture_session(capture, args.quiet); code != 0)
+    int code = 0;
+    std::exception_ptr error;
+    try {
+      write_file_atomic(stage_file, stage_to_json(stage));
+      code = capture_session(capture, args.quiet);
+    } catch (...) {
+      error = std::current_exception();
+    }
+    if (code != 0 || error) {
+      // A capture that failed before its first frame left no session (jobs::capture): the demo
+      // leaves nothing either; a session with frames stays for the next run to resume.
+      if (!fs::exists(session_dir)) {
+        std::error_code ignored;
+        if (out_existed) {
+          fs::remove(stage_file, ignored);
+        } else {
+          fs::remove_all(args.out, ignored);
+        }
+      }
+      if (error) std::rethrow_exception(error);
       throw CLI::RuntimeError(code);
+    }
   }
 
   const fs::path field_file = args.out / "field.exr";
@@ -140,7 +161,7 @@ void add_demo_command(CLI::App& app) {
   cmd->add_flag("!--no-shared-maps", args->shared_maps,
                 "Only the maps in data/envmaps, not ../shared/data/envmaps.");
   cmd->add_flag("!--no-truth", args->truth, "Skip the ground-truth comparison.");
-  cmd->add_flag("--quiet", args->quiet, "No progress output.");
+  add_quiet_flag(*cmd, args->quiet);
   cmd->add_flag("--dslr", args->dslr,
                 "Capture on the simulated DSLR dome: every frame a raw (DNG) file from a "
                 "gphoto2-like camera, decoded by LibRaw (binned 2x2), the LEDs on a serial "

@@ -79,6 +79,7 @@ void add_devices_command(CLI::App& app) {
       "(libgphoto2) and serial ports for LED boards.");
   cmd->add_flag("--no-cameras", *no_cameras,
                 "Skip Aravis camera discovery (sends nothing on the network).");
+  add_quiet_flag(*cmd);
   cmd->callback([no_cameras] {
     const DeviceList list = list_devices(/*list_aravis=*/!*no_cameras);
     print_list("GPIO chips", list.gpio_chips, "none: no /dev/gpiochip*");
@@ -109,6 +110,7 @@ void add_check_command(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::Range(0.0, 3600.0));
   cmd->add_flag("!--no-frame", request->frame, "Do not capture a test frame.");
+  add_quiet_flag(*cmd);
   cmd->callback([request] {
     const int code = check_stage(*request);
     if (code != 0) throw CLI::RuntimeError(code);

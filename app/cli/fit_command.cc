@@ -181,7 +181,7 @@ void add_fit_command(CLI::App& app) {
   add_memory_option(*cmd, options->memory,
                     "Fit: the band of the field fitted at once (read twice with basis materials); "
                     "with --time, every step's band and its fits together.");
-  cmd->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*cmd, *quiet);
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {
       throw CLI::ValidationError("fit", problem);
@@ -215,7 +215,7 @@ void add_normals_command(CLI::App& app) {
       ->check(CLI::IsMember({"robust", "ls"}))
       ->capture_default_str();
   add_memory_option(*cmd, options->memory, "Normals: the band of the field read at once.");
-  cmd->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*cmd, *quiet);
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {
       throw CLI::ValidationError("normals", problem);

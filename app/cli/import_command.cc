@@ -5,6 +5,7 @@
 #include <memory>
 
 #include "app/cli/commands.h"
+#include "app/cli/validators.h"
 #include "app/jobs/import_job.h"
 #include "app/jobs/ranks.h"
 #include "lightstage/memory.h"
@@ -113,7 +114,7 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("--interval", *interval,
                   "Time-lapse: seconds between consecutive sets (set i at i * S), instead of "
                   "--time.")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   auto* gamma = cmd->add_option("--gamma", options->gamma,
                                 "Undo a plain gamma curve: linear = code^G (G in (0, 10]).");
   auto* linear_flag = cmd->add_flag("--linear", *linear, "The images are linear already.");
@@ -138,7 +139,7 @@ void add_import_command(CLI::App& app) {
                   "a measured noise), else floats (auto); or always half or float.")
       ->check(CLI::IsMember({"auto", "half", "float"}))
       ->capture_default_str();
-  cmd->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*cmd, *quiet);
   cmd->callback(
       [options, sources, out, times, interval, quiet, linear, srgb, gamma, memory, storage] {
         options->storage = capture::parse_storage_choice("--storage", *storage);

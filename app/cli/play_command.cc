@@ -43,7 +43,11 @@ void add_play_command(CLI::App& app) {
                   "How much brighter or dimmer than the relit field the photograph may be.")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
+  add_quiet_flag(*cmd);
   cmd->callback([options] {
+    if (std::string problem = jobs::rotation_problem(options->play.rotate_deg); !problem.empty()) {
+      throw CLI::ValidationError("play", problem);
+    }
     const auto lock = lock_output(options->play.out_dir);
     const jobs::PlayResult r = jobs::play_session(*options);
     std::printf(

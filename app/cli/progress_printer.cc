@@ -1,7 +1,9 @@
+#include <CLI/CLI.hpp>
 #include <cstdio>
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <string>
 
 #include "app/cli/commands.h"
 #include "lightstage/progress.h"
@@ -30,6 +32,15 @@ jobs::ProgressFn progress_printer(bool quiet) {
       state->bar->update(done, item);
     }
   };
+}
+
+void add_quiet_flag(CLI::App& cmd, bool& quiet) {
+  cmd.add_flag("--quiet", quiet, "No progress output.");
+}
+
+void add_quiet_flag(CLI::App& cmd) {
+  static const std::string kHelp = "No progress output (this command shows none).";
+  cmd.add_flag("--quiet", kHelp);
 }
 
 std::string storage_line(const capture::FieldStorage& storage,

@@ -113,7 +113,7 @@ void add_relight_command(CLI::App& app) {
                 "alone, without the scene's shape recovered from them (which needs every LED's "
                 "image in memory for seconds at 256^2; over --memory it is skipped, with a note).");
   cmd->add_option("--out", options->out_dir, "Output directory.")->required();
-  cmd->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*cmd, *quiet);
   cmd->add_option("--temporal", options->temporal_file,
                   "Temporal maps from 'lightstage fit --time', rendered at --time (with "
                   "--edits: a time edit file, see relight/time/temporal_render.h).")

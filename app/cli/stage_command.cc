@@ -28,6 +28,7 @@ void add_stage_command(CLI::App& app) {
       "or write the built-in dome as a starting point with --write.");
   cmd->add_option("file", args->file, "Stage file to check (default: the built-in dome).");
   cmd->add_option("--write", args->write, "Write the stage (built-in or FILE) as JSON here.");
+  add_quiet_flag(*cmd);
   cmd->callback([args] {
     const Stage stage = args->file.empty() ? default_stage() : load_stage(args->file);
     require_stage_files(stage);
@@ -74,6 +75,7 @@ void add_envmaps_command(CLI::App& app) {
   cmd->add_option("--width", args->width, "Map width (height is half).")
       ->capture_default_str()
       ->check(CLI::Range(8, 16384));
+  add_quiet_flag(*cmd);
   cmd->callback([args] {
     if (args->width % 2 != 0) {
       throw CLI::ValidationError("--width", "expected an even width (the height is half), got " +

@@ -36,6 +36,7 @@ void add_view_command(CLI::App& app) {
   cmd->add_option("--screenshot", args->screenshot,
                   "Save the view as OUT.png (tone-mapped) and OUT.exr (linear), print its command "
                   "line, and exit (after --script).");
+  add_quiet_flag(*cmd);
   cmd->callback([args] {
     const viewer::ViewState state = args->view.to_state();
     const std::vector<viewer::Action> actions =

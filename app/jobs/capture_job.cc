@@ -10,6 +10,7 @@
 #include "lightstage/backend_registry.h"
 #include "lightstage/errors.h"
 #include "lightstage/memory.h"
+#include "lightstage/run_outputs.h"
 #include "lightstage/session.h"
 
 namespace ls::jobs {
@@ -101,6 +102,14 @@ std::string CaptureOptions::validate() const {
 
 namespace {
 
+// The names in `dir` (none when it is missing).
+std::set<fs::path> entries_of(const fs::path& dir) {
+  std::set<fs::path> names;
+  std::error_code ignored;
+  for (const auto& entry : fs::directory_iterator(dir, ignored)) names.insert(entry.path());
+  return names;
+}
+
 // The capture itself; `session` and `writer_lock` are the caller's, so that it can clean up.
 CaptureJobSummary capture_frames(const CaptureOptions& options, const CaptureCallbacks& callbacks,
                                  std::optional<Session>& session,
@@ -190,17 +199,28 @@ CaptureJobSummary capture(const CaptureOptions& options, const CaptureCallbacks&
     throw InputError("capture: " + problem);
   }
   // A new session that fails before its first frame (refused for its disk, a side file that does
-  // not read) is removed: there is nothing in it to resume.
-  const bool fresh = !options.resume && !fs::exists(options.session_dir);
+  // not read) is removed with the folders made for it, or in a folder that was there, what it
+  // added: there is nothing in it to resume. Session::create cleans up after itself.
+  std::optional<RunOutputs> made;
+  std::set<fs::path> before;
+  if (!options.resume) {
+    made.emplace(options.session_dir);
+    before = entries_of(options.session_dir);
+  }
   std::optional<Session> session;
   std::optional<SessionWriterLock> writer_lock;  // One capture writes a session at a time.
   try {
-    return capture_frames(options, callbacks, session, writer_lock);
+    CaptureJobSummary summary = capture_frames(options, callbacks, session, writer_lock);
+    if (made) made->keep();
+    return summary;
   } catch (...) {
-    if (fresh && session && session->frames().empty()) {
+    if (made && session && session->frames().empty()) {
       writer_lock.reset();
-      std::error_code ignored;
-      fs::remove_all(options.session_dir, ignored);
+      for (const fs::path& entry : entries_of(options.session_dir)) {
+        if (!before.contains(entry)) made->add(entry);
+      }
+    } else if (made) {
+      made->keep();  // Frames to resume, or not this run's session (another capture's, say).
     }
     throw;
   }

@@ -1,6 +1,7 @@
 #include "app/jobs/compress_job.h"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -20,6 +21,7 @@
 #include "lightstage/image.h"
 #include "lightstage/memory.h"
 #include "lightstage/rank_split.h"
+#include "lightstage/run_outputs.h"
 #include "lightstage/scratch_file.h"
 #include "physics/envmap.h"
 #include "relight/compact/pca_bands.h"
@@ -176,12 +178,16 @@ std::string CompressOptions::validate() const {
     return "--rank " + rank + ": for --format pca only (an RTI basis has its own size)";
   }
   if (format != "pca" && tile != 0) return "--tile: for --format pca only";
-  // A name that says another of these formats misleads every reader that goes by it.
+  // A name that says another format misleads every reader that goes by it (render reads what is
+  // not .ptm or .rti as PCA; an .exr is taken for a field or an image).
   const std::string wanted = format == "pca"             ? ".lspca"
                              : format.starts_with("ptm") ? ".ptm"
                                                          : ".rti";
   const std::string named = out.extension().string();
-  if ((named == ".lspca" || named == ".ptm" || named == ".rti") && named != wanted) {
+  const bool pca_name = named == ".lspca" || named == ".pca";
+  const bool other_format = named == ".ptm" || named == ".rti" || pca_name || named == ".exr" ||
+                            named == ".png" || named == ".jpg" || named == ".hdr";
+  if (other_format && named != wanted && !(format == "pca" && pca_name)) {
     return "--out " + out.string() + ": --format " + format + " writes a " + wanted +
            " file, not a " + named + " (viewers and render tell the formats apart by the name)";
   }
@@ -255,6 +261,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("compress: " + problem);
   }
+  refuse_output_over_input(options.out, options.input);
   relight::PcaOptions pca_options;
   pca_options.rank = parse_rank(options.rank);
   pca_options.tile_size = options.tile;
@@ -480,11 +487,44 @@ std::string RenderOptions::validate() const {
     const Eigen::Vector3d dir(light[0], light[1], light[2]);
     if (!dir.allFinite() || !(dir.norm() > 0)) return "--light: expected a non-zero direction";
   }
-  if (!std::isfinite(rotation_deg)) return "--rotate: expected a number of degrees";
+  if (std::string problem = rotation_problem(rotation_deg); !problem.empty()) return problem;
   if (!light.empty() && rotation_deg != 0)
     return "--rotate: turns an --env map; a --light has none";
   return {};
 }
+
+namespace {
+
+// Why a point light at `light` is extrapolated from the PCA's lights: farther from every one of
+// them than any is from its nearest neighbour (outside the dome's coverage); empty when it is not.
+std::string beyond_the_lights(const Eigen::Vector3d& light, const relight::PcaField& pca) {
+  std::vector<Eigen::Vector3d> dirs;
+  for (const capture::FieldLight& l : pca.lights()) {
+    if (l.valid) dirs.push_back(l.dir_in_stage.normalized());
+  }
+  if (dirs.size() < 2) return {};
+  const auto angle = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return std::atan2(a.cross(b).norm(), a.dot(b));
+  };
+  double widest_gap = 0, nearest = M_PI;
+  for (size_t i = 0; i < dirs.size(); ++i) {
+    double own = M_PI;
+    for (size_t j = 0; j < dirs.size(); ++j) {
+      if (j != i) own = std::min(own, angle(dirs[i], dirs[j]));
+    }
+    widest_gap = std::max(widest_gap, own);
+    nearest = std::min(nearest, angle(light, dirs[i]));
+  }
+  if (nearest <= widest_gap) return {};
+  char text[200];
+  std::snprintf(text, sizeof text,
+                "extrapolated beyond the captured lights: the nearest is %.1f degrees away (they "
+                "are at most %.1f degrees apart); the image is a guess",
+                nearest * 180 / M_PI, widest_gap * 180 / M_PI);
+  return text;
+}
+
+}  // namespace
 
 RenderSummary render_compact(const RenderOptions& options) {
   if (const std::string problem = options.validate(); !problem.empty()) {
@@ -505,8 +545,21 @@ RenderSummary render_compact(const RenderOptions& options) {
   Image image;
   const auto* pca = dynamic_cast<const relight::PcaField*>(field.get());
   if (options.environment.empty()) {
-    image = field->relight_point(
-        Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized());
+    const Eigen::Vector3d light =
+        Eigen::Vector3d(options.light[0], options.light[1], options.light[2]).normalized();
+    if (pca) {
+      if (std::string beyond = beyond_the_lights(light, *pca); !beyond.empty()) {
+        summary.warnings.push_back(options.input.string() + ": --light: " + beyond);
+      }
+    } else if (!(light.z() > 0)) {
+      // An RTI basis is fitted to lights in front of the object only: behind, its polynomial is
+      // made up.
+      throw InputError(options.input.string() + ": --light: a light with z <= 0 is behind the " +
+                       "object (the camera is on +Z); a " + field->name() +
+                       " basis is fitted on the hemisphere toward the camera: give a light with "
+                       "z > 0");
+    }
+    image = field->relight_point(light);
   } else {
     const physics::EnvironmentMap map = physics::EnvironmentMap::load(options.environment);
     // A PCA under a map with a bright source the dome covers: the rest by LED cells, each source

@@ -102,7 +102,8 @@ struct RenderSummary {
   std::string representation;  // E.g. "hsh3", "ptm-lrgb", "pca k=12".
   int width = 0, height = 0;
   std::string sources;  // What was split off the map and rendered at its direction; empty: none.
-  double preview_stops = 0;  // The PNG preview's exposure relative to the EXR, in stops.
+  double preview_stops = 0;           // The PNG preview's exposure relative to the EXR, in stops.
+  std::vector<std::string> warnings;  // What was assumed (a light beyond the captured ones).
 };
 
 RenderSummary render_compact(const RenderOptions& options);

@@ -14,6 +14,7 @@
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
 #include "lightstage/memory.h"
+#include "lightstage/run_outputs.h"
 #include "relight/fit/basis_materials.h"
 #include "relight/fit/fit_bands.h"
 #include "relight/fit/fit_checkpoint.h"
@@ -75,6 +76,7 @@ void check(const FitJobOptions& options) {
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("fit: " + problem);
   }
+  if (!options.field_file.empty()) refuse_output_over_input(options.out, options.field_file);
 }
 
 // The time-step fields: files as given, or the field_t*.exr (else *.exr) files of a directory.
@@ -234,6 +236,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   check(options);
   if (options.time_inputs.empty()) throw InputError("fit: give the time-step fields (--time)");
   const std::vector<fs::path> files = expand_time_inputs(options.time_inputs);
+  for (const fs::path& file : files) refuse_output_over_input(options.out, file);
   // Every step opened (its header read), sorted by time.
   std::vector<std::unique_ptr<capture::FieldStream>> steps;
   std::vector<const capture::ReflectanceField*> headers;
@@ -335,6 +338,7 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("normals: " + problem);
   }
+  refuse_output_over_input(options.out, options.field_file);
   capture::FieldStream stream(options.field_file);
   const capture::ReflectanceField& header = stream.header();
   relight::FitOptions fit;
@@ -444,8 +448,9 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
     }
     checkpoints.remove();
   }
-  file->commit();
-  for (auto& preview : previews) preview->commit();
+  std::vector<ImageRowWriter*> files = {&*file};
+  for (auto& preview : previews) files.push_back(&preview->file());
+  commit_together(files);
   summary.seconds = seconds_since(start) - read_seconds;
   return summary;
 }

@@ -1,5 +1,6 @@
 #include "app/jobs/import_job.h"
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -86,6 +87,8 @@ std::vector<fs::path> series_sets(const std::vector<fs::path>& sources) {
   for (const auto& entry : fs::directory_iterator(sources[0])) {
     if (entry.is_directory()) sets.push_back(entry.path());
   }
+  // A folder of .lp files (not of sets): why it is none of them, from the format's own check.
+  if (sets.empty()) (void)capture::detect_olat_format(sources[0]);
   if (sets.empty()) {
     throw InputError(sources[0].string() +
                      ": expected an .lp set, a DiLiGenT folder, or a folder of them (one per time "
@@ -94,6 +97,44 @@ std::vector<fs::path> series_sets(const std::vector<fs::path>& sources) {
   std::sort(sets.begin(), sets.end());
   return sets;
 }
+
+namespace {
+
+// The time steps of one scene are lit alike: one format (an .lp set's sRGB images beside a
+// DiLiGenT set's linear ones would be linearised unlike) and the same light directions (else the
+// steps' samples are not of the same lights). Refused naming the first step that differs, before
+// anything is written.
+void check_one_dome(const std::vector<fs::path>& sets, const capture::OlatImportOptions& options) {
+  const capture::OlatFormat format = capture::detect_olat_format(sets[0]);
+  const capture::ReflectanceField first = capture::olat_header(sets[0], options);
+  for (size_t i = 1; i < sets.size(); ++i) {
+    const capture::OlatFormat step_format = capture::detect_olat_format(sets[i]);
+    if (step_format != format) {
+      throw InputError(sets[i].string() + ": time step " + std::to_string(i) + ": expected " +
+                       capture::to_string(format) + " like " + sets[0].string() + ", got " +
+                       capture::to_string(step_format) +
+                       ": the steps of one time-lapse are one kind of set");
+    }
+    const capture::ReflectanceField step = capture::olat_header(sets[i], options);
+    if (step.num_lights() != first.num_lights()) continue;  // Said with the step's size, below.
+    for (int l = 0; l < first.num_lights(); ++l) {
+      const Eigen::Vector3d a = first.lights()[size_t(l)].dir_in_stage.normalized();
+      const Eigen::Vector3d b = step.lights()[size_t(l)].dir_in_stage.normalized();
+      constexpr double kSameDirectionDeg = 0.1;  // Rounding in an .lp's text, no more.
+      const double degrees = std::acos(std::clamp(a.dot(b), -1.0, 1.0)) * 180 / M_PI;
+      if (degrees > kSameDirectionDeg) {
+        char text[160];
+        std::snprintf(text, sizeof text,
+                      ": time step %zu: light %d is %.2f degrees from light %d of ", i, l + 1,
+                      degrees, l + 1);
+        throw InputError(sets[i].string() + text + sets[0].string() +
+                         ": the steps of one time-lapse are lit from the same directions");
+      }
+    }
+  }
+}
+
+}  // namespace
 
 ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
                                   const std::vector<double>& times_s, double interval_s,
@@ -113,10 +154,11 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
   }
   // Three centuries: beyond that it is a typing slip (1e308 overflows the later steps' times).
   if (interval_s > 1e10) {
+    char got[32];
+    std::snprintf(got, sizeof got, "%g", interval_s);
     throw InputError(
-        "import: --interval: expected at most 1e10 s (three centuries) between "
-        "sets, got " +
-        std::to_string(interval_s) + " s");
+        "import: --interval: expected at most 1e10 s (three centuries) between sets, got " +
+        std::string(got) + " s");
   }
   if (times_s.empty() && !(interval_s > 0 && std::isfinite(interval_s))) {
     throw InputError("import: " + std::to_string(steps) +
@@ -131,6 +173,7 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
                        std::to_string(out.times_s[i - 1]) + " s (" + out.sets[i].string() + ")");
     }
   }
+  check_one_dome(out.sets, options);
   RunOutputs outputs(out_dir);  // A series refused part-way leaves no fields.
   fs::create_directories(out_dir);
   for (size_t i = 0; i < steps; ++i) {

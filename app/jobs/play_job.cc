@@ -332,6 +332,9 @@ PlayResult play_map(const Stage& stage, const capture::ReflectanceField& field,
 }
 
 PlayResult play_session(const PlaySessionOptions& options, const ProgressFn& progress) {
+  if (std::string problem = rotation_problem(options.play.rotate_deg); !problem.empty()) {
+    throw InputError("play: " + problem);
+  }
   const Session session = Session::open(options.session_dir);
   const capture::ReflectanceField field = capture::read_field(options.field);
   // The field must be this session's (its LEDs, where the stage has them): another capture's

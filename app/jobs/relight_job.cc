@@ -52,14 +52,11 @@ std::string RelightOptions::validate() const {
   if (directions_width < 4 || directions_width > 4096 || directions_width % 2 != 0) {
     return "--directions: expected an even number in 4..4096";
   }
-  if (exposure_stops && !std::isfinite(*exposure_stops)) return "--exposure: expected a number";
+  if (exposure_stops) {
+    if (std::string problem = exposure_problem(*exposure_stops); !problem.empty()) return problem;
+  }
   for (double r : rotations_deg) {
-    // Within 100 turns: an output's name carries the angle in whole degrees.
-    if (!(std::abs(r) <= 36000)) {
-      char got[64];
-      std::snprintf(got, sizeof got, "%g", r);
-      return std::string("--rotate: expected angles in degrees within [-36000, 36000], got ") + got;
-    }
+    if (std::string problem = rotation_problem(r); !problem.empty()) return problem;
   }
   if (!(coverage_deg >= 0 && coverage_deg <= 180)) {
     return "--coverage-deg: expected an angle in 0..180 degrees (0: automatic), as a stage file's "

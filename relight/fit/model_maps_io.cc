@@ -238,8 +238,10 @@ void ModelMapsWriter::write_rows(const ModelMaps& band) {
 }
 
 void ModelMapsWriter::commit() {
-  if (maps_) maps_->commit();
-  for (auto& preview : previews_) preview->commit();
+  std::vector<ImageRowWriter*> files;
+  if (maps_) files.push_back(maps_.get());
+  for (auto& preview : previews_) files.push_back(&preview->file());
+  commit_together(files);
 }
 
 void write_model_maps(const std::filesystem::path& path, const ModelMaps& maps,

@@ -91,8 +91,9 @@ void TemporalMapsWriter::write_rows(const TemporalMaps& band) {
 }
 
 void TemporalMapsWriter::commit() {
-  maps_->commit();
-  for (auto& preview : previews_) preview->commit();
+  std::vector<ImageRowWriter*> files = {maps_.get()};
+  for (auto& preview : previews_) files.push_back(&preview->file());
+  commit_together(files);
 }
 
 double max_temporal_rate(const Image& maps) {

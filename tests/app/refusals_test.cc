@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iterator>
 #include <memory>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -74,6 +75,22 @@ TEST_F(Refusals, OptionsOutsideTheirUseAreRefusedNamingThem) {
              " --rotate 1e300 --out " + Path("rot"),
          1, {"--rotate", "1e+300"});
   EXPECT_FALSE(fs::exists(Path("rot")));
+  // The same bound on every command that turns a map; an exposure beyond any scene's range.
+  const std::string map = (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string();
+  ASSERT_EQ(
+      Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("rot.ptm"), nullptr),
+      0);
+  Expect("render " + Path("rot.ptm") + " --env " + map + " --rotate 1e300 --out " + Path("rot.exr"),
+         1, {"--rotate", "[-36000, 36000]", "1e+300"});
+  Expect("play " + Path("s") + " --field " + Path("f.exr") + " --env " + map +
+             " --rotate 1e300 --out " + Path("rot_play"),
+         1, {"--rotate", "[-36000, 36000]", "1e+300"});
+  Expect("relight --quiet " + Path("f.exr") + " --env " + map + " --exposure 1e300 --out " +
+             Path("exposed"),
+         1, {"--exposure", "[-64, 64]", "1e+300"});
+  for (const char* made : {"rot.exr", "rot_play", "exposed"}) {
+    EXPECT_FALSE(fs::exists(Path(made))) << made;
+  }
   // A negative group size.
   Expect("play " + Path("s") + " --env " +
              (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string() +
@@ -98,6 +115,10 @@ TEST_F(Refusals, OptionsThatWouldBeIgnoredOrWrappedAreRefused) {
          {"--tile", "--format pca only"});
   Expect("compress " + Path("f.exr") + " --format pca --out " + Path("pca.ptm"), 2,
          {"pca.ptm", "writes a .lspca file, not a .ptm"});
+  Expect("compress " + Path("f.exr") + " --format ptm --out " + Path("ptm.pca"), 2,
+         {"ptm.pca", "writes a .ptm file, not a .pca"});
+  Expect("compress " + Path("f.exr") + " --out " + Path("pca.exr"), 2,
+         {"pca.exr", "writes a .lspca file, not a .exr"});
   Expect("export openlime " + Path("f.exr") + " --image png --quality 50 --out " + Path("q50"), 2,
          {"--quality", "jpg only"});
   ASSERT_EQ(
@@ -113,8 +134,8 @@ TEST_F(Refusals, OptionsThatWouldBeIgnoredOrWrappedAreRefused) {
   Expect("play " + Path("s") + " --field " + Path("f.exr") + " --env " + map +
              " --rotate nan --out " + Path("nan"),
          1, {"--rotate", "finite"});
-  for (const char* made :
-       {"cov", "dirs", "r.ptm", "t.rti", "pca.ptm", "q50", "l.exr", "seed", "gain", "nan"}) {
+  for (const char* made : {"cov", "dirs", "r.ptm", "t.rti", "pca.ptm", "ptm.pca", "pca.exr", "q50",
+                           "l.exr", "seed", "gain", "nan"}) {
     EXPECT_FALSE(fs::exists(Path(made))) << made;
   }
 }
@@ -195,6 +216,113 @@ TEST_F(Refusals, InputsThatSayAThingTwiceOrAskForWhatIsNotThereAreRefused) {
   }
 }
 
+// An --out that is a file where a folder is written is bad input (exit 2) naming it, not a
+// storage fault; the file stays as it was.
+TEST_F(Refusals, AnOutputFolderThatIsAFileIsRefusedNamingIt) {
+  const std::string map = (testing::source_dir() / "data" / "envmaps" / "sky_sun.exr").string();
+  std::ofstream(*tmp_ / "afile") << "junk";
+  WriteLp(*tmp_ / "lp_file",
+          {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866", "c.png 0 0.5 0.866", "d.png 0 -0.5 0.866"});
+  const std::string lp = Path("lp_file/set.lp");
+  for (const std::string& command : std::vector<std::string>{
+           "relight --quiet " + Path("f.exr") + " --env " + map + " --out ",
+           "export openlime --quiet " + Path("f.exr") + " --out ",
+           "play " + Path("s") + " --field " + Path("f.exr") + " --env " + map + " --out ",
+           "envmaps --width 32 --out ",
+           "import --quiet " + lp + " " + lp + " --interval 5 --out ",
+           "capture --quiet --out ",
+       }) {
+    Expect(command + Path("afile"), 2, {Path("afile") + ": expected a folder"});
+    Expect(command + Path("afile/below"), 2, {Path("afile") + ": expected a folder"});
+  }
+  std::ifstream in(*tmp_ / "afile");
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()),
+            "junk");
+}
+
+// An output that is one of the inputs (or a link to it) is refused naming both, the input intact.
+TEST_F(Refusals, AnOutputThatIsAnInputIsRefusedNamingBoth) {
+  fs::copy_file(*tmp_ / "f.exr", *tmp_ / "in.exr", fs::copy_options::overwrite_existing);
+  fs::create_symlink(*tmp_ / "in.exr", *tmp_ / "link.exr");
+  const std::string in = Path("in.exr");
+  const std::string bytes = testing::Slurp(*tmp_ / "in.exr");
+  Expect("fit --quiet " + in + " --out " + in, 2, {in + ": --out is the input " + in});
+  Expect("fit --quiet " + in + " --out " + Path("link.exr"), 2, {"--out is the input " + in});
+  Expect("normals --quiet " + in + " --out " + in, 2, {in + ": --out is the input " + in});
+  Expect("compress --quiet " + in + " --out " + in, 2, {in});
+  WriteLp(*tmp_ / "lp_over",
+          {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866", "c.png 0 0.5 0.866", "d.png 0 -0.5 0.866"});
+  const std::string image = Path("lp_over/b.png");
+  const std::string png = testing::Slurp(image);
+  Expect("import --quiet " + Path("lp_over/set.lp") + " --out " + image, 2,
+         {image + ": --out is the input " + image});
+  EXPECT_EQ(testing::Slurp(*tmp_ / "in.exr"), bytes) << "the input was overwritten";
+  EXPECT_EQ(testing::Slurp(image), png) << "the image was overwritten";
+}
+
+// A light behind the object (z <= 0) is refused for an RTI basis (fitted on the hemisphere toward
+// the camera); a PCA lit from beyond its captured lights (from below the dome) is rendered with
+// a warning that says so.
+TEST_F(Refusals, ALightACompactFileCannotShowIsRefusedOrWarned) {
+  ASSERT_EQ(Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("below.ptm"),
+                nullptr),
+            0);
+  ASSERT_EQ(Run("compress --quiet " + Path("f.exr") + " --out " + Path("below.lspca"), nullptr), 0);
+  Expect("render " + Path("below.ptm") + " --light 0 0 -1 --out " + Path("below_ptm.exr"), 2,
+         {Path("below.ptm") + ": --light", "z > 0"});
+  EXPECT_FALSE(fs::exists(Path("below_ptm.exr")));
+  Expect(
+      "render " + Path("below.lspca") + " --light 0 -1 0 --out " + Path("below_pca.exr"), 0,
+      {"warning: " + Path("below.lspca") + ": --light: extrapolated beyond the captured lights"});
+  std::string out;
+  ASSERT_EQ(
+      Run("render " + Path("below.lspca") + " --light 0 1 0.3 --out " + Path("above.exr"), &out),
+      0);
+  EXPECT_EQ(out.find("extrapolated"), std::string::npos) << out;
+}
+
+// The time steps of a time-lapse are one kind of set lit from the same directions: a step lit
+// otherwise, or a DiLiGenT folder (linear) among .lp sets (sRGB), is refused naming the step.
+TEST_F(Refusals, ATimeLapseWhoseStepsAreLitUnlikeIsRefusedNamingTheStep) {
+  const std::vector<std::string> lights = {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866",
+                                           "c.png 0 0.5 0.866", "d.png 0 -0.5 0.866"};
+  WriteLp(*tmp_ / "tl" / "t0", lights);
+  WriteLp(*tmp_ / "tl" / "t1", {lights[0], lights[1], lights[2], "d.png 0 -0.6 0.8"});
+  Expect("import --quiet " + Path("tl/t0/set.lp") + " " + Path("tl/t1/set.lp") +
+             " --interval 5 --out " + Path("tl_out"),
+         2, {Path("tl/t1/set.lp") + ": time step 1: light 4 is", "from light 4 of"});
+  WriteLp(*tmp_ / "dil", lights);
+  std::ofstream(*tmp_ / "dil" / "filenames.txt") << "a.png\nb.png\nc.png\nd.png\n";
+  std::ofstream(*tmp_ / "dil" / "light_directions.txt")
+      << "0.5 0 0.866\n-0.5 0 0.866\n0 0.5 0.866\n0 -0.5 0.866\n";
+  fs::remove(*tmp_ / "dil" / "set.lp");
+  Expect("import --quiet " + Path("tl/t0/set.lp") + " " + Path("dil") + " --interval 5 --out " +
+             Path("tl_out"),
+         2, {Path("dil") + ": time step 1: expected RTI .lp file", "got DiLiGenT folder"});
+  EXPECT_FALSE(fs::exists(Path("tl_out")));
+}
+
+// A refusal says what is wrong, not a cause that only looks like it.
+TEST_F(Refusals, ARefusalNamesWhatIsWrongNotAnotherCause) {
+  fs::create_directories(*tmp_ / "a_folder");
+  Expect("stage " + Path("a_folder"), 2, {Path("a_folder") + ": a folder, not a stage file"});
+  std::ofstream(*tmp_ / "flat_folder.json") << R"({"layout": {"type": "fibonacci", "count": 10},
+    "calibration": {"flat_field": "a_folder"}})";
+  Expect("stage " + Path("flat_folder.json"), 2,
+         {"calibration.flat_field", "a_folder is a folder, not a file"});
+  WriteLp(*tmp_ / "two_lp", {"a.png 0.5 0 0.866", "b.png -0.5 0 0.866", "c.png 0 0.5 0.866"});
+  fs::copy_file(*tmp_ / "two_lp" / "set.lp", *tmp_ / "two_lp" / "copy.lp");
+  Expect("import --quiet " + Path("two_lp") + " --out " + Path("two_lp.exr"), 2,
+         {"expected exactly one .lp file in the folder, found 2"});
+  std::string out;
+  EXPECT_EQ(Run("import --quiet " + Path("two_lp/set.lp") + " " + Path("two_lp/copy.lp") +
+                    " --interval 0 --out " + Path("iv0"),
+                &out),
+            1);
+  EXPECT_NE(out.find("--interval: expected a positive number, got 0"), std::string::npos) << out;
+  EXPECT_LT(out.size(), 200u) << out;
+}
+
 TEST_F(Refusals, WhatIsAssumedIsSaid) {
   Expect("compress " + Path("f.exr") + " --format pca --rank 100000 --out " + Path("r.lspca"), 0,
          {"warning: --rank 100000: more than this field allows", "used"});
@@ -210,6 +338,29 @@ TEST_F(Refusals, QuietIsTakenByEveryCommandThatWrites) {
   ASSERT_EQ(Run("export openlime --quiet " + Path("f.exr") + " --out " + Path("quiet_ol"), &quiet),
             0);
   EXPECT_LT(quiet.size(), out.size()) << "--quiet printed as much as without it: " << quiet;
+}
+
+// --quiet is taken by every command and subcommand, those that show no progress too.
+TEST_F(Refusals, QuietIsTakenByEveryCommand) {
+  // Every command and subcommand, separated by commas.
+  std::istringstream commands(
+      "capture,build,relight,fit,normals,view,import,compress,export openlime,render,play,"
+      "calibrate directions,calibrate intensities,calibrate camera,stage,envmaps,devices,check,"
+      "demo,bench leds,bench sun,bench exposures,bench fit,bench fit-sweeps,bench temporal,"
+      "bench compact,bench rti,bench charts,bench scale");
+  for (std::string command; std::getline(commands, command, ',');) {
+    Expect(command + " --help", 0, {"--quiet"});
+  }
+  ASSERT_EQ(Run("compress --quiet " + Path("f.exr") + " --format ptm --out " + Path("quiet.ptm"),
+                nullptr),
+            0);
+  Expect("stage --quiet", 0, {"LEDs"});
+  Expect("stage --quiet --write " + Path("quiet_stage.json"), 0, {});
+  Expect("envmaps --quiet --width 32 --out " + Path("quiet_maps"), 0, {});
+  Expect("render --quiet " + Path("quiet.ptm") + " --light 0 0 1 --out " + Path("quiet.exr"), 0,
+         {});
+  Expect("devices --quiet --no-cameras", 0, {});
+  Expect("bench charts --quiet --dir " + Path("quiet_maps"), 2, {"no bench CSV file"});
 }
 
 // A capture whose frames cannot fit in memory is refused before a device opens or a file is

@@ -63,6 +63,14 @@ fs::path FillDisk(const fs::path& dir) {
   return filler;
 }
 
+// Fills the disk holding dir but for about free_kib KiB; returns the filler file.
+fs::path FillDiskLeaving(const fs::path& dir, int free_kib) {
+  const fs::path filler = FillDisk(dir);
+  const uintmax_t size = fs::file_size(filler), room = uintmax_t(free_kib) * 1024;
+  fs::resize_file(filler, size > room ? size - room : 0);
+  return filler;
+}
+
 TEST(StorageFault, CaptureThatCannotFitIsRefusedBeforeItStarts) {
   testing::TempDir tmp;
   const fs::path stage = WriteSmallStage(tmp.path());
@@ -233,6 +241,89 @@ TEST(StorageFault, EveryCommandOnAFullDiskExitsFourNamingThePathAndLeavesNothing
     EXPECT_EQ(run_command(cli_path().string() + " " + command, &out), 4) << command << "\n" << out;
     EXPECT_NE(out.find("storage error: " + on_disk), std::string::npos) << command << "\n" << out;
     EXPECT_EQ(Listing(tmp / "disk"), before) << command << " left files behind";
+  }
+}
+
+// A capture or demo that fails on a full disk before its first frame says why ("No space left")
+// and removes the session folder it made, and the folders above it that it made; a folder that
+// was there stays, as it was.
+TEST(StorageFault, CaptureThatFailsBeforeItsFirstFrameLeavesNoSession) {
+  testing::TempDir tmp;
+  const fs::path stage = WriteSmallStage(tmp.path());
+  SmallDisk disk(tmp / "disk", "1m");
+  ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
+  fs::create_directories(tmp / "disk" / "mine");
+  std::ofstream(tmp / "disk" / "mine" / "notes.txt") << "the user's";
+  const std::string cli = cli_path().string();
+  const std::string on_disk = (tmp / "disk").string() + "/";
+  const std::vector<std::string> commands = {
+      "capture --quiet --stage " + stage.string() + " --out " + on_disk + "a/b/sess",
+      "capture --quiet --stage " + stage.string() + " --out " + on_disk + "mine",
+      "demo --quiet --resolution 16 --no-truth --no-shared-maps --out " + on_disk + "demo",
+  };
+  for (const int free_kib : {0, 8, 16, 32}) {
+    for (const std::string& command : commands) {
+      const fs::path filler = FillDiskLeaving(tmp / "disk", free_kib);
+      std::string out;
+      const int code = run_command(cli + " " + command, &out);
+      const std::string what = command + " with " + std::to_string(free_kib) + " KiB free\n" + out;
+      EXPECT_EQ(code, 4) << what;
+      if (free_kib == 0) {
+        EXPECT_NE(out.find("No space left"), std::string::npos) << what;
+      }
+      EXPECT_EQ(Listing(tmp / "disk"), (std::set<std::string>{"filler", "mine"})) << what;
+      EXPECT_EQ(Listing(tmp / "disk" / "mine"), std::set<std::string>{"notes.txt"}) << what;
+      fs::remove(filler);
+    }
+  }
+}
+
+// fit, normals and fit --time on a disk with room for part of what they write (the maps, then
+// their previews): each completes, or fails with exit 4 leaving neither maps nor previews; a run
+// in bands may keep only its .partial/ folder, which it names.
+TEST(StorageFault, FitsThatRunOutOfSpaceLeaveNeitherMapsNorPreviews) {
+  testing::TempDir tmp;
+  const fs::path field = CaptureAndBuild(tmp);
+  const std::string cli = cli_path().string();
+  std::string out;
+  const fs::path lp = WriteLpSet(tmp / "lp");
+  ASSERT_EQ(run_command(cli + " import --quiet " + lp.string() + " " + lp.string() +
+                            " --interval 5 --out " + (tmp / "steps").string(),
+                        &out),
+            0)
+      << out;
+  SmallDisk disk(tmp / "disk", "2m");
+  ASSERT_TRUE(disk.mounted()) << "mount(tmpfs) failed: run inside unshare -m as root";
+  const std::string on_disk = (tmp / "disk").string() + "/";
+  const std::vector<std::string> commands = {
+      "fit --quiet " + field.string() + " --out " + on_disk + "m.exr",
+      "normals --quiet " + field.string() + " --out " + on_disk + "n.exr",
+      "fit --quiet --time " + (tmp / "steps").string() + " --out " + on_disk + "t.exr",
+      "fit --quiet --memory 16K --time " + (tmp / "steps").string() + " --out " + on_disk +
+          "tb.exr",
+  };
+  for (const std::string& command : commands) {
+    bool failed_once = false;
+    for (int free_kib = 0; free_kib <= 640; free_kib += 32) {
+      const fs::path filler = FillDiskLeaving(tmp / "disk", free_kib);
+      const int code = run_command(cli + " " + command, &out);
+      const std::string what = command + " with " + std::to_string(free_kib) + " KiB free\n" + out;
+      std::set<std::string> left = Listing(tmp / "disk");
+      left.erase("filler");
+      if (code == 0) break;
+      failed_once = true;
+      EXPECT_EQ(code, 4) << what;
+      EXPECT_NE(out.find("storage error: " + on_disk), std::string::npos) << what;
+      for (const std::string& name : left) {
+        EXPECT_TRUE(name.ends_with(".partial") &&
+                    out.find(on_disk + name + "/ kept for resuming") != std::string::npos)
+            << name << " left behind by " << what;
+        fs::remove_all(tmp / "disk" / name);
+      }
+      fs::remove(filler);
+    }
+    EXPECT_TRUE(failed_once) << command << " never ran out of space";
+    for (const auto& e : fs::directory_iterator(tmp / "disk")) fs::remove_all(e.path());
   }
 }
 

@@ -6,8 +6,10 @@
 #include <fstream>
 #include <iostream>
 #include <optional>
+#include <tuple>
 
 #include "capture/olat_import.h"
+#include "lightstage/errors.h"
 #include "physics/envmap.h"
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
@@ -249,6 +251,31 @@ TEST(OlatImport, LpFindsMovedImagesByFileNameAndSaysSo) {
   EXPECT_NE(notes.find("backslashes"), std::string::npos) << notes;
   EXPECT_NE(notes.find("same name"), std::string::npos) << notes;
   EXPECT_NE(notes.find("session 7"), std::string::npos) << notes;
+}
+
+// A set mixing a grey image among colour ones, or a 16-bit among 8-bit ones, was not taken by one
+// camera in one export: refused naming the odd image, its line and what the first one is.
+TEST(OlatImport, LpMixingPixelFormatsIsRefusedNamingTheOddImage) {
+  for (const auto& [channels, bits, odd] :
+       {std::tuple{1, 8, "8-bit grey"}, std::tuple{3, 16, "16-bit colour"}}) {
+    ls::testing::TempDir tmp;
+    std::string lp = "3\n";
+    for (int i = 0; i < 3; ++i) {
+      const std::string name = "light_" + std::to_string(i) + ".png";
+      const int c = i == 2 ? channels : 3, b = i == 2 ? bits : 8;
+      write_codes(tmp / name, 4, 4, c, std::vector<uint16_t>(size_t(4 * 4 * c), 100), b);
+      lp += name + " 0 " + std::to_string(0.1 * i) + " 1\n";
+    }
+    write_text(tmp / "set.lp", lp);
+    try {
+      (void)import_rti_lp(tmp / "set.lp", {}, nullptr);
+      ADD_FAILURE() << odd << " among 8-bit colour images was taken";
+    } catch (const InputError& e) {
+      EXPECT_THAT(e.what(), ::testing::HasSubstr("set.lp:4: image format: expected 8-bit colour"));
+      EXPECT_THAT(e.what(), ::testing::HasSubstr(std::string("got ") + odd));
+      EXPECT_THAT(e.what(), ::testing::HasSubstr("light_2.png"));
+    }
+  }
 }
 
 }  // namespace

@@ -88,6 +88,10 @@ TEST(MemoryBudget, ASmallBudgetIsTakenWithANote) {
   EXPECT_THAT(MemoryBudget::parse("20000").note(), HasSubstr("--memory 19.5 KiB is below 16 MiB"));
   EXPECT_THAT(MemoryBudget::parse("20000").note(), HasSubstr("taken as given"));
   EXPECT_EQ(MemoryBudget::parse("16M").note(), "");
+  // More than the machine has: said, with what is available and what is used.
+  EXPECT_THAT(MemoryBudget::parse("100000T").note(), HasSubstr("--memory 97.7 PiB is more than"));
+  EXPECT_THAT(MemoryBudget::parse("100000T").note(),
+              HasSubstr("of memory available: used as given"));
   EXPECT_EQ(MemoryBudget().note(), "");
 }
 

@@ -93,5 +93,23 @@ TEST(RunOutputs, AFailedRunRemovesTheFolderItMadeOrTheFilesItWrote) {
   EXPECT_TRUE(fs::exists(tmp / "done"));
 }
 
+TEST(RunOutputs, AFailedRunRemovesTheFoldersItMadeAboveItsOwnAndTheFoldersItWasToldOf) {
+  testing::TempDir tmp;
+  {
+    RunOutputs outputs(tmp / "a" / "b" / "out/");
+    fs::create_directories(tmp / "a" / "b" / "out" / "frames");
+  }
+  EXPECT_FALSE(fs::exists(tmp / "a"));
+  fs::create_directories(tmp / "mine");
+  {
+    RunOutputs outputs(tmp / "mine");
+    outputs.add(tmp / "mine" / "frames");
+    fs::create_directories(tmp / "mine" / "frames");
+    std::ofstream(tmp / "mine" / "frames" / "f.png") << "f";
+  }
+  EXPECT_TRUE(fs::exists(tmp / "mine"));
+  EXPECT_FALSE(fs::exists(tmp / "mine" / "frames"));
+}
+
 }  // namespace
 }  // namespace ls

@@ -147,6 +147,24 @@ TEST(Stage, ErrorsNameTheFileTheFieldAndWhatWasExpected) {
                    {"leds[0].intensty", "unknown field"});
   ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensity": -2}]})",
                    {"leds[0].intensity", "positive"});
+  // A key given twice: the second would silently replace the first.
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
+                       "camera": {"width": 32, "width": 64}})",
+                   {"camera.width: given twice"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 1, 0]}, {"direction": [1, 0, 0], "id": 3,
+                       "direction": [0, 0, 1]}]})",
+                   {"leds[1].direction: given twice"});
+  // Values that overflow (or vanish in) the floats the pipeline computes in (a direction is
+  // normalised in double first: GeneratedLayoutAndPositions).
+  ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensity": 1e39}]})",
+                   {"leds[0].intensity", "32-bit float", "1e+39"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "intensity": 1e-39}]})",
+                   {"leds[0].intensity", "32-bit float"});
+  ExpectStageError(R"({"leds": [{"direction": [0, 1, 0], "color": [1e39, 1, 1]}]})",
+                   {"leds[0].color", "32-bit float"});
+  ExpectStageError(R"({"layout": {"type": "fibonacci", "count": 10},
+                       "camera": {"radiometric_scale": 1e39}})",
+                   {"camera.radiometric_scale", "32-bit float"});
   ExpectStageError(
       R"({"leds": [{"id": 1, "direction": [0, 1, 0]}, {"id": 1, "direction": [1, 0, 0]}]})",
       {"leds[1].id", "unique"});

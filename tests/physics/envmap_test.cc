@@ -325,6 +325,29 @@ TEST(EnvmapTest, RejectsNonFiniteAndNegativeRadianceNamingFileAndPixel) {
                      {"in-memory.exr: pixel (x=6, y=2) channel B", "got inf"});
 }
 
+// A map file that is not RGB radiance: an 8-bit preview (display-referred), a grey or an XYZ map.
+TEST(EnvmapTest, LoadRefusesAFileThatIsNotRgbRadianceSayingWhatItIs) {
+  ls::testing::TempDir tmp;
+  const Image rgb(8, 4, 3, 1.0f);
+  const fs::path png = tmp / "preview.png";
+  ls::write_png_preview(png, rgb, 0.0);
+  expect_input_error([&] { EnvironmentMap::load(png); },
+                     {png.string(), "display-referred", "HDR map (.exr or .hdr)"});
+  const fs::path grey = tmp / "grey.exr";
+  ls::write_exr(grey, Image(8, 4, 1, 1.0f));
+  expect_input_error([&] { EnvironmentMap::load(grey); },
+                     {grey.string(), "channels: 1 (Y), a grey map", "expected RGB radiance"});
+  Image xyz(8, 4, 3, 1.0f);
+  xyz.channel_names = {"X", "Y", "Z"};
+  const fs::path xyz_file = tmp / "xyz.exr";
+  ls::write_exr(xyz_file, xyz);
+  expect_input_error([&] { EnvironmentMap::load(xyz_file); },
+                     {xyz_file.string(), "channels X, Y, Z", "expected RGB radiance"});
+  const fs::path ok = tmp / "rgb.exr";
+  ls::write_exr(ok, rgb);
+  EXPECT_EQ(EnvironmentMap::load(ok).width(), 8);
+}
+
 TEST(EnvmapTest, RejectsWrongChannelCountAndAspect) {
   ls::testing::TempDir tmp;
   const fs::path two_channel = tmp / "two_channel.exr";
