@@ -34,13 +34,13 @@ namespace ls::cli {
 
 namespace fs = std::filesystem;
 
-namespace {
-
 // --quiet of the bench that runs (one a process): no progress output.
 bool& bench_quiet() {
   static bool quiet = false;
   return quiet;
 }
+
+namespace {
 
 void print_leds(const evaluation::LedBenchSummary& summary) {
   std::printf("%6s %-14s %-15s %10s %8s %11s %11s %10s\n", "LEDs", "map", "method", "rel.RMSE",

@@ -38,6 +38,7 @@ void add_render_command(CLI::App& app);         // compact_command.cc
 void add_export_command(CLI::App& app);         // compact_command.cc
 void add_material_exports(CLI::App& exporter);  // material_command.cc: export gltf, materialx
 void add_material_bench(CLI::App& bench);       // material_command.cc: bench material
+bool& bench_quiet();                            // bench_command.cc: the running bench's --quiet
 void add_devices_command(CLI::App& app);
 void add_check_command(CLI::App& app);
 void add_play_command(CLI::App& app);  // play_command.cc: the superposition check.

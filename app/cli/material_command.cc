@@ -35,7 +35,7 @@ void add_material_export(CLI::App& exporter, const std::string& format,
                      "recovered from it (normals and the LEDs' shadows), not a plane.")
         ->check(CLI::ExistingFile);
   }
-  command->add_flag("--quiet", *quiet, "No progress output.");
+  add_quiet_flag(*command, *quiet);
   command->callback([args, quiet] {
     const auto lock = lock_output(args->out);
     const jobs::MaterialExportSummary s = jobs::export_material(*args, progress_printer(*quiet));
@@ -89,7 +89,7 @@ void add_material_bench(CLI::App& bench) {
   cmd->add_option("--samples", args->samples, "Cycles samples per pixel.")->capture_default_str();
   cmd->callback([args] {
     const evaluation::MaterialBenchSummary s =
-        evaluation::run_material_bench(*args, progress_printer(false));
+        evaluation::run_material_bench(*args, progress_printer(bench_quiet()));
     std::printf(
         "conversion: %d pixels in %.3f s (%.0f pixels/s); error median %.1f%%, p95 %.1f%%\n",
         s.pixels, s.conversion_s, s.pixels / std::max(s.conversion_s, 1e-9), 100 * s.median_error,
