@@ -447,18 +447,24 @@ ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
   const DepthInput in = reduce_fit(fit, scale_);
   width_ = in.width;
   height_ = in.height;
+  // The regions the carving places, counted first: the phase's total is the LEDs and them.
+  const Surfaces surfaces = split_surfaces(in);
+  int to_place = 0;
+  for (int r = 0; surfaces.background >= 0 && r < int(surfaces.pixels.size()); ++r) {
+    to_place +=
+        r != surfaces.background && placed_by_carving(surfaces, r, size_t(in.width) * in.height);
+  }
+  const int leds = int(led_dirs.size());
   std::vector<LitMask> lit;
-  for (int l = 0; l < int(led_dirs.size()); ++l) {
+  for (int l = 0; l < leds; ++l) {
     const LitMask mask = lit_mask(l);
     LS_CHECK(mask.size() == size_t(field_width_) * field_height_,
              "ShadowGeometry: LED " + std::to_string(l) + "'s mask is not the field's size");
     led_dirs_.push_back(led_dirs[size_t(l)].normalized().cast<float>());
     led_lit_bits_.push_back(pack_lit_bits(mask));
     lit.push_back(reduce_mask(mask, field_width_, field_height_, in, scale_));
-    // The carving still to come: one more.
-    report(progress, kPhase, l + 1, long(led_dirs.size()) + 1);
+    report(progress, kPhase, l + 1, leds + to_place);
   }
-  const Surfaces surfaces = split_surfaces(in);
   Depth depth{width_, height_, {}, {}};
   depth.top.assign(size_t(width_) * height_, kNoSurface);
   depth.thickness.assign(depth.top.size(), kAttached);
@@ -472,11 +478,7 @@ ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
         if (floating[size_t(r)]) depth.thickness[size_t(p)] = 2 * relief[size_t(p)] + 1;
       }
     }
-    int to_place = 0, placed = 0;
-    for (int r = 0; r < int(surfaces.pixels.size()); ++r) {
-      to_place += r != surfaces.background && placed_by_carving(surfaces, r, depth.top.size());
-    }
-    const int leds = int(led_dirs.size());
+    int placed = 0;
     place_regions(depth, surfaces, relief, floating, lit, led_dirs_,
                   [&] { report(progress, kPhase, leds + ++placed, leds + to_place); });
     continue_small_regions(depth, surfaces, floating, in);

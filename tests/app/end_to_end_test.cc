@@ -283,21 +283,34 @@ TEST(EndToEnd, ASmallSourceBetweenDeadLedsIsRenderedFromTheLiveOnes) {
 }
 
 // The scene's shape recovered from the field (relight/sources/shadow_geometry.h) against the
-// simulator's: heights toward the camera above the backdrop, per object, in pixels.
+// simulator's: heights toward the camera above the backdrop, per object, in pixels; its progress
+// counts to one total.
 TEST(EndToEnd, TheShapeRecoveredFromTheLedsShadowsMatchesTheScene) {
   const DemoCapture demo(96);
   const relight::NormalMap normals = relight::estimate_normals(demo.field, {});
   const relight::LambertianFit fit{normals.normal, normals.albedo};
   std::vector<Eigen::Vector3d> dirs;
   for (const capture::FieldLight& light : demo.field.lights()) dirs.push_back(light.dir_in_stage);
-  const relight::ShadowGeometry shape(fit, dirs, [&](int led) {
-    std::vector<float> rgb;
-    for (size_t p = 0; p < size_t(96 * 96); ++p) {
-      const float* v = demo.field.values().data() + 3 * (p * dirs.size() + size_t(led));
-      rgb.insert(rgb.end(), v, v + 3);
-    }
-    return relight::led_lit_mask(dirs[size_t(led)], rgb, fit);
-  });
+  long progress_done = 0, progress_total = 0;
+  const relight::ShadowGeometry shape(
+      fit, dirs,
+      [&](int led) {
+        std::vector<float> rgb;
+        for (size_t p = 0; p < size_t(96 * 96); ++p) {
+          const float* v = demo.field.values().data() + 3 * (p * dirs.size() + size_t(led));
+          rgb.insert(rgb.end(), v, v + 3);
+        }
+        return relight::led_lit_mask(dirs[size_t(led)], rgb, fit);
+      },
+      [&](const std::string&, long done, long total, const std::string&) {
+        // One total for the phase, never exceeded.
+        EXPECT_LE(done, total);
+        EXPECT_TRUE(progress_total == 0 || total == progress_total)
+            << total << " after " << progress_total;
+        progress_total = total;
+        progress_done = done;
+      });
+  EXPECT_EQ(progress_done, progress_total);
   ASSERT_EQ(shape.scale(), 1);
   const double px_per_m = demo.stage.camera.height / demo.stage.camera.ortho_height_m;
   const double backdrop_z = demo.scene.planes[0].center.z();
