@@ -93,9 +93,8 @@ TextureValues roughness_values(const GgxConversion& m, int channels, int channel
   return t;
 }
 // D moves with a = r^2: da / a = 2 dr / r; no lobe, no effect.
-EightBitImpact roughness_impact(const GgxConversion& m, int channels, int channel) {
-  return [&m, channels, channel](size_t i, const float* v, const float* eight) {
-    (void)channels;
+EightBitImpact roughness_impact(const GgxConversion& m, int channel) {
+  return [&m, channel](size_t i, const float* v, const float* eight) {
     if (!(m.strength.pixels[i] > 0)) return 0.0;
     return 2.0 * std::abs(eight[channel] - v[channel]) / std::max(double(v[channel]), 0.02);
   };
@@ -124,6 +123,27 @@ void make_dir(const fs::path& dir) {
   if (ec) throw StorageError(dir.string() + ": cannot make the folder: " + ec.message());
 }
 
+// The four textures, in the order both documents index them: base colour, roughness, normal,
+// strength. glTF packs the roughness in G of metallic_roughness and the strength in an alpha
+// (KHR_materials_specular's); MaterialX takes grey images.
+std::vector<WrittenTexture> write_textures(const fs::path& dir, const GgxConversion& m,
+                                           const Image& normals, bool gltf) {
+  make_dir(dir);
+  const int roughness_channels = gltf ? 3 : 1, roughness_channel = gltf ? 1 : 0;
+  const int strength_channels = gltf ? 4 : 1;
+  return {write_texture(dir, m, base_color_values(m),
+                        [&m](size_t i, const float* v, const float* e) {
+                          return base_color_impact(m, i, v, e);
+                        }),
+          write_texture(dir, m, roughness_values(m, roughness_channels, roughness_channel),
+                        roughness_impact(m, roughness_channel)),
+          write_texture(
+              dir, m, normal_values(normals),
+              [&m](size_t i, const float* v, const float* e) { return normal_impact(m, i, v, e); }),
+          write_texture(dir, m, strength_values(m, strength_channels),
+                        strength_impact(m, strength_channels))};
+}
+
 // Appends `bytes` to the glTF buffer, 4-byte aligned; its bufferView index.
 int add_view(std::string& buffer, nlohmann::json& views, const void* bytes, size_t size,
              int target) {
@@ -142,17 +162,8 @@ constexpr int kLinear = 9729, kLinearMipmapLinear = 9987, kRepeat = 10497;
 
 MaterialExport write_gltf(const GgxConversion& m, const fs::path& dir, const std::string& name,
                           const SurfaceMesh& mesh) {
-  make_dir(dir);
   MaterialExport out;
-  out.textures.push_back(write_texture(
-      dir, m, base_color_values(m),
-      [&m](size_t i, const float* v, const float* e) { return base_color_impact(m, i, v, e); }));
-  out.textures.push_back(
-      write_texture(dir, m, roughness_values(m, 3, 1), roughness_impact(m, 3, 1)));
-  out.textures.push_back(write_texture(
-      dir, m, normal_values(tangent_space_normals(m.normal, mesh)),
-      [&m](size_t i, const float* v, const float* e) { return normal_impact(m, i, v, e); }));
-  out.textures.push_back(write_texture(dir, m, strength_values(m, 4), strength_impact(m, 4)));
+  out.textures = write_textures(dir, m, tangent_space_normals(m.normal, mesh), /*gltf=*/true);
 
   std::string buffer;
   nlohmann::json views = nlohmann::json::array();
@@ -239,17 +250,8 @@ MaterialExport write_gltf(const GgxConversion& m, const fs::path& dir, const std
 
 MaterialExport write_materialx(const GgxConversion& m, const fs::path& dir,
                                const std::string& name) {
-  make_dir(dir);
   MaterialExport out;
-  out.textures.push_back(write_texture(
-      dir, m, base_color_values(m),
-      [&m](size_t i, const float* v, const float* e) { return base_color_impact(m, i, v, e); }));
-  out.textures.push_back(
-      write_texture(dir, m, roughness_values(m, 1, 0), roughness_impact(m, 1, 0)));
-  out.textures.push_back(write_texture(
-      dir, m, normal_values(m.normal),
-      [&m](size_t i, const float* v, const float* e) { return normal_impact(m, i, v, e); }));
-  out.textures.push_back(write_texture(dir, m, strength_values(m, 1), strength_impact(m, 1)));
+  out.textures = write_textures(dir, m, m.normal, /*gltf=*/false);
   // Standard Surface's dielectric F0 comes from its index of refraction.
   const double root = std::sqrt(m.f0);
   const double ior = (1 + root) / (1 - std::min(root, 0.999));
