@@ -278,7 +278,8 @@ GgxConversion* DemoExport::material_ = nullptr;
 // packages scripts/setup.sh installs are missing.
 std::string validator(const std::string& script) {
   const fs::path tools(LIGHTSTAGE_NODE_TOOLS);
-  if (std::system("command -v node >/dev/null 2>&1") != 0 || !fs::exists(tools / "node_modules")) {
+  // The marker scripts/setup.sh leaves once both packages installed whole.
+  if (std::system("command -v node >/dev/null 2>&1") != 0 || !fs::exists(tools / ".installed-1")) {
     std::cout << "skipped: no Node.js or no validators in " << tools
               << " (scripts/setup.sh installs them)\n";
     return {};
