@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "capture/field.h"
 #include "lightstage/errors.h"
 #include "sim/sim_stage.h"
 #include "sim/time_varying.h"
@@ -39,20 +40,11 @@ physics::brdf::Material shade_material(const SceneMaterial& m, const Image* text
 
 void camera_ray(const CameraSpec& camera, int x, int y, Eigen::Vector3d* origin,
                 Eigen::Vector3d* dir) {
-  const double aspect = double(camera.width) / camera.height;
-  // Pixel centres; row 0 at the top (+Y).
-  const double ndc_x = 2.0 * (x + 0.5) / camera.width - 1.0;
-  const double ndc_y = 1.0 - 2.0 * (y + 0.5) / camera.height;
-  if (camera.fov_y_deg <= 0.0) {
-    const double half_h = 0.5 * camera.ortho_height_m;
-    // Far enough in front of any stage object; the view plane is parallel to z = 0.
-    *origin = Eigen::Vector3d(ndc_x * half_h * aspect, ndc_y * half_h, 100.0);
-    *dir = Eigen::Vector3d(0, 0, -1);
-  } else {
-    const double tan_half = std::tan(0.5 * camera.fov_y_deg * physics::brdf::kPi / 180.0);
-    *origin = Eigen::Vector3d(0, 0, camera.distance_m);
-    *dir = Eigen::Vector3d(ndc_x * tan_half * aspect, ndc_y * tan_half, -1.0).normalized();
-  }
+  capture::FieldView view;
+  view.fov_y_deg = camera.fov_y_deg;
+  view.camera_distance_m = camera.distance_m;
+  view.ortho_height_m = camera.ortho_height_m;
+  capture::camera_ray(view, camera.width, camera.height, x, y, origin, dir);
 }
 
 bool hit_sees(const Tracer& tracer, const SurfaceHit& hit, const Eigen::Vector3d& dir) {
