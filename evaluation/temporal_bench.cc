@@ -216,13 +216,15 @@ void write_held_out_csv(const fs::path& path, const std::vector<HeldOutBenchRow>
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "exposure,captured_steps,temporal_fit,by_bic_alone,processes_only,step_fits_interpolated,"
-         "linear_interpolation,nearest_step,fit_at_captured,step_fits_at_captured,curve_families,"
+         "linear_interpolation,nearest_step,fit_at_captured,step_fits_at_captured,photos_at_"
+         "captured,"
+         "curve_families,"
          "lapse_steps\n";
   for (const HeldOutBenchRow& r : rows) {
     csv << r.exposure << ',' << r.captured << ',' << r.fit << ',' << r.by_bic_alone << ','
         << r.processes_only << ',' << r.step_fits_interpolated << ',' << r.linear << ','
         << r.nearest << ',' << r.fit_at_captured << ',' << r.step_fits_at_captured << ','
-        << r.curve_families << ',' << lapse_steps << '\n';
+        << r.photos_at_captured << ',' << r.curve_families << ',' << lapse_steps << '\n';
   }
   csv.close();
   write_temporal_held_out_chart(path);
@@ -244,7 +246,8 @@ std::vector<HeldOutBenchRow> run_held_out(const TemporalBenchOptions& options,
                       total(s.processes_only).relative(),
                       total(s.step_fits_interpolated).relative(), total(s.linear).relative(),
                       total(s.nearest).relative(), total(s.fit_at_captured).relative(),
-                      total(s.step_fits_at_captured).relative(), int(s.maps.curves.size())});
+                      total(s.step_fits_at_captured).relative(),
+                      total(s.photos_at_captured).relative(), int(s.maps.curves.size())});
       report(progress, "held-out steps", long(all.size() + rows.size()), runs,
              std::to_string(n) + " captured at exposure " + std::to_string(exposure));
     }

@@ -38,8 +38,8 @@ struct HeldOutBenchRow {
   // Relative RMS at the steps held out, both varying materials together (HeldOutScores).
   double fit = 0, by_bic_alone = 0, processes_only = 0, step_fits_interpolated = 0, linear = 0,
          nearest = 0;
-  // At the captured steps: the temporal fit and each step's own fit.
-  double fit_at_captured = 0, step_fits_at_captured = 0;
+  // At the captured steps: the temporal fit, each step's own fit, the photographs (their noise).
+  double fit_at_captured = 0, step_fits_at_captured = 0, photos_at_captured = 0;
   int curve_families = 0;
 };
 

@@ -125,6 +125,11 @@ HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& cap
       const relight::TemporalMaps alone =
           relight::fit_temporal_models({step_fits[next]}, normals, options);
       accumulate(lapse, step, rendered(alone, t, lights), out.step_fits_at_captured);
+      const capture::ReflectanceField& photo = lapse.noisy[size_t(step)];
+      accumulate(
+          lapse, step,
+          [&](int x, int y, int k, int c) { return photo.at(x, y, lights.index[size_t(k)], c); },
+          out.photos_at_captured);
       continue;
     }
     accumulate(lapse, step, rendered(out.maps, t, lights), out.fit);

@@ -56,6 +56,7 @@ struct HeldOutScores {
   // At the captured steps.
   ErrorsByMaterial fit_at_captured;
   ErrorsByMaterial step_fits_at_captured;  // Each step's own BRDF fit (fit_step, same normals).
+  ErrorsByMaterial photos_at_captured;     // The captured photographs themselves (their noise).
   relight::TemporalMaps maps;              // The temporal fit.
 };
 

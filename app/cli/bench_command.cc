@@ -128,13 +128,14 @@ void print_temporal(const evaluation::TemporalBenchSummary& summary) {
   std::printf(
       "\nrise-and-fall scene, relative RMS error at the steps held out, and at the captured "
       "steps:\n"
-      "%8s %8s %9s %9s %10s %10s %9s %9s %11s %11s\n",
+      "%8s %8s %9s %9s %10s %10s %9s %9s %11s %11s %12s\n",
       "exposure", "captured", "fit", "BIC alone", "processes", "step fits", "linear", "nearest",
-      "fit@capt", "steps@capt");
+      "fit@capt", "steps@capt", "photos@capt");
   for (const evaluation::HeldOutBenchRow& r : summary.held_out) {
-    std::printf("%8.2f %8d %9.4f %9.4f %10.4f %10.4f %9.4f %9.4f %11.4f %11.4f\n", r.exposure,
-                r.captured, r.fit, r.by_bic_alone, r.processes_only, r.step_fits_interpolated,
-                r.linear, r.nearest, r.fit_at_captured, r.step_fits_at_captured);
+    std::printf("%8.2f %8d %9.4f %9.4f %10.4f %10.4f %9.4f %9.4f %11.4f %11.4f %12.4f\n",
+                r.exposure, r.captured, r.fit, r.by_bic_alone, r.processes_only,
+                r.step_fits_interpolated, r.linear, r.nearest, r.fit_at_captured,
+                r.step_fits_at_captured, r.photos_at_captured);
   }
   std::fprintf(stderr,
                "wrote temporal_held_out{,_dark}.csv, temporal_held_out{,_dark}_vs_steps.png, "

@@ -4,6 +4,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -114,6 +115,9 @@ std::string TemporalFitOptions::validate() const {
     return "max_rate_times_interval: expected > 0";
   }
   if (max_iterations < 1) return "max_iterations: expected >= 1";
+  if (normal_rounds_over_steps < 0 || normal_rounds_over_steps > 10) {
+    return "normal_rounds_over_steps: expected 0..10";
+  }
   return {};
 }
 
@@ -157,9 +161,32 @@ std::vector<const capture::ReflectanceField*> steps_by_time(
   return steps;
 }
 
+NormalsAndStepFits fit_normals_and_steps(
+    const std::vector<const capture::ReflectanceField*>& sorted, const TemporalFitOptions& options,
+    const std::function<void(int rows)>& rows_done) {
+  NormalsAndStepFits out{normals_from(sorted, options), {}};
+  const auto fit_steps = [&] {
+    out.steps.clear();
+    for (auto* f : sorted) {
+      out.steps.push_back(fit_step(*f, out.normals, options));
+      if (rows_done) rows_done(f->height());
+    }
+  };
+  fit_steps();
+  for (int round = 0; round < normal_rounds(options, int(sorted.size())); ++round) {
+    out.normals = refine_normals_over_steps(sorted, out.steps, std::move(out.normals), options);
+    fit_steps();
+  }
+  return out;
+}
+
+int normal_rounds(const TemporalFitOptions& options, int steps) {
+  return options.refine_normals && steps > 1 ? options.normal_rounds_over_steps : 0;
+}
+
 NormalMap estimate_temporal_normals(const std::vector<capture::ReflectanceField>& steps,
                                     const TemporalFitOptions& options) {
-  return normals_from(steps_by_time(pointers_to(steps)), options);
+  return fit_normals_and_steps(steps_by_time(pointers_to(steps)), options).normals;
 }
 
 TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
@@ -169,15 +196,15 @@ TemporalMaps fit_temporal(const std::vector<capture::ReflectanceField>& input,
   }
   const std::vector<const capture::ReflectanceField*> order = steps_by_time(pointers_to(input));
   const auto start_time = std::chrono::steady_clock::now();
-  const NormalMap normals = normals_from(order, options);
-  const long total_rows = long(order.size() + 1) * input[0].height();
+  const long total_rows =
+      long(order.size() * (normal_rounds(options, int(order.size())) + 1) + 1) * input[0].height();
   std::atomic<long> done_rows{0};
-  std::vector<StepFit> steps;
-  for (auto* f : order) {
-    steps.push_back(fit_step(*f, normals, options));
-    done_rows += f->height();
+  NormalsAndStepFits fitted = fit_normals_and_steps(order, options, [&](int rows) {
+    done_rows += rows;
     report(options.progress, "fit over time", done_rows, total_rows);
-  }
+  });
+  const NormalMap& normals = fitted.normals;
+  std::vector<StepFit>& steps = fitted.steps;
   const double seconds_steps =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start_time).count();
   TemporalFitOptions temporal = options;

@@ -124,6 +124,9 @@ struct TemporalFitOptions {
   // dark materials (the rise-and-fall scene's corroding metal, albedo 0.06: 3.4 degrees mean
   // error from the driest step, 1.1 refined).
   bool refine_normals = true;
+  // Then refine each normal over every step at once, each step rendered by its own fit, and fit
+  // the steps again at the refined normals; this many rounds (0: the source step's normal).
+  int normal_rounds_over_steps = 2;
   bool fit_exponential = true;
   bool fit_sigmoid = true;
   bool fit_dust = true;
@@ -262,9 +265,27 @@ struct TemporalMaps {
 // is not finite or two share a time.
 std::vector<const capture::ReflectanceField*> steps_by_time(
     std::vector<const capture::ReflectanceField*> steps);
-// The fixed normals: estimate_normals on the source the options name (steps in any order), then
-// refined by each pixel's BRDF fit (options.refine_normals).
+// The fixed normals and each step's BRDF fit at them (steps sorted by time): estimate_normals on
+// the source the options name, refined by each pixel's BRDF fit on that step
+// (options.refine_normals), then normal_rounds(...) times refined over every step at once
+// (refine_normals_over_steps) and the steps fitted again. rows_done: after each step's fit.
+struct NormalsAndStepFits {
+  NormalMap normals;
+  std::vector<StepFit> steps;
+};
+NormalsAndStepFits fit_normals_and_steps(
+    const std::vector<const capture::ReflectanceField*>& sorted, const TemporalFitOptions& options,
+    const std::function<void(int rows)>& rows_done = {});
+// The rounds of refinement over every step fit_normals_and_steps makes for `steps` steps.
+int normal_rounds(const TemporalFitOptions& options, int steps);
+// fit_normals_and_steps' normals (steps in any order).
 NormalMap estimate_temporal_normals(const std::vector<capture::ReflectanceField>& steps,
+                                    const TemporalFitOptions& options);
+// Each pixel's normal refined by Gauss-Newton on the residuals of every step at once, each step
+// rendered by its own fit (`fits`, one per field, in the same order): the geometry is the same at
+// every step, so a dark or glossy pixel that one step pins down poorly is pinned down by all.
+NormalMap refine_normals_over_steps(const std::vector<const capture::ReflectanceField*>& fields,
+                                    const std::vector<StepFit>& fits, NormalMap normals,
                                     const TemporalFitOptions& options);
 // Per-step BRDF fits with fixed normals.
 StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normals,

@@ -108,38 +108,23 @@ class TimeBands : public BandPlan {
 
   const std::vector<double>& times() const { return times_; }
 
-  // Band b's normals (from its source step's rows), each step's BRDF fit and each pixel's process.
+  // Band b's normals, each step's BRDF fit and each pixel's process.
   void fit(int b) {
     const int y0 = first_row(b), y1 = end_row(b);
     const auto start = Clock::now();
-    // The normals' source: the last (driest) step, the first, or all side by side.
-    std::vector<size_t> sources;
-    switch (options_.normal_source) {
-      case relight::NormalSource::kFirst:
-        sources = {0};
-        break;
-      case relight::NormalSource::kLast:
-        sources = {steps_.size() - 1};
-        break;
-      case relight::NormalSource::kPooled:
-        for (size_t s = 0; s < steps_.size(); ++s) sources.push_back(s);
-        break;
+    // Every step's rows: the normals are refined over all of them (fit_normals_and_steps).
+    std::vector<capture::ReflectanceField> fields(steps_.size());
+    std::vector<const capture::ReflectanceField*> sorted;
+    for (size_t s = 0; s < steps_.size(); ++s) {
+      steps_[s]->read_rows(y0, y1, fields[s]);
+      sorted.push_back(&fields[s]);
     }
-    relight::NormalMap normals;
-    {
-      std::vector<capture::ReflectanceField> fields(sources.size());
-      for (size_t k = 0; k < sources.size(); ++k) steps_[sources[k]]->read_rows(y0, y1, fields[k]);
-      normals = relight::estimate_temporal_normals(fields, options_);
-    }
-    fits.clear();
-    capture::ReflectanceField field;
-    for (const auto& step : steps_) {
-      step->read_rows(y0, y1, field);
-      fits.push_back(relight::fit_step(field, normals, options_));
-    }
+    relight::NormalsAndStepFits fitted =
+        relight::fit_normals_and_steps(relight::steps_by_time(sorted), options_);
+    fits = std::move(fitted.steps);
     const double seconds_steps = seconds_since(start);
     const auto processes = Clock::now();
-    maps = relight::fit_temporal_processes(fits, normals, options_, best_bic);
+    maps = relight::fit_temporal_processes(fits, fitted.normals, options_, best_bic);
     maps.summary.seconds_steps = seconds_steps;
     maps.summary.seconds_temporal = seconds_since(processes);
   }
@@ -278,10 +263,10 @@ std::size_t time_band_row_bytes(const capture::FieldStream& step, int steps,
           (std::size_t(steps) * kStepChannels + std::size_t(2) * relight::kTemporalChannelCount +
            relight::kMapChannelCount) +
       width * sizeof(double);
-  // The band, its reader's buffer (a quarter), the fits; pooled normals hold every step's band
-  // and their copy side by side.
+  // Every step's band (the normals are refined over all of them), its reader's buffer (a
+  // quarter), the fits; pooled normals also hold a copy of every step's band side by side.
   const std::size_t field_rows =
-      source == relight::NormalSource::kPooled ? 2 * std::size_t(steps) : 1;
+      (source == relight::NormalSource::kPooled ? 2 : 1) * std::size_t(steps);
   return field_rows * field_row * 5 / 4 + fits_row;
 }
 

@@ -38,9 +38,8 @@ TimeBandFit fit_over_time_in_bands(const std::vector<std::unique_ptr<capture::Fi
                                    const std::filesystem::path& out,
                                    const ExrAttributes& attributes, const ProgressFn& progress);
 
-// The bytes a band row of the fit takes: one step's field row (as read, with its reader's
-// buffer; every step's, twice, for pooled normals), every step's fit of the row, the maps and the
-// normals' fit.
+// The bytes a band row of the fit takes: every step's field row (as read, with its reader's
+// buffer; twice for pooled normals), every step's fit of the row, the maps and the normals' fit.
 std::size_t time_band_row_bytes(const capture::FieldStream& step, int steps,
                                 relight::NormalSource source);
 
