@@ -54,8 +54,12 @@ double code_step(const capture::ReflectanceField& field) {
 // One estimate, from the residuals of the normals solved with options.noise; `step`: code_step.
 std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& field,
                                               const NormalOptions& options, double step) {
-  const NormalMap normals = estimate_normals(field, options);
   const capture::ValidLights valid = capture::valid_lights(field);
+  // At most ~400k residuals (their memory, not their precision, is the limit): every k-th pixel,
+  // the only ones whose normals are solved.
+  const double all = 3.0 * double(valid.index.size()) * field.width() * field.height();
+  const long stride = std::max(1L, long(std::ceil(all / kMaxSamples)));
+  const NormalMap normals = estimate_normals(field, options, stride);
   // (predicted value, residual) over every usable sample, each scaled for its pixel's fit.
   std::vector<std::pair<double, double>> residuals;
   struct PixelResiduals {
@@ -64,9 +68,6 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
   };
   std::vector<PixelResiduals> pixels;
   DataNoise out;
-  // At most ~400k residuals (their memory, not their precision, is the limit): every k-th pixel.
-  const double all = 3.0 * double(valid.index.size()) * field.width() * field.height();
-  const long stride = std::max(1L, long(std::ceil(all / kMaxSamples)));
   for (long p = 0; p < long(field.width()) * field.height(); p += stride) {
     const int x = int(p % field.width()), y = int(p / field.width());
     if (int(normals.flags.at(x, y, 0)) != 0) continue;

@@ -242,10 +242,12 @@ void store_solution(const Solve& solve, const std::vector<Eigen::Vector3d>& dirs
 
 }  // namespace
 
-NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalOptions& options) {
+NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalOptions& options,
+                           long pixel_stride) {
   if (const std::string error = options.validate(); !error.empty()) {
     throw InputError("normal options: " + error);
   }
+  LS_CHECK(pixel_stride >= 1, "pixel_stride " + std::to_string(pixel_stride) + " < 1");
   const int width = field.width(), height = field.height();
   NormalMap out;
   out.normal = Image(width, height, 3);
@@ -271,6 +273,10 @@ NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalO
     int flagged_here = 0, empty_here = 0;
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
+        if ((long(y) * width + x) % pixel_stride != 0) {
+          out.flags.at(x, y, 0) = float(kNoSignal);
+          continue;
+        }
         const float* px = field.pixel(x, y);
         if (std::all_of(px, px + 3 * size_t(field.num_lights()), [](float v) { return v == 0; })) {
           out.flags.at(x, y, 0) = float(kNoSignal);

@@ -93,6 +93,9 @@ struct NormalMap {
   int empty_pixels = 0;    // kNoSignal.
 };
 
-NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalOptions& options);
+// pixel_stride > 1: only every pixel_stride-th pixel in row-major order is solved (as it would be
+// with stride 1); the others are left zero and flagged kNoSignal, and are not counted.
+NormalMap estimate_normals(const capture::ReflectanceField& field, const NormalOptions& options,
+                           long pixel_stride = 1);
 
 }  // namespace ls::relight
