@@ -1,15 +1,19 @@
 // Relight time per frame of each compact representation at 512 x 512 pixels x 150 LEDs against the
 // raw field, lit by an environment map given as per-LED irradiance (integrate_environment): the
 // raw field streams 1.8 KB per pixel, PCA k x 3 floats, PTM/HSH their 6..16 terms per channel.
-// Also the PCA build (Gram matrix + eigen-decomposition + coefficients) at that size.
+// Also the PCA build (Gram matrix + eigen-decomposition + coefficients) at that size, the OpenLIME
+// planes' build, and their basis's eigenvectors.
 #include <benchmark/benchmark.h>
 
+#include <Eigen/Dense>
 #include <cmath>
 #include <map>
 #include <memory>
 
 #include "capture/field.h"
+#include "relight/compact/leading_eigenvectors.h"
 #include "relight/compact/pca_field.h"
+#include "relight/compact/plane_field.h"
 #include "relight/compact/rti_fits.h"
 #include "relight/lighting/relight.h"
 #include "sim/noisy_field.h"
@@ -154,6 +158,41 @@ void BM_RtiFit(benchmark::State& state) {
   for (auto _ : state) benchmark::DoNotOptimize(ls::relight::RtiField::fit(field(), options));
 }
 BENCHMARK(BM_RtiFit)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(2);
+
+// OpenLIME planes as `export openlime` makes them at 512^2 x 150 LEDs: sigma (rbf, 0) or the grid
+// (bilinear, 1) and the planes chosen on held-out lights, then the basis and the codes.
+void BM_PlaneFieldBuild(benchmark::State& state) {
+  ls::relight::PlaneFieldOptions options;
+  options.interpolation = state.range(0) == 0 ? ls::relight::PlaneInterpolation::kRbf
+                                              : ls::relight::PlaneInterpolation::kBilinear;
+  for (auto _ : state) benchmark::DoNotOptimize(ls::relight::PlaneField::build(field(), options));
+}
+BENCHMARK(BM_PlaneFieldBuild)
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(2);
+
+// A PCA basis of 30 planes out of 720 dimensions (240 lights x 3 channels): every eigenvector by
+// Eigen's solver (0) against the 30 leading ones alone (1).
+void BM_PlaneBasisEigenvectors(benchmark::State& state) {
+  const int n = 720;
+  Eigen::VectorXd values(n);
+  for (int i = 0; i < n; ++i) values(i) = std::pow(0.9, i);
+  std::srand(3);
+  const Eigen::MatrixXd q =
+      Eigen::HouseholderQR<Eigen::MatrixXd>(Eigen::MatrixXd::Random(n, n)).householderQ();
+  const Eigen::MatrixXd covariance = q * values.asDiagonal() * q.transpose();
+  for (auto _ : state) {
+    if (state.range(0) == 0) {
+      benchmark::DoNotOptimize(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(covariance));
+    } else {
+      benchmark::DoNotOptimize(ls::relight::leading_eigenvectors(covariance, 30));
+    }
+  }
+}
+BENCHMARK(BM_PlaneBasisEigenvectors)->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 

@@ -8,85 +8,17 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <optional>
+#include <tuple>
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "relight/compact/leading_eigenvectors.h"
+#include "relight/compact/plane_interpolation.h"
 
 namespace ls::relight {
 
 namespace {
-
-// relight's RBF weights of the lights at a direction: Gaussian in chord distance, normalised,
-// those at or below `drop` left out and the rest normalised again.
-Eigen::VectorXd rbf_weights(const std::vector<Eigen::Vector3d>& lights, const Eigen::Vector3d& dir,
-                            double sigma, double drop) {
-  Eigen::VectorXd w(Eigen::Index(lights.size()));
-  for (size_t i = 0; i < lights.size(); ++i) {
-    w(Eigen::Index(i)) = std::exp(-(lights[i] - dir).squaredNorm() / (sigma * sigma));
-  }
-  if (!(w.sum() > 0)) return w;
-  w /= w.sum();
-  w = (w.array() > drop).select(w, 0.0);
-  if (w.sum() > 0) w /= w.sum();
-  return w;
-}
-
-// The octahedral grid of the bilinear type: node (x, y), index x + y * res, as relight's
-// buildResampleMap places it.
-Eigen::Vector3d grid_direction(int x, int y, int res) {
-  const double ox = 2.0 * x / (res - 1) - 1, oy = 2.0 * y / (res - 1) - 1;
-  const double gx = (ox - oy) / 2, gy = (ox + oy) / 2;
-  return Eigen::Vector3d(gx, gy, std::max(0.0, 1 - std::abs(gx) - std::abs(gy))).normalized();
-}
-
-// The four grid nodes around a direction and their bilinear weights (OpenLIME's bln).
-void bilinear_nodes(const Eigen::Vector3d& dir, int res, int node[4], double weight[4]) {
-  const double s = std::abs(dir.x()) + std::abs(dir.y()) + std::abs(dir.z());
-  double x = (dir.x() + dir.y()) / s, y = (dir.y() - dir.x()) / s;
-  x = (x + 1) / 2 * (res - 1);
-  y = (y + 1) / 2 * (res - 1);
-  const int sx = std::min(res - 2, std::max(0, int(std::floor(x))));
-  const int sy = std::min(res - 2, std::max(0, int(std::floor(y))));
-  const double dx = x - sx, dy = y - sy;
-  node[0] = sx + sy * res, weight[0] = (1 - dx) * (1 - dy);
-  node[1] = sx + 1 + sy * res, weight[1] = dx * (1 - dy);
-  node[2] = sx + (sy + 1) * res, weight[2] = (1 - dx) * dy;
-  node[3] = sx + 1 + (sy + 1) * res, weight[3] = dx * dy;
-}
-
-// The light as OpenLIME takes it: (x, y) within the unit disc, z from them.
-Eigen::Vector3d viewer_light(const Eigen::Vector3d& dir) {
-  Eigen::Vector3d l = dir.normalized();
-  const double r = std::hypot(l.x(), l.y());
-  if (r > 1) l.head<2>() /= r;
-  l.z() = std::sqrt(std::max(0.0, 1 - l.x() * l.x() - l.y() * l.y()));
-  return l;
-}
-
-// The grid's values from the lights' (dims x L), as relight's bilinear builder resamples: an RBF
-// prior B corrected so that bilinear interpolation A of the grid reproduces the lights,
-// iA = B + (A^T A + k I)^-1 A^T (I - A B).
-Eigen::MatrixXd bilinear_resampling(const std::vector<Eigen::Vector3d>& lights, int res,
-                                    double sigma, double k) {
-  const Eigen::Index n = Eigen::Index(lights.size()), dims = Eigen::Index(res) * res;
-  Eigen::MatrixXd b(dims, n), a = Eigen::MatrixXd::Zero(n, dims);
-  for (int y = 0; y < res; ++y) {
-    for (int x = 0; x < res; ++x) {
-      b.row(x + Eigen::Index(y) * res) =
-          rbf_weights(lights, grid_direction(x, y, res), sigma, 0.005);
-    }
-  }
-  for (Eigen::Index i = 0; i < n; ++i) {
-    int node[4];
-    double weight[4];
-    bilinear_nodes(viewer_light(lights[size_t(i)]), res, node, weight);
-    for (int q = 0; q < 4; ++q) a(i, node[q]) += weight[q];
-  }
-  Eigen::MatrixXd normal = a.transpose() * a;
-  normal.diagonal().array() += k;
-  const Eigen::MatrixXd residual = Eigen::MatrixXd::Identity(n, n) - a * b;
-  return b + normal.ldlt().solve(a.transpose() * residual);
-}
 
 // Basis row p's value i (of D = dims x 3) as stored: the mean in display units (p = 0), else
 // eigenvector p - 1.
@@ -141,22 +73,41 @@ double PlaneField::bytes_per_pixel() const {
 
 namespace {
 
-// A pixel's vector: the display values at the `used` lights, resampled to the basis's directions.
+// A pixel's display values at the `used` lights (sRGB-encoded, light i channel k at 3 i + k: the
+// "raw" vector), and its vector in the basis's space: the raw vector itself for RBF, resampled to
+// the bilinear grid's nodes otherwise. The resampling is linear, so statistics and coefficients are
+// taken on the raw vectors and carried through it once, not per pixel.
 struct PixelVectors {
   std::vector<int> used;     // The field's lights the basis is built on.
-  Eigen::MatrixXd resample;  // dims x used.
+  Eigen::MatrixXd resample;  // D x 3 used (dims x used per channel); empty: identity (RBF).
   float gain = 1;
 
-  // `samples` (used x 3) is scratch; `v` (1 x dims * 3) receives the vector.
-  void operator()(const float* values, Eigen::MatrixXd& samples, Eigen::RowVectorXd& v) const {
-    for (Eigen::Index i = 0; i < Eigen::Index(used.size()); ++i) {
-      for (int k = 0; k < 3; ++k)
-        samples(i, k) = srgb_encode(gain * values[3 * used[size_t(i)] + k]);
+  Eigen::Index raw_size() const { return 3 * Eigen::Index(used.size()); }
+  // False, and v untouched, for a pixel whose raw vector is 0 (outside an imported set's mask).
+  bool raw(const float* values, double* v) const {
+    bool any = false;
+    for (size_t i = 0; i < used.size() && !any; ++i) {
+      for (int k = 0; k < 3; ++k) any = any || values[3 * used[i] + k] != 0;
     }
-    const Eigen::MatrixXd g = resample * samples;  // dims x 3
-    for (Eigen::Index j = 0; j < g.rows(); ++j) v.segment<3>(3 * j) = g.row(j);
+    if (!any) return false;
+    for (size_t i = 0; i < used.size(); ++i) {
+      for (int k = 0; k < 3; ++k)
+        v[3 * i + size_t(k)] = srgb_encode(gain * values[3 * used[i] + k]);
+    }
+    return true;
   }
 };
+
+// The grid's values from the lights' per channel, as one D x 3 n matrix on raw vectors.
+Eigen::MatrixXd per_channel(const Eigen::MatrixXd& resample) {
+  Eigen::MatrixXd out = Eigen::MatrixXd::Zero(3 * resample.rows(), 3 * resample.cols());
+  for (Eigen::Index j = 0; j < resample.rows(); ++j) {
+    for (Eigen::Index i = 0; i < resample.cols(); ++i) {
+      for (int k = 0; k < 3; ++k) out(3 * j + k, 3 * i + k) = resample(j, i);
+    }
+  }
+  return out;
+}
 
 // The valid lights in front of the image plane: their directions into out.lights, their indices
 // returned.
@@ -175,53 +126,104 @@ std::vector<int> place_lights(const capture::ReflectanceField& field, PlaneField
 struct PixelStatistics {
   Eigen::RowVectorXd mean;
   Eigen::MatrixXd covariance;
+
+  // The statistics of the vectors resample * v (resample empty: these).
+  PixelStatistics resampled(const Eigen::MatrixXd& resample) const {
+    if (resample.size() == 0) return *this;
+    return {mean * resample.transpose(), resample * covariance * resample.transpose()};
+  }
 };
 
-// The mean and covariance of the pixel vectors over evenly strided pixels (frame index a multiple
+// Row slices of a block of pixel vectors, each added to its own Gram matrix by its own task and
+// the matrices summed at the end: the same sums in the same order on any number of threads.
+constexpr int kGramSlices = 4;
+
+// The mean and covariance of the raw vectors over evenly strided pixels (frame index a multiple
 // of the stride), accumulated in blocks.
 PixelStatistics strided_statistics(const capture::ReflectanceField& field,
                                    const capture::FieldBands& bands,
-                                   const PixelVectors& pixel_vector, Eigen::Index d, long stride) {
+                                   const PixelVectors& pixel_vector, long stride) {
   const long width = field.width();
-  Eigen::MatrixXd gram = Eigen::MatrixXd::Zero(d, d);
+  const Eigen::Index d = pixel_vector.raw_size();
+  std::vector<Eigen::MatrixXd> grams(kGramSlices, Eigen::MatrixXd::Zero(d, d));
   Eigen::RowVectorXd sum = Eigen::RowVectorXd::Zero(d);
-  Eigen::MatrixXd block(1024, d), samples(Eigen::Index(pixel_vector.used.size()), 3);
-  Eigen::RowVectorXd v(d);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> block(1024, d);
   long taken = 0, rows = 0;
   const auto flush = [&] {
-    if (rows > 0) gram.selfadjointView<Eigen::Lower>().rankUpdate(block.topRows(rows).transpose());
+    const long slice = (rows + kGramSlices - 1) / kGramSlices;
+    tbb::parallel_for(0, kGramSlices, [&](int k) {
+      const long first = k * slice, count = std::min(rows, first + slice) - first;
+      if (count <= 0) return;
+      grams[size_t(k)].selfadjointView<Eigen::Lower>().rankUpdate(
+          block.middleRows(first, count).transpose());
+    });
     rows = 0;
   };
   bands([&](const capture::ReflectanceField& band) {
     const long first = band.first_row() * width, end = first + long(band.height()) * width;
     for (long p = (first + stride - 1) / stride * stride; p < end; p += stride) {
-      pixel_vector(band.pixel(int(p % width), int((p - first) / width)), samples, v);
-      block.row(rows++) = v;
-      sum += v;
-      ++taken;
+      ++taken;  // A zero vector counts, adding nothing to the sums.
+      if (!pixel_vector.raw(band.pixel(int(p % width), int((p - first) / width)),
+                            block.row(rows).data())) {
+        continue;
+      }
+      sum += block.row(rows++);
       if (rows == block.rows()) flush();
     }
   });
   flush();
+  for (int k = 1; k < kGramSlices; ++k) grams[0] += grams[size_t(k)];
   PixelStatistics out;
   out.mean = sum / double(taken);
-  out.covariance = Eigen::MatrixXd(gram.selfadjointView<Eigen::Lower>()) / double(taken) -
+  out.covariance = Eigen::MatrixXd(grams[0].selfadjointView<Eigen::Lower>()) / double(taken) -
                    out.mean.transpose() * out.mean;
   return out;
 }
 
+// The pixel vectors' mean and the covariance's leading eigenvectors (largest first): the basis
+// of up to that many planes.
+struct PrincipalAxes {
+  Eigen::RowVectorXd mean;
+  Eigen::MatrixXd eigenvectors;
+};
+
+PrincipalAxes principal_axes(const PixelStatistics& statistics, int planes) {
+  return {statistics.mean, leading_eigenvectors(statistics.covariance, planes).vectors};
+}
+
+// The planes the options' choice may try at most (choose_plane_options): its axes are found for
+// this many at once.
+constexpr int kMostChoicePlanes = 30;
+
+// The training sample of the options' choice, which builds a basis for every option it tries on
+// the same pixels: their raw vectors (one row each) and statistics, made once, and the axes of the
+// last grid tried (RBF's vectors are the raw ones whatever sigma; a bilinear grid's follow from the
+// raw statistics), so that the eigensolve, most of a build, runs once per grid.
+struct TrainingVectors {
+  Eigen::MatrixXd rows;  // pixels x raw size; empty until first used.
+  PixelStatistics raw;
+  std::tuple<int, double, double> grid{-1, 0.0, 0.0};  // What `axes` were made for.
+  PrincipalAxes axes;
+  // The last field built, for its grid and planes: RBF's sigma changes only how it is displayed.
+  std::optional<PlaneField> built;
+};
+
+std::tuple<int, double, double> grid_of(const PlaneFieldOptions& options) {
+  if (options.interpolation == PlaneInterpolation::kRbf) return {0, 0.0, 0.0};
+  return {options.resolution, options.sigma, options.regularization};
+}
+
 // The basis as stored, into out.basis and out.range: the mean truncated to a byte, each of the
 // covariance's largest eigenvectors scaled to +-127.
-void store_basis(const PixelStatistics& statistics, PlaneField& out) {
-  const Eigen::Index d = statistics.mean.size();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(statistics.covariance);
+void store_basis(const PrincipalAxes& axes, PlaneField& out) {
+  const Eigen::Index d = axes.mean.size();
   out.basis.resize(size_t(out.planes + 1) * size_t(d));
   out.range.resize(size_t(out.planes));
   for (Eigen::Index i = 0; i < d; ++i) {
-    out.basis[size_t(i)] = uint8_t(std::clamp(statistics.mean(i) * 255.0, 0.0, 255.0));
+    out.basis[size_t(i)] = uint8_t(std::clamp(axes.mean(i) * 255.0, 0.0, 255.0));
   }
   for (int p = 0; p < out.planes; ++p) {
-    const Eigen::VectorXd e = eigen.eigenvectors().col(d - 1 - p);  // Largest first.
+    const Eigen::VectorXd e = axes.eigenvectors.col(p);
     const double largest = e.cwiseAbs().maxCoeff();
     out.range[size_t(p)] = float(largest > 0 ? 127.0 / largest : 1.0);
     for (Eigen::Index i = 0; i < d; ++i) {
@@ -231,30 +233,48 @@ void store_basis(const PixelStatistics& statistics, PlaneField& out) {
   }
 }
 
-// Each pixel's coefficients (pixels x planes) fitted to the basis as stored (least squares;
-// relight projects on the unquantised one), in code units (0..255 scale).
+// The least-squares fit of a pixel's vector to the basis as stored (relight projects on the
+// unquantised one), on its raw vector: coefficients (code units, 0..255 scale) = solve * raw -
+// offset.
+struct CoefficientFit {
+  Eigen::MatrixXd solve;   // planes x raw size
+  Eigen::VectorXd offset;  // planes
+
+  CoefficientFit(const PlaneField& f, const Eigen::MatrixXd& resample) {
+    const Eigen::MatrixXd stored = decoded_basis(f);
+    const Eigen::MatrixXd eigen_rows = stored.bottomRows(f.planes);
+    const Eigen::MatrixXd on_basis =
+        (eigen_rows * eigen_rows.transpose()).ldlt().solve(eigen_rows) * 255.0;  // planes x D
+    solve = resample.size() == 0 ? on_basis : Eigen::MatrixXd(on_basis * resample);
+    offset = on_basis * stored.row(0).transpose();
+  }
+};
+
+// Each pixel's coefficients (pixels x planes, each pixel's planes together) from its raw vector
+// in `rows`.
+std::vector<float> fit_coefficients(const Eigen::MatrixXd& rows, const CoefficientFit& fit) {
+  const Eigen::MatrixXf c =
+      ((fit.solve * rows.transpose()).colwise() - fit.offset).cast<float>();  // planes x pixels
+  return std::vector<float>(c.data(), c.data() + c.size());
+}
+
+// The same over the field's bands, each pixel's raw vector made as it is fitted.
 std::vector<float> fit_coefficients(const capture::FieldBands& bands,
-                                    const PixelVectors& pixel_vector, const PlaneField& f,
-                                    long pixels) {
-  const Eigen::Index n = Eigen::Index(pixel_vector.used.size());
-  const Eigen::Index d = Eigen::Index(f.dims()) * 3;
-  const size_t width = size_t(f.width());
-  const Eigen::MatrixXd stored = decoded_basis(f);
-  const Eigen::MatrixXd eigen_rows = stored.bottomRows(f.planes);
-  const Eigen::MatrixXd solve =
-      (eigen_rows * eigen_rows.transpose()).ldlt().solve(eigen_rows) * 255.0;  // planes x D
-  std::vector<float> coefficients(size_t(pixels) * size_t(f.planes));
+                                    const PixelVectors& pixel_vector, const CoefficientFit& fit,
+                                    int width, long pixels) {
+  const int planes = int(fit.offset.size());
+  std::vector<float> coefficients(size_t(pixels) * size_t(planes));
   bands([&](const capture::ReflectanceField& band) {
     tbb::parallel_for(tbb::blocked_range<int>(0, band.height()), [&](const auto& band_rows) {
-      Eigen::MatrixXd s(n, 3);
-      Eigen::RowVectorXd row(d);
+      Eigen::VectorXd raw(pixel_vector.raw_size());
       for (int y = band_rows.begin(); y < band_rows.end(); ++y) {
         for (int x = 0; x < band.width(); ++x) {
-          pixel_vector(band.pixel(x, y), s, row);
-          const Eigen::VectorXd c = solve * (row - stored.row(0)).transpose();
+          const Eigen::VectorXd c = pixel_vector.raw(band.pixel(x, y), raw.data())
+                                        ? Eigen::VectorXd(fit.solve * raw - fit.offset)
+                                        : Eigen::VectorXd(-fit.offset);
           float* to = coefficients.data() +
-                      (size_t(band.first_row() + y) * width + size_t(x)) * size_t(f.planes);
-          for (int p = 0; p < f.planes; ++p) to[p] = float(c(p));
+                      (size_t(band.first_row() + y) * size_t(width) + size_t(x)) * size_t(planes);
+          for (int p = 0; p < planes; ++p) to[p] = float(c(p));
         }
       }
     });
@@ -292,9 +312,10 @@ void quantise_coefficients(const std::vector<float>& coefficients, long stride, 
 }
 
 // PlaneField::build with every option given (gain resolved, planes > 0): two passes over the
-// bands, the covariance's and the coefficients'.
+// bands, the covariance's and the coefficients'. With `training`, `field` is the choice's
+// training sample (in memory, every pixel taken), whose vectors are made once.
 PlaneField build_planes(const capture::ReflectanceField& field, const capture::FieldBands& bands,
-                        const PlaneFieldOptions& options) {
+                        const PlaneFieldOptions& options, TrainingVectors* training = nullptr) {
   PlaneField out;
   out.set_size(field.width(), field.height());
   out.interpolation = options.interpolation;
@@ -311,23 +332,61 @@ PlaneField build_planes(const capture::ReflectanceField& field, const capture::F
                      "plane, got " + std::to_string(n));
   }
   out.gain = options.gain;
-  pixel_vector.resample = options.interpolation == PlaneInterpolation::kRbf
-                              ? Eigen::MatrixXd::Identity(n, n)
-                              : bilinear_resampling(out.lights, options.resolution, options.sigma,
-                                                    options.regularization);
+  if (options.interpolation == PlaneInterpolation::kBilinear) {
+    pixel_vector.resample = per_channel(openlime::bilinear_resampling(
+        out.lights, options.resolution, options.sigma, options.regularization));
+  }
   pixel_vector.gain = float(out.gain);
   const long pixels = long(field.width()) * field.height();
   const long stride = std::max(1L, pixels / options.max_pca_pixels);
-  store_basis(strided_statistics(field, bands, pixel_vector, d, stride), out);
-  quantise_coefficients(fit_coefficients(bands, pixel_vector, out, pixels), stride, out);
+  if (!training) {
+    store_basis(
+        principal_axes(
+            strided_statistics(field, bands, pixel_vector, stride).resampled(pixel_vector.resample),
+            out.planes),
+        out);
+    const CoefficientFit fit(out, pixel_vector.resample);
+    quantise_coefficients(fit_coefficients(bands, pixel_vector, fit, field.width(), pixels), stride,
+                          out);
+    return out;
+  }
+  LS_CHECK(stride == 1, "a training sample larger than max_pca_pixels");
+  if (training->rows.size() == 0) {
+    training->raw = strided_statistics(field, bands, pixel_vector, stride);
+    training->rows = Eigen::MatrixXd::Zero(pixels, pixel_vector.raw_size());
+    Eigen::RowVectorXd raw(pixel_vector.raw_size());
+    for (long p = 0; p < pixels; ++p) {
+      if (pixel_vector.raw(field.pixel(int(p % field.width()), int(p / field.width())),
+                           raw.data())) {
+        training->rows.row(p) = raw;
+      }
+    }
+  }
+  if (training->grid != grid_of(options) || training->axes.eigenvectors.cols() < out.planes) {
+    training->grid = grid_of(options);
+    training->axes =
+        principal_axes(training->raw.resampled(pixel_vector.resample),
+                       int(std::min<Eigen::Index>(d, std::max(out.planes, kMostChoicePlanes))));
+    training->built.reset();
+  }
+  if (training->built && training->built->planes == out.planes) {
+    PlaneField same = *training->built;
+    same.sigma = out.sigma;
+    return same;
+  }
+  store_basis(training->axes, out);
+  quantise_coefficients(
+      fit_coefficients(training->rows, CoefficientFit(out, pixel_vector.resample)), stride, out);
+  training->built = out;
   return out;
 }
 
-// The 8-bit sRGB PSNR of `options` on `held` lights of `pixels`, built from `train`.
+// The 8-bit sRGB PSNR of `options` on `held` lights of `pixels`, built from `train` (its vectors
+// kept in `training`).
 double held_out_psnr(const capture::ReflectanceField& train, const PlaneFieldOptions& options,
                      const std::vector<Eigen::Vector3d>& held_dirs,
-                     const std::vector<float>& held_codes) {
-  const PlaneField f = build_planes(train, capture::whole_field(train), options);
+                     const std::vector<float>& held_codes, TrainingVectors& training) {
+  const PlaneField f = build_planes(train, capture::whole_field(train), options, &training);
   std::vector<float> rgb;
   double squared = 0;
   const size_t per_light = size_t(train.width()) * 3;
@@ -410,8 +469,9 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
       }
     }
   }
+  TrainingVectors training;
   const auto psnr = [&](const PlaneFieldOptions& o) {
-    return held_out_psnr(sample, o, held_dirs, held_codes);
+    return held_out_psnr(sample, o, held_dirs, held_codes, training);
   };
   PlaneFieldOptions probe = options;
   probe.planes = std::min(options.planes > 0 ? options.planes : 18, 3 * int(train.size()) / 3 * 3);
@@ -433,7 +493,8 @@ PlaneFieldOptions choose_plane_options(const capture::ReflectanceField& field,
   options.sigma *= std::sqrt(double(train.size()) / double(train.size() + held.size()));
   if (options.planes == 0) {
     std::vector<std::pair<int, double>> scores;
-    for (int planes = 3; planes <= 30 && planes <= 3 * int(train.size()); planes += 3) {
+    for (int planes = 3; planes <= kMostChoicePlanes && planes <= 3 * int(train.size());
+         planes += 3) {
       probe.planes = planes;
       scores.emplace_back(planes, psnr(probe));
       best = std::max(best, scores.back().second);
@@ -459,18 +520,18 @@ PlaneField PlaneField::build(const capture::ReflectanceField& header,
 }
 
 std::vector<float> PlaneField::weights_at(const Eigen::Vector3d& dir) const {
-  const Eigen::Vector3d l = viewer_light(dir);
+  const Eigen::Vector3d l = openlime::viewer_light(dir);
   const int dim = dims();
   std::vector<std::pair<int, double>> nodes;
   if (interpolation == PlaneInterpolation::kRbf) {
-    const Eigen::VectorXd w = rbf_weights(lights, l, sigma, 0.001);
+    const Eigen::VectorXd w = openlime::rbf_weights(lights, l, sigma, 0.001);
     for (int i = 0; i < dim; ++i) {
       if (w(i) > 0) nodes.emplace_back(i, w(i));
     }
   } else {
     int node[4];
     double weight[4];
-    bilinear_nodes(l, resolution, node, weight);
+    openlime::bilinear_nodes(l, resolution, node, weight);
     for (int q = 0; q < 4; ++q) nodes.emplace_back(node[q], weight[q]);
   }
   std::vector<float> out(size_t(planes + 1) * 3, 0.0f);
