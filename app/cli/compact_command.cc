@@ -30,7 +30,13 @@ void add_compress_command(CLI::App& app) {
   compress->add_option("--out", args->out, "Output file.")->required();
   compress->add_option("--format", args->format, "pca | ptm | ptm-lrgb | hsh2 | hsh3 | hsh4.")
       ->capture_default_str();
-  compress->add_option("--rank", args->rank, "PCA rank: a number or auto (from the noise floor).")
+  compress
+      ->add_option(
+          "--rank", args->rank,
+          "PCA rank: a number; auto (the LEDs' images to the noise floor: what a map's sun and "
+          "small sources are rendered from); or held-out (the smallest within 0.25 dB of the "
+          "best on held-out LEDs: the best relighting between the LEDs per byte). Never a file "
+          "larger than the input.")
       ->capture_default_str();
   compress->add_option("--tile", args->tile, "PCA tile size in pixels (0: one global basis).")
       ->capture_default_str();

@@ -37,9 +37,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// The PCA rank: 0 for "auto", -1 when the text is not a positive integer.
+// The PCA rank: 0 for "auto" and "held-out", -1 when the text is not a positive integer.
 int parse_rank(const std::string& text) {
-  if (text == "auto") return 0;
+  if (text == "auto" || text == "held-out") return 0;
   int rank = 0;
   const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), rank);
   return (error == std::errc() && end == text.data() + text.size() && rank > 0) ? rank : -1;
@@ -171,7 +171,7 @@ std::string CompressOptions::validate() const {
     return "--format: expected pca, ptm, ptm-lrgb, hsh2, hsh3 or hsh4, got \"" + format + "\"";
   }
   if (parse_rank(rank) < 0) {
-    return "--rank: expected a positive integer or \"auto\", got \"" + rank + "\"";
+    return "--rank: expected a positive integer, \"auto\" or \"held-out\", got \"" + rank + "\"";
   }
   if (tile < 0) return "--tile: expected a tile size in pixels >= 0 (0: one global basis)";
   if (format != "pca" && rank != CompressOptions{}.rank) {
@@ -265,6 +265,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
   relight::PcaOptions pca_options;
   pca_options.rank = parse_rank(options.rank);
   pca_options.tile_size = options.tile;
+  if (options.rank == "held-out") pca_options.rank_rule = relight::PcaRankRule::kHeldOutLights;
   // The field whole, or in bands of rows when it is larger than the memory for it (whole PCA
   // tiles or Gram sub-bands per band: the same bytes as in memory): of a field EXR, or of an .lp
   // set's images.
@@ -346,12 +347,23 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
                                  ": more than this field allows (its usable lights); rank " +
                                  std::to_string(pca.rank()) + " used");
     }
+    // The cap bound the choice when it took the largest rank allowed, or when the held-out error
+    // was still falling there.
+    const std::vector<double>& held_out = pca_summary.held_out_ms;
+    const bool best_at_cap =
+        !held_out.empty() &&
+        std::min_element(held_out.begin() + 1, held_out.end()) - held_out.begin() == within_input;
+    const std::string cap = std::to_string(within_input) +
+                            ", the largest rank whose file is no larger than the input (" +
+                            std::to_string(summary.input_bytes >> 10) + " KiB)";
     if (pca_options.rank == 0 && pca.rank() == within_input) {
-      summary.warnings.push_back(
-          "--rank auto: held at " + std::to_string(within_input) +
-          ", the largest rank whose file is no larger than the input (" +
-          std::to_string(summary.input_bytes >> 10) +
-          " KiB), which the automatic choice reached; --rank N gives a larger, closer file");
+      summary.warnings.push_back("--rank " + options.rank + ": held at " + cap +
+                                 ", which the automatic choice reached; --rank N gives a larger, "
+                                 "closer file");
+    } else if (pca_options.rank == 0 && best_at_cap) {
+      summary.warnings.push_back("--rank held-out: ranks tried up to " + cap +
+                                 "; the held-out error still fell there, so --rank N above it "
+                                 "relights closer in a larger file");
     }
     summary.bytes_per_pixel = pca.bytes_per_pixel();
     summary.output_bytes = fs::file_size(options.out);

@@ -16,9 +16,10 @@ struct CompressOptions {
   std::filesystem::path input;  // Field EXR, .lp file, or a folder holding one .lp.
   std::filesystem::path out;
   std::string format = "pca";  // pca | ptm | ptm-rgb | ptm-lrgb | hsh2 | hsh3 | hsh4
-  std::string rank = "auto";   // PCA: a positive number, or auto (from the noise floor).
-  int tile = 0;                // PCA tile size in pixels; 0: one global basis.
-  double gain = 0.0;           // RTI files: display units per field unit; 0: brightest = white.
+  // PCA: a positive number, auto (from the noise floor) or held-out (PcaRankRule::kHeldOutLights).
+  std::string rank = "auto";
+  int tile = 0;       // PCA tile size in pixels; 0: one global basis.
+  double gain = 0.0;  // RTI files: display units per field unit; 0: brightest = white.
   // RTI files: "srgb" (empty: the default) fits and stores the sRGB codes of gain x the field, as
   // the RTI viewers show them; "linear" (.rti only: a .ptm cannot say so) stores gain x the field,
   // for lightstage's use. A PCA takes none: it holds the field's own values.

@@ -267,7 +267,10 @@ def compress(input: _FieldLike, *, out: _Path, format: str = "pca", rank: Union[
     .ptm (PTM_1.2 RGB/LRGB), .rti (HSH) or the lightstage PCA format.
 
     format: pca | ptm | ptm-lrgb | hsh2 | hsh3 | hsh4.
-    rank: PCA rank: a number or auto (from the noise floor).
+    rank: PCA rank: a number; auto (the LEDs' images to the noise floor: what a map's sun and
+        small sources are rendered from); or held-out (the smallest within 0.25 dB of the best
+        on held-out LEDs: the best relighting between the LEDs per byte). Never a file larger
+        than the input.
     tile: PCA tile size in pixels (0: one global basis).
     gain: RTI files: display units (white = 1) per field unit; 0: the brightest sample is white.
     encoding: RTI files: srgb (the sRGB codes of the field, fitted as such: what RTIViewer,

@@ -80,11 +80,6 @@ PcaField basis_in_bands(const PcaBandsInput& input, const PcaOptions& options,
     pca = PcaField::build_basis(header, input.bands, options, &summary);
     pca->save_basis(basis_file, summary);
   } else if (have[0] == 0) {
-    if (options.rank_rule == PcaRankRule::kHeldOutLights) {
-      throw InputError(
-          "compress: the held-out rank rule reads the whole field on one process: "
-          "run it without mpirun");
-    }
     capture::ReflectanceField band;
     BandPlan(height, rows).for_each_mine(split, [&](int, int y0, int y1) {
       input.read_rows(y0, y1, band);
@@ -95,7 +90,15 @@ PcaField basis_in_bands(const PcaBandsInput& input, const PcaOptions& options,
       const PcaGramBands grams = [&](const std::function<void(const PcaBandGrams&)>& visit) {
         for (int y0 = 0; y0 < height; y0 += rows) visit(load_grams(grams_file(y0)));
       };
-      pca = PcaField::build_basis(header, grams, input.bands, options, &summary);
+      // The held-out rank rule's pass reads every band here, as one process would.
+      const capture::FieldBands every_band = [&](const capture::BandVisitor& visit) {
+        capture::ReflectanceField rows_read;
+        for (int y0 = 0; y0 < height; y0 += rows) {
+          input.read_rows(y0, std::min(height, y0 + rows), rows_read);
+          visit(rows_read);
+        }
+      };
+      pca = PcaField::build_basis(header, grams, every_band, options, &summary);
       pca->save_basis(basis_file, summary);
     }
   }

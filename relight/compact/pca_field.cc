@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <iomanip>
 #include <mutex>
 #include <sstream>
 
@@ -153,15 +154,26 @@ std::string PcaOptions::validate() const {
     return "tile_size: expected 0 (global) or > 0, got " + std::to_string(tile_size);
   if (!(rbf_sigma_rad >= 0 && rbf_sigma_rad < M_PI)) return "rbf_sigma_rad: expected [0, pi)";
   if (!(keep_above_noise > 0)) return "keep_above_noise: expected > 0";
+  if (!(held_out_tolerance_db >= 0 && std::isfinite(held_out_tolerance_db))) {
+    return "held_out_tolerance_db: expected >= 0";
+  }
   return "";
 }
 
 std::string PcaSummary::to_string() const {
   std::ostringstream s;
-  s << "PCA rank " << rank << (auto_rank ? " (automatic)" : "") << ", noise variance "
-    << noise_variance << " per value (" << (noise_measured ? "measured: " : "estimated: ")
-    << noise_method << "), residual " << (rank < int(residual_ms.size()) ? residual_ms[rank] : 0)
-    << " per value, " << seconds << " s";
+  s << "PCA rank " << rank << (auto_rank ? " (automatic)" : "");
+  if (auto_rank && rank < int(held_out_ms.size())) {
+    const auto best = std::min_element(held_out_ms.begin() + 1, held_out_ms.end());
+    s << std::setprecision(3)
+      << " from held-out LEDs: " << 10 * std::log10(held_out_ms[size_t(rank)] / *best)
+      << " dB from the best (rank " << best - held_out_ms.begin() << " of the "
+      << held_out_ms.size() - 1 << " tried)" << std::setprecision(6);
+  }
+  s << ", noise variance " << noise_variance << " per value ("
+    << (noise_measured ? "measured: " : "estimated: ") << noise_method << "), residual "
+    << (rank < int(residual_ms.size()) ? residual_ms[rank] : 0) << " per value, " << seconds
+    << " s";
   return s.str();
 }
 
@@ -285,13 +297,13 @@ int choose_rank(const capture::ReflectanceField& field, const capture::FieldBand
     sum.held_out_ms = held_out_errors(field, bands, global_gram, max_rank, options.rbf_sigma_rad);
     if (!sum.held_out_ms.empty()) {
       const double best = *std::min_element(sum.held_out_ms.begin() + 1, sum.held_out_ms.end());
+      const double within = std::pow(10.0, options.held_out_tolerance_db / 10);
       for (int k = 1; k < int(sum.held_out_ms.size()); ++k) {
-        if (sum.held_out_ms[k] <= 1.01 * best) {
+        if (sum.held_out_ms[k] <= within * best) {
           rank = k;
           break;
         }
       }
-      sum.noise_method += "; rank from held-out LEDs";
     }
   }
   return std::min(rank, max_rank);

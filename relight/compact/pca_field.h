@@ -104,9 +104,10 @@ enum class PcaRankRule {
   kNoiseFloor,
   // Relighting between LEDs: every 5th valid LED is held out, bases of every rank are built from
   // the rest, and the held-out samples are predicted through the RBF interpolation (at most ~64k
-  // pixels, evenly strided); k is the smallest rank within 1% of the lowest held-out error.
-  // Between LEDs a high rank mostly interpolates the neighbours' noise and shadow edges, so this
-  // k is lower than the noise floor's.
+  // pixels, evenly strided); k is the smallest rank within held_out_tolerance_db of the lowest
+  // held-out error. Every rank costs the same bytes per pixel, so this is the best held-out error
+  // per byte at that distance from the best. Between LEDs a high rank mostly interpolates the
+  // neighbours' noise and shadow edges, so this k is lower than the noise floor's.
   kHeldOutLights,
 };
 
@@ -117,6 +118,9 @@ struct PcaOptions {
   int tile_size = 0;              // 0: one global basis; else square tiles of this many pixels.
   double rbf_sigma_rad = 0.0;     // LightInterpolator's sigma; 0: mean nearest-neighbour angle.
   double keep_above_noise = 2.0;  // Keep components with eigenvalue / sample above this x s2.
+  // kHeldOutLights: how far (in held-out PSNR) the chosen rank may be from the best; as export
+  // openlime chooses its planes.
+  double held_out_tolerance_db = 0.25;
 
   std::string validate() const;  // Empty when valid.
 };

@@ -168,14 +168,16 @@ TEST(MpiFit, BuildTwoRanksWriteTheBytesOfOneProcess) {
 
 // compress: each rank fits (or, for PCA, finds the Gram matrices of, then projects) its share of
 // the bands into records and a spill beside the output, rank 0 finds the basis, quantises and
-// writes the file: the bytes of one process, for the RTI formats and PCA (global and tiled).
+// writes the file: the bytes of one process, for the RTI formats and PCA (global, tiled, and with
+// the rank chosen on held-out LEDs: rank 0 reads the field for that pass).
 TEST(MpiFit, CompressTwoRanksWriteTheBytesOfOneProcess) {
   if (std::string(LIGHTSTAGE_MPIEXEC).empty()) GTEST_SKIP() << "built without MPI";
   const testing::TempDir dir;
   const fs::path field = write_test_field(dir.path());
   const std::string compress = testing::cli_path().string() + " compress '" + field.string() + "'";
-  for (const auto& [format, ext] : {std::pair{"hsh3", ".rti"}, std::pair{"ptm-lrgb", ".ptm"},
-                                    std::pair{"pca", ".pca"}, std::pair{"pca --tile 8", ".tpca"}}) {
+  for (const auto& [format, ext] :
+       {std::pair{"hsh3", ".rti"}, std::pair{"ptm-lrgb", ".ptm"}, std::pair{"pca", ".pca"},
+        std::pair{"pca --tile 8", ".tpca"}, std::pair{"pca --rank held-out", ".hpca"}}) {
     const std::string args = std::string(" --format ") + format + " --out ";
     std::string one_out, two_out;
     ASSERT_EQ(
