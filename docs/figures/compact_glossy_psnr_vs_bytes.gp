@@ -7,7 +7,7 @@ set table $s1 separator comma
 plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'pca global' && strcol('scene') eq 'glossy')
 unset table
 set table $s2 separator comma
-plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',28,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'pca 16px tiles' && strcol('scene') eq 'glossy')
+plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'pca 16px tiles' && strcol('scene') eq 'glossy')
 unset table
 set table $s3 separator comma
 plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'pca auto (noise floor)' && strcol('scene') eq 'glossy')
@@ -19,7 +19,7 @@ set table $s5 separator comma
 plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',38,39,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'ptm' && strcol('scene') eq 'glossy')
 unset table
 set table $s6 separator comma
-plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',41,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'hsh' && strcol('scene') eq 'glossy')
+plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',41,42,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'hsh' && strcol('scene') eq 'glossy')
 unset table
 set table $s7 separator comma
 plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',43,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'models' && strcol('scene') eq 'glossy')

@@ -36,7 +36,7 @@ set key below left Left reverse horizontal spacing 1.2 width 2 height 1
 set autoscale fix
 set offsets graph 0.04, graph 0.14, graph 0.06, graph 0.06
 set logscale x
-set xtics (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2)
+set xtics (0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5)
 set linetype 1 lc rgb '#0072B2' lw 2 pt 7 ps 1.4 dt 1
 set linetype 2 lc rgb '#D55E00' lw 2 pt 5 ps 1.4 dt 2
 set linetype 3 lc rgb '#009E73' lw 2 pt 9 ps 1.4 dt 3

@@ -19,7 +19,7 @@ set table $s5 separator comma
 plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',82,83,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'ptm' && strcol('scene') eq 'real (loewenkopf)')
 unset table
 set table $s6 separator comma
-plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',85,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'hsh' && strcol('scene') eq 'real (loewenkopf)')
+plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',85,86,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'hsh' && strcol('scene') eq 'real (loewenkopf)')
 unset table
 set table $s7 separator comma
 plot 'compact.csv' using (column('bytes_per_pixel')):(column('psnr_db')):(strstrt(',87,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'models' && strcol('scene') eq 'real (loewenkopf)')

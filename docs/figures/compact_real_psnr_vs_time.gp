@@ -4,7 +4,7 @@ set table $s0 separator comma
 plot 'compact.csv' using (column('relight_ms')):(column('psnr_db')):(strstrt(',', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'raw' && strcol('scene') eq 'real (loewenkopf)')
 unset table
 set table $s1 separator comma
-plot 'compact.csv' using (column('relight_ms')):(column('psnr_db')):(strstrt(',75,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'pca global' && strcol('scene') eq 'real (loewenkopf)')
+plot 'compact.csv' using (column('relight_ms')):(column('psnr_db')):(strstrt(',', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'pca global' && strcol('scene') eq 'real (loewenkopf)')
 unset table
 set table $s2 separator comma
 plot 'compact.csv' using (column('relight_ms')):(column('psnr_db')):(strstrt(',72,74,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'pca 16px tiles' && strcol('scene') eq 'real (loewenkopf)')
@@ -16,7 +16,7 @@ set table $s4 separator comma
 plot 'compact.csv' using (column('relight_ms')):(column('psnr_db')):(strstrt(',', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'pca auto (held-out LEDs)' && strcol('scene') eq 'real (loewenkopf)')
 unset table
 set table $s5 separator comma
-plot 'compact.csv' using (column('relight_ms')):(column('psnr_db')):(strstrt(',82,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'ptm' && strcol('scene') eq 'real (loewenkopf)')
+plot 'compact.csv' using (column('relight_ms')):(column('psnr_db')):(strstrt(',', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'ptm' && strcol('scene') eq 'real (loewenkopf)')
 unset table
 set table $s6 separator comma
 plot 'compact.csv' using (column('relight_ms')):(column('psnr_db')):(strstrt(',85,86,', sprintf(',%d,', column(0))) == 0 ? '' : strcol('representation')) with table if (strcol('family') eq 'hsh' && strcol('scene') eq 'real (loewenkopf)')
@@ -36,7 +36,7 @@ set key below left Left reverse horizontal spacing 1.2 width 2 height 1
 set autoscale fix
 set offsets graph 0.04, graph 0.14, graph 0.06, graph 0.06
 set logscale x
-set xtics (0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10)
+set xtics (0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1, 2, 5, 10)
 set linetype 1 lc rgb '#0072B2' lw 2 pt 7 ps 1.4 dt 1
 set linetype 2 lc rgb '#D55E00' lw 2 pt 5 ps 1.4 dt 2
 set linetype 3 lc rgb '#009E73' lw 2 pt 9 ps 1.4 dt 3
