@@ -160,6 +160,11 @@ py::dict fit_summary(const jobs::FitJobSummary& summary) {
   d["noise"] = py::dict(py::arg("read_variance") = summary.noise.a,
                         py::arg("shot_variance_per_unit") = summary.noise.b);
   d["seconds"] = summary.seconds;
+  const relight::FitTimes& t = s.times;  // Where the seconds went, as `lightstage fit` prints.
+  d["times"] = py::dict(py::arg("noise") = t.noise, py::arg("normals") = t.normals,
+                        py::arg("candidates") = t.candidates, py::arg("materials") = t.materials,
+                        py::arg("shadows") = t.shadows, py::arg("writing") = t.writing,
+                        py::arg("reading") = t.reading);
   d["band_rows"] = summary.band_rows;
   d["resumed_rows"] = summary.resumed_rows;
   return d;

@@ -74,6 +74,14 @@ def test_fit_equals_the_cli(cli, field_file, tmp_path):
     assert set(np.unique(maps["model"])) <= {0, 1, 2, 3, 4}
     s = fitted.summary
     assert s["fitted"] + s["flagged"] + s["empty"] == 40 * 40
+    # Where the time went, each part measured and within the whole (the noise is chosen and the
+    # bands read outside it).
+    times = s["times"]
+    assert set(times) == {"noise", "normals", "candidates", "materials", "shadows", "writing",
+                          "reading"}
+    assert times["candidates"] > 0
+    within = sum(v for k, v in times.items() if k not in ("noise", "reading"))
+    assert within <= s["seconds"] + 0.05
     # Physics: unit normals where fitted, albedo within [0, 1].
     fit = maps["model"] > 0
     np.testing.assert_allclose(np.linalg.norm(maps["normal"][fit], axis=1), 1, atol=1e-4)
