@@ -115,14 +115,25 @@ LeadingEigen leading_eigenvectors(const Eigen::MatrixXd& matrix, int count) {
     for (Eigen::Index i = 0; i < n; ++i) {  // A fixed start with a part along every vector.
       x(i) = 1 + 0.5 * std::sin(double(i + 1) * (j + 1.618));
     }
+    const auto orthogonalise = [&](Eigen::VectorXd& v) {
+      for (int k = cluster_start; k < j; ++k)
+        v -= on_tridiagonal.col(k).dot(v) * on_tridiagonal.col(k);
+      return v.norm();
+    };
     for (int it = 0; it < kInverseIterations; ++it) {
       shifted.solve(x);
-      for (int k = cluster_start; k < j; ++k) {
-        x -= on_tridiagonal.col(k).dot(x) * on_tridiagonal.col(k);
+      const double length = orthogonalise(x);
+      if (length > 0 && std::isfinite(length)) {
+        x /= length;
+        continue;
       }
-      const double length = x.norm();
-      if (!(length > 0) || !std::isfinite(length)) x.setOnes();
+      // Nothing left of the start (a zero or overflowing matrix): the first axis not yet spanned.
+      for (Eigen::Index i = 0; i < n; ++i) {
+        x = Eigen::VectorXd::Unit(n, i);
+        if (orthogonalise(x) > 0.5) break;
+      }
       x.normalize();
+      break;
     }
     on_tridiagonal.col(j) = x;
   }
