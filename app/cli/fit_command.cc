@@ -214,7 +214,8 @@ void add_normals_command(CLI::App& app) {
                   "squares over the lit samples.")
       ->check(CLI::IsMember({"robust", "ls"}))
       ->capture_default_str();
-  add_memory_option(*cmd, options->memory, "Normals: the band of the field read at once.");
+  add_memory_option(*cmd, options->memory, "Normals: the band of the field read at once.",
+                    "512 MiB (each band is written as it is done: larger bands are no faster)");
   add_quiet_flag(*cmd, *quiet);
   cmd->callback([options, quiet] {
     if (const std::string problem = options->validate(); !problem.empty()) {

@@ -351,7 +351,8 @@ NormalsJobSummary estimate_normals(const NormalsJobOptions& options, const Progr
   NormalsJobSummary summary;
   summary.width = header.width(), summary.height = header.height();
   summary.noise_source = fit.noise_source;
-  summary.band_rows = stream.band_rows(options.memory);
+  summary.band_rows =
+      stream.band_rows(MemoryBudget(options.memory.bytes_or(MemoryBudget::kNormalsBandBytes)));
   const std::vector<std::string>& names = normals_channel_names();
   const nlohmann::json noise = {{"read_variance", normal_options.noise.a},
                                 {"shot_variance_per_unit", normal_options.noise.b},
