@@ -151,4 +151,14 @@ void shape_band(const ReflectanceField& header, int y0, int y1, ReflectanceField
   band.set_band(y0, header.height());
 }
 
+FieldBands bands_of(RowReader read_rows, int height, int rows) {
+  return [read_rows = std::move(read_rows), height, rows](const BandVisitor& visit) {
+    ReflectanceField band;
+    for (int y0 = 0; y0 < height; y0 += rows) {
+      read_rows(y0, std::min(height, y0 + rows), band);
+      visit(band);
+    }
+  };
+}
+
 }  // namespace ls::capture

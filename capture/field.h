@@ -182,5 +182,9 @@ using FieldBands = std::function<void(const BandVisitor& visit)>;
 inline FieldBands whole_field(const ReflectanceField& field) {
   return [&field](const BandVisitor& visit) { visit(field); };
 }
+// Rows [y0, y1) of a field into `band` (as FieldStream::read_rows).
+using RowReader = std::function<void(int y0, int y1, ReflectanceField& band)>;
+// Every band of `rows` rows of a field `height` rows high, read in turn into one band.
+FieldBands bands_of(RowReader read_rows, int height, int rows);
 
 }  // namespace ls::capture

@@ -394,13 +394,8 @@ int FieldStream::row_alignment() const { return std::max(1, file_->spec.tile_hei
 int FieldStream::band_rows(const MemoryBudget& budget) const { return rows_within(budget.bytes()); }
 
 FieldBands FieldStream::bands(int rows) {
-  return [this, rows](const BandVisitor& visit) {
-    ReflectanceField band;
-    for (int y0 = 0; y0 < height(); y0 += rows) {
-      read_rows(y0, std::min(height(), y0 + rows), band);
-      visit(band);
-    }
-  };
+  return bands_of([this](int y0, int y1, ReflectanceField& band) { read_rows(y0, y1, band); },
+                  height(), rows);
 }
 
 void FieldStream::read_rows_into(int y0, int y1, float* dst) { file_->pixels->read(y0, y1, dst); }

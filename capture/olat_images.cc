@@ -80,46 +80,38 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   // this light's ceiling. (A field pixel averaged from clipped and unclipped image pixels lies
   // below it and is not caught.) Float files carry no ceiling.
   if (integer) field_light.saturates_at = linearizer.ceiling(h.format) * inverse_intensity;
-  if (width == h.width && height == h.height) {
-    // At the image's own size, decoded a band of rows at a time straight into the field's
-    // values: one copy of the image held per thread, not four (a 12-megapixel set's import
-    // would otherwise hold 0.6 GB per image being read).
-    constexpr int kBandRows = 64;
-    std::vector<float> raw(std::size_t(h.width) * kBandRows * h.channels);
+  // The image's linear values, decoded a band of rows at a time: straight into the field's values
+  // at the image's own size (one copy held per thread, not four: a 12-megapixel set's import held
+  // 0.6 GB per image being read), else into the full image the field's size is resized from.
+  const bool resize = width != h.width || height != h.height;
+  cv::Mat rgb, saturated;
+  if (resize) {
+    rgb.create(h.height, h.width, CV_32FC3);
+    if (options.zero_saturated)
+      saturated = cv::Mat(h.height, h.width, CV_32FC3, cv::Scalar::all(0));
+  } else {
     rgb_out.resize(std::size_t(width) * height * 3);
-    long long saturated_count = 0;
-    for (int y0 = 0; y0 < h.height; y0 += kBandRows) {
-      const int y1 = std::min(h.height, y0 + kBandRows);
-      if (!in->read_rows(y0, y1, image_file::Sample::kFloat, raw.data())) {
-        throw InputError(entry.where + ": image: cannot decode " + entry.image.string() + ": " +
-                         in->error());
-      }
-      const std::size_t first_pixel = std::size_t(y0) * h.width;
-      saturated_count +=
-          linearise_pixels(raw.data(), h, std::size_t(y1 - y0) * h.width, first_pixel,
-                           job.mask.empty() ? nullptr : job.mask.data() + first_pixel, linearizer,
-                           options.zero_saturated, rgb_out.data() + 3 * first_pixel, nullptr,
-                           entry.where, entry.image);
-    }
-    check_decoded(*in, entry.where, entry.image);
-    for (std::size_t p = 0; p < rgb_out.size(); p += 3) {
-      for (int c = 0; c < 3; ++c) rgb_out[p + c] *= inverse_intensity[c];
-    }
-    return saturated_count;
   }
-  std::vector<float> raw(std::size_t(h.width) * h.height * h.channels);
-  if (!in->read_rows(0, h.height, image_file::Sample::kFloat, raw.data())) {
-    throw InputError(entry.where + ": image: cannot decode " + entry.image.string() + ": " +
-                     in->error());
+  float* linear = resize ? rgb.ptr<float>() : rgb_out.data();
+  constexpr int kBandRows = 64;
+  std::vector<float> raw(std::size_t(h.width) * kBandRows * h.channels);
+  long long saturated_count = 0;
+  for (int y0 = 0; y0 < h.height; y0 += kBandRows) {
+    const int y1 = std::min(h.height, y0 + kBandRows);
+    if (!in->read_rows(y0, y1, image_file::Sample::kFloat, raw.data())) {
+      throw InputError(entry.where + ": image: cannot decode " + entry.image.string() + ": " +
+                       in->error());
+    }
+    const std::size_t first_pixel = std::size_t(y0) * h.width;
+    saturated_count +=
+        linearise_pixels(raw.data(), h, std::size_t(y1 - y0) * h.width, first_pixel,
+                         job.mask.empty() ? nullptr : job.mask.data() + first_pixel, linearizer,
+                         options.zero_saturated, linear + 3 * first_pixel,
+                         saturated.empty() ? nullptr : saturated.ptr<float>() + 3 * first_pixel,
+                         entry.where, entry.image);
   }
   check_decoded(*in, entry.where, entry.image);
-  const std::size_t pixels = std::size_t(h.width) * h.height;
-  cv::Mat rgb(h.height, h.width, CV_32FC3);
-  cv::Mat saturated(h.height, h.width, CV_32FC3, cv::Scalar::all(0));
-  const long long saturated_count = linearise_pixels(
-      raw.data(), h, pixels, 0, job.mask.empty() ? nullptr : job.mask.data(), linearizer,
-      options.zero_saturated, rgb.ptr<float>(), saturated.ptr<float>(), entry.where, entry.image);
-  if (width != h.width || height != h.height) {
+  if (resize) {
     const cv::Size size(width, height);
     cv::Mat small;
     cv::resize(rgb, small, size, 0, 0, cv::INTER_AREA);
@@ -144,12 +136,11 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
         if (small_saturated.ptr<float>()[i] > 0) small.ptr<float>()[i] = 0.0f;
       }
     }
-    rgb = small;
+    const float* values = small.ptr<float>();
+    rgb_out.assign(values, values + std::size_t(width) * height * 3);
   }
-  const float* values = rgb.ptr<float>();
-  rgb_out.resize(std::size_t(width) * height * 3);
-  for (std::size_t p = 0; p < std::size_t(width) * height; ++p) {
-    for (int c = 0; c < 3; ++c) rgb_out[3 * p + c] = values[3 * p + c] * inverse_intensity[c];
+  for (std::size_t p = 0; p < rgb_out.size(); p += 3) {
+    for (int c = 0; c < 3; ++c) rgb_out[p + c] *= inverse_intensity[c];
   }
   return saturated_count;
 }

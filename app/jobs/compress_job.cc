@@ -349,10 +349,7 @@ CompressSummary compress(const CompressOptions& options, const ProgressFn& progr
     }
     // The cap bound the choice when it took the largest rank allowed, or when the held-out error
     // was still falling there.
-    const std::vector<double>& held_out = pca_summary.held_out_ms;
-    const bool best_at_cap =
-        !held_out.empty() &&
-        std::min_element(held_out.begin() + 1, held_out.end()) - held_out.begin() == within_input;
+    const bool best_at_cap = pca_summary.held_out_best_rank() == within_input;
     const std::string cap = std::to_string(within_input) +
                             ", the largest rank whose file is no larger than the input (" +
                             std::to_string(summary.input_bytes >> 10) + " KiB)";

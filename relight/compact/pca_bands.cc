@@ -91,14 +91,8 @@ PcaField basis_in_bands(const PcaBandsInput& input, const PcaOptions& options,
         for (int y0 = 0; y0 < height; y0 += rows) visit(load_grams(grams_file(y0)));
       };
       // The held-out rank rule's pass reads every band here, as one process would.
-      const capture::FieldBands every_band = [&](const capture::BandVisitor& visit) {
-        capture::ReflectanceField rows_read;
-        for (int y0 = 0; y0 < height; y0 += rows) {
-          input.read_rows(y0, std::min(height, y0 + rows), rows_read);
-          visit(rows_read);
-        }
-      };
-      pca = PcaField::build_basis(header, grams, every_band, options, &summary);
+      pca = PcaField::build_basis(header, grams, capture::bands_of(input.read_rows, height, rows),
+                                  options, &summary);
       pca->save_basis(basis_file, summary);
     }
   }

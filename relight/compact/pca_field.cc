@@ -160,15 +160,20 @@ std::string PcaOptions::validate() const {
   return "";
 }
 
+int PcaSummary::held_out_best_rank() const {
+  if (held_out_ms.size() < 2) return 0;
+  return int(std::min_element(held_out_ms.begin() + 1, held_out_ms.end()) - held_out_ms.begin());
+}
+
 std::string PcaSummary::to_string() const {
   std::ostringstream s;
   s << "PCA rank " << rank << (auto_rank ? " (automatic)" : "");
-  if (auto_rank && rank < int(held_out_ms.size())) {
-    const auto best = std::min_element(held_out_ms.begin() + 1, held_out_ms.end());
-    s << std::setprecision(3)
-      << " from held-out LEDs: " << 10 * std::log10(held_out_ms[size_t(rank)] / *best)
-      << " dB from the best (rank " << best - held_out_ms.begin() << " of the "
-      << held_out_ms.size() - 1 << " tried)" << std::setprecision(6);
+  if (const int best = held_out_best_rank();
+      auto_rank && best > 0 && rank < int(held_out_ms.size())) {
+    s << std::setprecision(3) << " from held-out LEDs: "
+      << 10 * std::log10(held_out_ms[size_t(rank)] / held_out_ms[size_t(best)])
+      << " dB from the best (rank " << best << " of the " << held_out_ms.size() - 1 << " tried)"
+      << std::setprecision(6);
   }
   s << ", noise variance " << noise_variance << " per value ("
     << (noise_measured ? "measured: " : "estimated: ") << noise_method << "), residual "
@@ -295,8 +300,8 @@ int choose_rank(const capture::ReflectanceField& field, const capture::FieldBand
   }
   if (options.rank == 0 && options.rank_rule == PcaRankRule::kHeldOutLights) {
     sum.held_out_ms = held_out_errors(field, bands, global_gram, max_rank, options.rbf_sigma_rad);
-    if (!sum.held_out_ms.empty()) {
-      const double best = *std::min_element(sum.held_out_ms.begin() + 1, sum.held_out_ms.end());
+    if (const int best_rank = sum.held_out_best_rank(); best_rank > 0) {
+      const double best = sum.held_out_ms[size_t(best_rank)];
       const double within = std::pow(10.0, options.held_out_tolerance_db / 10);
       for (int k = 1; k < int(sum.held_out_ms.size()); ++k) {
         if (sum.held_out_ms[k] <= within * best) {

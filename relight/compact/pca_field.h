@@ -136,6 +136,8 @@ struct PcaSummary {
   std::vector<double> residual_ms;
   // kHeldOutLights: mean square error per held-out value for k = 0..K (empty otherwise).
   std::vector<double> held_out_ms;
+  // The rank of the lowest held-out error (0: none measured).
+  int held_out_best_rank() const;
   double mean_square = 0.0;  // Of all values.
   double seconds = 0.0;
   std::string to_string() const;

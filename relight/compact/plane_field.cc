@@ -139,10 +139,12 @@ struct PixelStatistics {
 constexpr int kGramSlices = 4;
 
 // The mean and covariance of the raw vectors over evenly strided pixels (frame index a multiple
-// of the stride), accumulated in blocks.
+// of the stride), accumulated in blocks; with kept_rows (one zero row per pixel taken), each
+// pixel's raw vector too.
 PixelStatistics strided_statistics(const capture::ReflectanceField& field,
                                    const capture::FieldBands& bands,
-                                   const PixelVectors& pixel_vector, long stride) {
+                                   const PixelVectors& pixel_vector, long stride,
+                                   Eigen::MatrixXd* kept_rows = nullptr) {
   const long width = field.width();
   const Eigen::Index d = pixel_vector.raw_size();
   std::vector<Eigen::MatrixXd> grams(kGramSlices, Eigen::MatrixXd::Zero(d, d));
@@ -167,6 +169,7 @@ PixelStatistics strided_statistics(const capture::ReflectanceField& field,
                             block.row(rows).data())) {
         continue;
       }
+      if (kept_rows) kept_rows->row(taken - 1) = block.row(rows);
       sum += block.row(rows++);
       if (rows == block.rows()) flush();
     }
@@ -352,15 +355,8 @@ PlaneField build_planes(const capture::ReflectanceField& field, const capture::F
   }
   LS_CHECK(stride == 1, "a training sample larger than max_pca_pixels");
   if (training->rows.size() == 0) {
-    training->raw = strided_statistics(field, bands, pixel_vector, stride);
     training->rows = Eigen::MatrixXd::Zero(pixels, pixel_vector.raw_size());
-    Eigen::RowVectorXd raw(pixel_vector.raw_size());
-    for (long p = 0; p < pixels; ++p) {
-      if (pixel_vector.raw(field.pixel(int(p % field.width()), int(p / field.width())),
-                           raw.data())) {
-        training->rows.row(p) = raw;
-      }
-    }
+    training->raw = strided_statistics(field, bands, pixel_vector, stride, &training->rows);
   }
   if (training->grid != grid_of(options) || training->axes.eigenvectors.cols() < out.planes) {
     training->grid = grid_of(options);
