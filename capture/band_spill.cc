@@ -75,17 +75,22 @@ void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& 
 FieldStorage SpillFile::write_field(const std::filesystem::path& out,
                                     const ReflectanceField& header, const ExrAttributes& attributes,
                                     const ProgressFn& progress, StorageChoice choice,
-                                    HalfCheck* check) {
+                                    HalfCheck* check, const std::vector<int>& keep) {
   FieldStorage storage;
   if (choice != StorageChoice::kFloat) storage = {true, half_scale_for(largest_.load())};
   std::vector<float> scratch;
-  ReflectanceField band = ReflectanceField::without_values(0, 0, header.lights());
+  // As spilled, every light put (their descriptions are the header's, written from it).
+  ReflectanceField spilled = ReflectanceField::without_values(
+      0, 0, keep.empty() ? header.lights() : std::vector<FieldLight>(std::size_t(lights_)));
+  ReflectanceField kept;
   while (true) {
     FieldWriter writer(out, header, attributes, 0, storage);
     HalfCheck worst;       // Over the bands written.
     bool refused = false;  // Auto, and half too coarse for a band: float instead.
     for (int b = 0; b < bands(); ++b) {
-      read_band(b, scratch, band);
+      read_band(b, scratch, spilled);
+      if (!keep.empty()) kept = select_lights(spilled, keep);
+      ReflectanceField& band = keep.empty() ? spilled : kept;
       if (storage.half) {
         copy_attributes(header, band);  // Its noise: the check holds the rounding against it.
         worst.add(check_half(band, storage.scale));

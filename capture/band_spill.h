@@ -49,11 +49,13 @@ class SpillFile {
   // Every band into the field file `out` (FieldWriter; header: its lights and attributes), band
   // by band; progress "write" (bands written) after each. Stored as `choice` asks (half scaled by
   // the largest value put; auto: half, written again in float when a band fails check_half).
-  // Returns the storage written; *check, when given, the half check (half or auto).
+  // Returns the storage written; *check, when given, the half check (half or auto). `keep`
+  // (indices of the lights put, in order) leaves the others out; empty: every light. The header's
+  // lights are those written.
   FieldStorage write_field(const std::filesystem::path& out, const ReflectanceField& header,
                            const ExrAttributes& attributes, const ProgressFn& progress,
-                           StorageChoice choice = StorageChoice::kFloat,
-                           HalfCheck* check = nullptr);
+                           StorageChoice choice = StorageChoice::kFloat, HalfCheck* check = nullptr,
+                           const std::vector<int>& keep = {});
 
  private:
   std::size_t offset(int band) const;  // In floats.

@@ -139,6 +139,25 @@ void copy_attributes(const ReflectanceField& from, ReflectanceField& to) {
   to.view = from.view;
 }
 
+ReflectanceField select_lights(const ReflectanceField& field,
+                               const std::vector<int>& light_indices) {
+  std::vector<FieldLight> lights;
+  for (int l : light_indices) lights.push_back(field.lights()[size_t(l)]);
+  ReflectanceField out(field.width(), field.height(), lights);
+  for (int y = 0; y < field.height(); ++y) {
+    for (int x = 0; x < field.width(); ++x) {
+      const float* in = field.pixel(x, y);
+      float* o = out.pixel(x, y);
+      for (size_t i = 0; i < light_indices.size(); ++i) {
+        for (int c = 0; c < 3; ++c) o[3 * i + c] = in[3 * light_indices[i] + c];
+      }
+    }
+  }
+  copy_attributes(field, out);
+  if (field.frame_height() != field.height()) out.set_band(field.first_row(), field.frame_height());
+  return out;
+}
+
 void shape_band(const ReflectanceField& header, int y0, int y1, ReflectanceField& band) {
   LS_CHECK(0 <= y0 && y0 < y1 && y1 <= header.height(), "rows out of the field");
   if (band.width() != header.width() || band.height() != y1 - y0 ||

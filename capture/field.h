@@ -137,6 +137,10 @@ class ReflectanceField {
 
 // What a field carries beside its values and lights (scene time, source, noise, view).
 void copy_attributes(const ReflectanceField& from, ReflectanceField& to);
+// A field (or a band of one) with only the given lights (indices into field.lights()), values
+// and attributes copied.
+ReflectanceField select_lights(const ReflectanceField& field,
+                               const std::vector<int>& light_indices);
 // `band` made ready to hold rows [y0, y1) of the field `header` describes (its lights and
 // attributes, its place in the frame), for a reader to fill; reallocated only when its size
 // changes, and then freed first (the last, shorter band must not hold two).

@@ -19,6 +19,7 @@
 
 #include "capture/band_spill.h"
 #include "capture/field_file.h"
+#include "capture/image_consistency.h"
 #include "capture/olat_pixels.h"
 #include "lightstage/bands.h"
 #include "lightstage/checkpoint_dir.h"
@@ -240,10 +241,50 @@ class SetImport {
   // Light l's saturation ceiling (as reading its image set it), and setting it back (a kept light).
   FieldLight& light(int l) { return header_.lights()[size_t(l)]; }
 
+  // The images as the consistency check sees them (options.keep_all: none), to be filled by
+  // the sink; then the lights to keep (empty: every light).
+  std::optional<ConsistencyStack> consistency_stack() const {
+    if (options_.keep_all) return std::nullopt;
+    std::vector<Eigen::Vector3d> dirs;
+    for (const OlatLight& light : job_.lights) dirs.push_back(light.dir_in_stage.normalized());
+    return ConsistencyStack(width_, height_, std::move(dirs));
+  }
+  std::vector<int> consistent_lights(const std::optional<ConsistencyStack>& stack) {
+    if (!stack) {
+      consistency_ = "not checked (--keep-all)";
+      return {};
+    }
+    const ConsistencyReport report = check_image_consistency(*stack);
+    if (!report.not_checked.empty()) {
+      consistency_ = "not checked: " + report.not_checked;
+      return {};
+    }
+    const std::vector<int> flagged = report.flagged();
+    for (int l : flagged) {
+      const OlatLight& light = job_.lights[size_t(l)];
+      inconsistent_.push_back(light.image.filename().string() + " (" + light.where +
+                              "): " + report.images[size_t(l)].reason);
+    }
+    consistency_ = std::to_string(num_lights()) + " images checked against what the others predict";
+    if (flagged.empty()) return {};
+    left_out_ = options_.leave_out_inconsistent;
+    consistency_ += ": " + std::to_string(flagged.size()) + (left_out_ ? " left out" : " kept");
+    if (!left_out_) return {};
+    std::vector<int> keep;
+    for (int l = 0; l < num_lights(); ++l) {
+      if (!report.images[size_t(l)].flagged) keep.push_back(l);
+    }
+    return keep;
+  }
+
   void summarise(OlatImportSummary* summary) {
     if (!summary) return;
     OlatImportSummary& s = *summary;
     s = OlatImportSummary{};
+    s.inconsistent = inconsistent_;
+    s.inconsistent_left_out = left_out_;
+    s.lights = num_lights() - (left_out_ ? int(inconsistent_.size()) : 0);
+    s.consistency = consistency_;
     s.format = job_.format;
     s.source = job_.source;
     s.images = num_lights();
@@ -291,21 +332,38 @@ class SetImport {
   int width_ = 0, height_ = 0;
   ReflectanceField header_;  // Lights (with their ceilings once read); no values.
   std::atomic<long long> saturated_{0};
+  std::vector<std::string> inconsistent_;  // Of consistent_lights.
+  bool left_out_ = false;
+  std::string consistency_;
 };
 
-// The field in memory (refused when it does not fit).
+// The header of a field of only the given lights (empty: every light).
+ReflectanceField kept_header(const ReflectanceField& header, const std::vector<int>& keep) {
+  ReflectanceField out = header;
+  if (keep.empty()) return out;
+  out.lights().clear();
+  for (int l : keep) out.lights().push_back(header.lights()[size_t(l)]);
+  return out;
+}
+
+// The field in memory (refused when it does not fit), without the images the consistency check
+// leaves out.
 ReflectanceField read_whole(SetImport& set, const LightImageFn& on_light) {
   const ReflectanceField& header = set.header();
   require_memory(ReflectanceField::bytes_for(header.width(), header.height(), set.num_lights()),
                  set.what(), "use --max-size, or --memory to import in bands");
   ReflectanceField field(header.width(), header.height(), header.lights());
+  std::optional<ConsistencyStack> stack = set.consistency_stack();
   set.read_images([&](int l, const std::vector<float>& rgb) {
     if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
+    if (stack) stack->add(l, rgb);
     field.set_light_image(l, rgb);
   });
   field.lights() = header.lights();  // With the ceilings the images gave.
   copy_attributes(header, field);
-  return field;
+  const std::vector<int> keep = set.consistent_lights(stack);
+  if (keep.empty()) return field;
+  return select_lights(field, keep);
 }
 
 }  // namespace
@@ -350,6 +408,7 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
     const int band_rows = agreed_band_rows(checkpoint, rows, split);
     SpillFile spill(out, header.width(), header.height(), set.num_lights(), band_rows,
                     checkpoint.dir() / "lights.spill");
+    std::optional<ConsistencyStack> stack = set.consistency_stack();
     constexpr const char* kMagic = "lightstage import light 1";
     const auto record = [&](int l) { return checkpoint.dir() / ("light_" + std::to_string(l)); };
     const auto kept = [&](int l, std::vector<float>& rgb, long long& saturated) {
@@ -363,6 +422,7 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
       set.light(l).saturates_at = Eigen::Vector3f(ceiling[0], ceiling[1], ceiling[2]);
       spill.reread(l, rgb);
       if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
+      if (stack) stack->add(l, rgb);
       ++resumed;
       return true;
     };
@@ -374,6 +434,7 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
     };
     const auto sink = [&](int l, const std::vector<float>& rgb) {
       if (on_light) on_light(l, header.lights()[size_t(l)].dir_in_stage, rgb);
+      if (stack) stack->add(l, rgb);
       spill.put(l, rgb);
     };
     set.read_images(
@@ -388,7 +449,9 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
           sink, [&](int l) { return !split.mine(l); }, kept, done);
       resumed = own;
     }
-    storage = spill.write_field(out, header, attributes, {}, choice, &check);
+    const std::vector<int> keep = set.consistent_lights(stack);
+    storage =
+        spill.write_field(out, kept_header(header, keep), attributes, {}, choice, &check, keep);
     checkpoint.remove();
     rows = band_rows;
   }

@@ -57,6 +57,12 @@ struct OlatImportOptions {
   ProgressFn progress;
   // Imports into a file: how it holds the values (capture/half_storage.h).
   StorageChoice storage = StorageChoice::kFloat;
+  // Each image is checked against what the others predict at its light
+  // (capture/image_consistency.h): those that disagree (shifted, another light's, black) are
+  // listed (summary) and, with leave_out_inconsistent, left out of the field. keep_all: not
+  // checked.
+  bool keep_all = false;
+  bool leave_out_inconsistent = true;
 
   // Empty when valid; otherwise a sentence naming the option and its valid range.
   std::string validate() const;
@@ -81,6 +87,12 @@ struct OlatImportSummary {
   FieldStorage storage;                 // Into a file: how it holds the values,
   std::optional<HalfCheck> half_check;  // and (half or auto storage) what half would cost.
   int resumed_lights = 0;  // In bands: lights an earlier, killed import had read (kept).
+  // The images found inconsistent with the others, each "IMAGE (WHERE): reason", and whether
+  // they were left out of the field (its lights are then the others, ids kept).
+  std::vector<std::string> inconsistent;
+  bool inconsistent_left_out = false;
+  int lights = 0;           // In the field.
+  std::string consistency;  // What the check did, a sentence.
 };
 
 // Which format `source` is: an .lp file, a folder with exactly one .lp file, or a folder with

@@ -41,6 +41,7 @@ pkg_check_modules(ARAVIS REQUIRED IMPORTED_TARGET aravis-0.8)
 # thread-safe libraw_r), test DNGs written through libtiff.
 pkg_check_modules(GPHOTO2 REQUIRED IMPORTED_TARGET libgphoto2)
 pkg_check_modules(LIBRAW REQUIRED IMPORTED_TARGET libraw_r)
+pkg_check_modules(MATIO REQUIRED IMPORTED_TARGET matio)  # Ground-truth .mat files (bench normals).
 find_package(TIFF REQUIRED)
 
 # The viewer: GLFW window + OpenGL 3.3 core (no loader: GL_GLEXT_PROTOTYPES against

@@ -6,6 +6,7 @@
 #include "evaluation/fit_bench.h"
 #include "evaluation/fit_sweeps_bench.h"
 #include "evaluation/led_bench.h"
+#include "evaluation/normals_bench.h"
 #include "evaluation/rti_bench.h"
 #include "evaluation/scale_bench.h"
 #include "evaluation/sun_bench.h"
@@ -25,6 +26,7 @@ RedrawnCharts redraw_bench_charts(const fs::path& dir) {
       {"exposures.csv", write_exposure_chart},
       {"fit.csv", write_fit_charts},
       {"fit_sweeps.csv", write_fit_sweeps_charts},
+      {"normals.csv", write_normals_chart},
       {"temporal.csv", write_temporal_charts},
       {"temporal_held_out.csv", write_temporal_held_out_chart},
       {"temporal_held_out_dark.csv", write_temporal_held_out_chart},

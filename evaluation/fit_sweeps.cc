@@ -302,10 +302,13 @@ SweepPoint evaluate(const capture::ReflectanceField& field, const std::vector<Su
 
   const auto t0 = std::chrono::steady_clock::now();
   const NormalMap ls = estimate_normals(field, ls_options);
+  const auto t_ls = std::chrono::steady_clock::now();
   const NormalMap robust = estimate_normals(field, robust_options);
   const auto t1 = std::chrono::steady_clock::now();
   const ModelMaps maps = fit_models(field, robust, fit_options);
   const auto t2 = std::chrono::steady_clock::now();
+  point.least_squares_seconds = std::chrono::duration<double>(t_ls - t0).count();
+  point.robust_seconds = std::chrono::duration<double>(t1 - t_ls).count();
   point.normals_seconds = std::chrono::duration<double>(t1 - t0).count();
   point.fit_seconds = std::chrono::duration<double>(t2 - t1).count();
   point.fit_pixels_per_second =

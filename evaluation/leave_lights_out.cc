@@ -72,26 +72,6 @@ double ssim(const Image& a, const Image& b, double peak) {
   return total / a.channels;
 }
 
-capture::ReflectanceField select_lights(const capture::ReflectanceField& field,
-                                        const std::vector<int>& light_indices) {
-  std::vector<capture::FieldLight> lights;
-  for (int l : light_indices) lights.push_back(field.lights()[l]);
-  capture::ReflectanceField out(field.width(), field.height(), lights);
-  for (int y = 0; y < field.height(); ++y) {
-    for (int x = 0; x < field.width(); ++x) {
-      const float* in = field.pixel(x, y);
-      float* o = out.pixel(x, y);
-      for (size_t i = 0; i < light_indices.size(); ++i) {
-        for (int c = 0; c < 3; ++c) o[3 * i + c] = in[3 * light_indices[i] + c];
-      }
-    }
-  }
-  out.noise = field.noise;
-  out.source = field.source;
-  out.scene_time_s = field.scene_time_s;
-  return out;
-}
-
 LeaveLightsOutResult leave_lights_out(const capture::ReflectanceField& field,
                                       const CompactBuilder& build,
                                       const LeaveLightsOutOptions& options) {
@@ -109,7 +89,7 @@ LeaveLightsOutResult leave_lights_out(const capture::ReflectanceField& field,
     }
   }
   if (held_out.empty()) throw InputError(field.source + ": leave-lights-out: no LED held out");
-  const capture::ReflectanceField train = select_lights(field, training);
+  const capture::ReflectanceField train = capture::select_lights(field, training);
   const auto t0 = std::chrono::steady_clock::now();
   const std::unique_ptr<relight::CompactField> compact = build(train);
   LeaveLightsOutResult result;

@@ -25,10 +25,6 @@ namespace ls::evaluation {
 // Mean SSIM over the channels of two same-size images, with `peak` as the dynamic range.
 double ssim(const Image& actual, const Image& reference, double peak);
 
-// A field with only the given lights (indices into field.lights()), values copied.
-capture::ReflectanceField select_lights(const capture::ReflectanceField& field,
-                                        const std::vector<int>& light_indices);
-
 struct LeaveLightsOutOptions {
   int every = 5;  // Hold out LEDs with index % every == offset.
   int offset = 2;

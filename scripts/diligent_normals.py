@@ -2,8 +2,9 @@
 """Normals of lightstage on the DiLiGenT objects in ../shared/data/diligent, as shared (cropped to
 the object) and put back into their whole 612x512 frame (the crop where CROP.txt says, the rest
 black): mean angular error over the mask against Normal_gt.mat, for `fit` and `normals`, and their
-times. The two frames must agree (issue 49: the answer may not depend on empty pixels around the
-object).
+times; and whether each confidence map predicts the error (the mean error by quarter of confidence,
+and their rank correlation). The two frames must agree (issue 49: the answer may not depend on empty
+pixels around the object).
 
     PYTHONPATH=build/python python3 scripts/diligent_normals.py ball reading
 """
@@ -18,6 +19,7 @@ import zlib
 
 import numpy as np
 import scipy.io
+import scipy.stats
 
 import lightstage as ls
 
@@ -69,11 +71,27 @@ def put_back_in_frame(folder, out):
             shutil.copy(path, out)
 
 
-def angular_error(maps, truth, mask):
+def angular_errors(maps, truth):
+    """Per pixel, degrees between the estimated normal and the ground truth."""
     normal = np.asarray(maps['normal'], np.float64)
     normal /= np.maximum(np.linalg.norm(normal, axis=2, keepdims=True), 1e-12)
     cosine = np.clip((normal * truth).sum(axis=2), -1, 1)
-    return float(np.degrees(np.arccos(cosine))[mask].mean())
+    return np.degrees(np.arccos(cosine))
+
+
+def angular_error(maps, truth, mask):
+    return float(angular_errors(maps, truth)[mask].mean())
+
+
+def error_by_confidence(maps, truth, mask, parts=4):
+    """Whether the confidence map predicts the error: the mean error over each quarter of the mask's
+    pixels ordered by confidence (lowest first), and the rank correlation of confidence and error
+    (negative: the error is larger where the confidence is lower)."""
+    errors = angular_errors(maps, truth)[mask]
+    confidence = np.asarray(maps['confidence'], np.float64).reshape(mask.shape)[mask]
+    order = np.argsort(confidence, kind='stable')
+    means = [float(errors[part].mean()) for part in np.array_split(order, parts)]
+    return means, float(scipy.stats.spearmanr(confidence, errors)[0])
 
 
 def main(objects):
@@ -95,10 +113,15 @@ def main(objects):
             seconds = time.time() - start
             normals = ls.normals(field, out=os.path.join(work, f'{name}_{frame}_normals.exr'))
             if frame == 'whole':
-                fitted = {'normal': np.asarray(fitted['normal'])[r0:r1, c0:c1]}
-                normals = {'normal': np.asarray(normals['normal'])[r0:r1, c0:c1]}
+                fitted, normals = ({key: np.asarray(maps[key])[r0:r1, c0:c1]
+                                    for key in ('normal', 'confidence')}
+                                   for maps in (fitted, normals))
             print(f'{name:8s} {frame:8s} {angular_error(fitted, truth, mask):8.2f} '
                   f'{angular_error(normals, truth, mask):8.2f} {seconds:6.2f}')
+            for method, maps in (('fit', fitted), ('normals', normals)):
+                means, rank = error_by_confidence(maps, truth, mask)
+                print(f'         {method:8s} error by confidence quarter (lowest first): ' +
+                      ' '.join(f'{m:.2f}' for m in means) + f' deg; rank correlation {rank:+.2f}')
     shutil.rmtree(work)
 
 

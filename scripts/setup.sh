@@ -19,6 +19,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libceres-dev libtbb-dev nlohmann-json3-dev libcli11-dev libimgui-dev zlib1g-dev
   libnanoflann-dev
+  libmatio-dev  # MATLAB files: DiLiGenT's ground-truth normals (bench normals)
   libtinyobjloader-dev  # OBJ meshes: render --shape MESH.obj
   blender  # the exported glTF rendered by a real renderer (tests/relight/material)
   libopenmpi-dev openmpi-bin

@@ -8,6 +8,7 @@
 //  rti:         the RTI formats as stored, against relight (evaluation/rti_bench.h).
 //  charts:      every bench's charts redrawn from its CSV (evaluation/bench_charts.h).
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <optional>
@@ -23,6 +24,7 @@
 #include "evaluation/fit_bench.h"
 #include "evaluation/fit_sweeps_bench.h"
 #include "evaluation/led_bench.h"
+#include "evaluation/normals_bench.h"
 #include "evaluation/rti_bench.h"
 #include "evaluation/scale_bench.h"
 #include "evaluation/sun_bench.h"
@@ -89,6 +91,26 @@ void print_fit_sweeps(const evaluation::FitSweepsBenchSummary& summary) {
   }
   std::fprintf(stderr, "wrote %s and fit_sweeps_<axis>.png; %d invalid outputs\n",
                summary.csv.c_str(), summary.invalid_outputs);
+}
+
+void print_normals(const evaluation::NormalsBenchSummary& summary) {
+  for (const std::string& why : summary.real_sets_missing) {
+    std::fprintf(stderr, "note: no real set measured: %s\n", why.c_str());
+  }
+  std::printf("%-26s %-14s %9s %9s %8s %9s %8s %9s %9s\n", "set", "method", "mean deg", "median",
+              "flag%", "seconds", "pixels", "least c.", "most c.");
+  for (const evaluation::NormalsBenchRow& r : summary.rows) {
+    const auto number = [](double v) {
+      char text[16] = "-";
+      if (!std::isnan(v)) std::snprintf(text, sizeof text, "%.3f", v);
+      return std::string(text);
+    };
+    std::printf("%-26s %-14s %9.3f %9s %8.1f %9.3f %8d %9s %9s\n", r.set.c_str(), r.method.c_str(),
+                r.mean_deg, number(r.median_deg).c_str(), 100 * r.flagged_fraction, r.seconds,
+                r.pixels, number(r.least_confident_deg).c_str(),
+                number(r.most_confident_deg).c_str());
+  }
+  std::fprintf(stderr, "wrote %s and normals.png\n", summary.csv.c_str());
 }
 
 void print_fit(const evaluation::FitBenchSummary& summary) {
@@ -318,6 +340,29 @@ void add_fit_sweeps(CLI::App& bench) {
   });
 }
 
+void add_normals(CLI::App& bench) {
+  auto args = std::make_shared<evaluation::NormalsBenchOptions>();
+  auto* cmd = bench.add_subcommand(
+      "normals",
+      "Every photometric-stereo method (least squares, robust, the fit's normals) on every real "
+      "set with ground-truth normals (DiLiGenT layout with Normal_gt.mat, run as the user runs "
+      "them: import, normals, fit) and on the simulator's hard scenes (cast shadows, saturation, "
+      "dead LEDs, grazing normals, noise): error against time. Writes normals.csv and "
+      "normals.png.");
+  cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
+  args->data = data_dir().parent_path().parent_path() / "shared/data/diligent";
+  cmd->add_option("--data", args->data, "Folder of DiLiGenT-layout sets with Normal_gt.mat.")
+      ->capture_default_str();
+  cmd->add_option("--repeats", args->repeats, "Timed runs per method on a real set (median).")
+      ->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  cmd->add_flag("--quick", args->quick, "Smaller simulated scenes.");
+  cmd->callback([args] {
+    args->executable = fs::read_symlink("/proc/self/exe");
+    print_normals(evaluation::run_normals_bench(*args, progress_printer(bench_quiet())));
+  });
+}
+
 void add_fit(CLI::App& bench) {
   auto args = std::make_shared<evaluation::FitBenchOptions>();
   auto* cmd = bench.add_subcommand(
@@ -486,6 +531,7 @@ void add_bench_command(CLI::App& app) {
   add_exposures(*bench);
   add_material_bench(*bench);
   add_fit_sweeps(*bench);
+  add_normals(*bench);
   add_fit(*bench);
   add_temporal(*bench);
   add_compact(*bench);

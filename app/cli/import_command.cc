@@ -16,6 +16,18 @@ namespace {
 
 namespace fs = std::filesystem;
 
+// The images check: what it did, and each image it found inconsistent (and left out).
+void print_consistency(const capture::OlatImportSummary& summary) {
+  std::printf("  consistency: %s\n", summary.consistency.c_str());
+  for (const std::string& image : summary.inconsistent) {
+    std::fprintf(stderr, "warning: %s %s\n", summary.inconsistent_left_out ? "left out" : "kept",
+                 image.c_str());
+  }
+  if (summary.inconsistent_left_out) {
+    std::printf("  (--keep-all keeps every image; the field's lights keep their ids)\n");
+  }
+}
+
 int print_import(const fs::path& source, const fs::path& out,
                  const capture::OlatImportOptions& options, const MemoryBudget& memory,
                  bool quiet) {
@@ -48,6 +60,7 @@ int print_import(const fs::path& source, const fs::path& out,
   for (const std::string& warning : summary.warnings) {
     std::fprintf(stderr, "warning: %s\n", warning.c_str());
   }
+  print_consistency(summary);
   std::printf(
       "wrote %s (%.1f MiB on disk, %.1f MiB as float in memory) and %s (light %d), %.2f s\n",
       out.c_str(), double(fs::file_size(out)) / (1 << 20), job.mebibytes, job.preview.c_str(),
@@ -78,6 +91,7 @@ int print_series(const std::vector<fs::path>& sources, const std::vector<double>
     std::printf("%s -> %s: t = %g s, %d images, field %dx%d, %.3f%% samples saturated\n",
                 series.sets[i].c_str(), series.fields[i].filename().c_str(), series.times_s[i],
                 s.images, s.width, s.height, 100.0 * s.saturated_fraction);
+    if (!s.inconsistent.empty()) print_consistency(s);
   }
   std::printf("wrote %zu time steps to %s (fit them with: lightstage fit --time %s)\n",
               series.steps.size(), out.c_str(), out.c_str());
@@ -124,6 +138,10 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("--max-size", options->max_size,
                   "Downsize (area averaging) so that the larger side is at most N pixels.")
       ->check(CLI::Range(1, 1 << 20));
+  cmd->add_flag("--keep-all", options->keep_all,
+                "Keep every image: by default each is checked against what the others predict at "
+                "its light, and those that disagree (shifted, another light's, black) are left "
+                "out and listed.");
   cmd->add_flag("--drop-saturated", options->zero_saturated,
                 "Write saturated samples (maximum code) as 0, so fits leave them out as shadowed; "
                 "default: keep them as lower bounds.");

@@ -31,6 +31,7 @@ std::string options_json(const fs::path& source, capture::OlatFormat format,
   if (transfer == capture::TransferCurve::kGamma) j["gamma"] = options.gamma;
   j["max_size"] = options.max_size;
   j["drop_saturated"] = options.zero_saturated;
+  j["keep_all"] = options.keep_all;
   j["scene_time_s"] = options.scene_time_s;
   return j.dump();
 }
@@ -64,7 +65,7 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
       ranks.split());
   summary.ranks = ranks.size();
   if (!ranks.root()) return summary;  // Rank 0 wrote the field (and writes the preview).
-  summary.lights = summary.import.images;
+  summary.lights = summary.import.lights;
   summary.mebibytes = capture::ReflectanceField::bytes_for(summary.import.width,
                                                            summary.import.height, summary.lights) /
                       1048576.0;
@@ -181,6 +182,9 @@ ImportSeriesSummary import_series(const std::vector<fs::path>& sources,
     std::snprintf(name, sizeof name, "field_t%03zu.exr", i);
     capture::OlatImportOptions step = options;
     step.scene_time_s = out.times_s[i];
+    // The steps of a time-lapse are fitted over the same lights: an image found inconsistent is
+    // listed, not left out of one step.
+    step.leave_out_inconsistent = false;
     out.fields.push_back(out_dir / name);
     outputs.add(out.fields.back());
     outputs.add(fs::path(out.fields.back()).replace_extension(".preview.png"));

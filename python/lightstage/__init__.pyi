@@ -240,8 +240,8 @@ def normals(field: _FieldLike, *, out: Optional[_Path] = None, method: str = "ro
 
 def import_set(source: _Path, *, out: _Path, linear: bool = False, srgb: bool = False,
                gamma: Optional[float] = None, max_size: int = 0, drop_saturated: bool = False,
-               time: float = 0.0, storage: str = "auto", memory: _Memory = None,
-               progress: _Progress = None) -> Imported:
+               keep_all: bool = False, time: float = 0.0, storage: str = "auto",
+               memory: _Memory = None, progress: _Progress = None) -> Imported:
     """Import an existing one-light-at-a-time photo set as a reflectance field: an RTI set
     described by an .lp file (N, then 'image x y z' per line) or a DiLiGenT photometric-stereo
     folder. Undoes the transfer curve (default: sRGB for .lp sets, linear for DiLiGenT), divides
@@ -254,6 +254,9 @@ def import_set(source: _Path, *, out: _Path, linear: bool = False, srgb: bool = 
     max_size: Downsize (area averaging) so that the larger side is at most N pixels.
     drop_saturated: Write saturated samples (maximum code) as 0, so fits leave them out as
         shadowed; default: keep them as lower bounds.
+    keep_all: Keep every image: by default each is checked against what the others predict at
+        its light, and those that disagree (shifted, another light's, black) are left out and
+        listed.
     time: Scene time of the set in seconds (default 0)
     storage: How the field file holds the values: half floats where the field relit from them
         stays within 1e-3 of the floats, else floats (auto); or always half or float.

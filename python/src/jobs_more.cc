@@ -84,8 +84,8 @@ py::object capture(const py::object& stage, const py::object& scene, const py::o
 
 py::object import_set(const py::object& source, const py::object& out, bool linear, bool srgb,
                       const std::optional<double>& gamma, int max_size, bool drop_saturated,
-                      double time, const std::string& storage, const py::object& memory,
-                      const py::object& progress) {
+                      bool keep_all, double time, const std::string& storage,
+                      const py::object& memory, const py::object& progress) {
   if (int(linear) + int(srgb) + int(gamma.has_value()) > 1) {
     throw InputError("import: give one of linear, srgb and gamma");
   }
@@ -99,6 +99,7 @@ py::object import_set(const py::object& source, const py::object& out, bool line
   }
   options.max_size = max_size;
   options.zero_saturated = drop_saturated;
+  options.keep_all = keep_all;
   options.scene_time_s = time;
   const fs::path from = to_path(source), to = to_path(out);
   const MemoryBudget budget = to_memory(memory);
@@ -116,6 +117,9 @@ py::object import_set(const py::object& source, const py::object& out, bool line
   d["transfer_undone"] = s.transfer_undone;
   d["saturated_fraction"] = s.saturated_fraction;
   d["notes"] = s.notes;
+  d["consistency"] = s.consistency;
+  d["inconsistent"] = s.inconsistent;
+  d["inconsistent_left_out"] = s.inconsistent_left_out;
   d["preview"] = summary.preview;
   d["seconds"] = s.seconds;
   py::dict result;
@@ -225,8 +229,8 @@ void bind_more_jobs(py::module_& m) {
         py::arg("progress") = py::none());
   m.def("import_set", &import_set, py::arg("source"), py::kw_only(), py::arg("out"),
         py::arg("linear") = false, py::arg("srgb") = false, py::arg("gamma") = py::none(),
-        py::arg("max_size") = 0, py::arg("drop_saturated") = false, py::arg("time") = 0.0,
-        py::arg("storage") = "auto", py::arg("memory") = py::none(),
+        py::arg("max_size") = 0, py::arg("drop_saturated") = false, py::arg("keep_all") = false,
+        py::arg("time") = 0.0, py::arg("storage") = "auto", py::arg("memory") = py::none(),
         py::arg("progress") = py::none());
   m.def("compress", &compress, py::arg("input"), py::kw_only(), py::arg("out"),
         py::arg("format") = "pca", py::arg("rank") = "auto", py::arg("tile") = 0,

@@ -19,6 +19,8 @@ constexpr double kPi = 3.14159265358979323846;
 // IRLS stops once a pass moves g by less than this fraction of |g|: the normal by under 1e-4 rad
 // (0.006 degrees, far below any normal's error), which most pixels reach in two or three passes.
 constexpr double kIrlsTolerance = 1e-4;
+// The predicted angular error at which a normal's confidence is 0.5 (store_solution).
+constexpr double kConfidenceDegrees = 1.0;
 
 // Per-thread scratch, sized once per row range: the per-pixel loop does not allocate.
 struct Scratch {
@@ -214,7 +216,8 @@ void store_solution(const Solve& solve, const std::vector<Eigen::Vector3d>& dirs
                     const std::vector<int>& light_index, const float* px, const Scratch& s, int x,
                     int y, NormalMap& out) {
   const Eigen::Vector3d nrm = solve.g / solve.g.norm();
-  double sxx = 0, sxy[3] = {0, 0, 0}, chi2 = 0;  // chi^2 of the luminance fit.
+  double sxx = 0, sxy[3] = {0, 0, 0}, chi2 = 0;           // chi^2 of the luminance fit (weighted).
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();  // L^T W L.
   int used = 0;
   for (size_t i = 0; i < dirs.size(); ++i) {
     if (!(s.weight[i] > 0)) continue;
@@ -223,8 +226,9 @@ void store_solution(const Solve& solve, const std::vector<Eigen::Vector3d>& dirs
     const float* v = px + 3 * size_t(light_index[i]);
     sxx += w * shade * shade;
     for (int c = 0; c < 3; ++c) sxy[c] += w * shade * v[c];
-    const double r = (s.y[i] - dirs[i].dot(solve.g)) / s.sigma[i];
-    chi2 += r * r;
+    const double r = s.y[i] - dirs[i].dot(solve.g);
+    chi2 += s.weight[i] * r * r;
+    information.noalias() += s.weight[i] * dirs[i] * dirs[i].transpose();
     ++used;
   }
   float* normal = &out.normal.at(x, y, 0);
@@ -233,11 +237,18 @@ void store_solution(const Solve& solve, const std::vector<Eigen::Vector3d>& dirs
     normal[c] = float(nrm(c));
     albedo[c] = sxx > 0 ? float(std::max(0.0, sxy[c] / sxx)) : 0.0f;
   }
-  // Confidence: how well the used lights pin down 3 unknowns (1 = isotropic cone), times how well
-  // the Lambertian model explains them (1 when residuals are at the noise level).
-  const double reduced_chi2 = used > 3 ? chi2 / (used - 3) : 1.0;
-  const double fit_quality = reduced_chi2 > 1 ? 1.0 / std::sqrt(reduced_chi2) : 1.0;
-  out.confidence.at(x, y, 0) = float(std::clamp(solve.condition * fit_quality, 0.0, 1.0));
+  // Confidence: the normal's standard error from the fit, as an angle: the covariance of g is
+  // s^2 (L^T W L)^-1 (s^2 the reduced chi^2, at least 1: residuals below the noise do not make a
+  // normal surer than the noise does), its part across the normal over |g|. 1 / (1 + error / 1
+  // degree): 0.5 at a predicted one degree; lower where the lights pin the normal down poorly or
+  // the model explains them poorly.
+  const double reduced_chi2 = used > 3 ? std::max(1.0, chi2 / (used - 3)) : 1.0;
+  const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - nrm * nrm.transpose();
+  const Eigen::Matrix3d covariance = reduced_chi2 * information.inverse();
+  const double error_deg =
+      std::sqrt(std::max(0.0, (across * covariance * across).trace())) / solve.g.norm() * 180 / kPi;
+  out.confidence.at(x, y, 0) =
+      std::isfinite(error_deg) ? float(1 / (1 + error_deg / kConfidenceDegrees)) : 0.0f;
 }
 
 }  // namespace

@@ -85,9 +85,11 @@ enum NormalFlag : int {
 };
 
 struct NormalMap {
-  Image normal;            // 3 channels, unit, in the stage frame; (0, 0, 0) where flagged.
-  Image albedo;            // 3 channels: Lambertian albedo per channel (R = albedo/pi * cos), >= 0.
-  Image confidence;        // 1 channel in [0, 1]: conditioning of the used lights x residual fit.
+  Image normal;  // 3 channels, unit, in the stage frame; (0, 0, 0) where flagged.
+  Image albedo;  // 3 channels: Lambertian albedo per channel (R = albedo/pi * cos), >= 0.
+  // 1 channel in [0, 1]: 1 / (1 + e / 1 degree), e the normal's standard error predicted from the
+  // used lights and the residuals (0.5 at a predicted degree).
+  Image confidence;
   Image flags;             // 1 channel: NormalFlag bits, 0 = ok.
   int flagged_pixels = 0;  // With signal, and flagged.
   int empty_pixels = 0;    // kNoSignal.
