@@ -142,6 +142,7 @@ void copy_attributes(const ReflectanceField& from, ReflectanceField& to) {
 ReflectanceField select_lights(const ReflectanceField& field,
                                const std::vector<int>& light_indices) {
   std::vector<FieldLight> lights;
+  lights.reserve(light_indices.size());
   for (int l : light_indices) lights.push_back(field.lights()[size_t(l)]);
   ReflectanceField out(field.width(), field.height(), lights);
   for (int y = 0; y < field.height(); ++y) {

@@ -270,6 +270,7 @@ class SetImport {
     left_out_ = options_.leave_out_inconsistent;
     consistency_ += ": " + std::to_string(flagged.size()) + (left_out_ ? " left out" : " kept");
     if (!left_out_) return {};
+    left_out_lights_ = flagged;
     std::vector<int> keep;
     for (int l = 0; l < num_lights(); ++l) {
       if (!report.images[size_t(l)].flagged) keep.push_back(l);
@@ -283,6 +284,7 @@ class SetImport {
     s = OlatImportSummary{};
     s.inconsistent = inconsistent_;
     s.inconsistent_left_out = left_out_;
+    s.left_out_lights = left_out_lights_;
     s.lights = num_lights() - (left_out_ ? int(inconsistent_.size()) : 0);
     s.consistency = consistency_;
     s.format = job_.format;
@@ -334,6 +336,7 @@ class SetImport {
   std::atomic<long long> saturated_{0};
   std::vector<std::string> inconsistent_;  // Of consistent_lights.
   bool left_out_ = false;
+  std::vector<int> left_out_lights_;
   std::string consistency_;
 };
 

@@ -91,8 +91,9 @@ struct OlatImportSummary {
   // they were left out of the field (its lights are then the others, ids kept).
   std::vector<std::string> inconsistent;
   bool inconsistent_left_out = false;
-  int lights = 0;           // In the field.
-  std::string consistency;  // What the check did, a sentence.
+  std::vector<int> left_out_lights;  // Their indices in the set, when left out.
+  int lights = 0;                    // In the field.
+  std::string consistency;           // What the check did, a sentence.
 };
 
 // Which format `source` is: an .lp file, a folder with exactly one .lp file, or a folder with

@@ -9,6 +9,7 @@
 
 #include "app/jobs/ranks.h"
 #include "capture/field.h"
+#include "capture/field_file.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/run_outputs.h"
@@ -34,6 +35,34 @@ std::string options_json(const fs::path& source, capture::OlatFormat format,
   j["keep_all"] = options.keep_all;
   j["scene_time_s"] = options.scene_time_s;
   return j.dump();
+}
+
+// The image of the field's light nearest the camera, read back from the field file: the preview
+// when the image check left out the one seen first. `light` gets its index in the set.
+Image frontal_light_image(const fs::path& field_file, int& light) {
+  capture::FieldStream stream(field_file);
+  const capture::ReflectanceField& header = stream.header();
+  int frontal = 0;
+  for (int l = 1; l < header.num_lights(); ++l) {
+    if (header.lights()[size_t(l)].dir_in_stage.z() >
+        header.lights()[size_t(frontal)].dir_in_stage.z()) {
+      frontal = l;
+    }
+  }
+  light = header.lights()[size_t(frontal)].led_id;  // Ids are the set's order.
+  Image image(header.width(), header.height(), 3);
+  const int rows = stream.band_rows(MemoryBudget(MemoryBudget::kImageSetBytes));
+  capture::bands_of(
+      [&](int y0, int y1, capture::ReflectanceField& band) { stream.read_rows(y0, y1, band); },
+      header.height(), rows)([&](const capture::ReflectanceField& band) {
+    for (int y = 0; y < band.height(); ++y) {
+      for (int x = 0; x < band.width(); ++x) {
+        for (int c = 0; c < 3; ++c)
+          image.at(x, band.first_row() + y, c) = band.at(x, y, frontal, c);
+      }
+    }
+  });
+  return image;
 }
 
 }  // namespace
@@ -71,6 +100,10 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
                       1048576.0;
   Image preview(summary.import.width, summary.import.height, 3);
   preview.pixels = std::move(preview_rgb);
+  const std::vector<int>& left_out = summary.import.left_out_lights;
+  if (std::find(left_out.begin(), left_out.end(), summary.preview_light) != left_out.end()) {
+    preview = frontal_light_image(out, summary.preview_light);
+  }
   summary.preview = out;
   summary.preview.replace_extension(".preview.png");
   write_png_preview(summary.preview, preview, auto_exposure_stops(preview));

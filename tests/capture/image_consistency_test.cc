@@ -174,22 +174,25 @@ TEST(ImageConsistency, ShiftedAndSwappedImagesAreFoundListedAndLeftOut) {
   }
 }
 
+// A copy of the shared ball whose image 052.png, its most frontal light's, is black.
+void copy_ball_with_a_black_image(const fs::path& set) {
+  fs::copy(diligent("ball"), set);
+  auto in = OIIO::ImageInput::open((set / "052.png").string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec spec = in->spec();
+  in.reset();
+  fs::remove(set / "052.png");
+  write_codes(set / "052.png", spec.width, spec.height, spec.nchannels,
+              std::vector<uint16_t>(size_t(spec.width) * spec.height * spec.nchannels, 0), 16);
+}
+
 // On the command line: a black image among a real set's is named with its reason on stderr and
-// left out; --keep-all keeps it.
+// left out (the preview shows the most frontal light kept); --keep-all keeps it.
 TEST(ImageConsistency, CliListsABlackImageAndKeepAllKeepsIt) {
   if (!fs::exists(diligent("ball"))) GTEST_SKIP() << "no ../shared/data";
   ls::testing::TempDir tmp;
   const fs::path set = tmp / "ball";
-  fs::copy(diligent("ball"), set);
-  {
-    auto in = OIIO::ImageInput::open((set / "040.png").string());
-    ASSERT_TRUE(in);
-    const OIIO::ImageSpec spec = in->spec();
-    in.reset();
-    fs::remove(set / "040.png");
-    write_codes(set / "040.png", spec.width, spec.height, spec.nchannels,
-                std::vector<uint16_t>(size_t(spec.width) * spec.height * spec.nchannels, 0), 16);
-  }
+  copy_ball_with_a_black_image(set);
   const std::string cli = ls::testing::cli_path().string();
   std::string output;
   int rc = ls::testing::run_command(
@@ -199,9 +202,14 @@ TEST(ImageConsistency, CliListsABlackImageAndKeepAllKeepsIt) {
   EXPECT_NE(output.find("96 images checked against what the others predict: 1 left out"),
             std::string::npos)
       << output;
-  EXPECT_NE(output.find("warning: left out 040.png"), std::string::npos) << output;
+  EXPECT_NE(output.find("warning: left out 052.png"), std::string::npos) << output;
   EXPECT_NE(output.find("black"), std::string::npos) << output;
   EXPECT_EQ(read_field(tmp / "f.exr").num_lights(), 95);
+  EXPECT_EQ(output.find("(light 51)"), std::string::npos) << output;
+  const Image preview = read_image(tmp / "f.preview.png");
+  double sum = 0;
+  for (float v : preview.pixels) sum += v;
+  EXPECT_GT(sum / double(preview.pixels.size()), 0.01);  // Not the black image.
 
   rc = ls::testing::run_command(cli + " import '" + set.string() + "' --quiet --keep-all --out '" +
                                     (tmp / "all.exr").string() + "'",
@@ -209,6 +217,26 @@ TEST(ImageConsistency, CliListsABlackImageAndKeepAllKeepsIt) {
   ASSERT_EQ(rc, 0) << output;
   EXPECT_NE(output.find("not checked (--keep-all)"), std::string::npos) << output;
   EXPECT_EQ(read_field(tmp / "all.exr").num_lights(), 96);
+}
+
+// A time-lapse's steps are fitted over the same lights: an inconsistent image in one step is
+// listed, and kept, so that every step keeps every light.
+TEST(ImageConsistency, ATimeLapseListsAnInconsistentImageAndKeepsIt) {
+  if (!fs::exists(diligent("ball"))) GTEST_SKIP() << "no ../shared/data";
+  ls::testing::TempDir tmp;
+  fs::create_directories(tmp / "steps");
+  fs::copy(diligent("ball"), tmp / "steps" / "a");
+  copy_ball_with_a_black_image(tmp / "steps" / "b");
+  std::string output;
+  const int rc = ls::testing::run_command(
+      ls::testing::cli_path().string() + " import '" + (tmp / "steps").string() +
+          "' --interval 60 --quiet --out '" + (tmp / "lapse").string() + "'",
+      &output);
+  ASSERT_EQ(rc, 0) << output;
+  EXPECT_NE(output.find("warning: kept 052.png"), std::string::npos) << output;
+  EXPECT_NE(output.find("1 kept"), std::string::npos) << output;
+  EXPECT_EQ(read_field(tmp / "lapse" / "field_t000.exr").num_lights(), 96);
+  EXPECT_EQ(read_field(tmp / "lapse" / "field_t001.exr").num_lights(), 96);
 }
 
 }  // namespace
