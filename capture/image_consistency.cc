@@ -219,8 +219,8 @@ ImageVerdict verdict(const ConsistencyStack& stack, const std::vector<float>& ce
   const double usual = std::max(usual_misfit(stack, judged, in_use, l), kMisfitFloor);
   v.misfit_ratio = (1 - j.aligned) / usual;
   const double own_misfit = 1 - j.unaligned, aligned_misfit = 1 - j.aligned;
-  const bool shift_explains = std::hypot(v.shift_x_px, v.shift_y_px) >= options.max_shift_px &&
-                              aligned_misfit < 0.5 * own_misfit;
+  const bool shift_explains =
+      std::hypot(j.shift_x, j.shift_y) >= options.max_shift_px && aligned_misfit < 0.5 * own_misfit;
   char text[240];
   if (j.mean < 1e-3 * median_mean) {
     v.flagged = true;

@@ -72,8 +72,11 @@ struct ImageVerdict {
 };
 
 struct ConsistencyOptions {
-  // Source pixels. On a smooth object the prediction's own error aligns clean images by up to
-  // 1.4 px (the DiLiGenT ball); a misregistration below this is not told from it.
+  // Pixels of the check's images (the set's, area-averaged to at most kMaxImagePixels). On a
+  // smooth object the prediction's own error aligns clean images by up to 1.4 px (the DiLiGenT
+  // ball), so a misregistration below this is not told from it; that error is in the check's
+  // pixels, so on a set downsized for the check the threshold in the set's pixels grows with it
+  // (a 12-megapixel frame: 7 px).
   double max_shift_px = 1.5;
   // Over the usual misfit of the images lit near it, for an image nothing else explains. Clean
   // real sets reach 10 (DiLiGenT reading, its corner lights) and 15 (the RTI lion, 64 x 43 px).
