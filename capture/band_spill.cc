@@ -54,10 +54,13 @@ void SpillFile::reread(int light, std::vector<float>& rgb) {
   count_largest(rgb);
 }
 
-void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& band) {
+void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& band,
+                          const std::vector<int>& keep) {
   const std::size_t per_light = std::size_t(band_height(b)) * width_ * 3;
   scratch.resize(per_light * std::size_t(lights_));
   file_.read(scratch.data(), scratch.size(), offset(b));
+  const std::size_t lights = keep.empty() ? std::size_t(lights_) : keep.size();
+  LS_CHECK(std::size_t(band.num_lights()) == lights, "a band of another number of lights");
   if (band.width() != width_ || band.height() != band_height(b)) {
     band = ReflectanceField(width_, band_height(b), band.lights());
   }
@@ -65,8 +68,9 @@ void SpillFile::read_band(int b, std::vector<float>& scratch, ReflectanceField& 
     for (int x = 0; x < width_; ++x) {
       float* out = band.pixel(x, y);
       const std::size_t at = (std::size_t(y) * width_ + x) * 3;
-      for (std::size_t l = 0; l < std::size_t(lights_); ++l) {
-        std::copy_n(&scratch[l * per_light + at], 3, out + 3 * l);
+      for (std::size_t i = 0; i < lights; ++i) {
+        const std::size_t l = keep.empty() ? i : std::size_t(keep[i]);
+        std::copy_n(&scratch[l * per_light + at], 3, out + 3 * i);
       }
     }
   });
@@ -79,18 +83,13 @@ FieldStorage SpillFile::write_field(const std::filesystem::path& out,
   FieldStorage storage;
   if (choice != StorageChoice::kFloat) storage = {true, half_scale_for(largest_.load())};
   std::vector<float> scratch;
-  // As spilled, every light put (their descriptions are the header's, written from it).
-  ReflectanceField spilled = ReflectanceField::without_values(
-      0, 0, keep.empty() ? header.lights() : std::vector<FieldLight>(std::size_t(lights_)));
-  ReflectanceField kept;
+  ReflectanceField band = ReflectanceField::without_values(0, 0, header.lights());
   while (true) {
     FieldWriter writer(out, header, attributes, 0, storage);
     HalfCheck worst;       // Over the bands written.
     bool refused = false;  // Auto, and half too coarse for a band: float instead.
     for (int b = 0; b < bands(); ++b) {
-      read_band(b, scratch, spilled);
-      if (!keep.empty()) kept = select_lights(spilled, keep);
-      ReflectanceField& band = keep.empty() ? spilled : kept;
+      read_band(b, scratch, band, keep);
       if (storage.half) {
         copy_attributes(header, band);  // Its noise: the check holds the rounding against it.
         worst.add(check_half(band, storage.scale));

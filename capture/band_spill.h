@@ -45,7 +45,9 @@ class SpillFile {
   void reopen() { file_.reopen(); }
   // Band b into `band` (resized to the band's rows), pixel-major as the field stores it;
   // `scratch` holds the band as spilled.
-  void read_band(int b, std::vector<float>& scratch, ReflectanceField& band);
+  // `keep` (indices of the lights put, in order): only those, in that order; empty: every light.
+  void read_band(int b, std::vector<float>& scratch, ReflectanceField& band,
+                 const std::vector<int>& keep = {});
   // Every band into the field file `out` (FieldWriter; header: its lights and attributes), band
   // by band; progress "write" (bands written) after each. Stored as `choice` asks (half scaled by
   // the largest value put; auto: half, written again in float when a band fails check_half).

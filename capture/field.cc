@@ -144,8 +144,11 @@ ReflectanceField select_lights(const ReflectanceField& field,
   std::vector<FieldLight> lights;
   lights.reserve(light_indices.size());
   for (int l : light_indices) lights.push_back(field.lights()[size_t(l)]);
-  ReflectanceField out(field.width(), field.height(), lights);
-  for (int y = 0; y < field.height(); ++y) {
+  const bool header = field.values().empty() && field.width() * field.height() > 0;
+  ReflectanceField out =
+      header ? ReflectanceField::without_values(field.width(), field.height(), lights)
+             : ReflectanceField(field.width(), field.height(), lights);
+  for (int y = 0; y < field.height() && !header; ++y) {
     for (int x = 0; x < field.width(); ++x) {
       const float* in = field.pixel(x, y);
       float* o = out.pixel(x, y);

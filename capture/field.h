@@ -137,8 +137,8 @@ class ReflectanceField {
 
 // What a field carries beside its values and lights (scene time, source, noise, view).
 void copy_attributes(const ReflectanceField& from, ReflectanceField& to);
-// A field (or a band of one) with only the given lights (indices into field.lights()), values
-// and attributes copied.
+// A field (or a band of one, or a header without values) with only the given lights (indices
+// into field.lights()), values and attributes copied.
 ReflectanceField select_lights(const ReflectanceField& field,
                                const std::vector<int>& light_indices);
 // `band` made ready to hold rows [y0, y1) of the field `header` describes (its lights and

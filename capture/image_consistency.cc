@@ -52,52 +52,64 @@ double correlation(const cv::Mat& a, const cv::Mat& b, const cv::Mat& region) {
   return cv::mean(product, region)[0] / (std_a[0] * std_b[0]);
 }
 
-// Per pixel, the ceiling the images are clipped at before they are compared: twice the median
-// over the images. A Lambertian pixel's values over a dome's lights stay within it; highlights
-// (up to a hundred times brighter) would otherwise decide the correlation alone, and the smooth
-// prediction cannot place them.
-std::vector<float> pixel_ceilings(const ConsistencyStack& stack) {
+// Every image clipped at twice its pixel's median over the images. A Lambertian pixel's values
+// over a dome's lights stay within it; highlights (up to a hundred times brighter) would otherwise
+// decide the correlation alone, and the smooth prediction cannot place them.
+void clip_at_pixel_medians(ConsistencyStack& stack) {
   const size_t pixels = size_t(stack.width()) * stack.height();
-  std::vector<float> ceiling(pixels);
   tbb::parallel_for(size_t(0), pixels, [&](size_t p) {
     std::vector<float> values(size_t(stack.lights()));
     for (int l = 0; l < stack.lights(); ++l) values[size_t(l)] = stack.image(l)[p];
     const auto mid = values.begin() + std::ptrdiff_t(values.size() / 2);
     std::nth_element(values.begin(), mid, values.end());
-    ceiling[p] = 2 * *mid;
-  });
-  return ceiling;
-}
-
-// Image l clipped at the ceilings.
-Eigen::VectorXf clipped(const ConsistencyStack& stack, const std::vector<float>& ceiling, int l) {
-  const Eigen::Index pixels = Eigen::Index(ceiling.size());
-  return Eigen::Map<const Eigen::VectorXf>(stack.image(l).data(), pixels)
-      .cwiseMin(Eigen::Map<const Eigen::VectorXf>(ceiling.data(), pixels));
-}
-
-// What the images in use (but its own) predict for light `target`'s image:
-// per pixel, a quadratic in the light direction (in the tangent plane at the target) fitted by
-// least squares to the kNeighbours lights nearest the target. Local, so that a highlight moving
-// between neighbouring lights is followed; the same weights for every pixel, so the prediction is
-// one weighted sum of images.
-constexpr int kNeighbours = 12;
-Eigen::VectorXf predict(const ConsistencyStack& stack, const std::vector<float>& ceiling,
-                        const std::vector<char>& in_use, int target) {
-  const Eigen::Vector3d& d = stack.dirs()[size_t(target)];
-  std::vector<std::pair<double, int>> nearest;  // -cos(angle), light
-  for (int k = 0; k < stack.lights(); ++k) {
-    if (k != target && in_use[size_t(k)]) {
-      nearest.emplace_back(-stack.dirs()[size_t(k)].dot(d), k);
+    const float ceiling = 2 * *mid;
+    for (int l = 0; l < stack.lights(); ++l) {
+      stack.image(l)[p] = std::min(stack.image(l)[p], ceiling);
     }
+  });
+}
+
+// For every light, the others nearest first (by angle): the neighbourhoods the prediction, the
+// usual misfit and the search for another light's image take their lights from.
+using NearestLights = std::vector<std::vector<int>>;
+NearestLights nearest_lights(const ConsistencyStack& stack) {
+  NearestLights nearest(size_t(stack.lights()));
+  for (int l = 0; l < stack.lights(); ++l) {
+    std::vector<int>& order = nearest[size_t(l)];
+    for (int k = 0; k < stack.lights(); ++k) {
+      if (k != l) order.push_back(k);
+    }
+    const Eigen::Vector3d& d = stack.dirs()[size_t(l)];
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+      return stack.dirs()[size_t(a)].dot(d) > stack.dirs()[size_t(b)].dot(d);
+    });
   }
-  const size_t count = std::min<size_t>(kNeighbours, nearest.size());
-  std::partial_sort(nearest.begin(), nearest.begin() + std::ptrdiff_t(count), nearest.end());
-  // The tangent plane's axes at d.
+  return nearest;
+}
+
+Eigen::Map<const Eigen::VectorXf> image_vector(const ConsistencyStack& stack, int l) {
+  return {stack.image(l).data(), Eigen::Index(stack.image(l).size())};
+}
+
+// What the images in use (but its own) predict for light `target`'s image: per pixel, a
+// quadratic in the light direction (in the tangent plane at the target) fitted by least squares
+// to the kNeighbours lights nearest the target. Local, so that a highlight moving between
+// neighbouring lights is followed; the same weights for every pixel, so the prediction is one
+// weighted sum of images.
+constexpr int kNeighbours = 12;
+Eigen::VectorXf predict(const ConsistencyStack& stack, const NearestLights& nearest,
+                        const std::vector<char>& in_use, int target) {
+  std::vector<int> used;
+  for (int k : nearest[size_t(target)]) {
+    if (used.size() == size_t(kNeighbours)) break;
+    if (in_use[size_t(k)]) used.push_back(k);
+  }
+  // The tangent plane's axes at the target's direction d.
+  const Eigen::Vector3d& d = stack.dirs()[size_t(target)];
   const Eigen::Vector3d u = d.unitOrthogonal(), v = d.cross(u);
-  Eigen::MatrixXd a(count, 6);
-  for (size_t i = 0; i < count; ++i) {
-    const Eigen::Vector3d& dk = stack.dirs()[size_t(nearest[i].second)];
+  Eigen::MatrixXd a(used.size(), 6);
+  for (size_t i = 0; i < used.size(); ++i) {
+    const Eigen::Vector3d& dk = stack.dirs()[size_t(used[i])];
     const double x = dk.dot(u), y = dk.dot(v);
     a.row(Eigen::Index(i)) << 1, x, y, x * x, x * y, y * y;
   }
@@ -106,9 +118,9 @@ Eigen::VectorXf predict(const ConsistencyStack& stack, const std::vector<float>&
   Eigen::MatrixXd normal = a.transpose() * a;
   normal.diagonal().tail(5).array() += 1e-4 * normal(0, 0);
   const Eigen::VectorXd weights = a * normal.ldlt().solve(Eigen::VectorXd::Unit(6, 0));
-  Eigen::VectorXf predicted = Eigen::VectorXf::Zero(Eigen::Index(ceiling.size()));
-  for (size_t i = 0; i < count; ++i) {
-    predicted += float(weights(Eigen::Index(i))) * clipped(stack, ceiling, nearest[i].second);
+  Eigen::VectorXf predicted = Eigen::VectorXf::Zero(Eigen::Index(stack.image(target).size()));
+  for (size_t i = 0; i < used.size(); ++i) {
+    predicted += float(weights(Eigen::Index(i))) * image_vector(stack, used[i]);
   }
   return predicted;
 }
@@ -116,19 +128,18 @@ Eigen::VectorXf predict(const ConsistencyStack& stack, const std::vector<float>&
 struct Judged {
   double shift_x = 0, shift_y = 0;    // Check pixels.
   double aligned = 0, unaligned = 0;  // Correlations.
-  double mean = 0;
 };
 
+cv::Mat image_mat(const ConsistencyStack& stack, const float* data) {
+  return {stack.height(), stack.width(), CV_32F, const_cast<float*>(data)};
+}
+
 // Image l against its prediction from the others.
-Judged judge(const ConsistencyStack& stack, const std::vector<float>& ceiling,
-             Eigen::VectorXf& predicted, const cv::Mat& region, int l) {
-  const int w = stack.width(), h = stack.height();
-  Eigen::VectorXf y = clipped(stack, ceiling, l);
-  const cv::Mat image(h, w, CV_32F, y.data());
-  const cv::Mat expected(h, w, CV_32F, predicted.data());
+Judged judge(const ConsistencyStack& stack, const Eigen::VectorXf& predicted, const cv::Mat& region,
+             int l) {
+  const cv::Mat image = image_mat(stack, stack.image(l).data());
+  const cv::Mat expected = image_mat(stack, predicted.data());
   Judged j;
-  const cv::Mat unclipped(h, w, CV_32F, const_cast<float*>(stack.image(l).data()));
-  j.mean = cv::mean(unclipped, region)[0];
   j.unaligned = correlation(expected, image, region);
   cv::Mat warp = cv::Mat::eye(2, 3, CV_32F);
   try {
@@ -149,57 +160,50 @@ Judged judge(const ConsistencyStack& stack, const std::vector<float>& ceiling,
 }
 
 // The usual misfit (1 - correlation) near light l: the median over the images in use whose
-// lights are nearest it (a sixth of the set, at least nine), itself left out. Near, not over the
+// lights are nearest it (a sixth of them, at least nine), itself left out. Near, not over the
 // whole set: a grazing light's shadows are less smooth than a frontal one's, and at the edge of
 // the dome the prediction extrapolates.
-double usual_misfit(const ConsistencyStack& stack, const std::vector<Judged>& judged,
+double usual_misfit(const NearestLights& nearest, const std::vector<Judged>& judged,
                     const std::vector<char>& in_use, int l) {
-  std::vector<std::pair<double, double>> by_distance;  // -cos(angle), misfit
-  for (int k = 0; k < stack.lights(); ++k) {
-    if (k == l || !in_use[size_t(k)]) continue;
-    by_distance.emplace_back(-stack.dirs()[size_t(k)].dot(stack.dirs()[size_t(l)]),
-                             1 - judged[size_t(k)].aligned);
-  }
-  const size_t nearest = std::min(by_distance.size(), std::max<size_t>(9, by_distance.size() / 6));
-  std::partial_sort(by_distance.begin(), by_distance.begin() + std::ptrdiff_t(nearest),
-                    by_distance.end());
+  const std::vector<int>& order = nearest[size_t(l)];
+  const auto others = size_t(
+      std::count_if(order.begin(), order.end(), [&](int k) { return in_use[size_t(k)] != 0; }));
+  const size_t count = std::min(others, std::max<size_t>(9, others / 6));
   std::vector<double> misfits;
-  for (size_t k = 0; k < nearest; ++k) misfits.push_back(by_distance[k].second);
+  for (int k : order) {
+    if (misfits.size() == count) break;
+    if (in_use[size_t(k)]) misfits.push_back(1 - judged[size_t(k)].aligned);
+  }
   return median_of(misfits);
 }
 
 // The light (other than l) at which image l correlates best, as it is, with what the other
 // images predict, and that correlation ({-1, -1} when there is none): another light's image looks
 // like that light's prediction.
-std::pair<int, double> best_other_light(const ConsistencyStack& stack,
-                                        const std::vector<float>& ceiling,
-                                        std::vector<Eigen::VectorXf>& predicted,
+std::pair<int, double> best_other_light(const ConsistencyStack& stack, const NearestLights& nearest,
+                                        const std::vector<Eigen::VectorXf>& predicted,
                                         const cv::Mat& region, int l) {
-  const int w = stack.width(), h = stack.height();
-  Eigen::VectorXf y = clipped(stack, ceiling, l);
-  const cv::Mat image(h, w, CV_32F, y.data());
+  const cv::Mat image = image_mat(stack, stack.image(l).data());
   // Not l's nearest neighbours: at the edge of the dome an image's own prediction extrapolates
   // and its neighbour's may fit it better.
   const Eigen::Vector3d& d = stack.dirs()[size_t(l)];
-  double nearest = -1;  // cos of the angle to l's nearest other light
-  for (int k = 0; k < stack.lights(); ++k) {
-    if (k != l) nearest = std::max(nearest, stack.dirs()[size_t(k)].dot(d));
-  }
-  const double beyond = std::cos(1.5 * std::acos(std::clamp(nearest, -1.0, 1.0)));
+  const double closest = d.dot(stack.dirs()[size_t(nearest[size_t(l)].front())]);
+  const double beyond = std::cos(1.5 * std::acos(std::clamp(closest, -1.0, 1.0)));
   std::pair<int, double> best{-1, -1.0};
   for (int k = 0; k < stack.lights(); ++k) {
     if (k == l || stack.dirs()[size_t(k)].dot(d) > beyond) continue;
-    const double c = correlation(cv::Mat(h, w, CV_32F, predicted[size_t(k)].data()), image, region);
+    const double c = correlation(image_mat(stack, predicted[size_t(k)].data()), image, region);
     if (c > best.second) best = {k, c};
   }
   return best;
 }
 
 // Image l's verdict, judged against the images in use: `predicted` holds every light's
-// prediction, `median_mean` the median image's mean.
-ImageVerdict verdict(const ConsistencyStack& stack, const std::vector<float>& ceiling,
-                     std::vector<Eigen::VectorXf>& predicted, const std::vector<Judged>& judged,
-                     const std::vector<char>& in_use, const cv::Mat& region, double median_mean,
+// prediction, `mean` its image's mean (before clipping), `median_mean` the median image's.
+ImageVerdict verdict(const ConsistencyStack& stack, const NearestLights& nearest,
+                     const std::vector<Eigen::VectorXf>& predicted,
+                     const std::vector<Judged>& judged, const std::vector<char>& in_use,
+                     const cv::Mat& region, double mean, double median_mean,
                      const ConsistencyOptions& options, int l) {
   // An image that fits its prediction this much worse than the images lit near it is looked at
   // more closely (another light's?); flagged only when something explains it, or when it fits
@@ -216,26 +220,25 @@ ImageVerdict verdict(const ConsistencyStack& stack, const std::vector<float>& ce
   v.correlation = j.aligned;
   // Below a misfit of 1e-3 (correlation 0.999) images agree as well as any real set's can:
   // a noiseless set's edge lights are not 50 times worse for fitting to 0.999.
-  const double usual = std::max(usual_misfit(stack, judged, in_use, l), kMisfitFloor);
+  const double usual = std::max(usual_misfit(nearest, judged, in_use, l), kMisfitFloor);
   v.misfit_ratio = (1 - j.aligned) / usual;
   const double own_misfit = 1 - j.unaligned, aligned_misfit = 1 - j.aligned;
   const bool shift_explains =
       std::hypot(j.shift_x, j.shift_y) >= options.max_shift_px && aligned_misfit < 0.5 * own_misfit;
   char text[240];
-  if (j.mean < 1e-3 * median_mean) {
+  if (mean < 1e-3 * median_mean) {
     v.flagged = true;
     v.kind = ImageProblemKind::kBlack;
     std::snprintf(text, sizeof text, "black: its mean is %.2g of the median image's",
-                  j.mean / median_mean);
+                  mean / median_mean);
   } else if (shift_explains || own_misfit > kSuspectRatio * usual) {
     // Another light's image (a swapped file, a wrong line) matches that light's prediction
     // as it is; on a smooth object it also aligns to its own by a shift, so this comes first.
-    const auto [other, other_correlation] = best_other_light(stack, ceiling, predicted, region, l);
+    const auto [other, other_correlation] = best_other_light(stack, nearest, predicted, region, l);
     const double other_misfit = 1 - other_correlation;
     if (other >= 0 && other_misfit < 0.5 * own_misfit && other_misfit < aligned_misfit) {
       v.flagged = true;
       v.kind = ImageProblemKind::kOtherLight;
-      v.matches_light = other;
       const double degrees =
           std::acos(
               std::clamp(stack.dirs()[size_t(l)].dot(stack.dirs()[size_t(other)]), -1.0, 1.0)) *
@@ -305,20 +308,6 @@ void ConsistencyStack::add(int light, const std::vector<float>& rgb) {
   }
 }
 
-const char* to_string(ImageProblemKind kind) {
-  switch (kind) {
-    case ImageProblemKind::kShifted:
-      return "shifted";
-    case ImageProblemKind::kOtherLight:
-      return "another light's";
-    case ImageProblemKind::kBlack:
-      return "black";
-    case ImageProblemKind::kUnexplained:
-      return "unlike its light";
-  }
-  return "?";
-}
-
 std::vector<int> ConsistencyReport::flagged() const {
   std::vector<int> out;
   for (size_t l = 0; l < images.size(); ++l) {
@@ -327,7 +316,7 @@ std::vector<int> ConsistencyReport::flagged() const {
   return out;
 }
 
-ConsistencyReport check_image_consistency(const ConsistencyStack& stack,
+ConsistencyReport check_image_consistency(ConsistencyStack& stack,
                                           const ConsistencyOptions& options) {
   ConsistencyReport report;
   const int n = stack.lights();
@@ -348,7 +337,14 @@ ConsistencyReport check_image_consistency(const ConsistencyStack& stack,
     report.not_checked = "too few pixels hold signal in every image";
     return report;
   }
-  const std::vector<float> ceiling = pixel_ceilings(stack);
+  // Each image's mean over the region, before clipping: what tells a black image.
+  std::vector<double> means;
+  means.reserve(size_t(n));
+  for (int l = 0; l < n; ++l) {
+    means.push_back(cv::mean(image_mat(stack, stack.image(l).data()), region)[0]);
+  }
+  clip_at_pixel_medians(stack);
+  const NearestLights nearest = nearest_lights(stack);
   std::vector<char> in_use(size_t(n), 1);
   std::vector<Judged> judged{size_t(n)};
   std::vector<Eigen::VectorXf> predicted{size_t(n)};
@@ -357,18 +353,18 @@ ConsistencyReport check_image_consistency(const ConsistencyStack& stack,
     ++report.rounds;
     // Every light's image as the images in use (but its own) predict it.
     tbb::parallel_for(0, n, [&](int l) {
-      predicted[size_t(l)] = predict(stack, ceiling, in_use, l);
-      judged[size_t(l)] = judge(stack, ceiling, predicted[size_t(l)], region, l);
+      predicted[size_t(l)] = predict(stack, nearest, in_use, l);
+      judged[size_t(l)] = judge(stack, predicted[size_t(l)], region, l);
     });
-    std::vector<double> means;
+    std::vector<double> used_means;
     for (int l = 0; l < n; ++l) {
-      if (in_use[size_t(l)]) means.push_back(judged[size_t(l)].mean);
+      if (in_use[size_t(l)]) used_means.push_back(means[size_t(l)]);
     }
-    const double median_mean = median_of(means);
+    const double median_mean = median_of(used_means);
     std::vector<char> next(size_t(n), 1);
     for (int l = 0; l < n; ++l) {
-      report.images[size_t(l)] =
-          verdict(stack, ceiling, predicted, judged, in_use, region, median_mean, options, l);
+      report.images[size_t(l)] = verdict(stack, nearest, predicted, judged, in_use, region,
+                                         means[size_t(l)], median_mean, options, l);
       next[size_t(l)] = !report.images[size_t(l)].flagged;
     }
     if (next == in_use) break;

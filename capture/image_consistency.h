@@ -46,6 +46,7 @@ class ConsistencyStack {
   double scale() const { return scale_; }  // Pixels of the set's images per pixel of the check's.
   const std::vector<Eigen::Vector3d>& dirs() const { return dirs_; }
   const std::vector<float>& image(int light) const { return images_[std::size_t(light)]; }
+  std::vector<float>& image(int light) { return images_[std::size_t(light)]; }
   bool has(int light) const { return !images_[std::size_t(light)].empty(); }
 
  private:
@@ -57,8 +58,6 @@ class ConsistencyStack {
 };
 
 enum class ImageProblemKind { kShifted, kOtherLight, kBlack, kUnexplained };
-// "shifted", "another light's", "black", "unlike its light".
-const char* to_string(ImageProblemKind kind);
 
 // One image of a set as the check judged it.
 struct ImageVerdict {
@@ -67,7 +66,6 @@ struct ImageVerdict {
   double shift_x_px = 0, shift_y_px = 0;  // Of the image against its prediction, source pixels.
   double correlation = 0;                 // With its prediction, once aligned.
   double misfit_ratio = 0;  // 1 - correlation over the usual near its light (1: typical).
-  int matches_light = -1;   // Another light's: the light whose prediction it matches.
   std::string reason;       // Flagged: a sentence saying why, with the figures.
 };
 
@@ -95,7 +93,9 @@ struct ConsistencyReport {
 // then read as shifted).
 constexpr int kMinImagesToCheck = 32;
 
-ConsistencyReport check_image_consistency(const ConsistencyStack& stack,
+// Clips the stack's images in place (at twice each pixel's median over the set, see above): they
+// are the check's own.
+ConsistencyReport check_image_consistency(ConsistencyStack& stack,
                                           const ConsistencyOptions& options = {});
 
 }  // namespace ls::capture

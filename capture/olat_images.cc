@@ -242,14 +242,14 @@ class SetImport {
   FieldLight& light(int l) { return header_.lights()[size_t(l)]; }
 
   // The images as the consistency check sees them (options.keep_all: none), to be filled by
-  // the sink; then the lights to keep (empty: every light).
+  // the sink; then the lights to keep (empty: every light), the stack clipped by the check.
   std::optional<ConsistencyStack> consistency_stack() const {
     if (options_.keep_all) return std::nullopt;
     std::vector<Eigen::Vector3d> dirs;
     for (const OlatLight& light : job_.lights) dirs.push_back(light.dir_in_stage.normalized());
     return ConsistencyStack(width_, height_, std::move(dirs));
   }
-  std::vector<int> consistent_lights(const std::optional<ConsistencyStack>& stack) {
+  std::vector<int> consistent_lights(std::optional<ConsistencyStack>& stack) {
     if (!stack) {
       consistency_ = "not checked (--keep-all)";
       return {};
@@ -267,9 +267,9 @@ class SetImport {
     }
     consistency_ = std::to_string(num_lights()) + " images checked against what the others predict";
     if (flagged.empty()) return {};
-    left_out_ = options_.leave_out_inconsistent;
-    consistency_ += ": " + std::to_string(flagged.size()) + (left_out_ ? " left out" : " kept");
-    if (!left_out_) return {};
+    const bool leave_out = options_.leave_out_inconsistent;
+    consistency_ += ": " + std::to_string(flagged.size()) + (leave_out ? " left out" : " kept");
+    if (!leave_out) return {};
     left_out_lights_ = flagged;
     std::vector<int> keep;
     for (int l = 0; l < num_lights(); ++l) {
@@ -283,9 +283,7 @@ class SetImport {
     OlatImportSummary& s = *summary;
     s = OlatImportSummary{};
     s.inconsistent = inconsistent_;
-    s.inconsistent_left_out = left_out_;
     s.left_out_lights = left_out_lights_;
-    s.lights = num_lights() - (left_out_ ? int(inconsistent_.size()) : 0);
     s.consistency = consistency_;
     s.format = job_.format;
     s.source = job_.source;
@@ -335,19 +333,9 @@ class SetImport {
   ReflectanceField header_;  // Lights (with their ceilings once read); no values.
   std::atomic<long long> saturated_{0};
   std::vector<std::string> inconsistent_;  // Of consistent_lights.
-  bool left_out_ = false;
   std::vector<int> left_out_lights_;
   std::string consistency_;
 };
-
-// The header of a field of only the given lights (empty: every light).
-ReflectanceField kept_header(const ReflectanceField& header, const std::vector<int>& keep) {
-  ReflectanceField out = header;
-  if (keep.empty()) return out;
-  out.lights().clear();
-  for (int l : keep) out.lights().push_back(header.lights()[size_t(l)]);
-  return out;
-}
 
 // The field in memory (refused when it does not fit), without the images the consistency check
 // leaves out.
@@ -453,8 +441,8 @@ int import_images_to_file(OlatImageSet job, const OlatImportOptions& options, co
       resumed = own;
     }
     const std::vector<int> keep = set.consistent_lights(stack);
-    storage =
-        spill.write_field(out, kept_header(header, keep), attributes, {}, choice, &check, keep);
+    storage = spill.write_field(out, keep.empty() ? header : select_lights(header, keep),
+                                attributes, {}, choice, &check, keep);
     checkpoint.remove();
     rows = band_rows;
   }

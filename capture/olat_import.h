@@ -87,13 +87,13 @@ struct OlatImportSummary {
   FieldStorage storage;                 // Into a file: how it holds the values,
   std::optional<HalfCheck> half_check;  // and (half or auto storage) what half would cost.
   int resumed_lights = 0;  // In bands: lights an earlier, killed import had read (kept).
-  // The images found inconsistent with the others, each "IMAGE (WHERE): reason", and whether
-  // they were left out of the field (its lights are then the others, ids kept).
+  // The images found inconsistent with the others, each "IMAGE (WHERE): reason", and those left
+  // out of the field (their indices in the set; the field's lights are the others, ids kept).
   std::vector<std::string> inconsistent;
-  bool inconsistent_left_out = false;
-  std::vector<int> left_out_lights;  // Their indices in the set, when left out.
-  int lights = 0;                    // In the field.
-  std::string consistency;           // What the check did, a sentence.
+  std::vector<int> left_out_lights;
+  std::string consistency;  // What the check did, a sentence.
+  bool inconsistent_left_out() const { return !left_out_lights.empty(); }
+  int lights() const { return images - int(left_out_lights.size()); }  // In the field.
 };
 
 // Which format `source` is: an .lp file, a folder with exactly one .lp file, or a folder with

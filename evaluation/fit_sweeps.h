@@ -73,9 +73,8 @@ struct SweepPoint {
   int unflagged_implausible = 0;
   // NaN, values outside the maps' declared ranges, or a kNone pixel without flags: must be 0.
   int invalid_outputs = 0;
-  std::string first_invalid;   // The first such pixel and its values, for the report.
-  double normals_seconds = 0;  // Least squares + robust,
-  double least_squares_seconds = 0, robust_seconds = 0;  // each.
+  std::string first_invalid;  // The first such pixel and its values, for the report.
+  double least_squares_seconds = 0, robust_seconds = 0;  // Normals.
   double fit_seconds = 0;
   double fit_pixels_per_second = 0;
 };

@@ -20,10 +20,10 @@ namespace fs = std::filesystem;
 void print_consistency(const capture::OlatImportSummary& summary) {
   std::printf("  consistency: %s\n", summary.consistency.c_str());
   for (const std::string& image : summary.inconsistent) {
-    std::fprintf(stderr, "warning: %s %s\n", summary.inconsistent_left_out ? "left out" : "kept",
+    std::fprintf(stderr, "warning: %s %s\n", summary.inconsistent_left_out() ? "left out" : "kept",
                  image.c_str());
   }
-  if (summary.inconsistent_left_out) {
+  if (summary.inconsistent_left_out()) {
     std::printf("  (--keep-all keeps every image; the field's lights keep their ids)\n");
   }
 }

@@ -51,17 +51,15 @@ Image frontal_light_image(const fs::path& field_file, int& light) {
   }
   light = header.lights()[size_t(frontal)].led_id;  // Ids are the set's order.
   Image image(header.width(), header.height(), 3);
-  const int rows = stream.band_rows(MemoryBudget(MemoryBudget::kImageSetBytes));
-  capture::bands_of(
-      [&](int y0, int y1, capture::ReflectanceField& band) { stream.read_rows(y0, y1, band); },
-      header.height(), rows)([&](const capture::ReflectanceField& band) {
-    for (int y = 0; y < band.height(); ++y) {
-      for (int x = 0; x < band.width(); ++x) {
-        for (int c = 0; c < 3; ++c)
-          image.at(x, band.first_row() + y, c) = band.at(x, y, frontal, c);
-      }
-    }
-  });
+  stream.bands(stream.band_rows(MemoryBudget(MemoryBudget::kImageSetBytes)))(
+      [&](const capture::ReflectanceField& band) {
+        for (int y = 0; y < band.height(); ++y) {
+          for (int x = 0; x < band.width(); ++x) {
+            const float* rgb = band.pixel(x, y) + std::ptrdiff_t(3) * frontal;
+            std::copy_n(rgb, 3, &image.at(x, band.first_row() + y, 0));
+          }
+        }
+      });
   return image;
 }
 
@@ -94,7 +92,7 @@ ImportJobSummary import_set(const fs::path& source, const fs::path& out,
       ranks.split());
   summary.ranks = ranks.size();
   if (!ranks.root()) return summary;  // Rank 0 wrote the field (and writes the preview).
-  summary.lights = summary.import.lights;
+  summary.lights = summary.import.lights();
   summary.mebibytes = capture::ReflectanceField::bytes_for(summary.import.width,
                                                            summary.import.height, summary.lights) /
                       1048576.0;

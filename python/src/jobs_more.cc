@@ -119,7 +119,7 @@ py::object import_set(const py::object& source, const py::object& out, bool line
   d["notes"] = s.notes;
   d["consistency"] = s.consistency;
   d["inconsistent"] = s.inconsistent;
-  d["inconsistent_left_out"] = s.inconsistent_left_out;
+  d["inconsistent_left_out"] = s.inconsistent_left_out();
   d["preview"] = summary.preview;
   d["seconds"] = s.seconds;
   py::dict result;

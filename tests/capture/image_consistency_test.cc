@@ -140,7 +140,7 @@ TEST(ImageConsistency, ShiftedAndSwappedImagesAreFoundListedAndLeftOut) {
           std::string::npos)
           << found[name];
     }
-    EXPECT_TRUE(summary.inconsistent_left_out);
+    EXPECT_TRUE(summary.inconsistent_left_out());
     EXPECT_EQ(field.num_lights(), 96 - int(expected.size()));
     // The field holds the others, their ids (file order) kept.
     for (const FieldLight& light : field.lights()) {
