@@ -276,14 +276,12 @@ class FieldBuild {
     gain->clear();
     if (!position && !flat_here) return;
     gain->resize(size_t(camera_.width) * camera_.height);
-    const double d0_squared = position ? position->squaredNorm() : 1.0;
     for (int y = 0; y < camera_.height; ++y) {
       for (int x = 0; x < camera_.width; ++x) {
         double g = 1.0;
         if (position) {
-          const Eigen::Vector3d to_led =
-              *position - reference_point(*field.view, camera_.width, camera_.height, x, y);
-          g = to_led.squaredNorm() / d0_squared;
+          g = near_light_gain(*field.view, camera_.width, camera_.height, x, y, *position,
+                              position->norm());
         }
         if (flat_here) g /= flat_->at(led.id, x, y, camera_.width, camera_.height);
         (*gain)[size_t(y) * camera_.width + x] = float(g);

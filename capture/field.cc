@@ -79,6 +79,12 @@ Eigen::Vector3d reference_point(const FieldView& view, int width, int height, in
   return {ndc_x * tan_half * aspect * depth, ndc_y * tan_half * depth, view.reference_z_m};
 }
 
+double near_light_gain(const FieldView& view, int width, int height, int x, int y,
+                       const Eigen::Vector3d& position, double reference_m) {
+  return (position - reference_point(view, width, height, x, y)).squaredNorm() /
+         (reference_m * reference_m);
+}
+
 void camera_ray(const FieldView& view, int width, int height, int x, int y, Eigen::Vector3d* origin,
                 Eigen::Vector3d* dir) {
   const double aspect = double(width) / height;

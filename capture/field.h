@@ -158,6 +158,11 @@ ValidLights valid_lights(const ReflectanceField& field);
 // meets the plane z = view.reference_z_m. A pinhole camera at or behind the plane sees it nowhere:
 // the point straight below the camera is returned.
 Eigen::Vector3d reference_point(const FieldView& view, int width, int height, int x, int y);
+// What a value of pixel (x, y) lit by a near LED at `position` (metres) is multiplied by to read
+// per unit of the irradiance the LED gives at distance reference_m: (|P - X| / reference_m)^2, X
+// the pixel's reference point.
+double near_light_gain(const FieldView& view, int width, int height, int x, int y,
+                       const Eigen::Vector3d& position, double reference_m);
 // The camera ray through pixel (x, y)'s centre: origin and unit direction (toward -Z); an
 // orthographic camera's rays start at z = 100, in front of anything on the stage.
 void camera_ray(const FieldView& view, int width, int height, int x, int y, Eigen::Vector3d* origin,

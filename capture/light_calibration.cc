@@ -172,6 +172,18 @@ std::optional<SphereOutline> find_sphere_circle_hough(const Image& reference, do
   return s;
 }
 
+std::vector<SphereOutline> outlines_from_circles(const std::vector<double>& circles) {
+  std::vector<SphereOutline> outlines;
+  for (size_t i = 0; i + 2 < circles.size(); i += 3) {
+    SphereOutline o;
+    o.center_px = Eigen::Vector2d(circles[i], circles[i + 1]);
+    o.radius_px = circles[i + 2];
+    o.major_semi_axis_px = Eigen::Vector2d(o.radius_px, 0);
+    outlines.push_back(o);
+  }
+  return outlines;
+}
+
 MirrorSphere locate_sphere(const SphereOutline& outline, const ViewCamera& camera, double radius_m,
                            double center_z_m) {
   MirrorSphere s;

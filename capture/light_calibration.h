@@ -63,6 +63,9 @@ std::vector<SphereOutline> find_sphere_outlines(const Image& reference, int max_
 std::optional<SphereOutline> find_sphere_circle_hough(const Image& reference, double min_radius_px,
                                                       double max_radius_px);
 
+// Outlines given as circles, cx, cy, r per sphere (pixels; a trailing incomplete one is ignored).
+std::vector<SphereOutline> outlines_from_circles(const std::vector<double>& circles);
+
 struct MirrorSphere {
   Eigen::Vector3d center_in_stage{0, 0, 0};
   double radius_m = 0.0;

@@ -44,7 +44,10 @@ struct OlatBands::Images {
 };
 
 std::unique_ptr<OlatBands> open_olat_bands(OlatImageSet set, const OlatImportOptions& options) {
-  if (int(set.lights.size()) > OlatBands::kMaxOpenImages) return nullptr;
+  // Lights placed from spheres need every image read first: an import's work.
+  if (int(set.lights.size()) > OlatBands::kMaxOpenImages || !options.spheres.outlines.empty()) {
+    return nullptr;
+  }
   ReflectanceField header = images_header(set, options);
   auto images = std::make_unique<OlatBands::Images>(std::move(set), options);
   images->open_all();

@@ -143,7 +143,24 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
   for (std::size_t p = 0; p < rgb_out.size(); p += 3) {
     for (int c = 0; c < 3; ++c) rgb_out[p + c] *= inverse_intensity[c];
   }
+  if (entry.position_in_stage && job.view) {
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        const auto gain = float(near_light_gain(*job.view, width, height, x, y,
+                                                *entry.position_in_stage, job.near_reference_m));
+        float* v = rgb_out.data() + (std::size_t(y) * width + x) * 3;
+        for (int c = 0; c < 3; ++c) v[c] *= gain;
+      }
+    }
+  }
   return saturated_count;
+}
+
+// The median of `values` (not empty), reordering them.
+double median_of(std::vector<double>& values) {
+  const auto mid = values.begin() + std::ptrdiff_t(values.size() / 2);
+  std::nth_element(values.begin(), mid, values.end());
+  return *mid;
 }
 
 // One import: the set checked and sized (the first image's header), then every light's image
@@ -157,7 +174,9 @@ class SetImport {
   // After a light's image went to the sink (not for kept ones): what a record of it holds.
   using LightDone = std::function<void(int light, long long saturated)>;
 
-  SetImport(OlatImageSet job, const OlatImportOptions& options)
+  // place_lights: with options.spheres, the lights are placed from them (every image read);
+  // otherwise (a header) they stay as listed.
+  SetImport(OlatImageSet job, const OlatImportOptions& options, bool place_lights = true)
       : start_(std::chrono::steady_clock::now()), job_(std::move(job)), options_(options) {
     if (const std::string error = options.validate(); !error.empty()) {
       throw InputError(job_.source.string() + ": " + error);
@@ -173,11 +192,21 @@ class SetImport {
                        size_text(first_.width, first_.height) + " like the images, got " +
                        size_text(job_.mask_width, job_.mask_height));
     }
+    if (const std::string error = options.spheres.validate(first_.width, first_.height);
+        !error.empty()) {
+      throw InputError(job_.source.string() + ": " + error);
+    }
     std::tie(width_, height_) = target_size(first_.width, first_.height, options.max_size);
+    if (place_lights && !options.spheres.outlines.empty()) place_from_spheres();
     std::vector<FieldLight> lights;
     lights.reserve(job_.lights.size());
-    for (int l = 0; l < num_lights(); ++l) lights.push_back({l, job_.lights[l].dir_in_stage, true});
+    for (int l = 0; l < num_lights(); ++l) {
+      const OlatLight& light = job_.lights[size_t(l)];
+      lights.push_back({l, light.dir_in_stage, true});
+      lights.back().position_in_stage = light.position_in_stage;
+    }
     header_ = ReflectanceField::without_values(width_, height_, std::move(lights));
+    header_.view = job_.view;
     header_.source = job_.source.string();
     header_.scene_time_s = options.scene_time_s;
   }
@@ -278,10 +307,64 @@ class SetImport {
     return keep;
   }
 
+  // The lights' directions (and positions) from the spheres in the images; what the set listed
+  // is kept for a light the spheres do not show, and reported.
+  void place_from_spheres() {
+    const Linearizer linearizer(job_.transfer, options_.gamma);
+    std::vector<std::string> names;
+    for (const OlatLight& light : job_.lights) names.push_back(light.image.filename().string());
+    const PlacedLights placed = place_lights_from_spheres(
+        first_.width, first_.height, names,
+        [&](int l, int y0, int y1) {
+          const OlatLight& light = job_.lights[size_t(l)];
+          return read_linear_rows(light.image, light.where, linearizer, y0, y1);
+        },
+        options_.spheres, options_.progress);
+    for (const ImageProblem& p : placed.problems) {
+      const OlatLight& light = job_.lights[size_t(p.led_index)];
+      job_.warnings.push_back(
+          light.image.filename().string() + " (" + light.where + "): " +
+          (p.sphere >= 0 ? "sphere " + std::to_string(p.sphere + 1) + ": " : std::string()) +
+          p.what);
+    }
+    std::vector<double> errors, distances;
+    for (int l = 0; l < num_lights(); ++l) {
+      OlatLight& light = job_.lights[size_t(l)];
+      if (const auto& dir = placed.directions[size_t(l)]) {
+        errors.push_back(angle_between_deg(light.dir_in_stage, *dir));
+        light.dir_in_stage = *dir;
+      } else {
+        job_.warnings.push_back(light.image.filename().string() + " (" + light.where +
+                                "): no sphere shows its light: its listed direction is kept");
+      }
+      light.position_in_stage = placed.positions[size_t(l)];
+      if (light.position_in_stage) distances.push_back(light.position_in_stage->norm());
+    }
+    placement_ = placed.description;
+    if (!errors.empty()) {
+      direction_error_max_deg_ = *std::max_element(errors.begin(), errors.end());
+      direction_error_median_deg_ = median_of(errors);
+    }
+    if (distances.empty()) return;  // Directions only.
+    // Every light near, or the field would mix units: one without a position stands at the
+    // others' median distance along its direction.
+    job_.near_reference_m = median_of(distances);
+    for (OlatLight& light : job_.lights) {
+      if (light.position_in_stage) continue;
+      light.position_in_stage = job_.near_reference_m * light.dir_in_stage.normalized();
+      job_.warnings.push_back(light.image.filename().string() + " (" + light.where +
+                              "): no position: put at the others' median distance");
+    }
+    job_.view = FieldView{0.0, 4.0, first_.height * placed.metres_per_pixel, 0.0};
+  }
+
   void summarise(OlatImportSummary* summary) {
     if (!summary) return;
     OlatImportSummary& s = *summary;
     s = OlatImportSummary{};
+    s.light_placement = placement_;
+    s.listed_direction_error_median_deg = direction_error_median_deg_;
+    s.listed_direction_error_max_deg = direction_error_max_deg_;
     s.inconsistent = inconsistent_;
     s.left_out_lights = left_out_lights_;
     s.consistency = consistency_;
@@ -335,6 +418,8 @@ class SetImport {
   std::vector<std::string> inconsistent_;  // Of consistent_lights.
   std::vector<int> left_out_lights_;
   std::string consistency_;
+  std::string placement_;  // Of place_from_spheres.
+  double direction_error_median_deg_ = 0, direction_error_max_deg_ = 0;
 };
 
 // The field in memory (refused when it does not fit), without the images the consistency check
@@ -360,7 +445,7 @@ ReflectanceField read_whole(SetImport& set, const LightImageFn& on_light) {
 }  // namespace
 
 ReflectanceField images_header(OlatImageSet job, const OlatImportOptions& options) {
-  return SetImport(std::move(job), options).header();
+  return SetImport(std::move(job), options, /*place_lights=*/false).header();
 }
 
 ReflectanceField import_images(OlatImageSet job, const OlatImportOptions& options,

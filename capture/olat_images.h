@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -23,6 +24,8 @@ struct OlatLight {
   Eigen::Vector3d dir_in_stage{0, 0, 1};
   Eigen::Vector3f intensity_rgb{1, 1, 1};  // Divided out of the pixel values.
   std::string where;                       // "FILE:LINE" of the line that names the image.
+  // Set when the light is near (placed from spheres): metres, stage frame.
+  std::optional<Eigen::Vector3d> position_in_stage;
 };
 
 struct OlatImageSet {
@@ -35,6 +38,10 @@ struct OlatImageSet {
   std::string mask_name;
   std::vector<std::string> notes;
   std::vector<std::string> warnings;  // What was assumed for what the set does not say.
+  // Near lights: the view of the source images, and the distance their falloff is divided out to
+  // (near_light_gain's reference_m: one for all lights, taken as equally bright).
+  std::optional<FieldView> view;
+  double near_reference_m = 1.0;
 };
 
 // The field's size and lights without its values: only the first image's header is read.

@@ -26,6 +26,7 @@
 
 #include "capture/field.h"
 #include "capture/field_file.h"
+#include "capture/sphere_lights.h"
 #include "lightstage/progress.h"
 #include "lightstage/rank_split.h"
 
@@ -63,6 +64,11 @@ struct OlatImportOptions {
   // checked.
   bool keep_all = false;
   bool leave_out_inconsistent = true;
+  // Mirror spheres in the frames (capture/sphere_lights.h): the lights' directions (one sphere)
+  // or positions (two) from their highlights replace the listed directions. With positions the
+  // field holds near lights (field.h: each pixel's own direction, the falloff divided out, the
+  // LEDs taken as equally bright) seen by an orthographic view of the plane z = 0.
+  SphereLightOptions spheres;
 
   // Empty when valid; otherwise a sentence naming the option and its valid range.
   std::string validate() const;
@@ -92,6 +98,10 @@ struct OlatImportSummary {
   std::vector<std::string> inconsistent;
   std::vector<int> left_out_lights;
   std::string consistency;  // What the check did, a sentence.
+  // With spheres: how the lights were placed (a sentence), and how far the listed directions were
+  // from the found ones (degrees; median and largest over the lights found).
+  std::string light_placement;
+  double listed_direction_error_median_deg = 0, listed_direction_error_max_deg = 0;
   bool inconsistent_left_out() const { return !left_out_lights.empty(); }
   int lights() const { return images - int(left_out_lights.size()); }  // In the field.
 };

@@ -120,4 +120,30 @@ long long linearise_pixels(const float* raw, const ImageHeader& h, std::size_t p
   return saturated_count;
 }
 
+Image read_linear_rows(const std::filesystem::path& image, const std::string& at,
+                       const Linearizer& linearizer, int y0, int y1) {
+  const auto in = open_olat_image(image, at);
+  const ImageHeader h = header_of(*in);
+  y1 = std::min(y1, h.height);
+  Image out(h.width, std::max(0, y1 - y0), 3);
+  constexpr int kBandRows = 64;
+  std::vector<float> raw(std::size_t(h.width) * kBandRows * h.channels);
+  std::vector<float> rgb(std::size_t(h.width) * kBandRows * 3);
+  for (int b0 = 0; b0 < y1; b0 += kBandRows) {
+    const int b1 = std::min(y1, b0 + kBandRows);
+    if (!in->read_rows(b0, b1, image_file::Sample::kFloat, raw.data())) {
+      throw InputError(at + ": image: cannot decode " + image.string() + ": " + in->error());
+    }
+    if (b1 <= y0) continue;
+    const std::size_t pixels = std::size_t(b1 - b0) * h.width;
+    linearise_pixels(raw.data(), h, pixels, std::size_t(b0) * h.width, nullptr, linearizer, false,
+                     rgb.data(), nullptr, at, image);
+    const int from = std::max(b0, y0);
+    std::copy(rgb.begin() + std::ptrdiff_t(std::size_t(from - b0) * h.width * 3),
+              rgb.begin() + std::ptrdiff_t(pixels * 3),
+              out.pixels.begin() + std::ptrdiff_t(std::size_t(from - y0) * h.width * 3));
+  }
+  return out;
+}
+
 }  // namespace ls::capture

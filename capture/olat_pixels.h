@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "capture/olat_import.h"
+#include "lightstage/image.h"
 #include "lightstage/image_file.h"
 
 namespace ls::capture {
@@ -67,5 +68,10 @@ long long linearise_pixels(const float* raw, const ImageHeader& h, std::size_t p
                            std::size_t first_pixel, const float* mask, const Linearizer& linearizer,
                            bool zero_saturated, float* rgb, float* saturated, const std::string& at,
                            const std::filesystem::path& image);
+
+// Rows [y0, y1) of an image (`at`: the line naming it, for messages), linear RGB at its own size,
+// no mask: what an import's spheres are found in (capture/sphere_lights.h).
+Image read_linear_rows(const std::filesystem::path& image, const std::string& at,
+                       const Linearizer& linearizer, int y0, int y1);
 
 }  // namespace ls::capture

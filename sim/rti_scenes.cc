@@ -1,5 +1,8 @@
 #include "sim/rti_scenes.h"
 
+#include <algorithm>
+#include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -56,6 +59,100 @@ Stage rti_dome_stage(int count, double min_elevation_deg, int resolution) {
   stage.name = "rti-dome-" + std::to_string(count);
   stage.camera.width = stage.camera.height = resolution;
   return stage;
+}
+
+NearRtiDome near_rti_dome(int leds, int width, int height, double radius_m, uint64_t seed) {
+  NearRtiDome dome;
+  dome.stage = rti_dome_stage(leds, 15.0, width);
+  dome.stage.name = "near-rti-dome-" + std::to_string(leds);
+  dome.stage.camera.width = width;
+  dome.stage.camera.height = height;
+  dome.stage.camera.fov_y_deg = 0.0;
+  dome.stage.camera.ortho_height_m = 0.36 * radius_m;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> jitter(-0.003, 0.003);
+  for (Led& led : dome.stage.leds) led.distance_m = radius_m * (1.0 + jitter(rng));
+
+  SceneMaterial backdrop;
+  backdrop.name = "backdrop";
+  backdrop.base.albedo = {0.3, 0.3, 0.3};
+  SceneMaterial black;
+  black.name = "sphere";
+  black.base.albedo = {0, 0, 0};
+  dome.scene.materials = {backdrop, black};
+  dome.scene.source = "<near-light rti dome>";
+  Plane plane;
+  plane.half_width = plane.half_height = 2.0 * radius_m;
+  dome.scene.planes.push_back(plane);
+  const double ball_radius = 0.04 * radius_m;
+  const double half_width = 0.5 * dome.stage.camera.ortho_height_m * width / height;
+  for (const double side : {-1.0, 1.0}) {
+    const Eigen::Vector3d centre(side * (half_width - 2.0 * ball_radius), -0.11 * radius_m,
+                                 ball_radius);
+    dome.scene.spheres.push_back({centre, ball_radius, 1});
+    dome.balls.push_back({centre, ball_radius});
+  }
+  return dome;
+}
+
+NearRtiRenderer::NearRtiRenderer(const NearRtiDome& dome)
+    : dome_(dome),
+      backdrop_(dome.stage, dome.scene, 1),
+      // A 5 mm LED mirrored in a 4 cm sphere is a spot under a tenth of a pixel across: 32x32
+      // samples per pixel meet it.
+      mirrors_(dome.balls, dome.stage.camera, 32) {}
+
+namespace {
+
+// Where a ball mirrors a point toward an orthographic camera on +Z: the normal halves the view
+// and the way to the point, found by fixed-point iteration (the ball is small beside the distance).
+Eigen::Vector3d mirror_point(const MirrorBall& ball, const Eigen::Vector3d& point) {
+  const Eigen::Vector3d view(0, 0, 1);
+  Eigen::Vector3d n = (view + (point - ball.center).normalized()).normalized();
+  for (int i = 0; i < 50; ++i) {
+    n = (view + (point - ball.center - ball.radius_m * n).normalized()).normalized();
+  }
+  return ball.center + ball.radius_m * n;
+}
+
+// The fraction of a unit-flux Gaussian spot (sigma in pixels) centred at c that falls in pixel i.
+double pixel_share(int i, double c, double sigma) {
+  const auto cdf = [&](double x) { return 0.5 * std::erfc(-(x - c) / (sigma * std::sqrt(2.0))); };
+  return cdf(i + 1.0) - cdf(double(i));
+}
+
+}  // namespace
+
+Image NearRtiRenderer::render(int led_index) {
+  Image image = backdrop_.one_light_image(led_index);
+  const Led& led = dome_.stage.leds[size_t(led_index)];
+  const Image mirror = mirrors_.render_led(led, 0.005, 0.6);
+  // The supersampled spot gives each ball's flux, but sits wherever its pixel is: a lens spreads
+  // it around the true mirror point, so it is put back there, a Gaussian of 0.5 px.
+  const CameraSpec& camera = dome_.stage.camera;
+  const double mpp = camera.ortho_height_m / camera.height;
+  const Eigen::Vector3d led_position = *led.distance_m * led.dir_in_stage.normalized();
+  constexpr double kSpotSigmaPx = 0.5;
+  for (const MirrorBall& ball : dome_.balls) {
+    const double cx = ball.center.x() / mpp + 0.5 * camera.width;
+    const double cy = 0.5 * camera.height - ball.center.y() / mpp;
+    const double r = ball.radius_m / mpp + 1;
+    Eigen::Vector3d flux = Eigen::Vector3d::Zero();
+    for (int y = std::max(0, int(cy - r)); y <= std::min(camera.height - 1, int(cy + r)); ++y) {
+      for (int x = std::max(0, int(cx - r)); x <= std::min(camera.width - 1, int(cx + r)); ++x) {
+        for (int c = 0; c < 3; ++c) flux[c] += mirror.at(x, y, c);
+      }
+    }
+    const Eigen::Vector3d p = mirror_point(ball, led_position);
+    const double px = p.x() / mpp + 0.5 * camera.width, py = 0.5 * camera.height - p.y() / mpp;
+    for (int y = std::max(0, int(py) - 3); y <= std::min(camera.height - 1, int(py) + 3); ++y) {
+      for (int x = std::max(0, int(px) - 3); x <= std::min(camera.width - 1, int(px) + 3); ++x) {
+        const double share = pixel_share(x, px, kSpotSigmaPx) * pixel_share(y, py, kSpotSigmaPx);
+        for (int c = 0; c < 3; ++c) image.at(x, y, c) += float(flux[c] * share);
+      }
+    }
+  }
+  return image;
 }
 
 }  // namespace ls::sim

@@ -61,6 +61,11 @@ int print_import(const fs::path& source, const fs::path& out,
     std::fprintf(stderr, "warning: %s\n", warning.c_str());
   }
   print_consistency(summary);
+  if (!summary.light_placement.empty()) {
+    std::printf("  lights: %s; the listed directions were off by %.2f deg (median), %.2f at most\n",
+                summary.light_placement.c_str(), summary.listed_direction_error_median_deg,
+                summary.listed_direction_error_max_deg);
+  }
   std::printf(
       "wrote %s (%.1f MiB on disk, %.1f MiB as float in memory) and %s (light %d), %.2f s\n",
       out.c_str(), double(fs::file_size(out)) / (1 << 20), job.mebibytes, job.preview.c_str(),
@@ -142,6 +147,19 @@ void add_import_command(CLI::App& app) {
                 "Keep every image: by default each is checked against what the others predict at "
                 "its light, and those that disagree (shifted, another light's, black) are left "
                 "out and listed.");
+  auto circles = std::make_shared<std::vector<double>>();
+  cmd->add_option("--circle", *circles,
+                  "A mirror sphere in every image: cx,cy,r in the images' pixels (x right, y down, "
+                  "pixel centres at +0.5); repeat per sphere. The lights are placed from their "
+                  "highlights: one sphere gives directions, two give positions (near lights: each "
+                  "pixel sees its own direction and distance, the falloff divided out). The "
+                  "spheres rest on the plane the object lies on.")
+      ->delimiter(',')
+      ->check(kFinite);
+  cmd->add_option("--sphere-radius", options->spheres.radius_m,
+                  "The spheres' radius in metres, for light positions in metres (otherwise a "
+                  "nominal scale: the normals do not depend on it).")
+      ->check(kPositive);
   cmd->add_flag("--drop-saturated", options->zero_saturated,
                 "Write saturated samples (maximum code) as 0, so fits leave them out as shadowed; "
                 "default: keep them as lower bounds.");
@@ -158,19 +176,24 @@ void add_import_command(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "half", "float"}))
       ->capture_default_str();
   add_quiet_flag(*cmd, *quiet);
-  cmd->callback(
-      [options, sources, out, times, interval, quiet, linear, srgb, gamma, memory, storage] {
-        options->storage = capture::parse_storage_choice("--storage", *storage);
-        if (*linear) options->transfer = capture::TransferCurve::kLinear;
-        if (*srgb) options->transfer = capture::TransferCurve::kSrgb;
-        if (gamma->count() > 0) options->transfer = capture::TransferCurve::kGamma;
-        if (jobs::series_sets(*sources).size() > 1 || times->size() > 1 || *interval > 0) {
-          print_series(*sources, *times, *interval, *out, *options, *memory, *quiet);
-          return;
-        }
-        if (!times->empty()) options->scene_time_s = times->front();
-        print_import(jobs::series_sets(*sources).front(), *out, *options, *memory, *quiet);
-      });
+  cmd->callback([options, sources, out, times, interval, quiet, linear, srgb, gamma, memory,
+                 storage, circles] {
+    if (circles->size() % 3 != 0) {
+      throw CLI::ValidationError("--circle", "expected cx,cy,r per sphere, got " +
+                                                 std::to_string(circles->size()) + " numbers");
+    }
+    options->spheres.outlines = capture::outlines_from_circles(*circles);
+    options->storage = capture::parse_storage_choice("--storage", *storage);
+    if (*linear) options->transfer = capture::TransferCurve::kLinear;
+    if (*srgb) options->transfer = capture::TransferCurve::kSrgb;
+    if (gamma->count() > 0) options->transfer = capture::TransferCurve::kGamma;
+    if (jobs::series_sets(*sources).size() > 1 || times->size() > 1 || *interval > 0) {
+      print_series(*sources, *times, *interval, *out, *options, *memory, *quiet);
+      return;
+    }
+    if (!times->empty()) options->scene_time_s = times->front();
+    print_import(jobs::series_sets(*sources).front(), *out, *options, *memory, *quiet);
+  });
 }
 
 }  // namespace ls::cli

@@ -120,18 +120,6 @@ std::string first_problem(std::initializer_list<std::string> problems) {
   return {};
 }
 
-std::vector<capture::SphereOutline> outlines_from_circles(const std::vector<double>& circles) {
-  std::vector<capture::SphereOutline> outlines;
-  for (size_t i = 0; i + 2 < circles.size(); i += 3) {
-    capture::SphereOutline o;
-    o.center_px = Eigen::Vector2d(circles[i], circles[i + 1]);
-    o.radius_px = circles[i + 2];
-    o.major_semi_axis_px = Eigen::Vector2d(o.radius_px, 0);
-    outlines.push_back(o);
-  }
-  return outlines;
-}
-
 // The spheres' outlines in the reference shot (options.reference or the folder's reference.*).
 std::vector<capture::SphereOutline> outlines_from_reference(
     const CalibrateDirectionsOptions& options, const Stage& nominal) {
@@ -178,7 +166,7 @@ CalibrateDirectionsSummary calibrate_directions(const CalibrateDirectionsOptions
   const capture::ViewCamera camera = capture::ViewCamera::from_spec(nominal.camera);
   std::vector<capture::SphereOutline> outlines;
   if (!options.circles.empty()) {
-    outlines = outlines_from_circles(options.circles);
+    outlines = capture::outlines_from_circles(options.circles);
   } else {
     outlines = outlines_from_reference(options, nominal);
     summary.found_outlines = outlines;

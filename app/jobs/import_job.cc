@@ -34,6 +34,13 @@ std::string options_json(const fs::path& source, capture::OlatFormat format,
   j["drop_saturated"] = options.zero_saturated;
   j["keep_all"] = options.keep_all;
   j["scene_time_s"] = options.scene_time_s;
+  if (!options.spheres.outlines.empty()) {
+    nlohmann::json circles = nlohmann::json::array();
+    for (const capture::SphereOutline& o : options.spheres.outlines) {
+      circles.push_back({o.center_px.x(), o.center_px.y(), o.radius_px});
+    }
+    j["spheres"] = {{"circles", circles}, {"radius_m", options.spheres.radius_m}};
+  }
   return j.dump();
 }
 

@@ -3,6 +3,7 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "app/jobs/fit_job.h"
 #include "app/jobs/import_job.h"
 #include "capture/half_storage.h"
+#include "capture/light_calibration.h"
 #include "lightstage/errors.h"
 #include "lightstage/exr_channels.h"
 #include "python/src/arrays.h"
@@ -84,7 +86,8 @@ py::object capture(const py::object& stage, const py::object& scene, const py::o
 
 py::object import_set(const py::object& source, const py::object& out, bool linear, bool srgb,
                       const std::optional<double>& gamma, int max_size, bool drop_saturated,
-                      bool keep_all, double time, const std::string& storage,
+                      bool keep_all, const std::vector<std::array<double, 3>>& circles,
+                      double sphere_radius, double time, const std::string& storage,
                       const py::object& memory, const py::object& progress) {
   if (int(linear) + int(srgb) + int(gamma.has_value()) > 1) {
     throw InputError("import: give one of linear, srgb and gamma");
@@ -100,6 +103,10 @@ py::object import_set(const py::object& source, const py::object& out, bool line
   options.max_size = max_size;
   options.zero_saturated = drop_saturated;
   options.keep_all = keep_all;
+  for (const auto& [cx, cy, r] : circles) {
+    options.spheres.outlines.push_back(capture::outlines_from_circles({cx, cy, r})[0]);
+  }
+  options.spheres.radius_m = sphere_radius;
   options.scene_time_s = time;
   const fs::path from = to_path(source), to = to_path(out);
   const MemoryBudget budget = to_memory(memory);
@@ -120,6 +127,8 @@ py::object import_set(const py::object& source, const py::object& out, bool line
   d["consistency"] = s.consistency;
   d["inconsistent"] = s.inconsistent;
   d["inconsistent_left_out"] = s.inconsistent_left_out();
+  d["light_placement"] = s.light_placement;
+  d["warnings"] = s.warnings;
   d["preview"] = summary.preview;
   d["seconds"] = s.seconds;
   py::dict result;
@@ -230,6 +239,7 @@ void bind_more_jobs(py::module_& m) {
   m.def("import_set", &import_set, py::arg("source"), py::kw_only(), py::arg("out"),
         py::arg("linear") = false, py::arg("srgb") = false, py::arg("gamma") = py::none(),
         py::arg("max_size") = 0, py::arg("drop_saturated") = false, py::arg("keep_all") = false,
+        py::arg("circles") = std::vector<std::array<double, 3>>{}, py::arg("sphere_radius") = 0.0,
         py::arg("time") = 0.0, py::arg("storage") = "auto", py::arg("memory") = py::none(),
         py::arg("progress") = py::none());
   m.def("compress", &compress, py::arg("input"), py::kw_only(), py::arg("out"),

@@ -1,0 +1,69 @@
+#pragma once
+// Where an imported set's lights are, from the mirror spheres in its frames (RTI sets put one or
+// two in every image for this). Each image's highlight on each sphere, reflected at the sphere
+// (capture/light_calibration.h), gives a ray toward that image's LED:
+//  * one sphere: each light's direction (the mean reflected ray), no positions;
+//  * two or more: positions where the rays cross. When the crossed positions lie on a sphere (a
+//    dome: RMS distance to the fitted sphere within kDomeTolerance of its radius), every light is
+//    put where its rays meet that sphere, which also places the lights whose rays cross too
+//    shallowly to triangulate (those along the line through the spheres).
+// Geometry: an orthographic camera looking down -Z at the plane z = 0 that the object and the
+// spheres rest on (sphere centres at z = their radius), the image centre at the stage origin, +Y
+// up the image. Metres from the spheres' radius when it is given; otherwise a nominal 0.1 mm
+// per source pixel (directions and the field's relative falloff do not depend on the scale).
+#include <Eigen/Core>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "capture/light_calibration.h"
+#include "lightstage/image.h"
+#include "lightstage/progress.h"
+
+namespace ls::capture {
+
+inline constexpr double kNominalMetresPerPixel = 1e-4;
+inline constexpr double kDomeTolerance = 0.02;
+
+struct SphereLightOptions {
+  std::vector<SphereOutline> outlines;  // In the images' pixels; empty: no placement.
+  double radius_m = 0.0;                // The spheres' radius; 0: unknown (nominal scale).
+  HighlightOptions highlight;
+  // Empty when valid; otherwise a sentence naming the option.
+  std::string validate(int image_width, int image_height) const;
+};
+
+// The dome the positions were fitted to.
+struct FittedDome {
+  Eigen::Vector3d centre{0, 0, 0};
+  double radius_m = 0.0;
+  double rms_m = 0.0;  // Of the triangulated positions about it.
+};
+
+struct PlacedLights {
+  int spheres = 0;
+  double metres_per_pixel = 0.0;                           // Of the source images.
+  std::vector<std::optional<Eigen::Vector3d>> positions;   // Per light (two or more spheres).
+  std::vector<std::optional<Eigen::Vector3d>> directions;  // Per light, unit; unset: not found.
+  int triangulated = 0;                                    // Lights whose rays crossed.
+  std::optional<FittedDome> dome;
+  std::vector<ImageProblem> problems;  // led_index: the light; image: its name.
+  // How the lights were placed, a sentence for the import's summary.
+  std::string description;
+};
+
+// Rows [y0, y1) of light `light`'s image as linear RGB (width x (y1 - y0)).
+using ImageRows = std::function<Image(int light, int y0, int y1)>;
+
+// Reads the rows the spheres cover from each of `names.size()` images of width x height (in
+// parallel) and places their lights. Progress: phase "spheres".
+PlacedLights place_lights_from_spheres(int width, int height, const std::vector<std::string>& names,
+                                       const ImageRows& read, const SphereLightOptions& options,
+                                       const ProgressFn& progress = {});
+
+// The sphere through 4 or more points (least squares on |p|^2 + b.p + c = 0), or nullopt when they
+// are degenerate (coplanar, too few).
+std::optional<FittedDome> fit_sphere(const std::vector<Eigen::Vector3d>& points);
+
+}  // namespace ls::capture
