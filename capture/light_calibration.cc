@@ -215,6 +215,42 @@ MirrorSphere locate_sphere(const SphereOutline& outline, const ViewCamera& camer
 // ---------------------------------------------------------------------------------------------
 // Highlights
 
+namespace {
+
+// The centroid of the area where `values` (pixel centres at +0.5; negative: outside the disc,
+// taken as 0) interpolated bilinearly reach `threshold`, over `box` grown by a pixel: 8x8 samples
+// per pixel. A clipped core's edge then moves with its neighbours' values, not a pixel at a time.
+Eigen::Vector2d area_centroid(const cv::Mat& values, const cv::Rect& box, double threshold) {
+  const int w = values.cols, h = values.rows;
+  const auto value = [&](int x, int y) {
+    return std::max(0.0f, values.at<float>(std::clamp(y, 0, h - 1), std::clamp(x, 0, w - 1)));
+  };
+  constexpr int kSub = 8;
+  Eigen::Vector2d sum(0, 0);
+  double area = 0;
+  for (int y = std::max(0, box.y - 1); y <= std::min(h - 1, box.y + box.height); ++y) {
+    for (int x = std::max(0, box.x - 1); x <= std::min(w - 1, box.x + box.width); ++x) {
+      for (int j = 0; j < kSub; ++j) {
+        for (int i = 0; i < kSub; ++i) {
+          // In pixel-centre coordinates: pixel (x, y)'s centre is (x, y).
+          const double px = x + (i + 0.5) / kSub - 0.5, py = y + (j + 0.5) / kSub - 0.5;
+          const int ix = int(std::floor(px)), iy = int(std::floor(py));
+          const double fx = px - ix, fy = py - iy;
+          const double v = (1 - fy) * ((1 - fx) * value(ix, iy) + fx * value(ix + 1, iy)) +
+                           fy * ((1 - fx) * value(ix, iy + 1) + fx * value(ix + 1, iy + 1));
+          if (v < threshold) continue;
+          sum += Eigen::Vector2d(px + 0.5, py + 0.5);
+          area += 1;
+        }
+      }
+    }
+  }
+  return area > 0 ? Eigen::Vector2d(sum / area)
+                  : Eigen::Vector2d(box.x + 0.5 * box.width, box.y + 0.5 * box.height);
+}
+
+}  // namespace
+
 std::optional<Highlight> find_highlight(const Image& image, const SphereOutline& outline,
                                         const HighlightOptions& options, std::string* problem) {
   const double r = outline.radius_px;
@@ -315,6 +351,12 @@ std::optional<Highlight> find_highlight(const Image& image, const SphereOutline&
   }
   Highlight hl;
   hl.center_px = Eigen::Vector2d(sx[best] / energy[best], sy[best] / energy[best]);
+  if (options.subpixel_core) {
+    const cv::Rect box(stats.at<int>(best, cv::CC_STAT_LEFT), stats.at<int>(best, cv::CC_STAT_TOP),
+                       stats.at<int>(best, cv::CC_STAT_WIDTH),
+                       stats.at<int>(best, cv::CC_STAT_HEIGHT));
+    hl.center_px = Eigen::Vector2d(x0, y0) + area_centroid(values, box, threshold);
+  }
   hl.peak = peak;
   hl.pixels = count[best];
   hl.saturated_pixels = saturated[best];

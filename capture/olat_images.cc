@@ -313,13 +313,22 @@ class SetImport {
     const Linearizer linearizer(job_.transfer, options_.gamma);
     std::vector<std::string> names;
     for (const OlatLight& light : job_.lights) names.push_back(light.image.filename().string());
+    SphereLightOptions spheres = options_.spheres;
+    // An 8-bit image clips the highlight, and a camera's glare around it is not symmetric: the
+    // clipped core alone locates it, its edge sub-pixel (capture/light_calibration.h,
+    // HighlightOptions; measured on PSBox's chrome sphere and the simulated dome,
+    // sphere_lights_test).
+    if (first_.format == image_file::Sample::kUInt8) {
+      spheres.highlight.blob_fraction = 0.975;
+      spheres.highlight.subpixel_core = true;
+    }
     const PlacedLights placed = place_lights_from_spheres(
         first_.width, first_.height, names,
         [&](int l, int y0, int y1) {
           const OlatLight& light = job_.lights[size_t(l)];
           return read_linear_rows(light.image, light.where, linearizer, y0, y1);
         },
-        options_.spheres, options_.progress);
+        spheres, options_.progress);
     for (const ImageProblem& p : placed.problems) {
       const OlatLight& light = job_.lights[size_t(p.led_index)];
       job_.warnings.push_back(
