@@ -309,7 +309,9 @@ std::optional<Highlight> find_highlight(const Image& image, const SphereOutline&
         peak, p50, p90);
     return std::nullopt;
   }
-  const double threshold = options.blob_fraction * peak;
+  const bool core = options.clipped_core_fraction > 0 && options.saturation_level > 0 &&
+                    peak >= options.saturation_level;
+  const double threshold = (core ? options.clipped_core_fraction : options.blob_fraction) * peak;
   cv::Mat mask = values > threshold;
   cv::Mat labels, stats, centroids;
   const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
@@ -351,7 +353,7 @@ std::optional<Highlight> find_highlight(const Image& image, const SphereOutline&
   }
   Highlight hl;
   hl.center_px = Eigen::Vector2d(sx[best] / energy[best], sy[best] / energy[best]);
-  if (options.subpixel_core) {
+  if (core) {
     const cv::Rect box(stats.at<int>(best, cv::CC_STAT_LEFT), stats.at<int>(best, cv::CC_STAT_TOP),
                        stats.at<int>(best, cv::CC_STAT_WIDTH),
                        stats.at<int>(best, cv::CC_STAT_HEIGHT));

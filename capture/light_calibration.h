@@ -83,10 +83,11 @@ struct HighlightOptions {
   // 0.25 vs 0.13 at 0.5); 8-bit JPEGs whose glare is not symmetric do better with the clipped core
   // alone (0.975).
   double blob_fraction = 0.25;
-  // The blob's centre as the centroid of its area above the threshold, its edge sub-pixel (the
-  // values interpolated between pixel centres), instead of weighting each pixel by its excess: a
-  // clipped core's excesses are all alike, and its pixels' centroid moves a pixel at a time.
-  bool subpixel_core = false;
+  // > 0: a clipped highlight (its peak at saturation_level) is located by its core instead, the
+  // area above this fraction of the peak, centroid with a sub-pixel edge (the values interpolated
+  // between pixel centres): a camera's glare around a clipped highlight is not symmetric, and the
+  // core's excesses are all alike, so weighting by them moves its centre a pixel at a time.
+  double clipped_core_fraction = 0;
   double min_contrast = 2.0;         // The peak must exceed this times the disc's 90th percentile.
   double min_peak = 1e-6;            // Absolute floor for the peak (image units).
   double min_snr = 30.0;             // ... and its median by this many noise sigmas.

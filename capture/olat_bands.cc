@@ -44,8 +44,9 @@ struct OlatBands::Images {
 };
 
 std::unique_ptr<OlatBands> open_olat_bands(OlatImageSet set, const OlatImportOptions& options) {
-  // Lights placed from spheres need every image read first: an import's work.
-  if (int(set.lights.size()) > OlatBands::kMaxOpenImages || !options.spheres.outlines.empty()) {
+  // Lights placed from spheres or a stage: an import's work (spheres need every image read first).
+  if (int(set.lights.size()) > OlatBands::kMaxOpenImages || !options.spheres.outlines.empty() ||
+      !options.stage_file.empty()) {
     return nullptr;
   }
   ReflectanceField header = images_header(set, options);

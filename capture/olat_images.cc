@@ -147,20 +147,13 @@ long long import_image(const OlatImageSet& job, int light, const ImageHeader& fi
     for (int y = 0; y < height; ++y) {
       for (int x = 0; x < width; ++x) {
         const auto gain = float(near_light_gain(*job.view, width, height, x, y,
-                                                *entry.position_in_stage, job.near_reference_m));
+                                                *entry.position_in_stage, entry.falloff_from_m));
         float* v = rgb_out.data() + (std::size_t(y) * width + x) * 3;
         for (int c = 0; c < 3; ++c) v[c] *= gain;
       }
     }
   }
   return saturated_count;
-}
-
-// The median of `values` (not empty), reordering them.
-double median_of(std::vector<double>& values) {
-  const auto mid = values.begin() + std::ptrdiff_t(values.size() / 2);
-  std::nth_element(values.begin(), mid, values.end());
-  return *mid;
 }
 
 // One import: the set checked and sized (the first image's header), then every light's image
@@ -197,7 +190,7 @@ class SetImport {
       throw InputError(job_.source.string() + ": " + error);
     }
     std::tie(width_, height_) = target_size(first_.width, first_.height, options.max_size);
-    if (place_lights && !options.spheres.outlines.empty()) place_from_spheres();
+    if (place_lights) place_olat_lights(job_, options, first_);
     std::vector<FieldLight> lights;
     lights.reserve(job_.lights.size());
     for (int l = 0; l < num_lights(); ++l) {
@@ -307,73 +300,13 @@ class SetImport {
     return keep;
   }
 
-  // The lights' directions (and positions) from the spheres in the images; what the set listed
-  // is kept for a light the spheres do not show, and reported.
-  void place_from_spheres() {
-    const Linearizer linearizer(job_.transfer, options_.gamma);
-    std::vector<std::string> names;
-    for (const OlatLight& light : job_.lights) names.push_back(light.image.filename().string());
-    SphereLightOptions spheres = options_.spheres;
-    // An 8-bit image clips the highlight, and a camera's glare around it is not symmetric: the
-    // clipped core alone locates it, its edge sub-pixel (capture/light_calibration.h,
-    // HighlightOptions; measured on PSBox's chrome sphere and the simulated dome,
-    // sphere_lights_test).
-    if (first_.format == image_file::Sample::kUInt8) {
-      spheres.highlight.blob_fraction = 0.975;
-      spheres.highlight.subpixel_core = true;
-    }
-    const PlacedLights placed = place_lights_from_spheres(
-        first_.width, first_.height, names,
-        [&](int l, int y0, int y1) {
-          const OlatLight& light = job_.lights[size_t(l)];
-          return read_linear_rows(light.image, light.where, linearizer, y0, y1);
-        },
-        spheres, options_.progress);
-    for (const ImageProblem& p : placed.problems) {
-      const OlatLight& light = job_.lights[size_t(p.led_index)];
-      job_.warnings.push_back(
-          light.image.filename().string() + " (" + light.where + "): " +
-          (p.sphere >= 0 ? "sphere " + std::to_string(p.sphere + 1) + ": " : std::string()) +
-          p.what);
-    }
-    std::vector<double> errors, distances;
-    for (int l = 0; l < num_lights(); ++l) {
-      OlatLight& light = job_.lights[size_t(l)];
-      if (const auto& dir = placed.directions[size_t(l)]) {
-        errors.push_back(angle_between_deg(light.dir_in_stage, *dir));
-        light.dir_in_stage = *dir;
-      } else {
-        job_.warnings.push_back(light.image.filename().string() + " (" + light.where +
-                                "): no sphere shows its light: its listed direction is kept");
-      }
-      light.position_in_stage = placed.positions[size_t(l)];
-      if (light.position_in_stage) distances.push_back(light.position_in_stage->norm());
-    }
-    placement_ = placed.description;
-    if (!errors.empty()) {
-      direction_error_max_deg_ = *std::max_element(errors.begin(), errors.end());
-      direction_error_median_deg_ = median_of(errors);
-    }
-    if (distances.empty()) return;  // Directions only.
-    // Every light near, or the field would mix units: one without a position stands at the
-    // others' median distance along its direction.
-    job_.near_reference_m = median_of(distances);
-    for (OlatLight& light : job_.lights) {
-      if (light.position_in_stage) continue;
-      light.position_in_stage = job_.near_reference_m * light.dir_in_stage.normalized();
-      job_.warnings.push_back(light.image.filename().string() + " (" + light.where +
-                              "): no position: put at the others' median distance");
-    }
-    job_.view = FieldView{0.0, 4.0, first_.height * placed.metres_per_pixel, 0.0};
-  }
-
   void summarise(OlatImportSummary* summary) {
     if (!summary) return;
     OlatImportSummary& s = *summary;
     s = OlatImportSummary{};
-    s.light_placement = placement_;
-    s.listed_direction_error_median_deg = direction_error_median_deg_;
-    s.listed_direction_error_max_deg = direction_error_max_deg_;
+    s.light_placement = job_.placement.description;
+    s.listed_direction_error_median_deg = job_.placement.listed_error_median_deg;
+    s.listed_direction_error_max_deg = job_.placement.listed_error_max_deg;
     s.inconsistent = inconsistent_;
     s.left_out_lights = left_out_lights_;
     s.consistency = consistency_;
@@ -427,8 +360,6 @@ class SetImport {
   std::vector<std::string> inconsistent_;  // Of consistent_lights.
   std::vector<int> left_out_lights_;
   std::string consistency_;
-  std::string placement_;  // Of place_from_spheres.
-  double direction_error_median_deg_ = 0, direction_error_max_deg_ = 0;
 };
 
 // The field in memory (refused when it does not fit), without the images the consistency check

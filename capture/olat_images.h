@@ -14,6 +14,7 @@
 #include "capture/field.h"
 #include "capture/field_file.h"
 #include "capture/olat_import.h"
+#include "capture/olat_pixels.h"
 #include "lightstage/rank_split.h"
 
 namespace ls::capture {
@@ -24,8 +25,17 @@ struct OlatLight {
   Eigen::Vector3d dir_in_stage{0, 0, 1};
   Eigen::Vector3f intensity_rgb{1, 1, 1};  // Divided out of the pixel values.
   std::string where;                       // "FILE:LINE" of the line that names the image.
-  // Set when the light is near (placed from spheres): metres, stage frame.
+  // Set when the light is near (placed from spheres or a stage): metres, stage frame; its values
+  // are then multiplied by (|P - X| / falloff_from_m)^2 (field.h near_light_gain).
   std::optional<Eigen::Vector3d> position_in_stage;
+  double falloff_from_m = 1.0;
+};
+
+// Where the lights came from when not as listed (olat_lights.cc).
+struct LightPlacement {
+  std::string description;  // A sentence; empty: as listed.
+  // How far the listed directions were from the placed ones, degrees.
+  double listed_error_median_deg = 0, listed_error_max_deg = 0;
 };
 
 struct OlatImageSet {
@@ -38,10 +48,9 @@ struct OlatImageSet {
   std::string mask_name;
   std::vector<std::string> notes;
   std::vector<std::string> warnings;  // What was assumed for what the set does not say.
-  // Near lights: the view of the source images, and the distance their falloff is divided out to
-  // (near_light_gain's reference_m: one for all lights, taken as equally bright).
+  // Near lights: the view of the source images.
   std::optional<FieldView> view;
-  double near_reference_m = 1.0;
+  LightPlacement placement;
 };
 
 // The field's size and lights without its values: only the first image's header is read.
@@ -65,6 +74,14 @@ int import_images_to_file(OlatImageSet set, const OlatImportOptions& options,
                           const std::filesystem::path& out, const ExrAttributes& attributes,
                           const MemoryBudget& memory, const LightImageFn& on_light,
                           OlatImportSummary* summary, const RankSplit& split = {});
+
+// The lights placed as options say, before the images are read (olat_lights.cc): from the mirror
+// spheres in the images (options.spheres: their directions, or positions and the view) or from a
+// stage file (options.stage_file: its LEDs in order, their calibrated irradiance and positions,
+// its camera's view). `first`: the first image's header. InputError naming the stage file when it
+// does not fit the set.
+void place_olat_lights(OlatImageSet& set, const OlatImportOptions& options,
+                       const ImageHeader& first);
 
 // OlatBands::open's work once the set is read (olat_bands.cc).
 std::unique_ptr<OlatBands> open_olat_bands(OlatImageSet set, const OlatImportOptions& options);

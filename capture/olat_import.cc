@@ -255,6 +255,9 @@ std::string OlatImportOptions::validate() const {
   if (max_size < 0)
     return "max_size: expected 0 (keep) or a positive size, got " + std::to_string(max_size);
   if (!std::isfinite(scene_time_s)) return "scene_time_s: expected a finite number of seconds";
+  if (!stage_file.empty() && !spheres.outlines.empty()) {
+    return "stage_file and spheres: expected one source of the lights' places, got both";
+  }
   return "";
 }
 

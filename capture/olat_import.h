@@ -69,6 +69,10 @@ struct OlatImportOptions {
   // field holds near lights (field.h: each pixel's own direction, the falloff divided out, the
   // LEDs taken as equally bright) seen by an orthographic view of the plane z = 0.
   SphereLightOptions spheres;
+  // Or a calibrated stage file (lightstage/stage.h) whose LEDs are the set's lights in order: their
+  // directions, positions and irradiance (per channel) replace what the set lists, and its camera
+  // gives the view (the images may be a smaller export of its frames). Not with spheres.
+  std::filesystem::path stage_file;
 
   // Empty when valid; otherwise a sentence naming the option and its valid range.
   std::string validate() const;

@@ -148,14 +148,22 @@ void add_import_command(CLI::App& app) {
                 "its light, and those that disagree (shifted, another light's, black) are left "
                 "out and listed.");
   auto circles = std::make_shared<std::vector<double>>();
-  cmd->add_option("--circle", *circles,
-                  "A mirror sphere in every image: cx,cy,r in the images' pixels (x right, y down, "
-                  "pixel centres at +0.5); repeat per sphere. The lights are placed from their "
-                  "highlights: one sphere gives directions, two give positions (near lights: each "
-                  "pixel sees its own direction and distance, the falloff divided out). The "
-                  "spheres rest on the plane the object lies on.")
-      ->delimiter(',')
-      ->check(kFinite);
+  auto* circle =
+      cmd->add_option(
+             "--circle", *circles,
+             "A mirror sphere in every image: cx,cy,r in the images' pixels (x right, y down, "
+             "pixel centres at +0.5); repeat per sphere. The lights are placed from their "
+             "highlights: one sphere gives directions, two give positions (near lights: each "
+             "pixel sees its own direction and distance, the falloff divided out). The "
+             "spheres rest on the plane the object lies on.")
+          ->delimiter(',')
+          ->check(kFinite);
+  cmd->add_option("--stage", options->stage_file,
+                  "A calibrated stage file whose LEDs are the set's lights, in order: their "
+                  "directions, positions (near lights, as a build's) and irradiance replace what "
+                  "the set lists, and its camera gives the view.")
+      ->check(CLI::ExistingFile)
+      ->excludes(circle);
   cmd->add_option("--sphere-radius", options->spheres.radius_m,
                   "The spheres' radius in metres, for light positions in metres (otherwise a "
                   "nominal scale: the normals do not depend on it).")

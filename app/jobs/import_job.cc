@@ -41,6 +41,7 @@ std::string options_json(const fs::path& source, capture::OlatFormat format,
     }
     j["spheres"] = {{"circles", circles}, {"radius_m", options.spheres.radius_m}};
   }
+  if (!options.stage_file.empty()) j["stage"] = options.stage_file.string();
   return j.dump();
 }
 

@@ -241,7 +241,8 @@ def normals(field: _FieldLike, *, out: Optional[_Path] = None, method: str = "ro
 def import_set(source: _Path, *, out: _Path, linear: bool = False, srgb: bool = False,
                gamma: Optional[float] = None, max_size: int = 0, drop_saturated: bool = False,
                keep_all: bool = False, circles: Sequence[Tuple[float, float, float]] = (),
-               sphere_radius: float = 0.0, time: float = 0.0, storage: str = "auto",
+               sphere_radius: float = 0.0, stage: Optional[_Path] = None, time: float = 0.0,
+               storage: str = "auto",
                memory: _Memory = None, progress: _Progress = None) -> Imported:
     """Import an existing one-light-at-a-time photo set as a reflectance field: an RTI set
     described by an .lp file (N, then 'image x y z' per line) or a DiLiGenT photometric-stereo
@@ -258,10 +259,14 @@ def import_set(source: _Path, *, out: _Path, linear: bool = False, srgb: bool = 
     keep_all: Keep every image: by default each is checked against what the others predict at
         its light, and those that disagree (shifted, another light's, black) are left out and
         listed.
-    circles: Mirror spheres in every image, (cx, cy, r) in the images' pixels: one gives the
-        lights' directions, two their positions (near lights); summary["light_placement"]
-        says what was found.
-    sphere_radius: The spheres' radius in metres, for positions in metres (0: nominal scale).
+    circles: A mirror sphere in every image: cx,cy,r in the images' pixels (x right, y down,
+        pixel centres at +0.5), one (cx, cy, r) per sphere. The lights are placed from their
+        highlights: one sphere gives directions, two give positions (near lights);
+        summary["light_placement"] says what was found.
+    sphere_radius: The spheres' radius in metres, for light positions in metres (0: a nominal
+        scale).
+    stage: A calibrated stage file whose LEDs are the set's lights, in order: their directions,
+        positions and irradiance replace what the set lists; its camera gives the view.
     time: Scene time of the set in seconds (default 0)
     storage: How the field file holds the values: half floats where the field relit from them
         stays within 1e-3 of the floats, else floats (auto); or always half or float.

@@ -17,6 +17,7 @@
 #include "capture/olat_import.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/stage.h"
 #include "relight/fit/normals.h"
 #include "sim/calibration_targets.h"
 #include "sim/rti_scenes.h"
@@ -245,6 +246,39 @@ TEST_F(NearDome, CliPlacesTheLightsFromCirclesAndTheFieldFileKeepsThem) {
   EXPECT_NE(output.find("--circle: expected cx,cy,r per sphere"), std::string::npos) << output;
 }
 
+// A lab importing an older set of its own dome: the calibrated stage file gives every light's
+// position and the camera's view.
+TEST_F(NearDome, CalibratedStageGivesThePositionsAndAFlatBackdrop) {
+  const fs::path stage_file = dir_->path() / "dome.json";
+  write_text(stage_file, stage_to_json(dome_->stage));
+  OlatImportOptions options;
+  options.stage_file = stage_file;
+  OlatImportSummary summary;
+  const ReflectanceField field = import_olat(*lp_, options, &summary);
+  EXPECT_NE(summary.light_placement.find("41 LEDs of"), std::string::npos)
+      << summary.light_placement;
+  ASSERT_TRUE(field.view);
+  for (const FieldLight& light : field.lights()) {
+    const Led& led = dome_->stage.leds[size_t(light.led_id)];
+    ASSERT_TRUE(light.position_in_stage);
+    EXPECT_LT((*light.position_in_stage - *led.distance_m * led.dir_in_stage.normalized()).norm(),
+              1e-9);
+  }
+  EXPECT_LT(largest_tile_tilt(relight::estimate_normals(field, {}, kStride), *dome_, 30), 1.0);
+
+  Stage fewer = dome_->stage;
+  fewer.leds.pop_back();
+  write_text(stage_file, stage_to_json(fewer));
+  try {
+    import_olat(*lp_, options);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("dome.json: leds: expected one per image"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 // Real photographs: PSBox's chrome sphere under 12 lights (../shared/data/chrome_sphere), listed
 // in an .lp with every direction near (0, 0, 1); the import must find PSBox's directions from the
 // sphere. Its circle is 1-based with the rows flipped (chrome_sphere_test.cc): our centre is
@@ -286,8 +320,8 @@ TEST(RealChromeSphere, ImportFindsTheShippedDirections) {
     std::cout << probe << ": " << summary.light_placement << "; mean " << mean << " deg, worst "
               << worst << " deg from PSBox's\n";
     // PSBox's are estimates too: the median of each clipped core's pixels. The import takes the
-    // core's centroid, sub-pixel (HighlightOptions::subpixel_core): measured mean 0.30 / 0.43 deg,
-    // worst 0.48 / 1.14 deg (LightProbe-1 / -2), where a core is not symmetric. The skirt
+    // core's centroid, sub-pixel (HighlightOptions::clipped_core_fraction): measured mean 0.30 /
+    // 0.43 deg, worst 0.48 / 1.14 deg (LightProbe-1 / -2), where a core is not symmetric. The skirt
     // (blob_fraction 0.25, right for the symmetric blur of the simulator) is 2.1 / 2.3 deg off.
     EXPECT_LT(worst, 1.25);
     EXPECT_LT(mean, 0.5);
