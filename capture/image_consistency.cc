@@ -223,8 +223,12 @@ ImageVerdict verdict(const ConsistencyStack& stack, const NearestLights& nearest
   const double usual = std::max(usual_misfit(nearest, judged, in_use, l), kMisfitFloor);
   v.misfit_ratio = (1 - j.aligned) / usual;
   const double own_misfit = 1 - j.unaligned, aligned_misfit = 1 - j.aligned;
-  const bool shift_explains =
-      std::hypot(j.shift_x, j.shift_y) >= options.max_shift_px && aligned_misfit < 0.5 * own_misfit;
+  // A misregistration moves a photograph by pixels, not by a tenth of the frame: a larger
+  // alignment follows moving structure (long cast shadows under sparse lights), not a shift.
+  const double shift = std::hypot(j.shift_x, j.shift_y);
+  const bool shift_explains = shift >= options.max_shift_px &&
+                              shift <= 0.1 * std::min(stack.width(), stack.height()) &&
+                              aligned_misfit < 0.5 * own_misfit;
   char text[240];
   if (mean < 1e-3 * median_mean) {
     v.flagged = true;

@@ -167,8 +167,8 @@ class SetImport {
   // After a light's image went to the sink (not for kept ones): what a record of it holds.
   using LightDone = std::function<void(int light, long long saturated)>;
 
-  // place_lights: with options.spheres, the lights are placed from them (every image read);
-  // otherwise (a header) they stay as listed.
+  // place_lights: the lights placed as the options say (place_olat_lights: spheres read from
+  // every image, or a stage); false (a header): as listed.
   SetImport(OlatImageSet job, const OlatImportOptions& options, bool place_lights = true)
       : start_(std::chrono::steady_clock::now()), job_(std::move(job)), options_(options) {
     if (const std::string error = options.validate(); !error.empty()) {

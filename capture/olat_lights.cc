@@ -91,7 +91,7 @@ void place_from_spheres(OlatImageSet& set, const OlatImportOptions& options,
     light.position_in_stage = median * light.dir_in_stage.normalized();
     set.warnings.push_back(name_of(light) + ": no position: put at the others' median distance");
   }
-  set.view = FieldView{0.0, 4.0, first.height * placed.metres_per_pixel, 0.0};
+  set.view = placed.view;
 }
 
 void place_from_stage(OlatImageSet& set, const std::filesystem::path& stage_file,

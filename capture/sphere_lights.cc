@@ -13,6 +13,8 @@ namespace ls::capture {
 
 namespace {
 
+constexpr double kPi = 3.14159265358979323846;
+
 std::string format(const char* pattern, double a, double b = 0, double c = 0) {
   char text[256];
   std::snprintf(text, sizeof(text), pattern, a, b, c);
@@ -47,16 +49,53 @@ std::optional<FittedDome> fit_dome(const std::vector<Eigen::Vector3d>& positions
   return dome;
 }
 
+// A sphere of radius_m seen by a pinhole camera, from the circle fitted to its outline. The
+// outline is an ellipse whose major axis is radial, its ends at theta +- alpha off the axis
+// (theta: the centre's angle, sin alpha = radius / distance), its minor semi-axis
+// f sin(alpha) / sqrt(cos^2 theta - sin^2 alpha): the circle's centre lies outward of the
+// centre's image and its radius is the mean semi-axis, each off by a pixel at 15 deg off the
+// axis. theta and alpha are solved for so that the ellipse has the circle's centre and area.
+MirrorSphere locate_pinhole_sphere(const SphereOutline& outline, const ViewCamera& camera,
+                                   double radius_m) {
+  const Eigen::Vector2d principal(camera.cx, camera.cy);
+  const Eigen::Vector2d offset = outline.center_px - principal;
+  const double f = camera.fx, rho = offset.norm();
+  const Eigen::Vector2d radial = rho > 1e-9 ? Eigen::Vector2d(offset / rho) : Eigen::Vector2d(1, 0);
+  double theta = std::atan(rho / f), alpha = std::atan(outline.radius_px / f);
+  for (int i = 0; i < 50; ++i) {
+    const double a = 0.5 * f * (std::tan(theta + alpha) - std::tan(theta - alpha));
+    const double b =
+        f * std::sin(alpha) /
+        std::sqrt(std::max(1e-12, std::pow(std::cos(theta), 2) - std::pow(std::sin(alpha), 2)));
+    const double centre = 0.5 * f * (std::tan(theta + alpha) + std::tan(theta - alpha));
+    theta += std::atan(rho / f) - std::atan(centre / f);
+    alpha *= outline.radius_px / std::sqrt(a * b);
+  }
+  Eigen::Vector3d origin, dir;
+  camera.ray(principal + f * std::tan(theta) * radial, &origin, &dir);
+  return {origin + radius_m / std::sin(alpha) * dir, radius_m};
+}
+
 }  // namespace
 
 std::string SphereLightOptions::validate(int image_width, int image_height) const {
   if (!(radius_m >= 0) || !std::isfinite(radius_m)) {
-    return "sphere radius: expected a positive size, got " + std::to_string(radius_m);
+    return "sphere radius: expected 0 (unknown) or a positive size in metres, got " +
+           std::to_string(radius_m);
+  }
+  if (!(focal_length_px >= 0) || !std::isfinite(focal_length_px)) {
+    return format("focal length: expected 0 (orthographic) or a positive number of pixels, got %g",
+                  focal_length_px);
+  }
+  if (focal_length_px > 0 && !(radius_m > 0)) {
+    return "focal length: a pinhole camera needs the spheres' radius (to place them in depth)";
   }
   for (size_t s = 0; s < outlines.size(); ++s) {
     const SphereOutline& o = outlines[s];
     const std::string which = "sphere " + std::to_string(s + 1);
-    if (!(o.radius_px >= 4)) return which + ": radius: expected at least 4 pixels";
+    if (!(o.radius_px >= 4)) {
+      return which + format(": radius: expected at least 4 pixels, got %g", o.radius_px);
+    }
     if (!(o.center_px.x() - o.radius_px >= 0 && o.center_px.y() - o.radius_px >= 0 &&
           o.center_px.x() + o.radius_px <= image_width &&
           o.center_px.y() + o.radius_px <= image_height)) {
@@ -110,27 +149,60 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
   }
   const int y0 = std::max(0, int(std::floor(top)) - 2);
   const int y1 = std::min(height, int(std::ceil(bottom)) + 2);
-  const double first_radius_px = options.outlines[0].radius_px;
-  placed.metres_per_pixel =
-      options.radius_m > 0 ? options.radius_m / first_radius_px : kNominalMetresPerPixel;
-  ViewCamera camera = ViewCamera::orthographic_pixels(width, y1 - y0);
-  camera.metres_per_pixel = placed.metres_per_pixel;
-  camera.cy = 0.5 * height - y0;
   std::vector<SphereOutline> outlines = options.outlines;
+  for (SphereOutline& o : outlines) o.center_px.y() -= y0;
   std::vector<MirrorSphere> spheres;
-  for (SphereOutline& o : outlines) {
-    o.center_px.y() -= y0;
-    const double radius_m = o.radius_px * placed.metres_per_pixel;
-    spheres.push_back(locate_sphere(o, camera, radius_m, radius_m));  // Resting on z = 0.
+  ViewCamera camera = ViewCamera::orthographic_pixels(width, y1 - y0);
+  camera.cy = 0.5 * height - y0;
+  std::string geometry;  // Said of positions.
+  double scene_m = 0;    // The size of what the camera sees: triangulations 1000x further are not.
+  if (options.focal_length_px > 0) {
+    camera.orthographic = false;
+    camera.fx = camera.fy = options.focal_length_px;
+    // Placed with the camera at the origin, then the frame moved so that the table they rest on
+    // is z = 0 (their mean; the spread says how far the camera is from looking straight down).
+    camera.centre_in_stage = Eigen::Vector3d::Zero();
+    double table_z = 0, lowest = 0, highest = 0;
+    for (size_t s = 0; s < outlines.size(); ++s) {
+      spheres.push_back(locate_pinhole_sphere(outlines[s], camera, options.radius_m));
+      const double z = spheres.back().center_in_stage.z() - options.radius_m;
+      table_z += z / double(outlines.size());
+      lowest = s == 0 ? z : std::min(lowest, z);
+      highest = s == 0 ? z : std::max(highest, z);
+    }
+    camera.centre_in_stage.z() = -table_z;
+    for (MirrorSphere& sphere : spheres) sphere.center_in_stage.z() -= table_z;
+    const double fov_y_deg = 2 * std::atan(0.5 * height / options.focal_length_px) * 180 / kPi;
+    placed.view = FieldView{fov_y_deg, -table_z, 2.4, 0.0};
+    scene_m = -table_z;
+    geometry =
+        format("; pinhole view %.3g deg high from %.4g m above the table", fov_y_deg, -table_z);
+    if (outlines.size() > 1) {
+      geometry += format(" (the spheres rest %.2g m apart in height)", highest - lowest);
+    }
+  } else {
+    placed.metres_per_pixel =
+        options.radius_m > 0 ? options.radius_m / outlines[0].radius_px : kNominalMetresPerPixel;
+    camera.metres_per_pixel = placed.metres_per_pixel;
+    for (const SphereOutline& o : outlines) {
+      const double radius_m = o.radius_px * placed.metres_per_pixel;
+      spheres.push_back(locate_sphere(o, camera, radius_m, radius_m));  // Resting on z = 0.
+    }
+    placed.view = FieldView{0.0, 4.0, height * placed.metres_per_pixel, 0.0};
+    scene_m = (width + height) * placed.metres_per_pixel;
+    if (options.radius_m <= 0) {
+      geometry = format(" (scale nominal, %.2g mm per pixel: no sphere radius given)",
+                        1e3 * placed.metres_per_pixel);
+    }
   }
-  // A light above the table (z > 0) is mirrored within sin(45 deg) = 0.71 of the radius of the
+  // A light above the table (z > 0) is mirrored within sin(45 deg) = 0.71 of the radius from the
   // centre: the highlight is looked for within 0.85 of it, clear of the rim, which mirrors the
   // lit table and has the backdrop blurred into it (a blob reaching it is pulled outward).
   std::vector<SphereOutline> search = outlines;
   for (SphereOutline& o : search) o.radius_px *= 0.85;
   DirectionOptions direction_options;
   direction_options.highlight = options.highlight;
-  direction_options.max_distance_m = 1e3 * (width + height) * placed.metres_per_pixel;
+  direction_options.max_distance_m = 1e3 * scene_m;
 
   std::vector<LedDirectionEstimate> estimates(static_cast<size_t>(n));
   std::mutex problems_mutex;
@@ -199,10 +271,7 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
       placed.directions[size_t(l)] = placed.positions[size_t(l)]->normalized();
     }
   }
-  if (options.radius_m <= 0) {
-    placed.description += format(" (scale nominal, %.2g mm per pixel: no sphere radius given)",
-                                 1e3 * placed.metres_per_pixel);
-  }
+  placed.description += geometry;
   return placed;
 }
 

@@ -7,16 +7,23 @@
 //    dome: RMS distance to the fitted sphere within kDomeTolerance of its radius), every light is
 //    put where its rays meet that sphere, which also places the lights whose rays cross too
 //    shallowly to triangulate (those along the line through the spheres).
-// Geometry: an orthographic camera looking down -Z at the plane z = 0 that the object and the
-// spheres rest on (sphere centres at z = their radius), the image centre at the stage origin, +Y
-// up the image. Metres from the spheres' radius when it is given; otherwise a nominal 0.1 mm
-// per source pixel (directions and the field's relative falloff do not depend on the scale).
+// Geometry: a camera looking straight down -Z at the plane z = 0 that the object and the spheres
+// rest on, the image centre's ray through the stage origin, +Y up the image:
+//  * orthographic (no focal length): sphere centres at z = their radius; metres from the spheres'
+//    radius when it is given, otherwise a nominal 0.1 mm per source pixel (directions and the
+//    field's relative falloff do not depend on the scale);
+//  * pinhole (focal_length_px, and the spheres' radius): each sphere placed in depth by its
+//    outline's size, the table where they rest, the camera that far above it. A view tilts a
+//    sphere's view ray by its angle off the axis, and its reflected ray by as much: an
+//    orthographic reading of a pinhole photograph errs by about the half field of view at the
+//    frame's edge.
 #include <Eigen/Core>
 #include <functional>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "capture/field.h"
 #include "capture/light_calibration.h"
 #include "lightstage/image.h"
 #include "lightstage/progress.h"
@@ -29,6 +36,7 @@ inline constexpr double kDomeTolerance = 0.02;
 struct SphereLightOptions {
   std::vector<SphereOutline> outlines;  // In the images' pixels; empty: no placement.
   double radius_m = 0.0;                // The spheres' radius; 0: unknown (nominal scale).
+  double focal_length_px = 0.0;         // > 0: a pinhole camera (needs radius_m); 0: orthographic.
   HighlightOptions highlight;
   // Empty when valid; otherwise a sentence naming the option.
   std::string validate(int image_width, int image_height) const;
@@ -43,7 +51,8 @@ struct FittedDome {
 
 struct PlacedLights {
   int spheres = 0;
-  double metres_per_pixel = 0.0;                           // Of the source images.
+  double metres_per_pixel = 0.0;  // Orthographic: of the source images.
+  FieldView view;                 // The images' view, metres (the plane z = 0 is the table's).
   std::vector<std::optional<Eigen::Vector3d>> positions;   // Per light (two or more spheres).
   std::vector<std::optional<Eigen::Vector3d>> directions;  // Per light, unit; unset: not found.
   int triangulated = 0;                                    // Lights whose rays crossed.

@@ -8,6 +8,10 @@
 
 namespace ls::sim {
 
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}  // namespace
+
 const char* to_string(RtiScene scene) {
   switch (scene) {
     case RtiScene::kMatte:
@@ -61,14 +65,18 @@ Stage rti_dome_stage(int count, double min_elevation_deg, int resolution) {
   return stage;
 }
 
-NearRtiDome near_rti_dome(int leds, int width, int height, double radius_m, uint64_t seed) {
+NearRtiDome near_rti_dome(int leds, int width, int height, double radius_m, double fov_y_deg,
+                          uint64_t seed) {
   NearRtiDome dome;
   dome.stage = rti_dome_stage(leds, 15.0, width);
   dome.stage.name = "near-rti-dome-" + std::to_string(leds);
-  dome.stage.camera.width = width;
-  dome.stage.camera.height = height;
-  dome.stage.camera.fov_y_deg = 0.0;
-  dome.stage.camera.ortho_height_m = 0.36 * radius_m;
+  CameraSpec& camera = dome.stage.camera;
+  camera.width = width;
+  camera.height = height;
+  camera.fov_y_deg = fov_y_deg;
+  camera.ortho_height_m = 0.36 * radius_m;
+  // A pinhole camera as high as sees 0.36 radii of the table.
+  if (fov_y_deg > 0) camera.distance_m = 0.18 * radius_m / std::tan(0.5 * fov_y_deg * kPi / 180);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> jitter(-0.003, 0.003);
   for (Led& led : dome.stage.leds) led.distance_m = radius_m * (1.0 + jitter(rng));
@@ -85,7 +93,7 @@ NearRtiDome near_rti_dome(int leds, int width, int height, double radius_m, uint
   plane.half_width = plane.half_height = 2.0 * radius_m;
   dome.scene.planes.push_back(plane);
   const double ball_radius = 0.04 * radius_m;
-  const double half_width = 0.5 * dome.stage.camera.ortho_height_m * width / height;
+  const double half_width = 0.5 * camera.ortho_height_m * width / height;
   for (const double side : {-1.0, 1.0}) {
     const Eigen::Vector3d centre(side * (half_width - 2.0 * ball_radius), -0.11 * radius_m,
                                  ball_radius);
@@ -104,13 +112,31 @@ NearRtiRenderer::NearRtiRenderer(const NearRtiDome& dome)
 
 namespace {
 
-// Where a ball mirrors a point toward an orthographic camera on +Z: the normal halves the view
-// and the way to the point, found by fixed-point iteration (the ball is small beside the distance).
-Eigen::Vector3d mirror_point(const MirrorBall& ball, const Eigen::Vector3d& point) {
-  const Eigen::Vector3d view(0, 0, 1);
-  Eigen::Vector3d n = (view + (point - ball.center).normalized()).normalized();
+// Toward the camera from p (unit).
+Eigen::Vector3d toward_camera(const CameraSpec& camera, const Eigen::Vector3d& p) {
+  if (camera.fov_y_deg <= 0) return {0, 0, 1};
+  return (Eigen::Vector3d(0, 0, camera.distance_m) - p).normalized();
+}
+
+// Where the camera sees a point (continuous pixels, x right, y down).
+Eigen::Vector2d project(const CameraSpec& camera, const Eigen::Vector3d& p) {
+  double scale = camera.height / camera.ortho_height_m;  // Pixels per metre at p.
+  if (camera.fov_y_deg > 0) {
+    scale = 0.5 * camera.height / std::tan(0.5 * camera.fov_y_deg * kPi / 180) /
+            (camera.distance_m - p.z());
+  }
+  return {0.5 * camera.width + scale * p.x(), 0.5 * camera.height - scale * p.y()};
+}
+
+// Where a ball mirrors a point toward the camera: the normal halves the view and the way to the
+// point, found by fixed-point iteration (the ball is small beside both distances).
+Eigen::Vector3d mirror_point(const MirrorBall& ball, const Eigen::Vector3d& point,
+                             const CameraSpec& camera) {
+  Eigen::Vector3d n =
+      (toward_camera(camera, ball.center) + (point - ball.center).normalized()).normalized();
   for (int i = 0; i < 50; ++i) {
-    n = (view + (point - ball.center - ball.radius_m * n).normalized()).normalized();
+    const Eigen::Vector3d p = ball.center + ball.radius_m * n;
+    n = (toward_camera(camera, p) + (point - p).normalized()).normalized();
   }
   return ball.center + ball.radius_m * n;
 }
@@ -130,21 +156,23 @@ Image NearRtiRenderer::render(int led_index) {
   // The supersampled spot gives each ball's flux, but sits wherever its pixel is: a lens spreads
   // it around the true mirror point, so it is put back there, a Gaussian of 0.5 px.
   const CameraSpec& camera = dome_.stage.camera;
-  const double mpp = camera.ortho_height_m / camera.height;
   const Eigen::Vector3d led_position = *led.distance_m * led.dir_in_stage.normalized();
   constexpr double kSpotSigmaPx = 0.5;
   for (const MirrorBall& ball : dome_.balls) {
-    const double cx = ball.center.x() / mpp + 0.5 * camera.width;
-    const double cy = 0.5 * camera.height - ball.center.y() / mpp;
-    const double r = ball.radius_m / mpp + 1;
+    const Eigen::Vector2d centre = project(camera, ball.center);
+    const double cx = centre.x(), cy = centre.y();
+    const double r =
+        (project(camera, ball.center + Eigen::Vector3d(ball.radius_m, 0, 0)) - centre).norm() *
+            1.2 +
+        2;
     Eigen::Vector3d flux = Eigen::Vector3d::Zero();
     for (int y = std::max(0, int(cy - r)); y <= std::min(camera.height - 1, int(cy + r)); ++y) {
       for (int x = std::max(0, int(cx - r)); x <= std::min(camera.width - 1, int(cx + r)); ++x) {
         for (int c = 0; c < 3; ++c) flux[c] += mirror.at(x, y, c);
       }
     }
-    const Eigen::Vector3d p = mirror_point(ball, led_position);
-    const double px = p.x() / mpp + 0.5 * camera.width, py = 0.5 * camera.height - p.y() / mpp;
+    const Eigen::Vector2d spot = project(camera, mirror_point(ball, led_position, camera));
+    const double px = spot.x(), py = spot.y();
     for (int y = std::max(0, int(py) - 3); y <= std::min(camera.height - 1, int(py) + 3); ++y) {
       for (int x = std::max(0, int(px) - 3); x <= std::min(camera.width - 1, int(px) + 3); ++x) {
         const double share = pixel_share(x, px, kSpotSigmaPx) * pixel_share(y, py, kSpotSigmaPx);

@@ -38,8 +38,9 @@ struct NearRtiDome {
   std::vector<MirrorBall> balls;
   Eigen::Vector3d backdrop_normal{0, 0, 1};
 };
+// fov_y_deg > 0: a pinhole camera instead, on the axis as high as sees the same 0.36 radii.
 NearRtiDome near_rti_dome(int leds = 41, int width = 480, int height = 270, double radius_m = 1.0,
-                          uint64_t seed = 1);
+                          double fov_y_deg = 0.0, uint64_t seed = 1);
 
 // The dome's images, value per unit of the LED's irradiance at the origin: the backdrop as the
 // simulator renders near LEDs (1/r^2, its own direction, the spheres' shadows) plus each

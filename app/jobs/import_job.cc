@@ -39,7 +39,9 @@ std::string options_json(const fs::path& source, capture::OlatFormat format,
     for (const capture::SphereOutline& o : options.spheres.outlines) {
       circles.push_back({o.center_px.x(), o.center_px.y(), o.radius_px});
     }
-    j["spheres"] = {{"circles", circles}, {"radius_m", options.spheres.radius_m}};
+    j["spheres"] = {{"circles", circles},
+                    {"radius_m", options.spheres.radius_m},
+                    {"focal_length_px", options.spheres.focal_length_px}};
   }
   if (!options.stage_file.empty()) j["stage"] = options.stage_file.string();
   return j.dump();

@@ -241,8 +241,8 @@ def normals(field: _FieldLike, *, out: Optional[_Path] = None, method: str = "ro
 def import_set(source: _Path, *, out: _Path, linear: bool = False, srgb: bool = False,
                gamma: Optional[float] = None, max_size: int = 0, drop_saturated: bool = False,
                keep_all: bool = False, circles: Sequence[Tuple[float, float, float]] = (),
-               sphere_radius: float = 0.0, stage: Optional[_Path] = None, time: float = 0.0,
-               storage: str = "auto",
+               sphere_radius: float = 0.0, focal_length_px: float = 0.0,
+               stage: Optional[_Path] = None, time: float = 0.0, storage: str = "auto",
                memory: _Memory = None, progress: _Progress = None) -> Imported:
     """Import an existing one-light-at-a-time photo set as a reflectance field: an RTI set
     described by an .lp file (N, then 'image x y z' per line) or a DiLiGenT photometric-stereo
@@ -265,6 +265,8 @@ def import_set(source: _Path, *, out: _Path, linear: bool = False, srgb: bool = 
         summary["light_placement"] says what was found.
     sphere_radius: The spheres' radius in metres, for light positions in metres (0: a nominal
         scale).
+    focal_length_px: With --circle: the camera's focal length in pixels of the images (a
+        pinhole camera looking straight down; needs sphere_radius); 0: orthographic.
     stage: A calibrated stage file whose LEDs are the set's lights, in order: their directions,
         positions and irradiance replace what the set lists; its camera gives the view.
     time: Scene time of the set in seconds (default 0)

@@ -87,8 +87,8 @@ py::object capture(const py::object& stage, const py::object& scene, const py::o
 py::object import_set(const py::object& source, const py::object& out, bool linear, bool srgb,
                       const std::optional<double>& gamma, int max_size, bool drop_saturated,
                       bool keep_all, const std::vector<std::array<double, 3>>& circles,
-                      double sphere_radius, const py::object& stage, double time,
-                      const std::string& storage, const py::object& memory,
+                      double sphere_radius, double focal_length_px, const py::object& stage,
+                      double time, const std::string& storage, const py::object& memory,
                       const py::object& progress) {
   if (int(linear) + int(srgb) + int(gamma.has_value()) > 1) {
     throw InputError("import: give one of linear, srgb and gamma");
@@ -108,6 +108,7 @@ py::object import_set(const py::object& source, const py::object& out, bool line
     options.spheres.outlines.push_back(capture::outlines_from_circles({cx, cy, r})[0]);
   }
   options.spheres.radius_m = sphere_radius;
+  options.spheres.focal_length_px = focal_length_px;
   if (!stage.is_none()) options.stage_file = to_path(stage);
   options.scene_time_s = time;
   const fs::path from = to_path(source), to = to_path(out);
@@ -242,8 +243,9 @@ void bind_more_jobs(py::module_& m) {
         py::arg("linear") = false, py::arg("srgb") = false, py::arg("gamma") = py::none(),
         py::arg("max_size") = 0, py::arg("drop_saturated") = false, py::arg("keep_all") = false,
         py::arg("circles") = std::vector<std::array<double, 3>>{}, py::arg("sphere_radius") = 0.0,
-        py::arg("stage") = py::none(), py::arg("time") = 0.0, py::arg("storage") = "auto",
-        py::arg("memory") = py::none(), py::arg("progress") = py::none());
+        py::arg("focal_length_px") = 0.0, py::arg("stage") = py::none(), py::arg("time") = 0.0,
+        py::arg("storage") = "auto", py::arg("memory") = py::none(),
+        py::arg("progress") = py::none());
   m.def("compress", &compress, py::arg("input"), py::kw_only(), py::arg("out"),
         py::arg("format") = "pca", py::arg("rank") = "auto", py::arg("tile") = 0,
         py::arg("gain") = 0.0, py::arg("encoding") = "", py::arg("memory") = py::none(),
