@@ -167,12 +167,14 @@ void add_import_command(CLI::App& app) {
   cmd->add_option("--sphere-radius", options->spheres.radius_m,
                   "The spheres' radius in metres, for light positions in metres (otherwise a "
                   "nominal scale: the normals do not depend on it).")
-      ->check(kPositive);
+      ->check(kPositive)
+      ->needs(circle);
   cmd->add_option("--focal-length-px", options->spheres.focal_length_px,
                   "With --circle: the camera's focal length in pixels of the images (a pinhole "
                   "camera looking straight down; needs --sphere-radius). Without it the view is "
                   "taken as orthographic, which errs by about the spheres' angle off the axis.")
-      ->check(kPositive);
+      ->check(kPositive)
+      ->needs(circle);
   cmd->add_flag("--drop-saturated", options->zero_saturated,
                 "Write saturated samples (maximum code) as 0, so fits leave them out as shadowed; "
                 "default: keep them as lower bounds.");
