@@ -67,7 +67,8 @@ struct OlatImportOptions {
   // Mirror spheres in the frames (capture/sphere_lights.h): the lights' directions (one sphere)
   // or positions (two) from their highlights replace the listed directions. With positions the
   // field holds near lights (field.h: each pixel's own direction, the falloff divided out, the
-  // LEDs taken as equally bright) seen by an orthographic view of the plane z = 0.
+  // LEDs taken as equally bright), seen by an orthographic or (focal length) pinhole view of the
+  // plane z = 0 the spheres rest on.
   SphereLightOptions spheres;
   // Or a calibrated stage file (lightstage/stage.h) whose LEDs are the set's lights in order: their
   // directions, positions and irradiance (per channel) replace what the set lists, and its camera
@@ -102,8 +103,8 @@ struct OlatImportSummary {
   std::vector<std::string> inconsistent;
   std::vector<int> left_out_lights;
   std::string consistency;  // What the check did, a sentence.
-  // With spheres: how the lights were placed (a sentence), and how far the listed directions were
-  // from the found ones (degrees; median and largest over the lights found).
+  // With spheres or a stage: how the lights were placed (a sentence), and how far the listed
+  // directions were from the placed ones (degrees; median and largest over the lights placed).
   std::string light_placement;
   double listed_direction_error_median_deg = 0, listed_direction_error_max_deg = 0;
   bool inconsistent_left_out() const { return !left_out_lights.empty(); }

@@ -76,6 +76,64 @@ MirrorSphere locate_pinhole_sphere(const SphereOutline& outline, const ViewCamer
   return {origin + radius_m / std::sin(alpha) * dir, radius_m};
 }
 
+// The camera and the spheres it sees, rows y0..y1 of width x height images (outlines in the
+// rows' pixels).
+struct SphereView {
+  ViewCamera camera;
+  std::vector<MirrorSphere> spheres;
+  FieldView view;
+  double scene_m = 0;    // The size of what the camera sees: triangulations 1000x further are not.
+  std::string geometry;  // Said of positions.
+};
+
+SphereView view_spheres(const std::vector<SphereOutline>& outlines, int width, int height, int y0,
+                        int y1, const SphereLightOptions& options) {
+  SphereView seen;
+  ViewCamera& camera = seen.camera;
+  camera = ViewCamera::orthographic_pixels(width, y1 - y0);
+  camera.cy = 0.5 * height - y0;
+  if (options.focal_length_px > 0) {
+    camera.orthographic = false;
+    camera.fx = camera.fy = options.focal_length_px;
+    // Placed with the camera at the origin, then the frame moved so that the table they rest on
+    // is z = 0 (their mean; the spread says how far the camera is from looking straight down).
+    camera.centre_in_stage = Eigen::Vector3d::Zero();
+    double table_z = 0, lowest = 0, highest = 0;
+    for (size_t s = 0; s < outlines.size(); ++s) {
+      seen.spheres.push_back(locate_pinhole_sphere(outlines[s], camera, options.radius_m));
+      const double z = seen.spheres.back().center_in_stage.z() - options.radius_m;
+      table_z += z / double(outlines.size());
+      lowest = s == 0 ? z : std::min(lowest, z);
+      highest = s == 0 ? z : std::max(highest, z);
+    }
+    camera.centre_in_stage.z() = -table_z;
+    for (MirrorSphere& sphere : seen.spheres) sphere.center_in_stage.z() -= table_z;
+    const double fov_y_deg = 2 * std::atan(0.5 * height / options.focal_length_px) * 180 / kPi;
+    seen.view = FieldView{fov_y_deg, -table_z, 2.4, 0.0};
+    seen.scene_m = -table_z;
+    seen.geometry =
+        format("; pinhole view %.3g deg high from %.4g m above the table", fov_y_deg, -table_z);
+    if (outlines.size() > 1) {
+      seen.geometry +=
+          format(" (the spheres rest %.1f mm apart in height)", 1e3 * (highest - lowest));
+    }
+  } else {
+    camera.metres_per_pixel =
+        options.radius_m > 0 ? options.radius_m / outlines[0].radius_px : kNominalMetresPerPixel;
+    for (const SphereOutline& o : outlines) {
+      const double radius_m = o.radius_px * camera.metres_per_pixel;
+      seen.spheres.push_back(locate_sphere(o, camera, radius_m, radius_m));  // Resting on z = 0.
+    }
+    seen.view = FieldView{0.0, 4.0, height * camera.metres_per_pixel, 0.0};
+    seen.scene_m = (width + height) * camera.metres_per_pixel;
+    if (options.radius_m <= 0) {
+      seen.geometry = format(" (scale nominal, %.2g mm per pixel: no sphere radius given)",
+                             1e3 * camera.metres_per_pixel);
+    }
+  }
+  return seen;
+}
+
 }  // namespace
 
 std::string SphereLightOptions::validate(int image_width, int image_height) const {
@@ -151,50 +209,10 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
   const int y1 = std::min(height, int(std::ceil(bottom)) + 2);
   std::vector<SphereOutline> outlines = options.outlines;
   for (SphereOutline& o : outlines) o.center_px.y() -= y0;
-  std::vector<MirrorSphere> spheres;
-  ViewCamera camera = ViewCamera::orthographic_pixels(width, y1 - y0);
-  camera.cy = 0.5 * height - y0;
-  std::string geometry;  // Said of positions.
-  double scene_m = 0;    // The size of what the camera sees: triangulations 1000x further are not.
-  if (options.focal_length_px > 0) {
-    camera.orthographic = false;
-    camera.fx = camera.fy = options.focal_length_px;
-    // Placed with the camera at the origin, then the frame moved so that the table they rest on
-    // is z = 0 (their mean; the spread says how far the camera is from looking straight down).
-    camera.centre_in_stage = Eigen::Vector3d::Zero();
-    double table_z = 0, lowest = 0, highest = 0;
-    for (size_t s = 0; s < outlines.size(); ++s) {
-      spheres.push_back(locate_pinhole_sphere(outlines[s], camera, options.radius_m));
-      const double z = spheres.back().center_in_stage.z() - options.radius_m;
-      table_z += z / double(outlines.size());
-      lowest = s == 0 ? z : std::min(lowest, z);
-      highest = s == 0 ? z : std::max(highest, z);
-    }
-    camera.centre_in_stage.z() = -table_z;
-    for (MirrorSphere& sphere : spheres) sphere.center_in_stage.z() -= table_z;
-    const double fov_y_deg = 2 * std::atan(0.5 * height / options.focal_length_px) * 180 / kPi;
-    placed.view = FieldView{fov_y_deg, -table_z, 2.4, 0.0};
-    scene_m = -table_z;
-    geometry =
-        format("; pinhole view %.3g deg high from %.4g m above the table", fov_y_deg, -table_z);
-    if (outlines.size() > 1) {
-      geometry += format(" (the spheres rest %.2g m apart in height)", highest - lowest);
-    }
-  } else {
-    placed.metres_per_pixel =
-        options.radius_m > 0 ? options.radius_m / outlines[0].radius_px : kNominalMetresPerPixel;
-    camera.metres_per_pixel = placed.metres_per_pixel;
-    for (const SphereOutline& o : outlines) {
-      const double radius_m = o.radius_px * placed.metres_per_pixel;
-      spheres.push_back(locate_sphere(o, camera, radius_m, radius_m));  // Resting on z = 0.
-    }
-    placed.view = FieldView{0.0, 4.0, height * placed.metres_per_pixel, 0.0};
-    scene_m = (width + height) * placed.metres_per_pixel;
-    if (options.radius_m <= 0) {
-      geometry = format(" (scale nominal, %.2g mm per pixel: no sphere radius given)",
-                        1e3 * placed.metres_per_pixel);
-    }
-  }
+  const SphereView seen = view_spheres(outlines, width, height, y0, y1, options);
+  const ViewCamera& camera = seen.camera;
+  const std::vector<MirrorSphere>& spheres = seen.spheres;
+  placed.view = seen.view;
   // A light above the table (z > 0) is mirrored within sin(45 deg) = 0.71 of the radius from the
   // centre: the highlight is looked for within 0.85 of it, clear of the rim, which mirrors the
   // lit table and has the backdrop blurred into it (a blob reaching it is pulled outward).
@@ -202,7 +220,7 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
   for (SphereOutline& o : search) o.radius_px *= 0.85;
   DirectionOptions direction_options;
   direction_options.highlight = options.highlight;
-  direction_options.max_distance_m = 1e3 * scene_m;
+  direction_options.max_distance_m = 1e3 * seen.scene_m;
 
   std::vector<LedDirectionEstimate> estimates(static_cast<size_t>(n));
   std::mutex problems_mutex;
@@ -271,7 +289,7 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
       placed.directions[size_t(l)] = placed.positions[size_t(l)]->normalized();
     }
   }
-  placed.description += geometry;
+  placed.description += seen.geometry;
   return placed;
 }
 

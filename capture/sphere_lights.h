@@ -51,8 +51,7 @@ struct FittedDome {
 
 struct PlacedLights {
   int spheres = 0;
-  double metres_per_pixel = 0.0;  // Orthographic: of the source images.
-  FieldView view;                 // The images' view, metres (the plane z = 0 is the table's).
+  FieldView view;  // The images' view, metres (the plane z = 0 is the table's).
   std::vector<std::optional<Eigen::Vector3d>> positions;   // Per light (two or more spheres).
   std::vector<std::optional<Eigen::Vector3d>> directions;  // Per light, unit; unset: not found.
   int triangulated = 0;                                    // Lights whose rays crossed.
