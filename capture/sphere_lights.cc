@@ -32,6 +32,21 @@ std::optional<Eigen::Vector3d> exit_point(const LightRay& ray, const FittedDome&
   return ray.origin + t * ray.dir;
 }
 
+// The mean of where the rays leave the dome, or nullopt when none does.
+std::optional<Eigen::Vector3d> where_rays_meet(const std::vector<LightRay>& rays,
+                                               const FittedDome& dome) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  int count = 0;
+  for (const LightRay& ray : rays) {
+    if (const auto p = exit_point(ray, dome)) {
+      sum += *p;
+      ++count;
+    }
+  }
+  if (count == 0) return std::nullopt;
+  return sum / count;
+}
+
 // The dome of the triangulated positions, refitted without those more than 3 RMS (and 1% of
 // the radius) off it: one bad highlight must not bend it. nullopt when they are no dome.
 std::optional<FittedDome> fit_dome(const std::vector<Eigen::Vector3d>& positions) {
@@ -194,7 +209,7 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
                                        const ImageRows& read, const SphereLightOptions& options,
                                        const ProgressFn& progress) {
   PlacedLights placed;
-  placed.spheres = int(options.outlines.size());
+  const int spheres_given = int(options.outlines.size());
   const int n = int(names.size());
   placed.positions.resize(size_t(n));
   placed.directions.resize(size_t(n));
@@ -248,32 +263,21 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
     placed.directions[size_t(l)] = e.dir_in_stage.normalized();
     if (e.position_in_stage) crossed.push_back(*e.position_in_stage);
   }
-  placed.triangulated = int(crossed.size());
   const int found = int(std::count_if(placed.directions.begin(), placed.directions.end(),
                                       [](const auto& d) { return d.has_value(); }));
   placed.description = std::to_string(found) + " of " + std::to_string(n) + " lights found on " +
-                       std::to_string(placed.spheres) + " sphere" + (placed.spheres > 1 ? "s" : "");
-  if (placed.spheres < 2) {
+                       std::to_string(spheres_given) + " sphere" + (spheres_given > 1 ? "s" : "");
+  if (spheres_given < 2) {
     placed.description += ": directions only (a second sphere gives positions)";
     return placed;
   }
-  placed.dome = fit_dome(crossed);
-  if (placed.dome) {
-    const FittedDome& dome = *placed.dome;
+  const std::string triangulated = std::to_string(crossed.size());
+  if (const std::optional<FittedDome> fitted = fit_dome(crossed)) {
+    const FittedDome& dome = *fitted;
     for (int l = 0; l < n; ++l) {
-      const LedDirectionEstimate& e = estimates[size_t(l)];
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      int count = 0;
-      for (const LightRay& ray : e.rays) {
-        if (const auto p = exit_point(ray, dome)) {
-          sum += *p;
-          ++count;
-        }
-      }
-      if (count > 0) placed.positions[size_t(l)] = sum / count;
+      placed.positions[size_t(l)] = where_rays_meet(estimates[size_t(l)].rays, dome);
     }
-    placed.description += "; " + std::to_string(placed.triangulated) +
-                          " triangulated lie on a dome of radius " +
+    placed.description += "; " + triangulated + " triangulated lie on a dome of radius " +
                           format("%.4g m (RMS %.2g m off it), centre (%.3g, ", dome.radius_m,
                                  dome.rms_m, dome.centre.x()) +
                           format("%.3g, %.3g) m: every light placed where its rays meet it",
@@ -281,8 +285,8 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
   } else {
     for (int l = 0; l < n; ++l)
       placed.positions[size_t(l)] = estimates[size_t(l)].position_in_stage;
-    placed.description += "; " + std::to_string(placed.triangulated) +
-                          " positions where their rays cross (no dome fits them)";
+    placed.description +=
+        "; " + triangulated + " positions where their rays cross (no dome fits them)";
   }
   for (int l = 0; l < n; ++l) {
     if (placed.positions[size_t(l)]) {

@@ -42,7 +42,7 @@ struct SphereLightOptions {
   std::string validate(int image_width, int image_height) const;
 };
 
-// The dome the positions were fitted to.
+// A dome fitted to positions (fit_sphere).
 struct FittedDome {
   Eigen::Vector3d centre{0, 0, 0};
   double radius_m = 0.0;
@@ -50,13 +50,10 @@ struct FittedDome {
 };
 
 struct PlacedLights {
-  int spheres = 0;
   FieldView view;  // The images' view, metres (the plane z = 0 is the table's).
   std::vector<std::optional<Eigen::Vector3d>> positions;   // Per light (two or more spheres).
   std::vector<std::optional<Eigen::Vector3d>> directions;  // Per light, unit; unset: not found.
-  int triangulated = 0;                                    // Lights whose rays crossed.
-  std::optional<FittedDome> dome;
-  std::vector<ImageProblem> problems;  // led_index: the light; image: its name.
+  std::vector<ImageProblem> problems;                      // led_index: the light; image: its name.
   // How the lights were placed, a sentence for the import's summary.
   std::string description;
 };
