@@ -234,10 +234,9 @@ class SetImport {
   void read_images(const LightSink& sink, const std::function<bool(int)>& mine = {},
                    const KeptLight& kept = {}, const LightDone& done_with = {}) {
     const Linearizer linearizer(job_.transfer, options_.gamma);
-    std::atomic<int> done{0};
-    std::mutex progress_mutex;
     int n = 0;
     for (int l = 0; l < num_lights(); ++l) n += !mine || mine(l);
+    ProgressCount done(options_.progress, "import", n);
     tbb::parallel_for(0, num_lights(), [&](int l) {
       if (mine && !mine(l)) return;
       std::vector<float> rgb;
@@ -253,11 +252,7 @@ class SetImport {
         sink(l, rgb);
         if (done_with) done_with(l, saturated);
       }
-      const int finished = ++done;
-      if (options_.progress) {
-        const std::lock_guard<std::mutex> lock(progress_mutex);
-        options_.progress("import", finished, n, {});
-      }
+      done.finished_one();
     });
   }
   // Light l's saturation ceiling (as reading its image set it), and setting it back (a kept light).

@@ -4,7 +4,6 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <mutex>
@@ -239,7 +238,7 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
 
   std::vector<LedDirectionEstimate> estimates(static_cast<size_t>(n));
   std::mutex problems_mutex;
-  std::atomic<int> done{0};
+  ProgressCount done(progress, "spheres", n);
   tbb::parallel_for(0, n, [&](int l) {
     const Image rows = read(l, y0, y1);
     DirectionCalibration one = calibrate_directions({&rows}, {names[size_t(l)]}, search, spheres,
@@ -251,7 +250,7 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
       p.led_index = l;
       placed.problems.push_back(std::move(p));
     }
-    if (progress) progress("spheres", ++done, n, {});
+    done.finished_one();
   });
   std::sort(placed.problems.begin(), placed.problems.end(),
             [](const ImageProblem& a, const ImageProblem& b) { return a.led_index < b.led_index; });

@@ -5,6 +5,7 @@
 #include <functional>
 #include <mutex>
 #include <string>
+#include <utility>
 
 namespace ls {
 
@@ -17,6 +18,26 @@ inline void report(const ProgressFn& progress, const std::string& phase, long do
                    const std::string& item = {}) {
   if (progress) progress(phase, done, total, item);
 }
+
+// Units of one phase finished by several threads: each finish counted and reported under one lock,
+// so the reports arrive in order (a worker that finished unit 39 cannot report after the one that
+// finished the 40th and ended the phase).
+class ProgressCount {
+ public:
+  ProgressCount(const ProgressFn& progress, std::string phase, long total)
+      : progress_(progress), phase_(std::move(phase)), total_(total) {}
+  void finished_one(const std::string& item = {}) {
+    const std::lock_guard lock(mutex_);
+    report(progress_, phase_, ++done_, total_, item);
+  }
+
+ private:
+  const ProgressFn& progress_;
+  std::string phase_;
+  long total_;
+  long done_ = 0;
+  std::mutex mutex_;
+};
 
 // How long a job's phases took.
 using Clock = std::chrono::steady_clock;

@@ -6,7 +6,6 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <iomanip>
@@ -422,7 +421,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
   out.maps.channel_names = model_map_channel_names();
   out.noise = options.normals.noise;
   out.noise_source = options.noise_source;
-  std::atomic<long> rows_done{0};
+  ProgressCount rows_done(options.progress, "fit", height);
   const capture::ValidLights valid = capture::valid_lights(field);
   const NormalOptions& no = options.normals;
   std::mutex summary_mutex;
@@ -460,8 +459,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
                                   size_t(field.first_row() + y) * width + x);
         fit_pixel(d, options, m, local);
       }
-      const long done = ++rows_done;
-      report(options.progress, "fit", done, height);
+      rows_done.finished_one();
     }
     const std::lock_guard lock(summary_mutex);
     summary.add(local);
