@@ -23,7 +23,7 @@ int reduction_factor(int width, int height, int num_lights, std::size_t bytes) {
 }
 
 ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t band_bytes,
-                                    const ProgressFn& progress) {
+                                    const ProgressFn& progress, const BandVisitor& also) {
   LS_CHECK(factor >= 1, "reduced field: factor " + std::to_string(factor));
   const ReflectanceField& header = stream.header();
   const int width = header.width(), height = header.height();
@@ -58,6 +58,7 @@ ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t
         }
       }
     });
+    if (also) also(band);
     report(progress, "read reduced (rows)", y0 + band.height(), height);
   });
   return out;

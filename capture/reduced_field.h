@@ -20,8 +20,9 @@ int reduction_factor(int width, int height, int num_lights, std::size_t bytes);
 // The file's field reduced by `factor`, read band by band (bands of at most band_bytes, whole
 // blocks of rows); progress "read reduced (rows)" after each band. Its noise is the mean's of
 // factor^2 pixels: both variances divided by factor^2 (edge blocks, with fewer pixels, are a little
-// noisier than stated).
+// noisier than stated). `also`, when given, sees each band of the file's pixels after it is reduced
+// (what else a caller makes at the full size in the same pass).
 ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t band_bytes,
-                                    const ProgressFn& progress = {});
+                                    const ProgressFn& progress = {}, const BandVisitor& also = {});
 
 }  // namespace ls::capture

@@ -94,10 +94,10 @@ void add_relight_command(CLI::App& app) {
                                   "Preview exposure in stops (default: automatic per image).");
   auto memory = std::make_shared<MemoryBudget>();
   add_memory_option(*cmd, *memory,
-                    "Relight: what rendering bright sources may hold (full-size images of the "
-                    "LEDs around them); over it they are relit by the LED cells, with a note. The "
-                    "field itself is read a few MiB at a time whatever its size; the sources' "
-                    "normals in bands within what they leave.");
+                    "Relight: what rendering bright sources may hold (the images of the LEDs "
+                    "around them, at --source-pixels); over it they are relit by the LED cells, "
+                    "with a note. The field itself is read a few MiB at a time whatever its size; "
+                    "the sources' normals in bands within what they leave.");
   cmd->add_option("--coverage-deg", options->coverage_deg,
                   "Dome coverage radius around each LED, degrees (0: automatic).")
       ->capture_default_str();
@@ -112,6 +112,12 @@ void add_relight_command(CLI::App& app) {
                 "Fields: cast the bright sources' shadows by the flows between the LEDs' shadows "
                 "alone, without the scene's shape recovered from them (which needs every LED's "
                 "image in memory for seconds at 256^2; over --memory it is skipped, with a note).");
+  cmd->add_option("--source-pixels", options->source_pixels,
+                  "Fields: a field of more pixels has its bright sources (normals, shape, the "
+                  "LEDs' shadows) made on it reduced to about this many, each pixel the mean of a "
+                  "block, and brought back to its size by the detail of the LEDs around each "
+                  "source: seconds at 12 megapixels instead of minutes. 0: at the field's size.")
+      ->capture_default_str();
   cmd->add_option("--out", options->out_dir, "Output directory.")->required();
   add_quiet_flag(*cmd, *quiet);
   cmd->add_option("--temporal", options->temporal_file,

@@ -66,6 +66,10 @@ std::string RelightOptions::validate() const {
     return "--directions: the grid models are lit on: give --models (a field is lit by its LEDs' "
            "cells)";
   }
+  if (source_pixels != 0 && source_pixels < relight::MapRelightOptions::kFewestSourcePixels) {
+    return "--source-pixels: expected 0 (the field's size) or at least " +
+           std::to_string(relight::MapRelightOptions::kFewestSourcePixels) + " (64x64)";
+  }
   if (out_dir.empty()) return "--out: give the output directory";
   return {};
 }
@@ -84,6 +88,7 @@ std::string RelightOptions::to_json() const {
   j["coverage_deg"] = coverage_deg;
   j["bright_sources"] = bright_sources;
   j["source_geometry"] = source_geometry;
+  j["source_pixels"] = source_pixels;
   j["memory_bytes"] = memory_bytes;
   j["directions"] = directions_width;
   return j.dump();
@@ -97,6 +102,7 @@ relight::MapRelightOptions map_relight_options(const RelightOptions& options) {
   out.coverage_rad = coverage_rad(options);
   out.bright_sources = options.bright_sources;
   out.source_geometry = options.source_geometry;
+  out.source_pixels = options.source_pixels;
   out.memory_bytes = memory_given(options);
   return out;
 }

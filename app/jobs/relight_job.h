@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "app/jobs/job.h"
+#include "relight/sources/map_relight.h"
 
 namespace ls::jobs {
 
@@ -30,6 +31,9 @@ struct RelightOptions {
   // Their shadows: by the scene's shape recovered from every LED's shadows where it agrees with
   // the LEDs around the source (relight/sources/shadow_geometry.h), else by the flows alone.
   bool source_geometry = true;
+  // A field of more pixels has its sources made on it reduced to about this many, brought back to
+  // its size by the LEDs' own detail (MapRelightOptions::source_pixels); 0: at its size.
+  std::size_t source_pixels = relight::MapRelightOptions{}.source_pixels;
   // What rendering them may hold (relight::FieldSources::bytes_needed); 0: half of the memory
   // available. Over it they are relit by the cells, and the output's detail says so. Models and
   // temporal maps are read in bands of rows within what the full-size outputs leave of it.

@@ -4,12 +4,15 @@
 #include <cmath>
 #include <cstdio>
 #include <set>
+#include <string>
 #include <utility>
 
 #include "capture/field_file.h"
+#include "capture/reduced_field.h"
 #include "lightstage/errors.h"
 #include "lightstage/progress.h"
 #include "relight/lighting/relight.h"
+#include "relight/sources/guided_upsample.h"
 
 namespace ls::relight {
 
@@ -38,6 +41,27 @@ std::string over_memory(const char* what, std::size_t need, std::size_t may, int
   return line;
 }
 
+// Each source's irradiance given to the LEDs of its triangle by their weights, per LED (a
+// LightWeights::irradiance_rgb): the field relit by them is the source as the LEDs show it.
+std::vector<float> source_led_irradiance(const SplitLighting& lighting, int num_lights) {
+  std::vector<float> irradiance(3 * std::size_t(num_lights), 0.0f);
+  for (const PlacedSource& source : lighting.sources) {
+    if (!source.triangle) continue;
+    for (int k = 0; k < 3; ++k) {
+      const auto led = std::size_t(source.triangle->leds[size_t(k)]);
+      for (int c = 0; c < 3; ++c) {
+        irradiance[3 * led + size_t(c)] +=
+            float(source.triangle->weights[size_t(k)] * source.in_stage.irradiance_rgb[c]);
+      }
+    }
+  }
+  return irradiance;
+}
+
+// Unbounded, the bands a field is reduced in for its sources: large enough to read at the disk's
+// rate, small beside the field.
+constexpr std::size_t kReducedBandBytes = std::size_t(128) << 20;
+
 void check_options(const MapRelightOptions& options) {
   if (const std::string problem = options.validate(); !problem.empty()) {
     throw InputError("relighting under a map: " + problem);
@@ -48,6 +72,10 @@ void check_options(const MapRelightOptions& options) {
 
 std::string MapRelightOptions::validate() const {
   if (!std::isfinite(coverage_rad)) return "coverage: expected a finite angle";
+  if (source_pixels != 0 && source_pixels < kFewestSourcePixels) {
+    return "source pixels: expected 0 (the field's size) or at least " +
+           std::to_string(kFewestSourcePixels) + " (64x64), not " + std::to_string(source_pixels);
+  }
   return split.validate();
 }
 
@@ -167,8 +195,7 @@ std::string MapRelighter::fit_in_memory(const std::vector<MapRotation>& maps,
   const std::size_t may = options_.memory_bytes;
   if (leds.empty() || may == 0) return {};
   const auto need = [&](bool geometry) {
-    return FieldSources::bytes_needed(width_, height_, int(leds.size()), triangles,
-                                      geometry ? int(lights_.size()) : 0);
+    return sources_bytes(int(leds.size()), triangles, int(maps.size()), geometry);
   };
   std::string note;
   if (geometry_) {
@@ -249,7 +276,11 @@ void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const 
   }
   out.rows_pass_s = ms_since(pass_start) / 1e3;
   double sources_ms = 0;
-  if (!leds.empty()) {
+  if (!leds.empty() && source_factor() > 1) {
+    const auto t0 = Clock::now();
+    add_reduced_sources(relit, progress);
+    sources_ms = ms_since(t0);
+  } else if (!leds.empty()) {
     const auto t0 = Clock::now();
     report(progress, "bright sources (normals)", 0, 1);
     // Bands within what the sources' images leave of the memory given.
@@ -266,6 +297,70 @@ void MapRelighter::relight_streamed(const std::vector<MapRotation>& maps, const 
     r.sources_ms = sources_ms;
     r.geometry = geometry_ && !leds.empty();
     r.note = note;
+  }
+}
+
+int MapRelighter::source_factor() const {
+  const double pixels = double(width_) * height_;
+  if (stream_ == nullptr || options_.source_pixels == 0 || pixels <= double(options_.source_pixels))
+    return 1;
+  return int(std::ceil(std::sqrt(pixels / double(options_.source_pixels))));
+}
+
+std::size_t MapRelighter::sources_bytes(int leds, int triangles, int maps, bool geometry) const {
+  const int factor = source_factor();
+  const int width = (width_ + factor - 1) / factor, height = (height_ + factor - 1) / factor;
+  std::size_t bytes = FieldSources::bytes_needed(width, height, leds, triangles,
+                                                 geometry ? int(lights_.size()) : 0);
+  if (factor > 1) {
+    // The reduced field, and each map's guide at the field's size.
+    bytes += capture::ReflectanceField::bytes_for(width, height, int(lights_.size())) +
+             std::size_t(maps) * std::size_t(width_) * std::size_t(height_) * 3 * sizeof(float);
+  }
+  return bytes;
+}
+
+void MapRelighter::add_reduced_sources(std::vector<MapRelit>& relit, const ProgressFn& progress) {
+  const int factor = source_factor();
+  std::vector<std::vector<float>> led_irradiance;
+  std::vector<Image> guides;
+  for (const MapRelit& r : relit) {
+    led_irradiance.push_back(source_led_irradiance(r.lighting, int(lights_.size())));
+    guides.emplace_back(width_, height_, 3);
+  }
+  int triangles = 0;
+  const std::size_t leds = source_leds(relit, &triangles).size();
+  const std::size_t need = sources_bytes(int(leds), triangles, int(relit.size()), geometry_);
+  const std::size_t band_bytes = options_.memory_bytes > need
+                                     ? std::min(kReducedBandBytes, options_.memory_bytes - need)
+                                     : kReducedBandBytes;
+  char phase[96];
+  std::snprintf(phase, sizeof phase, "bright sources (the field at %dx%d)",
+                (width_ + factor - 1) / factor, (height_ + factor - 1) / factor);
+  ProgressFn reduced_progress;
+  if (progress) {
+    reduced_progress = [&](const std::string&, long done, long total, const std::string& detail) {
+      progress(phase, done, total, detail);
+    };
+  }
+  Image band_relit;
+  const capture::ReflectanceField reduced = capture::read_reduced_field(
+      *stream_, factor, band_bytes, reduced_progress, [&](const capture::ReflectanceField& band) {
+        for (std::size_t i = 0; i < relit.size(); ++i) {
+          relight_into(band, led_irradiance[i], band_relit);
+          std::copy(band_relit.pixels.begin(), band_relit.pixels.end(),
+                    guides[i].pixels.begin() + 3 * std::ptrdiff_t(band.first_row()) * width_);
+        }
+      });
+  FieldSources sources(reduced);
+  if (geometry_) sources.recover_geometry(progress);
+  Image low, guide_low;
+  for (std::size_t i = 0; i < relit.size(); ++i) {
+    low = Image(reduced.width(), reduced.height(), 3);
+    sources.add(relit[i].lighting, low);
+    relight_into(reduced, led_irradiance[i], guide_low);
+    add_guided_upsample(low, guide_low, guides[i], factor, relit[i].image);
+    guides[i] = Image();
   }
 }
 

@@ -39,6 +39,13 @@ struct MapRelightOptions {
   // Bytes the sources may hold (FieldSources::bytes_needed); 0: no bound. Over it the shape is
   // left out, then the sources are relit by the cells with the rest, and MapRelit::note says so.
   std::size_t memory_bytes = 0;
+  // A streamed field of more pixels than this has its sources (normals, shape, the LEDs' shadows
+  // and flows) made on the field reduced to at most this many (each pixel the mean of a block),
+  // and brought back to its size with the detail of the LEDs around each source
+  // (guided_upsample.h): the shape's depth is at most 512 pixels a side anyway; 0: at the field's
+  // size; else at least kFewestSourcePixels.
+  std::size_t source_pixels = std::size_t(1) << 18;
+  static constexpr std::size_t kFewestSourcePixels = 4096;
   BrightSourceOptions split;     // What counts as a bright source.
   std::string validate() const;  // Empty when valid, else the option and its range.
 };
@@ -135,6 +142,14 @@ class MapRelighter {
   void relight_streamed(const std::vector<MapRotation>& maps, const RowPass& pass,
                         const ProgressFn& progress, MapRelitSet& out);
   FieldSources& sources(const ProgressFn& progress = {});
+  // How a streamed field is reduced for its sources (options_.source_pixels); 1: not.
+  int source_factor() const;
+  // The bytes the sources of `leds` LEDs in `triangles` triangles hold for `maps` images (with
+  // the scene's shape when `geometry`), at the size source_factor() makes them.
+  std::size_t sources_bytes(int leds, int triangles, int maps, bool geometry) const;
+  // A streamed field's sources added to each of `relit` (source_factor() > 1): made on the field
+  // reduced, read in one pass that also relights it by the LEDs around the sources at full size.
+  void add_reduced_sources(std::vector<MapRelit>& relit, const ProgressFn& progress);
   void render_cells(const SplitLighting& lighting, Image& out) const;
 
   const capture::ReflectanceField* field_ = nullptr;

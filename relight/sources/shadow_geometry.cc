@@ -46,6 +46,10 @@ constexpr float kRayStartPx = 0.1f;  // Above its own surface a ray starts at.
 // between them takes their interpolated height).
 constexpr float kOneSurfaceStepPx = 3.0f;
 
+// The pixel a ray's coordinate falls in: round half up where it is >= -0.5 (std::lround, a call
+// into libm, was a third of the marching), negative below: outside the map either way.
+inline int pixel_of(float coordinate) { return int(coordinate + 1.5f) - 1; }
+
 struct Neighbours {
   int at[4];  // -1 outside the image: left, right, up, down.
 };
@@ -297,8 +301,7 @@ struct Carving {
         float lo = 1e30f, hi = -1e30f;
         for (int i = 1; i < 2 * (w + h); ++i) {
           const float t = step * float(i);
-          const int qx = int(std::lround(float(x) + t * dx)),
-                    qy = int(std::lround(float(y) + t * dy));
+          const int qx = pixel_of(float(x) + t * dx), qy = pixel_of(float(y) + t * dy);
           if (qx < 0 || qy < 0 || qx >= w || qy >= h) break;
           const size_t q = size_t(qy) * w + qx;
           const int rq = surfaces.region[q];
@@ -518,7 +521,7 @@ bool ShadowGeometry::sees(int x, int y, const Eigen::Vector3f& dir) const {
   const float step = 0.5f / dxy, start = own + kRayStartPx;
   for (int i = 1; i < 4 * (width_ + height_); ++i) {
     const float t = step * float(i);
-    const int qx = int(std::lround(u + t * dx)), qy = int(std::lround(v + t * dy));
+    const int qx = pixel_of(u + t * dx), qy = pixel_of(v + t * dy);
     if (qx < 0 || qy < 0 || qx >= width_ || qy >= height_) return true;
     const float ray = start + t * dz;
     if (ray > highest_px_) return true;

@@ -109,6 +109,9 @@ TEST_F(Refusals, OptionsThatWouldBeIgnoredOrWrappedAreRefused) {
   Expect("relight --quiet " + Path("f.exr") + " --env " + map + " --directions 16 --out " +
              Path("dirs"),
          1, {"--directions", "--models"});
+  Expect("relight --quiet " + Path("f.exr") + " --env " + map + " --source-pixels 100 --out " +
+             Path("tiny"),
+         1, {"--source-pixels", "at least 4096"});
   Expect("compress " + Path("f.exr") + " --format ptm --rank 5 --out " + Path("r.ptm"), 2,
          {"--rank 5", "--format pca only"});
   Expect("compress " + Path("f.exr") + " --format hsh2 --tile 16 --out " + Path("t.rti"), 2,
