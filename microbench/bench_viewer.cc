@@ -6,7 +6,8 @@
 // The upload itself (once per source) is timed too (BM_UploadField).
 // Compact sources: the field on the CPU under sky_sun.exr turning by 0.1 deg a frame, the sun split
 // off and rendered at its true direction (BM_FieldSunRotationOnCpu, with/without the split), and
-// the first frame with a sun (photometric-stereo normals, then the sun's LED shadows and flows).
+// the first frame with a sun (photometric-stereo normals, then the sun's LED shadows and flows);
+// the sun's shadows cast by the recovered shape (BM_FieldSunShapeOnCpu).
 #include <benchmark/benchmark.h>
 
 #define GL_GLEXT_PROTOTYPES
@@ -213,6 +214,38 @@ BENCHMARK(BM_FieldSunRotationOnCpu)
     ->Arg(0)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
+
+// The sun's shadows cast by the scene's shape, as `lightstage relight` casts them: the shape
+// recovered on its own thread (recovery_s, the frames meanwhile by the flows), then a frame of a
+// sun that stays (its traced visibility kept: the timed loop) and what tracing a new direction
+// takes (trace_ms, on its own thread; the frames meanwhile by the flows).
+void BM_FieldSunShapeOnCpu(benchmark::State& state) {
+  window();
+  const auto source = ls::viewer::relight_field_on_cpu(field());
+  ls::viewer::GpuTarget target(source->width(), source->height());
+  const auto frames_until_the_shape = [&](const ls::viewer::ViewLighting& lighting) {
+    const auto t0 = std::chrono::steady_clock::now();
+    do {
+      source->render(lighting, target);
+      glFinish();
+    } while (source->shadows().find("the scene's shape where") == std::string::npos &&
+             ms_since(t0) < 30 * 60e3);
+    return ms_since(t0);
+  };
+  const double recovery_ms = frames_until_the_shape(sky_sun_lighting(300.0, /*split=*/true));
+  const double trace_ms = frames_until_the_shape(sky_sun_lighting(300.5, /*split=*/true));
+  const ls::viewer::ViewLighting lighting = sky_sun_lighting(300.5, /*split=*/true);
+  for (auto _ : state) {
+    source->render(lighting, target);
+    glFinish();
+  }
+  state.SetLabel(source->shadows());
+  state.counters["fps"] =
+      benchmark::Counter(double(state.iterations()), benchmark::Counter::kIsRate);
+  state.counters["recovery_s"] = recovery_ms / 1e3;
+  state.counters["trace_ms"] = trace_ms;
+}
+BENCHMARK(BM_FieldSunShapeOnCpu)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // The first frame with a sun on a freshly opened field: the field's normals (photometric stereo,
 // once per field), the shadows of the sun's three LEDs and the flows between them, then the frame.

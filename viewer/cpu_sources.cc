@@ -26,6 +26,7 @@ class CpuFieldSource : public GpuSource {
       : field_(field), half_(relight::HalfField::of(field, 1e-3, &half_error_)), sources_(field) {}
   std::string name() const override { return "field"; }
   bool adds_bright_sources() const override { return true; }
+  std::string shadows() const override { return sources_.shadows(); }
   std::string note() const override {
     char precision[96];
     if (half_) {
@@ -69,6 +70,7 @@ class CpuPcaSource : public GpuSource {
   explicit CpuPcaSource(relight::PcaField pca) : pca_(std::move(pca)), sources_(pca_) {}
   std::string name() const override { return pca_.name(); }
   bool adds_bright_sources() const override { return true; }
+  std::string shadows() const override { return sources_.shadows(); }
   std::string note() const override {
     return pca_.name() + ": software OpenGL: relit on the CPU and uploaded";
   }

@@ -139,6 +139,7 @@ class FieldSource : public GpuSource {
 
   std::string name() const override { return "field"; }
   bool adds_bright_sources() const override { return true; }
+  std::string shadows() const override { return sources_.shadows(); }
   std::string note() const override { return note_; }
   int width() const override { return width_; }
   int height() const override { return height_; }

@@ -91,6 +91,9 @@ class GpuSource {
   // plus the sources); the others (PCA, a field over budget shown as PCA, models) use the whole
   // map's led_irradiance_rgb or lights.
   virtual bool adds_bright_sources() const { return false; }
+  // What cast the bright sources' shadows in its last frame (BrightSourceLight::shadows); empty
+  // when it adds none.
+  virtual std::string shadows() const { return {}; }
   // Throws InputError when the lighting does not fit the source (LED count) or the target's size
   // is not the source's.
   virtual void render(const ViewLighting& lighting, GpuTarget& target) = 0;

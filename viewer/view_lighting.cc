@@ -1,6 +1,11 @@
 #include "viewer/view_lighting.h"
 
+#include <tbb/info.h>
+#include <tbb/task_arena.h>
+
 #include <algorithm>
+#include <chrono>
+#include <exception>
 #include <utility>
 
 #include "relight/lighting/light_cells.h"
@@ -53,17 +58,76 @@ bool renders_bright_sources(const ViewLighting& lighting) {
 BrightSourceLight::BrightSourceLight(const capture::ReflectanceField& field)
     : width_(field.width()),
       height_(field.height()),
-      relighter_(std::make_unique<relight::MapRelighter>(field, view_options(true))) {}
+      relighter_(std::make_unique<relight::MapRelighter>(field, view_options(true))),
+      field_(&field) {}
 
 BrightSourceLight::BrightSourceLight(const relight::PcaField& pca)
     : width_(pca.width()),
       height_(pca.height()),
       relighter_(std::make_unique<relight::MapRelighter>(pca, view_options(true))) {}
 
-BrightSourceLight::~BrightSourceLight() = default;
+namespace {
+
+struct Stopped {};  // Thrown through the shape's recovery to end it early.
+
+// Work for later frames runs on all cores but one, which the frames keep.
+template <typename Work>
+auto in_the_background(Work work) {
+  return std::async(std::launch::async, [work = std::move(work)]() mutable {
+    tbb::task_arena arena(std::max(1, tbb::info::default_concurrency() - 1));
+    return arena.execute(work);
+  });
+}
+
+}  // namespace
+
+BrightSourceLight::~BrightSourceLight() {
+  stop_ = true;
+  try {
+    if (recovering_.valid()) recovering_.get();
+  } catch (...) {  // NOLINT(bugprone-empty-catch): stopped, or failed; nothing to show now.
+  }
+  if (tracing_.valid()) tracing_.wait();
+}
+
+void BrightSourceLight::take_shape() {
+  if (!recovering_.valid() ||
+      recovering_.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+    return;
+  }
+  try {
+    relighter_->use_geometry_of(*recovering_.get());
+    shape_ = true;
+  } catch (const std::exception& e) {
+    shape_problem_ = e.what();
+  }
+}
 
 void BrightSourceLight::add(const ViewLighting& lighting, Image& out) {
-  if (renders_bright_sources(lighting)) relighter_->add_sources(*lighting.split, out);
+  by_shape_ = false;
+  if (!renders_bright_sources(lighting)) return;
+  take_shape();
+  if (field_ != nullptr && !shape_ && !recovering_.valid() && shape_problem_.empty()) {
+    recovering_ = in_the_background([this] {
+      auto sources = std::make_unique<relight::FieldSources>(*field_);
+      sources->recover_geometry(
+          [this](const std::string&, long done, long total, const std::string&) {
+            if (stop_) throw Stopped{};
+            recovered_leds_ = done;
+            recovery_steps_ = total;
+          });
+      return sources;
+    });
+  }
+  using ShapeUse = relight::FieldSources::ShapeUse;
+  by_shape_ = relighter_->add_sources(*lighting.split, out, {}, ShapeUse::kIfTraced) && shape_;
+  const bool tracing =
+      tracing_.valid() && tracing_.wait_for(std::chrono::seconds(0)) != std::future_status::ready;
+  if (shape_ && !by_shape_ && !tracing) {
+    if (tracing_.valid()) tracing_.get();  // The last direction's, done (rethrows a failure).
+    tracing_ =
+        in_the_background([this, split = *lighting.split] { relighter_->trace_shapes(split); });
+  }
 }
 
 bool BrightSourceLight::render(const ViewLighting& lighting, Image& out) {
@@ -73,8 +137,19 @@ bool BrightSourceLight::render(const ViewLighting& lighting, Image& out) {
   } else {
     std::fill(out.pixels.begin(), out.pixels.end(), 0.0f);
   }
-  relighter_->add_sources(*lighting.split, out);
+  add(lighting, out);
   return true;
+}
+
+std::string BrightSourceLight::shadows() const {
+  if (by_shape_) return "the scene's shape where it agrees with the LEDs (as lightstage relight)";
+  if (field_ == nullptr) return "the LEDs' flows (a PCA)";
+  if (!shape_problem_.empty()) return "the LEDs' flows (the scene's shape: " + shape_problem_ + ")";
+  if (shape_) return "the LEDs' flows while the shape's shadows are traced for this direction";
+  if (!recovering_.valid()) return "the LEDs' flows";
+  return "the LEDs' flows while the scene's shape is recovered (" +
+         std::to_string(recovered_leds_.load()) + " of " + std::to_string(recovery_steps_.load()) +
+         " steps)";
 }
 
 }  // namespace ls::viewer

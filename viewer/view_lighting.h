@@ -5,7 +5,10 @@
 // as two or three offset copies; split off (relight/sources/map_relight.h), it is rendered at its
 // true direction, turning with the map, while the rest of the map is relit by the cells.
 #include <Eigen/Core>
+#include <atomic>
+#include <future>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "capture/field.h"
@@ -43,10 +46,15 @@ ViewLighting environment_lighting(const physics::EnvironmentMap& map, double rot
 bool renders_bright_sources(const ViewLighting& lighting);
 
 // The bright sources' light on one field, for the field sources (CPU and GPU), through
-// relight::MapRelighter with the shadows by the LEDs' flows alone. The field's photometric-stereo
-// normals (0.1-1 s at 256^2-512^2) are found the first time a lighting has a source to render, so
-// a map without one costs nothing; per-LED shadows and per-triangle flows are cached (a few ms the
-// first time a sun falls between new LEDs).
+// relight::MapRelighter. The field's photometric-stereo normals (0.1-1 s at 256^2-512^2) are found
+// the first time a lighting has a source to render, so a map without one costs nothing; per-LED
+// shadows and per-triangle flows are cached (a few ms the first time a sun falls between new
+// LEDs). A field's shadows are then cast as `lightstage relight` casts them, by the scene's shape
+// where it agrees with the LEDs, once it is known: the shape is recovered on a thread of its own
+// (seconds at 128^2, about 100 s at 512^2 with 151 LEDs), and each new direction of a source has
+// the shape's visibility traced on another (about 60 ms at 128^2, 1 s at 512^2), kept while the
+// source stays; meanwhile the frames cast them by the LEDs' flows alone, at full rate. A PCA's
+// keep the flows.
 class BrightSourceLight {
  public:
   // `field` must outlive this.
@@ -54,15 +62,34 @@ class BrightSourceLight {
   // A PCA's sources, from its reconstruction: normals from the reconstructed field (in bands of
   // rows), each LED's image from the PCA under that LED alone. `pca` must outlive this.
   explicit BrightSourceLight(const relight::PcaField& pca);
+  // Stops the shape's recovery (at its next LED) and waits for it.
   ~BrightSourceLight();
+  BrightSourceLight(const BrightSourceLight&) = delete;
+  BrightSourceLight& operator=(const BrightSourceLight&) = delete;
   // Adds the sources of lighting.split (if any) to `out` (the field's size, 3 channels).
   void add(const ViewLighting& lighting, Image& out);
   // The same into `out` alone: zeros plus the sources. False (out untouched) when there is none.
   bool render(const ViewLighting& lighting, Image& out);
+  // What cast the last frame's shadows, for the panel: "the scene's shape (as lightstage relight)"
+  // or "the LEDs' flows" and why (the shape being recovered, LED 12 of 151; traced for this
+  // direction; a PCA).
+  std::string shadows() const;
+  // The last frame's sources were cast by the recovered shape: the image `lightstage relight`
+  // makes of the field.
+  bool shadows_by_shape() const { return by_shape_; }
 
  private:
+  // Takes the recovered shape once its thread is done.
+  void take_shape();
   int width_ = 0, height_ = 0;
   std::unique_ptr<relight::MapRelighter> relighter_;
+  const capture::ReflectanceField* field_ = nullptr;  // Null for a PCA: no shape.
+  std::future<std::unique_ptr<relight::FieldSources>> recovering_;
+  std::future<void> tracing_;
+  std::atomic<bool> stop_{false};
+  std::atomic<long> recovered_leds_{0}, recovery_steps_{0};
+  bool shape_ = false, by_shape_ = false;
+  std::string shape_problem_;  // Why the shape is not used (its recovery failed).
 };
 
 }  // namespace ls::viewer

@@ -453,6 +453,9 @@ void ViewerApp::make_current() {
     glfwMakeContextCurrent(impl_->window->handle());
   ImGui::SetCurrentContext(impl_->imgui);
 }
+std::string ViewerApp::source_shadows() const {
+  return impl_->gpu_field ? impl_->gpu_field->shadows() : std::string();
+}
 double ViewerApp::last_relight_ms() const { return impl_->relight_ms; }
 double ViewerApp::last_lighting_ms() const { return impl_->lighting_ms; }
 

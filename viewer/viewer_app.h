@@ -56,6 +56,9 @@ class ViewerApp {
   // under a map with bright sources, the sources split off (ViewLighting::split); distant lights
   // for models on show.
   const ViewLighting& lighting();
+  // What cast the field's bright sources' shadows in the last frame (BrightSourceLight::
+  // shadows); empty when no field is open or its lighting has none.
+  std::string source_shadows() const;
   // Milliseconds of the last frame's GPU relighting (upload + draw + finish).
   double last_relight_ms() const;
   // The last time the environment (or point light) was turned into light weights (CPU).

@@ -268,6 +268,7 @@ void ViewerApp::Impl::lighting_section() {
     // What the field renders at its true direction instead of by LED cells.
     ImGui::TextWrapped("field: bright sources at their true direction (orange on the strip): %s",
                        lighting.split->report().c_str());
+    if (gpu_field) ImGui::TextWrapped("shadows by %s", gpu_field->shadows().c_str());
   }
   if (!led_luminance.empty()) {
     ImGui::PlotHistogram("LED weights", led_luminance.data(), int(led_luminance.size()), 0, nullptr,

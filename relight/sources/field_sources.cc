@@ -136,6 +136,7 @@ void FieldSources::use_geometry_of(const FieldSources& other) {
            "FieldSources: the geometry shared is not of a field this size, or was not recovered");
   const std::lock_guard<std::mutex> lock(mutex_);
   geometry_ = other.geometry_;
+  shapes_.clear();
 }
 
 void FieldSources::prepare(const std::vector<int>& leds) {
@@ -211,8 +212,34 @@ const LedPairFlow& FieldSources::flow(int from_led, int to_led) const {
   return it->second;
 }
 
-void FieldSources::add(const SplitLighting& lighting, Image& out,
-                       const std::vector<const Image*>& visibility) const {
+std::shared_ptr<const Image> FieldSources::shape_of(const PlacedSource& source, bool trace) const {
+  const Eigen::Vector3d& dir = source.in_stage.dir;
+  const ShapeKey key{dir.x(), dir.y(), dir.z(), source.in_stage.radius_rad};
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    const auto it = shapes_.find(key);
+    if (it != shapes_.end()) return it->second;
+  }
+  if (!trace) return nullptr;
+  // Traced unlocked (seconds at 512^2): two threads tracing one source keep the first.
+  auto shape = std::make_shared<const Image>(
+      geometry_->view(dir, source.in_stage.radius_rad).trusted_visibility());
+  constexpr std::size_t kKept = 16;  // Directions kept: a turning sun's last few.
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (shapes_.size() >= kKept) shapes_.clear();
+  return shapes_.emplace(key, std::move(shape)).first->second;
+}
+
+void FieldSources::trace_shapes(const SplitLighting& lighting) const {
+  if (!geometry_) return;
+  for (const PlacedSource& source : lighting.sources) {
+    if (source.triangle) (void)shape_of(source, /*trace=*/true);
+  }
+}
+
+bool FieldSources::add(const SplitLighting& lighting, Image& out,
+                       const std::vector<const Image*>& visibility, ShapeUse use) const {
+  bool complete = true;
   for (size_t i = 0; i < lighting.sources.size(); ++i) {
     const PlacedSource& source = lighting.sources[i];
     if (!source.triangle) continue;
@@ -229,11 +256,16 @@ void FieldSources::add(const SplitLighting& lighting, Image& out,
       }
     }
     lock.unlock();
-    std::optional<SourceShadowView> view;
-    if (geometry_) view = geometry_->view(source.in_stage.dir, source.in_stage.radius_rad);
-    add_bright_source(shadows, flows, *source.triangle, source.in_stage, fit_, out,
-                      i < visibility.size() ? visibility[i] : nullptr, view ? &*view : nullptr);
+    const Image* given = i < visibility.size() ? visibility[i] : nullptr;
+    std::shared_ptr<const Image> shape;
+    if (geometry_ && given == nullptr) {
+      shape = shape_of(source, use == ShapeUse::kTrace);
+      complete = complete && shape != nullptr;
+    }
+    add_bright_source(shadows, flows, *source.triangle, source.in_stage, fit_, out, given,
+                      shape.get());
   }
+  return complete;
 }
 
 }  // namespace ls::relight

@@ -4,6 +4,7 @@
 // shadows (source_render.h), from the field's own Lambertian fit and the images of the LEDs
 // around the sources. Fields in memory and streamed ones alike (capture::FieldBands). Callers
 // relight through map_relight.h, which assembles them.
+#include <array>
 #include <functional>
 #include <map>
 #include <memory>
@@ -80,8 +81,17 @@ class FieldSources {
   // between the same LEDs (a rotation's small steps, a viewer's frames) costs one pass per pixel.
   // visibility[i], where given, is the share of lighting.sources[i] each pixel sees
   // (add_bright_source), instead of the one interpolated from the LEDs' shadows.
-  void add(const SplitLighting& lighting, Image& out,
-           const std::vector<const Image*>& visibility = {}) const;
+  // With the recovered shape, each source's shadows are cast by it where it is trusted
+  // (SourceShadowView::trusted_visibility): traced when first needed and kept for the next call
+  // at the same direction (ShapeUse::kTrace), or only where traced before (kIfTraced: a viewer's
+  // frame renders by the flows alone until trace_shapes, on another thread, has traced it).
+  // Returns false when a source was rendered by the flows for want of its traced shape.
+  enum class ShapeUse { kTrace, kIfTraced };
+  bool add(const SplitLighting& lighting, Image& out,
+           const std::vector<const Image*>& visibility = {}, ShapeUse use = ShapeUse::kTrace) const;
+  // Traces the shape's visibility of each source of `lighting` add() has not kept yet.
+  void trace_shapes(const SplitLighting& lighting) const;
+  bool has_geometry() const { return geometry_ != nullptr; }
 
  private:
   // The fit over the bands (and led_dirs_), calling `also` with each band after it.
@@ -101,6 +111,11 @@ class FieldSources {
   mutable std::mutex mutex_;  // add() may run on several threads; it fills the caches.
   mutable std::map<int, LedShadow> shadows_;
   mutable std::map<std::pair<int, int>, LedPairFlow> flows_;
+  // The shape's trusted visibility per source direction and radius (the last few: a viewer's sun).
+  using ShapeKey = std::array<double, 4>;
+  mutable std::map<ShapeKey, std::shared_ptr<const Image>> shapes_;
+  // A source's traced shape: kept, traced now (when `trace`), or null.
+  std::shared_ptr<const Image> shape_of(const PlacedSource& source, bool trace) const;
 };
 
 }  // namespace ls::relight

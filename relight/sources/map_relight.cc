@@ -158,9 +158,19 @@ void MapRelighter::render_cells(const SplitLighting& lighting, Image& out) const
   }
 }
 
-void MapRelighter::add_sources(const SplitLighting& lighting, Image& out,
-                               const std::vector<const Image*>& visibility) {
-  if (renders_sources(lighting)) sources().add(lighting, out, visibility);
+bool MapRelighter::add_sources(const SplitLighting& lighting, Image& out,
+                               const std::vector<const Image*>& visibility,
+                               FieldSources::ShapeUse use) {
+  return !renders_sources(lighting) || sources().add(lighting, out, visibility, use);
+}
+
+void MapRelighter::use_geometry_of(const FieldSources& recovered) {
+  sources().use_geometry_of(recovered);
+  geometry_ = true;
+}
+
+void MapRelighter::trace_shapes(const SplitLighting& lighting) {
+  if (renders_sources(lighting)) sources().trace_shapes(lighting);
 }
 
 void MapRelighter::render(const SplitLighting& lighting, Image& out,

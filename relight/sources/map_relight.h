@@ -114,8 +114,17 @@ class MapRelighter {
   // Adds the sources of `lighting` inside the dome's coverage to `out` (the field's size), for a
   // caller that relit the cells itself (in half floats, on a GPU). visibility[i], where given:
   // the share of source i each pixel sees, instead of the LEDs' (FieldSources::add).
-  void add_sources(const SplitLighting& lighting, Image& out,
-                   const std::vector<const Image*>& visibility = {});
+  // `use`: FieldSources::add's (a viewer renders by the flows until the shape is traced). False
+  // when a source was rendered by the flows for want of its traced shape.
+  bool add_sources(const SplitLighting& lighting, Image& out,
+                   const std::vector<const Image*>& visibility = {},
+                   FieldSources::ShapeUse use = FieldSources::ShapeUse::kTrace);
+  // The shape `recovered` holds (FieldSources::recover_geometry, of this field, on another
+  // thread) casts the sources' shadows from now on. Not for a streamed field.
+  void use_geometry_of(const FieldSources& recovered);
+  // The shape's visibility of the sources of `lighting` traced now (FieldSources::trace_shapes),
+  // for add_sources to take; safe beside add_sources on another thread.
+  void trace_shapes(const SplitLighting& lighting);
   // Whether `lighting` has a source add_sources renders (one inside the dome's coverage).
   static bool renders_sources(const SplitLighting& lighting);
   // The sources' normals and shape (as the options say) and the shadows of the LEDs around the

@@ -101,49 +101,6 @@ inline void bilinear(const float* image, int width, int height, int channels, fl
   }
 }
 
-// With the shape (shadow_geometry.h): per pixel the flows' visibility, the shape's (NaN where it
-// has no surface, or where the LED nearest the source saw otherwise: at an LED, what it measured
-// is the truth), whether the shape agrees with the LEDs around the source there, and the light
-// the visibility lets through. Which one a pixel takes is decided over its 3x3 neighbourhood
-// once every pixel is known.
-struct ShapeVisibility {
-  ShapeVisibility(const SourceShadowView& view, int width, int height)
-      : view(view),
-        width(width),
-        flow_visible(size_t(width) * height),
-        shape_visible(flow_visible.size(), std::numeric_limits<float>::quiet_NaN()),
-        lit_part(3 * flow_visible.size()),
-        agrees(cv::Mat::zeros(height, width, CV_8U)) {}
-
-  void record(int x, int y, float flows) {
-    const size_t p = size_t(y) * width + x;
-    flow_visible[p] = flows;
-    if (const auto v = view.visibility(x, y)) {
-      if (v->nearest_agrees) shape_visible[p] = v->share;
-      agrees.data[p] = v->most_agree ? 1 : 0;
-    }
-  }
-
-  // The shape where most of the 3x3 around a pixel agrees: a lone pixel of one kind among the
-  // other (a ray slipping between two depth samples, a limb) is noise, not a shadow.
-  void add_to(Image& out) const {
-    cv::Mat votes;
-    cv::boxFilter(agrees, votes, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false,
-                  cv::BORDER_REPLICATE);
-    for (size_t p = 0; p < flow_visible.size(); ++p) {
-      const bool shape = !std::isnan(shape_visible[p]) && votes.ptr<float>()[p] >= 5;
-      const float v = shape ? shape_visible[p] : flow_visible[p];
-      for (size_t c = 0; c < 3; ++c) out.pixels[3 * p + c] += v * lit_part[3 * p + c];
-    }
-  }
-
-  const SourceShadowView& view;
-  int width;
-  std::vector<float> flow_visible, shape_visible;
-  std::vector<float> lit_part;  // 3 per pixel: (shading - bounced) x irradiance.
-  cv::Mat agrees;
-};
-
 }  // namespace
 
 std::optional<LedTriangle> led_triangle(const std::vector<Eigen::Vector3d>& unit_dirs,
@@ -290,13 +247,15 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to) {
 void add_bright_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
                        const LedTriangle& triangle, const BrightSource& source,
                        const LambertianFit& fit, Image& out, const Image* visibility,
-                       const SourceShadowView* geometry) {
+                       const Image* shape) {
   const int width = fit.normal.width, height = fit.normal.height;
   LS_CHECK(out.width == width && out.height == height && out.channels == 3,
            "add_bright_source: the output is not the field's size");
   LS_CHECK(!visibility || (visibility->width == width && visibility->height == height &&
                            visibility->channels == 1),
            "add_bright_source: the visibility is not one channel of the field's size");
+  LS_CHECK(!shape || (shape->width == width && shape->height == height && shape->channels == 1),
+           "add_bright_source: the shape's visibility is not one channel of the field's size");
   const float limit = float(std::max(width, height)) / 4;
   // Each LED's shadows move toward where the others have them, by the others' weights
   // (multi-image morphing, on the distance images).
@@ -342,8 +301,6 @@ void add_bright_source(const std::array<const LedShadow*, 3>& shadows, const Pai
   const Eigen::Vector3f s = source.dir.normalized().cast<float>();
   const Eigen::Vector3f irradiance = source.irradiance_rgb.cast<float>();
   const float radius = float(source.radius_rad), max_half_width = limit / 4;
-  std::optional<ShapeVisibility> by_shape;
-  if (geometry && !visibility) by_shape.emplace(*geometry, width, height);
   tbb::parallel_for(0, height, [&](int y) {
     for (int x = 0; x < width; ++x) {
       const size_t p = size_t(y) * width + x;
@@ -380,24 +337,20 @@ void add_bright_source(const std::array<const LedShadow*, 3>& shadows, const Pai
       const float* n = &fit.normal.pixels[3 * p];
       const float cosine = std::max(0.0f, n[0] * s[0] + n[1] * s[1] + n[2] * s[2]) * float(kInvPi);
       const float* albedo = &fit.albedo.pixels[3 * p];
-      const float visible = visibility
-                                ? visibility->pixels[p]
-                                : std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
+      float visible = std::clamp(0.5f + distance_px / (2 * half_width), 0.0f, 1.0f);
+      if (visibility) {
+        visible = visibility->pixels[p];
+      } else if (shape && !std::isnan(shape->pixels[p])) {
+        visible = shape->pixels[p];
+      }
       float* o = &out.pixels[3 * p];
       for (int c = 0; c < 3; ++c) {
         const float shading = std::max(0.0f, albedo[c] * cosine + gloss[c]);
         const float bounced = shadow_weight > 0 ? in_shadow[c] / shadow_weight : 0.0f;
-        if (by_shape) {
-          o[c] += irradiance[c] * bounced;
-          by_shape->lit_part[3 * p + size_t(c)] = irradiance[c] * (shading - bounced);
-        } else {
-          o[c] += irradiance[c] * (visible * shading + (1 - visible) * bounced);
-        }
+        o[c] += irradiance[c] * (visible * shading + (1 - visible) * bounced);
       }
-      if (by_shape) by_shape->record(x, y, visible);
     }
   });
-  if (by_shape) by_shape->add_to(out);
 }
 
 }  // namespace ls::relight

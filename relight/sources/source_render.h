@@ -85,15 +85,14 @@ LedPairFlow led_pair_flow(const LedShadow& from, const LedShadow& to);
 // (1 channel, the field's size), is the share of the source each pixel sees, used instead of the
 // visibility interpolated from the LEDs' shadows: a simulator's exact one (sim::
 // render_source_visibility) measures how much of the error is the shadows' and how much the
-// shading's. `geometry`, when given, is the source's view of the scene's recovered shape
-// (shadow_geometry.h): its visibility where it agrees with the LEDs around the source (over most
-// of the pixel's 3x3 neighbourhood, and with the nearest LED at the pixel), the flows' elsewhere.
+// shading's. `shape`, when given (1 channel, the field's size), is the share of the source the
+// scene's recovered shape lets each pixel see where it is trusted, NaN where the flows decide
+// (shape_visibility, shadow_geometry.h).
 inline constexpr double kMinTriangleWeight = 1e-3;
 using PairFlows = std::array<std::array<const LedPairFlow*, 3>, 3>;
-class SourceShadowView;
 void add_bright_source(const std::array<const LedShadow*, 3>& shadows, const PairFlows& flows,
                        const LedTriangle& triangle, const BrightSource& source,
                        const LambertianFit& fit, Image& out, const Image* visibility = nullptr,
-                       const SourceShadowView* geometry = nullptr);
+                       const Image* shape = nullptr);
 
 }  // namespace ls::relight

@@ -3,9 +3,11 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <limits>
 #include <mutex>
 #include <numbers>
 #include <numeric>
+#include <opencv2/imgproc.hpp>
 
 #include "lightstage/direction_index.h"
 #include "physics/sphere.h"
@@ -88,6 +90,28 @@ std::optional<SourceShadowView::Visibility> SourceShadowView::visibility(int x, 
   const int needed = std::min<int>(ShadowGeometry::kAgreeing, int(nearest_agreement_.size()));
   return Visibility{float(seen) / float(disc_.size()), nearest_agrees || !nearest_decides_,
                     agreeing >= needed};
+}
+
+Image SourceShadowView::trusted_visibility() const {
+  const int width = geometry_->field_width_, height = geometry_->field_height_;
+  Image shape(width, height, 1, std::numeric_limits<float>::quiet_NaN());
+  cv::Mat agrees = cv::Mat::zeros(height, width, CV_8U);
+  tbb::parallel_for(0, height, [&](int y) {
+    for (int x = 0; x < width; ++x) {
+      const size_t p = size_t(y) * width + x;
+      if (const auto v = visibility(x, y)) {
+        if (v->nearest_agrees) shape.pixels[p] = v->share;
+        agrees.data[p] = v->most_agree ? 1 : 0;
+      }
+    }
+  });
+  cv::Mat votes;
+  cv::boxFilter(agrees, votes, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false,
+                cv::BORDER_REPLICATE);
+  for (size_t p = 0; p < shape.pixels.size(); ++p) {
+    if (votes.ptr<float>()[p] < 5) shape.pixels[p] = std::numeric_limits<float>::quiet_NaN();
+  }
+  return shape;
 }
 
 }  // namespace ls::relight

@@ -7,9 +7,12 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <memory>
+#include <string>
+#include <thread>
 
 #include "capture/field.h"
 #include "capture/field_file.h"
@@ -18,6 +21,7 @@
 #include "relight/lighting/light_cells.h"
 #include "relight/lighting/relight.h"
 #include "relight/sources/field_sources.h"
+#include "relight/sources/map_relight.h"
 #include "sim/noisy_field.h"
 #include "sim/rti_scenes.h"
 #include "tests/support/test_support.h"
@@ -85,11 +89,28 @@ class ViewerBrightSources : public ::testing::Test {
     return testing::source_dir() / "data" / "envmaps" / "small_source.exr";
   }
 
-  // What `lightstage relight` gives: the map without its sources by cells, plus the sources.
+  // The map without its sources by cells, plus the sources with their shadows by the LEDs'
+  // flows alone.
   static Image cpu_with_sources(const relight::SplitLighting& split) {
     Image out = relight::relight(*field_, split.weights);
     relight::FieldSources(*field_).add(split, out);
     return out;
+  }
+  // What `lightstage relight` gives: the same with the shadows cast by the scene's recovered
+  // shape where it agrees with the LEDs (one relighter: the shape recovered once).
+  static Image cpu_with_shape(const relight::SplitLighting& split) {
+    static relight::MapRelighter relighter(*field_);
+    Image out;
+    relighter.render(split, out);
+    return out;
+  }
+  // What the viewer's last frame was: the shape's shadows once known and traced for the
+  // direction (on threads of their own), the flows' before.
+  static bool by_shape(const std::string& shadows) {
+    return shadows.find("the scene's shape where") != std::string::npos;
+  }
+  static Image cpu_as_shown(const relight::SplitLighting& split, const std::string& shadows) {
+    return by_shape(shadows) ? cpu_with_shape(split) : cpu_with_sources(split);
   }
   // The whole map by LED cells, its sources not split off.
   static Image cpu_by_cells(double rotation_deg) {
@@ -135,7 +156,7 @@ TEST_F(ViewerBrightSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
     ASSERT_TRUE(app.lighting().split.has_value()) << "at " << deg << " deg";
     EXPECT_EQ(app.lighting().split->report(), split.report());
     const Image shown = app.relit_image();
-    const double error = max_relative_difference(shown, cpu_with_sources(split));
+    const double error = max_relative_difference(shown, cpu_as_shown(split, app.source_shadows()));
     std::cout << deg << " deg: " << split.report() << "\n  viewer vs CPU with sources: max "
               << error << " of the peak";
     // The same code on the CPU (llvmpipe): measured 0. A hardware GPU sums in another order.
@@ -160,8 +181,61 @@ TEST_F(ViewerBrightSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
     const double deg = app.state().rotation_deg;
     const relight::SplitLighting split =
         relight::split_lighting(*map_, field_->lights(), deg, 0.0, /*split=*/true);
-    EXPECT_LT(max_relative_difference(app.relit_image(), cpu_with_sources(split)), 1e-5)
+    const Image shown = app.relit_image();
+    EXPECT_LT(max_relative_difference(shown, cpu_as_shown(split, app.source_shadows())), 1e-5)
         << "at " << deg << " deg";
+  }
+}
+
+// Once the scene's shape is recovered (on a thread of its own, the frames meanwhile by the flows)
+// and traced for the source's direction (on another), the viewer shows the image `lightstage
+// relight` makes: the source's shadows cast by the shape where it agrees with the LEDs. A new
+// direction is shown by the flows until it is traced, then by the shape again.
+TEST_F(ViewerBrightSources, OnceTheShapeIsKnownTheFieldIsRelitAsLightstageRelightDoes) {
+  ViewState state;
+  state.field_file = field_path();
+  state.environment = "small_source";
+  state.rotation_deg = 20;
+  state.window_width = 640;
+  state.window_height = 480;
+  ViewerApp app(state, /*visible=*/false);
+  const auto frames_until_the_shape = [&] {
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::minutes(2);
+    while (!by_shape(app.source_shadows()) && std::chrono::steady_clock::now() < give_up) {
+      app.frame();
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  };
+  ASSERT_TRUE(app.frame());
+  EXPECT_NE(app.source_shadows().find("the LEDs' flows while the scene's shape is recovered"),
+            std::string::npos)
+      << app.source_shadows();
+  frames_until_the_shape();
+  for (const double deg : {20.0, 21.25}) {
+    const relight::SplitLighting split =
+        relight::split_lighting(*map_, field_->lights(), deg, 0.0, /*split=*/true);
+    ASSERT_TRUE(rendered(split));
+    ASSERT_TRUE(by_shape(app.source_shadows())) << app.source_shadows();
+    const Image shown = app.relit_image();
+    const Image expected = cpu_with_shape(split);
+    EXPECT_LT(max_relative_difference(shown, expected), 1e-5) << deg << " deg";
+    // The shape moves the shadows from where the flows put them.
+    const double from_flows = max_relative_difference(cpu_with_sources(split), expected);
+    std::cout << deg << " deg: " << app.source_shadows() << "; shape vs flows: max " << from_flows
+              << " of the peak\n";
+    EXPECT_GT(from_flows, 1e-3) << deg << " deg";
+    // Turned to a direction not traced yet: the flows' frame at once, the shape's soon after.
+    app.apply(rotate_to(21.25));
+    app.frame();
+    if (deg == 20.0) {
+      EXPECT_NE(app.source_shadows().find("traced for this direction"), std::string::npos)
+          << app.source_shadows();
+      const Image turned = app.relit_image();  // Rendered again: maybe traced by now.
+      EXPECT_LT(max_relative_difference(turned,
+                                        cpu_as_shown(*app.lighting().split, app.source_shadows())),
+                1e-5);
+    }
+    frames_until_the_shape();
   }
 }
 
@@ -218,8 +292,8 @@ TEST_F(ViewerBrightSources, GpuFieldAddsTheSources) {
     ASSERT_TRUE(renders_bright_sources(lighting)) << "at " << deg << " deg";
     GpuTarget target(source->width(), source->height());
     source->render(lighting, target);
-    const double error =
-        max_relative_difference(target.read_back(), cpu_with_sources(*lighting.split));
+    const double error = max_relative_difference(target.read_back(),
+                                                 cpu_as_shown(*lighting.split, source->shadows()));
     std::cout << deg << " deg: GPU field vs CPU with sources: max " << error << " of the peak\n";
     EXPECT_LT(error, 1e-5);  // Float storage; only the summation order differs.
   }
