@@ -20,9 +20,19 @@ int reduction_factor(int width, int height, int num_lights, std::size_t bytes);
 // The file's field reduced by `factor`, read band by band (bands of at most band_bytes, whole
 // blocks of rows); progress "read reduced (rows)" after each band. Its noise is the mean's of
 // factor^2 pixels: both variances divided by factor^2 (edge blocks, with fewer pixels, are a little
-// noisier than stated). `also`, when given, sees each band of the file's pixels after it is reduced
-// (what else a caller makes at the full size in the same pass).
+// noisier than stated).
 ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t band_bytes,
-                                    const ProgressFn& progress = {}, const BandVisitor& also = {});
+                                    const ProgressFn& progress = {});
+
+// The same in bands, none held after its visit (what the reduced field's sources read): each a
+// band of the reduced field (first_row() and frame_height() in its rows) made from a band of the
+// file's rows of at most band_bytes; `also`, when given, sees that band of the file's own pixels
+// first (what else a caller makes at the full size in the same pass). `stream` must outlive the
+// bands; the header of what they visit is reduced_header's.
+FieldBands reduced_bands(FieldStream& stream, int factor, std::size_t band_bytes,
+                         ProgressFn progress = {}, BandVisitor also = {});
+// The header (no values) of the file's field reduced by `factor`: its size, lights, attributes and
+// the noise of the mean.
+ReflectanceField reduced_header(const ReflectanceField& header, int factor);
 
 }  // namespace ls::capture

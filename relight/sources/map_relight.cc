@@ -323,53 +323,66 @@ std::size_t MapRelighter::sources_bytes(int leds, int triangles, int maps, bool 
   std::size_t bytes = FieldSources::bytes_needed(width, height, leds, triangles,
                                                  geometry ? int(lights_.size()) : 0);
   if (factor > 1) {
-    // The reduced field, and each map's guide at the field's size.
-    bytes += capture::ReflectanceField::bytes_for(width, height, int(lights_.size())) +
-             std::size_t(maps) * std::size_t(width_) * std::size_t(height_) * 3 * sizeof(float);
+    // Each map's guide at the field's size and reduced.
+    bytes +=
+        std::size_t(maps) *
+        (std::size_t(width_) * std::size_t(height_) + std::size_t(width) * std::size_t(height)) *
+        3 * sizeof(float);
   }
   return bytes;
 }
 
 void MapRelighter::add_reduced_sources(std::vector<MapRelit>& relit, const ProgressFn& progress) {
   const int factor = source_factor();
+  const capture::ReflectanceField header = capture::reduced_header(stream_->header(), factor);
+  // Per map: the source's irradiance on the LEDs around it, and the field relit by them at full
+  // size and reduced (the guides).
   std::vector<std::vector<float>> led_irradiance;
-  std::vector<Image> guides;
+  std::vector<Image> guides, guides_reduced;
   for (const MapRelit& r : relit) {
     led_irradiance.push_back(source_led_irradiance(r.lighting, int(lights_.size())));
     guides.emplace_back(width_, height_, 3);
+    guides_reduced.emplace_back(header.width(), header.height(), 3);
   }
+  Image band_relit;
+  const auto relight_band = [&](const capture::ReflectanceField& band, std::vector<Image>& into) {
+    for (std::size_t i = 0; i < relit.size(); ++i) {
+      relight_into(band, led_irradiance[i], band_relit);
+      std::copy(band_relit.pixels.begin(), band_relit.pixels.end(),
+                into[i].pixels.begin() + 3 * std::ptrdiff_t(band.first_row()) * band.width());
+    }
+  };
   int triangles = 0;
-  const std::size_t leds = source_leds(relit, &triangles).size();
-  const std::size_t need = sources_bytes(int(leds), triangles, int(relit.size()), geometry_);
+  const std::set<int> leds = source_leds(relit, &triangles);
+  const std::size_t need = sources_bytes(int(leds.size()), triangles, int(relit.size()), geometry_);
   const std::size_t band_bytes = options_.memory_bytes > need
                                      ? std::min(kReducedBandBytes, options_.memory_bytes - need)
                                      : kReducedBandBytes;
   char phase[96];
-  std::snprintf(phase, sizeof phase, "bright sources (the field at %dx%d)",
-                (width_ + factor - 1) / factor, (height_ + factor - 1) / factor);
+  std::snprintf(phase, sizeof phase, "bright sources (the field at %dx%d)", header.width(),
+                header.height());
   ProgressFn reduced_progress;
   if (progress) {
     reduced_progress = [&](const std::string&, long done, long total, const std::string& detail) {
       progress(phase, done, total, detail);
     };
   }
-  Image band_relit;
-  const capture::ReflectanceField reduced = capture::read_reduced_field(
-      *stream_, factor, band_bytes, reduced_progress, [&](const capture::ReflectanceField& band) {
-        for (std::size_t i = 0; i < relit.size(); ++i) {
-          relight_into(band, led_irradiance[i], band_relit);
-          std::copy(band_relit.pixels.begin(), band_relit.pixels.end(),
-                    guides[i].pixels.begin() + 3 * std::ptrdiff_t(band.first_row()) * width_);
-        }
-      });
-  FieldSources sources(reduced);
-  if (geometry_) sources.recover_geometry(progress);
-  Image low, guide_low;
+  const capture::FieldBands reduced = capture::reduced_bands(
+      *stream_, factor, band_bytes, reduced_progress,
+      [&](const capture::ReflectanceField& band) { relight_band(band, guides); });
+  const FieldSources sources(
+      header,
+      [&](const capture::BandVisitor& visit) {
+        reduced([&](const capture::ReflectanceField& band) {
+          relight_band(band, guides_reduced);
+          visit(band);
+        });
+      },
+      {leds.begin(), leds.end()}, geometry_, progress);
   for (std::size_t i = 0; i < relit.size(); ++i) {
-    low = Image(reduced.width(), reduced.height(), 3);
+    Image low(header.width(), header.height(), 3);
     sources.add(relit[i].lighting, low);
-    relight_into(reduced, led_irradiance[i], guide_low);
-    add_guided_upsample(low, guide_low, guides[i], factor, relit[i].image);
+    add_guided_upsample(low, guides_reduced[i], guides[i], factor, relit[i].image);
     guides[i] = Image();
   }
 }

@@ -157,7 +157,8 @@ class MapRelighter {
   // the scene's shape when `geometry`), at the size source_factor() makes them.
   std::size_t sources_bytes(int leds, int triangles, int maps, bool geometry) const;
   // A streamed field's sources added to each of `relit` (source_factor() > 1): made on the field
-  // reduced, read in one pass that also relights it by the LEDs around the sources at full size.
+  // reduced in bands, in one pass that also relights it by the LEDs around the sources at full
+  // size and reduced (the guides).
   void add_reduced_sources(std::vector<MapRelit>& relit, const ProgressFn& progress);
   void render_cells(const SplitLighting& lighting, Image& out) const;
 
