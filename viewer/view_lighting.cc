@@ -123,10 +123,14 @@ void BrightSourceLight::add(const ViewLighting& lighting, Image& out) {
   by_shape_ = relighter_->add_sources(*lighting.split, out, {}, ShapeUse::kIfTraced) && shape_;
   const bool tracing =
       tracing_.valid() && tracing_.wait_for(std::chrono::seconds(0)) != std::future_status::ready;
-  if (shape_ && !by_shape_ && !tracing) {
-    if (tracing_.valid()) tracing_.get();  // The last direction's, done (rethrows a failure).
-    tracing_ =
-        in_the_background([this, split = *lighting.split] { relighter_->trace_shapes(split); });
+  if (shape_ && !by_shape_ && !tracing && shape_problem_.empty()) {
+    try {
+      if (tracing_.valid()) tracing_.get();  // The last direction's, done.
+      tracing_ =
+          in_the_background([this, split = *lighting.split] { relighter_->trace_shapes(split); });
+    } catch (const std::exception& e) {  // Out of memory, say: the flows go on alone.
+      shape_problem_ = e.what();
+    }
   }
 }
 

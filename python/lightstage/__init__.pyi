@@ -172,9 +172,9 @@ def relight(field: Optional[_FieldLike] = None, *, env: Union[None, _Path, Seque
             temporal: Optional[_Path] = None, time: Optional[float] = None,
             edits: Optional[_Path] = None, light: Optional[Sequence[float]] = None,
             exposure: Optional[float] = None, coverage_deg: float = 0.0,
-            bright_sources: bool = True, source_geometry: bool = True, memory: _Memory = None,
-            directions: int = 64, out: Optional[_Path] = None,
-            progress: _Progress = None) -> Relit:
+            bright_sources: bool = True, source_geometry: bool = True,
+            source_pixels: int = 262144, memory: _Memory = None, directions: int = 64,
+            out: Optional[_Path] = None, progress: _Progress = None) -> Relit:
     """Relight a reflectance field under lat-long HDR environment maps (.exr, .hdr): each LED
     stands for its spherical Voronoi cell of directions, I = sum_l R_l E_l. Or, with models,
     render the per-pixel BRDF models of 'lightstage fit' (edited with edits) under the maps.
@@ -203,8 +203,12 @@ def relight(field: Optional[_FieldLike] = None, *, env: Union[None, _Path, Seque
         rendering it at its true direction with moving shadows.
     source_geometry: False (--no-source-geometry): cast the bright sources' shadows by the flows
         between the LEDs' shadows alone, without the scene's shape recovered from them.
-    memory: Relight: what rendering bright sources may hold (full-size images of the LEDs around
-        them); over it they are relit by the LED cells, with a note.
+    source_pixels: Fields: a field of more pixels has its bright sources (normals, shape, the
+        LEDs' shadows) made on it reduced to about this many, each pixel the mean of a block, and
+        brought back to its size by the detail of the LEDs around each source. 0: at the field's
+        size.
+    memory: Relight: what rendering bright sources may hold (the images of the LEDs around them,
+        at source_pixels); over it they are relit by the LED cells, with a note.
     directions: With --models: the map is integrated on a lat-long grid of N x N/2 directions.
     out: Output directory. None: the files are temporary, only the arrays are returned.
     """

@@ -80,8 +80,8 @@ py::object relight(const py::object& field, const py::object& env, const py::obj
                    const std::optional<double>& time, const py::object& edits,
                    const std::optional<Eigen::Vector3d>& light,
                    const std::optional<double>& exposure, double coverage_deg, bool bright_sources,
-                   bool source_geometry, const py::object& memory, int directions,
-                   const py::object& out, const py::object& progress) {
+                   bool source_geometry, std::size_t source_pixels, const py::object& memory,
+                   int directions, const py::object& out, const py::object& progress) {
   jobs::RelightOptions options;
   options.field_file = to_optional_path(field);
   options.models_file = to_optional_path(models);
@@ -95,6 +95,7 @@ py::object relight(const py::object& field, const py::object& env, const py::obj
   options.coverage_deg = coverage_deg;
   options.bright_sources = bright_sources;
   options.source_geometry = source_geometry;
+  options.source_pixels = source_pixels;
   options.memory_bytes = to_memory(memory).given_bytes();
   options.directions_width = directions;
   std::unique_ptr<TempDir> temp;
@@ -208,6 +209,7 @@ void bind_jobs(py::module_& m) {
         py::arg("edits") = py::none(), py::arg("light") = py::none(),
         py::arg("exposure") = py::none(), py::arg("coverage_deg") = 0.0,
         py::arg("bright_sources") = true, py::arg("source_geometry") = true,
+        py::arg("source_pixels") = jobs::RelightOptions{}.source_pixels,
         py::arg("memory") = py::none(), py::arg("directions") = 64, py::arg("out") = py::none(),
         py::arg("progress") = py::none());
   m.def("fit", &fit, py::arg("field"), py::kw_only(), py::arg("out") = py::none(),

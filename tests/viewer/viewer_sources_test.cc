@@ -85,6 +85,16 @@ class ViewerBrightSources : public ::testing::Test {
     valid_.clear();
   }
   static std::filesystem::path field_path() { return dir_->path() / "field.exr"; }
+  // The viewer showing the field under the map turned by rotation_deg.
+  static ViewState field_under_the_map(double rotation_deg) {
+    ViewState state;
+    state.field_file = field_path();
+    state.environment = "small_source";
+    state.rotation_deg = rotation_deg;
+    state.window_width = 640;
+    state.window_height = 480;
+    return state;
+  }
   static std::filesystem::path map_path() {
     return testing::source_dir() / "data" / "envmaps" / "small_source.exr";
   }
@@ -135,12 +145,7 @@ std::vector<Eigen::Vector3d> ViewerBrightSources::dirs_;
 std::vector<bool> ViewerBrightSources::valid_;
 
 TEST_F(ViewerBrightSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
-  ViewState state;
-  state.field_file = field_path();
-  state.environment = "small_source";
-  state.window_width = 640;
-  state.window_height = 480;
-  ViewerApp app(state, /*visible=*/false);
+  ViewerApp app(field_under_the_map(0.0), /*visible=*/false);
   ASSERT_TRUE(app.frame());
   EXPECT_EQ(app.error_message(), "");
   int with_a_source = 0;
@@ -192,13 +197,7 @@ TEST_F(ViewerBrightSources, FieldMatchesTheCpuWithSourcesAsTheMapTurns) {
 // relight` makes: the source's shadows cast by the shape where it agrees with the LEDs. A new
 // direction is shown by the flows until it is traced, then by the shape again.
 TEST_F(ViewerBrightSources, OnceTheShapeIsKnownTheFieldIsRelitAsLightstageRelightDoes) {
-  ViewState state;
-  state.field_file = field_path();
-  state.environment = "small_source";
-  state.rotation_deg = 20;
-  state.window_width = 640;
-  state.window_height = 480;
-  ViewerApp app(state, /*visible=*/false);
+  ViewerApp app(field_under_the_map(20.0), /*visible=*/false);
   const auto frames_until_the_shape = [&] {
     const auto give_up = std::chrono::steady_clock::now() + std::chrono::minutes(2);
     while (!by_shape(app.source_shadows()) && std::chrono::steady_clock::now() < give_up) {
