@@ -51,7 +51,7 @@ bool renders_bright_sources(const ViewLighting& lighting);
 // shadows and per-triangle flows are cached (a few ms the first time a sun falls between new
 // LEDs). A field's shadows are then cast as `lightstage relight` casts them, by the scene's shape
 // where it agrees with the LEDs, once it is known: the shape is recovered on a thread of its own
-// (seconds at 128^2, about 100 s at 512^2 with 151 LEDs), and each new direction of a source has
+// (seconds: 6 s at 512^2 with 151 LEDs), and each new direction of a source has
 // the shape's visibility traced on another (about 60 ms at 128^2, 1 s at 512^2), kept while the
 // source stays; meanwhile the frames cast them by the LEDs' flows alone, at full rate. A PCA's
 // keep the flows.

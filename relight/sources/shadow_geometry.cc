@@ -265,9 +265,14 @@ struct Carving {
   std::pair<float, double> best_offset(int r) const {
     tbb::combinable<std::vector<double>> per_thread(
         [this] { return std::vector<double>(size_t(candidates) + 2, 0.0); });
+    const Box box = box_of(r);
+    float highest = -1e30f;  // Of any surface: above it a receiver's ray meets nothing.
+    for (size_t p = 0; p < depth.top.size(); ++p) {
+      if (surfaces.region[p] >= 0) highest = std::max(highest, depth.top[p]);
+    }
     tbb::parallel_for(0, int(led_dirs.size()), [&](int l) {
       if (led_dirs[size_t(l)].z() < 0.1f) return;
-      score_led(r, l, per_thread.local());
+      score_led(r, box, highest, l, per_thread.local());
     });
     std::vector<double> score(size_t(candidates) + 2, 0.0);
     per_thread.combine_each([&](const std::vector<double>& s) {
@@ -282,10 +287,49 @@ struct Carving {
     return {lowest_offset + float(best_i), best};
   }
 
+  // Where region r's pixels are, as the samples of a ray round to them: [x0, x1) x [y0, y1) in
+  // continuous depth-map coordinates (pixel centres on integers).
+  struct Box {
+    float x0 = 0, x1 = 0, y0 = 0, y1 = 0;
+  };
+  Box box_of(int r) const {
+    int x0 = depth.width, x1 = -1, y0 = depth.height, y1 = -1;
+    for (const int p : surfaces.pixels[size_t(r)]) {
+      x0 = std::min(x0, p % depth.width), x1 = std::max(x1, p % depth.width);
+      y0 = std::min(y0, p / depth.width), y1 = std::max(y1, p / depth.width);
+    }
+    return {float(x0) - 0.5f, float(x1) + 0.5f, float(y0) - 0.5f, float(y1) + 0.5f};
+  }
+
+  // The steps [first, last] of the ray from (x, y) along (dx, dy), `step` apart, that can fall in
+  // `box` (a margin of a step each way for rounding); first > last when none can.
+  static std::pair<int, int> steps_through(const Box& box, float x, float y, float dx, float dy,
+                                           float step) {
+    float enter = 0, leave = 1e30f;
+    const auto slab = [&](float from, float along, float lo, float hi) {
+      if (std::abs(along) < 1e-9f) {
+        if (from < lo || from > hi) leave = -1;
+        return;
+      }
+      float a = (lo - from) / along, b = (hi - from) / along;
+      if (a > b) std::swap(a, b);
+      enter = std::max(enter, a);
+      leave = std::min(leave, b);
+    };
+    slab(x, dx, box.x0, box.x1);
+    slab(y, dy, box.y0, box.y1);
+    if (enter > leave) return {1, 0};
+    return {std::max(1, int(enter / step) - 1), int(std::min(leave / step, 1e9f)) + 1};
+  }
+
   // Adds +1 (measured shadow) or -kLitPenalty (measured lit) over the offsets at which region r
   // shadows a sample (occluder), or at which another region shadows r's sample (receiver); the
-  // score is kept as differences, summed in best_offset.
-  void score_led(int r, int l, std::vector<double>& score) const {
+  // score is kept as differences, summed in best_offset. An occluder's ray is marched only where it
+  // crosses r's box (`box`): nowhere else can it meet r (a ray leaves the map once, and the box is
+  // inside it, so no step it skips could have ended the march); a receiver's only until it rises
+  // past what any offset considered could put in its way (`highest` surface): the same sums in a
+  // fraction of the steps.
+  void score_led(int r, const Box& box, float highest, int l, std::vector<double>& score) const {
     const int w = depth.width, h = depth.height;
     const Eigen::Vector3f& d = led_dirs[size_t(l)];
     const float dx = d.x(), dy = -d.y(), dz = d.z();
@@ -299,7 +343,17 @@ struct Carving {
         const bool receiver = surfaces.region[p] == r;
         const float start = depth.top[p] + 0.5f;
         float lo = 1e30f, hi = -1e30f;
-        for (int i = 1; i < 2 * (w + h); ++i) {
+        int first = 1, last = 2 * (w + h) - 1;
+        if (!receiver) {
+          const auto [enter, leave] = steps_through(box, float(x), float(y), dx, dy, step);
+          first = std::max(first, enter);
+          last = std::min(last, leave);
+        } else {
+          // Beyond it every step's top (highest - start - t dz) is under lowest_offset - 8.
+          const float rises_past = (highest - start - (lowest_offset - 8)) / dz;
+          last = std::min(last, int(std::min(std::max(rises_past, 0.0f) / step, 1e9f)) + 1);
+        }
+        for (int i = first; i <= last; ++i) {
           const float t = step * float(i);
           const int qx = pixel_of(float(x) + t * dx), qy = pixel_of(float(y) + t * dy);
           if (qx < 0 || qy < 0 || qx >= w || qy >= h) break;
