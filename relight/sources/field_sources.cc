@@ -178,10 +178,10 @@ void FieldSources::read_fit(const capture::ReflectanceField& header,
 
 std::size_t FieldSources::bytes_needed(int width, int height, int leds, int triangles,
                                        int all_leds) {
-  const std::size_t floats_per_pixel = std::size_t{6} +
-                                       std::size_t{7} * std::size_t(std::max(leds, 0)) +
-                                       std::size_t{24} * std::size_t(std::max(triangles, 0)) +
-                                       std::size_t{3} * std::size_t(std::max(all_leds, 0));
+  const std::size_t floats_per_pixel =
+      std::size_t{6} + std::size_t{7} * std::size_t(std::max(leds, 0)) +
+      std::size_t{24} * std::size_t(std::max(triangles, 0)) +
+      std::size_t{3} * std::size_t(std::max(all_leds, 0)) + (all_leds > 0 ? kShapesKept : 0);
   const std::size_t pixels = std::size_t(width) * std::size_t(height);
   return pixels * floats_per_pixel * sizeof(float) +
          pixels * std::size_t(std::max(all_leds, 0)) / 8;
@@ -224,9 +224,8 @@ std::shared_ptr<const Image> FieldSources::shape_of(const PlacedSource& source, 
   // Traced unlocked (seconds at 512^2): two threads tracing one source keep the first.
   auto shape = std::make_shared<const Image>(
       geometry_->view(dir, source.in_stage.radius_rad).trusted_visibility());
-  constexpr std::size_t kKept = 16;  // Directions kept: a turning sun's last few.
   const std::lock_guard<std::mutex> lock(mutex_);
-  if (shapes_.size() >= kKept) shapes_.clear();
+  if (shapes_.size() >= kShapesKept) shapes_.clear();
   return shapes_.emplace(key, std::move(shape)).first->second;
 }
 

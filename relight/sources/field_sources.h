@@ -74,7 +74,8 @@ class FieldSources {
   // Memory it takes for a field of width x height with `leds` LED shadows and the flows of
   // `triangles` LED triangles: the fit (6 floats a pixel), each LED (image, gloss and distance: 7)
   // and each triangle's 6 ordered pairs (4 each). 11 GiB at 24 MP with one source. With the
-  // geometry of `all_leds` LEDs, their images while it is recovered (3 each) and their masks.
+  // geometry of `all_leds` LEDs, their images while it is recovered (3 each) and their masks, and
+  // the shape's visibility of the last directions kept (kShapesKept, 1 each).
   static std::size_t bytes_needed(int width, int height, int leds, int triangles, int all_leds = 0);
   // Adds every source of `lighting` that has a triangle to `out` (the field's size, 3 channels).
   // The flows between a triangle's LEDs are computed when first needed and kept: a sun that stays
@@ -112,6 +113,7 @@ class FieldSources {
   mutable std::map<int, LedShadow> shadows_;
   mutable std::map<std::pair<int, int>, LedPairFlow> flows_;
   // The shape's trusted visibility per source direction and radius (the last few: a viewer's sun).
+  static constexpr std::size_t kShapesKept = 4;
   using ShapeKey = std::array<double, 4>;
   mutable std::map<ShapeKey, std::shared_ptr<const Image>> shapes_;
   // A source's traced shape: kept, traced now (when `trace`), or null.
