@@ -52,7 +52,7 @@ bool renders_bright_sources(const ViewLighting& lighting);
 // LEDs). A field's shadows are then cast as `lightstage relight` casts them, by the scene's shape
 // where it agrees with the LEDs, once it is known: the shape is recovered on a thread of its own
 // (seconds: 6 s at 512^2 with 151 LEDs), and each new direction of a source has
-// the shape's visibility traced on another (about 60 ms at 128^2, 1 s at 512^2), kept while the
+// the shape's visibility traced on another (about 60 ms at 128^2, 2 s at 512^2), kept while the
 // source stays; meanwhile the frames cast them by the LEDs' flows alone, at full rate. A PCA's
 // keep the flows.
 class BrightSourceLight {
@@ -74,9 +74,6 @@ class BrightSourceLight {
   // or "the LEDs' flows" and why (the shape being recovered, LED 12 of 151; traced for this
   // direction; a PCA).
   std::string shadows() const;
-  // The last frame's sources were cast by the recovered shape: the image `lightstage relight`
-  // makes of the field.
-  bool shadows_by_shape() const { return by_shape_; }
 
  private:
   // Takes the recovered shape once its thread is done.
