@@ -10,16 +10,11 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
 
+#include "lightstage/statistics.h"
+
 namespace ls::capture {
 
 namespace {
-
-double median_of(std::vector<double> v) {
-  if (v.empty()) return 0;
-  const auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
-}
 
 // The pixels the correlation is taken over: where the images hold signal (their mean above 1% of
 // its 99th percentile), eroded so that a mask's edge, the same in every image whatever its
@@ -174,7 +169,7 @@ double usual_misfit(const NearestLights& nearest, const std::vector<Judged>& jud
     if (misfits.size() == count) break;
     if (in_use[size_t(k)]) misfits.push_back(1 - judged[size_t(k)].aligned);
   }
-  return median_of(misfits);
+  return median(misfits);
 }
 
 // The light (other than l) at which image l correlates best, as it is, with what the other
@@ -364,7 +359,7 @@ ConsistencyReport check_image_consistency(ConsistencyStack& stack,
     for (int l = 0; l < n; ++l) {
       if (in_use[size_t(l)]) used_means.push_back(means[size_t(l)]);
     }
-    const double median_mean = median_of(used_means);
+    const double median_mean = median(used_means);
     std::vector<char> next(size_t(n), 1);
     for (int l = 0; l < n; ++l) {
       report.images[size_t(l)] = verdict(stack, nearest, predicted, judged, in_use, region,

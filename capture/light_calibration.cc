@@ -9,6 +9,7 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
+#include "lightstage/text.h"
 
 namespace ls::capture {
 namespace {
@@ -30,12 +31,6 @@ cv::Mat luminance_mat(const Image& image) {
       row[x] = float(luminance(image, size_t(y) * image.width + x));
   }
   return out;
-}
-
-std::string format(const char* fmt, double a, double b = 0, double c = 0) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, fmt, a, b, c);
-  return buf;
 }
 
 }  // namespace
@@ -303,7 +298,7 @@ std::optional<Highlight> find_highlight(const Image& image, const SphereOutline&
   }
   if (!(peak > options.min_peak) || !(peak > options.min_contrast * std::max(p90, 0.0)) ||
       !(peak > p50 + options.min_snr * sigma)) {
-    *problem = format(
+    *problem = format_numbers(
         "no highlight: the brightest pixel (%.4g) does not stand out from the "
         "disc (median %.4g, 90th percentile %.4g)",
         peak, p50, p90);
@@ -344,11 +339,12 @@ std::optional<Highlight> find_highlight(const Image& image, const SphereOutline&
     return std::nullopt;
   }
   if (second != 0 && energy[second] > options.second_blob_ratio * energy[best]) {
-    *problem = format("two highlights: the second has %.0f%% of the first's energy, at %.0f px",
-                      100.0 * energy[second] / energy[best],
-                      (Eigen::Vector2d(sx[second] / energy[second], sy[second] / energy[second]) -
-                       Eigen::Vector2d(sx[best] / energy[best], sy[best] / energy[best]))
-                          .norm());
+    *problem =
+        format_numbers("two highlights: the second has %.0f%% of the first's energy, at %.0f px",
+                       100.0 * energy[second] / energy[best],
+                       (Eigen::Vector2d(sx[second] / energy[second], sy[second] / energy[second]) -
+                        Eigen::Vector2d(sx[best] / energy[best], sy[best] / energy[best]))
+                           .norm());
     return std::nullopt;
   }
   Highlight hl;
@@ -450,8 +446,8 @@ DirectionCalibration calibrate_directions(const std::vector<const Image*>& image
         continue;
       }
       if (ray->normal_angle_deg > options.highlight.max_normal_angle_deg) {
-        report(int(s), format("highlight too near the rim (normal %.1f deg from the view)",
-                              ray->normal_angle_deg));
+        report(int(s), format_numbers("highlight too near the rim (normal %.1f deg from the view)",
+                                      ray->normal_angle_deg));
         continue;
       }
       est.rays.push_back(*ray);

@@ -10,17 +10,11 @@
 #include "capture/sphere_lights.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
+#include "lightstage/statistics.h"
 
 namespace ls::capture {
 
 namespace {
-
-// The median of `values` (not empty), reordering them.
-double median_of(std::vector<double>& values) {
-  const auto mid = values.begin() + std::ptrdiff_t(values.size() / 2);
-  std::nth_element(values.begin(), mid, values.end());
-  return *mid;
-}
 
 std::string name_of(const OlatLight& light) {
   return light.image.filename().string() + " (" + light.where + ")";
@@ -38,7 +32,7 @@ void take_directions(OlatImageSet& set,
   }
   if (errors.empty()) return;
   set.placement.listed_error_max_deg = *std::max_element(errors.begin(), errors.end());
-  set.placement.listed_error_median_deg = median_of(errors);
+  set.placement.listed_error_median_deg = median(errors);
 }
 
 void place_from_spheres(OlatImageSet& set, const OlatImportOptions& options,
@@ -82,13 +76,13 @@ void place_from_spheres(OlatImageSet& set, const OlatImportOptions& options,
   // The LEDs taken as equally bright: one distance for every light's falloff. And every light
   // near, or the field would mix units: one without a position stands at the others' median
   // distance along its direction.
-  const double median = median_of(distances);
+  const double median_m = median(distances);
   for (size_t l = 0; l < set.lights.size(); ++l) {
     OlatLight& light = set.lights[l];
     light.position_in_stage = placed.positions[l];
-    light.falloff_from_m = median;
+    light.falloff_from_m = median_m;
     if (light.position_in_stage) continue;
-    light.position_in_stage = median * light.dir_in_stage.normalized();
+    light.position_in_stage = median_m * light.dir_in_stage.normalized();
     set.warnings.push_back(name_of(light) + ": no position: put at the others' median distance");
   }
   set.view = placed.view;

@@ -8,17 +8,13 @@
 #include <cstdio>
 #include <mutex>
 
+#include "lightstage/text.h"
+
 namespace ls::capture {
 
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-std::string format(const char* pattern, double a, double b = 0, double c = 0) {
-  char text[256];
-  std::snprintf(text, sizeof(text), pattern, a, b, c);
-  return text;
-}
 
 // Where the ray leaves the dome (its origin inside), or nullopt.
 std::optional<Eigen::Vector3d> exit_point(const LightRay& ray, const FittedDome& dome) {
@@ -125,11 +121,11 @@ SphereView view_spheres(const std::vector<SphereOutline>& outlines, int width, i
     const double fov_y_deg = 2 * std::atan(0.5 * height / options.focal_length_px) * 180 / kPi;
     seen.view = FieldView{fov_y_deg, -table_z, 2.4, 0.0};
     seen.scene_m = -table_z;
-    seen.geometry =
-        format("; pinhole view %.3g deg high from %.4g m above the table", fov_y_deg, -table_z);
+    seen.geometry = format_numbers("; pinhole view %.3g deg high from %.4g m above the table",
+                                   fov_y_deg, -table_z);
     if (outlines.size() > 1) {
       seen.geometry +=
-          format(" (the spheres rest %.1f mm apart in height)", 1e3 * (highest - lowest));
+          format_numbers(" (the spheres rest %.1f mm apart in height)", 1e3 * (highest - lowest));
     }
   } else {
     camera.metres_per_pixel =
@@ -141,8 +137,8 @@ SphereView view_spheres(const std::vector<SphereOutline>& outlines, int width, i
     seen.view = FieldView{0.0, 4.0, height * camera.metres_per_pixel, 0.0};
     seen.scene_m = (width + height) * camera.metres_per_pixel;
     if (options.radius_m <= 0) {
-      seen.geometry = format(" (scale nominal, %.2g mm per pixel: no sphere radius given)",
-                             1e3 * camera.metres_per_pixel);
+      seen.geometry = format_numbers(" (scale nominal, %.2g mm per pixel: no sphere radius given)",
+                                     1e3 * camera.metres_per_pixel);
     }
   }
   return seen;
@@ -156,8 +152,9 @@ std::string SphereLightOptions::validate(int image_width, int image_height) cons
            std::to_string(radius_m);
   }
   if (!(focal_length_px >= 0) || !std::isfinite(focal_length_px)) {
-    return format("focal length: expected 0 (orthographic) or a positive number of pixels, got %g",
-                  focal_length_px);
+    return format_numbers(
+        "focal length: expected 0 (orthographic) or a positive number of pixels, got %g",
+        focal_length_px);
   }
   if (focal_length_px > 0 && !(radius_m > 0)) {
     return "focal length: a pinhole camera needs the spheres' radius (to place them in depth)";
@@ -166,15 +163,15 @@ std::string SphereLightOptions::validate(int image_width, int image_height) cons
     const SphereOutline& o = outlines[s];
     const std::string which = "sphere " + std::to_string(s + 1);
     if (!(o.radius_px >= 4)) {
-      return which + format(": radius: expected at least 4 pixels, got %g", o.radius_px);
+      return which + format_numbers(": radius: expected at least 4 pixels, got %g", o.radius_px);
     }
     if (!(o.center_px.x() - o.radius_px >= 0 && o.center_px.y() - o.radius_px >= 0 &&
           o.center_px.x() + o.radius_px <= image_width &&
           o.center_px.y() + o.radius_px <= image_height)) {
       return which +
-             format(": expected inside the %gx%g images, got centre (%g, ", image_width,
-                    image_height, o.center_px.x()) +
-             format("%g) radius %g", o.center_px.y(), o.radius_px);
+             format_numbers(": expected inside the %gx%g images, got centre (%g, ", image_width,
+                            image_height, o.center_px.x()) +
+             format_numbers("%g) radius %g", o.center_px.y(), o.radius_px);
     }
   }
   return "";
@@ -277,10 +274,10 @@ PlacedLights place_lights_from_spheres(int width, int height, const std::vector<
       placed.positions[size_t(l)] = where_rays_meet(estimates[size_t(l)].rays, dome);
     }
     placed.description += "; " + triangulated + " triangulated lie on a dome of radius " +
-                          format("%.4g m (RMS %.2g m off it), centre (%.3g, ", dome.radius_m,
-                                 dome.rms_m, dome.centre.x()) +
-                          format("%.3g, %.3g) m: every light placed where its rays meet it",
-                                 dome.centre.y(), dome.centre.z());
+                          format_numbers("%.4g m (RMS %.2g m off it), centre (%.3g, ",
+                                         dome.radius_m, dome.rms_m, dome.centre.x()) +
+                          format_numbers("%.3g, %.3g) m: every light placed where its rays meet it",
+                                         dome.centre.y(), dome.centre.z());
   } else {
     for (int l = 0; l < n; ++l)
       placed.positions[size_t(l)] = estimates[size_t(l)].position_in_stage;

@@ -59,7 +59,7 @@ BrightSourceLight::BrightSourceLight(const capture::ReflectanceField& field)
     : width_(field.width()),
       height_(field.height()),
       relighter_(std::make_unique<relight::MapRelighter>(field, view_options(true))),
-      field_(&field) {}
+      of_field_(true) {}
 
 BrightSourceLight::BrightSourceLight(const relight::PcaField& pca)
     : width_(pca.width()),
@@ -96,7 +96,7 @@ void BrightSourceLight::take_shape() {
     return;
   }
   try {
-    relighter_->use_geometry_of(*recovering_.get());
+    recovering_.get();
     shape_ = true;
   } catch (const std::exception& e) {
     shape_problem_ = e.what();
@@ -107,20 +107,19 @@ void BrightSourceLight::add(const ViewLighting& lighting, Image& out) {
   by_shape_ = false;
   if (!renders_bright_sources(lighting)) return;
   take_shape();
-  if (field_ != nullptr && !shape_ && !recovering_.valid() && shape_problem_.empty()) {
+  using ShapeUse = relight::FieldSources::ShapeUse;
+  by_shape_ = relighter_->add_sources(*lighting.split, out, {}, ShapeUse::kIfTraced) && shape_;
+  // The shape from the normals and LED images the frames' sources already hold.
+  if (of_field_ && !shape_ && !recovering_.valid() && shape_problem_.empty()) {
     recovering_ = in_the_background([this] {
-      auto sources = std::make_unique<relight::FieldSources>(*field_);
-      sources->recover_geometry(
+      relighter_->recover_geometry(
           [this](const std::string&, long done, long total, const std::string&) {
             if (stop_) throw Stopped{};
             recovered_leds_ = done;
             recovery_steps_ = total;
           });
-      return sources;
     });
   }
-  using ShapeUse = relight::FieldSources::ShapeUse;
-  by_shape_ = relighter_->add_sources(*lighting.split, out, {}, ShapeUse::kIfTraced) && shape_;
   const bool tracing =
       tracing_.valid() && tracing_.wait_for(std::chrono::seconds(0)) != std::future_status::ready;
   if (shape_ && !by_shape_ && !tracing && shape_problem_.empty()) {
@@ -147,7 +146,7 @@ bool BrightSourceLight::render(const ViewLighting& lighting, Image& out) {
 
 std::string BrightSourceLight::shadows() const {
   if (by_shape_) return "the scene's shape where it agrees with the LEDs (as lightstage relight)";
-  if (field_ == nullptr) return "the LEDs' flows (a PCA)";
+  if (!of_field_) return "the LEDs' flows (a PCA)";
   if (!shape_problem_.empty()) return "the LEDs' flows (the scene's shape: " + shape_problem_ + ")";
   if (shape_) return "the LEDs' flows while the shape's shadows are traced for this direction";
   if (!recovering_.valid()) return "the LEDs' flows";

@@ -51,7 +51,8 @@ bool renders_bright_sources(const ViewLighting& lighting);
 // shadows and per-triangle flows are cached (a few ms the first time a sun falls between new
 // LEDs). A field's shadows are then cast as `lightstage relight` casts them, by the scene's shape
 // where it agrees with the LEDs, once it is known: the shape is recovered on a thread of its own
-// (seconds: 6 s at 512^2 with 151 LEDs), and each new direction of a source has
+// from the normals and LED images the frames' sources hold (seconds: 6 s at 512^2 with 151
+// LEDs), and each new direction of a source has
 // the shape's visibility traced on another (about 60 ms at 128^2, 2 s at 512^2), kept while the
 // source stays; meanwhile the frames cast them by the LEDs' flows alone, at full rate. A PCA's
 // keep the flows.
@@ -80,8 +81,8 @@ class BrightSourceLight {
   void take_shape();
   int width_ = 0, height_ = 0;
   std::unique_ptr<relight::MapRelighter> relighter_;
-  const capture::ReflectanceField* field_ = nullptr;  // Null for a PCA: no shape.
-  std::future<std::unique_ptr<relight::FieldSources>> recovering_;
+  bool of_field_ = false;  // A PCA keeps the flows: no shape.
+  std::future<void> recovering_;
   std::future<void> tracing_;
   std::atomic<bool> stop_{false};
   std::atomic<long> recovered_leds_{0}, recovery_steps_{0};

@@ -112,7 +112,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
     for (auto& [led, rgb] : images) copy_led_image(band, led, rgb.data() + 3 * first);
   });
   if (with_geometry) {
-    build_geometry(
+    geometry_ = recovered(
         [&](int led) { return led_lit_mask(led_dirs_[size_t(led)], images.at(led), fit_); },
         progress);
   }
@@ -124,10 +124,17 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
 void FieldSources::recover_geometry(const ProgressFn& progress) {
   LS_CHECK(led_image_ != nullptr,
            "FieldSources: the geometry needs every LED's image; this field was streamed");
-  const std::lock_guard<std::mutex> lock(mutex_);
-  build_geometry(
+  auto geometry = recovered(
       [&](int led) { return led_lit_mask(led_dirs_[size_t(led)], led_image_(led), fit_); },
       progress);
+  const std::lock_guard<std::mutex> lock(mutex_);
+  geometry_ = std::move(geometry);
+  shapes_.clear();
+}
+
+std::shared_ptr<const ShadowGeometry> FieldSources::current_geometry() const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return geometry_;
 }
 
 void FieldSources::use_geometry_of(const FieldSources& other) {
@@ -144,8 +151,8 @@ void FieldSources::prepare(const std::vector<int>& leds) {
   for (const int led : leds) (void)shadow(led);
 }
 
-void FieldSources::build_geometry(const std::function<LitMask(int led)>& mask_of,
-                                  const ProgressFn& progress) {
+std::shared_ptr<const ShadowGeometry> FieldSources::recovered(
+    const std::function<LitMask(int led)>& mask_of, const ProgressFn& progress) const {
   std::vector<int> leds;
   std::vector<Eigen::Vector3d> dirs;
   for (int led = 0; led < int(led_dirs_.size()); ++led) {
@@ -153,7 +160,7 @@ void FieldSources::build_geometry(const std::function<LitMask(int led)>& mask_of
     leds.push_back(led);
     dirs.push_back(led_dirs_[size_t(led)]);
   }
-  geometry_ = std::make_shared<const ShadowGeometry>(
+  return std::make_shared<const ShadowGeometry>(
       fit_, dirs, [&](int k) { return mask_of(leds[size_t(k)]); }, progress);
 }
 
@@ -212,7 +219,8 @@ const LedPairFlow& FieldSources::flow(int from_led, int to_led) const {
   return it->second;
 }
 
-std::shared_ptr<const Image> FieldSources::shape_of(const PlacedSource& source, bool trace) const {
+std::shared_ptr<const Image> FieldSources::shape_of(const ShadowGeometry& geometry,
+                                                    const PlacedSource& source, bool trace) const {
   const Eigen::Vector3d& dir = source.in_stage.dir;
   const ShapeKey key{dir.x(), dir.y(), dir.z(), source.in_stage.radius_rad};
   {
@@ -223,22 +231,24 @@ std::shared_ptr<const Image> FieldSources::shape_of(const PlacedSource& source, 
   if (!trace) return nullptr;
   // Traced unlocked (seconds at 512^2): two threads tracing one source keep the first.
   auto shape = std::make_shared<const Image>(
-      geometry_->view(dir, source.in_stage.radius_rad).trusted_visibility());
+      geometry.view(dir, source.in_stage.radius_rad).trusted_visibility());
   const std::lock_guard<std::mutex> lock(mutex_);
   if (shapes_.size() >= kShapesKept) shapes_.clear();
   return shapes_.emplace(key, std::move(shape)).first->second;
 }
 
 void FieldSources::trace_shapes(const SplitLighting& lighting) const {
-  if (!geometry_) return;
+  const std::shared_ptr<const ShadowGeometry> geometry = current_geometry();
+  if (!geometry) return;
   for (const PlacedSource& source : lighting.sources) {
-    if (source.triangle) (void)shape_of(source, /*trace=*/true);
+    if (source.triangle) (void)shape_of(*geometry, source, /*trace=*/true);
   }
 }
 
 bool FieldSources::add(const SplitLighting& lighting, Image& out,
                        const std::vector<const Image*>& visibility, ShapeUse use) const {
   bool complete = true;
+  const std::shared_ptr<const ShadowGeometry> geometry = current_geometry();
   for (size_t i = 0; i < lighting.sources.size(); ++i) {
     const PlacedSource& source = lighting.sources[i];
     if (!source.triangle) continue;
@@ -257,8 +267,8 @@ bool FieldSources::add(const SplitLighting& lighting, Image& out,
     lock.unlock();
     const Image* given = i < visibility.size() ? visibility[i] : nullptr;
     std::shared_ptr<const Image> shape;
-    if (geometry_ && given == nullptr) {
-      shape = shape_of(source, use == ShapeUse::kTrace);
+    if (geometry && given == nullptr) {
+      shape = shape_of(*geometry, source, use == ShapeUse::kTrace);
       complete = complete && shape != nullptr;
     }
     add_bright_source(shadows, flows, *source.triangle, source.in_stage, fit_, out, given,

@@ -63,7 +63,8 @@ class FieldSources {
   // The scene's shape from every usable LED's shadows (shadow_geometry.h), for add() to cast the
   // sources' shadows by where it agrees with the LEDs: seconds at 256^2 (more LEDs, larger maps:
   // longer). Needs the LEDs' images (not the streamed constructor's). Progress per LED and
-  // region placed.
+  // region placed. It reads only what construction made: another thread may add() meanwhile (by
+  // the flows until it is done; a viewer's frames).
   void recover_geometry(const ProgressFn& progress = {});
   // The geometry `other` recovered, for this view of the same field (no second recovery).
   void use_geometry_of(const FieldSources& other);
@@ -92,7 +93,6 @@ class FieldSources {
            const std::vector<const Image*>& visibility = {}, ShapeUse use = ShapeUse::kTrace) const;
   // Traces the shape's visibility of each source of `lighting` add() has not kept yet.
   void trace_shapes(const SplitLighting& lighting) const;
-  bool has_geometry() const { return geometry_ != nullptr; }
 
  private:
   // The fit over the bands (and led_dirs_), calling `also` with each band after it.
@@ -103,12 +103,15 @@ class FieldSources {
 
   LambertianFit fit_;
   std::vector<Eigen::Vector3d> led_dirs_;
-  // From each usable LED's lit mask (mask_of(led)).
-  void build_geometry(const std::function<LitMask(int led)>& mask_of, const ProgressFn& progress);
+  // The shape from each usable LED's lit mask (mask_of(led)).
+  std::shared_ptr<const ShadowGeometry> recovered(const std::function<LitMask(int led)>& mask_of,
+                                                  const ProgressFn& progress) const;
+  // geometry_ as it is now (recover_geometry may set it on another thread).
+  std::shared_ptr<const ShadowGeometry> current_geometry() const;
 
-  LedImageFn led_image_;      // Set: shadows made on demand.
-  std::vector<bool> usable_;  // Per LED: not flagged dead.
-  std::shared_ptr<const ShadowGeometry> geometry_;
+  LedImageFn led_image_;                            // Set: shadows made on demand.
+  std::vector<bool> usable_;                        // Per LED: not flagged dead.
+  std::shared_ptr<const ShadowGeometry> geometry_;  // Set under mutex_.
   mutable std::mutex mutex_;  // add() may run on several threads; it fills the caches.
   mutable std::map<int, LedShadow> shadows_;
   mutable std::map<std::pair<int, int>, LedPairFlow> flows_;
@@ -116,8 +119,9 @@ class FieldSources {
   static constexpr std::size_t kShapesKept = 4;
   using ShapeKey = std::array<double, 4>;
   mutable std::map<ShapeKey, std::shared_ptr<const Image>> shapes_;
-  // A source's traced shape: kept, traced now (when `trace`), or null.
-  std::shared_ptr<const Image> shape_of(const PlacedSource& source, bool trace) const;
+  // A source's traced shape by `geometry`: kept, traced now (when `trace`), or null.
+  std::shared_ptr<const Image> shape_of(const ShadowGeometry& geometry, const PlacedSource& source,
+                                        bool trace) const;
 };
 
 }  // namespace ls::relight

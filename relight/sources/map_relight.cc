@@ -164,9 +164,8 @@ bool MapRelighter::add_sources(const SplitLighting& lighting, Image& out,
   return !renders_sources(lighting) || sources().add(lighting, out, visibility, use);
 }
 
-void MapRelighter::use_geometry_of(const FieldSources& recovered) {
-  sources().use_geometry_of(recovered);
-  geometry_ = true;
+void MapRelighter::recover_geometry(const ProgressFn& progress) {
+  sources().recover_geometry(progress);
 }
 
 void MapRelighter::trace_shapes(const SplitLighting& lighting) {

@@ -119,9 +119,10 @@ class MapRelighter {
   bool add_sources(const SplitLighting& lighting, Image& out,
                    const std::vector<const Image*>& visibility = {},
                    FieldSources::ShapeUse use = FieldSources::ShapeUse::kTrace);
-  // The shape `recovered` holds (FieldSources::recover_geometry, of this field, on another
-  // thread) casts the sources' shadows from now on. Not for a streamed field.
-  void use_geometry_of(const FieldSources& recovered);
+  // The scene's shape recovered (FieldSources::recover_geometry) when the options left it out:
+  // on another thread beside add_sources (once add_sources has run), which casts the sources'
+  // shadows by it once done. Not for a streamed field.
+  void recover_geometry(const ProgressFn& progress);
   // The shape's visibility of the sources of `lighting` traced now (FieldSources::trace_shapes),
   // for add_sources to take; safe beside add_sources on another thread.
   void trace_shapes(const SplitLighting& lighting);
