@@ -1,5 +1,7 @@
 #include "lightstage/exr_channels.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cmath>
 #include <utility>
@@ -103,6 +105,11 @@ PreviewRowWriter::PreviewRowWriter(const fs::path& path, const std::string& name
 PreviewRowWriter::Values channel_values(int first, int channels,
                                         const std::function<float(float)>& transform) {
   return [=](const Image& maps) { return channel_preview(maps, first, channels, transform); };
+}
+
+void write_preview_rows(const std::vector<std::unique_ptr<PreviewRowWriter>>& previews,
+                        const Image& maps) {
+  tbb::parallel_for(size_t(0), previews.size(), [&](size_t i) { previews[i]->write_rows(maps); });
 }
 
 void write_channel_preview(const fs::path& path, const std::string& name, const Image& maps,

@@ -2,6 +2,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -58,6 +59,10 @@ class PreviewRowWriter {
   Values values_;
   ImageRowWriter file_;
 };
+// Each preview's next rows from the same maps, the files encoded side by side: a whole frame's
+// dozen PNGs were a third of a fit's writing time one after another.
+void write_preview_rows(const std::vector<std::unique_ptr<PreviewRowWriter>>& previews,
+                        const Image& maps);
 // channel_preview of channels [first, first + channels) through `transform`.
 PreviewRowWriter::Values channel_values(int first, int channels,
                                         const std::function<float(float)>& transform);

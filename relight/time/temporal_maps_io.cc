@@ -87,7 +87,7 @@ void TemporalMapsWriter::write_rows(const TemporalMaps& band) {
     }
   }
   maps_->write_rows(named);
-  for (auto& preview : previews_) preview->write_rows(image);
+  write_preview_rows(previews_, image);
 }
 
 void TemporalMapsWriter::commit() {
