@@ -7,7 +7,7 @@ set table $s1 separator comma
 plot 'fit_sweeps.csv' using (column('value')):(column('robust_mean_deg')) with table if (strcol('axis') eq 'saturation')
 unset table
 set table $s2 separator comma
-plot 'fit_sweeps.csv' using (column('value')):(column('fit_mean_deg')):(strstrt(',28,29,30,31,32,', sprintf(',%d,', column(0))) == 0 ? '' : sprintf('%.0f%%', 100 * column('fit_flagged'))) with table if (strcol('axis') eq 'saturation')
+plot 'fit_sweeps.csv' using (column('value')):(column('fit_mean_deg')):(strstrt(',27,28,29,30,31,', sprintf(',%d,', column(0))) == 0 ? '' : sprintf('%.0f%%', 100 * column('fit_flagged'))) with table if (strcol('axis') eq 'saturation')
 unset table
 set table $s3 separator comma
 plot 'fit_sweeps.csv' using (column('value')):(column('fit_p95_deg')) with table if (strcol('axis') eq 'saturation')
