@@ -339,6 +339,30 @@ void ImageRowWriter::commit() {
 
 const fs::path& ImageRowWriter::path() const { return output_->path; }
 
+void write_rows_beside(ImageRowWriter& file, const Image& first, const Image& extra,
+                       int extra_channels) {
+  if (extra_channels == 0) {
+    file.write_rows(first);
+    return;
+  }
+  constexpr int kChunkRows = 64;
+  Image rows;
+  for (int y = 0; y < first.height; y += kChunkRows) {
+    const int height = std::min(kChunkRows, first.height - y);
+    if (rows.height != height) rows = Image(first.width, height, first.channels + extra_channels);
+    const size_t offset = size_t(y) * size_t(first.width);
+    for (size_t i = 0; i < rows.num_pixels(); ++i) {
+      float* out = &rows.pixels[i * size_t(rows.channels)];
+      std::copy_n(&first.pixels[(offset + i) * size_t(first.channels)], first.channels, out);
+      if (!extra.pixels.empty()) {
+        std::copy_n(&extra.pixels[(offset + i) * size_t(extra_channels)], extra_channels,
+                    out + first.channels);
+      }
+    }
+    file.write_rows(rows);
+  }
+}
+
 void commit_together(const std::vector<ImageRowWriter*>& writers) {
   size_t committed = 0;
   try {

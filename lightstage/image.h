@@ -163,6 +163,12 @@ class ImageRowWriter {
   std::unique_ptr<Output> output_;
 };
 
+// The rows of `first` with `extra_channels` more after each pixel's, from `extra` (the same width
+// and height; empty: zeros), written to `file` a few rows at a time: a band's interleaved copy made
+// at once cost as much as its encoding (fresh pages). Without extra channels, `first` as it is.
+void write_rows_beside(ImageRowWriter& file, const Image& first, const Image& extra,
+                       int extra_channels);
+
 // Commits each writer in turn, all or none: when one fails (a full disk), the files already
 // committed are removed before its error goes on, so that a failed run leaves no maps without
 // their previews, nor previews without their maps.

@@ -222,25 +222,7 @@ void ModelMapsWriter::write_rows(const ModelMaps& band) {
                image.pixels.size() == image.num_pixels() * kMapChannelCount &&
                band.shadows.empty() != shadows_,
            "model maps have " + std::to_string(image.channels) + " channels");
-  if (maps_ && !shadows_) maps_->write_rows(image);
-  if (maps_ && shadows_) {
-    // The maps beside their shadow words a few rows at a time: a whole frame's copy at once cost
-    // as much as its encoding (fresh pages).
-    constexpr int kChunkRows = 64;
-    Image named;
-    for (int y = 0; y < image.height; y += kChunkRows) {
-      const int rows = std::min(kChunkRows, image.height - y);
-      if (named.height != rows) named = Image(image.width, rows, image.channels + shadows.channels);
-      const size_t first = size_t(y) * size_t(image.width);
-      for (size_t i = 0; i < named.num_pixels(); ++i) {
-        float* out = &named.pixels[i * size_t(named.channels)];
-        std::copy_n(&image.pixels[(first + i) * size_t(image.channels)], image.channels, out);
-        std::copy_n(&shadows.pixels[(first + i) * size_t(shadows.channels)], shadows.channels,
-                    out + image.channels);
-      }
-      maps_->write_rows(named);
-    }
-  }
+  if (maps_) write_rows_beside(*maps_, image, shadows, shadows_ ? shadows.channels : 0);
   write_preview_rows(previews_, image);
 }
 

@@ -78,15 +78,7 @@ void TemporalMapsWriter::write_rows(const TemporalMaps& band) {
   LS_CHECK(steps.pixels.empty() || (steps.width == image.width && steps.height == image.height &&
                                     steps.channels == step_channels_),
            "temporal maps: step values do not fit the maps");
-  Image named(image.width, image.height, image.channels + step_channels_);
-  for (size_t i = 0; i < image.num_pixels(); ++i) {
-    float* to = &named.pixels[i * size_t(named.channels)];
-    std::copy_n(&image.pixels[i * size_t(image.channels)], image.channels, to);
-    if (!steps.pixels.empty()) {
-      std::copy_n(&steps.pixels[i * size_t(steps.channels)], steps.channels, to + image.channels);
-    }
-  }
-  maps_->write_rows(named);
+  write_rows_beside(*maps_, image, steps, step_channels_);
   write_preview_rows(previews_, image);
 }
 
