@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -12,8 +13,6 @@
 namespace ls::capture {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Luminance scaled to 8 bits with the brightest 0.5% saturating (chessboard detection wants bytes).
 cv::Mat board_bytes(const Image& image) {
@@ -52,7 +51,7 @@ void ChessboardSpec::check() const {
 
 double CameraCalibration::fov_y_deg() const {
   if (!(fy > 0)) return 0.0;
-  return 2.0 * std::atan(0.5 * height / fy) * 180.0 / kPi;
+  return 2.0 * std::atan(0.5 * height / fy) * 180.0 / std::numbers::pi;
 }
 
 CameraCalibration calibrate_camera(const std::vector<const Image*>& images,

@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <regex>
 
 #include "capture/light_calibration.h"
@@ -13,8 +14,6 @@
 namespace ls::capture {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // The white target's pixels lit by one LED, every options.step-th pixel: (u, v) and the observed
 // radiance per channel divided by (albedo / pi * geometry), where geometry is the cosine at the
@@ -30,7 +29,7 @@ WhiteTargetSamples white_target_samples(const Image& image, const Led& led, cons
                                         const ViewCamera& camera, const IntensityOptions& options,
                                         ToUv to_uv) {
   const Eigen::Vector3d n = plane.normal.normalized();
-  const double radiance_per_irradiance = plane.albedo / kPi;  // Lambertian, 1/sr.
+  const double radiance_per_irradiance = plane.albedo / std::numbers::pi;  // Lambertian, 1/sr.
   const int step = std::max(1, options.step);
   // A plain vector and a flag (not std::optional): GCC 12 warns falsely on optional Eigen.
   const bool near_led = led.distance_m.has_value();

@@ -4,18 +4,17 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "lightstage/angles.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/text.h"
 
 namespace ls::capture {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 
 double luminance(const Image& image, size_t pixel) {
   const float* p = image.pixels.data() + pixel * image.channels;
@@ -37,7 +36,7 @@ cv::Mat luminance_mat(const Image& image) {
 
 double angle_between_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   // atan2 of |a x b| and a.b stays accurate for tiny angles, unlike acos.
-  return std::atan2(a.cross(b).norm(), a.dot(b)) / kDeg;
+  return std::atan2(a.cross(b).norm(), a.dot(b)) / kDegToRad;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -54,7 +53,7 @@ ViewCamera ViewCamera::from_spec(const CameraSpec& camera) {
     v.metres_per_pixel = camera.ortho_height_m / camera.height;
   } else {
     v.orthographic = false;
-    v.fy = 0.5 * camera.height / std::tan(0.5 * camera.fov_y_deg * kDeg);
+    v.fy = 0.5 * camera.height / std::tan(0.5 * camera.fov_y_deg * kDegToRad);
     v.fx = v.fy;  // Square pixels.
     v.centre_in_stage = Eigen::Vector3d(0, 0, camera.distance_m);
   }
@@ -120,7 +119,7 @@ std::vector<SphereOutline> find_sphere_outlines(const Image& reference, int max_
   std::sort(by_area.rbegin(), by_area.rend());
   for (const auto& [area, index] : by_area) {
     if (int(out.size()) >= max_spheres) break;
-    if (area < kPi * min_radius_px * min_radius_px) break;
+    if (area < std::numbers::pi * min_radius_px * min_radius_px) break;
     // The region with its holes filled (dark reflections inside the sphere), then its moments.
     cv::Mat mask = cv::Mat::zeros(binary.size(), CV_8U);
     cv::drawContours(mask, contours, index, cv::Scalar(255), cv::FILLED);
@@ -128,7 +127,7 @@ std::vector<SphereOutline> find_sphere_outlines(const Image& reference, int max_
     if (m.m00 <= 0) continue;
     SphereOutline s;
     s.center_px = Eigen::Vector2d(m.m10 / m.m00 + 0.5, m.m01 / m.m00 + 0.5);
-    s.radius_px = std::sqrt(m.m00 / kPi);
+    s.radius_px = std::sqrt(m.m00 / std::numbers::pi);
     // A uniform ellipse has second moments a^2/4 and b^2/4 along its axes.
     Eigen::Matrix2d cov;
     cov << m.mu20 / m.m00, m.mu11 / m.m00, m.mu11 / m.m00, m.mu02 / m.m00;

@@ -7,14 +7,13 @@
 #include <cmath>
 #include <cstdio>
 #include <mutex>
+#include <numbers>
 
 #include "lightstage/text.h"
 
 namespace ls::capture {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Where the ray leaves the dome (its origin inside), or nullopt.
 std::optional<Eigen::Vector3d> exit_point(const LightRay& ray, const FittedDome& dome) {
@@ -118,7 +117,8 @@ SphereView view_spheres(const std::vector<SphereOutline>& outlines, int width, i
     }
     camera.centre_in_stage.z() = -table_z;
     for (MirrorSphere& sphere : seen.spheres) sphere.center_in_stage.z() -= table_z;
-    const double fov_y_deg = 2 * std::atan(0.5 * height / options.focal_length_px) * 180 / kPi;
+    const double fov_y_deg =
+        2 * std::atan(0.5 * height / options.focal_length_px) * 180 / std::numbers::pi;
     seen.view = FieldView{fov_y_deg, -table_z, 2.4, 0.0};
     seen.scene_m = -table_z;
     seen.geometry = format_numbers("; pinhole view %.3g deg high from %.4g m above the table",

@@ -156,7 +156,7 @@ void score_scene(const std::string& scene_name, const capture::ReflectanceField&
   }
 }
 
-void write_csv(const fs::path& path, const std::vector<CompactBenchRow>& rows) {
+void write_compact_csv(const fs::path& path, const std::vector<CompactBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "scene,family,representation,bytes_per_pixel,build_s,relight_ms,psnr_db,ssim,held_out,"
@@ -222,7 +222,7 @@ CompactBenchSummary run_compact_bench(const CompactBenchOptions& options,
     mark_pareto(scene_rows);
   }
   summary.csv = options.out / "compact.csv";
-  write_csv(summary.csv, summary.rows);
+  write_compact_csv(summary.csv, summary.rows);
   write_compact_charts(summary.csv);
   return summary;
 }

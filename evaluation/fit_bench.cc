@@ -176,8 +176,8 @@ std::vector<FitBenchRow> rows_for_map(const capture::ReflectanceField& field, co
   return rows;
 }
 
-void write_csv(const fs::path& path, const FitBenchOptions& options,
-               const std::vector<FitBenchRow>& rows) {
+void write_fit_csv(const fs::path& path, const FitBenchOptions& options,
+                   const std::vector<FitBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "method,map,fit_s,normals_s,fit_pixels_per_s,render_ms,time_to_frame_s,relative_rmse,"
@@ -276,7 +276,7 @@ FitBenchSummary run_fit_bench(const FitBenchOptions& options, const ProgressFn& 
     }
   }
   summary.csv = options.out / "fit.csv";
-  write_csv(summary.csv, options, summary.rows);
+  write_fit_csv(summary.csv, options, summary.rows);
   write_fit_charts(summary.csv);
   return summary;
 }

@@ -7,9 +7,11 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <random>
 
 #include "capture/field.h"
+#include "lightstage/angles.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 #include "relight/fit/fit.h"
@@ -28,15 +30,13 @@ using sim::Scene;
 using sim::SceneMaterial;
 using sim::SurfaceHit;
 
-constexpr double kPi = physics::brdf::kPi;
-constexpr double kRadToDeg = 180.0 / kPi;
 // A fitted normal further off than this on a pixel the fit did not flag is a failure nobody was
 // told about.
 constexpr double kGrossErrorDeg = 30.0;
 // Bounds on outputs: unit normals to this tolerance; the fit's parameter ranges
 // (relight/fit/fit.h).
 constexpr double kUnitTolerance = 1e-3;
-constexpr double kMaxSigma = kPi / 2 + 1e-6;
+constexpr double kMaxSigma = std::numbers::pi / 2 + 1e-6;
 constexpr double kMaxRoughness = 1.0 + 1e-6;
 // Albedo and k_s are u^2 in the fit (relight/fit/fit.h), declared >= 0 with no upper bound; values
 // above kMaxPlausibleAlbedo are in bounds but implausible (a passive surface reflects at most what
@@ -117,7 +117,7 @@ void perturb_directions(capture::ReflectanceField& field, double degrees, uint64
 void shadow_wedges(capture::ReflectanceField& field, const std::vector<SurfaceHit>& hits,
                    double fraction, uint64_t seed) {
   std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> uniform(0.0, 2 * kPi);
+  std::uniform_real_distribution<double> uniform(0.0, 2 * std::numbers::pi);
   for (const SurfaceHit& h : hits) {
     if (!h.hit) continue;
     const Eigen::Vector3d n = h.normal;
@@ -130,8 +130,10 @@ void shadow_wedges(capture::ReflectanceField& field, const std::vector<SurfaceHi
     float* px = field.pixel(h.pixel_x, h.pixel_y);
     for (int l = 0; l < field.num_lights(); ++l) {
       const Eigen::Vector3d& d = field.lights()[l].dir_in_stage;
-      const double azimuth = std::fmod(std::atan2(d.dot(t2), d.dot(t1)) - start + 4 * kPi, 2 * kPi);
-      if (azimuth < fraction * 2 * kPi) px[3 * l] = px[3 * l + 1] = px[3 * l + 2] = 0.0f;
+      const double azimuth = std::fmod(
+          std::atan2(d.dot(t2), d.dot(t1)) - start + 4 * std::numbers::pi, 2 * std::numbers::pi);
+      if (azimuth < fraction * 2 * std::numbers::pi)
+        px[3 * l] = px[3 * l + 1] = px[3 * l + 2] = 0.0f;
     }
   }
 }

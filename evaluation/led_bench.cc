@@ -37,7 +37,7 @@ std::string LedBenchOptions::validate() const {
 
 namespace {
 
-void write_csv(const fs::path& path, const std::vector<LedBenchRow>& rows) {
+void write_led_csv(const fs::path& path, const std::vector<LedBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "leds,map,method,turns,relative_rmse,psnr_db,relight_ms,relight_gb_per_s,light_weights_ms,"
@@ -209,7 +209,7 @@ LedBenchSummary run_led_bench(const LedBenchOptions& options, const ProgressFn& 
     }
   }
   summary.csv = options.out / "leds.csv";
-  write_csv(summary.csv, summary.rows);
+  write_led_csv(summary.csv, summary.rows);
   write_led_charts(summary.csv);
   return summary;
 }

@@ -11,6 +11,7 @@
 #include "evaluation/chart.h"
 #include "evaluation/csv_table.h"
 #include "evaluation/fit_sweeps.h"
+#include "lightstage/angles.h"
 #include "lightstage/errors.h"
 #include "relight/fit/fit.h"
 
@@ -19,8 +20,6 @@ namespace ls::evaluation {
 namespace fs = std::filesystem;
 
 namespace {
-
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
 
 // The methods as a user runs them: the lightstage command after `import`, and its output file.
 struct Method {

@@ -117,7 +117,7 @@ std::string planes_of(const std::string& name) {
   return name.substr(from + 1, at - from - 1);
 }
 
-void write_csv(const fs::path& path, const std::vector<RtiBenchRow>& rows) {
+void write_rti_csv(const fs::path& path, const std::vector<RtiBenchRow>& rows) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "scene,family,format,planes,bytes,kib,psnr_srgb8_db,psnr_linear_db,held_out\n";
@@ -213,7 +213,7 @@ RtiBenchSummary run_rti_bench(const RtiBenchOptions& options, const ProgressFn& 
   }
   fs::remove_all(scratch);
   summary.csv = options.out / "rti.csv";
-  write_csv(summary.csv, summary.rows);
+  write_rti_csv(summary.csv, summary.rows);
   write_rti_charts(summary.csv);
   return summary;
 }

@@ -9,6 +9,7 @@
 
 #include "evaluation/chart.h"
 #include "evaluation/csv_table.h"
+#include "lightstage/angles.h"
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
@@ -21,17 +22,15 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr double kDeg = std::numbers::pi / 180.0;
-
 // A black map with a uniform disc toward `centre` giving unit irradiance at normal incidence,
 // each pixel the mean of 8 x 8 samples (so the map's integral is the disc's).
 physics::EnvironmentMap disc_map(const Eigen::Vector3d& centre, double radius_deg) {
   const int width = 1024, height = 512;
-  const double cos_r = std::cos(radius_deg * kDeg);
-  const double radiance = 1.0 / (std::numbers::pi * std::pow(std::sin(radius_deg * kDeg), 2));
+  const double cos_r = std::cos(radius_deg * kDegToRad);
+  const double radiance = 1.0 / (std::numbers::pi * std::pow(std::sin(radius_deg * kDegToRad), 2));
   Image image(width, height, 3);
   // Only pixels whose centre is within a pixel's size (0.35 deg) of the disc can hold part of it.
-  const double cos_near = std::cos((radius_deg + 1.0) * kDeg);
+  const double cos_near = std::cos((radius_deg + 1.0) * kDegToRad);
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) {
       if (physics::EnvironmentMap::direction((x + 0.5) / width, (y + 0.5) / height).dot(centre) <
@@ -144,9 +143,9 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
 
   // The sweep: from the LED nearest the given elevation toward the camera's right to the middle
   // of a triangle of LEDs around it.
-  const double el = options.elevation_deg * kDeg;
-  const Eigen::Vector3d aim(std::cos(el) * std::cos(30 * kDeg), std::sin(el),
-                            std::cos(el) * std::sin(30 * kDeg));
+  const double el = options.elevation_deg * kDegToRad;
+  const Eigen::Vector3d aim(std::cos(el) * std::cos(30 * kDegToRad), std::sin(el),
+                            std::cos(el) * std::sin(30 * kDegToRad));
   const DirectionIndex index(dirs);
   const int start_led = index.within(aim, std::numbers::pi).front();
   const Eigen::Vector3d& start = dirs[size_t(start_led)];
@@ -199,7 +198,7 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
     SunBenchRow row;
     row.path = places[i].path;
     row.position = places[i].position;
-    row.angle_to_nearest_led_deg = index.nearest_angle(places[i].dir) / kDeg;
+    row.angle_to_nearest_led_deg = index.nearest_angle(places[i].dir) / kDegToRad;
     const relight::SplitLighting by_cells_lighting = cells.lighting(maps[i], 0.0);
     Image relit_cells, relit_sources, relit_flows;
     row.cells_ms =
@@ -216,7 +215,7 @@ SunBenchSummary run_sun_bench(const SunBenchOptions& options, const ProgressFn& 
     row.flows_rmse = compare_images(relit_flows, truth).relative_rmse;
     // The same render with the visibility traced in the scene: the shading's part of the error.
     const Image visibility = sim::render_source_visibility(scene, stage.camera, places[i].dir,
-                                                           options.radius_deg * kDeg);
+                                                           options.radius_deg * kDegToRad);
     Image relit_exact;
     sources.render(splits[i], relit_exact, {&visibility});
     row.exact_visibility_rmse = compare_images(relit_exact, truth).relative_rmse;

@@ -139,7 +139,8 @@ TemporalBenchRow run_steps(const World& w, int n, double duration_s) {
   return row;
 }
 
-void write_csv(const fs::path& path, const std::vector<TemporalBenchRow>& rows, double duration_s) {
+void write_temporal_csv(const fs::path& path, const std::vector<TemporalBenchRow>& rows,
+                        double duration_s) {
   std::ofstream csv(path);
   if (!csv) throw InputError(path.string() + ": cannot write");
   csv << "steps,step_fit_us_per_pixel_step,temporal_fit_us_per_pixel,render_rel_rms_error,"
@@ -282,7 +283,7 @@ TemporalBenchSummary run_temporal_bench(const TemporalBenchOptions& options,
            std::to_string(n) + " steps");
   }
   summary.csv = options.out / "temporal.csv";
-  write_csv(summary.csv, summary.rows, options.duration_s);
+  write_temporal_csv(summary.csv, summary.rows, options.duration_s);
   write_temporal_charts(summary.csv);
   if (!options.captured.empty()) summary.held_out = run_held_out(options, progress);
   return summary;

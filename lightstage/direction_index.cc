@@ -11,17 +11,6 @@ namespace ls {
 
 namespace {
 
-// nanoflann's view of the directions.
-struct Points {
-  const std::vector<Eigen::Vector3d>& dirs;
-  size_t kdtree_get_point_count() const { return dirs.size(); }
-  double kdtree_get_pt(size_t i, size_t axis) const { return dirs[i][int(axis)]; }
-  template <class Box>
-  bool kdtree_get_bbox(Box&) const {
-    return false;
-  }
-};
-
 // Between unit vectors the straight-line (chord) distance is 2 sin(angle / 2): nearest by chord
 // is nearest by angle.
 double angle_of_chord(double chord) { return 2 * std::asin(std::clamp(chord / 2, 0.0, 1.0)); }
@@ -29,6 +18,18 @@ double angle_of_chord(double chord) { return 2 * std::asin(std::clamp(chord / 2,
 }  // namespace
 
 struct DirectionIndex::Tree {
+  // nanoflann's view of the directions (a member type, not one of this file's anonymous
+  // namespace: the tree's fields would then have internal linkage in a unity build).
+  struct Points {
+    const std::vector<Eigen::Vector3d>& dirs;
+    size_t kdtree_get_point_count() const { return dirs.size(); }
+    double kdtree_get_pt(size_t i, size_t axis) const { return dirs[i][int(axis)]; }
+    template <class Box>
+    bool kdtree_get_bbox(Box&) const {
+      return false;
+    }
+  };
+
   explicit Tree(const std::vector<Eigen::Vector3d>& dirs) : points{dirs}, index(3, points) {
     index.buildIndex();
   }

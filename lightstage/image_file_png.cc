@@ -127,7 +127,9 @@ bool encode_row(PngState& s, png_bytep row) {
   return true;
 }
 
-bool iequals(const std::string& a, const char* b) { return strcasecmp(a.c_str(), b) == 0; }
+bool equals_ignoring_case(const std::string& a, const char* b) {
+  return strcasecmp(a.c_str(), b) == 0;
+}
 
 // OIIO's premultiplication of a decoded row: integer codes, truncated; with a gAMA chunk (its
 // "oiio:Gamma" g), code * (alpha / max)^g in float, truncated.
@@ -278,11 +280,13 @@ void PngReader::read_spec() {
   const int count = png_get_text(p, state_.info, &text, nullptr);
   for (int i = 0; i < count; ++i) {
     const std::string key = text[i].key;
-    if (iequals(key, "XML:com.adobe.xmp") || iequals(key, "Raw profile type exif")) continue;
-    const char* name = iequals(key, "Description") ? "ImageDescription"
-                       : iequals(key, "Author")    ? "Artist"
-                       : iequals(key, "Title")     ? "DocumentName"
-                                                   : text[i].key;
+    if (equals_ignoring_case(key, "XML:com.adobe.xmp") ||
+        equals_ignoring_case(key, "Raw profile type exif"))
+      continue;
+    const char* name = equals_ignoring_case(key, "Description") ? "ImageDescription"
+                       : equals_ignoring_case(key, "Author")    ? "Artist"
+                       : equals_ignoring_case(key, "Title")     ? "DocumentName"
+                                                                : text[i].key;
     spec_.set(name, std::string(text[i].text ? text[i].text : ""));
   }
   png_uint_32 res_x = 0, res_y = 0;
@@ -428,9 +432,11 @@ class PngWriter final : public Writer {
 
 // PNG's names for three of OIIO's attributes.
 const char* png_key(const std::string& name) {
-  if (iequals(name, "Artist")) return "Author";
-  if (iequals(name, "DocumentName") || iequals(name, "name")) return "Title";
-  if (iequals(name, "ImageDescription") || iequals(name, "description")) return "Description";
+  if (equals_ignoring_case(name, "Artist")) return "Author";
+  if (equals_ignoring_case(name, "DocumentName") || equals_ignoring_case(name, "name"))
+    return "Title";
+  if (equals_ignoring_case(name, "ImageDescription") || equals_ignoring_case(name, "description"))
+    return "Description";
   return name.c_str();
 }
 
@@ -458,12 +464,14 @@ Header PngWriter::header(std::vector<png_text>& text) {
       (spec_.channels == 2 || spec_.channels == 4) && number("oiio:UnassociatedAlpha", 0) == 0;
   for (const Attribute& a : spec_.attributes) {
     const std::string* value = a.text();
-    const bool skipped = iequals(a.name, "planarconfig") || iequals(a.name, "compression") ||
-                         iequals(a.name, "ResolutionUnit") || iequals(a.name, "DateTime");
+    const bool skipped = equals_ignoring_case(a.name, "planarconfig") ||
+                         equals_ignoring_case(a.name, "compression") ||
+                         equals_ignoring_case(a.name, "ResolutionUnit") ||
+                         equals_ignoring_case(a.name, "DateTime");
     if (!value || a.name.empty() || skipped) continue;
-    if (iequals(a.name, "oiio:ColorSpace")) {
-      if (iequals(*value, "sRGB")) h.srgb = true;
-      if (iequals(*value, "linear")) h.file_gamma = 1.0;
+    if (equals_ignoring_case(a.name, "oiio:ColorSpace")) {
+      if (equals_ignoring_case(*value, "sRGB")) h.srgb = true;
+      if (equals_ignoring_case(*value, "linear")) h.file_gamma = 1.0;
       if (strncasecmp(value->c_str(), "Gamma", 5) == 0) {
         std::size_t digits = 5;
         while (digits < value->size() && std::isalpha((unsigned char)(*value)[digits])) ++digits;

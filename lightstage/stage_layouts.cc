@@ -6,14 +6,13 @@
 #include <string>
 #include <vector>
 
+#include "lightstage/angles.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 
 namespace ls {
 
-namespace {
-constexpr double kDegToRad = 3.14159265358979323846 / 180.0;
-}  // namespace
+namespace {}  // namespace
 
 std::vector<Eigen::Vector3d> geodesic_dome_directions(int frequency, double min_elevation_deg) {
   LS_CHECK(frequency >= 1, "geodesic frequency must be >= 1");

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <numbers>
 
 #include "capture/field.h"
 #include "lightstage/stage.h"
@@ -35,7 +36,6 @@ namespace {
 
 constexpr int kSize = 512;
 constexpr int kLeds = 150;
-constexpr double kPi = 3.14159265358979323846;
 
 ls::viewer::GlWindow& window() {
   static auto* w = [] {
@@ -66,7 +66,7 @@ const ls::capture::ReflectanceField& field() {
         const Eigen::Vector3d n = normal_at(x, y);
         float* v = f->pixel(x, y);
         for (int l = 0; l < kLeds; ++l) {
-          const double shading = std::max(0.0, n.dot(lights[l].dir_in_stage)) / kPi;
+          const double shading = std::max(0.0, n.dot(lights[l].dir_in_stage)) / std::numbers::pi;
           for (int c = 0; c < 3; ++c) v[l * 3 + c] = float(shading * (0.3 + 0.2 * c));
         }
       }
@@ -88,7 +88,7 @@ ls::viewer::ViewLighting led_lighting() {
 // directions_width^2 / 2 texels gives.
 ls::viewer::ViewLighting distant_lights(int count) {
   ls::viewer::ViewLighting lighting;
-  const double golden = kPi * (3.0 - std::sqrt(5.0));
+  const double golden = std::numbers::pi * (3.0 - std::sqrt(5.0));
   for (int k = 0; k < count; ++k) {
     const double y = 1.0 - 2.0 * (k + 0.5) / count, r = std::sqrt(1.0 - y * y);
     lighting.lights.dirs_in_stage.emplace_back(float(r * std::cos(golden * k)), float(y),

@@ -7,7 +7,7 @@ namespace ls::physics::brdf {
 
 namespace {
 
-std::string format_value(double v) {
+std::string format_parameter(double v) {
   if (std::isnan(v)) return "nan";
   std::ostringstream s;
   s << v;
@@ -19,7 +19,7 @@ std::string check_range(const std::string& name, double value, double lo, bool l
                         const std::string& range_text) {
   const bool above_lo = lo_open ? value > lo : value >= lo;
   if (above_lo && value <= hi) return "";
-  return name + " must be in " + range_text + ", got " + format_value(value);
+  return name + " must be in " + range_text + ", got " + format_parameter(value);
 }
 
 std::string check_rgb(const std::string& name, const Eigen::Vector3d& v, double hi,
@@ -43,8 +43,8 @@ std::string Material::validate() const {
   if (error.empty() && specular != SpecularModel::kNone) {
     error = check_rgb("ks", ks, HUGE_VAL, "[0, inf)");
     if (error.empty() && !std::isfinite(ks.sum())) {
-      error = "ks must be finite, got (" + format_value(ks[0]) + ", " + format_value(ks[1]) + ", " +
-              format_value(ks[2]) + ")";
+      error = "ks must be finite, got (" + format_parameter(ks[0]) + ", " +
+              format_parameter(ks[1]) + ", " + format_parameter(ks[2]) + ")";
     }
   }
   if (error.empty() && specular == SpecularModel::kTorranceSparrow) {

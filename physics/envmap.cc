@@ -17,8 +17,6 @@ namespace ls::physics {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 // "nan", "inf", "-inf" or the shortest round-trippable-ish decimal, for error messages.
 std::string format_value(double v) {
   if (std::isnan(v)) return "nan";
@@ -108,7 +106,8 @@ long long repair_negative_values(Image& rgb, const std::string& source) {
   const int w = rgb.width, h = rgb.height;
   std::vector<double> row_sr(h);
   for (int y = 0; y < h; ++y) {
-    row_sr[y] = std::cos(kPi * y / h) - std::cos(kPi * (y + 1) / h);  // Common 2 pi / W dropped.
+    row_sr[y] = std::cos(std::numbers::pi * y / h) -
+                std::cos(std::numbers::pi * (y + 1) / h);  // Common 2 pi / W dropped.
   }
   long long repaired = 0;
   double all_positive = 0, all_negative = 0;
@@ -192,8 +191,8 @@ EnvironmentMap::EnvironmentMap(Image radiance_rgb, std::string source, bool repa
 }
 
 Eigen::Vector3d EnvironmentMap::direction(double u, double v) {
-  const double theta = kPi * v;
-  const double phi = 2.0 * kPi * u - kPi;
+  const double theta = std::numbers::pi * v;
+  const double phi = 2.0 * std::numbers::pi * u - std::numbers::pi;
   const double sin_theta = std::sin(theta);
   return {sin_theta * std::sin(phi), std::cos(theta), -sin_theta * std::cos(phi)};
 }
@@ -203,15 +202,16 @@ Eigen::Vector2d EnvironmentMap::uv(const Eigen::Vector3d& dir) {
   const double theta = std::acos(std::clamp(d.y(), -1.0, 1.0));
   // x = sin(theta) sin(phi), -z = sin(theta) cos(phi).
   const double phi = std::atan2(d.x(), -d.z());
-  double u = (phi + kPi) / (2.0 * kPi);
+  double u = (phi + std::numbers::pi) / (2.0 * std::numbers::pi);
   if (u >= 1.0) u -= 1.0;
   if (u < 0.0) u += 1.0;
-  return {u, theta / kPi};
+  return {u, theta / std::numbers::pi};
 }
 
 double EnvironmentMap::pixel_solid_angle_sr(int row) const {
   const double h = height();
-  return (2.0 * kPi / width()) * (std::cos(kPi * row / h) - std::cos(kPi * (row + 1) / h));
+  return (2.0 * std::numbers::pi / width()) *
+         (std::cos(std::numbers::pi * row / h) - std::cos(std::numbers::pi * (row + 1) / h));
 }
 
 Eigen::Vector3d EnvironmentMap::pixel_direction(int x, int y) const {
@@ -223,7 +223,7 @@ Eigen::Vector3f EnvironmentMap::radiance_toward(const Eigen::Vector3d& dir,
   // The map rotated by +alpha shows, toward `dir`, what the unrotated map shows toward
   // R_y(-alpha) dir (R_y: right-handed rotation about +Y).
   Eigen::Vector3d d = dir;
-  if (rotation_deg != 0.0) d = rotation_about_y(-rotation_deg * kPi / 180.0) * dir;
+  if (rotation_deg != 0.0) d = rotation_about_y(-rotation_deg * std::numbers::pi / 180.0) * dir;
   const Eigen::Vector2d uv_map = uv(d);
   const int w = width(), h = height();
   // Pixel centres sit at (x + 0.5) / W: shift by half a pixel, wrap in u, clamp in v.
@@ -259,7 +259,7 @@ Eigen::Vector3d EnvironmentMap::integral() const {
 }
 
 Eigen::Vector3d rotate_about_y(const Eigen::Vector3d& d, double rotation_deg) {
-  return (rotation_about_y(rotation_deg * kPi / 180.0) * d).normalized();
+  return (rotation_about_y(rotation_deg * std::numbers::pi / 180.0) * d).normalized();
 }
 
 std::vector<CoarseTexel> box_filter_environment(const EnvironmentMap& map, int width,
@@ -289,15 +289,16 @@ std::vector<CoarseTexel> box_filter_environment(const EnvironmentMap& map, int w
   // Pass 2, along v with cos(theta) as the measure: exact solid-angle weights.
   std::vector<CoarseTexel> out;
   for (int Y = 0; Y < ch; ++Y) {
-    const double c_top = std::cos(kPi * Y / ch), c_bottom = std::cos(kPi * (Y + 1) / ch);
-    const double solid_angle_sr = (2 * kPi / cw) * (c_top - c_bottom);
+    const double c_top = std::cos(std::numbers::pi * Y / ch),
+                 c_bottom = std::cos(std::numbers::pi * (Y + 1) / ch);
+    const double solid_angle_sr = (2 * std::numbers::pi / cw) * (c_top - c_bottom);
     const int y_first = std::max(0, int(std::floor(double(Y) / ch * fh)));
     const int y_last = std::min(fh - 1, int(std::ceil(double(Y + 1) / ch * fh)));
     for (int X = 0; X < cw; ++X) {
       Eigen::Vector3d mean(0, 0, 0);
       for (int y = y_first; y <= y_last; ++y) {
-        const double overlap = std::min(c_top, std::cos(kPi * y / fh)) -
-                               std::max(c_bottom, std::cos(kPi * (y + 1) / fh));
+        const double overlap = std::min(c_top, std::cos(std::numbers::pi * y / fh)) -
+                               std::max(c_bottom, std::cos(std::numbers::pi * (y + 1) / fh));
         if (overlap <= 0) continue;
         for (int c = 0; c < 3; ++c) mean[c] += overlap * rows[(size_t(y) * cw + X) * 3 + c];
       }

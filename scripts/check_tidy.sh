@@ -39,8 +39,23 @@ print("\n".join(out))')
 files=$(printf '%s\n' "$diff" | sed -n 's|^+++ b/||p')
 if [ -z "$files" ]; then echo "clang-tidy: no C++ source lines changed since $base"; exit 0; fi
 echo "clang-tidy: $(echo "$files" | wc -l) changed sources since $(git rev-parse --short "$base")"
+# A unity build (LIGHTSTAGE_UNITY_BUILD) lists its batches, not its sources: each source a batch
+# includes gets the batch's command.
+db="$build/tidy-compile-db"
+mkdir -p "$db"
+python3 - "$build/compile_commands.json" "$db/compile_commands.json" <<'PY'
+import json, re, sys
+entries = []
+for e in json.load(open(sys.argv[1])):
+    if "/Unity/unity_" not in e["file"]:
+        entries.append(e)
+        continue
+    for source in re.findall(r'^#include "([^"]+)"', open(e["file"]).read(), re.M):
+        entries.append(dict(e, file=source, command=e["command"].replace(e["file"], source)))
+json.dump(entries, open(sys.argv[2], "w"), indent=0)
+PY
 printf '%s\n' "$diff" |
-  clang-tidy-diff-14.py -p1 -path "$build" -j "$(nproc)" -quiet -extra-arg=-Wno-unknown-warning-option \
+  clang-tidy-diff-14.py -p1 -path "$db" -j "$(nproc)" -quiet -extra-arg=-Wno-unknown-warning-option \
     -clang-tidy-binary clang-tidy-14 >"$build/clang-tidy.log" 2>&1 || true
 if grep -E 'warning:|error:' "$build/clang-tidy.log"; then
   echo "clang-tidy: warnings above (full log: $build/clang-tidy.log)"

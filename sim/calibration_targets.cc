@@ -6,24 +6,24 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "lightstage/angles.h"
 #include "lightstage/direction_index.h"  // angle_between
 #include "lightstage/errors.h"
 
 namespace ls::sim {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDeg = kPi / 180.0;
 constexpr double kReferenceDistanceM = 1.0;  // Sets a distant LED's angular size.
 
 // The simulator's camera (sim_stage.cc camera_ray), written out again here so that calibration
 // code, which has its own camera model, is checked against an independent one.
-void camera_ray(const CameraSpec& camera, double px, double py, Eigen::Vector3d* origin,
-                Eigen::Vector3d* dir) {
+void camera_ray_at(const CameraSpec& camera, double px, double py, Eigen::Vector3d* origin,
+                   Eigen::Vector3d* dir) {
   const double aspect = double(camera.width) / camera.height;
   const double ndc_x = 2.0 * px / camera.width - 1.0;
   const double ndc_y = 1.0 - 2.0 * py / camera.height;
@@ -32,7 +32,7 @@ void camera_ray(const CameraSpec& camera, double px, double py, Eigen::Vector3d*
     *origin = Eigen::Vector3d(ndc_x * half_h * aspect, ndc_y * half_h, 100.0);
     *dir = Eigen::Vector3d(0, 0, -1);
   } else {
-    const double tan_half = std::tan(0.5 * camera.fov_y_deg * kDeg);
+    const double tan_half = std::tan(0.5 * camera.fov_y_deg * kDegToRad);
     *origin = Eigen::Vector3d(0, 0, camera.distance_m);
     *dir = Eigen::Vector3d(ndc_x * tan_half * aspect, ndc_y * tan_half, -1.0).normalized();
   }
@@ -62,7 +62,7 @@ bool reflect(const std::vector<MirrorBall>& balls, const Eigen::Vector3d& o,
 }
 
 // Solid angle of a disc (or ball) of angular radius alpha.
-double cap_solid_angle(double alpha) { return 2.0 * kPi * (1.0 - std::cos(alpha)); }
+double cap_solid_angle(double alpha) { return 2.0 * std::numbers::pi * (1.0 - std::cos(alpha)); }
 
 }  // namespace
 
@@ -72,7 +72,7 @@ PerturbedStage perturb_stage(const Stage& nominal, const StagePerturbation& p) {
   std::mt19937_64 rng(p.seed);
   std::normal_distribution<double> normal(0.0, 1.0);
   std::uniform_real_distribution<double> uniform(-1.0, 1.0);
-  const double per_axis = p.direction_sigma_deg * kDeg / std::sqrt(2.0);
+  const double per_axis = p.direction_sigma_deg * kDegToRad / std::sqrt(2.0);
   for (Led& led : out.truth.leds) {
     const Eigen::Vector3d d = led.dir_in_stage.normalized();
     Eigen::Vector3d t1 = d.unitOrthogonal(), t2 = d.cross(t1);
@@ -158,13 +158,13 @@ MirrorSphereRenderer::MirrorSphereRenderer(std::vector<MirrorBall> balls, const 
       for (int x = 0; x < width_; ++x) {
         const size_t i = size_t(y) * width_ + x;
         Eigen::Vector3d o, d, p, r;
-        camera_ray(camera, x + 0.5, y + 0.5, &o, &d);
+        camera_ray_at(camera, x + 0.5, y + 0.5, &o, &d);
         const bool centre_hit = reflect(balls_, o, d, &p, &r);
         double spread = 0;
         bool any_hit = centre_hit, all_hit = centre_hit;
         for (int corner = 0; corner < 4; ++corner) {
           Eigen::Vector3d oc, dc, pc, rc;
-          camera_ray(camera, x + (corner & 1), y + (corner >> 1), &oc, &dc);
+          camera_ray_at(camera, x + (corner & 1), y + (corner >> 1), &oc, &dc);
           const bool hit = reflect(balls_, oc, dc, &pc, &rc);
           any_hit |= hit;
           all_hit &= hit;
@@ -172,7 +172,7 @@ MirrorSphereRenderer::MirrorSphereRenderer(std::vector<MirrorBall> balls, const 
         }
         if (!any_hit) continue;
         // Pixels on an outline are always sampled in full.
-        rays_->spread[i] = all_hit ? float(3.0 * spread + 1e-3) : float(kPi);
+        rays_->spread[i] = all_hit ? float(3.0 * spread + 1e-3) : float(std::numbers::pi);
         if (centre_hit) {
           rays_->origin[i] = p.cast<float>();
           rays_->dir[i] = r.cast<float>();
@@ -209,12 +209,13 @@ Image MirrorSphereRenderer::render_led(const Led& led, double led_radius_m,
         const Eigen::Vector3d toward = near ? (led_pos - p0).normalized() : dir;
         const double reach =
             near ? std::asin(std::min(1.0, led_radius_m / (led_pos - p0).norm())) : alpha;
-        if (spread < kPi && angle_between(r0, toward) > reach + spread + 1e-3) continue;
+        if (spread < std::numbers::pi && angle_between(r0, toward) > reach + spread + 1e-3)
+          continue;
         int lit = 0;
         for (int sy = 0; sy < ss; ++sy) {
           for (int sx = 0; sx < ss; ++sx) {
             Eigen::Vector3d o, d, p, r;
-            camera_ray(rays_->camera, x + (sx + 0.5) / ss, y + (sy + 0.5) / ss, &o, &d);
+            camera_ray_at(rays_->camera, x + (sx + 0.5) / ss, y + (sy + 0.5) / ss, &o, &d);
             if (!reflect(balls_, o, d, &p, &r)) continue;
             if (near) {
               // Does the reflected ray meet the LED's ball?
@@ -247,12 +248,13 @@ Image MirrorSphereRenderer::render_reference(double environment_radiance,
         const size_t i = size_t(y) * width_ + x;
         if (rays_->spread[i] < 0) continue;
         int hits = ss * ss;
-        if (rays_->spread[i] >= kPi) {  // An outline pixel: count the samples on a ball.
+        if (rays_->spread[i] >=
+            std::numbers::pi) {  // An outline pixel: count the samples on a ball.
           hits = 0;
           for (int sy = 0; sy < ss; ++sy) {
             for (int sx = 0; sx < ss; ++sx) {
               Eigen::Vector3d o, d, p, r;
-              camera_ray(rays_->camera, x + (sx + 0.5) / ss, y + (sy + 0.5) / ss, &o, &d);
+              camera_ray_at(rays_->camera, x + (sx + 0.5) / ss, y + (sy + 0.5) / ss, &o, &d);
               hits += reflect(balls_, o, d, &p, &r);
             }
           }
@@ -277,7 +279,7 @@ Image render_white_plane(const WhitePlaneTarget& target, const Led& led, const L
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < camera.width; ++x) {
         Eigen::Vector3d o, d;
-        camera_ray(camera, x + 0.5, y + 0.5, &o, &d);
+        camera_ray_at(camera, x + 0.5, y + 0.5, &o, &d);
         if (std::abs(d.z()) < 1e-12) continue;
         const Eigen::Vector3d p = o + ((target.center.z() - o.z()) / d.z()) * d;
         double geometry;  // Irradiance on the plane per unit irradiance at the origin.
@@ -288,7 +290,7 @@ Image render_white_plane(const WhitePlaneTarget& target, const Led& led, const L
         } else {
           geometry = std::max(0.0, n.dot(dir));
         }
-        const double scale = target.albedo / kPi * geometry * beam.at(p.x(), p.y());
+        const double scale = target.albedo / std::numbers::pi * geometry * beam.at(p.x(), p.y());
         for (int c = 0; c < 3; ++c) out.at(x, y, c) = float(scale * e0[c]);
       }
     }
@@ -302,9 +304,10 @@ BoardPose board_facing_camera(const Chessboard& board, const Eigen::Vector3d& ce
   // the board frame) faces stage +Z, the camera, and the image shows the board upright.
   Eigen::Matrix3d facing;
   facing << 1, 0, 0, 0, -1, 0, 0, 0, -1;
-  const Eigen::Matrix3d tilt = (Eigen::AngleAxisd(tilt_y_deg * kDeg, Eigen::Vector3d::UnitY()) *
-                                Eigen::AngleAxisd(tilt_x_deg * kDeg, Eigen::Vector3d::UnitX()))
-                                   .toRotationMatrix();
+  const Eigen::Matrix3d tilt =
+      (Eigen::AngleAxisd(tilt_y_deg * kDegToRad, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(tilt_x_deg * kDegToRad, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
   BoardPose pose;
   pose.rotation = tilt * facing;
   const Eigen::Vector3d board_centre(0.5 * (board.inner_cols - 1) * board.square_m,
@@ -334,7 +337,7 @@ Image render_chessboard(const Chessboard& board, const BoardPose& pose, const Ca
         for (int sy = 0; sy < ss; ++sy) {
           for (int sx = 0; sx < ss; ++sx) {
             Eigen::Vector3d o, d;
-            camera_ray(camera, x + (sx + 0.5) / ss, y + (sy + 0.5) / ss, &o, &d);
+            camera_ray_at(camera, x + (sx + 0.5) / ss, y + (sy + 0.5) / ss, &o, &d);
             const Eigen::Vector3d ob = board_from_stage * (o - pose.translation);
             const Eigen::Vector3d db = board_from_stage * d;
             if (std::abs(db.z()) < 1e-12) continue;

@@ -7,17 +7,16 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <numbers>
 #include <string>
 
+#include "lightstage/angles.h"
 #include "lightstage/errors.h"
 #include "physics/envmap.h"
 
 namespace ls::sim {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kDegToRad = kPi / 180.0;
 
 Eigen::Vector3d from_elevation_azimuth(double elevation_deg, double x_weight, double z_weight) {
   const Eigen::Vector2d horizontal = Eigen::Vector2d(x_weight, z_weight).normalized();
@@ -44,7 +43,7 @@ Image render_map(int width, const RadianceFn& smooth, const RadianceFn& compact,
   Image map(width, height, 3);
   map.channel_names = {"R", "G", "B"};
   // A pixel's half diagonal in angle is at most about pi / height.
-  const double near_cos = std::cos(compact_radius_rad + 1.5 * kPi / height);
+  const double near_cos = std::cos(compact_radius_rad + 1.5 * std::numbers::pi / height);
   constexpr int kSub = 16;
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const auto& rows) {
     for (int y = rows.begin(); y < rows.end(); ++y) {
@@ -57,7 +56,7 @@ Image render_map(int width, const RadianceFn& smooth, const RadianceFn& compact,
           double weight = 0;
           for (int sy = 0; sy < kSub; ++sy) {
             const double v = (y + (sy + 0.5) / kSub) / height;
-            const double w_solid = std::sin(kPi * v);
+            const double w_solid = std::sin(std::numbers::pi * v);
             for (int sx = 0; sx < kSub; ++sx) {
               sum += w_solid * compact(physics::EnvironmentMap::direction(
                                    (x + (sx + 0.5) / kSub) / width, v));
@@ -100,7 +99,7 @@ Eigen::Vector3d small_source_direction() {
 double small_source_radiance() {
   // Irradiance at normal incidence of a uniform disc of angular radius r: L * pi * sin^2(r).
   const double s = std::sin(kSmallSourceRadiusDeg * kDegToRad);
-  return 1.0 / (kPi * s * s);
+  return 1.0 / (std::numbers::pi * s * s);
 }
 
 Image make_sky_with_sun(int width) {

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <string>
 
 #include "lightstage/direction_index.h"
@@ -17,11 +18,7 @@
 
 namespace ls::sim {
 
-namespace {
-
-constexpr double kPi = 3.14159265358979323846;
-
-}  // namespace
+namespace {}  // namespace
 
 Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
                           const physics::EnvironmentMap& map, const GroundTruthOptions& options) {
@@ -109,7 +106,7 @@ Image render_ground_truth(const Scene& scene, const CameraSpec& camera,
             }
             if (lit) sum += weight;
           }
-          if (lambert_only) sum = sum.cwiseProduct(h.material.albedo) / kPi;
+          if (lambert_only) sum = sum.cwiseProduct(h.material.albedo) / std::numbers::pi;
         }
         for (int c = 0; c < 3; ++c) out.at(x, y, c) = float(sum[c]);
       }

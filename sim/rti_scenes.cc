@@ -2,15 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <string>
 #include <vector>
 
 namespace ls::sim {
 
-namespace {
-constexpr double kPi = 3.14159265358979323846;
-}  // namespace
+namespace {}  // namespace
 
 const char* to_string(RtiScene scene) {
   switch (scene) {
@@ -76,7 +75,8 @@ NearRtiDome near_rti_dome(int leds, int width, int height, double radius_m, doub
   camera.fov_y_deg = fov_y_deg;
   camera.ortho_height_m = 0.36 * radius_m;
   // A pinhole camera as high as sees 0.36 radii of the table.
-  if (fov_y_deg > 0) camera.distance_m = 0.18 * radius_m / std::tan(0.5 * fov_y_deg * kPi / 180);
+  if (fov_y_deg > 0)
+    camera.distance_m = 0.18 * radius_m / std::tan(0.5 * fov_y_deg * std::numbers::pi / 180);
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> jitter(-0.003, 0.003);
   for (Led& led : dome.stage.leds) led.distance_m = radius_m * (1.0 + jitter(rng));
@@ -122,7 +122,7 @@ Eigen::Vector3d toward_camera(const CameraSpec& camera, const Eigen::Vector3d& p
 Eigen::Vector2d project(const CameraSpec& camera, const Eigen::Vector3d& p) {
   double scale = camera.height / camera.ortho_height_m;  // Pixels per metre at p.
   if (camera.fov_y_deg > 0) {
-    scale = 0.5 * camera.height / std::tan(0.5 * camera.fov_y_deg * kPi / 180) /
+    scale = 0.5 * camera.height / std::tan(0.5 * camera.fov_y_deg * std::numbers::pi / 180) /
             (camera.distance_m - p.z());
   }
   return {0.5 * camera.width + scale * p.x(), 0.5 * camera.height - scale * p.y()};

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "lightstage/angles.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
 #include "lightstage/json_reader.h"
@@ -12,8 +13,6 @@
 namespace ls::sim {
 
 namespace {
-
-constexpr double kDegToRad = physics::brdf::kPi / 180.0;
 
 // The BRDF fields of `r` over `start` (fields not given keep start's values).
 physics::brdf::Material parse_brdf(

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <numbers>
 #include <sstream>
 
 #include "lightstage/errors.h"
@@ -12,7 +13,6 @@
 namespace ls::relight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kMinRoughness = 0.02;  // fit.cc's bound on Torrance-Sparrow roughness.
 constexpr double kMinPhongExponent = 1, kMaxPhongExponent = 1e4;
 
@@ -58,7 +58,7 @@ ModelSwap read_swap(const JsonReader& r) {
       break;
     case FitModel::kOrenNayar:
       refuse({"ks", "roughness", "exponent"});
-      s.sigma_rad = r["sigma_rad"].number_in(0, 0.5 * kPi, "(radians)");
+      s.sigma_rad = r["sigma_rad"].number_in(0, 0.5 * std::numbers::pi, "(radians)");
       break;
     case FitModel::kLambertTorranceSparrow:
       refuse({"sigma_rad", "exponent"});
@@ -116,7 +116,7 @@ void apply_edit(const ModelEdit& e, float* m) {
   }
   const FitModel model = FitModel(int(m[kMapModel]));
   if (model == FitModel::kOrenNayar) {
-    m[kMapSigma] = float(std::clamp(m[kMapSigma] * e.sigma_scale, 0.0, 0.5 * kPi));
+    m[kMapSigma] = float(std::clamp(m[kMapSigma] * e.sigma_scale, 0.0, 0.5 * std::numbers::pi));
   }
   if (model == FitModel::kLambertTorranceSparrow || model == FitModel::kLambertPhong) {
     m[kMapKs] = float(std::max(0.0, m[kMapKs] * e.specular_scale));

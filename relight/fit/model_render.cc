@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <string>
 
 #include "lightstage/errors.h"
@@ -12,8 +13,6 @@
 
 namespace ls::relight {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Directions as structure-of-arrays so the Lambert sum vectorises.
 struct Lights {
@@ -91,7 +90,7 @@ struct PixelModel {
   }
   // The diffuse BRDF per unit albedo, 1/sr.
   float diffuse(const physics::brdf::Geometry<float>& g) const {
-    return oren_nayar ? physics::brdf::oren_nayar(g, sigma) : float(1.0 / kPi);
+    return oren_nayar ? physics::brdf::oren_nayar(g, sigma) : float(1.0 / std::numbers::pi);
   }
   // The lobe's BRDF per unit k_s, 1/sr.
   float lobe_f(const physics::brdf::Geometry<float>& g) const {
@@ -152,11 +151,11 @@ Eigen::Vector3f shade(const Lights& lights, const PixelModel& p, const Eigen::Ve
                            shadowed_cosine_irradiance(lights, light_shadows, pixel, p.n));
   };
   if (p.model == FitModel::kLambert) {
-    return p.albedo.cwiseProduct(lambert_irradiance()) * float(1.0 / kPi);
+    return p.albedo.cwiseProduct(lambert_irradiance()) * float(1.0 / std::numbers::pi);
   }
   // A Lambertian diffuse part is the (vectorised) cosine-weighted sum; only the rest is per light.
-  Eigen::Vector3f diffuse =
-      p.oren_nayar ? Eigen::Vector3f(0, 0, 0) : Eigen::Vector3f(lambert_irradiance() / kPi);
+  Eigen::Vector3f diffuse = p.oren_nayar ? Eigen::Vector3f(0, 0, 0)
+                                         : Eigen::Vector3f(lambert_irradiance() / std::numbers::pi);
   Eigen::Vector3f specular_rgb(0, 0, 0);  // sum E cos f_lobe; the lobe is white (k_s one number).
   for (int k = 0; (p.oren_nayar || p.lobe) && k < lights.count; ++k) {
     const Eigen::Vector3f wi(lights.x[k], lights.y[k], lights.z[k]);

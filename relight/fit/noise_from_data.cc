@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <sstream>
 #include <utility>
 #include <vector>
@@ -12,7 +13,6 @@ namespace ls::relight {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr int kBins = 12;
 constexpr long kMinSamples = 2000;
 constexpr double kMaxSamples = 4e5;
@@ -84,7 +84,7 @@ std::optional<DataNoise> noise_from_residuals(const capture::ReflectanceField& f
       // Samples the normals left out stay out: censored (saturated) or not numbers.
       if (capture::is_saturated(field.lights()[size_t(l)], rgb)) continue;
       for (int c = 0; c < 3; ++c) {
-        const double predicted = normals.albedo.at(x, y, c) * cos / kPi;
+        const double predicted = normals.albedo.at(x, y, c) * cos / std::numbers::pi;
         if (predicted > 0 && std::isfinite(rgb[c])) {
           residuals.emplace_back(predicted, rgb[c] - predicted);
         }

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <numbers>
 #include <vector>
 
 #include "lightstage/errors.h"
@@ -15,7 +16,6 @@
 namespace ls::relight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // IRLS stops once a pass moves g by less than this fraction of |g|: the normal by under 1e-4 rad
 // (0.006 degrees, far below any normal's error), which most pixels reach in two or three passes.
 constexpr double kIrlsTolerance = 1e-4;
@@ -221,7 +221,7 @@ void store_solution(const Solve& solve, const std::vector<Eigen::Vector3d>& dirs
   int used = 0;
   for (size_t i = 0; i < dirs.size(); ++i) {
     if (!(s.weight[i] > 0)) continue;
-    const double shade = std::max(0.0, nrm.dot(dirs[i])) / kPi;
+    const double shade = std::max(0.0, nrm.dot(dirs[i])) / std::numbers::pi;
     const double w = s.weight[i] * s.sigma[i] * s.sigma[i];  // Robust factor only.
     const float* v = px + 3 * size_t(light_index[i]);
     sxx += w * shade * shade;
@@ -245,8 +245,8 @@ void store_solution(const Solve& solve, const std::vector<Eigen::Vector3d>& dirs
   const double reduced_chi2 = used > 3 ? std::max(1.0, chi2 / (used - 3)) : 1.0;
   const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - nrm * nrm.transpose();
   const Eigen::Matrix3d covariance = reduced_chi2 * information.inverse();
-  const double error_deg =
-      std::sqrt(std::max(0.0, (across * covariance * across).trace())) / solve.g.norm() * 180 / kPi;
+  const double error_deg = std::sqrt(std::max(0.0, (across * covariance * across).trace())) /
+                           solve.g.norm() * 180 / std::numbers::pi;
   out.confidence.at(x, y, 0) =
       std::isfinite(error_deg) ? float(1 / (1 + error_deg / kConfidenceDegrees)) : 0.0f;
 }

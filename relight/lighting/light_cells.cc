@@ -18,8 +18,6 @@ namespace ls::relight {
 
 namespace {
 
-constexpr double kPi = std::numbers::pi;
-
 std::vector<Eigen::Vector3d> normalized_directions(const std::vector<Eigen::Vector3d>& dirs) {
   std::vector<Eigen::Vector3d> out;
   out.reserve(dirs.size());
@@ -59,8 +57,8 @@ class NearestLed {
     // per bucket is O(buckets x LEDs), minutes at 100,000 LEDs.
     const DirectionIndex index(pool_dirs);
     // Buckets about a quarter of the mean LED spacing: a handful of candidates each.
-    const double spacing_rad = std::sqrt(4.0 * kPi / std::max<size_t>(pool.size(), 1));
-    grid_h_ = std::clamp(int(std::ceil(kPi / (0.25 * spacing_rad))), 16, 512);
+    const double spacing_rad = std::sqrt(4.0 * std::numbers::pi / std::max<size_t>(pool.size(), 1));
+    grid_h_ = std::clamp(int(std::ceil(std::numbers::pi / (0.25 * spacing_rad))), 16, 512);
     grid_w_ = 2 * grid_h_;
     offsets_.assign(size_t(grid_w_) * grid_h_ + 1, 0);
     std::vector<std::vector<int>> lists(size_t(grid_w_) * grid_h_);
@@ -141,32 +139,33 @@ void for_each_cell_sample(const std::vector<Eigen::Vector3d>& unit_dirs,
   const NearestLed nearest_any(unit_dirs, {});
   const std::optional<NearestLed> nearest_valid =
       all_valid ? std::nullopt : std::optional<NearestLed>(std::in_place, unit_dirs, valid);
-  const double cos_coverage = coverage_radius_rad >= kPi ? -2.0 : std::cos(coverage_radius_rad);
+  const double cos_coverage =
+      coverage_radius_rad >= std::numbers::pi ? -2.0 : std::cos(coverage_radius_rad);
 
   const int samples_w = width * ss;
   std::vector<double> sin_phi(samples_w), cos_phi(samples_w);
   std::vector<double> sample_u(samples_w);
   for (int sx = 0; sx < samples_w; ++sx) {
     const double u = (sx + 0.5) / samples_w;
-    const double phi = 2.0 * kPi * u - kPi;
+    const double phi = 2.0 * std::numbers::pi * u - std::numbers::pi;
     sin_phi[sx] = std::sin(phi);
     cos_phi[sx] = std::cos(phi);
     sample_u[sx] = u;
   }
-  const double sample_azimuth_sr = 2.0 * kPi / samples_w;
+  const double sample_azimuth_sr = 2.0 * std::numbers::pi / samples_w;
 
   tbb::parallel_for(
       tbb::blocked_range<int>(0, height, 1),
       [&](const tbb::blocked_range<int>& rows) {
         for (int y = rows.begin(); y < rows.end(); ++y) {
           for (int sy = 0; sy < ss; ++sy) {
-            const double theta_top = kPi * (y + double(sy) / ss) / height;
-            const double theta_bottom = kPi * (y + double(sy + 1) / ss) / height;
+            const double theta_top = std::numbers::pi * (y + double(sy) / ss) / height;
+            const double theta_bottom = std::numbers::pi * (y + double(sy + 1) / ss) / height;
             const double theta = 0.5 * (theta_top + theta_bottom);
             const double weight_sr =
                 sample_azimuth_sr * (std::cos(theta_top) - std::cos(theta_bottom));
             const double sin_theta = std::sin(theta), cos_theta = std::cos(theta);
-            const double v = theta / kPi;
+            const double v = theta / std::numbers::pi;
             for (int sx = 0; sx < samples_w; ++sx) {
               const Eigen::Vector3d dir(sin_theta * sin_phi[sx], cos_theta,
                                         -sin_theta * cos_phi[sx]);
@@ -233,7 +232,8 @@ LightWeights integrate_environment(const physics::EnvironmentMap& map,
   // The map rotated by +alpha puts the content of map direction d at R_y(alpha) d; it falls in
   // LED l's cell exactly when d is nearest to R_y(-alpha) l. Rotating the LEDs into the map's
   // frame keeps the sample grid aligned with the map's pixels.
-  const Eigen::Matrix3d map_from_stage = physics::rotation_about_y(-rotation_deg * kPi / 180.0);
+  const Eigen::Matrix3d map_from_stage =
+      physics::rotation_about_y(-rotation_deg * std::numbers::pi / 180.0);
   for (auto& d : dirs) d = map_from_stage * d;
 
   const int num_leds = int(dirs.size());

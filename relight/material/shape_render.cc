@@ -19,7 +19,6 @@ namespace {
 
 using Eigen::Vector2d;
 using Eigen::Vector3d;
-constexpr double kPi = std::numbers::pi;
 constexpr double kNoHit = std::numeric_limits<double>::infinity();
 
 // What the camera ray of one pixel meets.
@@ -46,7 +45,8 @@ bool hit_sphere(const Vector3d& o, const Vector3d& d, Hit* hit) {
   around_y(n, hit);
   hit->bitangent = hit->normal.cross(hit->tangent);
   const double theta = std::acos(std::clamp(n.y(), -1.0, 1.0));
-  hit->uv = {(std::atan2(n.x(), n.z()) + kPi) / (2 * kPi), theta / kPi};
+  hit->uv = {(std::atan2(n.x(), n.z()) + std::numbers::pi) / (2 * std::numbers::pi),
+             theta / std::numbers::pi};
   return true;
 }
 
@@ -64,7 +64,8 @@ bool hit_cylinder(const Vector3d& o, const Vector3d& d, Hit* hit) {
     if (hit->normal.dot(d) > 0) hit->normal = -hit->normal;  // The inside, seen through the top.
     around_y(Vector3d(p.x(), 0, p.z()).normalized(), hit);
     hit->bitangent = Vector3d::UnitY();
-    hit->uv = {(std::atan2(p.x(), p.z()) + kPi) / (2 * kPi), (1.0 - p.y()) / 2};
+    hit->uv = {(std::atan2(p.x(), p.z()) + std::numbers::pi) / (2 * std::numbers::pi),
+               (1.0 - p.y()) / 2};
     return true;
   }
   return false;
@@ -114,8 +115,9 @@ std::vector<Hit> trace_mesh(const Mesh& mesh, const ShapeRenderOptions& options)
   std::vector<Hit> hits(size_t(w) * h);
   const std::vector<Vector3d> tangents = mesh_tangents(mesh);
   const capture::FieldView& view = options.camera;
-  const double half_h =
-      view.fov_y_deg > 0 ? std::tan(0.5 * view.fov_y_deg * kPi / 180.0) : 0.5 * view.ortho_height_m;
+  const double half_h = view.fov_y_deg > 0
+                            ? std::tan(0.5 * view.fov_y_deg * std::numbers::pi / 180.0)
+                            : 0.5 * view.ortho_height_m;
   const double aspect = double(w) / h;
   // A point's pixel coordinates (continuous, pixel centres at + 0.5).
   const auto project = [&](const Vector3d& p) {

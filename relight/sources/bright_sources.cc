@@ -7,6 +7,7 @@
 #include <numbers>
 #include <utility>
 
+#include "lightstage/angles.h"
 #include "lightstage/direction_index.h"
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
@@ -14,8 +15,6 @@
 namespace ls::relight {
 
 namespace {
-
-constexpr double kDegToRad = std::numbers::pi / 180.0;
 
 // The 8-connected pixels of a lat-long map at or above a luminance, grown from a seed (wrapping
 // in u), and whether all of them lie within max_angle of the seed's direction.

@@ -13,7 +13,7 @@ namespace ls::relight {
 
 namespace {
 
-constexpr double kDarkShare = 0.03;  // e, the dark floor, as a share of the guide's mean.
+constexpr double kGuideDarkShare = 0.03;  // e, the dark floor, as a share of the guide's mean.
 
 // Where a full-size coordinate falls between the reduced image's pixel centres.
 struct Between {
@@ -56,7 +56,7 @@ void add_guided_upsample(const Image& low, const Image& guide_low, const Image& 
   std::array<float, 3> floor{};
   for (int c = 0; c < 3; ++c) {
     floor[size_t(c)] =
-        float(std::max(kDarkShare * mean[size_t(c)] / double(guide_low.num_pixels()), 1e-30));
+        float(std::max(kGuideDarkShare * mean[size_t(c)] / double(guide_low.num_pixels()), 1e-30));
   }
   const float most = float(factor) * float(factor);
   tbb::parallel_for(0, out.height, [&](int y) {

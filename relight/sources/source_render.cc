@@ -25,7 +25,7 @@ constexpr double kInvPi = 1.0 / std::numbers::pi;
 constexpr double kShadowRatio = 0.5;
 // Lambertian terms under this share of the image's mean one are too dark to tell a shadow from a
 // dark material (or are an attached shadow): such pixels take the nearest told pixel's answer.
-constexpr double kDarkShare = 0.02;
+constexpr double kLitDarkShare = 0.02;
 // Near the terminator rough materials fall well below Lambert's cosine (Oren-Nayar): there only a
 // sample under this share is a shadow (a cast shadow there is near black).
 constexpr double kGrazingCosine = 0.2;
@@ -85,8 +85,8 @@ std::vector<float> flow_values(const cv::Mat& flow) {
 }
 
 // Bilinear lookup of an image of `channels` (<= 3) floats per pixel, clamped at the border.
-inline void bilinear(const float* image, int width, int height, int channels, float x, float y,
-                     float* out) {
+inline void bilinear_sample(const float* image, int width, int height, int channels, float x,
+                            float y, float* out) {
   x = std::clamp(x, 0.0f, float(width - 1));
   y = std::clamp(y, 0.0f, float(height - 1));
   const int x0 = int(x), y0 = int(y);
@@ -175,7 +175,7 @@ LitMask led_lit_mask(const Eigen::Vector3d& led_dir, const std::vector<float>& r
       ++lit_count;
     }
   }
-  const double dark = kDarkShare * (lit_count ? sum / double(lit_count) : 0.0);
+  const double dark = kLitDarkShare * (lit_count ? sum / double(lit_count) : 0.0);
   // Where the Lambertian term is too dark to tell (attached shadow, black material) the nearest
   // told pixel's answer: edges then run only between what was seen lit and what was seen
   // shadowed, not along every terminator.
@@ -322,11 +322,11 @@ void add_bright_source(const std::array<const LedShadow*, 3>& shadows, const Pai
         }
         const LedShadow& led = *a.led;
         float edge;
-        bilinear(led.edge_distance_px.data(), width, height, 1, float(x) - dx, float(y) - dy,
-                 &edge);
+        bilinear_sample(led.edge_distance_px.data(), width, height, 1, float(x) - dx, float(y) - dy,
+                        &edge);
         distance_px += a.weight * edge;
         float g[3];
-        bilinear(led.gloss_rgb.data(), width, height, 3, float(x) - gx, float(y) - gy, g);
+        bilinear_sample(led.gloss_rgb.data(), width, height, 3, float(x) - gx, float(y) - gy, g);
         for (int c = 0; c < 3; ++c) gloss[c] += a.weight * g[c];
         if (led.edge_distance_px[p] <= 0) {
           for (int c = 0; c < 3; ++c) in_shadow[c] += a.weight * led.rgb[3 * p + size_t(c)];

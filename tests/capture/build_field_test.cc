@@ -13,6 +13,7 @@
 #include "lightstage/errors.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
+#include "tests/support/instant_sequencer.h"
 #include "tests/support/test_support.h"
 
 namespace ls::capture {
@@ -35,19 +36,13 @@ Stage small_stage(CameraResponse response = {}) {
   return stage;
 }
 
-SequencerOptions instant() {
-  SequencerOptions options;
-  options.sleep = [](double) {};
-  return options;
-}
-
 struct Captured {
   std::unique_ptr<sim::SimStage> sim;
   Session session;
 };
 
 Captured capture(const std::filesystem::path& dir, const Stage& stage,
-                 const SequencerOptions& options = instant()) {
+                 const SequencerOptions& options = ls::testing::instant_sequencer()) {
   auto sim = std::make_unique<sim::SimStage>(stage, sim::default_scene(), /*seed=*/11);
   Session session = Session::create(dir, stage, {});
   run_capture(session, sim->lights(), sim->camera(), options);
@@ -186,7 +181,7 @@ TEST(BuildField, DeadAndIncompleteLedsAreInvalidAndZero) {
   const Stage stage = small_stage();
   // Stop mid-capture, part way through an LED's bracket.
   std::atomic<bool> stop{false};
-  SequencerOptions options = instant();
+  SequencerOptions options = ls::testing::instant_sequencer();
   options.stop_requested = &stop;
   const int darks = stage.plan.dark_frames * int(stage.camera.bracket.size());
   options.on_progress = [&](const std::string&, long done, long, const std::string&) {

@@ -14,7 +14,7 @@
 namespace ls::capture {
 namespace {
 
-ReflectanceField random_field(int width, int height, int num_lights) {
+ReflectanceField reduced_test_field(int width, int height, int num_lights) {
   std::vector<FieldLight> lights;
   for (int l = 0; l < num_lights; ++l) {
     lights.push_back(FieldLight{l + 1, Eigen::Vector3d(0.1 * l, 1, 0.3).normalized(), true});
@@ -32,9 +32,9 @@ ReflectanceField random_field(int width, int height, int num_lights) {
 }
 
 TEST(ReducedField, EachPixelIsTheMeanOfItsBlockInEveryLayout) {
-  const testing::TempDir dir;
+  const ls::testing::TempDir dir;
   // 37 x 29: the last block column holds 1 pixel, the last block row 1 row.
-  const ReflectanceField field = random_field(37, 29, 5);
+  const ReflectanceField field = reduced_test_field(37, 29, 5);
   write_field(dir / "scanline.exr", field);
   write_field(dir / "tiled.exr", field, {}, 16);
   constexpr int kFactor = 4;

@@ -56,7 +56,7 @@ std::vector<double> GainErrors(const ReflectanceField& field, const sim::SimStag
 }
 
 TEST(ReferenceDrift, TheReferenceShotsMeasureTheInjectedDriftAndTheBuildDividesItOut) {
-  testing::TempDir tmp;
+  ls::testing::TempDir tmp;
   const Stage stage = DriftStage();
   EXPECT_EQ(stage.plan.reference_shots(40), 5);
   sim::SimStage sim(stage, sim::default_scene(), 3);

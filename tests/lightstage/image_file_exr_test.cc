@@ -186,7 +186,7 @@ std::vector<unsigned char> write_mine(const Spec& spec, Sample from, const void*
   return std::move(sink.bytes);
 }
 
-Spec spec_of(int width, int height, std::vector<std::string> names, Sample format) {
+Spec exr_spec(int width, int height, std::vector<std::string> names, Sample format) {
   Spec spec;
   spec.width = width;
   spec.height = height;
@@ -219,7 +219,7 @@ TEST(ExrCodecs, WrittenFilesReadTheSameThroughOpenImageIO) {
         for (const char* compression : {"none", "zip", "zips", "rle", "piz"}) {
           SCOPED_TRACE(std::string(sample_name(format)) + " from " + sample_name(from) + ", tile " +
                        std::to_string(tile) + ", " + compression);
-          Spec spec = spec_of(width, height, names, format);
+          Spec spec = exr_spec(width, height, names, format);
           spec.tile_width = tile;
           spec.tile_height = tile / 2;
           spec.set("compression", compression);
@@ -273,7 +273,7 @@ TEST(ExrCodecs, FloatsBecomeTheHalvesOpenImageIOMade) {
   ls::testing::TempDir dir;
   const int width = 16, height = 12;
   const std::vector<float> floats = test_values(std::size_t(width) * height * 3, 2);
-  save(dir / "mine.exr", write_mine(spec_of(width, height, {"R", "G", "B"}, Sample::kHalf),
+  save(dir / "mine.exr", write_mine(exr_spec(width, height, {"R", "G", "B"}, Sample::kHalf),
                                     Sample::kFloat, floats.data(), 5));
   oiio_write(dir / "theirs.exr", OIIO::ImageSpec(width, height, 3, OIIO::TypeDesc::HALF),
              OIIO::TypeDesc::FLOAT, floats.data());
@@ -406,7 +406,7 @@ TEST(ExrCodecs, IntegerCodesRoundAsOpenImageIORoundedThem) {
     floats[i] = i < 131071 ? float(double(i) / 131070.0) : float(i - 131071) / 1024.0f - 1.0f;
   }
   save(dir / "codes.exr",
-       write_mine(spec_of(256, 520, {"Y"}, Sample::kFloat), Sample::kFloat, floats.data(), 520));
+       write_mine(exr_spec(256, 520, {"Y"}, Sample::kFloat), Sample::kFloat, floats.data(), 520));
   const auto in = mine_open(dir / "codes.exr");
   ASSERT_TRUE(in);
   for (const Sample as : {Sample::kUInt16, Sample::kUInt8}) {
@@ -419,7 +419,7 @@ TEST(ExrCodecs, TruncatedFilesFailWithAReason) {
   const std::vector<float> floats = test_values(std::size_t{64} * 48 * 3, 6);
   for (const int tile : {0, 16}) {
     for (const char* compression : {"zip", "none"}) {
-      Spec spec = spec_of(64, 48, {"R", "G", "B"}, Sample::kHalf);
+      Spec spec = exr_spec(64, 48, {"R", "G", "B"}, Sample::kHalf);
       spec.tile_width = spec.tile_height = tile;
       spec.set("compression", compression);
       const std::vector<unsigned char> whole = write_mine(spec, Sample::kFloat, floats.data(), 16);
@@ -467,7 +467,7 @@ class FailingSink final : public Sink {
 TEST(ExrCodecs, AFailingSinkFailsTheWriteWithItsMessage) {
   const std::vector<float> floats = test_values(std::size_t{40} * 40 * 3, 7);
   for (const int tile : {0, 16}) {
-    Spec spec = spec_of(40, 40, {"R", "G", "B"}, Sample::kFloat);
+    Spec spec = exr_spec(40, 40, {"R", "G", "B"}, Sample::kFloat);
     spec.tile_width = spec.tile_height = tile;
     spec.set("compression", "none");
     const std::size_t full = write_mine(spec, Sample::kFloat, floats.data(), 16).size();
@@ -509,7 +509,7 @@ TEST(ExrCodecs, FieldLikeFilesReadBackByOpenImageIO) {
   ls::testing::TempDir dir;
   const int width = 50, height = 37;
   const std::vector<std::string> names = led_names(10);
-  Spec spec = spec_of(width, height, names, Sample::kHalf);
+  Spec spec = exr_spec(width, height, names, Sample::kHalf);
   spec.tile_width = spec.tile_height = 16;
   spec.set("compression", "none");
   spec.set("lightstage:lights", "[]");
@@ -536,7 +536,7 @@ TEST(ExrCodecs, CompressionsAreTheOnesOpenImageIONamed) {
   const std::vector<float> floats = test_values(std::size_t{8} * 8 * 3, 9);
   for (const char* name :
        {"none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"}) {
-    Spec spec = spec_of(8, 8, {"R", "G", "B"}, Sample::kHalf);
+    Spec spec = exr_spec(8, 8, {"R", "G", "B"}, Sample::kHalf);
     spec.set("compression", name);
     save(dir / "c.exr", write_mine(spec, Sample::kFloat, floats.data(), 8));
     OIIO::ImageSpec theirs;
@@ -545,7 +545,7 @@ TEST(ExrCodecs, CompressionsAreTheOnesOpenImageIONamed) {
     EXPECT_EQ(theirs.get_string_attribute("compression"), name);
     EXPECT_EQ(*mine_open(dir / "c.exr")->spec().find("compression")->text(), name);
   }
-  Spec spec = spec_of(8, 8, {"R", "G", "B"}, Sample::kHalf);  // No compression named: zip.
+  Spec spec = exr_spec(8, 8, {"R", "G", "B"}, Sample::kHalf);  // No compression named: zip.
   save(dir / "c.exr", write_mine(spec, Sample::kFloat, floats.data(), 8));
   EXPECT_EQ(*mine_open(dir / "c.exr")->spec().find("compression")->text(), "zip");
 }
@@ -558,12 +558,12 @@ TEST(ExrCodecs, RefusesWhatItCannotWrite) {
     const bool null = !exr_codecs().create("x.exr", spec, sink, error);
     return null && !error.empty();
   };
-  const Spec good = spec_of(8, 8, {"R", "G", "B"}, Sample::kFloat);
-  EXPECT_TRUE(refused(spec_of(8, 8, {"R", "G", "B"}, Sample::kUInt8)));
+  const Spec good = exr_spec(8, 8, {"R", "G", "B"}, Sample::kFloat);
+  EXPECT_TRUE(refused(exr_spec(8, 8, {"R", "G", "B"}, Sample::kUInt8)));
   Spec spec = good;
   spec.channel_names.pop_back();
   EXPECT_TRUE(refused(spec));
-  EXPECT_TRUE(refused(spec_of(8, 8, {"R", "G", "R"}, Sample::kFloat)));  // A name twice.
+  EXPECT_TRUE(refused(exr_spec(8, 8, {"R", "G", "R"}, Sample::kFloat)));  // A name twice.
   spec = good;
   spec.set("compression", "lzw");
   EXPECT_TRUE(refused(spec));

@@ -26,7 +26,7 @@ namespace fs = std::filesystem;
 using Bytes = std::vector<unsigned char>;
 
 template <class T>
-OIIO::TypeDesc oiio_type() {
+OIIO::TypeDesc oiio_type_of() {
   if constexpr (std::is_same_v<T, float>) return OIIO::TypeDesc::FLOAT;
   if constexpr (std::is_same_v<T, std::uint16_t>) return OIIO::TypeDesc::UINT16;
   return OIIO::TypeDesc::UINT8;
@@ -41,13 +41,13 @@ Sample sample_of() {
 
 // OpenImageIO's read of the whole image (empty when it cannot read it).
 template <class T>
-std::vector<T> oiio_read(const fs::path& path) {
+std::vector<T> oiio_read_samples(const fs::path& path) {
   auto in = OIIO::ImageInput::open(path.string());
   EXPECT_NE(in, nullptr) << OIIO::geterror();
   if (!in) return {};
   const OIIO::ImageSpec& s = in->spec();
   std::vector<T> values(std::size_t(s.width) * s.height * s.nchannels);
-  EXPECT_TRUE(in->read_image(0, 0, 0, s.nchannels, oiio_type<T>(), values.data()))
+  EXPECT_TRUE(in->read_image(0, 0, 0, s.nchannels, oiio_type_of<T>(), values.data()))
       << in->geterror();
   return values;
 }
@@ -99,7 +99,7 @@ void write_file(const fs::path& path, const Bytes& bytes) {
       .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
-Spec spec_of(int width, int height, int channels) {
+Spec jpeg_spec(int width, int height, int channels) {
   Spec spec;
   spec.width = width;
   spec.height = height;
@@ -110,7 +110,7 @@ Spec spec_of(int width, int height, int channels) {
 
 // The file `samples` make through the writer, written in bands of 5 rows (empty on failure).
 template <class T>
-Bytes encode(const Spec& spec, const std::vector<T>& samples) {
+Bytes encode_jpeg(const Spec& spec, const std::vector<T>& samples) {
   MemorySink sink;
   std::string error;
   std::unique_ptr<Writer> out = jpeg_codecs().create("x.jpg", spec, sink, error);
@@ -203,11 +203,11 @@ TEST(JpegReader, RealImagesAreOpenImageIOsToTheBit) {
     EXPECT_EQ(spec.format, Sample::kUInt8);
     EXPECT_EQ(spec.channel_names, (std::vector<std::string>{"R", "G", "B"}));
     EXPECT_EQ(spec.tile_width, 0);
-    EXPECT_TRUE(SameBits(read_rows<float>(*in, 0, spec.height), oiio_read<float>(path)));
-    EXPECT_TRUE(
-        SameBits(read_rows<std::uint8_t>(*in, 0, spec.height), oiio_read<std::uint8_t>(path)));
-    EXPECT_TRUE(
-        SameBits(read_rows<std::uint16_t>(*in, 0, spec.height), oiio_read<std::uint16_t>(path)));
+    EXPECT_TRUE(SameBits(read_rows<float>(*in, 0, spec.height), oiio_read_samples<float>(path)));
+    EXPECT_TRUE(SameBits(read_rows<std::uint8_t>(*in, 0, spec.height),
+                         oiio_read_samples<std::uint8_t>(path)));
+    EXPECT_TRUE(SameBits(read_rows<std::uint16_t>(*in, 0, spec.height),
+                         oiio_read_samples<std::uint16_t>(path)));
     EXPECT_EQ(in->error(), "");
   }
 }
@@ -215,7 +215,7 @@ TEST(JpegReader, RealImagesAreOpenImageIOsToTheBit) {
 TEST(JpegReader, BandsInAnyOrderAreTheWholeImage) {
   const std::vector<fs::path> paths = real_images();
   if (paths.empty()) GTEST_SKIP() << "no shared data at " << ls::testing::shared_data_dir();
-  const std::vector<float> whole = oiio_read<float>(paths[0]);
+  const std::vector<float> whole = oiio_read_samples<float>(paths[0]);
   std::unique_ptr<Reader> in = open_jpeg(paths[0]);
   ASSERT_NE(in, nullptr);
   const Spec& spec = in->spec();
@@ -241,17 +241,17 @@ TEST(JpegReader, EveryCodeConvertsAsOpenImageIOConvertsIt) {
   for (int y = 0; y < height; ++y) {
     for (int x = 0; x < width; ++x) codes.push_back((unsigned char)(x / 8));
   }
-  Spec spec = spec_of(width, height, 1);
+  Spec spec = jpeg_spec(width, height, 1);
   spec.set("Compression", "jpeg:100");
   ls::testing::TempDir dir;
-  write_file(dir / "codes.jpg", encode(spec, codes));
+  write_file(dir / "codes.jpg", encode_jpeg(spec, codes));
   std::unique_ptr<Reader> in = open_jpeg(dir / "codes.jpg");
   ASSERT_NE(in, nullptr);
   ASSERT_TRUE(SameBits(read_rows<std::uint8_t>(*in, 0, height), codes));
   const std::vector<float> floats = read_rows<float>(*in, 0, height);
-  EXPECT_TRUE(SameBits(floats, oiio_read<float>(dir / "codes.jpg")));
+  EXPECT_TRUE(SameBits(floats, oiio_read_samples<float>(dir / "codes.jpg")));
   EXPECT_TRUE(SameBits(read_rows<std::uint16_t>(*in, 0, height),
-                       oiio_read<std::uint16_t>(dir / "codes.jpg")));
+                       oiio_read_samples<std::uint16_t>(dir / "codes.jpg")));
   for (int code = 0; code < 256; ++code) {
     EXPECT_EQ(floats[std::size_t(code) * 8], float(code) * (1.0f / 255.0f)) << code;
   }
@@ -271,13 +271,13 @@ TEST(JpegReader, GrayscaleIsOneChannelAsOpenImageIOReadsIt) {
   ASSERT_NE(in, nullptr);
   EXPECT_EQ(in->spec().channels, 1);
   EXPECT_EQ(in->spec().channel_names, std::vector<std::string>{"Y"});
-  EXPECT_TRUE(SameBits(read_rows<float>(*in, 0, height), oiio_read<float>(path)));
+  EXPECT_TRUE(SameBits(read_rows<float>(*in, 0, height), oiio_read_samples<float>(path)));
   EXPECT_TRUE(SameBits(read_rows<float>(*in, 30, height),
-                       rows_of(oiio_read<float>(path), in->spec(), 30, height)));
+                       rows_of(oiio_read_samples<float>(path), in->spec(), 30, height)));
 }
 
 TEST(JpegReader, AFileCutShortReadsWithPrematureEnd) {
-  const Bytes whole = encode(spec_of(64, 64, 3), noise(64, 64, 3));  // Mostly scan data.
+  const Bytes whole = encode_jpeg(jpeg_spec(64, 64, 3), noise(64, 64, 3));  // Mostly scan data.
   ls::testing::TempDir dir;
   write_file(dir / "cut.jpg",
              Bytes(whole.begin(), whole.begin() + std::ptrdiff_t(whole.size() / 2)));
@@ -297,7 +297,7 @@ TEST(JpegReader, AFileCutShortReadsWithPrematureEnd) {
 TEST(JpegReader, GarbageAfterTheMagicNeverCrashes) {
   ls::testing::TempDir dir;
   std::mt19937 random(18);
-  const Bytes good = encode(spec_of(40, 24, 3), gradient(40, 24, 3));
+  const Bytes good = encode_jpeg(jpeg_spec(40, 24, 3), gradient(40, 24, 3));
   for (int i = 0; i < 300; ++i) {
     SCOPED_TRACE(i);
     Bytes bytes;
@@ -350,7 +350,7 @@ TEST(JpegReader, CmykAndYcckAreLeftToOpenImageIO) {
 
 TEST(JpegReader, RowsOutsideTheImageOrAnUnknownTypeFail) {
   ls::testing::TempDir dir;
-  write_file(dir / "a.jpg", encode(spec_of(16, 16, 3), gradient(16, 16, 3)));
+  write_file(dir / "a.jpg", encode_jpeg(jpeg_spec(16, 16, 3), gradient(16, 16, 3)));
   std::unique_ptr<Reader> in = open_jpeg(dir / "a.jpg");
   ASSERT_NE(in, nullptr);
   std::vector<float> values(16 * 17 * 3);
@@ -366,11 +366,11 @@ TEST(JpegReader, RowsOutsideTheImageOrAnUnknownTypeFail) {
 TEST(JpegWriter, RoundTripsCloselyAndQualitySizesTheFile) {
   const int width = 70, height = 45;
   const Bytes codes = gradient(width, height, 3);
-  Spec best = spec_of(width, height, 3);
+  Spec best = jpeg_spec(width, height, 3);
   best.set("Compression", "jpeg:100");
   best.set("jpeg:subsampling", "4:4:4");
   ls::testing::TempDir dir;
-  write_file(dir / "best.jpg", encode(best, codes));
+  write_file(dir / "best.jpg", encode_jpeg(best, codes));
   std::unique_ptr<Reader> in = open_jpeg(dir / "best.jpg");
   ASSERT_NE(in, nullptr);
   const Bytes back = read_rows<std::uint8_t>(*in, 0, height);
@@ -383,26 +383,27 @@ TEST(JpegWriter, RoundTripsCloselyAndQualitySizesTheFile) {
   auto oiio = OIIO::ImageInput::open((dir / "best.jpg").string());
   ASSERT_NE(oiio, nullptr);
   EXPECT_EQ(oiio->spec().get_string_attribute("jpeg:subsampling"), "4:4:4");
-  EXPECT_TRUE(SameBits(read_rows<float>(*in, 0, height), oiio_read<float>(dir / "best.jpg")));
+  EXPECT_TRUE(
+      SameBits(read_rows<float>(*in, 0, height), oiio_read_samples<float>(dir / "best.jpg")));
 
-  Spec fair = spec_of(width, height, 3);
+  Spec fair = jpeg_spec(width, height, 3);
   fair.set("Compression", "jpeg:50");
-  EXPECT_LT(encode(fair, codes).size(), encode(best, codes).size());
+  EXPECT_LT(encode_jpeg(fair, codes).size(), encode_jpeg(best, codes).size());
   // Unset: quality 95, 4:2:0; floats are rounded to the same codes.
-  Spec usual = spec_of(width, height, 3);
+  Spec usual = jpeg_spec(width, height, 3);
   usual.set("Compression", "jpeg:95");
   usual.set("jpeg:subsampling", "4:2:0");
-  const Bytes plain = encode(spec_of(width, height, 3), codes);
-  EXPECT_EQ(plain, encode(usual, codes));
+  const Bytes plain = encode_jpeg(jpeg_spec(width, height, 3), codes);
+  EXPECT_EQ(plain, encode_jpeg(usual, codes));
   std::vector<float> floats(codes.begin(), codes.end());
   for (float& f : floats) f = f / 255.0f;
-  EXPECT_EQ(plain, encode(spec_of(width, height, 3), floats));
+  EXPECT_EQ(plain, encode_jpeg(jpeg_spec(width, height, 3), floats));
   std::vector<std::uint16_t> wide(codes.begin(), codes.end());
   for (std::uint16_t& w : wide) w = std::uint16_t(w * 257);
-  EXPECT_EQ(plain, encode(spec_of(width, height, 3), wide));
-  Spec half_chroma = spec_of(width, height, 3);
+  EXPECT_EQ(plain, encode_jpeg(jpeg_spec(width, height, 3), wide));
+  Spec half_chroma = jpeg_spec(width, height, 3);
   half_chroma.set("jpeg:subsampling", "4:2:2");
-  write_file(dir / "422.jpg", encode(half_chroma, codes));
+  write_file(dir / "422.jpg", encode_jpeg(half_chroma, codes));
   oiio = OIIO::ImageInput::open((dir / "422.jpg").string());
   ASSERT_NE(oiio, nullptr);
   EXPECT_EQ(oiio->spec().get_string_attribute("jpeg:subsampling"), "4:2:2");
@@ -411,25 +412,25 @@ TEST(JpegWriter, RoundTripsCloselyAndQualitySizesTheFile) {
 TEST(JpegWriter, FloatsAreClampedAndRounded) {
   const std::vector<float> values = {-1.0f, 0.0f, 0.5f / 255, 0.49f / 255,
                                      0.5f,  1.0f, 7.0f,       std::nanf("")};
-  Spec spec = spec_of(int(values.size()), 1, 1);
+  Spec spec = jpeg_spec(int(values.size()), 1, 1);
   spec.set("Compression", "jpeg:100");
   const Bytes codes = {0, 0, 1, 0, 128, 255, 255, 0};
-  EXPECT_EQ(encode(spec, values), encode(spec, codes));
+  EXPECT_EQ(encode_jpeg(spec, values), encode_jpeg(spec, codes));
 }
 
 TEST(JpegWriter, RefusesWhatJpegCannotHold) {
   MemorySink sink;
-  std::vector<Spec> specs = {spec_of(8, 8, 2), spec_of(8, 8, 4), spec_of(0, 8, 3),
-                             spec_of(70000, 8, 3)};
+  std::vector<Spec> specs = {jpeg_spec(8, 8, 2), jpeg_spec(8, 8, 4), jpeg_spec(0, 8, 3),
+                             jpeg_spec(70000, 8, 3)};
   for (const char* compression : {"jpeg:0", "jpeg:101", "jpeg:x", "jpeg:90x", "zip", ""}) {
-    specs.push_back(spec_of(8, 8, 3));
+    specs.push_back(jpeg_spec(8, 8, 3));
     specs.back().set("Compression", compression);
   }
-  specs.push_back(spec_of(8, 8, 3));
+  specs.push_back(jpeg_spec(8, 8, 3));
   specs.back().set("Compression", 90LL);
-  specs.push_back(spec_of(8, 8, 3));
+  specs.push_back(jpeg_spec(8, 8, 3));
   specs.back().set("jpeg:subsampling", "4:1:1");
-  specs.push_back(spec_of(8, 8, 3));
+  specs.push_back(jpeg_spec(8, 8, 3));
   specs.back().tile_width = specs.back().tile_height = 8;
   for (const Spec& spec : specs) {
     std::string error;
@@ -446,7 +447,7 @@ TEST(JpegWriter, AFailingSinkIsCloseFalseWithItsMessage) {
     }
   } sink;
   std::string error;
-  std::unique_ptr<Writer> out = jpeg_codecs().create("out.jpg", spec_of(16, 8, 3), sink, error);
+  std::unique_ptr<Writer> out = jpeg_codecs().create("out.jpg", jpeg_spec(16, 8, 3), sink, error);
   ASSERT_NE(out, nullptr) << error;
   const Bytes codes = gradient(16, 8, 3);
   ASSERT_TRUE(out->write_rows(0, 8, Sample::kUInt8, codes.data()));
@@ -458,7 +459,7 @@ TEST(JpegWriter, RowsOutOfOrderOrMissingFailAndAnUnclosedWriterLeaksNothing) {
   MemorySink sink;
   std::string error;
   const Bytes codes = gradient(16, 8, 3);
-  std::unique_ptr<Writer> out = jpeg_codecs().create("x.jpg", spec_of(16, 8, 3), sink, error);
+  std::unique_ptr<Writer> out = jpeg_codecs().create("x.jpg", jpeg_spec(16, 8, 3), sink, error);
   ASSERT_NE(out, nullptr) << error;
   EXPECT_FALSE(out->write_rows(1, 2, Sample::kUInt8, codes.data()));
   EXPECT_NE(out->error(), "");
@@ -469,22 +470,22 @@ TEST(JpegWriter, RowsOutOfOrderOrMissingFailAndAnUnclosedWriterLeaksNothing) {
   EXPECT_NE(out->error().find("only 4 of 8"), std::string::npos);
   EXPECT_TRUE(sink.bytes.empty());
   // Destroyed part-way, past its first buffer (the sanitizer build checks that nothing leaks).
-  out = jpeg_codecs().create("x.jpg", spec_of(300, 300, 3), sink, error);
+  out = jpeg_codecs().create("x.jpg", jpeg_spec(300, 300, 3), sink, error);
   ASSERT_NE(out, nullptr) << error;
   ASSERT_TRUE(out->write_rows(0, 300, Sample::kUInt8, noise(300, 300, 3).data()));
   out.reset();
 }
 
 TEST(JpegWriter, AFileLargerThanItsFirstBufferIsWhole) {
-  Spec spec = spec_of(300, 300, 3);
+  Spec spec = jpeg_spec(300, 300, 3);
   spec.set("Compression", "jpeg:100");
-  const Bytes bytes = encode(spec, noise(300, 300, 3));
+  const Bytes bytes = encode_jpeg(spec, noise(300, 300, 3));
   EXPECT_GT(bytes.size(), 2u << 16);  // Grown twice.
   ls::testing::TempDir dir;
   write_file(dir / "noise.jpg", bytes);
   std::unique_ptr<Reader> in = open_jpeg(dir / "noise.jpg");
   ASSERT_NE(in, nullptr);
-  EXPECT_TRUE(SameBits(read_rows<float>(*in, 0, 300), oiio_read<float>(dir / "noise.jpg")));
+  EXPECT_TRUE(SameBits(read_rows<float>(*in, 0, 300), oiio_read_samples<float>(dir / "noise.jpg")));
   EXPECT_EQ(in->error(), "");
 }
 

@@ -46,7 +46,7 @@ class TempDir {
   std::error_code error_;
 };
 
-Spec spec_of(int width, int height, int channels, Sample format) {
+Spec png_spec(int width, int height, int channels, Sample format) {
   return Spec{.width = width, .height = height, .channels = channels, .format = format};
 }
 
@@ -350,7 +350,7 @@ Bytes oiio_encode(const fs::path& path, const Spec& spec, Sample from, const voi
 }
 
 // Written in three bands.
-Bytes encode(const Spec& spec, Sample from, const void* data) {
+Bytes encode_png(const Spec& spec, Sample from, const void* data) {
   MemorySink sink;
   std::string error;
   auto out = png_codecs().create("x.png", spec, sink, error);
@@ -392,13 +392,13 @@ TEST(PngFile, WritesTheBytesOiioWrites) {
     for (int channels = 1; channels <= 4; ++channels) {
       for (long long level : {1, 9}) {
         for (Sample from : {Sample::kUInt8, Sample::kUInt16, Sample::kFloat}) {
-          Spec spec = spec_of(37, 9, channels, format);
+          Spec spec = png_spec(37, 9, channels, format);
           spec.set("png:compressionLevel", level);
           spec.set("lightstage:bit_depth", 12LL);
           spec.set("lightstage:note", "written by lightstage");
           const Bytes data =
               samples_from(from, format, std::size_t(37) * 9 * channels, channels + level);
-          const Bytes ours = encode(spec, from, data.data());
+          const Bytes ours = encode_png(spec, from, data.data());
           EXPECT_EQ(ours, oiio_encode(tmp / "oiio.png", spec, from, data.data()))
               << sample_name(format) << " file, " << channels << " channels, level " << level
               << ", from " << sample_name(from);
@@ -422,7 +422,7 @@ TEST(PngFile, WritesOiiosChunksForItsAttributes) {
   for (Sample format : {Sample::kUInt8, Sample::kUInt16}) {
     for (const char* space : kSpaces) {
       for (int channels : {2, 4}) {
-        Spec spec = spec_of(23, 5, channels, format);
+        Spec spec = png_spec(23, 5, channels, format);
         spec.set("oiio:ColorSpace", space);
         spec.set("Artist", "a"), spec.set("ImageDescription", "d"), spec.set("name", "t");
         Bytes data = samples_from(Sample::kUInt16, format, std::size_t(23) * 5 * channels, 3);
@@ -431,16 +431,16 @@ TEST(PngFile, WritesOiiosChunksForItsAttributes) {
           codes[std::size_t(p) * channels] = 65535;
           codes[std::size_t(p) * channels + channels - 1] = std::uint16_t(1 + 99 * p);
         }
-        EXPECT_EQ(encode(spec, Sample::kUInt16, data.data()),
+        EXPECT_EQ(encode_png(spec, Sample::kUInt16, data.data()),
                   oiio_encode(tmp / "o.png", spec, Sample::kUInt16, data.data()))
             << space << ", " << channels << " channels, " << sample_name(format);
       }
     }
   }
-  Spec spec = spec_of(3, 2, 1, Sample::kUInt8);
+  Spec spec = png_spec(3, 2, 1, Sample::kUInt8);
   spec.set("DateTime", "2024:05:06 07:08:09"), spec.set("compression", "rle");
   spec.set("ResolutionUnit", "inch"), spec.set("XResolution", 72.0, "float");
-  put_bytes(tmp / "ours.png", encode(spec, Sample::kUInt8, Bytes(6, 9).data()));
+  put_bytes(tmp / "ours.png", encode_png(spec, Sample::kUInt8, Bytes(6, 9).data()));
   auto in = OIIO::ImageInput::open((tmp / "ours.png").string());
   ASSERT_TRUE(in);
   EXPECT_EQ(attributes_of(in->spec()), std::vector<std::string>{"oiio:ColorSpace=s:sRGB"});
@@ -453,12 +453,12 @@ TEST(PngFile, WriterRefusesWhatPngCannotHold) {
     error.clear();
     return !png_codecs().create("x.png", spec, sink, error) && !error.empty();
   };
-  EXPECT_TRUE(refused(spec_of(4, 4, 5, Sample::kUInt8)));
-  EXPECT_TRUE(refused(spec_of(4, 4, 3, Sample::kFloat)));
-  EXPECT_TRUE(refused(spec_of(4, 4, 3, Sample::kHalf)));
-  EXPECT_TRUE(refused(spec_of(0, 4, 3, Sample::kUInt8)));
-  EXPECT_TRUE(refused(spec_of(2000000, 4, 3, Sample::kUInt8)));  // libpng's limit, not a crash.
-  const Spec spec = spec_of(4, 4, 3, Sample::kUInt8);
+  EXPECT_TRUE(refused(png_spec(4, 4, 5, Sample::kUInt8)));
+  EXPECT_TRUE(refused(png_spec(4, 4, 3, Sample::kFloat)));
+  EXPECT_TRUE(refused(png_spec(4, 4, 3, Sample::kHalf)));
+  EXPECT_TRUE(refused(png_spec(0, 4, 3, Sample::kUInt8)));
+  EXPECT_TRUE(refused(png_spec(2000000, 4, 3, Sample::kUInt8)));  // libpng's limit, not a crash.
+  const Spec spec = png_spec(4, 4, 3, Sample::kUInt8);
   const Bytes row(std::size_t(4) * 3 * 4);
   auto out = png_codecs().create("x.png", spec, sink, error);
   EXPECT_FALSE(out->write_rows(0, 1, Sample::kHalf, row.data()));
@@ -575,7 +575,7 @@ class FullDisk final : public Sink {
 TEST(PngFile, ASinkThatThrowsFailsCloseWithItsMessage) {
   FullDisk sink;
   std::string error;
-  auto out = png_codecs().create("frame.png", spec_of(8, 3, 3, Sample::kUInt16), sink, error);
+  auto out = png_codecs().create("frame.png", png_spec(8, 3, 3, Sample::kUInt16), sink, error);
   ASSERT_TRUE(out) << error;
   const Bytes data(std::size_t(8) * 3 * 3 * 2, 0x40);
   ASSERT_TRUE(out->write_rows(0, 3, Sample::kUInt16, data.data())) << out->error();
@@ -588,7 +588,7 @@ TEST(PngFile, AWriterDestroyedBeforeCloseWritesNothing) {
   std::string error;
   const Bytes data(std::size_t(64) * 64 * 4, 0x80);
   for (int rows : {0, 1, 32}) {
-    auto out = png_codecs().create("x.png", spec_of(64, 64, 4, Sample::kUInt8), sink, error);
+    auto out = png_codecs().create("x.png", png_spec(64, 64, 4, Sample::kUInt8), sink, error);
     ASSERT_TRUE(out) << error;
     EXPECT_TRUE(out->write_rows(0, rows, Sample::kUInt8, data.data()));
   }

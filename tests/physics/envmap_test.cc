@@ -21,8 +21,6 @@ namespace fs = std::filesystem;
 using ls::Image;
 using ls::physics::EnvironmentMap;
 
-constexpr double kPi = std::numbers::pi;
-
 void expect_dir_near(const Eigen::Vector3d& actual, const Eigen::Vector3d& expected,
                      double tol = 1e-12) {
   EXPECT_LT((actual - expected).norm(), tol)
@@ -41,8 +39,8 @@ TEST(EnvmapTest, ConventionAnchors) {
 
   const EnvironmentMap map(Image(64, 32, 3, 1.0f));
   // Top row looks (nearly) up, the centre pixel (nearly) along -Z.
-  EXPECT_GT(map.pixel_direction(10, 0).y(), std::cos(kPi / 32));
-  EXPECT_LT(map.pixel_direction(20, 31).y(), -std::cos(kPi / 32));
+  EXPECT_GT(map.pixel_direction(10, 0).y(), std::cos(std::numbers::pi / 32));
+  EXPECT_LT(map.pixel_direction(20, 31).y(), -std::cos(std::numbers::pi / 32));
   EXPECT_LT((map.pixel_direction(32, 16) - Eigen::Vector3d(0, 0, -1)).norm(), 0.1);
   EXPECT_LT((map.pixel_direction(48, 16) - Eigen::Vector3d(1, 0, 0)).norm(), 0.1);
 }
@@ -75,7 +73,7 @@ TEST(EnvmapTest, PixelSolidAnglesSumTo4PiAndIntegralWeightsThem) {
       EXPECT_GT(row_sr, 0.0);
       sum_sr += row_sr * map.width();
     }
-    EXPECT_NEAR(sum_sr, 4 * kPi, 1e-12) << h;
+    EXPECT_NEAR(sum_sr, 4 * std::numbers::pi, 1e-12) << h;
     // Rows are symmetric about the equator.
     EXPECT_NEAR(map.pixel_solid_angle_sr(0), map.pixel_solid_angle_sr(h - 1), 1e-15);
   }
@@ -90,9 +88,9 @@ TEST(EnvmapTest, PixelSolidAnglesSumTo4PiAndIntegralWeightsThem) {
     }
   }
   const Eigen::Vector3d integral = EnvironmentMap(image).integral();
-  EXPECT_NEAR(integral[0], kPi, 1e-3);
-  EXPECT_NEAR(integral[1], 8 * kPi, 1e-5);
-  EXPECT_NEAR(integral[2], 12 * kPi, 1e-5);
+  EXPECT_NEAR(integral[0], std::numbers::pi, 1e-3);
+  EXPECT_NEAR(integral[1], 8 * std::numbers::pi, 1e-5);
+  EXPECT_NEAR(integral[2], 12 * std::numbers::pi, 1e-5);
 }
 
 // A map whose only light is a bright patch around direction `dir`.
@@ -142,7 +140,7 @@ TEST(EnvmapTest, BoxFilterKeepsTheIntegralAtAnyWidthAndRotation) {
       ASSERT_EQ(int(texels.size()), width * width / 2);
       Eigen::Vector3d sum(0, 0, 0);
       for (const ls::physics::CoarseTexel& t : texels) sum += t.radiance_x_sr;
-      EXPECT_NEAR(sum[1], 8 * kPi, 1e-9) << width << " " << rotation_deg;
+      EXPECT_NEAR(sum[1], 8 * std::numbers::pi, 1e-9) << width << " " << rotation_deg;
       const ls::physics::CoarseTexel& t = texels[size_t(width) + 1];
       const Eigen::Vector3d unrotated =
           EnvironmentMap::direction((t.x + 0.5) / width, (t.y + 0.5) / (width / 2));

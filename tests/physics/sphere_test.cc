@@ -16,11 +16,9 @@ using ls::angle_between;
 using ls::physics::disc_directions;
 using ls::physics::rotation_about_y;
 
-constexpr double kPi = std::numbers::pi;
-
 // Right-handed about +Y: a quarter turn takes +Z to +X and +X to -Z; Y stays; it is a rotation.
 TEST(SphereTest, RotationAboutYIsRightHanded) {
-  const Eigen::Matrix3d quarter = rotation_about_y(kPi / 2);
+  const Eigen::Matrix3d quarter = rotation_about_y(std::numbers::pi / 2);
   EXPECT_LT((quarter * Eigen::Vector3d::UnitZ() - Eigen::Vector3d::UnitX()).norm(), 1e-15);
   EXPECT_LT((quarter * Eigen::Vector3d::UnitX() + Eigen::Vector3d::UnitZ()).norm(), 1e-15);
   EXPECT_EQ(quarter * Eigen::Vector3d::UnitY(), Eigen::Vector3d::UnitY());
@@ -30,7 +28,7 @@ TEST(SphereTest, RotationAboutYIsRightHanded) {
   EXPECT_LT((rotation_about_y(0.3) * rotation_about_y(0.4) - r).norm(), 1e-15);
   // The environment map's rotation in degrees is the same rotation.
   const Eigen::Vector3d d = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();
-  EXPECT_LT((ls::physics::rotate_about_y(d, 0.7 * 180 / kPi) - r * d).norm(), 1e-15);
+  EXPECT_LT((ls::physics::rotate_about_y(d, 0.7 * 180 / std::numbers::pi) - r * d).norm(), 1e-15);
 }
 
 // Every direction lies inside the disc, unit, and the disc's centre is their mean; the sunflower

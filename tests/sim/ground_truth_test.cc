@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
+#include <numbers>
 
 #include "lightstage/errors.h"
 #include "sim/envmaps.h"
@@ -15,8 +16,6 @@
 
 namespace ls::sim {
 namespace {
-
-constexpr double kPi = physics::brdf::kPi;
 
 Scene lone_sphere(const physics::brdf::Material& material, double radius = 0.5) {
   Scene scene;
@@ -28,7 +27,7 @@ Scene lone_sphere(const physics::brdf::Material& material, double radius = 0.5) 
   return scene;
 }
 
-CameraSpec ortho_camera(int size, double view_height_m) {
+CameraSpec square_ortho_camera(int size, double view_height_m) {
   CameraSpec camera;
   camera.width = camera.height = size;
   camera.ortho_height_m = view_height_m;
@@ -36,7 +35,7 @@ CameraSpec ortho_camera(int size, double view_height_m) {
 }
 
 Eigen::Vector3d rotate_y(const Eigen::Vector3d& d, double deg) {
-  const double a = deg * kPi / 180, c = std::cos(a), s = std::sin(a);
+  const double a = deg * std::numbers::pi / 180, c = std::cos(a), s = std::sin(a);
   return {c * d.x() + s * d.z(), d.y(), -s * d.x() + c * d.z()};
 }
 
@@ -52,7 +51,7 @@ TEST(GroundTruth, LambertSphereUnderConstantEnvironmentIsAlbedoTimesRadiance) {
     }
   }
   const physics::EnvironmentMap map(constant);
-  const CameraSpec camera = ortho_camera(40, 1.2);
+  const CameraSpec camera = square_ortho_camera(40, 1.2);
   GroundTruthOptions options;
   options.directions_width = 256;
   const Image truth = render_ground_truth(scene, camera, map, options);
@@ -129,7 +128,7 @@ TEST(GroundTruth, SmallSourceMatchesOneLightImage) {
   mat.diffuse = physics::brdf::DiffuseModel::kOrenNayar;
   mat.sigma_rad = 0.35;
   mat.albedo = {0.6, 0.5, 0.4};
-  expect_matches_one_light(lone_sphere(mat), ortho_camera(48, 1.2), 0.0, 0.01);
+  expect_matches_one_light(lone_sphere(mat), square_ortho_camera(48, 1.2), 0.0, 0.01);
 }
 
 // A sphere above a plane under a 2-degree disc at 45 degrees: the plane sees none of it in the
@@ -141,9 +140,10 @@ TEST(GroundTruth, SourceVisibilityIsTheShareOfTheDiscSeen) {
   scene.materials.push_back(m);
   scene.spheres.push_back({{0, 0, 1}, 0.3, 0});
   scene.planes.push_back({{0, 0, 0}, {0, 0, 1}, 2.0, 2.0, 0});
-  const CameraSpec camera = ortho_camera(96, 3.0);
+  const CameraSpec camera = square_ortho_camera(96, 3.0);
   const Eigen::Vector3d dir = Eigen::Vector3d(1, 0, 1).normalized();
-  const Image visibility = render_source_visibility(scene, camera, dir, 2.0 * kPi / 180);
+  const Image visibility =
+      render_source_visibility(scene, camera, dir, 2.0 * std::numbers::pi / 180);
   ASSERT_EQ(visibility.channels, 1);
   // The pixel whose surface point is nearest `at` (on the plane: the camera looks down -z).
   const auto hits = trace_camera(scene, camera);
@@ -165,14 +165,15 @@ TEST(GroundTruth, SourceVisibilityIsTheShareOfTheDiscSeen) {
 TEST(GroundTruth, RotationTurnsTheMapAboutY) {
   physics::brdf::Material mat;
   mat.albedo = {0.6, 0.6, 0.6};
-  expect_matches_one_light(lone_sphere(mat), ortho_camera(48, 1.2), 90.0, 0.01);
-  expect_matches_one_light(lone_sphere(mat), ortho_camera(48, 1.2), -40.0, 0.01);
+  expect_matches_one_light(lone_sphere(mat), square_ortho_camera(48, 1.2), 90.0, 0.01);
+  expect_matches_one_light(lone_sphere(mat), square_ortho_camera(48, 1.2), -40.0, 0.01);
 }
 
 TEST(GroundTruth, DefaultSceneWithShadowsMatchesOneLightUnderSmallSource) {
   // The source stands 19 deg above the relief's plane: bumps and ridges cast long shadows whose
   // edges the 4 deg disc blurs. Inside and outside them, truth and one-light image agree.
-  const Agreement a = compare_with_one_light(default_scene(), ortho_camera(96, 2.4), 0.0, 0.02);
+  const Agreement a =
+      compare_with_one_light(default_scene(), square_ortho_camera(96, 2.4), 0.0, 0.02);
   EXPECT_GT(a.agree, 4000);
   EXPECT_LT(a.disagree, a.agree / 10) << "penumbra pixels lit in both: " << a.disagree;
   EXPECT_LT(a.penumbra, a.agree / 10);
@@ -183,7 +184,7 @@ TEST(GroundTruth, BlockVisibilityApproximatesExact) {
   const physics::EnvironmentMap map(make_studio(256));
   GroundTruthOptions options;
   options.directions_width = 128;
-  const CameraSpec camera = ortho_camera(48, 2.4);
+  const CameraSpec camera = square_ortho_camera(48, 2.4);
   const Image exact = render_ground_truth(scene, camera, map, options);
   options.visibility_block = 4;
   const Image blocks = render_ground_truth(scene, camera, map, options);
@@ -195,13 +196,13 @@ TEST(GroundTruth, CoverageRestrictsDirections) {
   physics::brdf::Material mat;
   const Scene scene = lone_sphere(mat);
   const physics::EnvironmentMap map(make_small_source(256));
-  const CameraSpec camera = ortho_camera(24, 1.2);
+  const CameraSpec camera = square_ortho_camera(24, 1.2);
   GroundTruthOptions all;
   all.directions_width = 128;
   const Image full = render_ground_truth(scene, camera, map, all);
   GroundTruthOptions covered = all;
   covered.covered_by_leds = {small_source_direction(), Eigen::Vector3d(0, 1, 0)};
-  covered.coverage_radius_rad = 10 * kPi / 180;
+  covered.coverage_radius_rad = 10 * std::numbers::pi / 180;
   EXPECT_TRUE(ls::testing::ImageNear(render_ground_truth(scene, camera, map, covered), full, 1e-6));
   covered.covered_by_leds = {-small_source_direction()};
   const Image none = render_ground_truth(scene, camera, map, covered);
@@ -219,7 +220,7 @@ TEST(Envmaps, ShapesAndPower) {
   }
   // The small source gives irradiance 1 at normal incidence: its integral is 2 / (1 + cos r).
   const physics::EnvironmentMap small(make_small_source(512));
-  const double r = kSmallSourceRadiusDeg * kPi / 180;
+  const double r = kSmallSourceRadiusDeg * std::numbers::pi / 180;
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(small.integral()[k], 2 / (1 + std::cos(r)), 0.01);
   // Its light comes from where small_source_direction says.
   const Eigen::Vector2d uv = physics::EnvironmentMap::uv(small_source_direction());
@@ -229,8 +230,8 @@ TEST(Envmaps, ShapesAndPower) {
   // The sun: a limb-darkened disc of power L0 pi r^2 * 0.8, far brighter than the sky.
   const physics::EnvironmentMap sky(make_sky_with_sun(1024));
   const Eigen::Vector3d sun = sky_sun_direction();
-  EXPECT_NEAR(std::asin(sun.y()) * 180 / kPi, 35.0, 1e-9);
-  const double rs = kSunRadiusDeg * kPi / 180;
+  EXPECT_NEAR(std::asin(sun.y()) * 180 / std::numbers::pi, 35.0, 1e-9);
+  const double rs = kSunRadiusDeg * std::numbers::pi / 180;
   double sun_power = 0, sky_power = 0, zenith = sky.radiance().at(0, 0, 2);
   for (int y = 0; y < sky.height(); ++y) {
     for (int x = 0; x < sky.width(); ++x) {
@@ -239,7 +240,7 @@ TEST(Envmaps, ShapesAndPower) {
       (sky.pixel_direction(x, y).dot(sun) > std::cos(rs + 0.01) ? sun_power : sky_power) += g * dw;
     }
   }
-  const double disc = 2500 * 0.93 * kPi * rs * rs * 0.8;
+  const double disc = 2500 * 0.93 * std::numbers::pi * rs * rs * 0.8;
   EXPECT_NEAR(sun_power, disc, 0.05 * disc);  // Plus a little sky inside the test cone.
   EXPECT_GT(sun_power, 0.3 * sky_power);
   EXPECT_GT(zenith, sky.radiance().at(0, sky.height() / 2 - 1, 2) * 0.5);  // Blue overhead.

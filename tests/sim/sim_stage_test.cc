@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <numbers>
 
 #include "lightstage/errors.h"
 #include "sim/noisy_field.h"
@@ -12,8 +13,6 @@
 
 namespace ls::sim {
 namespace {
-
-constexpr double kPi = physics::brdf::kPi;
 
 int add_lambert(Scene& scene, const Eigen::Vector3d& albedo) {
   SceneMaterial m;
@@ -62,7 +61,7 @@ TEST(TraceCamera, LambertSphereUnderOneLightMatchesClosedForm) {
                                 std::sqrt(1 - r2 / (radius * radius)));
         EXPECT_LT((hits[y * 64 + x].normal - n).norm(), 1e-9);
         const double cos_l = n.dot(light);
-        expected = albedo / kPi * std::max(0.0, cos_l);
+        expected = albedo / std::numbers::pi * std::max(0.0, cos_l);
         (cos_l > 0 ? lit : dark_side)++;
       } else {
         EXPECT_FALSE(hits[y * 64 + x].hit) << x << "," << y;
@@ -87,7 +86,7 @@ TEST(TraceCamera, PerspectiveProjectionPutsTheSphereWhereExpected) {
   camera.distance_m = 4;
   const auto hits = trace_camera(scene, camera);
   // Pinhole at (0, 0, 4): the centre projects to pixel (W/2 + f x/d, H/2 - f y/d), f in pixels.
-  const double f_px = 0.5 * camera.height / std::tan(15 * kPi / 180);
+  const double f_px = 0.5 * camera.height / std::tan(15 * std::numbers::pi / 180);
   const double px = 0.5 * camera.width + f_px * center.x() / camera.distance_m;
   const double py = 0.5 * camera.height - f_px * center.y() / camera.distance_m;
   const SurfaceHit& h = hits[int(py) * camera.width + int(px)];
@@ -136,7 +135,7 @@ TEST(Shadows, SphereCastsShadowOnPlane) {
   const Eigen::Vector2i shadowed = pixel_at(-0.667, 0.0), lit = pixel_at(0.667, 0.0);
   EXPECT_EQ(hits[shadowed.y() * 96 + shadowed.x()].object, 1);
   EXPECT_FLOAT_EQ(image.at(shadowed.x(), shadowed.y(), 0), 0.0f);
-  EXPECT_NEAR(image.at(lit.x(), lit.y(), 0), 0.5 / kPi * 0.6, 1e-6);
+  EXPECT_NEAR(image.at(lit.x(), lit.y(), 0), 0.5 / std::numbers::pi * 0.6, 1e-6);
   EXPECT_FALSE(visible(scene, hits[shadowed.y() * 96 + shadowed.x()].position, light));
   EXPECT_TRUE(visible(scene, hits[lit.y() * 96 + lit.x()].position, light));
 }
@@ -165,7 +164,8 @@ TEST(Shadows, HeightFieldBumpShadowsItsLowSideOnlyForGrazingLight) {
   const CameraSpec camera = ortho_camera(128, 2.0);
   const auto hits = trace_camera(scene, camera);
   // Light from +X at 15 deg above the field's plane; the low side is -X.
-  const Eigen::Vector3d grazing(std::cos(15 * kPi / 180), 0, std::sin(15 * kPi / 180));
+  const Eigen::Vector3d grazing(std::cos(15 * std::numbers::pi / 180), 0,
+                                std::sin(15 * std::numbers::pi / 180));
   const Eigen::Vector3d overhead(0, 0, 1);
   const Image g = render_one_light(scene, hits, grazing);
   const Image o = render_one_light(scene, hits, overhead);
@@ -177,10 +177,10 @@ TEST(Shadows, HeightFieldBumpShadowsItsLowSideOnlyForGrazingLight) {
   EXPECT_NEAR(ground.position.z(), 0.0, 1e-4);
   EXPECT_GT(ground.normal.dot(grazing), 0.2);  // Faces the light: a shadow, not the back side.
   EXPECT_FLOAT_EQ(g.at(32, y, 0), 0.0f);
-  EXPECT_NEAR(o.at(32, y, 0), 0.5 / kPi * ground.normal.z(), 1e-5);
+  EXPECT_NEAR(o.at(32, y, 0), 0.5 / std::numbers::pi * ground.normal.z(), 1e-5);
   // The same distance on the lit side (+X) is lit by the grazing light.
   const SurfaceHit& lit_side = hits[y * 128 + 96];
-  EXPECT_NEAR(g.at(96, y, 0), 0.5 / kPi * lit_side.normal.dot(grazing), 1e-5);
+  EXPECT_NEAR(g.at(96, y, 0), 0.5 / std::numbers::pi * lit_side.normal.dot(grazing), 1e-5);
   EXPECT_GT(g.at(96, y, 0), 0.03f);
   // The bump's own peak is lit by both.
   EXPECT_GT(g.at(64, y, 0), 0.0f);
@@ -195,7 +195,8 @@ TEST(Shadows, HeightFieldShadowsOtherObjects) {
   Scene scene = bump_scene(0.4);
   // A small sphere low beside the bump on its far side from the light.
   scene.spheres.push_back({{-0.35, 0, 0.06}, 0.05, 0});
-  const Eigen::Vector3d grazing(std::cos(10 * kPi / 180), 0, std::sin(10 * kPi / 180));
+  const Eigen::Vector3d grazing(std::cos(10 * std::numbers::pi / 180), 0,
+                                std::sin(10 * std::numbers::pi / 180));
   const Eigen::Vector3d beside_sphere(-0.29, 0, 0.06);
   EXPECT_FALSE(visible(scene, beside_sphere, grazing));
   EXPECT_TRUE(visible(scene, beside_sphere, Eigen::Vector3d(0, 0, 1)));
@@ -218,7 +219,7 @@ UniformRig uniform_rig(double albedo = 0.5) {
   rig.stage.camera = ortho_camera(64, 1.0);
   rig.stage.camera.radiometric_scale = 1.0;
   rig.stage.camera.bit_depth = 12;
-  rig.radiance = albedo / kPi * rig.stage.leds[0].intensity;
+  rig.radiance = albedo / std::numbers::pi * rig.stage.leds[0].intensity;
   return rig;
 }
 
@@ -417,7 +418,8 @@ TEST(SimStage, FrameSumsLitLedsTimesTheirIrradiance) {
   const RawFrame f = sim.camera().capture({exposure_s, 1.0, 8}).raw;
   const SimulatedSensor& s = stage.camera.simulated;
   for (int c = 0; c < 3; ++c) {
-    const double radiance = 0.5 / kPi * (0.5 * 1.0 + stage.leds[1].color_gain[c] * 0.8);
+    const double radiance =
+        0.5 / std::numbers::pi * (0.5 * 1.0 + stage.leds[1].color_gain[c] * 0.8);
     const double x =
         radiance * exposure_s + s.dark_current_e_per_s * exposure_s / s.full_well_e + s.black_level;
     double mean = 0;
@@ -426,7 +428,7 @@ TEST(SimStage, FrameSumsLitLedsTimesTheirIrradiance) {
     EXPECT_NEAR(mean, x * 4095, 1.0) << "channel " << c;
   }
   // The cached ideal image is R(x, l) for LED 1: albedo/pi * cos.
-  EXPECT_NEAR(sim.one_light_image(1).at(5, 5, 0), 0.5 / kPi * 0.8, 1e-6);
+  EXPECT_NEAR(sim.one_light_image(1).at(5, 5, 0), 0.5 / std::numbers::pi * 0.8, 1e-6);
   const CameraInfo info = sim.camera().info();
   EXPECT_EQ(info.width, 32);
   EXPECT_EQ(info.bit_depth, 12);
@@ -530,7 +532,7 @@ TEST(SimStage, NearLedLightsALambertPlaneAsCosOverRSquared) {
       const Eigen::Vector2d xy = ortho_pixel_xy(stage.camera, x, y);
       const Eigen::Vector3d to_led = led_pos - Eigen::Vector3d(xy.x(), xy.y(), 0);
       const double r = to_led.norm();
-      const double expected = albedo / kPi * (to_led.z() / r) * (d0 * d0) / (r * r);
+      const double expected = albedo / std::numbers::pi * (to_led.z() / r) * (d0 * d0) / (r * r);
       min_r = std::min(min_r, r);
       max_r = std::max(max_r, r);
       for (int c = 0; c < 3; ++c) {

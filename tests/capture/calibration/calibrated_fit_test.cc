@@ -19,7 +19,7 @@
 namespace ls {
 namespace {
 
-constexpr int kSize = 48;
+constexpr int kFitImageSize = 48;
 
 struct StageFit {
   const char* name;
@@ -30,7 +30,7 @@ struct StageFit {
 TEST(CalibrationSim, FittingWithTheCalibratedStageBeatsTheDrawing) {
   const testing::DistantDome& dome = testing::distant_dome();
   Stage truth = dome.perturbed.truth;
-  truth.camera.width = truth.camera.height = kSize;
+  truth.camera.width = truth.camera.height = kFitImageSize;
   sim::SimStage sim_stage(truth, sim::default_scene(), /*seed=*/5);
   std::vector<StageFit> fits = {
       {"drawn", &dome.nominal, {}}, {"calibrated", &dome.calibrated, {}}, {"true", &truth, {}}};
@@ -49,17 +49,17 @@ TEST(CalibrationSim, FittingWithTheCalibratedStageBeatsTheDrawing) {
     f.maps = relight::fit_models(testing::field_for(sim_stage, truth, *f.stage), options);
   }
   // Pixels every fit fitted (the same pixels for all three).
-  Image mask(kSize, kSize, 1, 1.0f);
+  Image mask(kFitImageSize, kFitImageSize, 1, 1.0f);
   for (const StageFit& f : fits) {
-    for (int y = 0; y < kSize; ++y) {
-      for (int x = 0; x < kSize; ++x) {
+    for (int y = 0; y < kFitImageSize; ++y) {
+      for (int x = 0; x < kFitImageSize; ++x) {
         if (f.maps.at(x, y, relight::kMapFlags) != 0) mask.at(x, y, 0) = 0;
       }
     }
   }
   int pixels = 0;
   for (float m : mask.pixels) pixels += m != 0;
-  ASSERT_GT(pixels, kSize * kSize / 2);
+  ASSERT_GT(pixels, kFitImageSize * kFitImageSize / 2);
 
   std::vector<double> normal_error_deg(fits.size(), 0.0);
   for (size_t i = 0; i < fits.size(); ++i) {

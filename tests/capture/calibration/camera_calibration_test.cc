@@ -6,14 +6,13 @@
 
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 
 #include "lightstage/errors.h"
 #include "sim/calibration_targets.h"
 
 namespace ls {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 CameraSpec pinhole_camera() {
   CameraSpec c;
@@ -71,7 +70,8 @@ IntrinsicsError calibrate_and_compare(const Views& views, const CameraSpec& came
   EXPECT_TRUE(cal.ok) << cal.problem;
   IntrinsicsError e;
   for (const auto& view : cal.views) e.found += view.found;
-  const double true_f = 0.5 * camera.height / std::tan(0.5 * camera.fov_y_deg * kPi / 180.0);
+  const double true_f =
+      0.5 * camera.height / std::tan(0.5 * camera.fov_y_deg * std::numbers::pi / 180.0);
   e.focal_rel = std::max(std::abs(cal.fx / true_f - 1), std::abs(cal.fy / true_f - 1));
   e.principal_px = std::hypot(cal.cx - 0.5 * camera.width, cal.cy - 0.5 * camera.height);
   e.fov_y_deg = cal.fov_y_deg();

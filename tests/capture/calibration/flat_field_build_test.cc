@@ -19,6 +19,7 @@
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
 #include "tests/capture/synthetic_camera.h"
+#include "tests/support/instant_sequencer.h"
 #include "tests/support/test_support.h"
 
 namespace ls {
@@ -156,16 +157,10 @@ double field_error(const capture::ReflectanceField& field, const Stage& stage) {
   return std::sqrt(sum_sq / ref_sq);
 }
 
-SequencerOptions instant() {
-  SequencerOptions options;
-  options.sleep = [](double) {};
-  return options;
-}
-
 capture::ReflectanceField capture_and_build(const std::filesystem::path& dir, const Stage& stage,
                                             BeamRig& rig, capture::BuildSummary* summary) {
   Session session = Session::create(dir, stage, {});
-  run_capture(session, rig, rig, instant());
+  run_capture(session, rig, rig, ls::testing::instant_sequencer());
   return capture::build_field(session, {}, summary);
 }
 

@@ -17,12 +17,13 @@
 #include "relight/fit/normals.h"
 #include "sim/scene.h"
 #include "sim/sim_stage.h"
+#include "tests/support/instant_sequencer.h"
 #include "tests/support/test_support.h"
 
 namespace ls {
 namespace {
 
-constexpr int kSize = 64;
+constexpr int kImageSize = 64;
 constexpr double kDomeRadiusM = 0.8;
 
 // 60 LEDs over the hemisphere in front of the surface (toward the camera, +Z), above 15 deg.
@@ -33,7 +34,7 @@ Stage near_stage() {
   }
   Stage stage = stage_with_directions(dirs);
   for (Led& led : stage.leds) led.distance_m = kDomeRadiusM;
-  stage.camera.width = stage.camera.height = kSize;
+  stage.camera.width = stage.camera.height = kImageSize;
   stage.camera.ortho_height_m = 0.7;
   return stage;
 }
@@ -49,12 +50,6 @@ sim::Scene bumpy_surface() {
                                 {"x": 0.12, "y": -0.1, "height": 0.03, "width": 0.08}]}}
     ]})json",
                           "<bumpy>");
-}
-
-SequencerOptions instant() {
-  SequencerOptions options;
-  options.sleep = [](double) {};
-  return options;
 }
 
 struct AngleError {
@@ -100,9 +95,9 @@ TEST(NearField, PerPixelDirectionsAndDistancesGiveTheNormals) {
   for (Led& led : distant.leds) led.distance_m.reset();
   sim::SimStage sim(stage, bumpy_surface(), /*seed=*/3);
   Session near_session = Session::create(dir / "near", stage, {});
-  run_capture(near_session, sim.lights(), sim.camera(), instant());
+  run_capture(near_session, sim.lights(), sim.camera(), ls::testing::instant_sequencer());
   Session far_session = Session::create(dir / "far", distant, {});
-  run_capture(far_session, sim.lights(), sim.camera(), instant());
+  run_capture(far_session, sim.lights(), sim.camera(), ls::testing::instant_sequencer());
   capture::BuildSummary summary;
   const capture::ReflectanceField near_field = capture::build_field(near_session, {}, &summary);
   const capture::ReflectanceField far_field = capture::build_field(far_session, {});
@@ -119,9 +114,10 @@ TEST(NearField, PerPixelDirectionsAndDistancesGiveTheNormals) {
   EXPECT_LT(
       (*reread.lights()[7].position_in_stage - *near_field.lights()[7].position_in_stage).norm(),
       1e-12);
-  const Eigen::Vector3d corner = capture::reference_point(*reread.view, kSize, kSize, 0, 0);
-  EXPECT_NEAR(corner.x(), -0.35 + 0.35 / kSize, 1e-12);
-  EXPECT_NEAR(corner.y(), 0.35 - 0.35 / kSize, 1e-12);
+  const Eigen::Vector3d corner =
+      capture::reference_point(*reread.view, kImageSize, kImageSize, 0, 0);
+  EXPECT_NEAR(corner.x(), -0.35 + 0.35 / kImageSize, 1e-12);
+  EXPECT_NEAR(corner.y(), 0.35 - 0.35 / kImageSize, 1e-12);
   EXPECT_NEAR(corner.z(), 0.0, 1e-12);
   EXPECT_LT((capture::PixelLightDirs(reread, 0, 0)(7) -
              (*reread.lights()[7].position_in_stage - corner).normalized())

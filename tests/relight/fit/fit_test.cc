@@ -6,8 +6,10 @@
 #include <cmath>
 #include <iostream>
 #include <limits>
+#include <numbers>
 #include <random>
 
+#include "lightstage/angles.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 #include "sim/region_materials.h"
@@ -21,9 +23,6 @@ namespace {
 
 using fit_testing::render_field;
 using fit_testing::SimField;
-
-constexpr double kPi = physics::brdf::kPi;
-constexpr double kRadToDeg = 180.0 / kPi;
 
 // The scene of most tests here, sim::three_region_spheres(): matte (Lambert), rough matte
 // (Oren-Nayar, sigma 30 deg) and glossy (Lambert + Torrance-Sparrow) spheres in a row. Object

@@ -9,6 +9,7 @@
 #include <cstring>
 #include <iostream>
 #include <limits>
+#include <numbers>
 
 #include "lightstage/errors.h"
 #include "lightstage/image_metrics.h"
@@ -25,8 +26,6 @@ namespace {
 
 using fit_testing::render_field;
 using fit_testing::SimField;
-
-constexpr double kPi = physics::brdf::kPi;
 
 // sim::three_region_spheres(): matte (Lambert), rough (Oren-Nayar, sigma 30 deg), glossy (Lambert +
 // Torrance-Sparrow) spheres in a row. Object index = sphere index.

@@ -7,6 +7,7 @@
 #include <optional>
 #include <random>
 
+#include "lightstage/angles.h"
 #include "lightstage/errors.h"
 #include "lightstage/stage.h"
 #include "relight/fit/fit.h"
@@ -18,8 +19,6 @@
 
 namespace ls::relight {
 namespace {
-
-constexpr double kRadToDeg = 180.0 / physics::brdf::kPi;
 
 using fit_testing::render_field;
 using fit_testing::SimField;

@@ -19,8 +19,6 @@ using ls::relight::integrate_environment;
 using ls::relight::LightCells;
 using ls::relight::LightWeights;
 
-constexpr double kPi = std::numbers::pi;
-
 double total_sr(const LightCells& cells) {
   double sum = cells.uncovered_sr;
   for (double s : cells.solid_angle_sr) sum += s;
@@ -55,22 +53,22 @@ TEST(LightCellsTest, DefaultDomeSumsTo4PiAndEveryCellLiesInItsCoverageCap) {
   const std::vector<Eigen::Vector3d> dirs = ls::default_stage().led_directions();
   ASSERT_GT(dirs.size(), 100u);
   const LightCells cells = LightCells::compute(dirs, 0.0, /*resolution=*/1024);
-  EXPECT_NEAR(total_sr(cells), 4 * kPi, 1e-6 * 4 * kPi);
+  EXPECT_NEAR(total_sr(cells), 4 * std::numbers::pi, 1e-6 * 4 * std::numbers::pi);
   EXPECT_NEAR(cells.coverage_radius_rad, ls::max_nearest_neighbour_angle(dirs), 0.0);
   // The dome stops about 11.5 degrees below the horizon: most of the lower hemisphere is open.
-  EXPECT_GT(cells.uncovered_sr, 0.5 * 2 * kPi);
-  EXPECT_LT(cells.uncovered_sr, 2 * kPi);
+  EXPECT_GT(cells.uncovered_sr, 0.5 * 2 * std::numbers::pi);
+  EXPECT_LT(cells.uncovered_sr, 2 * std::numbers::pi);
   // A cell holds directions within the coverage radius of its own LED (the nearest one), so it
   // lies inside that spherical cap: at most 2 pi (1 - cos r) sr, up to the grid's quadrature error
   // (1%).
-  const double cap_sr = 2 * kPi * (1 - std::cos(cells.coverage_radius_rad));
+  const double cap_sr = 2 * std::numbers::pi * (1 - std::cos(cells.coverage_radius_rad));
   for (size_t l = 0; l < dirs.size(); ++l) {
     EXPECT_GT(cells.solid_angle_sr[l], 0.0) << "LED " << l;  // Every LED stands for something.
     EXPECT_LT(cells.solid_angle_sr[l], 1.01 * cap_sr) << "LED " << l;
   }
   // The covered sphere is at least what the caps of the LEDs reach minus their overlaps, and at
   // most the sum of the caps.
-  EXPECT_LT(4 * kPi - cells.uncovered_sr, dirs.size() * cap_sr);
+  EXPECT_LT(4 * std::numbers::pi - cells.uncovered_sr, dirs.size() * cap_sr);
 
   std::vector<double> sorted = cells.solid_angle_sr;
   std::sort(sorted.begin(), sorted.end());
@@ -78,7 +76,7 @@ TEST(LightCellsTest, DefaultDomeSumsTo4PiAndEveryCellLiesInItsCoverageCap) {
             << " LEDs, cell solid angle min/median/max = " << sorted.front() << " / "
             << sorted[sorted.size() / 2] << " / " << sorted.back() << " sr (cap " << cap_sr
             << " sr), uncovered " << cells.uncovered_sr << " sr, coverage radius "
-            << cells.coverage_radius_rad * 180 / kPi << " deg\n";
+            << cells.coverage_radius_rad * 180 / std::numbers::pi << " deg\n";
   ::testing::Test::RecordProperty("cell_sr_min", std::to_string(sorted.front()));
   ::testing::Test::RecordProperty("cell_sr_median", std::to_string(sorted[sorted.size() / 2]));
   ::testing::Test::RecordProperty("cell_sr_max", std::to_string(sorted.back()));
@@ -90,8 +88,9 @@ TEST(LightCellsTest, RandomPointSetsSumTo4Pi) {
       const LightCells cells =
           LightCells::compute(random_directions(count, 11 + count), coverage_rad,
                               /*resolution=*/256, /*supersample=*/3);
-      EXPECT_NEAR(total_sr(cells), 4 * kPi, 1e-6 * 4 * kPi) << count << " " << coverage_rad;
-      if (coverage_rad > kPi) {
+      EXPECT_NEAR(total_sr(cells), 4 * std::numbers::pi, 1e-6 * 4 * std::numbers::pi)
+          << count << " " << coverage_rad;
+      if (coverage_rad > std::numbers::pi) {
         EXPECT_EQ(cells.uncovered_sr, 0.0);
       }
     }
@@ -120,9 +119,10 @@ TEST(LightCellsTest, MatchesBruteForceAssignment) {
 
 TEST(LightCellsTest, SixAxesGetEqualCells) {
   const LightCells cells = LightCells::compute(axis_directions(), 0.0, /*resolution=*/1024);
-  EXPECT_NEAR(cells.coverage_radius_rad, kPi / 2, 1e-12);
+  EXPECT_NEAR(cells.coverage_radius_rad, std::numbers::pi / 2, 1e-12);
   EXPECT_EQ(cells.uncovered_sr, 0.0);
-  for (double s : cells.solid_angle_sr) EXPECT_NEAR(s, 4 * kPi / 6, 1e-3 * 4 * kPi / 6);
+  for (double s : cells.solid_angle_sr)
+    EXPECT_NEAR(s, 4 * std::numbers::pi / 6, 1e-3 * 4 * std::numbers::pi / 6);
 }
 
 // LEDs every degree round the horizon and rings above it, coverage 10 degrees: what is left
@@ -130,19 +130,19 @@ TEST(LightCellsTest, SixAxesGetEqualCells) {
 TEST(LightCellsTest, HemisphereDomeLeavesTheLowerCapUncovered) {
   std::vector<Eigen::Vector3d> dirs;
   for (int ring = 0; ring <= 10; ++ring) {
-    const double elevation = ring * 8.0 * kPi / 180;
+    const double elevation = ring * 8.0 * std::numbers::pi / 180;
     const int count = std::max(1, int(std::ceil(360 * std::cos(elevation))));
     for (int k = 0; k < count; ++k) {
-      const double azimuth = 2 * kPi * k / count;
+      const double azimuth = 2 * std::numbers::pi * k / count;
       dirs.emplace_back(std::cos(elevation) * std::sin(azimuth), std::sin(elevation),
                         std::cos(elevation) * std::cos(azimuth));
     }
   }
-  const double coverage_rad = 10.0 * kPi / 180;
+  const double coverage_rad = 10.0 * std::numbers::pi / 180;
   const LightCells cells = LightCells::compute(dirs, coverage_rad, /*resolution=*/1024);
-  const double lower_cap_sr = 2 * kPi * (1 - std::sin(coverage_rad));
+  const double lower_cap_sr = 2 * std::numbers::pi * (1 - std::sin(coverage_rad));
   EXPECT_NEAR(cells.uncovered_sr, lower_cap_sr, 2e-3 * lower_cap_sr);
-  EXPECT_NEAR(total_sr(cells), 4 * kPi, 1e-6 * 4 * kPi);
+  EXPECT_NEAR(total_sr(cells), 4 * std::numbers::pi, 1e-6 * 4 * std::numbers::pi);
 }
 
 EnvironmentMap constant_map(int width, const Eigen::Vector3f& value) {
@@ -169,9 +169,9 @@ TEST(LightCellsTest, ConstantMapGivesRadianceTimesCellSolidAngle) {
     }
     for (int ch = 0; ch < 3; ++ch) {
       EXPECT_NEAR(weights.uncovered_irradiance_rgb[ch], c[ch] * cells.uncovered_sr, 1e-9);
-      EXPECT_NEAR(weights.total_irradiance_rgb[ch], c[ch] * 4 * kPi, 1e-9);
+      EXPECT_NEAR(weights.total_irradiance_rgb[ch], c[ch] * 4 * std::numbers::pi, 1e-9);
     }
-    EXPECT_NEAR(weights.uncovered_fraction(), cells.uncovered_sr / (4 * kPi), 1e-9);
+    EXPECT_NEAR(weights.uncovered_fraction(), cells.uncovered_sr / (4 * std::numbers::pi), 1e-9);
   }
 }
 
@@ -286,8 +286,8 @@ TEST(LightCellsTest, RotationSequenceConservesTheMapAndOppositeRotationsCancelTh
   double worst_total = 0, worst_sum = 0, worst_pair = 0, worst_turn = 0;
   for (const LightWeights& w : turns) {
     for (int c = 0; c < 3; ++c) {
-      worst_total =
-          std::max(worst_total, std::abs(w.total_irradiance_rgb[c] / (4 * kPi * a[c]) - 1));
+      worst_total = std::max(
+          worst_total, std::abs(w.total_irradiance_rgb[c] / (4 * std::numbers::pi * a[c]) - 1));
       double sum = w.uncovered_irradiance_rgb[c];
       for (size_t l = 0; l < dirs.size(); ++l) sum += w.irradiance_rgb[3 * l + c];
       worst_sum = std::max(worst_sum, std::abs(sum / w.total_irradiance_rgb[c] - 1));
@@ -315,8 +315,8 @@ TEST(LightCellsTest, RotationSequenceConservesTheMapAndOppositeRotationsCancelTh
 }
 
 TEST(LightCellsTest, MaxNearestNeighbourAngle) {
-  EXPECT_NEAR(ls::max_nearest_neighbour_angle(axis_directions()), kPi / 2, 1e-12);
-  EXPECT_EQ(ls::max_nearest_neighbour_angle({{0, 1, 0}}), kPi);
+  EXPECT_NEAR(ls::max_nearest_neighbour_angle(axis_directions()), std::numbers::pi / 2, 1e-12);
+  EXPECT_EQ(ls::max_nearest_neighbour_angle({{0, 1, 0}}), std::numbers::pi);
   const auto at_angle = [](double rad) { return Eigen::Vector3d(std::sin(rad), std::cos(rad), 0); };
   EXPECT_NEAR(ls::max_nearest_neighbour_angle({at_angle(0), at_angle(0.1), at_angle(0.3)}), 0.2,
               1e-12);

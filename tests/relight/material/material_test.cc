@@ -30,7 +30,6 @@ namespace {
 
 namespace fs = std::filesystem;
 using physics::brdf::Geometry;
-constexpr double kPi = std::numbers::pi;
 
 // Integral over the hemisphere of f(wi, wo) cos(theta_i) d wi, per channel, by the midpoint rule
 // in (cos theta, phi).
@@ -41,12 +40,12 @@ Eigen::Vector3d albedo_integral(const Brdf& brdf, const Eigen::Vector3d& wo) {
   for (int i = 0; i < kTheta; ++i) {
     const double z = (i + 0.5) / kTheta, r = std::sqrt(1 - z * z);
     for (int j = 0; j < kPhi; ++j) {
-      const double phi = 2 * kPi * (j + 0.5) / kPhi;
+      const double phi = 2 * std::numbers::pi * (j + 0.5) / kPhi;
       const Eigen::Vector3d wi(r * std::cos(phi), r * std::sin(phi), z);
       sum += brdf(Geometry<double>::from_local(wi, wo)) * z;
     }
   }
-  return sum * (2 * kPi / (kTheta * kPhi));
+  return sum * (2 * std::numbers::pi / (kTheta * kPhi));
 }
 
 TEST(GgxBrdf, LambertBaseAloneReflectsItsAlbedo) {
@@ -110,8 +109,8 @@ TEST(GgxConversion, LambertIsExactAndTheDemoMaterialsAreClose) {
             << glossy.f0 << ", error " << glossy.error.pixels[0] << "\n";
   EXPECT_NEAR(glossy.f0, 0.4, 1e-6);
   EXPECT_LT(glossy.error.pixels[0], 0.20);
-  const GgxConversion clay = convert_to_ggx(
-      one_pixel(FitModel::kOrenNayar, Eigen::Vector3d(0.7, 0.45, 0.25), 25 * kPi / 180, 0, 0.2));
+  const GgxConversion clay = convert_to_ggx(one_pixel(
+      FitModel::kOrenNayar, Eigen::Vector3d(0.7, 0.45, 0.25), 25 * std::numbers::pi / 180, 0, 0.2));
   std::cout << "rough clay: base " << clay.base_color.pixels[0] << ", error "
             << clay.error.pixels[0] << "\n";
   EXPECT_LT(clay.error.pixels[0], 0.10);

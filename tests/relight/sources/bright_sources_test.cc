@@ -7,17 +7,17 @@
 #include <numbers>
 #include <random>
 
+#include "lightstage/angles.h"
 #include "relight/sources/source_render.h"
 
 namespace {
 
 using ls::Image;
+using ls::kDegToRad;
 using ls::physics::EnvironmentMap;
 
-constexpr double kDeg = std::numbers::pi / 180.0;
-
 double angle_deg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return std::atan2(a.normalized().cross(b.normalized()).norm(), a.normalized().dot(b)) / kDeg;
+  return std::atan2(a.normalized().cross(b.normalized()).norm(), a.normalized().dot(b)) / kDegToRad;
 }
 
 // A uniform sky of radiance `sky` with a disc of radius radius_deg and radiance `disc` toward
@@ -30,7 +30,7 @@ DiscMap disc_map(int width, const Eigen::Vector3d& centre, double radius_deg, do
                  double sky) {
   DiscMap out{Image(width, width / 2, 3)};
   const EnvironmentMap shape(Image(width, width / 2, 3));
-  const double cos_r = std::cos(radius_deg * kDeg);
+  const double cos_r = std::cos(radius_deg * kDegToRad);
   for (int y = 0; y < width / 2; ++y) {
     for (int x = 0; x < width; ++x) {
       int inside = 0;
@@ -62,7 +62,7 @@ TEST(BrightSources, ASmallDiscIsFoundWithItsDirectionSizeAndEnergy) {
   const auto& source = split.sources[0];
   // A pixel is 0.7 deg: the centroid of a symmetric disc lands within a small part of one.
   EXPECT_LT(angle_deg(source.dir, centre), 0.1);
-  EXPECT_NEAR(source.radius_rad / kDeg, 2.0, 0.2);
+  EXPECT_NEAR(source.radius_rad / kDegToRad, 2.0, 0.2);
   // The sky under the disc stays in the map: the source holds the disc's own light.
   EXPECT_NEAR(source.irradiance_rgb[0], disc.disc_integral, 0.01 * disc.disc_integral);
   const double total = sum_over_sphere(map)[0];
