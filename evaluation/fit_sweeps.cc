@@ -132,8 +132,7 @@ void shadow_wedges(capture::ReflectanceField& field, const std::vector<SurfaceHi
       const Eigen::Vector3d& d = field.lights()[l].dir_in_stage;
       const double azimuth = std::fmod(
           std::atan2(d.dot(t2), d.dot(t1)) - start + 4 * std::numbers::pi, 2 * std::numbers::pi);
-      if (azimuth < fraction * 2 * std::numbers::pi)
-        px[3 * l] = px[3 * l + 1] = px[3 * l + 2] = 0.0f;
+      if (azimuth < fraction * 2 * std::numbers::pi) std::fill_n(px + 3 * size_t(l), 3, 0.0f);
     }
   }
 }
