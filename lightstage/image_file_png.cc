@@ -22,6 +22,7 @@
 #include <utility>
 
 #include "lightstage/image_file.h"
+#include "lightstage/image_file_png_samples.h"
 
 namespace ls::image_file {
 namespace {
@@ -129,52 +130,6 @@ bool encode_row(PngState& s, png_bytep row) {
 
 bool equals_ignoring_case(const std::string& a, const char* b) {
   return strcasecmp(a.c_str(), b) == 0;
-}
-
-// OIIO's premultiplication of a decoded row: integer codes, truncated; with a gAMA chunk (its
-// "oiio:Gamma" g), code * (alpha / max)^g in float, truncated.
-template <class T>
-void associate(T* px, int width, int channels, float gamma) {
-  constexpr unsigned kMax = std::numeric_limits<T>::max();
-  const int a = channels - 1;
-  const float inv_max = float(1.0 / kMax);
-  for (int x = 0; x < width; ++x, px += channels) {
-    const float k = gamma == 1.0f ? 0.0f : std::pow(float(px[a]) * inv_max, gamma);
-    for (int c = 0; c < a; ++c) {
-      px[c] = gamma == 1.0f ? T(unsigned(px[c]) * px[a] / kMax) : T(float(px[c]) * k);
-    }
-  }
-}
-
-// OIIO's division by alpha when writing (alpha 0 leaves the colour as it is).
-template <class T>
-void deassociate(T* px, int width, int channels, float gamma) {
-  constexpr unsigned kMax = std::numeric_limits<T>::max();
-  const int a = channels - 1;
-  for (int x = 0; x < width; ++x, px += channels) {
-    if (px[a] == 0) continue;
-    const float k = gamma == 1.0f ? 0.0f : std::pow(float(kMax) / float(px[a]), gamma);
-    for (int c = 0; c < a; ++c) {  // (Clamped in float: OIIO's cast overflows past 2^32.)
-      px[c] = gamma == 1.0f ? T(std::min(kMax, unsigned(px[c]) * kMax / px[a]))
-                            : T(std::min(float(kMax), float(px[c]) * k));
-    }
-  }
-}
-
-// Codes to float as OIIO converts them: code * (1 / max) in float.
-template <class T>
-float to_float(T v) {
-  return float(v) * (1.0f / float(std::numeric_limits<T>::max()));
-}
-
-// Float to codes as OIIO's vectorised conversion does: round half away from zero, clamped, NaN
-// to 0. (OIIO's scalar tail, used for the last values of each thread's share of a row, adds 0.5
-// instead, which differs only where x * max lies within a rounding of k + 0.5.)
-template <class T>
-T from_float(float x) {
-  constexpr float kMax = float(std::numeric_limits<T>::max());
-  if (std::isnan(x)) return 0;
-  return T(std::clamp(std::round(x * kMax), 0.0f, kMax));
 }
 
 class PngReader final : public Reader {
@@ -345,14 +300,14 @@ bool PngReader::rewind() {
 // A decoded row's codes associated with their alpha as OIIO does, then converted.
 template <class T>
 void emit(T* codes, const Spec& spec, float gamma, Sample as, unsigned char* out) {
-  if (spec.channels % 2 == 0) associate(codes, spec.width, spec.channels, gamma);
+  if (spec.channels % 2 == 0) png_samples::associate(codes, spec.width, spec.channels, gamma);
   for (int i = 0; i < spec.width * spec.channels; ++i) {
     const unsigned v = codes[i];
     const bool byte = sizeof(T) == 1;
     auto* out16 = reinterpret_cast<std::uint16_t*>(out);
     if (as == Sample::kUInt8) out[i] = std::uint8_t(byte ? v : (v * 255 + 32767) / 65535);
     if (as == Sample::kUInt16) out16[i] = std::uint16_t(byte ? v * 257 : v);
-    if (as == Sample::kFloat) reinterpret_cast<float*>(out)[i] = to_float(codes[i]);
+    if (as == Sample::kFloat) reinterpret_cast<float*>(out)[i] = png_samples::to_float(codes[i]);
   }
 }
 
@@ -517,15 +472,19 @@ template <class T>
 void PngWriter::encode(const unsigned char* in, Sample from, std::vector<T>& codes) {
   for (std::size_t i = 0; i < codes.size(); ++i) {
     if (from == Sample::kFloat) {
-      codes[i] = from_float<T>(reinterpret_cast<const float*>(in)[i]);
+      codes[i] = png_samples::from_float<T>(reinterpret_cast<const float*>(in)[i]);
     } else if (from == Sample::kUInt8) {
-      codes[i] = std::is_same_v<T, std::uint8_t> ? T(in[i]) : from_float<T>(to_float(in[i]));
+      codes[i] = std::is_same_v<T, std::uint8_t>
+                     ? T(in[i])
+                     : png_samples::from_float<T>(png_samples::to_float(in[i]));
     } else {
       const std::uint16_t v = reinterpret_cast<const std::uint16_t*>(in)[i];
-      codes[i] = std::is_same_v<T, std::uint16_t> ? T(v) : from_float<T>(to_float(v));
+      codes[i] = std::is_same_v<T, std::uint16_t>
+                     ? T(v)
+                     : png_samples::from_float<T>(png_samples::to_float(v));
     }
   }
-  if (deassociate_) deassociate(codes.data(), spec_.width, spec_.channels, gamma_);
+  if (deassociate_) png_samples::deassociate(codes.data(), spec_.width, spec_.channels, gamma_);
 }
 
 bool PngWriter::write_rows(int y0, int y1, Sample from, const void* data) {
