@@ -72,8 +72,7 @@ ReflectanceField object_sample(const std::vector<FieldStream*>& fields, long wan
   for (const int y : rows) pixels += per_row[size_t(y)];
   const int steps = int(fields.size());
   const int sample_rows = int((pixels * steps + kSampleWidth - 1) / kSampleWidth);
-  ReflectanceField sample(kSampleWidth, sample_rows, first.header().lights());
-  std::fill(sample.pixel(0, 0), sample.pixel(0, 0) + sample.values().size(), 0.0f);
+  ReflectanceField sample(kSampleWidth, sample_rows, first.header().lights());  // Zeros.
   const std::size_t pixel_values = std::size_t(first.header().num_lights()) * 3;
   std::vector<float> row(std::size_t(width) * pixel_values);
   long packed = 0;
