@@ -64,6 +64,7 @@ std::string FitJobOptions::to_json() const {
   j["field"] = field_file.string();
   for (const fs::path& t : time_inputs) j["time"].push_back(t.string());
   j["phong"] = phong;
+  j["dim_samples"] = dim_samples;
   j["method"] = method;
   j["materials"] = materials;
   j["memory_bytes"] = memory.given_bytes();
@@ -174,6 +175,7 @@ FitJobSummary fit(const FitJobOptions& options, const ProgressFn& progress,
   const capture::ReflectanceField& field = stream.header();
   relight::FitOptions fit;
   fit.fit_phong = options.phong;
+  fit.readmit_dim_samples = options.dim_samples;
   fit.materials = options.materials == "per-pixel" ? relight::FitMaterials::kPerPixel
                                                    : relight::FitMaterials::kBasis;
   fit.normals.method = normal_method(options.method);

@@ -214,8 +214,8 @@ def relight(field: Optional[_FieldLike] = None, *, env: Union[None, _Path, Seque
     """
 
 def fit(field: _FieldLike, *, out: Optional[_Path] = None, phong: bool = False,
-        method: str = "robust", materials: str = "basis", memory: _Memory = None,
-        progress: _Progress = None) -> Fitted:
+        dim_samples: bool = False, method: str = "robust", materials: str = "basis",
+        memory: _Memory = None, progress: _Progress = None) -> Fitted:
     """Fit a BRDF model per pixel of a reflectance field: photometric-stereo normals, then
     Lambert, Oren-Nayar and Lambert + Torrance-Sparrow (and Lambert + Phong with phong), the
     model chosen by BIC. Returns the maps as arrays (normal, albedo, sigma, ks, roughness, model,
@@ -224,6 +224,8 @@ def fit(field: _FieldLike, *, out: Optional[_Path] = None, phong: bool = False,
 
     out: Model maps to write (.exr). None: a temporary file.
     phong: Also fit Lambert + Phong (for comparison).
+    dim_samples: Fit each pixel again with its samples under the shadow threshold that its first
+        fit predicts dim: for a dark or underexposed capture; slower.
     method: Photometric-stereo normals: robust (trimmed start + Tukey IRLS, ignores highlights)
         or ls (weighted least squares).
     materials: basis: cluster the per-pixel fits into the scene's few materials, fit each material

@@ -171,7 +171,7 @@ py::dict fit_summary(const jobs::FitJobSummary& summary) {
   return d;
 }
 
-py::object fit(const py::object& field, const py::object& out, bool phong,
+py::object fit(const py::object& field, const py::object& out, bool phong, bool dim_samples,
                const std::string& method, const std::string& materials, const py::object& memory,
                const py::object& progress) {
   jobs::FitJobOptions options;
@@ -180,6 +180,7 @@ py::object fit(const py::object& field, const py::object& out, bool phong,
   if (out.is_none()) temp = std::make_unique<TempDir>();
   options.out = temp ? temp->path() / "maps.exr" : to_path(out);
   options.phong = phong;
+  options.dim_samples = dim_samples;
   options.method = method;
   options.materials = materials;
   options.memory = to_memory(memory);
@@ -213,8 +214,9 @@ void bind_jobs(py::module_& m) {
         py::arg("memory") = py::none(), py::arg("directions") = 64, py::arg("out") = py::none(),
         py::arg("progress") = py::none());
   m.def("fit", &fit, py::arg("field"), py::kw_only(), py::arg("out") = py::none(),
-        py::arg("phong") = false, py::arg("method") = "robust", py::arg("materials") = "basis",
-        py::arg("memory") = py::none(), py::arg("progress") = py::none());
+        py::arg("phong") = false, py::arg("dim_samples") = false, py::arg("method") = "robust",
+        py::arg("materials") = "basis", py::arg("memory") = py::none(),
+        py::arg("progress") = py::none());
 }
 
 }  // namespace ls::python

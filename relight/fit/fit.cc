@@ -16,6 +16,7 @@
 #include "lightstage/errors.h"
 #include "physics/brdf.h"
 #include "relight/fit/basis_materials.h"
+#include "relight/fit/model_render.h"
 #include "relight/fit/pixel_solver.h"
 #include "relight/fit/profiled_fit.h"
 
@@ -429,7 +430,7 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
   summary.pixels = width * height;
 
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
-    std::vector<Sample> samples(valid.index.size());
+    std::vector<Sample> samples(valid.index.size()), dim(valid.index.size());
     FitSummary local;
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
@@ -457,7 +458,41 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
         d.refine_normal = options.refine_normal;
         d.wo = pixel::view_dir_at(options.view_dir_per_pixel,
                                   size_t(field.first_row() + y) * width + x);
-        fit_pixel(d, options, m, local);
+        if (!options.readmit_dim_samples) {
+          fit_pixel(d, options, m, local);
+          continue;
+        }
+        FitSummary first;  // Counted only when it stands.
+        fit_pixel(d, options, m, first);
+        const Eigen::Vector3f wo = d.wo.cast<float>();
+        const auto predicted = [&](const Eigen::Vector3d& l) {
+          return double(luminance(
+              model_radiance(m, l.cast<float>(), wo, float(options.max_specular_albedo)).data()));
+        };
+        const int with_dim = m[kMapModel] != 0 ? pixel::gather_with_dim_samples(
+                                                     field, valid, no, x, y, predicted, dim.data())
+                                               : 0;
+        if (with_dim == 0) {
+          local.add(first);
+          continue;
+        }
+        // From the first fit's normal: the dim samples refine it, they do not start it again.
+        PixelData again = d;
+        again.samples = dim.data();
+        again.count = with_dim;
+        again.n0 =
+            Eigen::Vector3d(m[kMapNormalX], m[kMapNormalX + 1], m[kMapNormalX + 2]).normalized();
+        again.t1 = again.n0.unitOrthogonal();
+        again.t2 = again.n0.cross(again.t1);
+        std::array<float, kMapChannelCount> first_maps;
+        std::copy_n(m, kMapChannelCount, first_maps.begin());
+        FitSummary second;
+        fit_pixel(again, options, m, second);
+        if (m[kMapModel] == 0) {  // The first fit stands where the second finds none.
+          std::copy(first_maps.begin(), first_maps.end(), m);
+          second = first;
+        }
+        local.add(second);
       }
       rows_done.finished_one();
     }

@@ -7,18 +7,28 @@
 
 namespace ls::relight::pixel {
 
-GatheredSamples gather_samples(const capture::ReflectanceField& field,
-                               const capture::ValidLights& valid, const NormalOptions& options,
-                               int x, int y, Sample* samples,
-                               std::vector<Eigen::Vector3d>* shadowed) {
-  const float* px = field.pixel(x, y);
+namespace {
+
+// gather_samples' threshold at the pixel: below it, a sample is taken as shadowed.
+double shadow_threshold(const float* px, const capture::ValidLights& valid,
+                        const NormalOptions& options) {
   double y_max = 0;
   for (const int l : valid.index) {
     const float* v = px + 3 * size_t(l);
     y_max = std::max(y_max, luminance(v[0], v[1], v[2]));
   }
-  const double threshold =
-      std::max(options.shadow_sigmas * std::sqrt(options.noise.a), options.shadow_fraction * y_max);
+  return std::max(options.shadow_sigmas * std::sqrt(options.noise.a),
+                  options.shadow_fraction * y_max);
+}
+
+}  // namespace
+
+GatheredSamples gather_samples(const capture::ReflectanceField& field,
+                               const capture::ValidLights& valid, const NormalOptions& options,
+                               int x, int y, Sample* samples,
+                               std::vector<Eigen::Vector3d>* shadowed) {
+  const float* px = field.pixel(x, y);
+  const double threshold = shadow_threshold(px, valid, options);
   GatheredSamples out;
   std::optional<capture::PixelLightDirs> dir_to;  // Near LEDs only: from this pixel.
   if (valid.near) dir_to.emplace(field, x, y);
@@ -78,6 +88,30 @@ std::string check_view_dirs(const std::vector<Eigen::Vector3d>& per_pixel, int w
   if (per_pixel.empty() || per_pixel.size() == pixels) return {};
   return "view_dir_per_pixel: expected " + std::to_string(pixels) + " directions, got " +
          std::to_string(per_pixel.size());
+}
+
+int gather_with_dim_samples(const capture::ReflectanceField& field,
+                            const capture::ValidLights& valid, const NormalOptions& options, int x,
+                            int y, const std::function<double(const Eigen::Vector3d& l)>& predicted,
+                            Sample* samples) {
+  const double threshold = shadow_threshold(field.pixel(x, y), valid, options);
+  const double ceiling = threshold + kDimMarginSigmas * std::sqrt(options.noise.a);
+  NormalOptions every = options;  // Every usable sample, the dim ones included.
+  every.shadow_sigmas = every.shadow_fraction = 0;
+  const int all = gather_samples(field, valid, every, x, y, samples).count;
+  int kept = 0, readmitted = 0;
+  for (int i = 0; i < all; ++i) {
+    const Sample& s = samples[i];
+    const double measured = luminance(s.v[0], s.v[1], s.v[2]);
+    if (!(measured > threshold)) {
+      const double p = predicted(s.l);
+      const double sigma = std::sqrt(options.noise.variance(std::max(p, 0.0)));
+      if (!(p <= ceiling) || !(std::abs(measured - p) <= kDimAgreementSigmas * sigma)) continue;
+      ++readmitted;
+    }
+    samples[kept++] = s;
+  }
+  return readmitted > 0 ? kept : 0;
 }
 
 }  // namespace ls::relight::pixel

@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <string>
 #include <vector>
@@ -51,6 +52,22 @@ GatheredSamples gather_samples(const capture::ReflectanceField& field,
                                const capture::ValidLights& valid, const NormalOptions& options,
                                int x, int y, Sample* samples,
                                std::vector<Eigen::Vector3d>* shadowed = nullptr);
+
+// The samples a first fit of pixel (x, y) says are dim, not shadowed: gather_samples' samples plus
+// those below its shadow threshold whose luminance `predicted` (the first fit's, for unit
+// irradiance from direction l) is below the threshold too, within kDimMarginSigmas of the noise
+// floor, and within kDimAgreementSigmas of the sample's own: a dim reflectance measured, not a
+// cast shadow (which the fit, having no shadows, predicts bright) nor light the model does not
+// explain. Leaving them out biases a dark pixel's fit bright (of its dim samples only those that
+// noise lifted over the threshold are kept) and leaves a dark glossy pixel's normal to its
+// highlight. Writes `samples` (room for valid.index.size()) in light order; returns their count,
+// or 0 when none was readmitted (gather_samples' set stands).
+inline constexpr double kDimMarginSigmas = 2;
+inline constexpr double kDimAgreementSigmas = 2;
+int gather_with_dim_samples(const capture::ReflectanceField& field,
+                            const capture::ValidLights& valid, const NormalOptions& options, int x,
+                            int y, const std::function<double(const Eigen::Vector3d& l)>& predicted,
+                            Sample* samples);
 
 // One pixel's fit problem: its usable samples, its photometric-stereo normal n0 with two tangents,
 // and the view direction (unit, toward the camera).

@@ -116,8 +116,14 @@ enum class NormalSource {
 
 struct TemporalFitOptions {
   // Noise, shadow thresholds, roughness starts, k_s bound of the per-step fits (refine_normal is
-  // ignored: the normal is always held fixed).
-  FitOptions brdf;
+  // ignored: the normal is always held fixed). The dim samples readmitted (FitOptions says why):
+  // the rise-and-fall lapse at a fifth of the exposure, 7 of 13 steps captured, relative error at
+  // the captured steps 0.141 -> 0.056 (the photographs 0.089), held out 0.169 -> 0.130.
+  FitOptions brdf = [] {
+    FitOptions fit;
+    fit.readmit_dim_samples = true;
+    return fit;
+  }();
   NormalSource normal_source = NormalSource::kLast;
   // Refine the photometric-stereo normals by each pixel's full BRDF fit (relight/fit/fit.h, its
   // own model, refine_normal) on that step: photometric stereo is biased by a lobe and noisy on

@@ -319,7 +319,7 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
     throw InputError("temporal fit options: " + error);
   }
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
-    std::vector<Sample> samples(valid.index.size());
+    std::vector<Sample> samples(valid.index.size()), dim(valid.index.size());
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         if (int(normals.flags.at(x, y, 0)) != 0) continue;  // sigma 0: unusable.
@@ -331,8 +331,30 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
         d.count = count;
         d.n = pixel::normal_at(normals, x, y);
         d.wo = pixel::view_dir_at(fo.view_dir_per_pixel, size_t(field.first_row() + y) * width + x);
-        const StepResult best = fit_step_pixel(d, fo);
+        StepResult best = fit_step_pixel(d, fo);
         if (!best.ok) continue;
+        if (fo.readmit_dim_samples) {  // As fit_models does (relight/fit/fit.h).
+          const auto predicted = [&](const Eigen::Vector3d& l) {
+            const auto g = physics::brdf::Geometry<double>::from_world(d.n, l, d.wo);
+            if (!(g.cos_i > 0)) return 0.0;
+            const double diffuse = physics::brdf::oren_nayar(g, best.q[kParamSigma]);
+            const double lobe =
+                best.q[kParamKs] * physics::brdf::torrance_sparrow(g, best.q[kParamRoughness]);
+            return luminance(best.q[kParamAlbedoR] * diffuse + lobe,
+                             best.q[kParamAlbedoG] * diffuse + lobe,
+                             best.q[kParamAlbedoB] * diffuse + lobe) *
+                   g.cos_i;
+          };
+          const int wide =
+              pixel::gather_with_dim_samples(field, valid, no, x, y, predicted, dim.data());
+          if (wide > 0) {
+            StepPixel again = d;
+            again.samples = dim.data();
+            again.count = wide;
+            const StepResult refit = fit_step_pixel(again, fo);
+            if (refit.ok) best = refit, d = again;
+          }
+        }
         std::array<double, kRenderedCount> rendered{};
         const std::array<double, 6> sig = step_sigmas(d, best, &rendered);
         for (int r = 0; r < kRenderedCount; ++r) {
