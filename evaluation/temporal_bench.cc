@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 
 #include "evaluation/chart.h"
 #include "evaluation/csv_table.h"
@@ -195,19 +196,25 @@ void write_temporal_held_out_chart(const fs::path& csv) {
   const std::string stem = csv.stem().string();
   const bool dark = table.has("exposure") && !table.rows.empty() &&
                     std::stod(table.rows[0][table.column("exposure")]) < 1;
-  write_chart(fs::path(csv).replace_filename(stem + "_vs_steps.png"),
-              {.csv = csv,
-               .x = "captured_steps",
-               .series = {{.title = "temporal fit", .y = "temporal_fit"},
-                          {.title = "models by BIC alone", .y = "by_bic_alone"},
-                          {.title = "processes only", .y = "processes_only"},
-                          {.title = "per-step fits interpolated", .y = "step_fits_interpolated"},
-                          {.title = "photos: linear interpolation", .y = "linear_interpolation"},
-                          {.title = "photos: nearest captured step", .y = "nearest_step"}},
-               .title = std::string("Held-out time steps of the rise-and-fall scene") +
-                        (dark ? ", 5x darker capture" : "") + ": relative error vs steps captured",
-               .x_label = "steps captured" + of,
-               .y_label = "relative RMS error"});
+  const bool dim = table.has("dim_samples") && !table.rows.empty() &&
+                   table.rows[0][table.column("dim_samples")] == "1";
+  write_chart(
+      fs::path(csv).replace_filename(stem + "_vs_steps.png"),
+      {.csv = csv,
+       .x = "captured_steps",
+       .series = {{.title = "temporal fit", .y = "temporal_fit"},
+                  {.title = "models by BIC alone", .y = "by_bic_alone"},
+                  {.title = "processes only", .y = "processes_only"},
+                  {.title = "per-step fits interpolated", .y = "step_fits_interpolated"},
+                  {.title = "photos: linear interpolation", .y = "linear_interpolation"},
+                  {.title = "photos: nearest captured step", .y = "nearest_step"}},
+       .title = dim ? "Held-out steps of the rise-and-fall scene 5x darker, its dim samples "
+                      "readmitted: relative error"
+                    : std::string("Held-out time steps of the rise-and-fall scene") +
+                          (dark ? ", 5x darker capture" : "") +
+                          ": relative error vs steps captured",
+       .x_label = "steps captured" + of,
+       .y_label = "relative RMS error"});
 }
 
 namespace {
@@ -220,12 +227,13 @@ void write_held_out_csv(const fs::path& path, const std::vector<HeldOutBenchRow>
          "linear_interpolation,nearest_step,fit_at_captured,step_fits_at_captured,photos_at_"
          "captured,"
          "curve_families,"
-         "lapse_steps\n";
+         "lapse_steps,dim_samples\n";
   for (const HeldOutBenchRow& r : rows) {
     csv << r.exposure << ',' << r.captured << ',' << r.fit << ',' << r.by_bic_alone << ','
         << r.processes_only << ',' << r.step_fits_interpolated << ',' << r.linear << ','
         << r.nearest << ',' << r.fit_at_captured << ',' << r.step_fits_at_captured << ','
-        << r.photos_at_captured << ',' << r.curve_families << ',' << lapse_steps << '\n';
+        << r.photos_at_captured << ',' << r.curve_families << ',' << lapse_steps << ','
+        << int(r.dim_samples) << '\n';
   }
   csv.close();
   write_temporal_held_out_chart(path);
@@ -236,31 +244,45 @@ void write_held_out_csv(const fs::path& path, const std::vector<HeldOutBenchRow>
 std::vector<HeldOutBenchRow> run_held_out(const TemporalBenchOptions& options,
                                           const ProgressFn& progress) {
   std::vector<HeldOutBenchRow> all;
-  const long runs = 2 * long(options.captured.size());
-  for (const double exposure : {1.0, 0.2}) {
-    const TimeLapse lapse =
-        rise_and_fall_time_lapse(151, 32, 24, options.lapse_steps, 1200.0, 40, exposure);
+  const long runs = 3 * long(options.captured.size());
+  // The dark capture twice: as fitted by default, and with its dim samples readmitted.
+  const struct {
+    double exposure;
+    bool dim_samples;
+    const char* csv;
+  } cases[] = {{1.0, false, "temporal_held_out.csv"},
+               {0.2, false, "temporal_held_out_dark.csv"},
+               {0.2, true, "temporal_held_out_dark_dim.csv"}};
+  std::optional<TimeLapse> lapse;
+  double lapse_exposure = 0;
+  for (const auto& c : cases) {
+    if (!lapse || lapse_exposure != c.exposure) {
+      lapse = rise_and_fall_time_lapse(151, 32, 24, options.lapse_steps, 1200.0, 40, c.exposure);
+      lapse_exposure = c.exposure;
+    }
+    relight::TemporalFitOptions fit;
+    fit.brdf.readmit_dim_samples = c.dim_samples;
     std::vector<HeldOutBenchRow> rows;
     for (const int n : options.captured) {
-      const HeldOutScores s = score_held_out(lapse, evenly_spaced_steps(options.lapse_steps, n));
-      rows.push_back({exposure, n, total(s.fit).relative(), total(s.by_bic_alone).relative(),
-                      total(s.processes_only).relative(),
+      const HeldOutScores s =
+          score_held_out(*lapse, evenly_spaced_steps(options.lapse_steps, n), fit);
+      rows.push_back({c.exposure, c.dim_samples, n, total(s.fit).relative(),
+                      total(s.by_bic_alone).relative(), total(s.processes_only).relative(),
                       total(s.step_fits_interpolated).relative(), total(s.linear).relative(),
                       total(s.nearest).relative(), total(s.fit_at_captured).relative(),
                       total(s.step_fits_at_captured).relative(),
                       total(s.photos_at_captured).relative(), int(s.maps.curves.size())});
       report(progress, "held-out steps", long(all.size() + rows.size()), runs,
-             std::to_string(n) + " captured at exposure " + std::to_string(exposure));
+             std::to_string(n) + " captured at exposure " + std::to_string(c.exposure) +
+                 (c.dim_samples ? ", dim samples readmitted" : ""));
     }
-    write_held_out_csv(
-        options.out / (exposure < 1 ? "temporal_held_out_dark.csv" : "temporal_held_out.csv"), rows,
-        options.lapse_steps);
-    if (exposure == 1.0) {
+    write_held_out_csv(options.out / c.csv, rows, options.lapse_steps);
+    if (c.exposure == 1.0) {
       std::vector<capture::ReflectanceField> every_other;
       for (const int i : evenly_spaced_steps(options.lapse_steps, (options.lapse_steps + 1) / 2)) {
-        every_other.push_back(lapse.noisy[size_t(i)]);
+        every_other.push_back(lapse->noisy[size_t(i)]);
       }
-      write_time_edit_figure(options.out / "temporal_edits.png", lapse,
+      write_time_edit_figure(options.out / "temporal_edits.png", *lapse,
                              relight::fit_temporal(every_other, {}));
     }
     all.insert(all.end(), rows.begin(), rows.end());

@@ -33,7 +33,8 @@ struct TemporalBenchOptions {
 };
 
 struct HeldOutBenchRow {
-  double exposure = 1;  // 1: as captured; 0.2: five times darker, the same sensor noise.
+  double exposure = 1;       // 1: as captured; 0.2: five times darker, the same sensor noise.
+  bool dim_samples = false;  // The fits readmit the dim samples (FitOptions::readmit_dim_samples).
   int captured = 0;
   // Relative RMS at the steps held out, both varying materials together (HeldOutScores).
   double fit = 0, by_bic_alone = 0, processes_only = 0, step_fits_interpolated = 0, linear = 0,

@@ -88,7 +88,8 @@ SampleValue rendered(const relight::TemporalMaps& maps, double t,
 
 }  // namespace
 
-HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured) {
+HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured,
+                             const relight::TemporalFitOptions& options) {
   const int steps = int(lapse.noisy.size());
   if (captured.size() < 2 || captured.front() != 0 || captured.back() != steps - 1 ||
       !std::is_sorted(captured.begin(), captured.end())) {
@@ -98,7 +99,6 @@ HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& cap
   std::vector<capture::ReflectanceField> fields;
   fields.reserve(captured.size());
   for (const int i : captured) fields.push_back(lapse.noisy[size_t(i)]);
-  const relight::TemporalFitOptions options;
   HeldOutScores out;
   out.maps = relight::fit_temporal(fields, options);
   relight::TemporalFitOptions bic_alone = options;

@@ -61,8 +61,9 @@ struct HeldOutScores {
 };
 
 // Fits the steps `captured` (indices into the time lapse, increasing, at least two, the first and
-// the last step among them) and scores every other step.
-HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured);
+// the last step among them) with `options` and scores every other step.
+HeldOutScores score_held_out(const TimeLapse& lapse, const std::vector<int>& captured,
+                             const relight::TemporalFitOptions& options = {});
 
 // `count` steps of `steps`, evenly spread, the first and the last among them.
 std::vector<int> evenly_spaced_steps(int steps, int count);

@@ -150,18 +150,18 @@ void print_temporal(const evaluation::TemporalBenchSummary& summary) {
   std::printf(
       "\nrise-and-fall scene, relative RMS error at the steps held out, and at the captured "
       "steps:\n"
-      "%8s %8s %9s %9s %10s %10s %9s %9s %11s %11s %12s\n",
-      "exposure", "captured", "fit", "BIC alone", "processes", "step fits", "linear", "nearest",
-      "fit@capt", "steps@capt", "photos@capt");
+      "%8s %4s %8s %9s %9s %10s %10s %9s %9s %11s %11s %12s\n",
+      "exposure", "dim", "captured", "fit", "BIC alone", "processes", "step fits", "linear",
+      "nearest", "fit@capt", "steps@capt", "photos@capt");
   for (const evaluation::HeldOutBenchRow& r : summary.held_out) {
-    std::printf("%8.2f %8d %9.4f %9.4f %10.4f %10.4f %9.4f %9.4f %11.4f %11.4f %12.4f\n",
-                r.exposure, r.captured, r.fit, r.by_bic_alone, r.processes_only,
-                r.step_fits_interpolated, r.linear, r.nearest, r.fit_at_captured,
+    std::printf("%8.2f %4s %8d %9.4f %9.4f %10.4f %10.4f %9.4f %9.4f %11.4f %11.4f %12.4f\n",
+                r.exposure, r.dim_samples ? "yes" : "no", r.captured, r.fit, r.by_bic_alone,
+                r.processes_only, r.step_fits_interpolated, r.linear, r.nearest, r.fit_at_captured,
                 r.step_fits_at_captured, r.photos_at_captured);
   }
   std::fprintf(stderr,
-               "wrote temporal_held_out{,_dark}.csv, temporal_held_out{,_dark}_vs_steps.png, "
-               "temporal_edits.png\n");
+               "wrote temporal_held_out{,_dark,_dark_dim}.csv, "
+               "temporal_held_out{,_dark,_dark_dim}_vs_steps.png, temporal_edits.png\n");
 }
 
 void print_compact(const evaluation::CompactBenchSummary& summary) {
@@ -395,9 +395,10 @@ void add_temporal(CLI::App& bench) {
       "Time-varying BRDF fits on the simulator's time-varying scene as the number of time steps "
       "grows: fit time per pixel and error against ground truth (render at uncaptured times, "
       "recovered rates). Writes temporal.csv and two charts. Then the rise-and-fall scene's time "
-      "lapse captured at a growing number of its steps: error at the steps held out for the "
-      "curves, the processes alone, linear interpolation and the nearest step (CSV + chart), and "
-      "a time edit and an effect transfer over time (temporal_edits.png).");
+      "lapse captured at a growing number of its steps, as exposed, 5x darker, and 5x darker with "
+      "its dim samples readmitted: error at the steps held out for the curves, the processes "
+      "alone, linear interpolation and the nearest step (CSV + chart per case), and a time edit "
+      "and an effect transfer over time (temporal_edits.png).");
   cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
   cmd->add_option("--steps", args->steps, "Numbers of time steps.")
       ->delimiter(',')

@@ -169,8 +169,8 @@ void add_fit_command(CLI::App& app) {
   cmd->add_flag("--dim-samples", options->dim_samples,
                 "Fit each pixel again with its samples under the shadow threshold that its first "
                 "fit predicts dim: for a dark or underexposed capture (albedos not biased bright, "
-                "a dark glossy pixel's normal not left to its highlight); slower. Always on with "
-                "--time.");
+                "a dark glossy pixel's normal not left to its highlight); slower. With --time: "
+                "every step's fit and the normals.");
   cmd->add_option("--method", options->method,
                   "Photometric-stereo normals: robust (trimmed start + Tukey IRLS, ignores "
                   "highlights) or ls (weighted least squares).")

@@ -253,6 +253,7 @@ TemporalFitJobSummary fit_over_time(const FitJobOptions& options, const Progress
   }
   relight::TemporalFitOptions fit;
   fit.brdf.normals.method = normal_method(options.method);
+  fit.brdf.readmit_dim_samples = options.dim_samples;
   headers = relight::steps_by_time(headers);
   // The noise as plain fit's: measured by a step, else estimated from every step's data.
   std::vector<capture::FieldStream*> streams;

@@ -20,7 +20,7 @@ struct FitJobOptions {
   bool phong = false;               // Also fit Lambert + Phong (comparison).
   std::string method = "robust";    // Photometric-stereo normals: "robust" or "ls".
   std::string materials = "basis";  // "basis" or "per-pixel" (relight::FitMaterials).
-  // Readmit the dim samples (relight::FitOptions::readmit_dim_samples); --time always does.
+  // Readmit the dim samples (relight::FitOptions::readmit_dim_samples), --time's steps too.
   bool dim_samples = false;
   // For the field (capture::FieldStream::band_rows): a field larger is fitted in bands of rows,
   // read twice with basis materials (fits, blends). --time: for every step's field and fits

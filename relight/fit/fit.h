@@ -107,9 +107,9 @@ struct FitOptions {
   // Fit each pixel again with the samples under the shadow threshold that its first fit predicts
   // dim and that agree with it (pixel::gather_with_dim_samples): a dark capture's pixels are
   // otherwise fitted to the samples noise lifted over the threshold, biased bright, and a dark
-  // glossy pixel's normal to its highlight alone. Off for `lightstage fit` (DiLiGenT: ball 1.71 ->
-  // 1.67 deg, reading 12.15 -> 12.20, the fit up to 15% slower); on in the temporal fit
-  // (relight/time/temporal_fit.h), whose dark steps need it.
+  // glossy pixel's normal to its highlight alone. Off by default (DiLiGenT: ball 1.71 -> 1.67 deg,
+  // reading 12.15 -> 12.20; the ball's fit 27% slower); `fit --dim-samples`. For the temporal fit
+  // see TemporalFitOptions::brdf.
   bool readmit_dim_samples = false;
   // A lobe fit (Torrance-Sparrow or Phong) with k_s above this is discarded and the pixel falls
   // back to a simpler model: k_s is the lobe's albedo (Fresnel folded in), at most about 1 for

@@ -4,6 +4,7 @@
 #include <OpenImageIO/imageio.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -399,6 +400,34 @@ TEST_F(Jobs, TheEmptyFrameAroundAnImportedObjectDoesNotChangeItsFit) {
     }
   }
   EXPECT_LE(worst_deg, 0.1);
+}
+
+// --dim-samples reaches the fit and is recorded in its maps: on a capture 70x too dark, the fit
+// with the dim samples readmitted writes other maps (by how much they are better:
+// tests/relight/fit/fit_test.cc, FitModels.ADarkSurfacesDimSamples...).
+TEST_F(Jobs, DimSamplesReachTheFitOfADarkCaptureAndAreRecorded) {
+  const testing::TempDir dir;
+  capture::ReflectanceField dark = capture::read_field(built_field(dir.path()));
+  for (int y = 0; y < dark.height(); ++y) {
+    float* row = dark.pixel(0, y);
+    for (int i = 0; i < dark.width() * dark.num_lights() * 3; ++i) row[i] *= 0.015f;
+  }
+  capture::write_field(dir / "dark.exr", dark);
+  jobs::FitJobOptions fit;
+  fit.field_file = dir / "dark.exr";
+  fit.materials = "per-pixel";
+  fit.out = dir / "plain.exr";
+  jobs::fit(fit);
+  fit.dim_samples = true;
+  fit.out = dir / "dim.exr";
+  jobs::fit(fit);
+  EXPECT_NE(read_image(dir / "plain.exr").pixels, read_image(dir / "dim.exr").pixels);
+  EXPECT_NE(
+      exr_string_attribute(dir / "dim.exr", jobs::kOptionsAttribute).find("\"dim_samples\":true"),
+      std::string::npos);
+  EXPECT_NE(exr_string_attribute(dir / "plain.exr", jobs::kOptionsAttribute)
+                .find("\"dim_samples\":false"),
+            std::string::npos);
 }
 
 // A build in bands that is stopped halfway through merging the LEDs (as by a kill) resumes from

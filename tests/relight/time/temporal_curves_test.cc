@@ -23,14 +23,13 @@ void print(const char* what, const ErrorsByMaterial& errors) {
 // Held out: every odd step. The curves must be at least as close to the truth there as linear
 // interpolation of the two captured neighbours' images, and at the captured steps closer to the
 // truth than the photographs they were fitted to. Measured (relative RMS over each material's lit
-// samples, 151 LEDs, 7 of 13 steps captured, normals refined over every step, dim samples
-// readmitted):
+// samples, 151 LEDs, 7 of 13 steps captured, normals refined over every step):
 //                 held out: curves / processes only / linear / nearest   captured: curves / steps /
 //                 photos
-//   corroding metal         0.071 / 0.063 / 0.116 / 0.304                  0.0167 / 0.0090 / 0.034
-//   stone slab              0.092 / 0.158 / 0.108 / 0.140                  0.0133 / 0.0132 / 0.032
-// (Before the dim samples were readmitted: held out 0.076 and 0.105, captured 0.0223 / 0.0096 and
-// 0.0151 / 0.0132.)
+//   corroding metal         0.077 / 0.064 / 0.116 / 0.304                  0.0201 / 0.0096 / 0.034
+//   stone slab              0.107 / 0.159 / 0.108 / 0.140                  0.0149 / 0.0132 / 0.032
+// (Before the normals were refined over every step: captured 0.0419 / 0.0402 and 0.0147 / 0.0142;
+// the per-step fits gained more than the curves, which stay within 1.1x of them only on the slab.)
 TEST(TemporalCurves, RiseAndFallHeldOutAgainstInterpolationAndPerStepFits) {
   // 13 steps over 1200 s on a 151-LED dome; every other one captured.
   const evaluation::TimeLapse lapse = evaluation::rise_and_fall_time_lapse(151, 32, 24, 13, 1200.0);
@@ -61,38 +60,52 @@ TEST(TemporalCurves, RiseAndFallHeldOutAgainstInterpolationAndPerStepFits) {
     EXPECT_LT(error(s.fit_at_captured, name), error(s.photos_at_captured, name)) << name;
   }
   // Regression guards (measured above, 1.2x).
-  EXPECT_LT(error(s.fit_at_captured, metal), 0.020);
-  EXPECT_LT(error(s.fit_at_captured, slab), 0.016);
-  EXPECT_LT(error(s.fit, slab), 0.11);
+  EXPECT_LT(error(s.fit_at_captured, metal), 0.024);
+  EXPECT_LT(error(s.fit_at_captured, slab), 0.018);
   EXPECT_LE(error(s.fit_at_captured, slab), 1.2 * error(s.step_fits_at_captured, slab));
 }
 
 // The same lapse at a fifth of the exposure (the same sensor noise): most of the corroding metal's
-// diffuse samples fall under the shadow threshold (4 sigma of the noise floor), and fitted to the
-// samples that noise lifted over it, its per-step fits were biased bright and its normals followed
-// its highlights (7-9 degrees off): at the captured steps 0.43 relative error against 0.115 for
-// the photographs. With the dim samples the fits predict readmitted (FitOptions::
-// readmit_dim_samples), measured: captured steps, all varying pixels, 0.056 / per-step fits 0.053
-// / photos 0.089 (the metal 0.133 / 0.163 / 0.115: still above its photographs; the slab 0.041 /
-// 0.022 / 0.086); held out 0.130 against linear interpolation's 0.124.
-TEST(TemporalCurves, AFifthOfTheExposureFitsCloserThanThePhotographsAtTheCapturedSteps) {
+// diffuse samples fall under the shadow threshold (4 sigma of the noise floor); fitted to the
+// samples that noise lifted over it, its step fits are biased bright and its normals follow its
+// highlights (7-9 degrees off), and at the captured steps the fit is further from the truth than
+// the photographs it was fitted to. With the dim samples that the fits predict readmitted
+// (FitOptions::readmit_dim_samples), it is closer. Measured (relative RMS over the varying
+// materials' lit samples, 7 of 13 steps captured): captured steps, fit / photographs: without
+// 0.141 / 0.089 (the metal 0.457 / 0.115), with 0.056 / 0.089 (the metal 0.133 / 0.115, the slab
+// 0.041 / 0.086); held out 0.169 -> 0.130 (linear interpolation of the photographs 0.124).
+TEST(TemporalCurves, AFifthOfTheExposureFitsCloserThanThePhotographsWithItsDimSamples) {
   const evaluation::TimeLapse lapse =
       evaluation::rise_and_fall_time_lapse(151, 32, 24, 13, 1200.0, 40, 0.2);
-  const evaluation::HeldOutScores s = evaluation::score_held_out(lapse, {0, 2, 4, 6, 8, 10, 12});
-  std::printf("%s\n", s.maps.summary.to_string().c_str());
-  print("held out: temporal fit", s.fit);
-  print("held out: linear interpolation", s.linear);
-  print("captured: temporal fit", s.fit_at_captured);
-  print("captured: per-step fits", s.step_fits_at_captured);
-  print("captured: the photographs", s.photos_at_captured);
-  const double fit = evaluation::total(s.fit_at_captured).relative();
-  EXPECT_LT(fit, evaluation::total(s.photos_at_captured).relative());
-  EXPECT_LT(s.fit_at_captured.at("stone-slab").relative(),
-            s.photos_at_captured.at("stone-slab").relative());
-  // Regression guards (measured above, 1.2x): the metal's was 0.46 with its dim samples left out.
-  EXPECT_LT(fit, 0.067);
-  EXPECT_LT(s.fit_at_captured.at("corroding-metal").relative(), 0.16);
-  EXPECT_LT(evaluation::total(s.fit).relative(), 0.156);
+  const std::vector<int> captured{0, 2, 4, 6, 8, 10, 12};
+  TemporalFitOptions dim;
+  dim.brdf.readmit_dim_samples = true;
+  const evaluation::HeldOutScores without = evaluation::score_held_out(lapse, captured);
+  const evaluation::HeldOutScores with = evaluation::score_held_out(lapse, captured, dim);
+  for (const auto* s : {&without, &with}) {
+    std::printf("%s\n", s == &with ? "dim samples readmitted:" : "above the threshold only:");
+    print("held out: temporal fit", s->fit);
+    print("held out: linear interpolation", s->linear);
+    print("captured: temporal fit", s->fit_at_captured);
+    print("captured: the photographs", s->photos_at_captured);
+    std::printf(
+        "all varying pixels: held out %.4f (linear %.4f), captured %.4f (photographs %.4f)\n",
+        evaluation::total(s->fit).relative(), evaluation::total(s->linear).relative(),
+        evaluation::total(s->fit_at_captured).relative(),
+        evaluation::total(s->photos_at_captured).relative());
+  }
+  const auto captured_error = [](const evaluation::HeldOutScores& s) {
+    return evaluation::total(s.fit_at_captured).relative();
+  };
+  const double photos = evaluation::total(with.photos_at_captured).relative();
+  EXPECT_GT(captured_error(without), photos);  // The failure this is about.
+  EXPECT_LT(captured_error(with), photos);
+  EXPECT_LT(with.fit_at_captured.at("stone-slab").relative(),
+            with.photos_at_captured.at("stone-slab").relative());
+  // Regression guards (measured above, 1.2x).
+  EXPECT_LT(captured_error(with), 0.067);
+  EXPECT_LT(with.fit_at_captured.at("corroding-metal").relative(), 0.16);
+  EXPECT_LT(evaluation::total(with.fit).relative(), 0.156);
 }
 
 }  // namespace
