@@ -29,7 +29,8 @@ struct Method {
 };
 const Method kMethods[] = {{"least squares", {"normals", "--method", "ls"}, false},
                            {"robust", {"normals"}, false},
-                           {"fit", {"fit"}, true}};
+                           {"fit", {"fit"}, true},
+                           {"fit --dim-samples", {"fit", "--dim-samples"}, true}};
 
 // Over the ground truth's object: the estimate's error in degrees (a pixel the method left
 // without a normal counts 90 degrees, as the published tables count every mask pixel), and the

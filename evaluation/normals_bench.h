@@ -1,9 +1,9 @@
 #pragma once
 // `lightstage bench normals`: every photometric-stereo method (least squares, robust, the
-// per-pixel BRDF fit's refined normals) on every real set with ground-truth normals and on the
-// simulator's hard scenes, error against time: normals.csv and normals.png (mean angular error
-// against seconds, one series per method, each point labelled by its set); on real sets also
-// whether each method's confidence map says where its normal is wrong.
+// per-pixel BRDF fit's refined normals, on real sets also with --dim-samples) on every real set
+// with ground-truth normals and on the simulator's hard scenes, error against time: normals.csv and
+// normals.png (mean angular error against seconds, one series per method, each point labelled by
+// its set); on real sets also whether each method's confidence map says where its normal is wrong.
 //  - Real sets: each folder of `data` in the DiLiGenT layout holding Normal_gt.mat (the
 //    benchmark's ground truth, read with libmatio), imported as `lightstage import` does (its
 //    image check included) and scored over the pixels whose true normal is set.
@@ -34,7 +34,7 @@ struct NormalsBenchOptions {
 struct NormalsBenchRow {
   std::string set;     // "ball", "sim shadowed 0.75", ...
   std::string kind;    // "real" or "sim".
-  std::string method;  // "least squares", "robust", "fit".
+  std::string method;  // "least squares", "robust", "fit", "fit --dim-samples" (real sets).
   double mean_deg = 0, median_deg = NAN;
   // Real sets: the mean error over the quarter of the pixels the method is least sure of (its
   // confidence map), and over the quarter it is surest of: whether the confidence says where

@@ -97,7 +97,7 @@ void print_normals(const evaluation::NormalsBenchSummary& summary) {
   for (const std::string& why : summary.real_sets_missing) {
     std::fprintf(stderr, "note: no real set measured: %s\n", why.c_str());
   }
-  std::printf("%-26s %-14s %9s %9s %8s %9s %8s %9s %9s\n", "set", "method", "mean deg", "median",
+  std::printf("%-26s %-17s %9s %9s %8s %9s %8s %9s %9s\n", "set", "method", "mean deg", "median",
               "flag%", "seconds", "pixels", "least c.", "most c.");
   for (const evaluation::NormalsBenchRow& r : summary.rows) {
     const auto number = [](double v) {
@@ -105,7 +105,7 @@ void print_normals(const evaluation::NormalsBenchSummary& summary) {
       if (!std::isnan(v)) std::snprintf(text, sizeof text, "%.3f", v);
       return std::string(text);
     };
-    std::printf("%-26s %-14s %9.3f %9s %8.1f %9.3f %8d %9s %9s\n", r.set.c_str(), r.method.c_str(),
+    std::printf("%-26s %-17s %9.3f %9s %8.1f %9.3f %8d %9s %9s\n", r.set.c_str(), r.method.c_str(),
                 r.mean_deg, number(r.median_deg).c_str(), 100 * r.flagged_fraction, r.seconds,
                 r.pixels, number(r.least_confident_deg).c_str(),
                 number(r.most_confident_deg).c_str());
@@ -344,9 +344,10 @@ void add_normals(CLI::App& bench) {
   auto args = std::make_shared<evaluation::NormalsBenchOptions>();
   auto* cmd = bench.add_subcommand(
       "normals",
-      "Every photometric-stereo method (least squares, robust, the fit's normals) on every real "
-      "set with ground-truth normals (DiLiGenT layout with Normal_gt.mat, run as the user runs "
-      "them: import, normals, fit) and on the simulator's hard scenes (cast shadows, saturation, "
+      "Every photometric-stereo method (least squares, robust, the fit's normals, on real sets "
+      "also with --dim-samples) on every real set with ground-truth normals (DiLiGenT layout with "
+      "Normal_gt.mat, run as the user runs them: import, normals, fit) and on the simulator's hard "
+      "scenes (cast shadows, saturation, "
       "dead LEDs, grazing normals, noise): error against time. Writes normals.csv and "
       "normals.png.");
   cmd->add_option("--out", args->out, "Output directory.")->capture_default_str();
