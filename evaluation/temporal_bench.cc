@@ -4,7 +4,6 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
-#include <optional>
 
 #include "evaluation/chart.h"
 #include "evaluation/csv_table.h"
@@ -239,53 +238,48 @@ void write_held_out_csv(const fs::path& path, const std::vector<HeldOutBenchRow>
   write_temporal_held_out_chart(path);
 }
 
-// The held-out part (see the header): per exposure one row per number of captured steps, its CSV
-// and chart, and the time-edit figure from the capture of every other step.
+// The held-out part (see the header): per exposure (and, for the dark one, with its dim samples
+// readmitted too) one row per number of captured steps, its CSV and chart, and the time-edit
+// figure from the capture of every other step.
 std::vector<HeldOutBenchRow> run_held_out(const TemporalBenchOptions& options,
                                           const ProgressFn& progress) {
   std::vector<HeldOutBenchRow> all;
   const long runs = 3 * long(options.captured.size());
-  // The dark capture twice: as fitted by default, and with its dim samples readmitted.
-  const struct {
-    double exposure;
-    bool dim_samples;
-    const char* csv;
-  } cases[] = {{1.0, false, "temporal_held_out.csv"},
-               {0.2, false, "temporal_held_out_dark.csv"},
-               {0.2, true, "temporal_held_out_dark_dim.csv"}};
-  std::optional<TimeLapse> lapse;
-  double lapse_exposure = 0;
-  for (const auto& c : cases) {
-    if (!lapse || lapse_exposure != c.exposure) {
-      lapse = rise_and_fall_time_lapse(151, 32, 24, options.lapse_steps, 1200.0, 40, c.exposure);
-      lapse_exposure = c.exposure;
+  for (const double exposure : {1.0, 0.2}) {
+    const bool dark = exposure < 1;
+    const TimeLapse lapse =
+        rise_and_fall_time_lapse(151, 32, 24, options.lapse_steps, 1200.0, 40, exposure);
+    for (const bool dim_samples : {false, true}) {
+      if (dim_samples && !dark) continue;
+      relight::TemporalFitOptions fit;
+      fit.brdf.readmit_dim_samples = dim_samples;
+      std::vector<HeldOutBenchRow> rows;
+      for (const int n : options.captured) {
+        const HeldOutScores s =
+            score_held_out(lapse, evenly_spaced_steps(options.lapse_steps, n), fit);
+        rows.push_back({exposure, dim_samples, n, total(s.fit).relative(),
+                        total(s.by_bic_alone).relative(), total(s.processes_only).relative(),
+                        total(s.step_fits_interpolated).relative(), total(s.linear).relative(),
+                        total(s.nearest).relative(), total(s.fit_at_captured).relative(),
+                        total(s.step_fits_at_captured).relative(),
+                        total(s.photos_at_captured).relative(), int(s.maps.curves.size())});
+        report(progress, "held-out steps", long(all.size() + rows.size()), runs,
+               std::to_string(n) + " captured at exposure " + std::to_string(exposure) +
+                   (dim_samples ? ", dim samples readmitted" : ""));
+      }
+      const std::string name = std::string("temporal_held_out") + (dark ? "_dark" : "") +
+                               (dim_samples ? "_dim" : "") + ".csv";
+      write_held_out_csv(options.out / name, rows, options.lapse_steps);
+      all.insert(all.end(), rows.begin(), rows.end());
     }
-    relight::TemporalFitOptions fit;
-    fit.brdf.readmit_dim_samples = c.dim_samples;
-    std::vector<HeldOutBenchRow> rows;
-    for (const int n : options.captured) {
-      const HeldOutScores s =
-          score_held_out(*lapse, evenly_spaced_steps(options.lapse_steps, n), fit);
-      rows.push_back({c.exposure, c.dim_samples, n, total(s.fit).relative(),
-                      total(s.by_bic_alone).relative(), total(s.processes_only).relative(),
-                      total(s.step_fits_interpolated).relative(), total(s.linear).relative(),
-                      total(s.nearest).relative(), total(s.fit_at_captured).relative(),
-                      total(s.step_fits_at_captured).relative(),
-                      total(s.photos_at_captured).relative(), int(s.maps.curves.size())});
-      report(progress, "held-out steps", long(all.size() + rows.size()), runs,
-             std::to_string(n) + " captured at exposure " + std::to_string(c.exposure) +
-                 (c.dim_samples ? ", dim samples readmitted" : ""));
-    }
-    write_held_out_csv(options.out / c.csv, rows, options.lapse_steps);
-    if (c.exposure == 1.0) {
+    if (!dark) {
       std::vector<capture::ReflectanceField> every_other;
       for (const int i : evenly_spaced_steps(options.lapse_steps, (options.lapse_steps + 1) / 2)) {
-        every_other.push_back(lapse->noisy[size_t(i)]);
+        every_other.push_back(lapse.noisy[size_t(i)]);
       }
-      write_time_edit_figure(options.out / "temporal_edits.png", *lapse,
+      write_time_edit_figure(options.out / "temporal_edits.png", lapse,
                              relight::fit_temporal(every_other, {}));
     }
-    all.insert(all.end(), rows.begin(), rows.end());
   }
   return all;
 }

@@ -16,28 +16,23 @@
 
 #include <algorithm>
 #include <array>
-#include <cctype>
 #include <charconv>
 #include <climits>
 #include <cstdio>
 #include <string_view>
 #include <utility>
 
+#include "lightstage/text.h"
+
 namespace ls::image_file {
 namespace {
-
-bool iequals(std::string_view a, std::string_view b) {
-  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
-           return std::tolower((unsigned char)x) == std::tolower((unsigned char)y);
-         });
-}
 
 // The position of `suffix` among the space-separated `names`, ignoring case; 10000 when absent.
 int index_in(std::string_view suffix, std::string_view names) {
   int i = 0;
   for (std::size_t at = 0; at < names.size(); ++i) {
     const std::size_t end = std::min(names.find(' ', at), names.size());
-    if (iequals(suffix, names.substr(at, end - at))) return i;
+    if (equals_ignoring_case(suffix, names.substr(at, end - at))) return i;
     at = end + 1;
   }
   return 10000;
@@ -149,8 +144,9 @@ std::vector<ExrChannel> exr_channels_in_oiio_order(const Imf::ChannelList& list)
     std::size_t end = begin + 1;
     while (end < channels.size() && channels[end].layer() == channels[begin].layer()) ++end;
     auto has = [&](const char* suffix) {
-      return std::any_of(channels.begin() + begin, channels.begin() + end,
-                         [&](const OrderedChannel& c) { return iequals(c.suffix(), suffix); });
+      return std::any_of(
+          channels.begin() + begin, channels.begin() + end,
+          [&](const OrderedChannel& c) { return equals_ignoring_case(c.suffix(), suffix); });
     };
     const bool xyz = has("X") && (has("Y") || has("Z"));
     for (std::size_t i = begin; i < end; ++i) {

@@ -23,6 +23,7 @@
 
 #include "lightstage/image_file.h"
 #include "lightstage/image_file_png_samples.h"
+#include "lightstage/text.h"
 
 namespace ls::image_file {
 namespace {
@@ -126,10 +127,6 @@ bool encode_row(PngState& s, png_bytep row) {
   if (setjmp(png_jmpbuf(s.png))) return false;  // NOLINT(cert-err52-cpp)
   row ? png_write_row(s.png, row) : png_write_end(s.png, s.info);
   return true;
-}
-
-bool equals_ignoring_case(const std::string& a, const char* b) {
-  return strcasecmp(a.c_str(), b) == 0;
 }
 
 class PngReader final : public Reader {

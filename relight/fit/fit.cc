@@ -297,6 +297,45 @@ void fit_pixel(const PixelData& d, const FitOptions& options, float* m, FitSumma
   ++local.per_model[best];
 }
 
+// fit_pixel, then (FitOptions::readmit_dim_samples) again from its normal with the samples under
+// the shadow threshold that it predicts dim (pixel::gather_with_dim_samples; `dim`: room for every
+// valid light); the first fit stands where none was readmitted or the second finds no model.
+void fit_pixel_with_dim_samples(const capture::ReflectanceField& field,
+                                const capture::ValidLights& valid, int x, int y, const PixelData& d,
+                                const FitOptions& options, float* m, Sample* dim,
+                                FitSummary& local) {
+  FitSummary first;  // Counted only when it stands.
+  fit_pixel(d, options, m, first);
+  const Eigen::Vector3f wo = d.wo.cast<float>();
+  const auto predicted = [&](const Eigen::Vector3d& l) {
+    return double(luminance(
+        model_radiance(m, l.cast<float>(), wo, float(options.max_specular_albedo)).data()));
+  };
+  const int with_dim = m[kMapModel] != 0 ? pixel::gather_with_dim_samples(
+                                               field, valid, options.normals, x, y, predicted, dim)
+                                         : 0;
+  if (with_dim == 0) {
+    local.add(first);
+    return;
+  }
+  // From the first fit's normal: the dim samples refine it, they do not start it again.
+  PixelData again = d;
+  again.samples = dim;
+  again.count = with_dim;
+  again.n0 = Eigen::Vector3d(m[kMapNormalX], m[kMapNormalX + 1], m[kMapNormalX + 2]).normalized();
+  again.t1 = again.n0.unitOrthogonal();
+  again.t2 = again.n0.cross(again.t1);
+  std::array<float, kMapChannelCount> first_maps;
+  std::copy_n(m, kMapChannelCount, first_maps.begin());
+  FitSummary second;
+  fit_pixel(again, options, m, second);
+  if (m[kMapModel] == 0) {  // The first fit stands where the second finds none.
+    std::copy(first_maps.begin(), first_maps.end(), m);
+    second = first;
+  }
+  local.add(second);
+}
+
 }  // namespace
 
 const char* to_string(FitModel model) {
@@ -430,7 +469,8 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
   summary.pixels = width * height;
 
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
-    std::vector<Sample> samples(valid.index.size()), dim(valid.index.size());
+    std::vector<Sample> samples(valid.index.size());
+    std::vector<Sample> dim(options.readmit_dim_samples ? valid.index.size() : 0);
     FitSummary local;
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
@@ -458,41 +498,11 @@ ModelMaps fit_models(const capture::ReflectanceField& field, const NormalMap& no
         d.refine_normal = options.refine_normal;
         d.wo = pixel::view_dir_at(options.view_dir_per_pixel,
                                   size_t(field.first_row() + y) * width + x);
-        if (!options.readmit_dim_samples) {
+        if (options.readmit_dim_samples) {
+          fit_pixel_with_dim_samples(field, valid, x, y, d, options, m, dim.data(), local);
+        } else {
           fit_pixel(d, options, m, local);
-          continue;
         }
-        FitSummary first;  // Counted only when it stands.
-        fit_pixel(d, options, m, first);
-        const Eigen::Vector3f wo = d.wo.cast<float>();
-        const auto predicted = [&](const Eigen::Vector3d& l) {
-          return double(luminance(
-              model_radiance(m, l.cast<float>(), wo, float(options.max_specular_albedo)).data()));
-        };
-        const int with_dim = m[kMapModel] != 0 ? pixel::gather_with_dim_samples(
-                                                     field, valid, no, x, y, predicted, dim.data())
-                                               : 0;
-        if (with_dim == 0) {
-          local.add(first);
-          continue;
-        }
-        // From the first fit's normal: the dim samples refine it, they do not start it again.
-        PixelData again = d;
-        again.samples = dim.data();
-        again.count = with_dim;
-        again.n0 =
-            Eigen::Vector3d(m[kMapNormalX], m[kMapNormalX + 1], m[kMapNormalX + 2]).normalized();
-        again.t1 = again.n0.unitOrthogonal();
-        again.t2 = again.n0.cross(again.t1);
-        std::array<float, kMapChannelCount> first_maps;
-        std::copy_n(m, kMapChannelCount, first_maps.begin());
-        FitSummary second;
-        fit_pixel(again, options, m, second);
-        if (m[kMapModel] == 0) {  // The first fit stands where the second finds none.
-          std::copy(first_maps.begin(), first_maps.end(), m);
-          second = first;
-        }
-        local.add(second);
       }
       rows_done.finished_one();
     }

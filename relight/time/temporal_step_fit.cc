@@ -297,6 +297,19 @@ StepResult fit_step_pixel(const StepPixel& d, const FitOptions& fo) {
   return lowest_bic(fits, d.count);
 }
 
+// A step's fitted parameters q as the material they render: Oren-Nayar diffuse plus a white
+// Torrance-Sparrow lobe (as step_residuals).
+physics::brdf::Material step_material(const std::array<double, 6>& q) {
+  physics::brdf::Material m;
+  m.diffuse = physics::brdf::DiffuseModel::kOrenNayar;
+  m.albedo = Eigen::Vector3d(q[kParamAlbedoR], q[kParamAlbedoG], q[kParamAlbedoB]);
+  m.sigma_rad = q[kParamSigma];
+  m.specular = physics::brdf::SpecularModel::kTorranceSparrow;
+  m.ks = Eigen::Vector3d::Constant(q[kParamKs]);
+  m.roughness = q[kParamRoughness];
+  return m;
+}
+
 }  // namespace
 
 StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normals,
@@ -319,7 +332,8 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
     throw InputError("temporal fit options: " + error);
   }
   tbb::parallel_for(tbb::blocked_range<int>(0, height), [&](const tbb::blocked_range<int>& rows) {
-    std::vector<Sample> samples(valid.index.size()), dim(valid.index.size());
+    std::vector<Sample> samples(valid.index.size());
+    std::vector<Sample> dim(fo.readmit_dim_samples ? valid.index.size() : 0);
     for (int y = rows.begin(); y < rows.end(); ++y) {
       for (int x = 0; x < width; ++x) {
         if (int(normals.flags.at(x, y, 0)) != 0) continue;  // sigma 0: unusable.
@@ -334,23 +348,17 @@ StepFit fit_step(const capture::ReflectanceField& field, const NormalMap& normal
         StepResult best = fit_step_pixel(d, fo);
         if (!best.ok) continue;
         if (fo.readmit_dim_samples) {  // As fit_models does (relight/fit/fit.h).
+          const physics::brdf::Material material = step_material(best.q);
           const auto predicted = [&](const Eigen::Vector3d& l) {
             const auto g = physics::brdf::Geometry<double>::from_world(d.n, l, d.wo);
-            if (!(g.cos_i > 0)) return 0.0;
-            const double diffuse = physics::brdf::oren_nayar(g, best.q[kParamSigma]);
-            const double lobe =
-                best.q[kParamKs] * physics::brdf::torrance_sparrow(g, best.q[kParamRoughness]);
-            return luminance(best.q[kParamAlbedoR] * diffuse + lobe,
-                             best.q[kParamAlbedoG] * diffuse + lobe,
-                             best.q[kParamAlbedoB] * diffuse + lobe) *
-                   g.cos_i;
+            return g.cos_i > 0 ? luminance(physics::brdf::eval(material, g)) * g.cos_i : 0.0;
           };
-          const int wide =
+          const int with_dim =
               pixel::gather_with_dim_samples(field, valid, no, x, y, predicted, dim.data());
-          if (wide > 0) {
+          if (with_dim > 0) {
             StepPixel again = d;
             again.samples = dim.data();
-            again.count = wide;
+            again.count = with_dim;
             const StepResult refit = fit_step_pixel(again, fo);
             if (refit.ok) best = refit, d = again;
           }
