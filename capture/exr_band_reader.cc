@@ -56,15 +56,16 @@ struct ExrBandReader::File {
   float value_scale = 1;  // The field's value = stored value x this (half storage's 1 / scale).
   // Raw files only: rows are chunks of a known size at the end of the file (a chunk: its row as an
   // int32, its byte count as an int32, the row's bytes), so the next band's bytes can be asked of
-  // the kernel (read ahead while this band is used) and the rows copied straight out of the page
-  // cache through a mapping of the file, in parallel: a stream's read copies twice, on one thread.
-  int advise_fd = -1;
+  // the kernel (read ahead while this band is used) and the rows read straight out of the page
+  // cache in parallel (floats through a mapping of the file, halves by pread): a stream's read
+  // copies twice, on one thread.
+  int raw_fd = -1;
   std::uintmax_t file_bytes = 0;
   int height = 0;
   const char* mapped = nullptr;  // The whole file, read only; null where it could not be mapped.
   ~File() {
     if (mapped != nullptr) ::munmap(const_cast<char*>(mapped), file_bytes);
-    if (advise_fd >= 0) ::close(advise_fd);
+    if (raw_fd >= 0) ::close(raw_fd);
   }
   std::uintmax_t chunk_bytes() const {
     return 8 + std::uintmax_t(width) * channels.size() * std::uintmax_t(value_bytes);
@@ -72,19 +73,30 @@ struct ExrBandReader::File {
   std::uintmax_t chunk_offset(int y) const {
     return file_bytes - std::uintmax_t(height - y) * chunk_bytes();
   }
-  // Whether row y's chunk lies where chunk_offset says, with its row and byte count.
-  bool chunk_in_place(int y) const {
+  // Whether `chunk` (as stored) is row y's, with its byte count.
+  bool chunk_is_row(const char* chunk, int y) const {
     std::int32_t row = 0, bytes = 0;
-    std::memcpy(&row, mapped + chunk_offset(y), 4);  // OpenEXR is little-endian, as x86 is.
-    std::memcpy(&bytes, mapped + chunk_offset(y) + 4, 4);
+    std::memcpy(&row, chunk, 4);  // OpenEXR is little-endian, as x86 is.
+    std::memcpy(&bytes, chunk + 4, 4);
     return row == y + min_y && std::uintmax_t(bytes) + 8 == chunk_bytes();
   }
+  // Whether row y's chunk lies where chunk_offset says.
+  bool chunk_in_place(int y) const { return chunk_is_row(mapped + chunk_offset(y), y); }
   void map_rows();
-  // Starts reading rows [y0, y1) into the page cache.
+  // Whether the page holding byte `at` of the mapped file is in the page cache (false unmapped).
+  bool page_cached(std::uintmax_t at) const {
+    if (mapped == nullptr) return false;
+    const std::uintmax_t page = std::uintmax_t(::sysconf(_SC_PAGESIZE));
+    unsigned char resident = 0;
+    return ::mincore(const_cast<char*>(mapped) + at / page * page, 1, &resident) == 0 &&
+           (resident & 1) != 0;
+  }
+  // Starts reading rows [y0, y1) into the page cache. Not where their last page is there already
+  // (a field read again): the kernel finds so page by page, a sixth of a pass that relights them.
   void read_ahead(int y0, int y1) const {
-    if (advise_fd < 0 || y0 >= y1) return;
-    posix_fadvise(advise_fd, off_t(chunk_offset(y0)),
-                  off_t(std::uintmax_t(y1 - y0) * chunk_bytes()), POSIX_FADV_WILLNEED);
+    if (raw_fd < 0 || y0 >= y1 || page_cached(chunk_offset(y1 - 1) + chunk_bytes() - 1)) return;
+    posix_fadvise(raw_fd, off_t(chunk_offset(y0)), off_t(std::uintmax_t(y1 - y0) * chunk_bytes()),
+                  POSIX_FADV_WILLNEED);
   }
   int step = 1;        // Tile height (1: scanlines).
   int piece_rows = 1;  // Rows read at a time (whole tiles where the file is tiled).
@@ -94,12 +106,14 @@ struct ExrBandReader::File {
   // The same from the mapping: each row copied and checked in one pass, rows in parallel.
   void copy_mapped_piece(int a, int b, bool check_finite);
   void read_unmapped_piece(int a, int b);  // Through OpenEXR: raw bytes or slices.
-  // Mapped rows [a, b) left in place: their chunks checked (InputError as above).
-  void check_mapped_chunks(int a, int b) const;
+  // Rows [a, b)'s chunks as stored into `half_chunks`, in parallel, each checked (InputError as
+  // above).
+  void read_half_chunks(int a, int b);
   void drop_mapped(int a, int b) const;  // Rows [a, b)'s pages out of the mapping.
   // InputError naming the file: a row whose chunk is out of place (>= 0), or non-finite values.
   void refuse_damage(int bad_row, bool non_finite) const;
-  std::vector<float> planar;  // One piece: [row][channel][x], as an uncompressed file holds it.
+  std::vector<float> planar;      // One piece: [row][channel][x], as an uncompressed file holds it.
+  std::vector<char> half_chunks;  // One piece of a half file's chunks, as stored.
 };
 
 namespace {
@@ -118,7 +132,7 @@ bool any_not_finite(const float* values, std::size_t count) {
 
 void ExrBandReader::File::map_rows() {
   if (file_bytes < std::uintmax_t(height) * chunk_bytes()) return;  // Not what it says: OpenEXR's.
-  void* at = ::mmap(nullptr, file_bytes, PROT_READ, MAP_SHARED, advise_fd, 0);
+  void* at = ::mmap(nullptr, file_bytes, PROT_READ, MAP_SHARED, raw_fd, 0);
   if (at == MAP_FAILED) return;
   mapped = static_cast<const char*>(at);
   if (!chunk_in_place(0) || !chunk_in_place(height - 1)) {  // A line offset table elsewhere.
@@ -167,8 +181,8 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
   if ((all_float || all_half) && uncompressed_rows && header.lineOrder() == Imf::INCREASING_Y) {
     std::error_code error;
     f.file_bytes = std::filesystem::file_size(path, error);
-    if (!error) f.advise_fd = ::open(f.name.c_str(), O_RDONLY | O_CLOEXEC);
-    if (f.advise_fd >= 0) f.map_rows();
+    if (!error) f.raw_fd = ::open(f.name.c_str(), O_RDONLY | O_CLOEXEC);
+    if (f.raw_fd >= 0) f.map_rows();
   }
   constexpr std::size_t kPieceBytes = std::size_t(8) << 20;
   const std::size_t row_bytes = std::size_t(f.width) * f.channels.size() * sizeof(float);
@@ -220,33 +234,43 @@ void ExrBandReader::read(int y0, int y1, float* dst) {
 
 void ExrBandReader::read_planar(int y0, int y1, const PlanarVisitor& visit) {
   File& f = *file_;
-  // Mapped half rows go to the consumer as they are: converting them first would write and read
-  // again twice their bytes.
-  const bool halves_in_place = f.mapped != nullptr && f.value_bytes == 2 && cpu_converts_halves();
-  f.read_ahead(y0, std::min(y1, y0 + f.piece_rows));
-  for (int a = y0; a < y1; a += f.piece_rows) {
-    const int b = std::min(y1, a + f.piece_rows);
-    if (halves_in_place) {
-      f.check_mapped_chunks(a, b);
+  // Half rows go to the consumer as stored: converting them first would write and read again
+  // twice their bytes. They are read (pread, rows in parallel) rather than used in place through
+  // the mapping: faulting its pages in and dropping them again cost more than the copy.
+  const bool halves_as_stored = f.mapped != nullptr && f.value_bytes == 2 && cpu_converts_halves();
+  // Halves convert nothing into `planar`: a piece of as many bytes holds twice the rows (fewer
+  // pauses between pieces, and rows enough to share among the cores).
+  const int piece_rows = halves_as_stored ? f.piece_rows * int(sizeof(float) / 2) : f.piece_rows;
+  f.read_ahead(y0, std::min(y1, y0 + piece_rows));
+  for (int a = y0; a < y1; a += piece_rows) {
+    const int b = std::min(y1, a + piece_rows);
+    if (halves_as_stored) {
+      f.read_half_chunks(a, b);
     } else {
       f.read_piece(a, b, true);
     }
-    f.read_ahead(b, std::min(y1, b + f.piece_rows));  // While this piece is used.
-    if (halves_in_place) {
-      visit(PlanarRows{nullptr, a, b - a, f.width, f.to_pixel_index,
-                       f.mapped + f.chunk_offset(a) + 8, std::size_t(f.chunk_bytes()),
-                       f.value_scale, f.name});
-      f.drop_mapped(a, b);
+    f.read_ahead(b, std::min(y1, b + piece_rows));  // While this piece is used.
+    if (halves_as_stored) {
+      visit(PlanarRows{nullptr, a, b - a, f.width, f.to_pixel_index, f.half_chunks.data() + 8,
+                       std::size_t(f.chunk_bytes()), f.value_scale, f.name});
     } else {
       visit(PlanarRows{f.planar.data(), a, b - a, f.width, f.to_pixel_index});
     }
   }
 }
 
-void ExrBandReader::File::check_mapped_chunks(int a, int b) const {
-  for (int y = a; y < b; ++y) {
-    if (!chunk_in_place(y)) refuse_damage(y, false);
-  }
+void ExrBandReader::File::read_half_chunks(int a, int b) {
+  const std::size_t bytes = std::size_t(chunk_bytes());
+  half_chunks.resize(std::size_t(b - a) * bytes);
+  std::atomic<int> bad_row{-1};
+  tbb::parallel_for(a, b, [&](int y) {
+    char* chunk = half_chunks.data() + std::size_t(y - a) * bytes;
+    if (::pread(raw_fd, chunk, bytes, off_t(chunk_offset(y))) != ssize_t(bytes) ||
+        !chunk_is_row(chunk, y)) {
+      bad_row = y;
+    }
+  });
+  refuse_damage(bad_row, false);
 }
 
 void ExrBandReader::File::refuse_damage(int bad_row, bool non_finite) const {

@@ -19,7 +19,7 @@ namespace ls::capture {
 // A piece of rows as the file holds them: [row][channel][x], `rows` rows of `width` pixels; the
 // values of channel c of a pixel go to its value index to_pixel_index[c] (light * 3 + colour).
 // Floats in `values`, checked finite; or, for a half field read where the CPU converts halves
-// (F16C), the file's own half rows in place (`halves`, rows `half_row_bytes` apart, not aligned;
+// (F16C), the file's own half rows as stored (`halves`, rows `half_row_bytes` apart, not aligned;
 // value = half x half_scale), so that a consumer converts them as it sums
 // (capture/half_storage.h). Those are not checked: a consumer that sums them finds a non-finite
 // value in its sums, and must refuse it naming `source` (the file).

@@ -1,5 +1,6 @@
 // Relighting throughput (GB/s of field streamed, against a memcpy of as many bytes measured in the
-// same run), environment integration and light-cell computation for the default dome.
+// same run): a field in memory, and a half-float file's rows as relight's bands sum them;
+// environment integration and light-cell computation for the default dome.
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
 #include <tbb/info.h>
@@ -7,12 +8,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstring>
 #include <map>
 #include <memory>
 #include <random>
 #include <vector>
 
+#include "capture/exr_band_reader.h"
 #include "capture/field.h"
 #include "lightstage/stage.h"
 #include "physics/envmap.h"
@@ -98,6 +101,47 @@ BENCHMARK(BM_Relight)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MinTime(0.2);
+
+// A half-float field's rows as a file holds them (one plane per channel a row), in memory: the
+// sums relight's bands make of them (relight_rows_into, halves converted as they are summed).
+// Args: field size (pixels per side), threads (0 = all).
+void BM_RelightHalfRows(benchmark::State& state) {
+  const int size = int(state.range(0)), threads = threads_for(int(state.range(1)));
+  const int count = 3 * int(dome().size());
+  const size_t row_bytes = size_t(size) * size_t(count) * 2;
+  std::vector<char> halves(row_bytes * size_t(size));
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<int> half(0x2000, 0x3bff);  // Finite, in (0, 1).
+  for (size_t i = 0; i + 1 < halves.size(); i += 2) {
+    const auto h = static_cast<std::uint16_t>(half(rng));
+    std::memcpy(&halves[i], &h, 2);
+  }
+  std::vector<int> to_pixel_index(size_t(count), 0);
+  for (int i = 0; i < count; ++i) to_pixel_index[size_t(i)] = i;
+  ls::capture::PlanarRows rows{nullptr, 0, size, size, to_pixel_index, halves.data(), row_bytes};
+  const double copy_s = memcpy_seconds(halves.size(), threads);
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  std::vector<float> e(size_t(count), 0.01f);
+  ls::Image out(size, size, 3);
+  const auto start = std::chrono::steady_clock::now();
+  for (auto _ : state) {
+    ls::relight::relight_rows_into(rows, e, out);
+    benchmark::DoNotOptimize(out.pixels.data());
+  }
+  const double relight_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
+      double(state.iterations());
+  state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(halves.size()));
+  state.counters["threads"] = threads;
+  state.counters["memcpy_GBps"] = double(halves.size()) / copy_s / 1e9;
+  state.counters["vs_memcpy"] = copy_s / relight_s;
+}
+BENCHMARK(BM_RelightHalfRows)
+    ->Args({1024, 1})
+    ->Args({1024, 0})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(0.5);
 
 // Arg: map width (height = width / 2); the dome's 151 LEDs, a new rotation each iteration.
 void BM_IntegrateEnvironment(benchmark::State& state) {

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -137,6 +138,17 @@ TEST(HalfStorage, ANonFiniteHalfIsRefusedByName) {
   };
   EXPECT_THAT(error([&] { read_field(path); }),
               HasSubstr(path.string() + ": the reflectance field holds non-finite values"));
+  // Row 4 of 9 claiming to be row 5: refused naming the row, as rows for a consumer that sums the
+  // halves as stored too (read from the file, not through the mapping, each chunk checked).
+  const std::filesystem::path moved = dir / "moved.exr";
+  write_field(moved, field, {}, 0, choose_storage(field, StorageChoice::kHalf));
+  const std::int32_t wrong_row = 5;
+  ls::testing::patch_from_end(moved, 5 * (8 + 16 * 9 * 2), &wrong_row, 4);
+  const std::string planar = error([&] {
+    FieldStream stream(moved);
+    stream.read_rows_planar(0, stream.height(), [](const PlanarRows&) {});
+  });
+  EXPECT_THAT(planar, HasSubstr(moved.string() + ": row 4"));
 }
 
 // Built in bands through a spill (a field larger than memory), the same choice as in memory: the

@@ -141,8 +141,9 @@ TEST(RelightTest, RowsAsTheFileHoldsThemRelightToTheSameBytes) {
       std::filesystem::temp_directory_path() / ("relight_rows_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   for (const int lights : {1, 8, 13, 151}) {
-    // 300 rows of 151 lights are three 8 MiB pieces.
-    const ReflectanceField field = random_field(37, 300, lights, 7u + unsigned(lights));
+    // 300 rows of 151 lights are three 8 MiB pieces; 45 columns take each of add_half_plane's
+    // loops (32 halves at a time, 8, then one).
+    const ReflectanceField field = random_field(45, 300, lights, 7u + unsigned(lights));
     std::vector<float> weights(3 * size_t(lights));
     std::mt19937 rng(lights);
     std::uniform_real_distribution<float> weight(-0.1f, 1.0f);
