@@ -7,7 +7,7 @@
 #include <ImfInputFile.h>
 #include <ImfTiledInputFile.h>
 #include <fcntl.h>
-#include <sys/mman.h>
+#include <sys/uio.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <unistd.h>
@@ -52,19 +52,18 @@ struct ExrBandReader::File {
   // Uncompressed scanlines of float channels hold, per row, each channel's row in turn: read as
   // they are, without OpenEXR's per-value conversion.
   bool raw = false;
-  int value_bytes = 4;    // Of the mapped rows' values: float, or half (converted here).
+  int value_bytes = 4;    // Of the raw rows' values: float, or half (converted here).
   float value_scale = 1;  // The field's value = stored value x this (half storage's 1 / scale).
-  // Raw files only: rows are chunks of a known size at the end of the file (a chunk: its row as an
-  // int32, its byte count as an int32, the row's bytes), so the next band's bytes can be asked of
-  // the kernel (read ahead while this band is used) and the rows read straight out of the page
-  // cache in parallel (floats through a mapping of the file, halves by pread): a stream's read
-  // copies twice, on one thread.
-  int raw_fd = -1;
+  // Uncompressed float or half scanlines: rows are chunks of a known size at the end of the file (a
+  // chunk: its row as an int32, its byte count as an int32, the row's bytes), so the next band's
+  // bytes can be asked of the kernel (read ahead while this band is used) and the rows read
+  // straight out of the page cache, rows in parallel (pread): a stream's read copies twice, on one
+  // thread. Not through a mapping: faulting its pages in and dropping them again (a pass over a
+  // field larger than memory must not hold it resident) cost more than the copy.
+  int raw_fd = -1;  // Open where the rows lie where chunk_offset says, else -1 (OpenEXR reads).
   std::uintmax_t file_bytes = 0;
   int height = 0;
-  const char* mapped = nullptr;  // The whole file, read only; null where it could not be mapped.
   ~File() {
-    if (mapped != nullptr) ::munmap(const_cast<char*>(mapped), file_bytes);
     if (raw_fd >= 0) ::close(raw_fd);
   }
   std::uintmax_t chunk_bytes() const {
@@ -80,16 +79,14 @@ struct ExrBandReader::File {
     std::memcpy(&bytes, chunk + 4, 4);
     return row == y + min_y && std::uintmax_t(bytes) + 8 == chunk_bytes();
   }
-  // Whether row y's chunk lies where chunk_offset says.
-  bool chunk_in_place(int y) const { return chunk_is_row(mapped + chunk_offset(y), y); }
-  void map_rows();
-  // Whether the page holding byte `at` of the mapped file is in the page cache (false unmapped).
+  // Whether the first and last rows' chunks lie where chunk_offset says (else the rows are
+  // elsewhere, behind a line offset table: OpenEXR's to read).
+  bool rows_in_place() const;
+  // Whether byte `at` of the file is in the page cache (a read that may not wait for the disk).
   bool page_cached(std::uintmax_t at) const {
-    if (mapped == nullptr) return false;
-    const std::uintmax_t page = std::uintmax_t(::sysconf(_SC_PAGESIZE));
-    unsigned char resident = 0;
-    return ::mincore(const_cast<char*>(mapped) + at / page * page, 1, &resident) == 0 &&
-           (resident & 1) != 0;
+    char byte = 0;
+    iovec to{&byte, 1};
+    return ::preadv2(raw_fd, &to, 1, off_t(at), RWF_NOWAIT) == 1;
   }
   // Starts reading rows [y0, y1) into the page cache. Not where their last page is there already
   // (a field read again): the kernel finds so page by page, a sixth of a pass that relights them.
@@ -103,13 +100,12 @@ struct ExrBandReader::File {
   // Rows [a, b) into `planar` as [row][channel][x]; InputError naming the file and rows, or (with
   // check_finite) when a value is not finite.
   void read_piece(int a, int b, bool check_finite);
-  // The same from the mapping: each row copied and checked in one pass, rows in parallel.
-  void copy_mapped_piece(int a, int b, bool check_finite);
-  void read_unmapped_piece(int a, int b);  // Through OpenEXR: raw bytes or slices.
+  // The same by pread: each row read and checked (halves converted), rows in parallel.
+  void read_raw_piece(int a, int b, bool check_finite);
+  void read_through_openexr(int a, int b);  // Raw bytes or slices.
   // Rows [a, b)'s chunks as stored into `half_chunks`, in parallel, each checked (InputError as
   // above).
   void read_half_chunks(int a, int b);
-  void drop_mapped(int a, int b) const;  // Rows [a, b)'s pages out of the mapping.
   // InputError naming the file: a row whose chunk is out of place (>= 0), or non-finite values.
   void refuse_damage(int bad_row, bool non_finite) const;
   std::vector<float> planar;      // One piece: [row][channel][x], as an uncompressed file holds it.
@@ -130,15 +126,16 @@ bool any_not_finite(const float* values, std::size_t count) {
 
 }  // namespace
 
-void ExrBandReader::File::map_rows() {
-  if (file_bytes < std::uintmax_t(height) * chunk_bytes()) return;  // Not what it says: OpenEXR's.
-  void* at = ::mmap(nullptr, file_bytes, PROT_READ, MAP_SHARED, raw_fd, 0);
-  if (at == MAP_FAILED) return;
-  mapped = static_cast<const char*>(at);
-  if (!chunk_in_place(0) || !chunk_in_place(height - 1)) {  // A line offset table elsewhere.
-    ::munmap(at, file_bytes);
-    mapped = nullptr;
+bool ExrBandReader::File::rows_in_place() const {
+  if (file_bytes < std::uintmax_t(height) * chunk_bytes()) return false;
+  for (const int y : {0, height - 1}) {
+    char chunk_header[8];
+    if (::pread(raw_fd, chunk_header, 8, off_t(chunk_offset(y))) != 8 ||
+        !chunk_is_row(chunk_header, y)) {
+      return false;
+    }
   }
+  return true;
 }
 
 ExrBandReader::ExrBandReader(const std::filesystem::path& path,
@@ -182,7 +179,10 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
     std::error_code error;
     f.file_bytes = std::filesystem::file_size(path, error);
     if (!error) f.raw_fd = ::open(f.name.c_str(), O_RDONLY | O_CLOEXEC);
-    if (f.raw_fd >= 0) f.map_rows();
+    if (f.raw_fd >= 0 && !f.rows_in_place()) {
+      ::close(f.raw_fd);
+      f.raw_fd = -1;
+    }
   }
   constexpr std::size_t kPieceBytes = std::size_t(8) << 20;
   const std::size_t row_bytes = std::size_t(f.width) * f.channels.size() * sizeof(float);
@@ -235,9 +235,8 @@ void ExrBandReader::read(int y0, int y1, float* dst) {
 void ExrBandReader::read_planar(int y0, int y1, const PlanarVisitor& visit) {
   File& f = *file_;
   // Half rows go to the consumer as stored: converting them first would write and read again
-  // twice their bytes. They are read (pread, rows in parallel) rather than used in place through
-  // the mapping: faulting its pages in and dropping them again cost more than the copy.
-  const bool halves_as_stored = f.mapped != nullptr && f.value_bytes == 2 && cpu_converts_halves();
+  // twice their bytes.
+  const bool halves_as_stored = f.raw_fd >= 0 && f.value_bytes == 2 && cpu_converts_halves();
   // Halves convert nothing into `planar`: a piece of as many bytes holds twice the rows (fewer
   // pauses between pieces, and rows enough to share among the cores).
   const int piece_rows = halves_as_stored ? f.piece_rows * int(sizeof(float) / 2) : f.piece_rows;
@@ -281,46 +280,41 @@ void ExrBandReader::File::refuse_damage(int bad_row, bool non_finite) const {
   if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
 }
 
-void ExrBandReader::File::drop_mapped(int a, int b) const {
-  // The piece's pages out of this process's mapping (they stay in the page cache): touched pages
-  // of a mapped file count as resident, and a pass over a field larger than memory must not.
-  const std::uintmax_t page = std::uintmax_t(::sysconf(_SC_PAGESIZE));
-  const std::uintmax_t first = chunk_offset(a) / page * page,
-                       end = chunk_offset(b - 1) + chunk_bytes();
-  ::madvise(const_cast<char*>(mapped) + first, end - first, MADV_DONTNEED);
-}
-
-void ExrBandReader::File::copy_mapped_piece(int a, int b, bool check_finite) {
+void ExrBandReader::File::read_raw_piece(int a, int b, bool check_finite) {
   const std::size_t row_values = std::size_t(width) * channels.size();
   std::atomic<int> bad_row{-1};
   std::atomic<bool> non_finite{false};
   tbb::parallel_for(a, b, [&](int y) {
-    if (!chunk_in_place(y)) {
+    float* row = planar.data() + std::size_t(y - a) * row_values;
+    thread_local std::vector<char> halves;  // A half row, converted into `row`.
+    if (value_bytes == 2) halves.resize(row_values * 2);
+    char chunk_header[8];
+    iovec to[2] = {{chunk_header, 8},
+                   {value_bytes == 2 ? static_cast<void*>(halves.data()) : static_cast<void*>(row),
+                    row_values * std::size_t(value_bytes)}};
+    if (::preadv(raw_fd, to, 2, off_t(chunk_offset(y))) != ssize_t(chunk_bytes()) ||
+        !chunk_is_row(chunk_header, y)) {
       bad_row = y;
       return;
     }
-    float* row = planar.data() + std::size_t(y - a) * row_values;
-    const char* stored = mapped + chunk_offset(y) + 8;
     if (value_bytes == 2) {
-      if (!halves_to_floats(stored, row_values, value_scale, row)) non_finite = true;
+      if (!halves_to_floats(halves.data(), row_values, value_scale, row)) non_finite = true;
     } else {
-      std::memcpy(row, stored, row_values * sizeof(float));
       if (value_scale != 1) scale_values(row, row_values, value_scale);
       if (check_finite && any_not_finite(row, row_values)) non_finite = true;
     }
   });
-  drop_mapped(a, b);
   refuse_damage(bad_row, non_finite);
 }
 
 void ExrBandReader::File::read_piece(int a, int b, bool check_finite) {
   const std::size_t row_values = std::size_t(width) * channels.size();
   planar.resize(std::size_t(b - a) * row_values);
-  if (mapped != nullptr) {
-    copy_mapped_piece(a, b, check_finite);
+  if (raw_fd >= 0) {
+    read_raw_piece(a, b, check_finite);
     return;
   }
-  read_unmapped_piece(a, b);
+  read_through_openexr(a, b);
   if (!check_finite && value_scale == 1) return;
   std::atomic<bool> non_finite{false};
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, planar.size(), row_values),
@@ -332,7 +326,7 @@ void ExrBandReader::File::read_piece(int a, int b, bool check_finite) {
   if (non_finite) throw InputError(name + ": the reflectance field holds non-finite values");
 }
 
-void ExrBandReader::File::read_unmapped_piece(int a, int b) {
+void ExrBandReader::File::read_through_openexr(int a, int b) {
   const std::size_t row_values = std::size_t(width) * channels.size();
   const int num_channels = int(channels.size());
   try {

@@ -3,8 +3,8 @@
 // pixel-major floats. OpenEXR stores each row channel by channel and, asked for interleaved pixels
 // (as OpenImageIO asks), converts value by value at the pixel's stride: more time than the rest
 // of a relighting. Here rows are read as the file holds them into a small buffer (at most 8 MiB
-// and a quarter of the rows asked for): uncompressed float or half rows straight from a mapping
-// of the file (halves converted, F16C where the CPU has it), rows in parallel; others through
+// and a quarter of the rows asked for): uncompressed float or half rows straight from the file by
+// pread (halves converted, F16C where the CPU has it), rows in parallel; others through
 // OpenEXR into the same [row][channel][x] layout; then transposed in blocks, in parallel.
 #include <filesystem>
 #include <functional>

@@ -248,10 +248,10 @@ TEST(Field, ReadValidatesAndNamesTheFile) {
   EXPECT_EQ(read_field(ok).at(1, 1, 0, 2), 1.0f);
 }
 
-// Uncompressed fields are read from a mapping of the file, row chunks where the format puts them
+// Uncompressed fields are read straight from the file, row chunks where the format puts them
 // (each: its row, its byte count, its values): a chunk out of place or a value that is not finite
 // is refused naming the file, never read as another row's values.
-TEST(Field, MappedRowsOutOfPlaceOrNotFiniteAreRefusedByName) {
+TEST(Field, RawRowsOutOfPlaceOrNotFiniteAreRefusedByName) {
   ls::testing::TempDir dir;
   const ReflectanceField field = random_field(16, 9, 3, 3);
   const std::filesystem::path path = dir / "field.exr";

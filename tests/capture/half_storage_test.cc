@@ -68,7 +68,7 @@ TEST(HalfStorage, HalvesTheFileAndReadsBackWithinHalfPrecision) {
   EXPECT_EQ(check.noise_ratio, -1);  // No measured noise to hold it against.
   write_field(dir / "float.exr", field);
   write_field(dir / "half.exr", field, {}, 0, storage);
-  write_field(dir / "half_tiled.exr", field, {}, 16, storage);  // Read through OpenEXR, unmapped.
+  write_field(dir / "half_tiled.exr", field, {}, 16, storage);  // Read through OpenEXR.
   const double ratio = double(std::filesystem::file_size(dir / "half.exr")) /
                        double(std::filesystem::file_size(dir / "float.exr"));
   EXPECT_NEAR(ratio, 0.5, 0.02);
@@ -85,7 +85,7 @@ TEST(HalfStorage, HalvesTheFileAndReadsBackWithinHalfPrecision) {
     const float v = field.values()[i];
     ASSERT_LE(std::abs(back.values()[i] - v), std::ldexp(std::abs(v), -11) + floor) << i;
   }
-  // Mapped rows (scanlines) and OpenEXR's conversion (tiles) give the same floats.
+  // Raw rows (scanlines) and OpenEXR's conversion (tiles) give the same floats.
   const ReflectanceField tiled = read_field(dir / "half_tiled.exr");
   EXPECT_EQ(tiled.values(), back.values());
   // Relit, within the tolerance the choice was made with (on every pixel, not only its sample).
@@ -139,7 +139,7 @@ TEST(HalfStorage, ANonFiniteHalfIsRefusedByName) {
   EXPECT_THAT(error([&] { read_field(path); }),
               HasSubstr(path.string() + ": the reflectance field holds non-finite values"));
   // Row 4 of 9 claiming to be row 5: refused naming the row, as rows for a consumer that sums the
-  // halves as stored too (read from the file, not through the mapping, each chunk checked).
+  // halves as stored too (each chunk checked as it is read).
   const std::filesystem::path moved = dir / "moved.exr";
   write_field(moved, field, {}, 0, choose_storage(field, StorageChoice::kHalf));
   const std::int32_t wrong_row = 5;
