@@ -88,8 +88,8 @@ struct ExrBandReader::File {
     iovec to{&byte, 1};
     return ::preadv2(raw_fd, &to, 1, off_t(at), RWF_NOWAIT) == 1;
   }
-  // Starts reading rows [y0, y1) into the page cache. Not where their last page is there already
-  // (a field read again): the kernel finds so page by page, a sixth of a pass that relights them.
+  // Starts reading rows [y0, y1) into the page cache; not where their last byte is cached already
+  // (a field read again): the kernel would find so page by page, a sixth of a pass relighting them.
   void read_ahead(int y0, int y1) const {
     if (raw_fd < 0 || y0 >= y1 || page_cached(chunk_offset(y1 - 1) + chunk_bytes() - 1)) return;
     posix_fadvise(raw_fd, off_t(chunk_offset(y0)), off_t(std::uintmax_t(y1 - y0) * chunk_bytes()),
