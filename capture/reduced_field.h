@@ -26,11 +26,11 @@ ReflectanceField read_reduced_field(FieldStream& stream, int factor, std::size_t
 
 // The same in bands, none held after its visit (what the reduced field's sources read): each a
 // band of the reduced field (first_row() and frame_height() in its rows) made from a band of the
-// file's rows of at most band_bytes; `also`, when given, sees that band of the file's own pixels
-// first (what else a caller makes at the full size in the same pass). `stream` must outlive the
-// bands; the header of what they visit is reduced_header's.
+// file's rows of at most band_bytes; `also`, when given, sees the file's own rows first, as
+// read_rows_planar gives them (what else a caller makes at the full size in the same pass).
+// `stream` must outlive the bands; the header of what they visit is reduced_header's.
 FieldBands reduced_bands(FieldStream& stream, int factor, std::size_t band_bytes,
-                         ProgressFn progress = {}, BandVisitor also = {});
+                         ProgressFn progress = {}, PlanarVisitor also = {});
 // The header (no values) of the file's field reduced by `factor`: its size, lights, attributes and
 // the noise of the mean.
 ReflectanceField reduced_header(const ReflectanceField& header, int factor);

@@ -367,8 +367,11 @@ void MapRelighter::add_reduced_sources(std::vector<MapRelit>& relit, const Progr
     };
   }
   const capture::FieldBands reduced = capture::reduced_bands(
-      *stream_, factor, band_bytes, reduced_progress,
-      [&](const capture::ReflectanceField& band) { relight_band(band, guides); });
+      *stream_, factor, band_bytes, reduced_progress, [&](const capture::PlanarRows& rows) {
+        for (std::size_t i = 0; i < relit.size(); ++i) {
+          relight_rows_into(rows, led_irradiance[i], guides[i]);
+        }
+      });
   const FieldSources sources(
       header,
       [&](const capture::BandVisitor& visit) {
