@@ -83,9 +83,11 @@ FieldBands reduced_bands(FieldStream& stream, int factor, std::size_t band_bytes
     const ReflectanceField frame = reduced_header(stream.header(), factor);
     const int width = stream.width(), height = stream.height();
     const std::size_t values = std::size_t(frame.num_lights()) * 3;
-    // Whole blocks of rows a band, and whole tile rows where the file is tiled.
+    // Whole blocks of rows a band, and whole tile rows where the file is tiled; within band_bytes
+    // of sums, which are doubles (at factor 1 twice a band of the file's floats).
     const int alignment = std::lcm(factor, stream.row_alignment());
-    const int rows = std::max(alignment, stream.rows_within(band_bytes) / alignment * alignment);
+    const int within = stream.rows_within(factor == 1 ? band_bytes / 2 : band_bytes);
+    const int rows = std::max(alignment, within / alignment * alignment);
     ReflectanceField reduced;
     std::vector<double> sums;
     for (int y0 = 0; y0 < height; y0 += rows) {
