@@ -79,9 +79,14 @@ struct ExrBandReader::File {
     std::memcpy(&bytes, chunk + 4, 4);
     return row == y + min_y && std::uintmax_t(bytes) + 8 == chunk_bytes();
   }
-  // Whether the first and last rows' chunks lie where chunk_offset says (else the rows are
-  // elsewhere, behind a line offset table: OpenEXR's to read).
-  bool rows_in_place() const;
+  // Row y's chunk by one read at chunk_offset: the first `bytes` of its values into `values`;
+  // false where the read falls short or the chunk is not row y's (chunk_is_row).
+  bool read_chunk(int y, void* values, std::size_t bytes) const {
+    char header[8];
+    iovec to[2] = {{header, 8}, {values, bytes}};
+    return ::preadv(raw_fd, to, 2, off_t(chunk_offset(y))) == ssize_t(8 + bytes) &&
+           chunk_is_row(header, y);
+  }
   // Whether byte `at` of the file is in the page cache (a read that may not wait for the disk).
   bool page_cached(std::uintmax_t at) const {
     char byte = 0;
@@ -126,18 +131,6 @@ bool any_not_finite(const float* values, std::size_t count) {
 
 }  // namespace
 
-bool ExrBandReader::File::rows_in_place() const {
-  if (file_bytes < std::uintmax_t(height) * chunk_bytes()) return false;
-  for (const int y : {0, height - 1}) {
-    char chunk_header[8];
-    if (::pread(raw_fd, chunk_header, 8, off_t(chunk_offset(y))) != 8 ||
-        !chunk_is_row(chunk_header, y)) {
-      return false;
-    }
-  }
-  return true;
-}
-
 ExrBandReader::ExrBandReader(const std::filesystem::path& path,
                              const std::vector<std::string>& channels,
                              const std::vector<int>& to_pixel_index, float value_scale)
@@ -179,7 +172,12 @@ ExrBandReader::ExrBandReader(const std::filesystem::path& path,
     std::error_code error;
     f.file_bytes = std::filesystem::file_size(path, error);
     if (!error) f.raw_fd = ::open(f.name.c_str(), O_RDONLY | O_CLOEXEC);
-    if (f.raw_fd >= 0 && !f.rows_in_place()) {
+    // The first and last rows where chunk_offset puts them, else the rows are elsewhere, behind a
+    // line offset table: OpenEXR's to read.
+    const bool rows_in_place =
+        f.raw_fd >= 0 && f.file_bytes >= std::uintmax_t(f.height) * f.chunk_bytes() &&
+        f.read_chunk(0, nullptr, 0) && f.read_chunk(f.height - 1, nullptr, 0);
+    if (f.raw_fd >= 0 && !rows_in_place) {
       ::close(f.raw_fd);
       f.raw_fd = -1;
     }
@@ -263,11 +261,7 @@ void ExrBandReader::File::read_half_chunks(int a, int b) {
   half_chunks.resize(std::size_t(b - a) * bytes);
   std::atomic<int> bad_row{-1};
   tbb::parallel_for(a, b, [&](int y) {
-    char* chunk = half_chunks.data() + std::size_t(y - a) * bytes;
-    if (::pread(raw_fd, chunk, bytes, off_t(chunk_offset(y))) != ssize_t(bytes) ||
-        !chunk_is_row(chunk, y)) {
-      bad_row = y;
-    }
+    if (!read_chunk(y, half_chunks.data() + std::size_t(y - a) * bytes + 8, bytes - 8)) bad_row = y;
   });
   refuse_damage(bad_row, false);
 }
@@ -288,12 +282,8 @@ void ExrBandReader::File::read_raw_piece(int a, int b, bool check_finite) {
     float* row = planar.data() + std::size_t(y - a) * row_values;
     thread_local std::vector<char> halves;  // A half row, converted into `row`.
     if (value_bytes == 2) halves.resize(row_values * 2);
-    char chunk_header[8];
-    iovec to[2] = {{chunk_header, 8},
-                   {value_bytes == 2 ? static_cast<void*>(halves.data()) : static_cast<void*>(row),
-                    row_values * std::size_t(value_bytes)}};
-    if (::preadv(raw_fd, to, 2, off_t(chunk_offset(y))) != ssize_t(chunk_bytes()) ||
-        !chunk_is_row(chunk_header, y)) {
+    if (!read_chunk(y, value_bytes == 2 ? static_cast<void*>(halves.data()) : row,
+                    row_values * std::size_t(value_bytes))) {
       bad_row = y;
       return;
     }

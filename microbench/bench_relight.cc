@@ -69,29 +69,36 @@ double memcpy_seconds(size_t bytes, int threads) {
   return cache[{bytes, threads}] = best;
 }
 
+// Runs `relight` (streaming `bytes`) on `threads` over the state's iterations: its throughput, and
+// against a memcpy of as many bytes (1.0 = as fast as memcpy; memcpy also writes what it reads, so
+// a read-only stream can exceed 1).
+template <typename Relight>
+void time_against_memcpy(benchmark::State& state, std::size_t bytes, int threads,
+                         const Relight& relight) {
+  const double copy_s = memcpy_seconds(bytes, threads);
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  const auto start = std::chrono::steady_clock::now();
+  for (auto _ : state) relight();
+  const double relight_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
+      double(state.iterations());
+  state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(bytes));
+  state.counters["threads"] = threads;
+  state.counters["memcpy_GBps"] = double(bytes) / copy_s / 1e9;
+  state.counters["vs_memcpy"] = copy_s / relight_s;
+}
+
 // Args: field size (pixels per side), threads (0 = all).
 void BM_Relight(benchmark::State& state) {
   const int threads = threads_for(int(state.range(1)));
   const auto& f = field(int(state.range(0)));
-  const double copy_s = memcpy_seconds(f.bytes(), threads);
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
   std::vector<float> e(3 * f.num_lights(), 0.01f);
   ls::Image out;
-  const auto start = std::chrono::steady_clock::now();
-  for (auto _ : state) {
+  time_against_memcpy(state, f.bytes(), threads, [&] {
     ls::relight::relight_into(f, e, out);
     benchmark::DoNotOptimize(out.pixels.data());
-  }
-  const double relight_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
-      double(state.iterations());
-  state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(f.bytes()));
-  state.counters["threads"] = threads;
+  });
   state.counters["field_MB"] = f.bytes() / 1e6;
-  state.counters["memcpy_GBps"] = f.bytes() / copy_s / 1e9;
-  // Relight throughput / memcpy throughput of as many bytes (1.0 = as fast as memcpy; memcpy
-  // also writes what it reads, so a read-only stream can exceed 1).
-  state.counters["vs_memcpy"] = copy_s / relight_s;
 }
 BENCHMARK(BM_Relight)
     ->Args({512, 1})
@@ -119,22 +126,12 @@ void BM_RelightHalfRows(benchmark::State& state) {
   std::vector<int> to_pixel_index(size_t(count), 0);
   for (int i = 0; i < count; ++i) to_pixel_index[size_t(i)] = i;
   ls::capture::PlanarRows rows{nullptr, 0, size, size, to_pixel_index, halves.data(), row_bytes};
-  const double copy_s = memcpy_seconds(halves.size(), threads);
-  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
   std::vector<float> e(size_t(count), 0.01f);
   ls::Image out(size, size, 3);
-  const auto start = std::chrono::steady_clock::now();
-  for (auto _ : state) {
+  time_against_memcpy(state, halves.size(), threads, [&] {
     ls::relight::relight_rows_into(rows, e, out);
     benchmark::DoNotOptimize(out.pixels.data());
-  }
-  const double relight_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() /
-      double(state.iterations());
-  state.SetBytesProcessed(int64_t(state.iterations()) * int64_t(halves.size()));
-  state.counters["threads"] = threads;
-  state.counters["memcpy_GBps"] = double(halves.size()) / copy_s / 1e9;
-  state.counters["vs_memcpy"] = copy_s / relight_s;
+  });
 }
 BENCHMARK(BM_RelightHalfRows)
     ->Args({1024, 1})
