@@ -37,16 +37,19 @@ ReflectanceField reduced_header(const ReflectanceField& header, int factor) {
 
 namespace {
 
-// Adds a piece of the file's rows (as it holds them) to `sums`, [block row][block column][value]
-// of the band of rows that starts at y0: each value summed over its block's rows, then columns, in
-// order (as a pixel-major pass sums them), channels in parallel.
+// Adds a piece of the file's rows (as it holds them) to `sums`, [block row][value][block column]
+// of the band of rows that starts at y0: each value summed down its block's rows a column at a
+// time, then across (whole rows at once: a block at a time is a strided add per value, most of
+// the reduced read), channels in parallel.
 void add_block_sums(const PlanarRows& piece, int factor, int y0, int reduced_width,
                     std::size_t values, std::vector<double>& sums) {
   const int count = int(piece.to_pixel_index.size());
   const std::size_t width = std::size_t(piece.width);
   tbb::parallel_for(0, count, [&](int c) {
     thread_local std::vector<float> converted;  // A plane of halves as floats.
+    thread_local std::vector<double> columns;   // The plane's sums down a block's rows.
     const std::size_t value = std::size_t(piece.to_pixel_index[std::size_t(c)]);
+    columns.assign(width, 0.0);
     for (int r = 0; r < piece.rows; ++r) {
       const float* plane = nullptr;
       if (piece.halves != nullptr) {
@@ -60,14 +63,19 @@ void add_block_sums(const PlanarRows& piece, int factor, int y0, int reduced_wid
       } else {
         plane = piece.values + (std::size_t(r) * count + std::size_t(c)) * width;
       }
-      double* block_row = sums.data() + std::size_t((piece.first_row + r - y0) / factor) *
-                                            std::size_t(reduced_width) * values;
-      for (int bx = 0; bx < reduced_width; ++bx) {
-        const std::size_t xa = std::size_t(bx) * factor, xb = std::min(width, xa + factor);
-        double sum = block_row[std::size_t(bx) * values + value];
-        for (std::size_t x = xa; x < xb; ++x) sum += plane[x];
-        block_row[std::size_t(bx) * values + value] = sum;
+      for (std::size_t x = 0; x < width; ++x) columns[x] += double(plane[x]);
+      const int y = piece.first_row + r;
+      if ((y - y0 + 1) % factor != 0 && r + 1 < piece.rows) continue;
+      // The block row's last row, or the piece's: its columns into the blocks.
+      double* block_row =
+          sums.data() + (std::size_t((y - y0) / factor) * values + value) * reduced_width;
+      for (std::size_t bx = 0; bx < std::size_t(reduced_width); ++bx) {
+        const std::size_t xa = bx * factor, xb = std::min(width, xa + factor);
+        double sum = 0;
+        for (std::size_t x = xa; x < xb; ++x) sum += columns[x];
+        block_row[bx] += sum;
       }
+      std::fill(columns.begin(), columns.end(), 0.0);
     }
   });
 }
@@ -104,9 +112,9 @@ FieldBands reduced_bands(FieldStream& stream, int factor, std::size_t band_bytes
         for (int bx = 0; bx < frame.width(); ++bx) {
           const double n =
               double(block_height) * (std::min(width, (bx + 1) * factor) - bx * factor);
-          const double* sum = sums.data() + (std::size_t(by) * frame.width() + bx) * values;
+          const double* sum = sums.data() + std::size_t(by) * values * frame.width() + bx;
           float* o = reduced.pixel(bx, by);
-          for (std::size_t i = 0; i < values; ++i) o[i] = float(sum[i] / n);
+          for (std::size_t i = 0; i < values; ++i) o[i] = float(sum[i * frame.width()] / n);
         }
       });
       visit(reduced);

@@ -1,5 +1,7 @@
 #include "relight/sources/field_sources.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <set>
@@ -106,10 +108,14 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
     for (int led = 0; led < header.num_lights(); ++led) images[led];
   }
   for (auto& [led, rgb] : images) rgb.resize(3 * pixels);
-  // The LEDs' images in the same pass as the fit.
+  // The LEDs' images in the same pass as the fit, side by side.
+  std::vector<std::pair<int, float*>> copies;
+  for (auto& [led, rgb] : images) copies.emplace_back(led, rgb.data());
   read_fit(header, bands, [&](const capture::ReflectanceField& band) {
     const size_t first = size_t(band.first_row()) * header.width();
-    for (auto& [led, rgb] : images) copy_led_image(band, led, rgb.data() + 3 * first);
+    tbb::parallel_for(0, int(copies.size()), [&](int i) {
+      copy_led_image(band, copies[size_t(i)].first, copies[size_t(i)].second + 3 * first);
+    });
   });
   if (with_geometry) {
     geometry_ = recovered(

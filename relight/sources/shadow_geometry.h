@@ -37,6 +37,19 @@ namespace ls::relight {
 
 class ShadowGeometry;
 
+// What the rays from one field pixel share, and the rays along one direction
+// (ShadowGeometry::sees).
+struct ShadowRayStart {
+  float u = 0, v = 0;     // The field pixel's centre in depth-map pixels,
+  float height = 0;       // the ray's height there (depth-map pixels, toward the camera),
+  std::size_t pixel = 0;  // and the depth-map pixel it starts in.
+};
+struct ShadowRayDirection {
+  float dx = 0, dy = 0, dz = 0;    // Unit, depth-map axes (image x, -image y, toward the camera).
+  float step = 0;                  // Of t a step (half a depth-map pixel across); 0 straight up.
+  float steps_per_px[2] = {0, 0};  // Steps a pixel along x and y (0 where it does not move).
+};
+
 // A bright source's view of the geometry: its disc's directions and the LEDs nearest it.
 class SourceShadowView {
  public:
@@ -59,7 +72,7 @@ class SourceShadowView {
  private:
   friend class ShadowGeometry;
   const ShadowGeometry* geometry_ = nullptr;
-  std::vector<Eigen::Vector3f> disc_;
+  std::vector<ShadowRayDirection> disc_;
   // Per LED nearest the source, nearest first: where the shape agrees with what it measured.
   std::vector<const std::vector<std::uint64_t>*> nearest_agreement_;
   bool nearest_decides_ = false;  // The source's nearest LED is within the dome's spacing.
@@ -71,9 +84,9 @@ class ShadowGeometry {
   static constexpr int kNearestLeds = 8;     // LEDs around a source its shadows are checked with,
   static constexpr int kAgreeing = 7;        // and how many must agree.
 
-  // `lit_mask(l)`: LED l's led_lit_mask, for each of `led_dirs` (unit, stage frame);
-  // progress, phase "bright sources (the scene's shape)", after each LED's mask and each region
-  // placed.
+  // `lit_mask(l)`: LED l's led_lit_mask, for each of `led_dirs` (unit, stage frame), called for
+  // several LEDs at once; progress, phase "bright sources (the scene's shape)", after the LEDs'
+  // masks and after each region placed.
   ShadowGeometry(const LambertianFit& fit, const std::vector<Eigen::Vector3d>& led_dirs,
                  const std::function<LitMask(int led)>& lit_mask, const ProgressFn& progress = {});
 
@@ -82,6 +95,11 @@ class ShadowGeometry {
 
   // Field pixel (x, y) sees the direction (unit, stage frame) past the recovered shape.
   bool sees(int x, int y, const Eigen::Vector3f& dir) const;
+  // The same with what a pixel's rays share, and a direction's, worked out once: a source's disc
+  // traces 16 rays a pixel, and each direction is traced from every pixel.
+  ShadowRayStart ray_start(int x, int y) const;
+  static ShadowRayDirection ray_direction(const Eigen::Vector3f& dir);
+  bool sees(const ShadowRayStart& from, const ShadowRayDirection& along) const;
   // Height toward the camera of each depth-map pixel (field pixels / scale()), in its pixels;
   // kNoSurface where nothing was recovered.
   const std::vector<float>& heights() const { return top_px_; }
@@ -97,6 +115,13 @@ class ShadowGeometry {
   std::vector<float> top_px_;        // Surface height toward the camera.
   std::vector<float> thickness_px_;  // How far the solid reaches below it (infinite: attached).
   float highest_px_ = kNoSurface;
+  // Level k >= 1: the highest top over each 2^k x 2^k block of depth-map pixels, so that a
+  // rising ray skips a block it is above (the same answer as marching through it).
+  std::vector<std::vector<float>> highest_in_block_;
+  float highest_in_block(int level, int x, int y) const {
+    return highest_in_block_[size_t(
+        level - 1)][size_t(y >> level) * size_t(((width_ - 1) >> level) + 1) + size_t(x >> level)];
+  }
   // One bit a field pixel: where LED l's shadows as the shape casts them agree with what it
   // measured. Made when a source first falls near the LED, kept for every source after it.
   const std::vector<std::uint64_t>& agreement(int led) const;
