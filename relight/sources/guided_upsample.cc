@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "lightstage/errors.h"
 
@@ -59,10 +60,12 @@ void add_guided_upsample(const Image& low, const Image& guide_low, const Image& 
         float(std::max(kGuideDarkShare * mean[size_t(c)] / double(guide_low.num_pixels()), 1e-30));
   }
   const float most = float(factor) * float(factor);
+  std::vector<Between> columns(size_t(out.width));  // The same for every row.
+  for (int x = 0; x < out.width; ++x) columns[size_t(x)] = between(x, factor, low.width);
   tbb::parallel_for(0, out.height, [&](int y) {
     const Between by = between(y, factor, low.height);
     for (int x = 0; x < out.width; ++x) {
-      const Between bx = between(x, factor, low.width);
+      const Between& bx = columns[size_t(x)];
       for (int c = 0; c < 3; ++c) {
         const float e = floor[size_t(c)];
         const float ratio = (std::max(0.0f, guide.at(x, y, c)) + e) /
