@@ -110,6 +110,7 @@ FieldSources::FieldSources(const capture::ReflectanceField& header,
   for (auto& [led, rgb] : images) rgb.resize(3 * pixels);
   // The LEDs' images in the same pass as the fit, side by side.
   std::vector<std::pair<int, float*>> copies;
+  copies.reserve(images.size());
   for (auto& [led, rgb] : images) copies.emplace_back(led, rgb.data());
   read_fit(header, bands, [&](const capture::ReflectanceField& band) {
     const size_t first = size_t(band.first_row()) * header.width();

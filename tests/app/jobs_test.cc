@@ -14,6 +14,7 @@
 #include "app/jobs/build_job.h"
 #include "app/jobs/capture_job.h"
 #include "app/jobs/compress_job.h"
+#include "app/jobs/contact_sheet.h"
 #include "app/jobs/fit_job.h"
 #include "app/jobs/relight_job.h"
 #include "app/jobs/relight_outputs.h"
@@ -216,6 +217,52 @@ TEST_F(Jobs, BuildAndRelightWriteWhatTheLibraryComputesAndRecordTheirOptions) {
 // A map that lights the scene from behind the backdrop (spot1Lux) leaves it nearly black:
 // its preview stays dark instead of being exposed until its noise fills the frame; a map that
 // lights the scene keeps the exposure of its own highlights.
+// The contact sheet reads each preview's 8-bit codes as stored: grey repeated, alpha dropped, the
+// codes unchanged where a tile is only enlarged; a preview cut short is refused by name.
+TEST(ContactSheet, TilesGreyRgbAndRgbaPreviewsWithTheirCodesAndNamesOneItCannotRead) {
+  testing::TempDir dir;
+  const auto write_png = [&](const std::string& name, const std::vector<unsigned char>& pixel) {
+    const int channels = int(pixel.size());
+    std::vector<unsigned char> codes;
+    for (int i = 0; i < 16 * 16; ++i) codes.insert(codes.end(), pixel.begin(), pixel.end());
+    const fs::path path = dir / name;
+    auto out = OIIO::ImageOutput::create(path.string());
+    EXPECT_TRUE(out &&
+                out->open(path.string(), OIIO::ImageSpec(16, 16, channels, OIIO::TypeDesc::UINT8)));
+    EXPECT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, codes.data()));
+    out->close();
+    return path;
+  };
+  const std::vector<jobs::Preview> tiles = {{write_png("grey.png", {77}), "grey"},
+                                            {write_png("rgb.png", {10, 120, 250}), "rgb"},
+                                            {write_png("rgba.png", {200, 30, 90, 255}), "rgba"}};
+  jobs::write_contact_sheet(dir / "sheet.png", tiles, "three previews");
+  auto in = OIIO::ImageInput::open((dir / "sheet.png").string());
+  ASSERT_TRUE(in);
+  const OIIO::ImageSpec spec = in->spec();
+  std::vector<unsigned char> sheet(size_t(spec.width) * spec.height * spec.nchannels);
+  ASSERT_TRUE(in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::UINT8, sheet.data()));
+  ASSERT_EQ(spec.nchannels, 3);
+  // A tile's centre: tiles of 256 px, 4 px apart, under a 30 px title.
+  const auto centre_of = [&](int tile) {
+    const size_t p = (size_t(30 + 128) * spec.width + size_t(tile * 260 + 128)) * 3;
+    return std::vector<unsigned char>(sheet.begin() + long(p), sheet.begin() + long(p) + 3);
+  };
+  EXPECT_EQ(centre_of(0), (std::vector<unsigned char>{77, 77, 77}));
+  EXPECT_EQ(centre_of(1), (std::vector<unsigned char>{10, 120, 250}));
+  EXPECT_EQ(centre_of(2), (std::vector<unsigned char>{200, 30, 90}));
+
+  const fs::path cut = dir / "cut.png";
+  std::ifstream whole(tiles[1].png, std::ios::binary);
+  const std::string bytes{std::istreambuf_iterator<char>(whole), {}};
+  write_file_atomic(cut, bytes.substr(0, bytes.size() / 2));
+  const std::string error = input_error([&] {
+    jobs::write_contact_sheet(dir / "sheet2.png", {{cut, "cut"}}, "cut short");
+  });
+  EXPECT_NE(error.find("cut.png"), std::string::npos) << error;
+  EXPECT_FALSE(fs::exists(dir / "sheet2.png"));
+}
+
 TEST_F(Jobs, APreviewOfADarkRelightIsDarkNotNoise) {
   jobs::BuildJobOptions build;
   build.session_dir = *dir_ / "session";
