@@ -103,6 +103,9 @@ class ShadowGeometry {
   // Height toward the camera of each depth-map pixel (field pixels / scale()), in its pixels;
   // kNoSurface where nothing was recovered.
   const std::vector<float>& heights() const { return top_px_; }
+  // How far below its top each depth-map pixel's solid reaches, in its pixels (infinite where
+  // it is attached to what lies under it).
+  const std::vector<float>& thicknesses() const { return thickness_px_; }
   int width() const { return width_; }
   int height() const { return height_; }
   int scale() const { return scale_; }

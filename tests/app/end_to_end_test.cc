@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <map>
+#include <numbers>
 #include <numeric>
 #include <set>
 
@@ -320,6 +321,42 @@ TEST(EndToEnd, TheShapeRecoveredFromTheLedsShadowsMatchesTheScene) {
     if (!hit.hit || top == relight::ShadowGeometry::kNoSurface) continue;
     errors[hit.object].push_back(std::abs(top - (hit.position.z() - backdrop_z) * px_per_m));
   }
+  // A ray skips the blocks of the depth map it has risen above (ShadowGeometry::sees): the same
+  // answers as stepping through every half pixel (kRayStartPx above its own top, at scale 1).
+  const auto marched = [&](int x, int y, const Eigen::Vector3f& dir) {
+    const int w = shape.width(), h = shape.height();
+    const float dx = dir.x(), dy = -dir.y(), dz = dir.z(), step = 0.5f / std::hypot(dx, dy);
+    const std::vector<float>&top = shape.heights(), &thickness = shape.thicknesses();
+    const float start = top[size_t(y) * w + x] + 0.1f;
+    for (int i = 1; i < 4 * (w + h); ++i) {
+      const float t = step * float(i);
+      const int qx = int(float(x) + t * dx + 1.5f) - 1, qy = int(float(y) + t * dy + 1.5f) - 1;
+      if (qx < 0 || qy < 0 || qx >= w || qy >= h) return true;
+      const float ray = start + t * dz;
+      const size_t q = size_t(qy) * w + qx;
+      if ((qx != x || qy != y) && ray < top[q] && ray > top[q] - thickness[q]) return false;
+    }
+    return true;
+  };
+  long shadowed = 0;
+  for (const double elevation : {12.0, 30.0, 55.0, 80.0}) {
+    for (const double azimuth : {-150.0, -40.0, 35.0, 120.0}) {
+      const double el = elevation * std::numbers::pi / 180, az = azimuth * std::numbers::pi / 180;
+      const Eigen::Vector3f dir(float(std::cos(el) * std::cos(az)),
+                                float(std::cos(el) * std::sin(az)), float(std::sin(el)));
+      for (int y = 0; y < 96; ++y) {
+        for (int x = 0; x < 96; ++x) {
+          if (shape.heights()[size_t(y) * 96 + x] == relight::ShadowGeometry::kNoSurface) continue;
+          const bool seen = marched(x, y, dir);
+          shadowed += !seen;
+          ASSERT_EQ(shape.sees(x, y, dir), seen)
+              << x << "," << y << " at " << elevation << ", " << azimuth;
+        }
+      }
+    }
+  }
+  EXPECT_GT(shadowed, 1000);  // The rays meet the spheres and the relief, not only the sky.
+
   // Spheres 0-2 (radius 13.6 px, centres 24 px above the backdrop) and the relief (4): the median
   // error over each measured 1.15, 0.45, 0.35 and 0.74 px; asserted under 2 px, a seventh of a
   // sphere's radius (placed by continuity instead of by the shadows they measured 25 px).
