@@ -215,15 +215,42 @@ const LedShadow& FieldSources::shadow(int led) const {
       .first->second;
 }
 
-// Callers hold mutex_.
-const LedPairFlow& FieldSources::flow(int from_led, int to_led) const {
-  auto it = flows_.find({from_led, to_led});
-  if (it == flows_.end()) {
-    it =
-        flows_.emplace(std::pair{from_led, to_led}, led_pair_flow(shadow(from_led), shadow(to_led)))
-            .first;
+// Callers hold mutex_. The flows from each weighted LED of the triangle toward the others; those
+// not made yet made side by side (each is two optical flows on one core).
+PairFlows FieldSources::flows_of(const LedTriangle& triangle,
+                                 const std::array<const LedShadow*, 3>& shadows) const {
+  const auto needed = [&](int k, int j) {
+    return j != k && triangle.leds[size_t(k)] != triangle.leds[size_t(j)] &&
+           triangle.weights[size_t(k)] >= kMinTriangleWeight;
+  };
+  const auto key = [&](int k, int j) {
+    return std::pair{triangle.leds[size_t(k)], triangle.leds[size_t(j)]};
+  };
+  std::vector<std::pair<int, int>> missing;  // (k, j) of the triangle.
+  for (int k = 0; k < 3; ++k) {
+    for (int j = 0; j < 3; ++j) {
+      if (!needed(k, j) || flows_.count(key(k, j)) > 0) continue;
+      if (std::none_of(missing.begin(), missing.end(),
+                       [&](const auto& m) { return key(m.first, m.second) == key(k, j); })) {
+        missing.emplace_back(k, j);
+      }
+    }
   }
-  return it->second;
+  std::vector<LedPairFlow> made(missing.size());
+  tbb::parallel_for(0, int(missing.size()), [&](int i) {
+    const auto [k, j] = missing[size_t(i)];
+    made[size_t(i)] = led_pair_flow(*shadows[size_t(k)], *shadows[size_t(j)]);
+  });
+  for (size_t i = 0; i < missing.size(); ++i) {
+    flows_.emplace(key(missing[i].first, missing[i].second), std::move(made[i]));
+  }
+  PairFlows flows{};
+  for (int k = 0; k < 3; ++k) {
+    for (int j = 0; j < 3; ++j) {
+      if (needed(k, j)) flows[size_t(k)][size_t(j)] = &flows_.at(key(k, j));
+    }
+  }
+  return flows;
 }
 
 std::shared_ptr<const Image> FieldSources::shape_of(const ShadowGeometry& geometry,
@@ -260,17 +287,9 @@ bool FieldSources::add(const SplitLighting& lighting, Image& out,
     const PlacedSource& source = lighting.sources[i];
     if (!source.triangle) continue;
     std::array<const LedShadow*, 3> shadows{};
-    PairFlows flows{};
     std::unique_lock<std::mutex> lock(mutex_);  // std::map keeps references: render unlocked.
     for (int k = 0; k < 3; ++k) shadows[size_t(k)] = &shadow(source.triangle->leds[size_t(k)]);
-    for (int k = 0; k < 3; ++k) {
-      for (int j = 0; j < 3; ++j) {
-        const int from = source.triangle->leds[size_t(k)], to = source.triangle->leds[size_t(j)];
-        if (j != k && from != to && source.triangle->weights[size_t(k)] >= kMinTriangleWeight) {
-          flows[size_t(k)][size_t(j)] = &flow(from, to);
-        }
-      }
-    }
+    const PairFlows flows = flows_of(*source.triangle, shadows);
     lock.unlock();
     const Image* given = i < visibility.size() ? visibility[i] : nullptr;
     std::shared_ptr<const Image> shape;
