@@ -2,6 +2,7 @@
 
 #include <tbb/combinable.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
@@ -530,17 +531,23 @@ ShadowGeometry::ShadowGeometry(const LambertianFit& fit,
   const int leds = int(led_dirs.size());
   std::vector<LitMask> lit(static_cast<size_t>(leds));
   led_lit_bits_.resize(size_t(leds));
-  // The LEDs side by side: each mask is a serial pass over the field.
-  tbb::parallel_for(0, leds, [&](int l) {
-    const LitMask mask = lit_mask(l);
-    LS_CHECK(mask.size() == size_t(field_width_) * field_height_,
-             "ShadowGeometry: LED " + std::to_string(l) + "'s mask is not the field's size");
-    led_lit_bits_[size_t(l)] = pack_lit_bits(mask);
-    lit[size_t(l)] = reduce_mask(mask, field_width_, field_height_, in, scale_);
-  });
+  // The LEDs side by side (each mask is a serial pass over the field), as many at a time as
+  // there are cores: progress after each few, where a viewer that no longer needs the shape stops
+  // it.
+  const int at_a_time = std::max(1, tbb::this_task_arena::max_concurrency());
+  for (int first = 0; first < leds; first += at_a_time) {
+    const int last = std::min(leds, first + at_a_time);
+    tbb::parallel_for(first, last, [&](int l) {
+      const LitMask mask = lit_mask(l);
+      LS_CHECK(mask.size() == size_t(field_width_) * field_height_,
+               "ShadowGeometry: LED " + std::to_string(l) + "'s mask is not the field's size");
+      led_lit_bits_[size_t(l)] = pack_lit_bits(mask);
+      lit[size_t(l)] = reduce_mask(mask, field_width_, field_height_, in, scale_);
+    });
+    report(progress, kPhase, last, leds + to_place);
+  }
   for (int l = 0; l < leds; ++l)
     led_dirs_.push_back(led_dirs[size_t(l)].normalized().cast<float>());
-  report(progress, kPhase, leds, leds + to_place);
   Depth depth{width_, height_, {}, {}};
   depth.top.assign(size_t(width_) * height_, kNoSurface);
   depth.thickness.assign(depth.top.size(), kAttached);

@@ -85,8 +85,8 @@ class ShadowGeometry {
   static constexpr int kAgreeing = 7;        // and how many must agree.
 
   // `lit_mask(l)`: LED l's led_lit_mask, for each of `led_dirs` (unit, stage frame), called for
-  // several LEDs at once; progress, phase "bright sources (the scene's shape)", after the LEDs'
-  // masks and after each region placed.
+  // as many LEDs at once as there are cores; progress, phase "bright sources (the scene's
+  // shape)", after each such few LEDs' masks and after each region placed.
   ShadowGeometry(const LambertianFit& fit, const std::vector<Eigen::Vector3d>& led_dirs,
                  const std::function<LitMask(int led)>& lit_mask, const ProgressFn& progress = {});
 
