@@ -35,8 +35,8 @@ cv::Mat rgb8_of(const std::filesystem::path& png) {
     throw InputError(png.string() +
                      ": cannot read pixels (truncated or corrupt file?): " + in->error());
   }
-  cv::Mat rgb;
   if (spec.channels == 3) return codes;
+  cv::Mat rgb;
   if (spec.channels == 4) {
     cv::cvtColor(codes, rgb, cv::COLOR_RGBA2RGB);
   } else {
