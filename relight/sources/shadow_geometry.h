@@ -65,8 +65,8 @@ class SourceShadowView {
   // trusted there (it agrees with the nearest LED at the pixel, and with most of the LEDs around
   // over most of its 3x3 neighbourhood: a lone pixel of one kind among the other, a ray slipping
   // between two depth samples, is noise), NaN where the flows decide. 1 channel, the field's size;
-  // the traced rays of every pixel (about 60 ms at 128^2 on 2 cores): a viewer keeps it while
-  // the source stays.
+  // the traced rays of every pixel (0.5-0.7 s at 512^2 on one core, many frames' worth): a
+  // viewer keeps it while the source stays.
   Image trusted_visibility() const;
 
  private:
