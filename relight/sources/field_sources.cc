@@ -215,10 +215,12 @@ const LedShadow& FieldSources::shadow(int led) const {
       .first->second;
 }
 
-// Callers hold mutex_. The flows from each weighted LED of the triangle toward the others; those
-// not made yet made side by side (each is two optical flows on one core).
+// The flows from each weighted LED of the triangle toward the others, `lock` held on mutex_. Those
+// not made yet are made side by side (each is two optical flows on one core), unlocked as the
+// shape's rays are: two threads making one flow keep the first.
 PairFlows FieldSources::flows_of(const LedTriangle& triangle,
-                                 const std::array<const LedShadow*, 3>& shadows) const {
+                                 const std::array<const LedShadow*, 3>& shadows,
+                                 std::unique_lock<std::mutex>& lock) const {
   const auto needed = [&](int k, int j) {
     return j != k && triangle.leds[size_t(k)] != triangle.leds[size_t(j)] &&
            triangle.weights[size_t(k)] >= kMinTriangleWeight;
@@ -236,13 +238,17 @@ PairFlows FieldSources::flows_of(const LedTriangle& triangle,
       }
     }
   }
-  std::vector<LedPairFlow> made(missing.size());
-  tbb::parallel_for(0, int(missing.size()), [&](int i) {
-    const auto [k, j] = missing[size_t(i)];
-    made[size_t(i)] = led_pair_flow(*shadows[size_t(k)], *shadows[size_t(j)]);
-  });
-  for (size_t i = 0; i < missing.size(); ++i) {
-    flows_.emplace(key(missing[i].first, missing[i].second), std::move(made[i]));
+  if (!missing.empty()) {
+    lock.unlock();  // The shadows stay where they are: std::map keeps references.
+    std::vector<LedPairFlow> made(missing.size());
+    tbb::parallel_for(0, int(missing.size()), [&](int i) {
+      const auto [k, j] = missing[size_t(i)];
+      made[size_t(i)] = led_pair_flow(*shadows[size_t(k)], *shadows[size_t(j)]);
+    });
+    lock.lock();
+    for (size_t i = 0; i < missing.size(); ++i) {
+      flows_.emplace(key(missing[i].first, missing[i].second), std::move(made[i]));
+    }
   }
   PairFlows flows{};
   for (int k = 0; k < 3; ++k) {
@@ -289,7 +295,7 @@ bool FieldSources::add(const SplitLighting& lighting, Image& out,
     std::array<const LedShadow*, 3> shadows{};
     std::unique_lock<std::mutex> lock(mutex_);  // std::map keeps references: render unlocked.
     for (int k = 0; k < 3; ++k) shadows[size_t(k)] = &shadow(source.triangle->leds[size_t(k)]);
-    const PairFlows flows = flows_of(*source.triangle, shadows);
+    const PairFlows flows = flows_of(*source.triangle, shadows, lock);
     lock.unlock();
     const Image* given = i < visibility.size() ? visibility[i] : nullptr;
     std::shared_ptr<const Image> shape;

@@ -99,8 +99,8 @@ class FieldSources {
   void read_fit(const capture::ReflectanceField& header, const capture::FieldBands& bands,
                 const capture::BandVisitor& also);
   const LedShadow& shadow(int led) const;
-  PairFlows flows_of(const LedTriangle& triangle,
-                     const std::array<const LedShadow*, 3>& shadows) const;
+  PairFlows flows_of(const LedTriangle& triangle, const std::array<const LedShadow*, 3>& shadows,
+                     std::unique_lock<std::mutex>& lock) const;
 
   LambertianFit fit_;
   std::vector<Eigen::Vector3d> led_dirs_;
