@@ -121,6 +121,7 @@ class ShadowGeometry {
   // Level k >= 1: the highest top over each 2^k x 2^k block of depth-map pixels, so that a
   // rising ray skips a block it is above (the same answer as marching through it).
   std::vector<std::vector<float>> highest_in_block_;
+  void build_block_pyramid();  // highest_px_ and highest_in_block_ from top_px_ (shadow_rays.cc).
   float highest_in_block(int level, int x, int y) const {
     return highest_in_block_[size_t(
         level - 1)][size_t(y >> level) * size_t(((width_ - 1) >> level) + 1) + size_t(x >> level)];
