@@ -207,28 +207,53 @@ float srgb_decode(float encoded) {
   return encoded <= 0.04045f ? encoded / 12.92f : std::pow((encoded + 0.055f) / 1.055f, 2.4f);
 }
 
-Image read_image(const fs::path& path) {
+namespace {
+
+// The image at `path` opened, its size checked against the memory its `value_bytes` values would
+// take (a damaged or hostile header can claim gigabytes in a few bytes): InputError naming it.
+std::unique_ptr<image_file::Reader> open_image(const fs::path& path, std::size_t value_bytes,
+                                               const char* values) {
   if (!fs::exists(path)) throw InputError(path.string() + ": file not found");
   std::string error;
-  const auto in = image_file::open(path, error);
+  auto in = image_file::open(path, error);
   if (!in) throw InputError(path.string() + ": cannot read image: " + error);
   const image_file::Spec& spec = in->spec();
   if (spec.width <= 0 || spec.height <= 0 || spec.channels <= 0) {
     throw InputError(path.string() + ": image has no pixels");
   }
-  // The header's size is checked before it is allocated: a damaged or hostile header can claim
-  // gigabytes in a few bytes.
-  require_memory(std::size_t(spec.width) * spec.height * spec.channels * sizeof(float),
+  require_memory(std::size_t(spec.width) * spec.height * spec.channels * value_bytes,
                  path.string() + ": the image's " + std::to_string(spec.width) + "x" +
-                     std::to_string(spec.height) + "x" + std::to_string(spec.channels) +
-                     " float pixels",
+                     std::to_string(spec.height) + "x" + std::to_string(spec.channels) + " " +
+                     values + " pixels",
                  "is its header damaged?");
+  return in;
+}
+
+// Reads every row of `in` (opened from `path`) as `as` into `out`.
+void read_all_rows(image_file::Reader& in, const fs::path& path, Sample as, void* out) {
+  if (!in.read_rows(0, in.spec().height, as, out)) {
+    throw InputError(path.string() +
+                     ": cannot read pixels (truncated or corrupt file?): " + in.error());
+  }
+}
+
+}  // namespace
+
+Image read_image(const fs::path& path) {
+  const auto in = open_image(path, sizeof(float), "float");
+  const image_file::Spec& spec = in->spec();
   Image image(spec.width, spec.height, spec.channels);
   image.channel_names = spec.channel_names;
-  if (!in->read_rows(0, spec.height, Sample::kFloat, image.pixels.data())) {
-    throw InputError(path.string() +
-                     ": cannot read pixels (truncated or corrupt file?): " + in->error());
-  }
+  read_all_rows(*in, path, Sample::kFloat, image.pixels.data());
+  return image;
+}
+
+ImageCodes read_image_codes(const fs::path& path) {
+  const auto in = open_image(path, 1, "8-bit");
+  const image_file::Spec& spec = in->spec();
+  ImageCodes image{spec.width, spec.height, spec.channels, {}};
+  image.codes.resize(std::size_t(spec.width) * spec.height * spec.channels);
+  read_all_rows(*in, path, Sample::kUInt8, image.codes.data());
   return image;
 }
 

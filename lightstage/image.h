@@ -49,6 +49,13 @@ enum class ExrPixelType { kFloat, kHalf };
 // callers that import photographs undo their transfer curve explicitly. Throws InputError naming
 // the file.
 Image read_image(const std::filesystem::path& path);
+// The same as 8-bit codes (an 8-bit file's as stored, others' [0, 1] scaled to 0..255),
+// interleaved: what a preview holds, without a float a value.
+struct ImageCodes {
+  int width = 0, height = 0, channels = 0;
+  std::vector<uint8_t> codes;
+};
+ImageCodes read_image_codes(const std::filesystem::path& path);
 
 // Named string attributes of an EXR header (e.g. {"lightstage:fit_noise", "{...json...}"}).
 using ExrAttributes = std::vector<std::pair<std::string, std::string>>;

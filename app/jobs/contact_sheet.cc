@@ -7,8 +7,6 @@
 
 #include "lightstage/errors.h"
 #include "lightstage/image.h"
-#include "lightstage/image_file.h"
-#include "lightstage/memory.h"
 
 namespace ls::jobs {
 
@@ -17,27 +15,15 @@ namespace {
 // A preview's 8-bit RGB codes, read as they are stored (a 12-megapixel preview read as floats took
 // a tenth of a relight): grey repeated, alpha dropped. InputError naming the file.
 cv::Mat rgb8_of(const std::filesystem::path& png) {
-  std::string error;
-  const auto in = image_file::open(png, error);
-  if (!in) throw InputError(png.string() + ": cannot read image: " + error);
-  const image_file::Spec& spec = in->spec();
-  if (spec.width <= 0 || spec.height <= 0 || spec.channels < 1 || spec.channels > 4) {
-    throw InputError(png.string() + ": not a preview image (" + std::to_string(spec.channels) +
-                     " channels of " + std::to_string(spec.width) + "x" +
-                     std::to_string(spec.height) + ")");
+  ImageCodes image = read_image_codes(png);
+  if (image.channels > 4) {
+    throw InputError(png.string() + ": not a preview image (" + std::to_string(image.channels) +
+                     " channels)");
   }
-  require_memory(std::size_t(spec.width) * spec.height * spec.channels,
-                 png.string() + ": the preview's " + std::to_string(spec.width) + "x" +
-                     std::to_string(spec.height) + " pixels",
-                 "is its header damaged?");
-  cv::Mat codes(spec.height, spec.width, CV_8UC(spec.channels));
-  if (!in->read_rows(0, spec.height, image_file::Sample::kUInt8, codes.data)) {
-    throw InputError(png.string() +
-                     ": cannot read pixels (truncated or corrupt file?): " + in->error());
-  }
-  if (spec.channels == 3) return codes;
+  const cv::Mat codes(image.height, image.width, CV_8UC(image.channels), image.codes.data());
+  if (image.channels == 3) return codes.clone();
   cv::Mat rgb;
-  if (spec.channels == 4) {
+  if (image.channels == 4) {
     cv::cvtColor(codes, rgb, cv::COLOR_RGBA2RGB);
   } else {
     cv::Mat grey;
