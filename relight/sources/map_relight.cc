@@ -343,14 +343,6 @@ void MapRelighter::add_reduced_sources(std::vector<MapRelit>& relit, const Progr
     guides.emplace_back(width_, height_, 3);
     guides_reduced.emplace_back(header.width(), header.height(), 3);
   }
-  Image band_relit;
-  const auto relight_band = [&](const capture::ReflectanceField& band, std::vector<Image>& into) {
-    for (std::size_t i = 0; i < relit.size(); ++i) {
-      relight_into(band, led_irradiance[i], band_relit);
-      std::copy(band_relit.pixels.begin(), band_relit.pixels.end(),
-                into[i].pixels.begin() + 3 * std::ptrdiff_t(band.first_row()) * band.width());
-    }
-  };
   int triangles = 0;
   const std::set<int> leds = source_leds(relit, &triangles);
   const std::size_t need = sources_bytes(int(leds.size()), triangles, int(relit.size()), geometry_);
@@ -375,8 +367,14 @@ void MapRelighter::add_reduced_sources(std::vector<MapRelit>& relit, const Progr
   const FieldSources sources(
       header,
       [&](const capture::BandVisitor& visit) {
+        Image band_relit;
         reduced([&](const capture::ReflectanceField& band) {
-          relight_band(band, guides_reduced);
+          for (std::size_t i = 0; i < relit.size(); ++i) {
+            relight_into(band, led_irradiance[i], band_relit);
+            std::copy(band_relit.pixels.begin(), band_relit.pixels.end(),
+                      guides_reduced[i].pixels.begin() +
+                          3 * std::ptrdiff_t(band.first_row()) * band.width());
+          }
           visit(band);
         });
       },
