@@ -27,7 +27,10 @@
 //      kTooFewSteps);
 //   4. the chosen model kept only where it predicts the steps left out of its fit at least as
 //      well as interpolating the per-step fits does (hold_out_steps), else those fits (kSteps):
-//      in-sample BIC alone lets a model that misses the data win over the data.
+//      in-sample BIC alone lets a model that misses the data win over the data;
+//   5. a modelled pixel renders its model plus each step's significant departure from it,
+//      interpolated between steps (TemporalMaps::step_values): at a captured step, what was
+//      captured there wherever that stands out of its noise.
 //
 // Times are seconds of scene time (ReflectanceField::scene_time_s). Rates are 1/s. The rate is
 // bounded by max_rate_times_interval / (smallest step interval): a faster process is a step
@@ -251,10 +254,21 @@ struct TemporalCurves {
 struct TemporalMaps {
   Image maps;  // kTemporalChannelCount named channels.
   std::vector<double> step_times_s;
-  // The per-step fits (step i's parameter p in channel i * kTemporalParamCount + p, named
-  // "step.I.<param>") of the pixels flagged kTemporalDegenerate or modelled kSteps, 0 elsewhere
-  // (a step unusable at the pixel holds its nearest usable step's). Empty when no pixel is.
+  // What each fitted pixel renders at the captured steps (step i's parameter p in channel
+  // i * kTemporalParamCount + p, named "step.I.<param>"): a kSteps or degenerate pixel's per-step
+  // fits (a step unusable at the pixel holds its nearest usable step's); a modelled pixel's model
+  // at the step plus its per-step fit's significant departure from it (significant_departure),
+  // which a render between two steps interpolates onto the model: a captured step renders as its
+  // fit wherever that fit stands out of its noise, the model smooths the noise elsewhere, and an
+  // editor starts from the material captured (issue 44: the steps 2x closer to their fits, 3 of
+  // 13 captured). 0 at unfitted pixels; empty when no pixel is fitted.
   Image step_values;
+  // Whether step_values holds the modelled pixels' steps too: files before them hold only the
+  // kSteps and degenerate pixels', and their modelled pixels render from the model alone.
+  bool modelled_steps = false;
+  // In memory only: the time scale a rate edit gave each modelled pixel (row-major; empty: 1 at
+  // every pixel), which its steps' departures follow as its model does.
+  std::vector<float> edited_time_scale;
   // The curve families of the pixels whose model is kCurve; stored in the attribute.
   std::vector<TemporalCurves> curves;
   // Pixel (x, y)'s family when its model is kCurve, else null.
@@ -339,12 +353,13 @@ void offer_temporal_curves(const std::vector<StepFit>& steps, const std::vector<
 // were offered: per pixel whose model leaves its steps unexplained (reduced chi^2 above 4), each
 // interior usable step is left out in turn, the pixel's model fitted again
 // without it (a process refined from its fit, a curve of its family, the constant) and its
-// prediction at that step compared with the linear interpolation of its neighbouring steps' fits
-// (the nearest one's at either end), both in the space a render sees (the curves'), weighted by
-// the left-out fit's deviations, the model's misfit at the captured steps beyond their noise added
-// to its side. Where interpolation wins by strong evidence (a chi^2 difference above 6) the pixel
-// takes kSteps; its confidence is then the weight of interpolation against the model, exp(-chi^2
-// / 2) of each, and its residual the held-out chi^2 per sample.
+// prediction at that step (with its departures at the neighbouring steps) compared with the linear
+// interpolation of its neighbouring steps' fits (the nearest one's at either end), both in the
+// space a render sees (the curves'), weighted by the left-out fit's deviations, the model's misfit
+// at the captured steps beyond their noise added to its side. Where interpolation wins by strong
+// evidence (a chi^2 difference above 6) the pixel takes kSteps; its confidence is then the weight
+// of interpolation against the model, exp(-chi^2 / 2) of each, and its residual the held-out chi^2
+// per sample.
 void hold_out_steps(const std::vector<StepFit>& steps, const TemporalFitOptions& options,
                     TemporalMaps& band);
 // `maps` with every fitted pixel rendering from its per-step fits (kSteps, time scale 1; a

@@ -193,6 +193,32 @@ CurveFit fit_curve(const Series& series, const TemporalCurves& curves, double t_
 // position its steps saw up to time seen_until).
 void write_curve(const CurveFit& f, int family, double seen_until, float* m);
 
+// A per-step fit's departure r from a model at its step (curves' space), kept in proportion to
+// how far it stands out of the step's deviation 1/w: James-Stein's positive part, r (1 - 1/z^2)
+// for z = r w beyond 1, else 0. Noise the model smooths is dropped, a departure of many deviations
+// kept whole (TemporalMaps::step_values).
+inline double significant_departure(double r, double w) {
+  const double z2 = (r * w) * (r * w);
+  return z2 > 1 ? r * (1 - 1 / z2) : 0.0;
+}
+// Steps i and j's departures (d_i, d_j) interpolated to the fraction `w` of the way from i to j,
+// added to the model's parameters q there (all in the curves' space).
+inline void add_departures(const double* d_i, const double* d_j, double w, double* q) {
+  for (int p = 0; p < kTemporalParamCount; ++p) q[p] += (1 - w) * d_i[p] + w * d_j[p];
+}
+
+// Whether a pixel with temporal map channels m renders from its model (a fitted pixel neither
+// kSteps nor degenerate: those render from their per-step fits).
+inline bool renders_from_model(const float* m) {
+  const TemporalModel model = TemporalModel(int(m[kTModel]));
+  return model != TemporalModel::kNone && model != TemporalModel::kSteps &&
+         (int(m[kTFlags]) & kTemporalDegenerate) == 0;
+}
+// Modelled pixel (x, y)'s steps in band.step_values (TemporalMaps::step_values): its model at
+// each step plus, with `steps`, the step's fit's significant departure from it (none at a step
+// unusable there); without, the model alone (an edited pixel follows its edited model).
+void write_modelled_steps(const std::vector<StepFit>* steps, int x, int y, TemporalMaps& band);
+
 // A series no model explains leaves a reduced chi^2 above this (the per-step parameters carry
 // their own uncertainties and a floor for model error, so a right model leaves about 1; the
 // simulator's paint, an exponential, leaves up to 3 on a few pixels).

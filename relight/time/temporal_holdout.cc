@@ -12,6 +12,7 @@
 namespace ls::relight {
 namespace {
 
+using temporal_internal::add_departures;
 using temporal_internal::CurveFit;
 using temporal_internal::fit_constant;
 using temporal_internal::fit_curve;
@@ -22,6 +23,7 @@ using temporal_internal::params_at;
 using temporal_internal::Series;
 using temporal_internal::shape_bounds;
 using temporal_internal::ShapeBounds;
+using temporal_internal::significant_departure;
 using temporal_internal::TemporalResult;
 using temporal_internal::to_fitted_space;
 using temporal_internal::to_physical;
@@ -118,6 +120,19 @@ void held_out_chi2(const float* m, const TemporalCurves* family, const Series& p
     }
     params_at(refit, curves.t[k], c.t_first, family, q);
     to_fitted_space(q);
+    // With the refit's departures at the neighbours, as a render between them adds them.
+    double departure[2][kTemporalParamCount];
+    for (int side = 0; side < 2; ++side) {
+      const int j = k - 1 + 2 * side;
+      double* d = departure[side];
+      params_at(refit, curves.t[j], c.t_first, family, d);
+      to_fitted_space(d);
+      for (int p = 0; p < kTemporalParamCount; ++p) {
+        d[p] = significant_departure(curves.y[j][p] - d[p], curves.w[j][p]);
+      }
+    }
+    add_departures(departure[0], departure[1],
+                   (curves.t[k] - curves.t[k - 1]) / (curves.t[k + 1] - curves.t[k - 1]), q);
     *modelled += step_chi2(curves, k, q);
   }
 }

@@ -36,7 +36,8 @@ TemporalMapsWriter::TemporalMapsWriter(const std::filesystem::path& path, int wi
   nlohmann::json meta = {{"step_times_s", header.step_times_s},
                          {"read_variance", header.noise.a},
                          {"shot_variance_per_unit", header.noise.b},
-                         {"noise_source", header.noise_source}};
+                         {"noise_source", header.noise_source},
+                         {"modelled_steps", header.modelled_steps}};
   if (!header.curves.empty()) {
     nlohmann::json families = nlohmann::json::array();
     for (const TemporalCurves& family : header.curves) families.push_back(family.knots);
@@ -124,6 +125,7 @@ void read_temporal_attribute(const NamedChannelFile& file, const std::string& na
     out.noise.a = j.at("read_variance").get<double>();
     out.noise.b = j.at("shot_variance_per_unit").get<double>();
     out.noise_source = j.value("noise_source", std::string());
+    out.modelled_steps = j.value("modelled_steps", false);
     // "curves": one family (files before families); "curve_families": a list of them.
     std::vector<nlohmann::json> families;
     if (j.contains("curves")) families.push_back(j.at("curves"));

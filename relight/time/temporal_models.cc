@@ -249,7 +249,8 @@ void count_temporal_models(const std::vector<StepFit>& steps, TemporalMaps& band
   std::fill(std::begin(summary.per_model), std::end(summary.per_model), 0);
   summary.faster_than_sampling = summary.too_few_steps = summary.step_dropped = 0;
   summary.not_converged = summary.degenerate = 0;
-  std::vector<int> from_steps;  // The pixels that render from their per-step fits.
+  // The pixels that render from their per-step fits, and those that render from their models.
+  std::vector<int> from_steps, modelled;
   for (int i = 0; i < width * height; ++i) {
     const float* m = &band.maps.pixels[size_t(i) * kTemporalChannelCount];
     const int model = int(m[kTModel]), flags = int(m[kTFlags]);
@@ -260,13 +261,40 @@ void count_temporal_models(const std::vector<StepFit>& steps, TemporalMaps& band
     summary.step_dropped += (flags & kStepDropped) != 0;
     summary.not_converged += (flags & kTemporalNotConverged) != 0;
     summary.degenerate += (flags & kTemporalDegenerate) != 0;
-    if ((flags & kTemporalDegenerate) != 0 || model == int(TemporalModel::kSteps)) {
-      from_steps.push_back(i);
-    }
+    (temporal_internal::renders_from_model(m) ? modelled : from_steps).push_back(i);
   }
   summary.curve_families = int(band.curves.size());
-  band.step_values =
-      from_steps.empty() ? Image{} : step_values_of(steps, from_steps, width, height);
+  band.step_values = from_steps.empty() && modelled.empty()
+                         ? Image{}
+                         : step_values_of(steps, from_steps, width, height);
+  band.modelled_steps = true;
+  tbb::parallel_for(size_t(0), modelled.size(), [&](size_t k) {
+    temporal_internal::write_modelled_steps(&steps, modelled[k] % width, modelled[k] / width, band);
+  });
+}
+
+void temporal_internal::write_modelled_steps(const std::vector<StepFit>* steps, int x, int y,
+                                             TemporalMaps& band) {
+  const float* m = &band.maps.at(x, y, 0);
+  thread_local Series series;
+  if (steps) gather_series(*steps, x, y, series, /*curves=*/true);
+  int used = 0;  // The series holds the usable steps, in time order.
+  for (size_t k = 0; k < band.step_times_s.size(); ++k) {
+    const double t = band.step_times_s[k];
+    double q[kTemporalParamCount];
+    params_at(m, t, band.first_time_s(), band.curves_at(x, y), q);
+    to_fitted_space(q);
+    if (steps && used < series.steps && series.t[used] == t) {
+      for (int p = 0; p < kTemporalParamCount; ++p) {
+        q[p] += significant_departure(series.y[used][p] - q[p], series.w[used][p]);
+      }
+      ++used;
+    }
+    from_fitted_space(q);
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      band.step_values.at(x, y, int(k) * kTemporalParamCount + p) = float(q[p]);
+    }
+  }
 }
 
 TemporalMaps fit_temporal_models(const std::vector<StepFit>& steps, const NormalMap& normals,

@@ -99,6 +99,40 @@ void steps_params(const TemporalMaps& maps, const float* m, int x, int y, double
   }
 }
 
+// A modelled pixel's parameters at time t within its steps: its model there plus its steps'
+// departures from it (TemporalMaps::step_values), interpolated between the two steps around t.
+void model_with_departures(const TemporalMaps& maps, const float* m, int x, int y, double t,
+                           double* q) {
+  params_at(m, t, maps.first_time_s(), maps.curves_at(x, y), q);
+  // A rate edit's scale s: the pixel at t is as captured at first + s (t - first).
+  const double first = maps.first_time_s();
+  const float scale = maps.edited_time_scale.empty()
+                          ? 1.0f
+                          : maps.edited_time_scale[size_t(y) * maps.maps.width + x];
+  const double captured_t = first + scale * (t - first);
+  if (captured_t > maps.last_time_s()) return;  // Beyond its steps: the model alone.
+  const StepBlend b = step_blend(maps.step_times_s, scale, t);
+  double departure[2][kTemporalParamCount];
+  const int around[2] = {b.before, b.after};
+  for (int side = 0; side < 2; ++side) {
+    const int k = around[side];
+    double* d = departure[side];
+    // The model at the step, in the pixel's (edited) time.
+    const double step_t = first + (maps.step_times_s[size_t(k)] - first) / scale;
+    params_at(m, step_t, first, maps.curves_at(x, y), d);
+    to_fitted_space(d);
+    double step[kTemporalParamCount];
+    for (int p = 0; p < kTemporalParamCount; ++p) {
+      step[p] = clamp_param(p, maps.step_values.at(x, y, k * kTemporalParamCount + p));
+    }
+    to_fitted_space(step);
+    for (int p = 0; p < kTemporalParamCount; ++p) d[p] = step[p] - d[p];
+  }
+  to_fitted_space(q);
+  temporal_internal::add_departures(departure[0], departure[1], b.w, q);
+  temporal_internal::from_fitted_space(q);
+}
+
 TemporalState models_at(const TemporalMaps& maps, double time_s, StepsSide side);
 
 // The diffuse (Oren-Nayar) and the lobe (Torrance-Sparrow) parts of a state rendered through
@@ -165,6 +199,8 @@ TemporalState models_at(const TemporalMaps& maps, double time_s, StepsSide side)
         for (int p = 0; p < kTemporalParamCount; ++p) {
           q[p] = clamp_param(p, maps.step_values.at(x, y, nearest_step * kTemporalParamCount + p));
         }
+      } else if (maps.modelled_steps && !outside && !maps.step_values.pixels.empty()) {
+        model_with_departures(maps, m, x, y, time_s, q);
       } else {
         params_at(m, time_s, maps.first_time_s(), maps.curves_at(x, y), q);
       }
@@ -380,9 +416,22 @@ int apply_edit(const TemporalEdit& edit, const std::optional<TemporalTransfer>& 
           m[kTWet + p] = bounded(wet);
         }
       }
+      const bool departures = band.modelled_steps && !band.step_values.pixels.empty() &&
+                              temporal_internal::renders_from_model(m);
+      std::vector<float>& scale = band.edited_time_scale;
+      const size_t i = size_t(y) * band.maps.width + x;
+      // A transfer's material is another's: the target's departures from its own model go.
+      if (source && departures) {
+        temporal_internal::write_modelled_steps(nullptr, x, y, band);
+        if (!scale.empty()) scale[i] = 1;
+      }
       if (edit.rate_scale != 1.0 && band.model(x, y) != TemporalModel::kConstant) {
         m[kTRate] = float(m[kTRate] * edit.rate_scale);
         m[kTOnset] = float(first + (m[kTOnset] - first) / edit.rate_scale);
+        if (departures) {
+          if (scale.empty()) scale.assign(band.maps.num_pixels(), 1.0f);
+          scale[i] = float(scale[i] * edit.rate_scale);
+        }
       }
       ++count;
     }

@@ -212,6 +212,7 @@ class TimeBands : public BandPlan {
     header.step_times_s = times_;
     header.noise = options_.brdf.normals.noise;
     header.noise_source = options_.brdf.noise_source;
+    header.modelled_steps = true;  // count_temporal_models writes them.
     return header;
   }
 

@@ -26,10 +26,11 @@ void print(const char* what, const ErrorsByMaterial& errors) {
 // samples, 151 LEDs, 7 of 13 steps captured, normals refined over every step):
 //                 held out: curves / processes only / linear / nearest   captured: curves / steps /
 //                 photos
-//   corroding metal         0.077 / 0.064 / 0.116 / 0.304                  0.0201 / 0.0096 / 0.034
-//   stone slab              0.107 / 0.159 / 0.108 / 0.140                  0.0149 / 0.0132 / 0.032
-// (Before the normals were refined over every step: captured 0.0419 / 0.0402 and 0.0147 / 0.0142;
-// the per-step fits gained more than the curves, which stay within 1.1x of them only on the slab.)
+//   corroding metal         0.075 / 0.075 / 0.116 / 0.304                  0.0197 / 0.0096 / 0.034
+//   stone slab              0.105 / 0.124 / 0.108 / 0.140                  0.0146 / 0.0132 / 0.032
+// (Before the models rendered their steps' significant departures (TemporalMaps::step_values):
+// processes only 0.064 and 0.159, captured 0.0223 and 0.0151. Before the normals were refined over
+// every step: captured 0.0419 / 0.0402 and 0.0147 / 0.0142.)
 TEST(TemporalCurves, RiseAndFallHeldOutAgainstInterpolationAndPerStepFits) {
   // 13 steps over 1200 s on a 151-LED dome; every other one captured.
   const evaluation::TimeLapse lapse = evaluation::rise_and_fall_time_lapse(151, 32, 24, 13, 1200.0);
@@ -54,8 +55,9 @@ TEST(TemporalCurves, RiseAndFallHeldOutAgainstInterpolationAndPerStepFits) {
     EXPECT_LE(error(s.fit, name), error(s.linear, name)) << name;
     EXPECT_LT(error(s.fit, name), error(s.nearest, name)) << name;
   }
-  // The slab's two phases: the curves follow them better than any process does.
-  EXPECT_LT(error(s.fit, slab), 0.8 * error(s.processes_only, slab));
+  // The slab's two phases: the curves follow them better than any process does, departures and
+  // all (without the departures the processes lose by more: 0.66x).
+  EXPECT_LT(error(s.fit, slab), 0.9 * error(s.processes_only, slab));
   for (const std::string& name : {metal, slab}) {
     EXPECT_LT(error(s.fit_at_captured, name), error(s.photos_at_captured, name)) << name;
   }

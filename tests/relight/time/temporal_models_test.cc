@@ -76,6 +76,60 @@ TEST(TemporalFit, RunawayProcessIsFlaggedAndRendersFromTheNearestStep) {
   }
 }
 
+// A modelled pixel renders a captured step as its per-step fit where that fit departs from the
+// model beyond its noise, and the model where the departure is within it (TemporalMaps::
+// step_values): pixel 0 is constant but for one step 10 sigma off (a spill wiped off between two
+// steps), pixel 1 for one step half a sigma off (noise). In memory and after a round trip through
+// the file; a file from before (no modelled steps) renders the model alone.
+TEST(TemporalFit, AModelRendersAStepThatDepartsBeyondItsNoiseAsItsFit) {
+  const int width = 2, count = 13, odd = 6;
+  const double sd = 0.003, base = 0.1;
+  const double bump[width] = {10 * sd, 0.5 * sd};
+  NormalMap normals;
+  normals.normal = Image(width, 1, 3);
+  normals.flags = Image(width, 1, 1);
+  for (int x = 0; x < width; ++x) normals.normal.at(x, 0, 2) = 1;
+  std::vector<StepFit> steps;
+  for (int i = 0; i < count; ++i) {
+    StepFit s;
+    s.time_s = 3600.0 * i;
+    s.value = Image(width, 1, kTemporalParamCount);
+    s.sigma = Image(width, 1, kTemporalParamCount, float(sd));
+    for (int x = 0; x < width; ++x) {
+      for (int c = 0; c < 3; ++c)
+        s.value.at(x, 0, kParamAlbedoR + c) = float(base + (i == odd ? bump[x] : 0.0));
+      s.value.at(x, 0, kParamSigma) = 0.1f;
+      s.value.at(x, 0, kParamKs) = 0.2f;
+      s.value.at(x, 0, kParamRoughness) = 0.3f;
+    }
+    steps.push_back(std::move(s));
+  }
+  TemporalMaps maps = fit_temporal_models(steps, normals, TemporalFitOptions{});
+  for (int x = 0; x < width; ++x) {
+    ASSERT_NE(maps.model(x, 0), TemporalModel::kSteps) << x;  // Modelled, not interpolated.
+  }
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("departure_" + std::to_string(::getpid()));
+  write_temporal_maps(dir / "t.exr", maps);
+  const TemporalMaps back = read_temporal_maps(dir / "t.exr");
+  std::filesystem::remove_all(dir);
+  EXPECT_TRUE(back.modelled_steps);
+  const auto albedo = [](const TemporalMaps& m, int x, double hours) {
+    return double(models_at_time(m, hours * 3600).maps.maps.at(x, 0, kMapAlbedoR));
+  };
+  for (const TemporalMaps* m : {static_cast<const TemporalMaps*>(&maps), &back}) {
+    const double model = pixel_of(*m, 0, 0)[kTDry];  // Constant: its value.
+    // James-Stein keeps (1 - 1/z^2) of a departure z sigma: within 1/z of a sigma of the step.
+    EXPECT_NEAR(albedo(*m, 0, odd), base + bump[0], sd / 9) << "model " << model;
+    EXPECT_NEAR(albedo(*m, 0, odd + 1), model, 1e-6);  // Within its noise: the model.
+    // Halfway to the next step: half the departure, on the model.
+    EXPECT_NEAR(albedo(*m, 0, odd + 0.5), 0.5 * (albedo(*m, 0, odd) + model), 1e-5);
+    EXPECT_NEAR(albedo(*m, 1, odd), pixel_of(*m, 1, 0)[kTDry], 1e-6);  // Noise: not rendered.
+  }
+  maps.modelled_steps = false;  // As a file from before the modelled steps reads.
+  EXPECT_NEAR(albedo(maps, 0, odd), pixel_of(maps, 0, 0)[kTDry], 1e-6);
+}
+
 // A material that rises and falls (a corroding metal: red albedo 0.073 -> 0.118 -> 0.057,
 // k_s 0.20 -> 0.01, roughness 0.065 -> 0.27), each pixel on its own clock (rate +-30%, onset
 // +-1.5 h), captured every other hour of twelve with per-step noise. No process follows it: the
