@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <random>
 #include <utility>
 #include <vector>
@@ -19,6 +20,36 @@ namespace {
 
 using namespace time_testing;  // NOLINT(google-build-using-namespace)
 
+// A row of `width` pixels facing the camera.
+NormalMap facing_the_camera(int width) {
+  NormalMap normals;
+  normals.normal = Image(width, 1, 3);
+  normals.flags = Image(width, 1, 1);
+  for (int x = 0; x < width; ++x) normals.normal.at(x, 0, 2) = 1;
+  return normals;
+}
+
+// `count` hourly per-step fits of a row of `width` pixels, each parameter's deviation `sd`: grey
+// albedo albedo(x, i) at step i, sigma 0.1, k_s 0.2, roughness 0.3.
+std::vector<StepFit> hourly_steps(int width, int count, double sd,
+                                  const std::function<double(int x, int i)>& albedo) {
+  std::vector<StepFit> steps;
+  for (int i = 0; i < count; ++i) {
+    StepFit s;
+    s.time_s = 3600.0 * i;
+    s.value = Image(width, 1, kTemporalParamCount);
+    s.sigma = Image(width, 1, kTemporalParamCount, float(sd));
+    for (int x = 0; x < width; ++x) {
+      for (int c = 0; c < 3; ++c) s.value.at(x, 0, kParamAlbedoR + c) = float(albedo(x, i));
+      s.value.at(x, 0, kParamSigma) = 0.1f;
+      s.value.at(x, 0, kParamKs) = 0.2f;
+      s.value.at(x, 0, kParamRoughness) = 0.3f;
+    }
+    steps.push_back(std::move(s));
+  }
+  return steps;
+}
+
 // A pixel whose albedo climbs in a straight line over the capture (the corroding metal's first
 // phase) has no process that the data bound: exponential and sigmoid fit the line with a rate the
 // span cannot show and endpoints far beyond the data (renders 270x too bright).
@@ -26,27 +57,12 @@ using namespace time_testing;  // NOLINT(google-build-using-namespace)
 // trip through the file; a pixel that follows a real exponential is not flagged.
 TEST(TemporalFit, RunawayProcessIsFlaggedAndRendersFromTheNearestStep) {
   const int width = 2, count = 13;
-  NormalMap normals;
-  normals.normal = Image(width, 1, 3);
-  normals.flags = Image(width, 1, 1);
-  for (int x = 0; x < width; ++x) normals.normal.at(x, 0, 2) = 1;
-  std::vector<StepFit> steps;
-  for (int i = 0; i < count; ++i) {
-    StepFit s;
-    s.time_s = 3600.0 * i;
-    s.value = Image(width, 1, kTemporalParamCount);
-    s.sigma = Image(width, 1, kTemporalParamCount, 0.003f);
+  const NormalMap normals = facing_the_camera(width);
+  const std::vector<StepFit> steps = hourly_steps(width, count, 0.003, [](int x, int i) {
     const double line = 0.05 + 0.07 * i / (count - 1);      // Pixel 0: a straight line.
     const double decay = 0.06 + 0.08 * std::exp(-i / 3.0);  // Pixel 1: an exponential.
-    for (int x = 0; x < width; ++x) {
-      for (int c = 0; c < 3; ++c)
-        s.value.at(x, 0, kParamAlbedoR + c) = float(x == 0 ? line : decay);
-      s.value.at(x, 0, kParamSigma) = 0.1f;
-      s.value.at(x, 0, kParamKs) = 0.2f;
-      s.value.at(x, 0, kParamRoughness) = 0.3f;
-    }
-    steps.push_back(std::move(s));
-  }
+    return x == 0 ? line : decay;
+  });
   const TemporalMaps maps = fit_temporal_models(steps, normals, TemporalFitOptions{});
   const int line_flags = int(pixel_of(maps, 0, 0)[kTFlags]);
   const int decay_flags = int(pixel_of(maps, 1, 0)[kTFlags]);
@@ -85,25 +101,9 @@ TEST(TemporalFit, AModelRendersAStepThatDepartsBeyondItsNoiseAsItsFit) {
   const int width = 2, count = 13, odd = 6;
   const double sd = 0.003, base = 0.1;
   const double bump[width] = {10 * sd, 0.5 * sd};
-  NormalMap normals;
-  normals.normal = Image(width, 1, 3);
-  normals.flags = Image(width, 1, 1);
-  for (int x = 0; x < width; ++x) normals.normal.at(x, 0, 2) = 1;
-  std::vector<StepFit> steps;
-  for (int i = 0; i < count; ++i) {
-    StepFit s;
-    s.time_s = 3600.0 * i;
-    s.value = Image(width, 1, kTemporalParamCount);
-    s.sigma = Image(width, 1, kTemporalParamCount, float(sd));
-    for (int x = 0; x < width; ++x) {
-      for (int c = 0; c < 3; ++c)
-        s.value.at(x, 0, kParamAlbedoR + c) = float(base + (i == odd ? bump[x] : 0.0));
-      s.value.at(x, 0, kParamSigma) = 0.1f;
-      s.value.at(x, 0, kParamKs) = 0.2f;
-      s.value.at(x, 0, kParamRoughness) = 0.3f;
-    }
-    steps.push_back(std::move(s));
-  }
+  const std::vector<StepFit> steps = hourly_steps(
+      width, count, sd, [&](int x, int i) { return base + (i == odd ? bump[x] : 0.0); });
+  const NormalMap normals = facing_the_camera(width);
   TemporalMaps maps = fit_temporal_models(steps, normals, TemporalFitOptions{});
   for (int x = 0; x < width; ++x) {
     ASSERT_NE(maps.model(x, 0), TemporalModel::kSteps) << x;  // Modelled, not interpolated.
