@@ -350,7 +350,8 @@ class CurveSample {
 void offer_temporal_curves(const std::vector<StepFit>& steps, const std::vector<double>& best_bic,
                            const std::vector<TemporalCurves>& curves, TemporalMaps& band);
 // Model choice that cannot lose to the data (options.hold_out_steps), on a band after the curves
-// were offered: per pixel whose model leaves its steps unexplained (reduced chi^2 above 4), each
+// were offered: per pixel whose process leaves its steps unexplained (reduced chi^2 above 4) and
+// per curve pixel (a curve learnt from the steps can pass through them), each
 // interior usable step is left out in turn, the pixel's model fitted again
 // without it (a process refined from its fit, a curve of its family, the constant) and its
 // prediction at that step (with its departures at the neighbouring steps) compared with the linear
