@@ -260,8 +260,9 @@ struct TemporalMaps {
   // at the step plus its per-step fit's significant departure from it (significant_departure),
   // which a render between two steps interpolates onto the model: a captured step renders as its
   // fit wherever that fit stands out of its noise, the model smooths the noise elsewhere, and an
-  // editor starts from the material captured (issue 44: the steps 2x closer to their fits, 3 of
-  // 13 captured). 0 at unfitted pixels; empty when no pixel is fitted.
+  // editor starts from the material captured (the rise-and-fall lapse, 3 of 25 steps captured:
+  // relative error at the captured steps 0.026 -> 0.013, the per-step fits' 0.013). 0 at unfitted
+  // pixels; empty when no pixel is fitted.
   Image step_values;
   // Whether step_values holds the modelled pixels' steps too: files before them hold only the
   // kSteps and degenerate pixels', and their modelled pixels render from the model alone.
