@@ -214,6 +214,10 @@ inline bool renders_from_model(const float* m) {
   return model != TemporalModel::kNone && model != TemporalModel::kSteps &&
          (int(m[kTFlags]) & kTemporalDegenerate) == 0;
 }
+// The model in temporal map channels m (curve family `family`) at series step j, in the curves'
+// space, and that step's significant departure from it.
+void model_and_departure(const float* m, const TemporalCurves* family, double first_time_s,
+                         const Series& series, int j, double* model, double* departure);
 // Modelled pixel (x, y)'s steps in band.step_values (TemporalMaps::step_values): its model at
 // each step plus, with `steps`, the step's fit's significant departure from it (none at a step
 // unusable there); without, the model alone (an edited pixel follows its edited model).

@@ -19,11 +19,11 @@ using temporal_internal::fit_curve;
 using temporal_internal::fit_process;
 using temporal_internal::gather_series;
 using temporal_internal::interpolate_params;
+using temporal_internal::model_and_departure;
 using temporal_internal::params_at;
 using temporal_internal::Series;
 using temporal_internal::shape_bounds;
 using temporal_internal::ShapeBounds;
-using temporal_internal::significant_departure;
 using temporal_internal::TemporalResult;
 using temporal_internal::to_fitted_space;
 using temporal_internal::to_physical;
@@ -121,15 +121,10 @@ void held_out_chi2(const float* m, const TemporalCurves* family, const Series& p
     params_at(refit, curves.t[k], c.t_first, family, q);
     to_fitted_space(q);
     // With the refit's departures at the neighbours, as a render between them adds them.
-    double departure[2][kTemporalParamCount];
+    double departure[2][kTemporalParamCount], at_neighbour[kTemporalParamCount];
     for (int side = 0; side < 2; ++side) {
-      const int j = k - 1 + 2 * side;
-      double* d = departure[side];
-      params_at(refit, curves.t[j], c.t_first, family, d);
-      to_fitted_space(d);
-      for (int p = 0; p < kTemporalParamCount; ++p) {
-        d[p] = significant_departure(curves.y[j][p] - d[p], curves.w[j][p]);
-      }
+      model_and_departure(refit, family, c.t_first, curves, k - 1 + 2 * side, at_neighbour,
+                          departure[side]);
     }
     add_departures(departure[0], departure[1],
                    (curves.t[k] - curves.t[k - 1]) / (curves.t[k + 1] - curves.t[k - 1]), q);
@@ -156,10 +151,8 @@ double parameters_of(const float* m) {
 // out 0.139 with only its unexplained pixels tested, 0.126 with every curve's; linear
 // interpolation of the photos 0.125). Degenerate pixels render from their steps already.
 bool held_out_candidate(const float* m) {
-  const TemporalModel model = TemporalModel(int(m[kTModel]));
-  return model != TemporalModel::kNone && model != TemporalModel::kSteps &&
-         (int(m[kTFlags]) & kTemporalDegenerate) == 0 &&
-         (model == TemporalModel::kCurve ||
+  return temporal_internal::renders_from_model(m) &&
+         (TemporalModel(int(m[kTModel])) == TemporalModel::kCurve ||
           m[kTResidual] > temporal_internal::kUnexplainedResidual);
 }
 

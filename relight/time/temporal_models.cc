@@ -273,6 +273,16 @@ void count_temporal_models(const std::vector<StepFit>& steps, TemporalMaps& band
   });
 }
 
+void temporal_internal::model_and_departure(const float* m, const TemporalCurves* family,
+                                            double first_time_s, const Series& series, int j,
+                                            double* model, double* departure) {
+  params_at(m, series.t[j], first_time_s, family, model);
+  to_fitted_space(model);
+  for (int p = 0; p < kTemporalParamCount; ++p) {
+    departure[p] = significant_departure(series.y[j][p] - model[p], series.w[j][p]);
+  }
+}
+
 void temporal_internal::write_modelled_steps(const std::vector<StepFit>* steps, int x, int y,
                                              TemporalMaps& band) {
   const float* m = &band.maps.at(x, y, 0);
@@ -282,13 +292,14 @@ void temporal_internal::write_modelled_steps(const std::vector<StepFit>* steps, 
   for (size_t k = 0; k < band.step_times_s.size(); ++k) {
     const double t = band.step_times_s[k];
     double q[kTemporalParamCount];
-    params_at(m, t, band.first_time_s(), band.curves_at(x, y), q);
-    to_fitted_space(q);
     if (steps && used < series.steps && series.t[used] == t) {
-      for (int p = 0; p < kTemporalParamCount; ++p) {
-        q[p] += significant_departure(series.y[used][p] - q[p], series.w[used][p]);
-      }
-      ++used;
+      double departure[kTemporalParamCount];
+      model_and_departure(m, band.curves_at(x, y), band.first_time_s(), series, used++, q,
+                          departure);
+      for (int p = 0; p < kTemporalParamCount; ++p) q[p] += departure[p];
+    } else {
+      params_at(m, t, band.first_time_s(), band.curves_at(x, y), q);
+      to_fitted_space(q);
     }
     from_fitted_space(q);
     for (int p = 0; p < kTemporalParamCount; ++p) {
